@@ -1,0 +1,391 @@
+"""The Bus interface and what both implementations share: decoding, queues, bad-sample accounting.
+
+Implementations only move bytes: they hand `(key, encoding, payload)` to `_dispatch` of each
+matching subscription. Everything a user relies on — strict decoding, type filters, ROS-like
+`queue_size`, counted and rate-limited warnings — lives here once.
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import threading
+import time
+from typing import Any, Callable, Iterator, NamedTuple
+
+from .. import codec
+from ..keys import validate_key_expr
+from ..messages import GenericMessage, Message
+
+log = logging.getLogger("mrta.bus")
+
+
+class Sample(NamedTuple):
+    """A decoded sample. A NamedTuple: immutable and the cheapest object to build per sample."""
+
+    key: str
+    type_name: str
+    message: Message | GenericMessage
+    payload: bytes
+
+
+class RawSample(NamedTuple):
+    key: str
+    encoding: str
+    payload: bytes
+
+
+Handler = Callable[[Sample], None]
+ErrorHandler = Callable[[str, Exception], None]
+
+
+class Stats:
+    """Counters per bus; read by tests, `--json` outputs and benchmarks."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self.counts: collections.Counter[str] = collections.Counter()
+
+    def add(self, name: str, n: int = 1) -> None:
+        with self._lock:
+            self.counts[name] += n
+
+    def __getitem__(self, name: str) -> int:
+        return self.counts[name]
+
+
+class _RateLimitedWarning:
+    """At most one log line per (kind, key expression) per `period` seconds, with a running count."""
+
+    def __init__(self, period: float = 5.0):
+        self.period = period
+        self._last: dict[tuple[str, str], float] = {}
+        self._lock = threading.Lock()
+
+    def __call__(self, kind: str, where: str, text: str, count: int) -> None:
+        now = time.monotonic()
+        with self._lock:
+            last = self._last.get((kind, where))
+            if last is not None and now - last < self.period:
+                return
+            self._last[(kind, where)] = now
+        log.warning("%s (%d so far on %s)", text, count, where)
+
+
+class Subscription:
+    """A declared interest in a key expression.
+
+    Delivery modes: a handler called on the network thread (keep it tiny), a handler called from
+    a worker thread through a bounded queue, or no handler at all and `get()` / iteration.
+    A bounded queue keeps the newest `queue_size` samples and drops the oldest, as ROS does.
+    """
+
+    def __init__(
+        self,
+        bus: "Bus",
+        key_expr: str,
+        handler: Handler | None,
+        queue_size: int | None,
+        msg_type: type[Message] | None,
+        on_error: ErrorHandler | None,
+        raw: bool = False,
+    ):
+        self.bus = bus
+        self.key_expr = key_expr
+        self.handler = handler
+        self.msg_type = msg_type
+        self.on_error = on_error
+        self.raw = raw
+        self.received = 0
+        self.malformed = 0
+        self.wrong_type = 0
+        self.dropped = 0
+        self._closed = False
+        self._queue: collections.deque | None = None
+        self._cond: threading.Condition | None = None
+        self._worker: threading.Thread | None = None
+        self._expected_type = msg_type.TYPE_NAME if msg_type is not None else None
+        self._decoders: dict[str, tuple] = {}
+        if handler is None or queue_size is not None:
+            self._queue = collections.deque(maxlen=queue_size or 1000)
+            self._cond = threading.Condition()
+            if handler is not None:
+                self._worker = threading.Thread(
+                    target=self._drain, name=f"mrta-sub:{key_expr}", daemon=True
+                )
+                self._worker.start()
+        self._native: Any = None  # the implementation's handle
+
+    # ---- called by the implementation on its receive thread
+    def _dispatch(self, key: str, encoding: str, payload: bytes) -> None:
+        if self._closed:
+            return
+        if self.raw:
+            self._deliver(RawSample(key, encoding, payload))
+            return
+        try:
+            entry = self._decoders.get(encoding)
+            if entry is None:
+                entry = codec.decoder_for(encoding)
+                if len(self._decoders) < 64:  # bounded: encodings come from the network
+                    self._decoders[encoding] = entry
+            type_name, decode = entry
+            if self._expected_type is not None and type_name != self._expected_type:
+                self.wrong_type += 1
+                self.bus.stats.add("wrong_type")
+                self.bus._warn(
+                    "wrong_type", self.key_expr,
+                    f"sample on {key} is {type_name}, expected {self._expected_type}: ignored",
+                    self.wrong_type,
+                )
+                return
+            msg = decode(payload)
+        except codec.DecodeError as exc:
+            self.malformed += 1
+            self.bus.stats.add("malformed")
+            if self.on_error is not None:
+                self.on_error(key, exc)
+            else:
+                self.bus._warn(
+                    "malformed", self.key_expr, f"dropped malformed sample on {key}: {exc}",
+                    self.malformed,
+                )
+            return
+        self._deliver(Sample(key, type_name, msg, payload))
+
+    def _deliver(self, sample: Any) -> None:
+        self.received += 1
+        if self._queue is None:
+            try:
+                self.handler(sample)
+            except Exception:  # a user's handler must never kill the network thread
+                self.bus.stats.add("handler_errors")
+                log.exception("handler for %s raised", self.key_expr)
+            return
+        with self._cond:
+            if len(self._queue) == self._queue.maxlen:
+                self.dropped += 1
+            self._queue.append(sample)
+            self._cond.notify()
+
+    def _drain(self) -> None:
+        while True:
+            with self._cond:
+                while not self._queue and not self._closed:
+                    self._cond.wait()
+                if self._closed:
+                    return
+                sample = self._queue.popleft()
+            try:
+                self.handler(sample)
+            except Exception:
+                self.bus.stats.add("handler_errors")
+                log.exception("handler for %s raised", self.key_expr)
+
+    # ---- pull API
+    def get(self, timeout: float | None = None) -> Any:
+        """The oldest queued sample, or None after `timeout` seconds (or when closed)."""
+        if self._queue is None or self._worker is not None:
+            raise RuntimeError("get() is for subscriptions declared without a handler")
+        deadline = None if timeout is None else time.monotonic() + timeout
+        with self._cond:
+            while not self._queue:
+                if self._closed:
+                    return None
+                remaining = None if deadline is None else deadline - time.monotonic()
+                if remaining is not None and remaining <= 0:
+                    return None
+                self._cond.wait(remaining if remaining is not None else 0.1)
+            return self._queue.popleft()
+
+    def __iter__(self) -> Iterator[Any]:
+        while not self._closed:
+            s = self.get(timeout=0.1)
+            if s is not None:
+                yield s
+
+    def close(self) -> None:
+        if self._closed:
+            return
+        self._closed = True
+        if self._cond is not None:
+            with self._cond:
+                self._cond.notify_all()
+        self.bus._undeclare(self)
+
+    def __enter__(self) -> "Subscription":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class LivelinessWatch:
+    """Reports tokens appearing and disappearing under a key expression: on_change(key, alive)."""
+
+    def __init__(self, bus: "Bus", key_expr: str, on_change: Callable[[str, bool], None]):
+        self.bus = bus
+        self.key_expr = key_expr
+        self.on_change = on_change
+        self._native: Any = None
+        self._closed = False
+
+    def _event(self, key: str, alive: bool) -> None:
+        if self._closed:
+            return
+        try:
+            self.on_change(key, alive)
+        except Exception:
+            log.exception("liveliness handler for %s raised", self.key_expr)
+
+    def close(self) -> None:
+        if not self._closed:
+            self._closed = True
+            self.bus._undeclare_watch(self)
+
+    def __enter__(self) -> "LivelinessWatch":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class Token:
+    def __init__(self, bus: "Bus", key: str):
+        self.bus = bus
+        self.key = key
+        self._native: Any = None
+        self._closed = False
+
+    def close(self) -> None:
+        if not self._closed:
+            self._closed = True
+            self.bus._undeclare_token(self)
+
+    def __enter__(self) -> "Token":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class Bus:
+    """Publish typed messages, subscribe by key expression, and track liveliness.
+
+    `namespace` prefixes every key on the wire (like ROS_DOMAIN_ID) and is stripped from the keys
+    handed to subscribers, so application code never sees it.
+    """
+
+    def __init__(self, namespace: str = ""):
+        self.namespace = namespace.strip("/")
+        if self.namespace:
+            validate_key_expr(self.namespace)
+        self.stats = Stats()
+        self._warn = _RateLimitedWarning()
+        self._subs: list[Subscription] = []
+        self._watches: list[LivelinessWatch] = []
+        self._tokens: list[Token] = []
+        self._lock = threading.Lock()
+        self._closed = False
+
+    # ---- public API
+    def publish(self, key: str, msg: Message | GenericMessage) -> None:
+        type_name = msg.type_name if type(msg) is GenericMessage else msg.TYPE_NAME
+        self.publish_raw(key, codec.encoding_for(type_name), codec.encode(msg))
+
+    def publish_raw(self, key: str, encoding: str, payload: bytes) -> None:
+        raise NotImplementedError
+
+    def subscribe(
+        self,
+        key_expr: str,
+        handler: Handler | None = None,
+        *,
+        queue_size: int | None = None,
+        msg_type: type[Message] | None = None,
+        on_error: ErrorHandler | None = None,
+    ) -> Subscription:
+        validate_key_expr(key_expr)
+        sub = Subscription(self, key_expr, handler, queue_size, msg_type, on_error)
+        self._declare(sub)
+        return sub
+
+    def subscribe_raw(
+        self, key_expr: str, handler: Callable[[RawSample], None] | None = None,
+        *, queue_size: int | None = None,
+    ) -> Subscription:
+        """Undecoded samples (recording, bridges): key, encoding string and payload bytes."""
+        validate_key_expr(key_expr)
+        sub = Subscription(self, key_expr, handler, queue_size, None, None, raw=True)
+        self._declare(sub)
+        return sub
+
+    def declare_token(self, key: str) -> Token:
+        """Announce presence under `key` until closed (or until this process dies)."""
+        validate_key_expr(key)
+        tok = Token(self, key)
+        self._declare_token(tok)
+        return tok
+
+    def watch_liveliness(
+        self, key_expr: str, on_change: Callable[[str, bool], None], history: bool = True
+    ) -> LivelinessWatch:
+        """Call on_change(key, True/False) as tokens appear/disappear; history: report current ones."""
+        validate_key_expr(key_expr)
+        w = LivelinessWatch(self, key_expr, on_change)
+        self._declare_watch(w, history)
+        return w
+
+    def close(self) -> None:
+        with self._lock:
+            if self._closed:
+                return
+            self._closed = True
+            subs, watches, tokens = list(self._subs), list(self._watches), list(self._tokens)
+        for s in subs:
+            s.close()
+        for w in watches:
+            w.close()
+        for t in tokens:
+            t.close()
+        self._close_impl()
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    def __enter__(self) -> "Bus":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ---- for implementations
+    def _wire(self, key: str) -> str:
+        return f"{self.namespace}/{key}" if self.namespace else key
+
+    def _local(self, key: str) -> str:
+        if self.namespace and key.startswith(self.namespace + "/"):
+            return key[len(self.namespace) + 1:]
+        return key
+
+    def _declare(self, sub: Subscription) -> None:
+        raise NotImplementedError
+
+    def _undeclare(self, sub: Subscription) -> None:
+        raise NotImplementedError
+
+    def _declare_token(self, tok: Token) -> None:
+        raise NotImplementedError
+
+    def _undeclare_token(self, tok: Token) -> None:
+        raise NotImplementedError
+
+    def _declare_watch(self, w: LivelinessWatch, history: bool) -> None:
+        raise NotImplementedError
+
+    def _undeclare_watch(self, w: LivelinessWatch) -> None:
+        raise NotImplementedError
+
+    def _close_impl(self) -> None:
+        pass

@@ -1,0 +1,173 @@
+"""The real bus: eclipse-zenoh. The only module of the project that imports `zenoh`.
+
+Traps handled here (ZENOH_NOTES.md): every entity is undeclared and the session closed in
+close(), so no callback thread keeps the interpreter from exiting; publishers use
+CongestionControl.BLOCK, because DROP loses state under bursts; Python references to tokens and
+subscribers are kept for as long as they are meant to live.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import threading
+from typing import Any
+
+import msgpack
+import zenoh
+
+from .. import codec
+from ..errors import ConfigError, MrtaRuntimeError
+from .base import Bus, LivelinessWatch, Subscription, Token
+from .options import BusOptions, session_configs
+from ..messages import GenericMessage, Message
+
+_packb = msgpack.packb
+
+log = logging.getLogger("mrta.bus")
+zenoh.init_log_from_env_or("error")
+
+
+def _zenoh_config(cfg: dict[str, Any]) -> "zenoh.Config":
+    conf = zenoh.Config()
+    for key, value in cfg.items():
+        try:
+            conf.insert_json5(key, json.dumps(value))
+        except zenoh.ZError as exc:
+            raise ConfigError(f"invalid Zenoh configuration for {key!r}: {exc}") from None
+    return conf
+
+
+def open_session(opts: BusOptions) -> "zenoh.Session":
+    configs = session_configs(opts)
+    last: Exception | None = None
+    for i, cfg in enumerate(configs):
+        conf = _zenoh_config(cfg)
+        try:
+            return zenoh.open(conf)
+        except zenoh.ZError as exc:
+            last = exc
+            text = str(exc)
+            if "Address already in use" in text and i + 1 < len(configs):
+                continue  # rendezvous taken: join it instead
+            if "Address already in use" in text:
+                raise MrtaRuntimeError(f"cannot listen: address already in use ({_first_line(text)})") from None
+            if "endpoint" in text.lower() or "locator" in text.lower():
+                raise ConfigError(f"Zenoh rejected an endpoint: {_first_line(text)}") from None
+            raise MrtaRuntimeError(f"cannot open a Zenoh session: {_first_line(text)}") from None
+    raise MrtaRuntimeError(f"cannot open a Zenoh session: {last}")
+
+
+def _first_line(text: str) -> str:
+    return text.split(" at /", 1)[0].strip()
+
+
+class ZenohBus(Bus):
+    def __init__(self, options: BusOptions | None = None):
+        options = options or BusOptions()
+        super().__init__(options.namespace)
+        self.options = options
+        self.session = open_session(options)
+        self._publishers: dict[str, Any] = {}
+        self._pub_lock = threading.Lock()
+        self._encodings: dict[str, Any] = {}
+        self._typed: dict[str, tuple] = {}
+
+    @property
+    def zid(self) -> str:
+        return str(self.session.zid())
+
+    def publish(self, key: str, msg: Message | GenericMessage) -> None:
+        # Hot path: one dict lookup gives publisher, encoding and encoder (a key nearly always
+        # carries one type; a different type just rebuilds the entry).
+        entry = self._typed.get(key)
+        if entry is None or entry[0] is not type(msg):
+            if type(msg) is GenericMessage:
+                return super().publish(key, msg)
+            entry = (type(msg), self._publisher(key),
+                     self._encoding(codec.encoding_for(msg.TYPE_NAME)), codec.encoder_for(type(msg)))
+            self._typed[key] = entry
+        _, pub, enc, to_map = entry
+        pub.put(_packb(to_map(msg), use_bin_type=True), encoding=enc)
+
+    def publish_raw(self, key: str, encoding: str, payload: bytes) -> None:
+        self._publisher(key).put(payload, encoding=self._encoding(encoding))
+
+    def _publisher(self, key: str) -> Any:
+        pub = self._publishers.get(key)
+        if pub is None:
+            with self._pub_lock:
+                pub = self._publishers.get(key)
+                if pub is None:
+                    pub = self.session.declare_publisher(
+                        self._wire(key), congestion_control=zenoh.CongestionControl.BLOCK
+                    )
+                    self._publishers[key] = pub
+        return pub
+
+    def _encoding(self, encoding: str) -> Any:
+        enc = self._encodings.get(encoding)
+        if enc is None:
+            enc = self._encodings[encoding] = zenoh.Encoding(encoding)
+        return enc
+
+    def _declare(self, sub: Subscription) -> None:
+        dispatch = sub._dispatch
+        ns = self.namespace
+        cut = len(ns) + 1
+
+        def on_sample(s: "zenoh.Sample") -> None:
+            key = str(s.key_expr)
+            if ns:
+                key = key[cut:]
+            dispatch(key, str(s.encoding), s.payload.to_bytes())
+
+        sub._native = self.session.declare_subscriber(self._wire(sub.key_expr), on_sample)
+        self._subs.append(sub)
+
+    def _undeclare(self, sub: Subscription) -> None:
+        if sub._native is not None:
+            sub._native.undeclare()
+            sub._native = None
+
+    def _declare_token(self, tok: Token) -> None:
+        tok._native = self.session.liveliness().declare_token(self._wire(tok.key))
+        self._tokens.append(tok)
+
+    def _undeclare_token(self, tok: Token) -> None:
+        if tok._native is not None:
+            tok._native.undeclare()
+            tok._native = None
+
+    def _declare_watch(self, w: LivelinessWatch, history: bool) -> None:
+        local = self._local
+
+        def on_sample(s: "zenoh.Sample") -> None:
+            w._event(local(str(s.key_expr)), s.kind == zenoh.SampleKind.PUT)
+
+        w._native = self.session.liveliness().declare_subscriber(
+            self._wire(w.key_expr), on_sample, history=history
+        )
+        self._watches.append(w)
+
+    def _undeclare_watch(self, w: LivelinessWatch) -> None:
+        if w._native is not None:
+            w._native.undeclare()
+            w._native = None
+
+    def _close_impl(self) -> None:
+        for pub in self._publishers.values():
+            pub.undeclare()
+        self._publishers.clear()
+        self._typed.clear()
+        self.session.close()
+
+
+def run_router(options: BusOptions, stop: threading.Event) -> str:
+    """Run a Zenoh router (router mode of the same library) until `stop` is set."""
+    session = open_session(options)
+    try:
+        stop.wait()
+    finally:
+        session.close()
+    return str(session.zid())

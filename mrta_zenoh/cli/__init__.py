@@ -1,0 +1,1 @@
+"""The `mrta` command line: a click group whose subcommands come from entry points."""

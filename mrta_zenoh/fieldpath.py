@@ -1,0 +1,116 @@
+"""Field paths in variant_topic_tools syntax: `header/frame_id`, `points/0/x`, leading `/` ignored.
+
+A path is parsed and checked once (when a monitor or `mrta echo --field` is set up) and then
+resolved per sample with a flat loop: no string handling, never `eval`.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Any
+
+from .messages import GenericMessage, Message
+
+
+class FieldPathError(ValueError):
+    pass
+
+
+class FieldPath:
+    __slots__ = ("text", "steps")
+
+    def __init__(self, text: str, steps: tuple):
+        self.text = text
+        self.steps = steps
+
+    @classmethod
+    def parse(cls, text: str) -> "FieldPath":
+        stripped = text.strip()
+        body = stripped.lstrip("/")
+        if body == "":
+            return cls(stripped, ())
+        steps: list[str | int] = []
+        for part in body.split("/"):
+            if part == "":
+                raise FieldPathError(f"field path {text!r} has an empty part ('//' or a trailing '/')")
+            if part.isdigit():
+                steps.append(int(part))
+            elif part.isidentifier():
+                steps.append(part)
+            else:
+                raise FieldPathError(
+                    f"field path {text!r}: part {part!r} is neither a field name nor an index"
+                )
+        return cls(stripped, tuple(steps))
+
+    def __repr__(self) -> str:
+        return f"FieldPath({self.text!r})"
+
+    def __str__(self) -> str:
+        return self.text
+
+    def resolve(self, msg: Any) -> Any:
+        """The value at this path in a message (typed or generic); FieldPathError if absent."""
+        value = msg.data if type(msg) is GenericMessage else msg
+        for i, step in enumerate(self.steps):
+            try:
+                if type(step) is int:
+                    if isinstance(value, (list, tuple)):
+                        value = value[step]
+                    else:
+                        raise TypeError
+                elif type(value) is dict:
+                    value = value[step]
+                elif isinstance(value, Message):
+                    value = getattr(value, step)
+                else:
+                    raise TypeError
+            except (KeyError, IndexError, AttributeError, TypeError):
+                raise FieldPathError(self._explain(i, value)) from None
+        return value
+
+    def validate(self, cls: type[Message]) -> None:
+        """Check the path against a message class before any sample arrives."""
+        kind, current = "message", cls  # what the path points at so far
+        for i, step in enumerate(self.steps):
+            if kind == "list":
+                if type(step) is not int:
+                    raise FieldPathError(self._explain(i, "list"))
+                if current is None:  # a list of scalars: an index ends the path
+                    kind = "scalar"
+                else:
+                    kind = "message"
+                continue
+            if kind == "scalar" or type(step) is int:
+                raise FieldPathError(self._explain(i, current if kind == "message" else "scalar"))
+            spec = {s.name: s for s in current.FIELDS}.get(step)
+            if spec is None:
+                raise FieldPathError(self._explain(i, current))
+            if spec.kind == "message":
+                current = spec.message_class
+            elif spec.kind.endswith("[]"):
+                kind, current = "list", spec.message_class
+            else:
+                kind = "scalar"
+
+    def _explain(self, i: int, at: Any) -> str:
+        done = "/".join(str(s) for s in self.steps[:i]) or "(the message)"
+        part = self.steps[i]
+        return f"field path {self.text!r}: no {part!r} in {done}; {_describe(at)}"
+
+
+def _is_message_class(x: Any) -> bool:
+    return isinstance(x, type) and issubclass(x, Message)
+
+
+def _describe(at: Any) -> str:
+    if _is_message_class(at):
+        return f"fields there: {', '.join(s.name for s in at.FIELDS)}"
+    if isinstance(at, Message):
+        return f"fields there: {', '.join(f.name for f in dataclasses.fields(at))}"
+    if isinstance(at, dict):
+        return f"fields there: {', '.join(map(str, at)) or '(none)'}"
+    if at == "list" or isinstance(at, (list, tuple)):
+        n = "" if at == "list" else f" of {len(at)} items"
+        return f"it is a list{n}: use an index"
+    return f"it is a plain value ({'scalar' if at == 'scalar' else type(at).__name__}) with no fields"

@@ -1,0 +1,120 @@
+import math
+
+import msgpack
+import pytest
+
+from mrta_zenoh import codec
+from mrta_zenoh.messages import (
+    Clock, GenericMessage, Header, InterRobotCommunication, Motivation, Odometry, Point2D,
+    PointCloud, Pose2D, SensoryFeedback, Twist, registered_types,
+)
+
+EXAMPLES = [
+    Header("robot1", 12.5, 7),
+    Clock(3.25),
+    Pose2D(1.0, -2.0, math.pi / 3),
+    Twist(0.4, -0.2),
+    Odometry(Header("robot2", 1.0, 1), Pose2D(1.0, 2.0, 0.5), Twist(0.1, 0.2)),
+    Point2D(0.5, -0.5),
+    PointCloud(Header("robot3", 2.0, 2), tuple(Point2D(i * 0.1, -i * 0.1) for i in range(16))),
+    InterRobotCommunication(Header("robot1", 5.0, 3), "wander", 100.0),
+    Motivation(Header("robot1", 5.0, 3), "report", 6.0, True, False, True, True, 42.0, 250.0, False),
+    SensoryFeedback(Header("robot1", 5.0, 3), "border_protection", True),
+]
+
+
+def test_every_registered_type_has_an_example():
+    assert {type(m).TYPE_NAME for m in EXAMPLES} >= {
+        n for n in registered_types() if not n.startswith("patrol_msgs/")}
+
+
+@pytest.mark.parametrize("msg", EXAMPLES, ids=lambda m: m.TYPE_NAME)
+def test_round_trip(msg):
+    payload = codec.encode(msg)
+    back = codec.decode(msg.TYPE_NAME, payload)
+    assert back == msg
+    assert type(back) is type(msg)
+
+
+def test_wire_format_is_a_plain_msgpack_map():
+    msg = InterRobotCommunication(Header("robot1", 1.5, 2), "wander", 100.0)
+    assert msgpack.unpackb(codec.encode(msg)) == {
+        "header": {"frame_id": "robot1", "stamp": 1.5, "seq": 2},
+        "task_id": "wander", "expected_duration": 100.0,
+    }
+    assert codec.encoding_for(msg.TYPE_NAME) == "application/msgpack;alliance_msgs/InterRobotCommunication"
+
+
+def test_integers_are_accepted_for_float_fields_from_other_clients():
+    payload = msgpack.packb({"linear": 1, "angular": 0})
+    msg = codec.decode("mrta_msgs/Twist", payload)
+    assert msg == Twist(1.0, 0.0) and type(msg.linear) is float
+
+
+def test_unknown_type_decodes_to_generic_message():
+    msg = codec.decode("vendor_msgs/Battery", msgpack.packb({"level": 0.5, "cells": [1, 2]}))
+    assert msg == GenericMessage("vendor_msgs/Battery", {"level": 0.5, "cells": [1, 2]})
+
+
+IRC = "alliance_msgs/InterRobotCommunication"
+GOOD = {"header": {"frame_id": "r1", "stamp": 1.0, "seq": 1}, "task_id": "t", "expected_duration": 1.0}
+
+
+def _with(**changes):
+    d = {k: (dict(v) if isinstance(v, dict) else v) for k, v in GOOD.items()}
+    for k, v in changes.items():
+        if "__" in k:
+            a, b = k.split("__")
+            if v is _DROP:
+                del d[a][b]
+            else:
+                d[a][b] = v
+        elif v is _DROP:
+            del d[k]
+        else:
+            d[k] = v
+    return msgpack.packb(d)
+
+
+_DROP = object()
+
+MALFORMED = [
+    ("not msgpack", IRC, b"\xc1\xc1\xc1", codec.NotMsgpack, "invalid or reserved"),
+    ("empty payload", IRC, b"", codec.TruncatedPayload, "ends in the middle"),
+    ("truncated", IRC, msgpack.packb(GOOD)[:-5], codec.TruncatedPayload, "ends in the middle"),
+    ("trailing bytes", IRC, msgpack.packb(GOOD) + b"\x01", codec.NotMsgpack, "trailing"),
+    ("top level list", IRC, msgpack.packb([1, 2]), codec.NotAMap, "expected a map"),
+    ("missing field", IRC, _with(task_id=_DROP), codec.MissingField, "task_id"),
+    ("missing nested field", IRC, _with(header__seq=_DROP) , codec.MissingField, "header/seq"),
+    ("extra field", IRC, msgpack.packb({**GOOD, "color": "red"}), codec.UnknownField, "color"),
+    ("string for float", IRC, _with(expected_duration="long"), codec.WrongFieldType, "expected_duration"),
+    ("bool for int", IRC, _with(header__seq=True), codec.WrongFieldType, "header/seq"),
+    ("int for str", IRC, _with(task_id=3), codec.WrongFieldType, "task_id"),
+    ("header not a map", IRC, _with(header="robot1"), codec.NotAMap, "header"),
+    ("points not a list", "mrta_msgs/PointCloud",
+     msgpack.packb({"header": GOOD["header"], "points": {"x": 1}}), codec.WrongFieldType, "points"),
+    ("bad point", "mrta_msgs/PointCloud",
+     msgpack.packb({"header": GOOD["header"], "points": [{"x": 1.0, "y": "n"}]}), codec.WrongFieldType,
+     "points/0/y"),
+    ("int map keys", IRC, b"\x81\x01\x02", codec.NotMsgpack, "map key"),
+    ("oversized payload", IRC, b"\x00" * (codec.MAX_PAYLOAD_BYTES + 1), codec.PayloadTooLarge, "exceeds"),
+    ("absurd array", "mrta_msgs/PointCloud", b"\xdd\xff\xff\xff\xff", codec.PayloadTooLarge, "too large"),
+    ("absurd string", IRC, _with(task_id="x" * (codec.MAX_STR_LEN + 1)), codec.PayloadTooLarge,
+     "too large"),
+    ("absurd declared length", IRC, b"\xdb\xff\xff\xff\xff", codec.TruncatedPayload, "ends"),
+    ("generic not a map", "vendor_msgs/X", msgpack.packb(3), codec.NotAMap, "expected a map"),
+]
+
+
+@pytest.mark.parametrize("name,type_name,payload,error,text", MALFORMED, ids=[m[0] for m in MALFORMED])
+def test_malformed_payloads_are_rejected_with_a_specific_error(name, type_name, payload, error, text):
+    with pytest.raises(error) as info:
+        codec.decode(type_name, payload)
+    assert text in str(info.value)
+
+
+@pytest.mark.parametrize("enc", ["application/json;alliance_msgs/X", "application/msgpack",
+                                 "application/msgpack;", "text/plain"])
+def test_foreign_encodings_are_rejected(enc):
+    with pytest.raises(codec.BadEncoding):
+        codec.type_from_encoding(enc)

@@ -1,0 +1,83 @@
+"""`mrta echo` end to end against publishers in other processes, and its input errors."""
+
+import json
+import signal
+import time
+
+import pytest
+from click.testing import CliRunner
+
+from mrta_zenoh.cli.main import cli
+
+KEY = "robot1/alliance/inter_robot_communication"
+
+
+def run_pair(children, echo_args, items):
+    echo = children.mrta("echo", *echo_args, name="echo")
+    time.sleep(0.3)
+    pub = children.python("publisher.py", KEY, *items, name="publisher")
+    rc = echo.wait(30)
+    pub.wait(30)
+    return echo, rc
+
+
+def test_echo_prints_typed_samples_from_another_process_and_survives_a_malformed_one(children):
+    echo, rc = run_pair(children, ["robot1/**", "--count", "3", "--json"],
+                        ["irc:robot1:wander", "garbage", "unknown", "missing", "irc:robot1:report"])
+    assert rc == 0, echo.stderr
+    lines = [json.loads(x) for x in echo.stdout]
+    assert [x["type"] for x in lines] == ["alliance_msgs/InterRobotCommunication",
+                                          "vendor_msgs/Battery",
+                                          "alliance_msgs/InterRobotCommunication"]
+    assert lines[0]["message"]["task_id"] == "wander"
+    assert lines[0]["message"]["expected_duration"] == 12.0
+    assert lines[1]["message"] == {"level": 3, "items": [1, 2]}
+    assert lines[2]["message"]["task_id"] == "report"
+    warnings = [x for x in echo.stderr if x.startswith("warning:")]
+    assert len(warnings) == 2, echo.stderr
+    assert "not msgpack" in warnings[0] and "missing field" in warnings[1]
+
+
+def test_echo_field(children):
+    echo, rc = run_pair(children, [KEY, "--field", "/header/frame_id", "--count", "2"],
+                        ["irc:robot1:wander", "garbage", "irc:robot1:report"])
+    assert rc == 0, echo.stderr
+    assert echo.stdout == [f"{KEY}: robot1", f"{KEY}: robot1"]
+
+
+def test_echo_human_format(children):
+    echo, rc = run_pair(children, [KEY, "--count", "1"], ["irc:robot1:wander"])
+    assert rc == 0
+    assert echo.stdout[0] == f"--- {KEY} [alliance_msgs/InterRobotCommunication]"
+    assert "task_id: wander" in echo.stdout
+
+
+def test_echo_exits_promptly_on_sigterm(children):
+    echo = children.mrta("echo", "nothing/**", name="echo")
+    time.sleep(1.5)
+    t0 = time.monotonic()
+    echo.signal(signal.SIGTERM)
+    assert echo.wait(5) == 0
+    assert time.monotonic() - t0 < 1.5
+
+
+@pytest.mark.parametrize("args,text", [
+    (["echo", "a//b"], "empty chunk"),
+    (["echo", "k", "--connect", "tcp/127.0.0.1"], "tcp/127.0.0.1"),
+    (["echo", "k", "--listen", "localhost:7447"], "localhost:7447"),
+    (["echo", "k", "--zenoh-config", "/nonexistent/z.json5"], "/nonexistent/z.json5"),
+    (["echo", "k", "--field", "a//b"], "a//b"),
+    (["echo", "k", "--namespace", "a b"], "a b"),
+])
+def test_bad_input_exits_2_with_one_line_naming_the_value(args, text):
+    result = CliRunner().invoke(cli, args)
+    assert result.exit_code == 2, result.output
+    lines = [x for x in result.output.splitlines() if x.strip()]
+    assert len(lines) == 1 and text in lines[0], result.output
+
+
+def test_invalid_zenoh_config_file_exits_2(tmp_path):
+    bad = tmp_path / "bad.json5"
+    bad.write_text("{ mode: 'peer', listen: { endpoints: [ }")
+    result = CliRunner().invoke(cli, ["echo", "k", "--zenoh-config", str(bad)])
+    assert result.exit_code == 2 and str(bad) in result.output
