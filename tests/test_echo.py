@@ -81,3 +81,19 @@ def test_invalid_zenoh_config_file_exits_2(tmp_path):
     bad.write_text("{ mode: 'peer', listen: { endpoints: [ }")
     result = CliRunner().invoke(cli, ["echo", "k", "--zenoh-config", str(bad)])
     assert result.exit_code == 2 and str(bad) in result.output
+
+
+def test_router_relays_between_a_client_and_a_peer(children):
+    router = children.mrta("router", "--listen", children.rendezvous, name="router")
+    time.sleep(1.0)
+    assert router.proc.poll() is None, router.stderr
+    # echo as a client of the router; the publisher joins the router (it holds the rendezvous)
+    echo = children.mrta("echo", KEY, "--mode", "client", "--connect", children.rendezvous,
+                         "--count", "1", "--field", "task_id", name="echo")
+    time.sleep(0.5)
+    pub = children.python("publisher.py", KEY, "irc:robot1:wander", name="publisher")
+    assert echo.wait(20) == 0, echo.stderr
+    pub.wait(20)
+    assert echo.stdout == [f"{KEY}: wander"]
+    router.signal(signal.SIGTERM)
+    assert router.wait(5) == 0

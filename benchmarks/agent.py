@@ -1,0 +1,120 @@
+"""Agent benchmark: high-level tick cost vs robots heard, and CPU / RSS of real agent processes.
+
+Prints one JSON line per figure:
+  tick_us          HighLevel.tick() for 10 / 100 / 1,000 other robots heard × 3 behaviour sets,
+                   with the baseline of the same tick with nobody heard
+  agent_process    CPU share and RSS of N `mrta agent` processes at the reference rates
+                   (reference robot1 parameters; sensors fed at 10 Hz), for N = 1 and 20
+
+Run: python benchmarks/agent.py [--seconds 20]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import socket
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parent.parent
+REF = ROOT.parent / "shared" / "reference" / "alliance_test" / "config"
+
+
+def tick_cost() -> None:
+    from robot_agent.high_level import HighLevel
+    from robot_agent.params import BehaviourSetParams, RobotParams
+
+    sets = tuple(BehaviourSetParams(t, 100.0, 150.0, 75.0, 110.0, 5.0, "x", ()) for t in
+                 ("wander", "border_protection", "report"))
+    params = RobotParams("R", 2.0, 0.5, 10.0, 10.0, (), sets)
+    baseline = None
+    for n in (0, 10, 100, 1000):
+        hl = HighLevel("me", params)
+        now = 0.0
+        for i in range(n):
+            hl.on_broadcast(f"r{i}", sets[i % 3].task_id, 100.0, now)
+        reps = 2000 if n <= 100 else 300
+        t0 = time.perf_counter()
+        for k in range(reps):
+            now += 0.5
+            for task in hl.sets:
+                hl.on_feedback(task, True, now)
+            for i in range(n):
+                if k % 4 == 0:  # each robot broadcasts at 0.5 Hz, we tick at 2 Hz
+                    hl.on_broadcast(f"r{i}", sets[i % 3].task_id, 100.0, now)
+            hl.tick(now)
+        us = (time.perf_counter() - t0) / reps * 1e6
+        if n == 0:
+            baseline = us
+            continue
+        print(json.dumps({"figure": "tick_us", "robots_heard": n, "behaviour_sets": 3,
+                          "tick_us": round(us, 1), "baseline_nobody_heard_us": round(baseline, 1),
+                          "ticks_per_s_of_one_core": round(1e6 / us)}), flush=True)
+
+
+def proc_stat(pid: int) -> tuple[float, int]:
+    with open(f"/proc/{pid}/stat") as f:
+        parts = f.read().rsplit(")", 1)[1].split()
+    ticks = int(parts[11]) + int(parts[12])  # utime + stime
+    with open(f"/proc/{pid}/status") as f:
+        rss = next(int(line.split()[1]) for line in f if line.startswith("VmRSS:"))
+    return ticks / os.sysconf("SC_CLK_TCK"), rss * 1024
+
+
+def agents(n: int, seconds: float) -> None:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    env = dict(os.environ, MRTA_RENDEZVOUS=f"tcp/127.0.0.1:{port}", RUST_LOG="error")
+    tmp = Path(tempfile.mkdtemp())
+    robots = [f"robot{i + 1}" for i in range(n)]
+    feeder = subprocess.Popen([sys.executable, str(ROOT / "tests" / "procs" / "sensor_feeder.py"), *robots],
+                              env=env, stdout=subprocess.PIPE, text=True)
+    feeder.stdout.readline()
+    procs = []
+    for r in robots:
+        rf = REF / f"robot{(int(r[5:]) - 1) % 5 + 1}_alliance_params.yaml"
+        tf = tmp / "tasks.yaml"  # the reference tasks need the patrol layers; same tasks, no layers
+        tf.write_text("tasks:\n  size: 3\n" + "".join(
+            f"  task{i}:\n    id: '{t}'\n    name: '{t}'\n    layers:\n      size: 0\n"
+            for i, t in enumerate(("wander", "border_protection", "report"))))
+        procs.append(subprocess.Popen(
+            [sys.executable, "-m", "mrta_zenoh.cli.main", "agent", r, "--robot-params", str(rf),
+             "--tasks-params", str(tf)], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+    try:
+        time.sleep(5.0)  # start-up (imports, session) is not steady state
+        start = [proc_stat(p.pid) for p in procs]
+        t0 = time.monotonic()
+        time.sleep(seconds)
+        dt = time.monotonic() - t0
+        end = [proc_stat(p.pid) for p in procs]
+        cpu = [(e[0] - s[0]) / dt * 100 for s, e in zip(start, end)]
+        rss = [e[1] / 2**20 for e in end]
+        print(json.dumps({"figure": "agent_process", "agents": n, "seconds": round(dt, 1),
+                          "cpu_percent_of_a_core_mean": round(sum(cpu) / n, 2),
+                          "cpu_percent_of_a_core_max": round(max(cpu), 2),
+                          "rss_mb_mean": round(sum(rss) / n, 1), "rss_mb_max": round(max(rss), 1),
+                          "target_cpu_percent": 1.0, "target_rss_mb": 60}), flush=True)
+    finally:
+        for p in procs + [feeder]:
+            p.terminate()
+        for p in procs + [feeder]:
+            p.wait(10)
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--seconds", type=float, default=20.0)
+    args = ap.parse_args()
+    tick_cost()
+    agents(1, args.seconds)
+    agents(20, args.seconds)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,105 @@
+"""YAML loading that remembers where each key came from, so errors can name file and line.
+
+Also the dissertation's array layout (`size` + `sensor0`, `sensor1`, …), shared by the agent's
+parameter files and the config toolchain.
+"""
+
+from __future__ import annotations
+
+import difflib
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from .errors import ConfigError
+
+
+class YamlDoc:
+    def __init__(self, path: Path, data: Any, lines: dict[tuple, int]):
+        self.path = path
+        self.data = data
+        self.lines = lines
+
+    def line(self, path: tuple) -> int | None:
+        while path:
+            if path in self.lines:
+                return self.lines[path]
+            path = path[:-1]
+        return None
+
+    def error(self, path: tuple, message: str) -> ConfigError:
+        key = "/".join(map(str, path)) or "(top level)"
+        return ConfigError(message, file=str(self.path), line=self.line(path), element=f"'{key}'")
+
+
+def load_yaml(path: Path | str) -> YamlDoc:
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(f"cannot read: {exc.strerror}", file=str(path)) from None
+    try:
+        loader = yaml.SafeLoader(text)
+        try:
+            node = loader.get_single_node()
+            data = loader.construct_document(node) if node is not None else {}
+        finally:
+            loader.dispose()
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        problem = getattr(exc, "problem", None) or str(exc)
+        raise ConfigError(f"invalid YAML: {problem}", file=str(path),
+                          line=mark.line + 1 if mark else None) from None
+    lines: dict[tuple, int] = {}
+    if node is not None:
+        _walk(node, (), lines)
+    return YamlDoc(path, data if data is not None else {}, lines)
+
+
+def _walk(node: yaml.Node, path: tuple, lines: dict) -> None:
+    lines[path] = node.start_mark.line + 1
+    if isinstance(node, yaml.MappingNode):
+        for k, v in node.value:
+            key = k.value
+            lines[path + (key,)] = k.start_mark.line + 1
+            _walk(v, path + (key,), lines)
+            lines[path + (key,)] = k.start_mark.line + 1
+    elif isinstance(node, yaml.SequenceNode):
+        for i, v in enumerate(node.value):
+            _walk(v, path + (i,), lines)
+
+
+def did_you_mean(word: str, options) -> str:
+    close = difflib.get_close_matches(str(word), [str(o) for o in options], n=1, cutoff=0.6)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+def sized_array(doc: YamlDoc, path: tuple, item_prefix: str) -> list[tuple[tuple, dict]]:
+    """Items of a `size` + `<prefix>0…` block as (path, mapping) pairs, checked for consistency."""
+    block = get_path(doc.data, path)
+    if not isinstance(block, dict):
+        raise doc.error(path, "expected a mapping with 'size' and "
+                              f"'{item_prefix}0', '{item_prefix}1', …")
+    size = block.get("size")
+    if type(size) is not int or size < 0:
+        raise doc.error(path + ("size",), f"'size' must be a non-negative integer, got {size!r}")
+    items = []
+    for i in range(size):
+        name = f"{item_prefix}{i}"
+        item = block.get(name)
+        if not isinstance(item, dict):
+            raise doc.error(path, f"size is {size} but '{name}' is missing or not a mapping")
+        items.append((path + (name,), item))
+    allowed = {"size"} | {f"{item_prefix}{i}" for i in range(size)}
+    for key in block:
+        if key not in allowed:
+            raise doc.error(path + (key,), f"unexpected key {key!r} (size is {size})"
+                            + did_you_mean(key, allowed))
+    return items
+
+
+def get_path(data: Any, path: tuple) -> Any:
+    for p in path:
+        data = data[p]
+    return data

@@ -1,0 +1,183 @@
+"""One robot's ALLIANCE agent: the high level and the low level in one process, on one clock.
+
+The loop is single-threaded and scheduled on the injected clock, so it runs identically in real
+time, under the simulator's clock at k× speed, and step by step in tests. Network callbacks
+only enqueue; the loop thread owns all ALLIANCE state.
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import threading
+from typing import Any
+
+import numpy as np
+
+from mrta_zenoh import keys
+from mrta_zenoh.bus import Bus, Sample
+from mrta_zenoh.clock import Clock
+from mrta_zenoh.messages import (
+    Header, InterRobotCommunication, Motivation, SensoryFeedback,
+)
+
+from .high_level import HighLevel, Transition
+from .params import AgentParams
+from .plugins import AgentContext, Layer, SensoryEvaluator, Sensor, load_plugin
+
+log = logging.getLogger("mrta.agent")
+
+
+class Plugins:
+    """Instantiated low-level plugins; built before the bus opens so bad names fail early."""
+
+    def __init__(self, params: AgentParams, ctx: AgentContext, robot_file: str = ""):
+        self.sensors: dict[str, Sensor] = {}
+        for sp in params.robot.sensors:
+            cls = load_plugin("sensor", sp.plugin_name, robot_file)
+            self.sensors[sp.topic_name] = cls(sp)
+        ctx.sensors = self.sensors
+        self.evaluators: dict[str, SensoryEvaluator] = {}
+        for bs in params.robot.behaviour_sets:
+            cls = load_plugin("evaluator", bs.evaluator_plugin, robot_file)
+            self.evaluators[bs.task_id] = cls(bs.task_id, [self.sensors[t] for t in bs.evaluator_topics], ctx)
+        self.layers: dict[str, list[Layer]] = {}
+        for bs in params.robot.behaviour_sets:
+            task = params.tasks[bs.task_id]
+            self.layers[bs.task_id] = [load_plugin("layer", name)(ctx) for name in task.layers]
+
+
+class Agent:
+    def __init__(self, robot_id: str, params: AgentParams, bus: Bus, clock: Clock,
+                 rng: np.random.Generator | None = None, robot_file: str = ""):
+        self.robot_id = keys.normalize_robot_id(robot_id)
+        self.params = params
+        self.bus = bus
+        self.clock = clock
+        self.ctx = AgentContext(self.robot_id, bus, clock, rng or np.random.default_rng(0),
+                                layer_params=params.layers)
+        self.plugins = Plugins(params, self.ctx, robot_file)
+        self.high = HighLevel(self.robot_id, params.robot)
+        self._inbox: collections.deque = collections.deque(maxlen=10_000)
+        self.ignored_own = 0
+        self.ignored_mismatch = 0
+        self.transitions: list[tuple[float, Transition]] = []
+        self._seq: dict[str, int] = collections.defaultdict(int)
+        self._last_broadcast: float | None = None
+        self._token = None
+        self._expected = {bs.task_id: bs.expected_duration for bs in params.robot.behaviour_sets}
+
+    # ------------------------------------------------------------ set-up
+    def start(self) -> None:
+        for s in self.plugins.sensors.values():
+            s.setup(self.ctx)
+        self.bus.subscribe(keys.ALL_INTER_ROBOT_COMMUNICATION, self._on_irc,
+                           msg_type=InterRobotCommunication)
+
+    def declare_alive(self) -> None:
+        """Last step of start-up: alive means ready (ZENOH_NOTES trap 6)."""
+        self._token = self.bus.declare_token(keys.agent_token(self.robot_id))
+
+    def _on_irc(self, sample: Sample) -> None:
+        sender = keys.first_chunk(sample.key)
+        if sender == self.robot_id:
+            self.ignored_own += 1
+            return
+        if sample.message.header.frame_id.strip("/") != sender:
+            self.ignored_mismatch += 1
+            if self.ignored_mismatch == 1 or self.ignored_mismatch % 100 == 0:
+                log.warning("%s: ignoring InterRobotCommunication on %s with frame_id %r (%d so far)",
+                            self.robot_id, sample.key, sample.message.header.frame_id,
+                            self.ignored_mismatch)
+            return
+        self._inbox.append((sender, sample.message, self.clock.now()))
+
+    # ------------------------------------------------------------ one step of each level
+    def _header(self, key: str, now: float) -> Header:
+        self._seq[key] += 1
+        return Header(self.robot_id, now, self._seq[key])
+
+    def tick_high(self, now: float) -> list[Transition]:
+        while self._inbox:
+            sender, msg, t = self._inbox.popleft()
+            self.high.on_broadcast(sender, msg.task_id, msg.expected_duration, t)
+        fb_key = keys.sensory_feedback(self.robot_id)
+        for task, ev in self.plugins.evaluators.items():
+            applicable = bool(ev.is_applicable(now))
+            self.high.on_feedback(task, applicable, now)
+            self.bus.publish(fb_key, SensoryFeedback(self._header(fb_key, now), task, applicable))
+        before = self.high.active_task
+        states, transitions = self.high.tick(now)
+        for st in states:
+            key = keys.motivation(self.robot_id, st.task_id)
+            self.bus.publish(key, Motivation(
+                self._header(key, now), st.task_id, st.impatience, st.acquiescent, st.suppressed,
+                st.resetted, st.applicable, st.motivation, st.threshold, st.active))
+        for tr in transitions:
+            self.transitions.append((now, tr))
+            log.info("%s: %s %s (%s) at t=%.2f", self.robot_id,
+                     "activated" if tr.active else "deactivated", tr.task_id, tr.reason, now)
+        after = self.high.active_task
+        if before != after:
+            for layer in self.plugins.layers.get(before, []) if before else []:
+                layer.on_deactivate(now)
+            for layer in self.plugins.layers.get(after, []) if after else []:
+                layer.on_activate(now)
+            if after is not None:
+                self._last_broadcast = None  # announce a new activation at once
+        self.maybe_broadcast(now)
+        return transitions
+
+    def maybe_broadcast(self, now: float) -> None:
+        task = self.high.active_task
+        if task is None:
+            return
+        period = 1.0 / self.params.robot.broadcast_rate
+        if self._last_broadcast is not None and now - self._last_broadcast < period - 1e-9:
+            return
+        self._last_broadcast = now
+        key = keys.inter_robot_communication(self.robot_id)
+        self.bus.publish(key, InterRobotCommunication(self._header(key, now), task, self._expected[task]))
+
+    def step_layers(self, now: float, dt: float) -> None:
+        task = self.high.active_task
+        for layer in self.plugins.layers.get(task, []) if task else []:
+            layer.step(now, dt)
+
+    # ------------------------------------------------------------ the loop
+    def run(self, stop: threading.Event, until: float | None = None) -> None:
+        r = self.params.robot
+        high_period, ctrl_period = 1.0 / r.spin_rate, 1.0 / r.control_rate
+        now = self.clock.now()
+        next_high, next_ctrl, last_ctrl = now, now, now
+        while not stop.is_set():
+            t = min(next_high, next_ctrl)
+            if until is not None and t > until:
+                break
+            if not self.clock.sleep_until(t, stop):
+                break
+            now = self.clock.now()
+            if now >= next_high:
+                self.tick_high(now)
+                next_high += high_period
+                if next_high <= now:  # fell behind: skip, don't burst
+                    next_high = now + high_period
+            if now >= next_ctrl:
+                self.step_layers(now, now - last_ctrl)
+                last_ctrl = now
+                next_ctrl += ctrl_period
+                if next_ctrl <= now:
+                    next_ctrl = now + ctrl_period
+
+    def shutdown(self) -> None:
+        """Stop the robot: deactivate the running layers and command zero velocity."""
+        now = self.clock.now()
+        task = self.high.active_task
+        for layer in self.plugins.layers.get(task, []) if task else []:
+            layer.on_deactivate(now)
+        self.ctx.publish_cmd(0.0, 0.0)
+
+    def status(self) -> dict[str, Any]:
+        return {"robot": self.robot_id, "active": self.high.active_task,
+                "ignored_own": self.ignored_own, "ignored_mismatch": self.ignored_mismatch,
+                "malformed": self.bus.stats["malformed"]}

@@ -1,0 +1,21 @@
+"""The plugins the reference application names: odometry and point-cloud sensors, and the
+`updated_sensory` evaluator (a behaviour is applicable while all of its sensors are up to date)."""
+
+from __future__ import annotations
+
+from mrta_zenoh.messages import Odometry, PointCloud
+
+from .plugins import Sensor, SensoryEvaluator
+
+
+class OdometrySensor(Sensor):
+    message_type = Odometry
+
+
+class PointCloudSensor(Sensor):
+    message_type = PointCloud
+
+
+class UpdatedSensory(SensoryEvaluator):
+    def is_applicable(self, now: float) -> bool:
+        return all(s.is_up_to_date(now) for s in self.sensors)

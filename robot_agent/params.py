@@ -1,0 +1,211 @@
+"""ALLIANCE parameters in the dissertation's YAML layout (the reference files load unchanged).
+
+Strict: a missing mandatory key, a non-positive rate or τ, or an unknown key in the robot or tasks
+file is a ConfigError naming file, line and key (with "did you mean"). The layers file belongs to
+the layer plugins, so it is only required to be a mapping. Legal but suspicious values are
+returned as warnings naming file and key.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, load_yaml, sized_array
+
+NUMBER = (int, float)
+
+
+@dataclass(frozen=True)
+class SensorParams:
+    plugin_name: str
+    topic_name: str
+    timeout_duration: float = 5.0
+    buffer_horizon: float = 5.0
+
+
+@dataclass(frozen=True)
+class BehaviourSetParams:
+    task_id: str
+    expected_duration: float
+    threshold: float
+    yielding_delay: float
+    giving_up_delay: float
+    fast_rate: float
+    evaluator_plugin: str
+    evaluator_topics: tuple[str, ...]
+
+
+@dataclass(frozen=True)
+class RobotParams:
+    name: str
+    spin_rate: float
+    broadcast_rate: float
+    timeout_duration: float
+    buffer_horizon: float
+    sensors: tuple[SensorParams, ...]
+    behaviour_sets: tuple[BehaviourSetParams, ...]
+    control_rate: float = 10.0
+
+
+@dataclass(frozen=True)
+class TaskParams:
+    id: str
+    name: str
+    layers: tuple[str, ...]
+
+
+@dataclass
+class AgentParams:
+    robot: RobotParams
+    tasks: dict[str, TaskParams]
+    layers: dict[str, Any] = field(default_factory=dict)
+    warnings: list[str] = field(default_factory=list)
+
+
+class _Reader:
+    """Reads one mapping, remembering which keys were used, so leftovers can be reported."""
+
+    def __init__(self, doc: YamlDoc, path: tuple, allowed: set[str]):
+        self.doc, self.path = doc, path
+        data = doc.data
+        for p in path:
+            data = data.get(p) if isinstance(data, dict) else None
+        if not isinstance(data, dict):
+            raise doc.error(path, "expected a mapping")
+        self.data = data
+        unknown = [k for k in data if k not in allowed]
+        if unknown:
+            k = unknown[0]
+            raise doc.error(path + (k,), f"unknown key {k!r}" + did_you_mean(k, allowed))
+
+    def get(self, key: str, kind, default: Any = ..., positive: bool = False) -> Any:
+        if key not in self.data:
+            if default is ...:
+                raise self.doc.error(self.path + (key,), f"missing mandatory key {key!r}")
+            return default
+        value = self.data[key]
+        if kind is float:
+            if type(value) is bool or not isinstance(value, NUMBER):
+                raise self.doc.error(self.path + (key,), f"{key} must be a number, got {value!r}")
+            value = float(value)
+            if positive and value <= 0:
+                raise self.doc.error(self.path + (key,), f"{key} must be > 0, got {value:g}")
+        elif kind is str:
+            if not isinstance(value, str) or not value.strip():
+                raise self.doc.error(self.path + (key,), f"{key} must be a non-empty string, got {value!r}")
+        return value
+
+
+ROBOT_KEYS = {"name", "spin_rate", "broadcast_rate", "timeout_duration", "buffer_horizon",
+              "sensors", "behaviour_sets", "control_rate", "id"}
+
+
+def load_robot_params(path: Path | str) -> tuple[RobotParams, list[str]]:
+    doc = load_yaml(path)
+    if not isinstance(doc.data, dict):
+        raise doc.error((), "a robot parameter file must be a mapping")
+    top = _Reader(doc, (), ROBOT_KEYS)
+    warnings: list[str] = []
+    sensors = []
+    for spath, _ in sized_array(doc, ("sensors",), "sensor"):
+        r = _Reader(doc, spath, {"plugin_name", "topic_name", "timeout_duration", "buffer_horizon"})
+        sensors.append(SensorParams(
+            plugin_name=r.get("plugin_name", str), topic_name=r.get("topic_name", str),
+            timeout_duration=r.get("timeout_duration", float, 5.0, positive=True),
+            buffer_horizon=r.get("buffer_horizon", float, 5.0, positive=True)))
+    topics = {s.topic_name for s in sensors}
+    sets = []
+    seen_tasks: set[str] = set()
+    for bpath, _ in sized_array(doc, ("behaviour_sets",), "behaviour_set"):
+        b = _Reader(doc, bpath, {"task_id", "task_expected_duration", "motivational_behaviour"})
+        mpath = bpath + ("motivational_behaviour",)
+        m = _Reader(doc, mpath, {"threshold", "acquiescence", "impatience", "sensory_feedback"})
+        a = _Reader(doc, mpath + ("acquiescence",), {"yielding_delay", "giving_up_delay"})
+        i = _Reader(doc, mpath + ("impatience",), {"fast_rate"})
+        f = _Reader(doc, mpath + ("sensory_feedback",), {"plugin_name", "sensors"})
+        ftopics = []
+        for fp, _ in sized_array(doc, mpath + ("sensory_feedback", "sensors"), "sensor"):
+            t = _Reader(doc, fp, {"topic_name"}).get("topic_name", str)
+            if t not in topics:
+                raise doc.error(fp + ("topic_name",), f"sensor topic {t!r} is not among the robot's "
+                                f"sensors ({', '.join(sorted(topics)) or 'none'})" + did_you_mean(t, topics))
+            ftopics.append(t)
+        task_id = b.get("task_id", str)
+        if task_id in seen_tasks:
+            raise doc.error(bpath + ("task_id",), f"task {task_id!r} has two behaviour sets")
+        seen_tasks.add(task_id)
+        bs = BehaviourSetParams(
+            task_id=task_id,
+            expected_duration=b.get("task_expected_duration", float, positive=True),
+            threshold=m.get("threshold", float, positive=True),
+            yielding_delay=a.get("yielding_delay", float, positive=True),
+            giving_up_delay=a.get("giving_up_delay", float, positive=True),
+            fast_rate=i.get("fast_rate", float, positive=True),
+            evaluator_plugin=f.get("plugin_name", str),
+            evaluator_topics=tuple(ftopics),
+        )
+        if bs.yielding_delay > bs.giving_up_delay:
+            warnings.append(
+                f"{doc.path}:{doc.line(a.path + ('yielding_delay',))}: "
+                f"'{'/'.join(map(str, a.path + ('yielding_delay',)))}': yielding_delay "
+                f"{bs.yielding_delay:g} s is longer than giving_up_delay {bs.giving_up_delay:g} s: "
+                "this robot gives up before it would ever yield")
+        sets.append(bs)
+    robot = RobotParams(
+        name=top.get("name", str, ""),
+        spin_rate=top.get("spin_rate", float, positive=True),
+        broadcast_rate=top.get("broadcast_rate", float, positive=True),
+        timeout_duration=top.get("timeout_duration", float, positive=True),
+        buffer_horizon=top.get("buffer_horizon", float, 10.0, positive=True),
+        sensors=tuple(sensors), behaviour_sets=tuple(sets),
+        control_rate=top.get("control_rate", float, 10.0, positive=True),
+    )
+    if robot.broadcast_rate > 0 and 1.0 / robot.broadcast_rate >= robot.timeout_duration:
+        warnings.append(
+            f"{doc.path}:{doc.line(('broadcast_rate',))}: 'broadcast_rate': a broadcast every "
+            f"{1 / robot.broadcast_rate:g} s is not faster than timeout_duration "
+            f"{robot.timeout_duration:g} s: other robots will think this one stopped between broadcasts")
+    return robot, warnings
+
+
+def load_tasks_params(path: Path | str) -> dict[str, TaskParams]:
+    doc = load_yaml(path)
+    if not isinstance(doc.data, dict):
+        raise doc.error((), "a tasks parameter file must be a mapping")
+    _Reader(doc, (), {"tasks"})
+    tasks: dict[str, TaskParams] = {}
+    for tpath, _ in sized_array(doc, ("tasks",), "task"):
+        r = _Reader(doc, tpath, {"id", "name", "layers"})
+        task_id = r.get("id", str)
+        if task_id in tasks:
+            raise doc.error(tpath + ("id",), f"task id {task_id!r} appears twice")
+        layers = []
+        if "layers" in r.data:
+            for lpath, _ in sized_array(doc, tpath + ("layers",), "layer"):
+                layers.append(_Reader(doc, lpath, {"plugin_name"}).get("plugin_name", str))
+        tasks[task_id] = TaskParams(task_id, r.get("name", str, task_id), tuple(layers))
+    return tasks
+
+
+def load_layers_params(path: Path | str | None) -> dict[str, Any]:
+    if path is None:
+        return {}
+    doc = load_yaml(path)
+    if not isinstance(doc.data, dict):
+        raise doc.error((), "a layers parameter file must be a mapping of layer sections")
+    return doc.data
+
+
+def load_agent_params(robot_file, tasks_file, layers_file=None) -> AgentParams:
+    robot, warnings = load_robot_params(robot_file)
+    tasks = load_tasks_params(tasks_file)
+    for bs in robot.behaviour_sets:
+        if bs.task_id not in tasks:
+            raise ConfigError(
+                f"behaviour set for task {bs.task_id!r} but the tasks file has "
+                f"{', '.join(sorted(tasks)) or 'no tasks'}" + did_you_mean(bs.task_id, tasks),
+                file=str(robot_file), element="'task_id'")
+    return AgentParams(robot, tasks, load_layers_params(layers_file), warnings)

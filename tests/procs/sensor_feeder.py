@@ -1,0 +1,20 @@
+"""Publishes fresh odometry and sonar for the named robots at 10 Hz (a stand-in simulator)."""
+
+import sys
+import time
+
+from mrta_zenoh import keys
+from mrta_zenoh.bus import BusOptions, open_bus
+from mrta_zenoh.lifecycle import stop_on_signals
+from mrta_zenoh.messages import Header, Odometry, Point2D, PointCloud
+
+robots = sys.argv[1:]
+with stop_on_signals() as stop, open_bus(BusOptions()) as bus:
+    bus.declare_token("feeder")
+    print("ready", flush=True)
+    while not stop.is_set():
+        now = time.time()
+        for r in robots:
+            bus.publish(keys.odom(r), Odometry(Header(r, now)))
+            bus.publish(keys.sonar(r), PointCloud(Header(r, now), (Point2D(1.0, 0.0),)))
+        stop.wait(0.1)

@@ -1,0 +1,100 @@
+"""The agent wired to the in-process bus on a manual clock: inputs, outputs and robustness."""
+
+import numpy as np
+
+from mrta_zenoh import keys
+from mrta_zenoh.bus import InProcBus
+from mrta_zenoh.clock import ManualClock
+from mrta_zenoh.codec import encoding_for
+from mrta_zenoh.messages import (
+    Header, InterRobotCommunication, Odometry, PointCloud, Twist,
+)
+from robot_agent.agent import Agent
+from robot_agent.params import load_agent_params
+from robot_agent.plugins import Layer
+from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
+
+
+class DriveLayer(Layer):
+    """A test layer: drives forward while active."""
+
+    def step(self, now, dt):
+        self.ctx.publish_cmd(0.3, 0.0)
+
+
+def make(tmp_path, sets, layers=None):
+    rf = write(tmp_path / "r.yaml", robot_yaml(sets, spin=10.0, broadcast=5.0, tau=1.0))
+    tf = write(tmp_path / "t.yaml", tasks_yaml([s["task"] for s in sets], layers))
+    bus, clock = InProcBus(), ManualClock(100.0)
+    agent = Agent("robot1", load_agent_params(rf, tf), bus, clock, np.random.default_rng(1))
+    agent.start()
+    return agent, bus, clock
+
+
+def feed(bus, clock, robot="robot1"):
+    bus.publish(keys.odom(robot), Odometry(Header(robot, clock.now())))
+    bus.publish(keys.sonar(robot), PointCloud(Header(robot, clock.now())))
+
+
+def step(agent, bus, clock, n, fresh=True):
+    for _ in range(n):
+        if fresh:
+            feed(bus, clock)
+        agent.tick_high(clock.now())
+        agent.step_layers(clock.now(), 0.1)
+        clock.advance(0.1)
+
+
+def test_activation_broadcasts_and_drives_the_layer(tmp_path):
+    agent, bus, clock = make(tmp_path, [{"task": "a", "fast": 25.0}],
+                             {"a": ["tests.test_agent_inproc:DriveLayer"]})
+    irc, cmds, mot = [], [], []
+    bus.subscribe("robot1/alliance/inter_robot_communication", irc.append)
+    bus.subscribe("robot1/cmd_vel", cmds.append)
+    bus.subscribe("robot1/alliance/motivation/a", mot.append)
+    step(agent, bus, clock, 4)  # θ=100 / 25 → active on the 4th tick
+    assert agent.high.active_task == "a"
+    assert [s.message.motivation for s in mot] == [25.0, 50.0, 75.0, 100.0]
+    assert irc and irc[0].message.task_id == "a" and irc[0].message.header.frame_id == "robot1"
+    assert cmds[-1].message == Twist(0.3, 0.0)
+    step(agent, bus, clock, 10)
+    # 5 Hz broadcasts over 1.4 s of activity
+    assert len(irc) in (6, 7, 8)
+
+
+def test_stalled_sensor_makes_behaviours_inapplicable_and_stops_the_robot(tmp_path):
+    agent, bus, clock = make(tmp_path, [{"task": "a", "fast": 50.0}],
+                             {"a": ["tests.test_agent_inproc:DriveLayer"]})
+    cmds = []
+    bus.subscribe("robot1/cmd_vel", cmds.append)
+    step(agent, bus, clock, 3)
+    assert agent.high.active_task == "a"
+    step(agent, bus, clock, 15, fresh=False)  # sensor timeout 1 s
+    assert agent.high.active_task is None
+    assert cmds[-1].message == Twist(0.0, 0.0)
+    assert agent.transitions[-1][1].reason == "inapplicable"
+
+
+def test_ignores_own_broadcasts_mismatched_frame_ids_and_malformed_samples(tmp_path):
+    agent, bus, clock = make(tmp_path, [{"task": "a", "fast": 1.0}])
+    bus.publish("robot1/alliance/inter_robot_communication",
+                InterRobotCommunication(Header("robot1", 0.0), "a", 10.0))
+    bus.publish("robot2/alliance/inter_robot_communication",
+                InterRobotCommunication(Header("robot7", 0.0), "a", 10.0))
+    bus.publish_raw("robot2/alliance/inter_robot_communication",
+                    encoding_for("alliance_msgs/InterRobotCommunication"), b"\x93garbage")
+    step(agent, bus, clock, 3)
+    assert agent.ignored_own == 1 and agent.ignored_mismatch == 1
+    assert bus.stats["malformed"] == 1
+    assert agent.high.sets["a"].others == {}
+    assert agent.high.sets["a"].impatience == 1.0  # nobody else is doing it: fast
+
+
+def test_another_robots_broadcast_slows_impatience(tmp_path):
+    agent, bus, clock = make(tmp_path, [{"task": "a", "fast": 5.0, "theta": 100.0}])
+    for _ in range(3):
+        bus.publish("/robot2/alliance/inter_robot_communication".strip("/"),
+                    InterRobotCommunication(Header("/robot2", clock.now()), "a", 100.0))
+        step(agent, bus, clock, 1)
+    # slow = θ / (expected · ρ) = 100 / (100 · 10) = 0.1 per tick
+    assert agent.high.sets["a"].impatience == 0.1
