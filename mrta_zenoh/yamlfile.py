@@ -62,9 +62,8 @@ def _walk(node: yaml.Node, path: tuple, lines: dict) -> None:
     if isinstance(node, yaml.MappingNode):
         for k, v in node.value:
             key = k.value
-            lines[path + (key,)] = k.start_mark.line + 1
             _walk(v, path + (key,), lines)
-            lines[path + (key,)] = k.start_mark.line + 1
+            lines[path + (key,)] = k.start_mark.line + 1  # the key's line, not its value's
     elif isinstance(node, yaml.SequenceNode):
         for i, v in enumerate(node.value):
             _walk(v, path + (i,), lines)

@@ -166,8 +166,9 @@ class ZenohBus(Bus):
 def run_router(options: BusOptions, stop: threading.Event) -> str:
     """Run a Zenoh router (router mode of the same library) until `stop` is set."""
     session = open_session(options)
+    zid = str(session.zid())
     try:
         stop.wait()
     finally:
         session.close()
-    return str(session.zid())
+    return zid
