@@ -77,6 +77,8 @@ def did_you_mean(word: str, options) -> str:
 def sized_array(doc: YamlDoc, path: tuple, item_prefix: str) -> list[tuple[tuple, dict]]:
     """Items of a `size` + `<prefix>0…` block as (path, mapping) pairs, checked for consistency."""
     block = get_path(doc.data, path)
+    if block is None:
+        raise doc.error(path, f"missing mandatory key {path[-1]!r}")
     if not isinstance(block, dict):
         raise doc.error(path, "expected a mapping with 'size' and "
                               f"'{item_prefix}0', '{item_prefix}1', …")
@@ -99,6 +101,9 @@ def sized_array(doc: YamlDoc, path: tuple, item_prefix: str) -> list[tuple[tuple
 
 
 def get_path(data: Any, path: tuple) -> Any:
+    """The value at `path` in nested mappings, or None where a key is missing or not a mapping."""
     for p in path:
-        data = data[p]
+        if not isinstance(data, dict):
+            return None
+        data = data.get(p)
     return data

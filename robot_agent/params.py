@@ -13,7 +13,7 @@ from pathlib import Path
 from typing import Any
 
 from mrta_zenoh.errors import ConfigError
-from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, load_yaml, sized_array
+from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, get_path, load_yaml, sized_array
 
 NUMBER = (int, float)
 
@@ -70,9 +70,7 @@ class _Reader:
 
     def __init__(self, doc: YamlDoc, path: tuple, allowed: set[str]):
         self.doc, self.path = doc, path
-        data = doc.data
-        for p in path:
-            data = data.get(p) if isinstance(data, dict) else None
+        data = get_path(doc.data, path)
         if not isinstance(data, dict):
             raise doc.error(path, "expected a mapping")
         self.data = data

@@ -82,6 +82,19 @@ def test_unknown_key_in_tasks_file_and_unknown_task(tmp_path):
         load_agent_params(rf, tf2)
 
 
+@pytest.mark.parametrize("drop", ["sensors", "behaviour_sets"])
+def test_missing_array_block_is_a_config_error(tmp_path, drop):
+    doc = robot_yaml([{"task": "a", "fast": 10.0}])
+    del doc[drop]
+    rf = write(tmp_path / "r.yaml", doc)
+    tf = write(tmp_path / "t.yaml", tasks_yaml(["a"]))
+    with pytest.raises(ConfigError, match=rf"r.yaml: '{drop}': missing mandatory key '{drop}'"):
+        load_agent_params(rf, tf)
+    empty = write(tmp_path / "empty_tasks.yaml", {"other": 1})
+    with pytest.raises(ConfigError, match="unknown key 'other'"):
+        load_agent_params(write(tmp_path / "r2.yaml", robot_yaml([{"task": "a", "fast": 1.0}])), empty)
+
+
 def test_invalid_yaml_names_the_line(tmp_path):
     rf = tmp_path / "r.yaml"
     rf.write_text("spin_rate: 2\nsensors: [\n")
