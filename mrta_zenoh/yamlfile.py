@@ -32,6 +32,10 @@ class YamlDoc:
         key = "/".join(map(str, path)) or "(top level)"
         return ConfigError(message, file=str(self.path), line=self.line(path), element=f"'{key}'")
 
+    def warning(self, path: tuple, message: str) -> str:
+        """The same `file:line: 'key': message` text as error(), for legal but suspicious values."""
+        return str(self.error(path, message))
+
 
 def load_yaml(path: Path | str) -> YamlDoc:
     path = Path(path)

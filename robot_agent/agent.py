@@ -10,8 +10,6 @@ from __future__ import annotations
 import collections
 import logging
 import threading
-from typing import Any
-
 import numpy as np
 
 from mrta_zenoh import keys
@@ -65,7 +63,6 @@ class Agent:
         self._seq: dict[str, int] = collections.defaultdict(int)
         self._last_broadcast: float | None = None
         self._token = None
-        self._expected = {bs.task_id: bs.expected_duration for bs in params.robot.behaviour_sets}
 
     # ------------------------------------------------------------ set-up
     def start(self) -> None:
@@ -119,9 +116,9 @@ class Agent:
                      "activated" if tr.active else "deactivated", tr.task_id, tr.reason, now)
         after = self.high.active_task
         if before != after:
-            for layer in self.plugins.layers.get(before, []) if before else []:
+            for layer in self._layers(before):
                 layer.on_deactivate(now)
-            for layer in self.plugins.layers.get(after, []) if after else []:
+            for layer in self._layers(after):
                 layer.on_activate(now)
             if after is not None:
                 self._last_broadcast = None  # announce a new activation at once
@@ -137,11 +134,14 @@ class Agent:
             return
         self._last_broadcast = now
         key = keys.inter_robot_communication(self.robot_id)
-        self.bus.publish(key, InterRobotCommunication(self._header(key, now), task, self._expected[task]))
+        self.bus.publish(key, InterRobotCommunication(self._header(key, now), task,
+                                                       self.high.sets[task].params.expected_duration))
+
+    def _layers(self, task: str | None) -> list[Layer]:
+        return self.plugins.layers.get(task, []) if task is not None else []
 
     def step_layers(self, now: float, dt: float) -> None:
-        task = self.high.active_task
-        for layer in self.plugins.layers.get(task, []) if task else []:
+        for layer in self._layers(self.high.active_task):
             layer.step(now, dt)
 
     # ------------------------------------------------------------ the loop
@@ -172,12 +172,6 @@ class Agent:
     def shutdown(self) -> None:
         """Stop the robot: deactivate the running layers and command zero velocity."""
         now = self.clock.now()
-        task = self.high.active_task
-        for layer in self.plugins.layers.get(task, []) if task else []:
+        for layer in self._layers(self.high.active_task):
             layer.on_deactivate(now)
         self.ctx.publish_cmd(0.0, 0.0)
-
-    def status(self) -> dict[str, Any]:
-        return {"robot": self.robot_id, "active": self.high.active_task,
-                "ignored_own": self.ignored_own, "ignored_mismatch": self.ignored_mismatch,
-                "malformed": self.bus.stats["malformed"]}

@@ -157,7 +157,9 @@ class HighLevel:
                 s.motivation = min(s.motivation, p.threshold)
             elif s.motivation >= p.threshold:
                 candidates.append((s.motivation / p.threshold, task))
-        if candidates and not any(s.active for s in self.sets.values()):
+        # A set beside an active one is suppressed (motivation 0), so candidates only exist
+        # while no set is active.
+        if candidates:
             candidates.sort(key=lambda c: -c[0])  # stable: ties go to the first listed set
             _, winner = candidates[0]
             for _, task in candidates[1:]:
@@ -167,10 +169,6 @@ class HighLevel:
             s.active, s.activated_at = True, now
             s.motivation = s.params.threshold
             transitions.append(Transition(winner, True, "threshold reached"))
-        else:
-            for _, task in candidates:  # another set is already active: these are suppressed
-                s = self.sets[task]
-                s.suppressed, s.motivation = True, 0.0
         states = [MotivationState(t, s.impatience, s.acquiescent, s.suppressed, s.resetted,
                                   s.applicable, s.motivation, s.params.threshold, s.active)
                   for t, s in self.sets.items()]

@@ -146,11 +146,10 @@ def load_robot_params(path: Path | str) -> tuple[RobotParams, list[str]]:
             evaluator_topics=tuple(ftopics),
         )
         if bs.yielding_delay > bs.giving_up_delay:
-            warnings.append(
-                f"{doc.path}:{doc.line(a.path + ('yielding_delay',))}: "
-                f"'{'/'.join(map(str, a.path + ('yielding_delay',)))}': yielding_delay "
-                f"{bs.yielding_delay:g} s is longer than giving_up_delay {bs.giving_up_delay:g} s: "
-                "this robot gives up before it would ever yield")
+            warnings.append(doc.warning(
+                a.path + ("yielding_delay",),
+                f"yielding_delay {bs.yielding_delay:g} s is longer than giving_up_delay "
+                f"{bs.giving_up_delay:g} s: this robot gives up before it would ever yield"))
         sets.append(bs)
     robot = RobotParams(
         name=top.get("name", str, ""),
@@ -162,10 +161,10 @@ def load_robot_params(path: Path | str) -> tuple[RobotParams, list[str]]:
         control_rate=top.get("control_rate", float, 10.0, positive=True),
     )
     if robot.broadcast_rate > 0 and 1.0 / robot.broadcast_rate >= robot.timeout_duration:
-        warnings.append(
-            f"{doc.path}:{doc.line(('broadcast_rate',))}: 'broadcast_rate': a broadcast every "
-            f"{1 / robot.broadcast_rate:g} s is not faster than timeout_duration "
-            f"{robot.timeout_duration:g} s: other robots will think this one stopped between broadcasts")
+        warnings.append(doc.warning(
+            ("broadcast_rate",),
+            f"a broadcast every {1 / robot.broadcast_rate:g} s is not faster than timeout_duration "
+            f"{robot.timeout_duration:g} s: other robots will think this one stopped between broadcasts"))
     return robot, warnings
 
 
