@@ -1,7 +1,7 @@
 """Test helpers: free ports, child processes tracked by PID, line readers with deadlines.
 
 Children are started with subprocess (never fork: a forked zenoh process hangs), get their own
-rendezvous endpoint on a free port through $MRTA_RENDEZVOUS (never 7447), and are ended by PID.
+rendezvous endpoint on a free port through $MRTA_RENDEZVOUS (never the default rendezvous port), and are ended by PID.
 """
 
 from __future__ import annotations
