@@ -64,7 +64,7 @@ def test_echo_exits_promptly_on_sigterm(children):
 @pytest.mark.parametrize("args,text", [
     (["echo", "a//b"], "empty chunk"),
     (["echo", "k", "--connect", "tcp/127.0.0.1"], "tcp/127.0.0.1"),
-    (["echo", "k", "--listen", "localhost:17447"], "localhost:17447"),
+    (["echo", "k", "--listen", "localhost:18000"], "localhost:18000"),
     (["echo", "k", "--zenoh-config", "/nonexistent/z.json5"], "/nonexistent/z.json5"),
     (["echo", "k", "--field", "a//b"], "a//b"),
     (["echo", "k", "--namespace", "a b"], "a b"),

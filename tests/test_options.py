@@ -5,14 +5,14 @@ from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.keys import KeyError_, matches, normalize_robot_id, validate_key_expr
 
 
-@pytest.mark.parametrize("ep", ["tcp/127.0.0.1:17447", "tcp/[::1]:0", "udp/localhost:9000",
+@pytest.mark.parametrize("ep", ["tcp/127.0.0.1:18000", "tcp/[::1]:0", "udp/localhost:9000",
                                 "unixsock-stream//tmp/z.sock"])
 def test_good_endpoints(ep):
     assert check_endpoint(ep) == ep
 
 
 @pytest.mark.parametrize("ep,text", [
-    ("127.0.0.1:17447", "expected PROTOCOL/ADDRESS"),
+    ("127.0.0.1:18000", "expected PROTOCOL/ADDRESS"),
     ("tcp/127.0.0.1", "HOST:PORT"),
     ("tcp/127.0.0.1:99999", "port 0-65535"),
     ("http/x:1", "expected PROTOCOL/ADDRESS"),
@@ -34,8 +34,8 @@ def test_zero_config_binds_or_joins_the_rendezvous_on_loopback(monkeypatch):
 
 
 def test_explicit_endpoints_disable_the_rendezvous():
-    (cfg,) = session_configs(BusOptions(connect=["tcp/10.0.0.2:17447"]))
-    assert cfg["connect"]["endpoints"] == ["tcp/10.0.0.2:17447"]
+    (cfg,) = session_configs(BusOptions(connect=["tcp/10.0.0.2:18000"]))
+    assert cfg["connect"]["endpoints"] == ["tcp/10.0.0.2:18000"]
     assert cfg["listen"]["endpoints"] == ["tcp/127.0.0.1:0"]
 
 
