@@ -12,6 +12,7 @@ CLOCK = "clock"
 SIMULATOR_TOKEN = "simulator"
 ALL_INTER_ROBOT_COMMUNICATION = "*/alliance/inter_robot_communication"
 ALL_MOTIVATION = "*/alliance/motivation/*"
+ALL_CMD_VEL = "*/cmd_vel"
 
 _ID = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_\-.]*$")
 _BAD_CHARS = set("#?$ ")
@@ -74,6 +75,10 @@ def odom(robot_id: str) -> str:
 
 def ground_truth(robot_id: str) -> str:
     return f"{robot_id}/ground_truth"
+
+
+def bumper(robot_id: str) -> str:
+    return f"{robot_id}/bumper"
 
 
 def patrol_report(robot_id: str) -> str:

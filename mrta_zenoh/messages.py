@@ -152,6 +152,18 @@ class PointCloud(Message):
     points: tuple[Point2D, ...] = ()
 
 
+@message("mrta_msgs/Bumper")
+class Bumper(Message):
+    """Contact state of a simulated robot (RosAria's bumper_state, reduced to what a 2-D body has).
+
+    `stalled`: the motors push but the robot does not move; `collisions`: contacts begun so far."""
+
+    header: Header = field(default_factory=Header)
+    stalled: bool = False
+    contact: bool = False
+    collisions: int = 0
+
+
 # ---------------------------------------------------------------- alliance_msgs
 
 

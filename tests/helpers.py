@@ -89,6 +89,22 @@ class Child:
             if predicate(line):
                 return line
 
+    def wait_stderr(self, predicate, timeout: float) -> str:
+        """The first stderr line (logs, e.g. 'ready') satisfying predicate, or AssertionError."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            for line in list(self.stderr):
+                if predicate(line):
+                    return line
+            if self.proc.poll() is not None:
+                time.sleep(0.1)
+                if not any(predicate(x) for x in self.stderr):
+                    raise AssertionError(f"{self.name} exited ({self.proc.returncode})\n"
+                                         f"stderr: {self.stderr[-20:]}")
+            time.sleep(0.05)
+        raise AssertionError(f"{self.name}: no matching stderr line within {timeout}s\n"
+                             f"stderr: {self.stderr[-20:]}")
+
     def wait_json(self, predicate, timeout: float, from_start: bool = False) -> dict:
         def pred(line: str) -> bool:
             try:

@@ -5,7 +5,7 @@ import pytest
 
 from mrta_zenoh import codec
 from mrta_zenoh.messages import (
-    Clock, GenericMessage, Header, InterRobotCommunication, Motivation, Odometry, Point2D,
+    Bumper, Clock, GenericMessage, Header, InterRobotCommunication, Motivation, Odometry, Point2D,
     PointCloud, Pose2D, SensoryFeedback, Twist, registered_types,
 )
 
@@ -20,6 +20,7 @@ EXAMPLES = [
     InterRobotCommunication(Header("robot1", 5.0, 3), "wander", 100.0),
     Motivation(Header("robot1", 5.0, 3), "report", 6.0, True, False, True, True, 42.0, 250.0, False),
     SensoryFeedback(Header("robot1", 5.0, 3), "border_protection", True),
+    Bumper(Header("robot2", 7.5, 4), True, True, 3),
 ]
 
 

@@ -1,0 +1,129 @@
+"""The simulator on the bus: commands in, clock and sensors out, paced to a speed factor.
+
+Commands that arrive between two physics steps are applied at the next step boundary, so the
+simulation itself stays deterministic; only *when* a networked command lands depends on the network.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+import time
+from dataclasses import dataclass
+
+from mrta_zenoh import keys
+from mrta_zenoh.bus import Bus
+from mrta_zenoh.messages import (
+    Bumper, Clock, Header, Odometry, Point2D, PointCloud, Pose2D, Twist,
+)
+
+from .engine import SENSOR_EVERY, Simulation
+
+log = logging.getLogger("mrta.sim")
+
+
+@dataclass
+class RunStats:
+    sim_time: float = 0.0
+    wall_time: float = 0.0
+    steps: int = 0
+    commands: int = 0
+    rejected_commands: int = 0
+    unknown_robot_commands: int = 0
+
+    @property
+    def real_time_factor(self) -> float:
+        return self.sim_time / self.wall_time if self.wall_time > 0 else float("inf")
+
+
+class SimNode:
+    """Runs a Simulation against a bus. `speed`: 1 real time, k faster, 0 as fast as possible."""
+
+    def __init__(self, sim: Simulation, bus: Bus, speed: float = 1.0,
+                 publish_sensors: bool = True, monotonic=time.monotonic):
+        if speed < 0:
+            raise ValueError(f"speed must be ≥ 0, got {speed}")
+        self.sim = sim
+        self.bus = bus
+        self.speed = speed
+        self.publish_sensors = publish_sensors
+        self.stats = RunStats()
+        self._monotonic = monotonic  # pacing is the one place that must follow the wall clock
+        self._pending: dict[str, tuple[float, float]] = {}
+        self._lock = threading.Lock()
+        self._warned: set[str] = set()
+        self._keys = [(keys.sonar(r), keys.odom(r), keys.ground_truth(r), keys.bumper(r))
+                      for r in sim.ids]
+        self._sub = bus.subscribe(keys.ALL_CMD_VEL, self._on_cmd, msg_type=Twist)
+
+    def _on_cmd(self, sample) -> None:
+        rid = keys.first_chunk(sample.key)
+        msg = sample.message
+        with self._lock:
+            self._pending[rid] = (msg.linear, msg.angular)
+
+    def _apply_commands(self) -> None:
+        with self._lock:
+            pending, self._pending = self._pending, {}
+        for rid, (lin, ang) in sorted(pending.items()):  # sorted: same order every run
+            if rid not in self.sim.index:
+                self.stats.unknown_robot_commands += 1
+                self._warn_once(rid, f"cmd_vel for {rid!r}, which is not in this simulation")
+                continue
+            try:
+                self.sim.command(rid, lin, ang)
+                self.stats.commands += 1
+            except ValueError as exc:
+                self.stats.rejected_commands += 1
+                self._warn_once(rid + "/bad", f"{exc}; command ignored")
+
+    def _warn_once(self, what: str, text: str) -> None:
+        if what not in self._warned:
+            self._warned.add(what)
+            log.warning(text)
+
+    def run(self, stop: threading.Event, duration: float | None = None) -> RunStats:
+        sim = self.sim
+        self.bus.publish(keys.CLOCK, Clock(sim.time))
+        if self.publish_sensors:
+            self.publish_all()
+        wall0, sim0 = self._monotonic(), sim.time
+        while not stop.is_set():
+            if duration is not None and sim.time >= duration - 1e-9:
+                break
+            self._apply_commands()
+            sim.step()
+            self.bus.publish(keys.CLOCK, Clock(sim.time))
+            if self.publish_sensors and sim.steps % SENSOR_EVERY == 0:
+                self.publish_all()
+            if self.speed > 0:
+                ahead = (sim.time - sim0) / self.speed - (self._monotonic() - wall0)
+                if ahead > 0 and stop.wait(ahead):
+                    break
+        self.stats.sim_time = sim.time - sim0
+        self.stats.wall_time = self._monotonic() - wall0
+        self.stats.steps = sim.steps
+        return self.stats
+
+    def publish_all(self) -> None:
+        sim = self.sim
+        t = sim.time
+        reading = sim.sonar()
+        pts = reading.points.tolist()
+        pose, odom, twist = sim.pose.tolist(), sim.odom.tolist(), sim.odom_twist.tolist()
+        vel = sim.vel.tolist()
+        stalled, contacts = sim.stalled.tolist(), (sim.contacts > 0).tolist()
+        collisions = sim.collisions.tolist()
+        publish = self.bus.publish
+        for i, rid in enumerate(sim.ids):
+            k_sonar, k_odom, k_truth, k_bump = self._keys[i]
+            publish(k_sonar, PointCloud(Header(f"{rid}/sonar", t),
+                                        tuple(Point2D(x, y) for x, y in pts[i])))
+            publish(k_odom, Odometry(Header(f"{rid}/odom", t), Pose2D(*odom[i]),
+                                     Twist(*twist[i])))
+            publish(k_truth, Odometry(Header("world", t), Pose2D(*pose[i]), Twist(*vel[i])))
+            publish(k_bump, Bumper(Header(rid, t), stalled[i], contacts[i], collisions[i]))
+
+    def close(self) -> None:
+        self._sub.close()
+

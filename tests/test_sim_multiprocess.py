@@ -1,0 +1,36 @@
+"""`mrta sim` as its own process, driven by a separate commander process over real Zenoh."""
+
+import json
+import signal
+
+import pytest
+
+from simulator.robot_model import RobotModel
+
+M = RobotModel()
+
+
+def test_sim_process_moves_a_robot_on_command_and_its_watchdog_stops_it(children, tmp_path):
+    snap = tmp_path / "world.png"
+    sim = children.mrta("sim", "--world", "patrol", "--robot", "robot1=-15,-4,0",
+                        "--robot", "robot2", "--speed", "2", "--snapshot", str(snap), name="sim")
+    sim.wait_stderr(lambda line: "ready" in line, 20)
+    cmd = children.python("commander.py", "robot1", "0.5", "6", name="commander")
+    cmd.wait_line(lambda line: line == "ready", 20)
+    report = json.loads(cmd.wait_line(lambda line: line.startswith("{"), 60))
+    (t0, x0, y0), (t1, x1, y1) = report["start"], report["at_silence"]
+    # the robot drove along +x for the commanded time, give or take one network/step latency
+    expected = 0.5 * report["commanded_for"] - 0.5 ** 2 / (2 * M.linear_accel)
+    assert x1 - x0 == pytest.approx(expected, abs=0.15)
+    assert abs(y1 - y0) < 0.01
+    # silence → watchdog → stop: no further motion beyond watchdog + braking distance
+    x_end = report["end"][1]
+    assert 0.1 < x_end - x1 < 0.5 * M.watchdog + 0.5 ** 2 / (2 * M.linear_accel) + 0.15
+    # sensors flow at 10 Hz of simulated time: ~9 s of sim → ~90 of each
+    for kind in ("sonar", "odom", "bumper"):
+        assert report["counts"][kind] >= 50, report["counts"]
+    assert len(report["first_sonar"]) == 8
+    sim.signal(signal.SIGINT)
+    assert sim.wait(10) == 0
+    assert snap.stat().st_size > 10_000 and snap.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert any("done:" in line for line in sim.stderr)
