@@ -1,0 +1,230 @@
+"""`mrta arch …`, `mrta app …` and `mrta launch`: thin wrappers over mrta_zenoh.toolchain."""
+
+from __future__ import annotations
+
+import json
+import shlex
+from pathlib import Path
+
+import click
+
+from ..errors import ConfigError
+from ..lifecycle import stop_on_signals
+from ..toolchain.generator import build_application, load_answers, write_package
+from ..toolchain.launchfile import LaunchEvaluator, check_executables
+from ..toolchain.model import Application, Architecture, Array, Param, Params
+from ..toolchain.registry import Registry, matches_taxonomy, taxonomy_value
+from ..toolchain.runner import command_for, run_nodes
+from ..toolchain.wizard import collect, summary
+from ..toolchain.xmlio import load_rqt_mrta
+from .common import BadInput, user_errors
+
+
+def _problems(reg: Registry) -> None:
+    for p in reg.problems:
+        click.echo(f"warning: {p}", err=True)
+
+
+@click.group()
+def arch() -> None:
+    """Registered MRTA architectures (rqt_mrta's plugins)."""
+
+
+@arch.command("list")
+@click.option("--robots", help="ST (single-task) or MT (multi-task) robots.")
+@click.option("--tasks", help="SR (single-robot) or MR (multi-robot) tasks.")
+@click.option("--allocations", help="IA (instantaneous) or TA (time-extended) assignment.")
+@click.option("--json", "as_json", is_flag=True, help="One JSON object per architecture.")
+def arch_list(robots: str | None, tasks: str | None, allocations: str | None, as_json: bool) -> None:
+    """List architectures, filtered by the Gerkey–Matarić taxonomy."""
+    with user_errors():
+        f = {k: taxonomy_value(k, v) if v else None
+             for k, v in (("robots", robots), ("tasks", tasks), ("allocations", allocations))}
+        reg = Registry()
+        rows = [(p, a) for p, a in reg.architectures() if matches_taxonomy(a, **f)]
+    _problems(reg)
+    for p, a in rows:
+        if as_json:
+            click.echo(json.dumps({"package": p.name, "name": a.name, "taxonomy": a.taxonomy,
+                                   "file": str(p.architecture_file), "origin": p.origin}))
+        else:
+            click.echo(f"{p.name:20} {a.name:20} {a.taxonomy:10} {p.origin}")
+
+
+def _show_params(children, indent: int) -> list[str]:
+    out = []
+    for c in children:
+        pad = "  " * indent
+        if isinstance(c, Param):
+            extra = f" = {c.value}" if c.value else (f" (default {c.default})" if c.default else
+                                                      " (mandatory)")
+            out.append(f"{pad}{c.name}: {c.type or 'string'}{extra}")
+        elif isinstance(c, (Params, Array)):
+            out.append(f"{pad}{c.name}{'[]' if isinstance(c, Array) else ''}:")
+            out += _show_params(c.children, indent + 1)
+    return out
+
+
+def _describe(model: Architecture | Application) -> list[str]:
+    if isinstance(model, Architecture):
+        lines = [f"architecture {model.name} [{model.taxonomy}]"]
+        for label in ("busy_robots", "idle_robots", "incoming_tasks", "allocated_tasks"):
+            t = getattr(model, label)
+            if t:
+                lines.append(f"  {label}: {t.name} ({t.type}) field {t.field}, "
+                             f"timeout {t.timeout} s, queue {t.queue_size}")
+        lines.append(f"  per-robot config: {model.config_id}; launch: {model.launch_id}")
+    else:
+        lines = [f"application {model.name} (architecture {model.architecture})"]
+        for r in model.robots:
+            lines.append(f"  {r.id}: {', '.join(r.tasks)}")
+    for c in model.configs:
+        lines.append(f"  config {c.id}:")
+        lines += _show_params(c.children, 2)
+    for la in model.launches:
+        lines.append(f"  launch {la.id}: " + ", ".join(i.file for i in la.includes))
+    return lines
+
+
+@arch.command("show")
+@click.argument("name")
+def arch_show(name: str) -> None:
+    """Show an architecture: taxonomy, monitors, config templates, launches."""
+    with user_errors():
+        pkg, a = Registry().architecture(name)
+    click.echo(f"package {pkg.name} {pkg.version} at {pkg.path}")
+    click.echo("\n".join(_describe(a)))
+
+
+def _validate(path: Path, kind: type) -> None:
+    with user_errors():
+        model = load_rqt_mrta(path)
+        if not isinstance(model, kind):
+            raise ConfigError(f"this is an {type(model).__name__.lower()} file, not an "
+                              f"{kind.__name__.lower()} file", file=str(path))
+    click.echo(f"{path}: valid {kind.__name__.lower()} {model.name!r}")
+
+
+@arch.command("validate")
+@click.argument("path", type=click.Path(dir_okay=False, path_type=Path))
+def arch_validate(path: Path) -> None:
+    """Check an architecture file; exit 2 naming file, line and element on the first error."""
+    _validate(path, Architecture)
+
+
+@click.group()
+def app() -> None:
+    """Registered MRTA applications; create new ones."""
+
+
+@app.command("list")
+@click.option("--json", "as_json", is_flag=True)
+def app_list(as_json: bool) -> None:
+    """List applications found on MRTA_PACKAGE_PATH, in configs/ and through entry points."""
+    reg = Registry()
+    rows = reg.applications()
+    _problems(reg)
+    for p, a in rows:
+        if as_json:
+            click.echo(json.dumps({"package": p.name, "name": a.name, "architecture": a.architecture,
+                                   "robots": [r.id for r in a.robots], "path": str(p.path)}))
+        else:
+            click.echo(f"{p.name:20} {a.name:30} {a.architecture:12} "
+                       f"{len(a.robots)} robots  {p.path}")
+
+
+@app.command("show")
+@click.argument("name")
+def app_show(name: str) -> None:
+    """Show an application: robots and their tasks, configs, launches."""
+    with user_errors():
+        pkg, a = Registry().application(name)
+    click.echo(f"package {pkg.name} {pkg.version} at {pkg.path}")
+    click.echo("\n".join(_describe(a)))
+
+
+@app.command("validate")
+@click.argument("path", type=click.Path(dir_okay=False, path_type=Path))
+def app_validate(path: Path) -> None:
+    """Check an application file; exit 2 naming file, line and element on the first error."""
+    _validate(path, Application)
+
+
+@app.command("new")
+@click.option("--answers", type=click.Path(dir_okay=False, path_type=Path),
+              help="YAML answers instead of prompts (docs/toolchain.md).")
+@click.option("--output", type=click.Path(file_okay=False, path_type=Path), default=Path("."),
+              show_default=True, help="Folder in which the package folder is created.")
+@click.option("--force", is_flag=True, help="Replace an existing package folder.")
+@click.option("--yes", is_flag=True, help="Do not ask for confirmation after the summary.")
+def app_new(answers: Path | None, output: Path, force: bool, yes: bool) -> None:
+    """Create an application package: general data, architecture, robots, parameters, summary."""
+    with user_errors():
+        reg = Registry()
+        if answers is not None:
+            a, doc = load_answers(answers)
+            arch_pkg, arch_model = reg.architecture(a.architecture)
+        else:
+            a, arch_pkg, arch_model = collect(reg)
+            doc = None
+        _, files = build_application(arch_pkg, arch_model, a, doc)
+        dest = output / a.package
+        if dest.exists() and not force:
+            raise ConfigError(f"{dest} already exists; use --force to replace it")
+        click.echo(click.style("5/5 Summary", bold=True) if answers is None else "Summary")
+        click.echo(summary(a, arch_model, files, dest))
+        if answers is None and not yes and not click.confirm("Write these files?", default=True):
+            raise click.ClickException("nothing written")
+        write_package(files, dest, force)
+    click.echo(f"wrote {len(files)} files to {dest}")
+
+
+def _split_launch_args(items: tuple[str, ...]) -> dict[str, str]:
+    out = {}
+    for item in items:
+        name, sep, value = item.partition(":=")
+        if not sep or not name:
+            raise BadInput(f"launch argument {item!r}: expected name:=value")
+        out[name] = value
+    return out
+
+
+@click.command()
+@click.argument("target")
+@click.argument("rest", nargs=-1)
+@click.option("--dry-run", is_flag=True, help="Print the commands that would run, one per node.")
+def launch(target: str, rest: tuple[str, ...], dry_run: bool) -> None:
+    """Run a launch file: `mrta launch PACKAGE FILE.launch [name:=value …]` or a path.
+
+    Every node starts as a child process with its output prefixed by the node's name; all stop on
+    Ctrl-C, or when one of them fails.
+    """
+    reg = Registry()
+    with user_errors():
+        path = Path(target)
+        if path.suffix == ".launch" and path.is_file():
+            args = rest
+        else:
+            if not rest:
+                raise BadInput(f"{target!r} is not a launch file; give PACKAGE FILE.launch")
+            pkg = reg.find(target)
+            path = pkg.path / "launch" / rest[0]
+            if not path.is_file():
+                found = sorted(p.name for p in (pkg.path / "launch").glob("*.launch"))
+                raise ConfigError(f"package {pkg.name} has no launch/{rest[0]} "
+                                  f"(it has: {', '.join(found) or 'none'})")
+            args = rest[1:]
+        nodes = LaunchEvaluator(lambda name: reg.find(name).path).run(path, _split_launch_args(args))
+        check_executables(nodes)
+    if dry_run:
+        for n in nodes:
+            env = "".join(f"{k}={shlex.quote(v)} " for k, v in n.env.items())
+            click.echo(f"[{n.name}] {env}{shlex.join(command_for(n))}")
+        return
+    with stop_on_signals() as stop:
+        code = run_nodes(nodes, stop, echo=lambda line: click.echo(line))
+    if code:
+        raise click.ClickException("a node failed; the others were stopped")
+
+
+

@@ -1,0 +1,1 @@
+"""rqt_mrta: architecture and application files, registry, templates, wizard, launch files."""

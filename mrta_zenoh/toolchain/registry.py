@@ -1,0 +1,225 @@
+"""Packages, architectures and applications: what rospack's plugin export did for rqt_mrta.
+
+A package is a folder with a `package.xml` whose `<export>` holds
+`<rqt_mrta architecture="${prefix}/rqt_mrta.xml"/>` (or `application=…`). Packages are found, in
+this order (the first package of a name wins, later ones are reported as shadowed):
+
+1. `MRTA_PACKAGE_PATH`: colon-separated folders, each a package or a tree of packages;
+2. the project's `configs/` folder;
+3. entry points in the `mrta.packages` group: the value names an importable module whose folder is
+   the package, so `pip install my-arch` makes `my_arch` appear with no path set.
+"""
+
+from __future__ import annotations
+
+import importlib
+import importlib.metadata
+import os
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from lxml import etree
+
+from ..errors import ConfigError
+from ..paths import CONFIGS
+from ..yamlfile import did_you_mean
+from .model import ALLOCATION_TYPES, ROBOT_TYPES, TASK_TYPES, Application, Architecture
+from .xmlio import load_rqt_mrta
+
+ENTRY_POINT_GROUP = "mrta.packages"
+_SKIP_DIRS = {".git", "__pycache__", "node_modules", ".venv", "venv", "build", "dist"}
+_MAX_DEPTH = 4
+
+
+@dataclass
+class Package:
+    name: str
+    path: Path
+    version: str = ""
+    description: str = ""
+    maintainers: list[tuple[str, str]] = field(default_factory=list)  # (name, email)
+    license: str = ""
+    depends: list[str] = field(default_factory=list)
+    architecture_file: Path | None = None
+    application_file: Path | None = None
+    origin: str = ""
+
+
+def load_package_xml(path: Path, origin: str = "") -> Package:
+    try:
+        root = etree.parse(str(path)).getroot()
+    except OSError as exc:
+        raise ConfigError(f"cannot read: {exc}", file=str(path)) from None
+    except etree.XMLSyntaxError as exc:
+        raise ConfigError(f"not well-formed XML: {exc.msg}", file=str(path),
+                          line=exc.lineno or None) from None
+    if root.tag != "package":
+        raise ConfigError("the root element must be <package>", file=str(path),
+                          line=root.sourceline, element=f"<{root.tag}>")
+
+    def text(tag: str) -> str:
+        el = root.find(tag)
+        return (el.text or "").strip() if el is not None else ""
+
+    name = text("name")
+    if not name:
+        raise ConfigError("<package> needs a <name>", file=str(path), line=root.sourceline)
+    prefix = str(path.parent)
+    pkg = Package(name=name, path=path.parent, version=text("version"),
+                  description=" ".join(text("description").split()), license=text("license"),
+                  origin=origin)
+    pkg.maintainers = [((m.text or "").strip(), m.get("email", "")) for m in root.findall("maintainer")]
+    pkg.depends = [(d.text or "").strip() for d in root
+                   if isinstance(d.tag, str) and d.tag.endswith("depend") and d.tag != "buildtool_depend"]
+    export = root.find("export")
+    for el in (export if export is not None else []):
+        if el.tag != "rqt_mrta":
+            continue
+        for attr in ("architecture", "application"):
+            value = el.get(attr)
+            if value is None:
+                continue
+            resolved = Path(value.replace("${prefix}", prefix))
+            setattr(pkg, f"{attr}_file", resolved)
+        unknown = set(el.attrib) - {"architecture", "application"}
+        if unknown:
+            bad = sorted(unknown)[0]
+            raise ConfigError(f"unexpected attribute {bad!r}; expected architecture= or application="
+                              + did_you_mean(bad, ["architecture", "application"]),
+                              file=str(path), line=el.sourceline, element="<rqt_mrta>")
+    return pkg
+
+
+def _walk(root: Path, depth: int = 0):
+    pkg = root / "package.xml"
+    if pkg.is_file():
+        yield pkg
+        return  # packages do not nest (as with catkin)
+    if depth >= _MAX_DEPTH:
+        return
+    try:
+        entries = sorted(root.iterdir())
+    except OSError:
+        return
+    for child in entries:
+        if child.is_dir() and child.name not in _SKIP_DIRS and not child.name.startswith("."):
+            yield from _walk(child, depth + 1)
+
+
+class Registry:
+    def __init__(self, search_path: list[Path] | None = None, use_configs: bool = True,
+                 use_entry_points: bool = True):
+        self.packages: dict[str, Package] = {}
+        self.problems: list[str] = []
+        if search_path is None:
+            env = os.environ.get("MRTA_PACKAGE_PATH", "")
+            search_path = [Path(p) for p in env.split(os.pathsep) if p]
+        for root in search_path:
+            for xml in _walk(root):
+                self._add(xml, f"MRTA_PACKAGE_PATH ({root})")
+        if use_configs and CONFIGS.is_dir():
+            for xml in _walk(CONFIGS):
+                self._add(xml, "project configs/")
+        if use_entry_points:
+            for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+                try:
+                    module = importlib.import_module(ep.value.split(":")[0])
+                except ImportError as exc:
+                    self.problems.append(f"entry point {ep.name!r} ({ep.value}): {exc}")
+                    continue
+                folder = Path(module.__file__).parent
+                xml = folder / "package.xml"
+                if xml.is_file():
+                    self._add(xml, f"entry point {ep.name} ({ep.dist.name if ep.dist else '?'})")
+                else:
+                    self.problems.append(f"entry point {ep.name!r}: no package.xml in {folder}")
+
+    def _add(self, xml: Path, origin: str) -> None:
+        try:
+            pkg = load_package_xml(xml, origin)
+        except ConfigError as exc:
+            self.problems.append(str(exc))
+            return
+        if pkg.name in self.packages:
+            self.problems.append(f"package {pkg.name!r} at {pkg.path} is shadowed by "
+                                 f"{self.packages[pkg.name].path}")
+            return
+        self.packages[pkg.name] = pkg
+
+    def find(self, name: str) -> Package:
+        pkg = self.packages.get(name)
+        if pkg is None:
+            raise ConfigError(f"unknown package {name!r}" + did_you_mean(name, self.packages)
+                              + " (packages come from MRTA_PACKAGE_PATH, configs/ and entry points)")
+        return pkg
+
+    def _models(self, attr: str) -> list[tuple[Package, Architecture | Application]]:
+        out = []
+        for pkg in self.packages.values():
+            f = getattr(pkg, f"{attr}_file")
+            if f is None:
+                continue
+            if not f.is_file():
+                self.problems.append(f"{pkg.path / 'package.xml'}: exported {attr} file {f} "
+                                     "does not exist")
+                continue
+            try:
+                out.append((pkg, load_rqt_mrta(f)))
+            except ConfigError as exc:
+                self.problems.append(str(exc))
+        return out
+
+    def architectures(self) -> list[tuple[Package, Architecture]]:
+        return [(p, m) for p, m in self._models("architecture") if isinstance(m, Architecture)]
+
+    def applications(self) -> list[tuple[Package, Application]]:
+        return [(p, m) for p, m in self._models("application") if isinstance(m, Application)]
+
+    def _named(self, name: str, kind: str, items: list) -> tuple[Package, object]:
+        for pkg, model in items:
+            if name in (pkg.name,) or name.lower() == model.name.lower():
+                return pkg, model
+        names = [p.name for p, _ in items]
+        # a package that exists but failed to load: say why instead of "unknown"
+        for problem in self.problems:
+            if name in problem:
+                raise ConfigError(f"{kind} {name!r} did not load: {problem}")
+        raise ConfigError(f"unknown {kind} {name!r}" + did_you_mean(name, names)
+                          + f" (known: {', '.join(names) or 'none'})")
+
+    def architecture(self, name: str) -> tuple[Package, Architecture]:
+        return self._named(name, "architecture", self.architectures())
+
+    def application(self, name: str) -> tuple[Package, Application]:
+        return self._named(name, "application", self.applications())
+
+
+# ------------------------------------------------------------------- Gerkey–Matarić filter
+
+_ALIASES = {
+    "st": "ST", "single-task": "ST", "singletask": "ST",
+    "mt": "MT", "multi-task": "MT", "multitask": "MT",
+    "sr": "SR", "single-robot": "SR", "singlerobot": "SR",
+    "mr": "MR", "multi-robot": "MR", "multirobot": "MR",
+    "ia": "IA", "instantaneous-assignment": "IA", "instantaneous": "IA",
+    "ta": "TA", "time-extended-assignment": "TA", "time-extended": "TA",
+}
+
+
+def taxonomy_value(axis: str, value: str) -> str:
+    """`single-task`, `Single Task`, `st` → `ST`, checked against the axis it is given for."""
+    key = re.sub(r"[\s_]+", "-", value.strip().lower())
+    code = _ALIASES.get(key) or _ALIASES.get(key.replace("-", ""))
+    allowed = {"robots": ROBOT_TYPES, "tasks": TASK_TYPES, "allocations": ALLOCATION_TYPES}[axis]
+    if code not in allowed:
+        raise ConfigError(f"--{axis} {value!r}: expected one of {', '.join(allowed)} "
+                          f"(or their long names, e.g. single-task)")
+    return code
+
+
+def matches_taxonomy(arch: Architecture, robots: str | None, tasks: str | None,
+                     allocations: str | None) -> bool:
+    return ((robots is None or arch.robots_type == robots)
+            and (tasks is None or arch.tasks_type == tasks)
+            and (allocations is None or arch.allocations_type == allocations))

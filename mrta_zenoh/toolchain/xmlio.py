@@ -1,0 +1,372 @@
+"""Read and write rqt_mrta XML files (architecture: appendix A; application: appendix B).
+
+Strict: every element must be one the format allows where it stands; anything else is a
+ConfigError naming file, line (lxml `sourceline`) and element, saying what was expected and
+suggesting the nearest allowed tag. Indexed tags (`param_0`, `params_5`, `array_1`, `robot_2`)
+are read in document order and written back with their position as index.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from pathlib import Path
+
+from lxml import etree
+
+from ..errors import ConfigError
+from ..yamlfile import did_you_mean
+from .model import (
+    ALLOCATION_TYPES, PARAM_TYPES, ROBOT_TYPES, TASK_TYPES, Application, Architecture, Array,
+    Config, Launch, LaunchArg, LaunchInclude, Node, Param, Params, RobotEntry, Topic,
+)
+
+_INDEXED = re.compile(r"^([a-z_]+?)_(\d+)$")
+
+
+class _Reader:
+    def __init__(self, path: Path):
+        self.path = path
+
+    def error(self, el, message: str) -> ConfigError:
+        return ConfigError(message, file=str(self.path), line=el.sourceline,
+                           element=f"<{el.tag}>")
+
+    def children(self, el, allowed: tuple[str, ...], indexed: tuple[str, ...] = ()) -> list:
+        """Element children, each checked against `allowed` plain tags and `indexed` bases."""
+        out = []
+        for child in el:
+            if not isinstance(child.tag, str):
+                continue  # comments, processing instructions
+            m = _INDEXED.match(child.tag)
+            if child.tag in allowed or (m and m.group(1) in indexed):
+                out.append(child)
+                continue
+            options = list(allowed) + [f"{b}_N" for b in indexed]
+            raise self.error(child, f"unexpected element inside <{el.tag}>; expected "
+                             + ", ".join(f"<{o}>" for o in options)
+                             + did_you_mean(re.sub(r"_\d+$", "_N", child.tag), options))
+        return out
+
+    def one(self, el, tag: str, required: bool = True):
+        found = [c for c in el if c.tag == tag]
+        if len(found) > 1:
+            raise self.error(found[1], f"<{tag}> appears more than once in <{el.tag}>")
+        if not found:
+            if required:
+                raise self.error(el, f"<{el.tag}> needs a <{tag}> element")
+            return None
+        return found[0]
+
+    def text(self, el, tag: str, required: bool = True) -> str | None:
+        child = self.one(el, tag, required)
+        if child is None:
+            return None
+        if len(child):
+            raise self.error(child, f"<{tag}> holds text, not elements")
+        return (child.text or "").strip()
+
+    def choice(self, el, tag: str, options: tuple[str, ...]) -> str:
+        value = self.text(el, tag)
+        if value not in options:
+            raise self.error(self.one(el, tag), f"<{tag}> must be one of {', '.join(options)}, "
+                             f"got {value!r}")
+        return value
+
+    # ---------------------------------------------------------------------------- pieces
+
+    def topic_holder(self, el) -> Topic | None:
+        if el is None:
+            return None
+        self.children(el, ("topic",))
+        t = self.one(el, "topic")
+        self.children(t, ("name", "type", "field", "queue_size", "timeout"))
+        q = self.text(t, "queue_size", required=False)
+        to = self.text(t, "timeout", required=False)
+        try:
+            queue_size = int(q) if q else 10
+            if queue_size < 1:
+                raise ValueError
+        except ValueError:
+            raise self.error(self.one(t, "queue_size"),
+                             f"<queue_size> must be a positive integer, got {q!r}") from None
+        try:
+            timeout = float(to) if to else 1.0
+            if not (timeout > 0 and math.isfinite(timeout)):
+                raise ValueError
+        except ValueError:
+            raise self.error(self.one(t, "timeout"),
+                             f"<timeout> must be a positive number of seconds, got {to!r}") from None
+        name, type_, fld = self.text(t, "name"), self.text(t, "type"), self.text(t, "field")
+        if not name or not type_:
+            raise self.error(t, "<topic> needs a non-empty <name> and <type>")
+        return Topic(name, type_, fld or "", queue_size, timeout, line=t.sourceline)
+
+    def param_node(self, el) -> Node:
+        base = _INDEXED.match(el.tag).group(1)
+        if base == "param":
+            self.children(el, ("name", "type", "value", "default", "tool_tip"))
+            p = Param(name=self.text(el, "name"), type=self.text(el, "type", False),
+                      value=self.text(el, "value", False), default=self.text(el, "default", False),
+                      tool_tip=self.text(el, "tool_tip", False), line=el.sourceline)
+            if not p.name:
+                raise self.error(el, "a parameter needs a non-empty <name>")
+            if p.type is not None and p.type not in PARAM_TYPES:
+                raise self.error(self.one(el, "type"), f"<type> must be one of "
+                                 f"{'|'.join(PARAM_TYPES)}, got {p.type!r}"
+                                 + did_you_mean(p.type, PARAM_TYPES))
+            for what in ("value", "default"):
+                v = getattr(p, what)
+                problem = type_problem(p.type, v)
+                if problem:
+                    raise self.error(self.one(el, what), f"<{what}> of {p.name!r}: {problem}")
+            return p
+        self.children(el, ("name",), ("param", "params", "array"))
+        kids = [self.param_node(c) for c in el if isinstance(c.tag, str) and c.tag != "name"]
+        name = self.text(el, "name")
+        if base == "array":
+            return Array(name, kids, line=el.sourceline)
+        return Params(name, kids, line=el.sourceline)
+
+    def configs(self, el) -> list[Config]:
+        if el is None:
+            return []
+        out = []
+        for c in self.children(el, (), ("config",)):
+            self.children(c, ("id",), ("param", "params", "array"))
+            kids = [self.param_node(k) for k in c if isinstance(k.tag, str) and k.tag != "id"]
+            out.append(Config(self.text(c, "id"), kids, line=c.sourceline))
+        ids = [c.id for c in out]
+        for c, el_c in zip(out, self.children(el, (), ("config",))):
+            if ids.count(c.id) > 1:
+                raise self.error(el_c, f"config id {c.id!r} is used twice")
+        return out
+
+    def launches(self, el) -> list[Launch]:
+        if el is None:
+            return []
+        out = []
+        for la in self.children(el, (), ("launch",)):
+            self.children(la, ("id", "includes"))
+            includes = []
+            inc_el = self.one(la, "includes", required=False)
+            if inc_el is not None:
+                for inc in self.children(inc_el, (), ("include",)):
+                    self.children(inc, ("file", "args"))
+                    args = []
+                    args_el = self.one(inc, "args", required=False)
+                    if args_el is not None:
+                        for a in self.children(args_el, (), ("arg",)):
+                            self.children(a, ("name", "value", "default"))
+                            args.append(LaunchArg(self.text(a, "name"), self.text(a, "value", False),
+                                                  self.text(a, "default", False)))
+                    includes.append(LaunchInclude(self.text(inc, "file"), args))
+            out.append(Launch(self.text(la, "id"), includes))
+        return out
+
+
+def type_problem(type_: str | None, value: str | None) -> str | None:
+    """Why `value` is not a valid `type_` literal, or None. Placeholders (@x@, $(…)) pass."""
+    if value is None or value == "" or type_ in (None, "string"):
+        return None
+    if "@" in value or "$(" in value:
+        return None
+    if type_ == "int":
+        try:
+            int(value)
+        except ValueError:
+            return f"expected an int, got {value!r}"
+    elif type_ == "double":
+        try:
+            float(value)
+        except ValueError:
+            return f"expected a double, got {value!r}"
+    elif type_ == "bool" and value.lower() not in ("true", "false", "1", "0"):
+        return f"expected a bool (true/false), got {value!r}"
+    return None
+
+
+def _parse(path: Path):
+    try:
+        parser = etree.XMLParser(remove_blank_text=False, resolve_entities=False, no_network=True)
+        return etree.parse(str(path), parser).getroot()
+    except OSError as exc:
+        raise ConfigError(f"cannot read: {exc}", file=str(path)) from None
+    except etree.XMLSyntaxError as exc:
+        line = exc.lineno if exc.lineno else None
+        raise ConfigError(f"not well-formed XML: {exc.msg}", file=str(path), line=line) from None
+
+
+def load_rqt_mrta(path: Path | str) -> Architecture | Application:
+    """An rqt_mrta.xml file: an architecture (appendix A) or an application (appendix B)."""
+    path = Path(path)
+    root = _parse(path)
+    r = _Reader(path)
+    if root.tag != "rqt_mrta":
+        raise r.error(root, "the root element must be <rqt_mrta>"
+                      + did_you_mean(root.tag, ["rqt_mrta"]))
+    r.children(root, ("architecture", "application", "configs", "launches", "widgets"))
+    arch_el, app_el = r.one(root, "architecture", False), r.one(root, "application", False)
+    if (arch_el is None) == (app_el is None):
+        raise r.error(root, "<rqt_mrta> holds exactly one of <architecture> or <application>")
+    configs = r.configs(r.one(root, "configs", False))
+    launches = r.launches(r.one(root, "launches", False))
+    widgets = []
+    w_el = r.one(root, "widgets", False)
+    if w_el is not None:
+        for w in r.children(w_el, (), ("widget",)):
+            r.children(w, ("plugin_name",))
+            widgets.append(r.text(w, "plugin_name"))
+    if arch_el is not None:
+        return _architecture(r, arch_el, configs, launches, widgets, path)
+    if widgets:
+        raise r.error(w_el, "<widgets> belongs to architecture files")
+    return _application(r, app_el, configs, launches, path)
+
+
+def _architecture(r: _Reader, el, configs, launches, widgets, path) -> Architecture:
+    r.children(el, ("name", "robots", "tasks", "allocations"))
+    robots, tasks, allocs = r.one(el, "robots"), r.one(el, "tasks"), r.one(el, "allocations")
+    r.children(robots, ("type", "busy_robots", "idle_robots", "config_id", "launch_id"))
+    r.children(tasks, ("type", "incoming_tasks"))
+    r.children(allocs, ("type", "allocated_tasks"))
+    arch = Architecture(
+        name=r.text(el, "name"),
+        robots_type=r.choice(robots, "type", ROBOT_TYPES),
+        tasks_type=r.choice(tasks, "type", TASK_TYPES),
+        allocations_type=r.choice(allocs, "type", ALLOCATION_TYPES),
+        busy_robots=r.topic_holder(r.one(robots, "busy_robots", False)),
+        idle_robots=r.topic_holder(r.one(robots, "idle_robots", False)),
+        incoming_tasks=r.topic_holder(r.one(tasks, "incoming_tasks", False)),
+        allocated_tasks=r.topic_holder(r.one(allocs, "allocated_tasks", False)),
+        config_id=r.text(robots, "config_id", False),
+        launch_id=r.text(robots, "launch_id", False),
+        configs=configs, launches=launches, widgets=widgets, source=str(path))
+    if arch.config_id and arch.config(arch.config_id) is None:
+        raise r.error(r.one(robots, "config_id"), f"no config has id {arch.config_id!r}"
+                      + did_you_mean(arch.config_id, [c.id for c in configs]))
+    if arch.launch_id and arch.launch(arch.launch_id) is None:
+        raise r.error(r.one(robots, "launch_id"), f"no launch has id {arch.launch_id!r}"
+                      + did_you_mean(arch.launch_id, [la.id for la in launches]))
+    return arch
+
+
+def _application(r: _Reader, el, configs, launches, path) -> Application:
+    r.children(el, ("architecture", "name", "robots"))
+    robots = []
+    robots_el = r.one(el, "robots", False)
+    if robots_el is not None:
+        for rb in r.children(robots_el, (), ("robot",)):
+            r.children(rb, ("id", "tasks"))
+            tasks = []
+            t_el = r.one(rb, "tasks", False)
+            if t_el is not None:
+                for t in r.children(t_el, (), ("task",)):
+                    r.children(t, ("id",))
+                    tasks.append(r.text(t, "id"))
+            robots.append(RobotEntry(r.text(rb, "id"), tasks))
+    return Application(r.text(el, "architecture"), r.text(el, "name"), robots, configs, launches,
+                       source=str(path))
+
+
+# -------------------------------------------------------------------------------- writing
+
+def _sub(parent, tag: str, text: str | None = None):
+    el = etree.SubElement(parent, tag)
+    if text is not None:
+        el.text = text
+    return el
+
+
+def _write_topic(parent, tag: str, topic: Topic | None) -> None:
+    if topic is None:
+        return
+    t = _sub(_sub(parent, tag), "topic")
+    _sub(t, "name", topic.name)
+    _sub(t, "type", topic.type)
+    _sub(t, "field", topic.field)
+    _sub(t, "queue_size", str(topic.queue_size))
+    _sub(t, "timeout", repr(topic.timeout))
+
+
+def _write_node(parent, node: Node, index: int) -> None:
+    if isinstance(node, Param):
+        el = _sub(parent, f"param_{index}")
+        _sub(el, "name", node.name)
+        for what in ("type", "value", "default", "tool_tip"):
+            v = getattr(node, what)
+            if v is not None:
+                _sub(el, what, v)
+        return
+    el = _sub(parent, f"{'array' if isinstance(node, Array) else 'params'}_{index}")
+    _sub(el, "name", node.name)
+    for i, child in enumerate(node.children):
+        _write_node(el, child, i)
+
+
+def _write_common(root, configs: list[Config], launches: list[Launch]) -> None:
+    if configs:
+        cs = _sub(root, "configs")
+        for i, c in enumerate(configs):
+            el = _sub(cs, f"config_{i}")
+            _sub(el, "id", c.id)
+            for j, child in enumerate(c.children):
+                _write_node(el, child, j)
+    if launches:
+        ls = _sub(root, "launches")
+        for i, la in enumerate(launches):
+            el = _sub(ls, f"launch_{i}")
+            _sub(el, "id", la.id)
+            incs = _sub(el, "includes")
+            for j, inc in enumerate(la.includes):
+                ie = _sub(incs, f"include_{j}")
+                _sub(ie, "file", inc.file)
+                if inc.args:
+                    args = _sub(ie, "args")
+                    for k, a in enumerate(inc.args):
+                        ae = _sub(args, f"arg_{k}")
+                        _sub(ae, "name", a.name)
+                        if a.value is not None:
+                            _sub(ae, "value", a.value)
+                        if a.default is not None:
+                            _sub(ae, "default", a.default)
+
+
+def to_xml(model: Architecture | Application) -> bytes:
+    root = etree.Element("rqt_mrta")
+    if isinstance(model, Architecture):
+        a = _sub(root, "architecture")
+        _sub(a, "name", model.name)
+        rb = _sub(a, "robots")
+        _sub(rb, "type", model.robots_type)
+        _write_topic(rb, "busy_robots", model.busy_robots)
+        _write_topic(rb, "idle_robots", model.idle_robots)
+        if model.config_id is not None:
+            _sub(rb, "config_id", model.config_id)
+        if model.launch_id is not None:
+            _sub(rb, "launch_id", model.launch_id)
+        tk = _sub(a, "tasks")
+        _sub(tk, "type", model.tasks_type)
+        _write_topic(tk, "incoming_tasks", model.incoming_tasks)
+        al = _sub(a, "allocations")
+        _sub(al, "type", model.allocations_type)
+        _write_topic(al, "allocated_tasks", model.allocated_tasks)
+        _write_common(root, model.configs, model.launches)
+        if model.widgets:
+            ws = _sub(root, "widgets")
+            for i, w in enumerate(model.widgets):
+                _sub(_sub(ws, f"widget_{i}"), "plugin_name", w)
+    else:
+        a = _sub(root, "application")
+        _sub(a, "architecture", model.architecture)
+        _sub(a, "name", model.name)
+        rbs = _sub(a, "robots")
+        for i, r in enumerate(model.robots):
+            re_ = _sub(rbs, f"robot_{i}")
+            _sub(re_, "id", r.id)
+            ts = _sub(re_, "tasks")
+            for j, t in enumerate(r.tasks):
+                _sub(_sub(ts, f"task_{j}"), "id", t)
+        _write_common(root, model.configs, model.launches)
+    etree.indent(root, space="  ")
+    return etree.tostring(root, xml_declaration=True, encoding="UTF-8", pretty_print=True)

@@ -1,0 +1,108 @@
+"""rqt_mrta files: the reference files load and round-trip; malformed ones are told where and why."""
+
+import pytest
+from click.testing import CliRunner
+
+from mrta_zenoh.cli.main import cli
+from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.paths import CONFIGS
+from mrta_zenoh.toolchain.model import Application, Architecture, Array, Param, Params
+from mrta_zenoh.toolchain.xmlio import load_rqt_mrta, to_xml
+from tests.helpers import REFERENCE
+
+REFERENCE_FILES = ["alliance/rqt_mrta.xml", "dissertation_examples/a_arch_config-rqt_mrta.xml",
+                   "dissertation_examples/b_app_config-rqt_mrta.xml", "alliance_test/rqt_mrta.xml"]
+
+
+@pytest.mark.parametrize("rel", REFERENCE_FILES)
+def test_reference_file_loads_and_round_trips(reference, tmp_path, rel):
+    path = REFERENCE / rel
+    if not path.exists():
+        pytest.skip(f"{rel} is not in the reference folder (exported by package.xml, not shipped)")
+    model = load_rqt_mrta(path)
+    out = tmp_path / "again.xml"
+    out.write_bytes(to_xml(model))
+    assert load_rqt_mrta(out) == model
+
+
+def test_reference_models_hold_what_the_files_say(reference):
+    arch = load_rqt_mrta(REFERENCE / "alliance/rqt_mrta.xml")
+    assert isinstance(arch, Architecture) and arch.taxonomy == "ST-SR-IA"
+    assert arch.busy_robots.field == "header/frame_id" and arch.allocated_tasks.timeout == 0.5
+    robot = arch.config("alliance_params")
+    sensors = next(c for c in robot.children if c.name == "sensors")
+    assert isinstance(sensors, Params) and isinstance(sensors.children[1], Array)
+    assert sensors.children[0].value == "@array_size@"
+    app = load_rqt_mrta(REFERENCE / "dissertation_examples/b_app_config-rqt_mrta.xml")
+    assert isinstance(app, Application) and app.name == "Patrulha na UNIFEI"
+    assert [r.id for r in app.robots] == ["/robot1", "/robot2", "/robot3"]
+    assert app.tasks() == ["wander", "border_protection", "report"]
+    assert len(app.configs) == 5 and len(app.launches) == 3
+
+
+def test_our_architecture_round_trips_and_uses_zenoh_keys(tmp_path):
+    arch = load_rqt_mrta(CONFIGS / "alliance" / "rqt_mrta.xml")
+    assert arch.busy_robots.name == "*/alliance/inter_robot_communication"
+    (tmp_path / "a.xml").write_bytes(to_xml(arch))
+    assert load_rqt_mrta(tmp_path / "a.xml") == arch
+    mandatory = [c for c in arch.config("alliance_params").children
+                 if isinstance(c, Param) and c.mandatory]
+    assert [p.name for p in mandatory] == ["name"]
+
+
+ARCH = """<?xml version="1.0"?>
+<rqt_mrta>
+  <architecture>
+    <name>X</name>
+    <robots><type>ST</type>{robots}</robots>
+    <tasks><type>SR</type></tasks>
+    <allocations><type>IA</type></allocations>
+  </architecture>
+  <configs>
+    <config_0>
+      <id>c</id>
+      {param}
+    </config_0>
+  </configs>
+</rqt_mrta>
+"""
+OK_PARAM = "<param_0><name>p</name><type>double</type></param_0>"
+
+MALFORMED = [
+    (ARCH.format(robots="<busy_robot/>", param=OK_PARAM), 5, "did you mean 'busy_robots'"),
+    (ARCH.format(robots="", param="<param_0><name>p</name><type>float</type></param_0>"), 12,
+     "must be one of bool|int|double|string"),
+    (ARCH.format(robots="", param="<param_0><name>p</name><type>int</type><default>x</default>"
+                              "</param_0>"), 12, "expected an int"),
+    (ARCH.format(robots="<busy_robots><topic><name>k</name><type>t</type><field>f</field>"
+                        "<timeout>-1</timeout></topic></busy_robots>", param=OK_PARAM), 5,
+     "positive number of seconds"),
+    (ARCH.format(robots="<config_id>nope</config_id>", param=OK_PARAM), 5, "no config has id"),
+    (ARCH.format(robots="", param="<parm_0><name>p</name></parm_0>"), 12, "did you mean"),
+    (ARCH.format(robots="", param="<param_0><type>int</type></param_0>"), 12, "needs a <name>"),
+    (ARCH.replace("<type>SR</type>", "<type>XR</type>").format(robots="", param=OK_PARAM), 6,
+     "must be one of SR, MR"),
+    ("<rqt_mrta><architecture>", 1, "not well-formed"),
+    ("<rqtmrta/>", 1, "root element must be <rqt_mrta>"),
+]
+
+
+@pytest.mark.parametrize("text,line,message", MALFORMED, ids=[m[2] for m in MALFORMED])
+def test_malformed_architecture_names_file_line_and_element(tmp_path, text, line, message):
+    f = tmp_path / "rqt_mrta.xml"
+    f.write_text(text)
+    with pytest.raises(ConfigError) as err:
+        load_rqt_mrta(f)
+    assert message in str(err.value)
+    assert err.value.file == str(f) and err.value.line == line, str(err.value)
+    res = CliRunner().invoke(cli, ["arch", "validate", str(f)])
+    assert res.exit_code == 2 and f"{f}:{line}" in res.output
+
+
+def test_validate_accepts_good_files_and_refuses_the_wrong_kind(reference):
+    r = CliRunner()
+    assert r.invoke(cli, ["arch", "validate", str(REFERENCE / "alliance/rqt_mrta.xml")]).exit_code == 0
+    app = str(REFERENCE / "dissertation_examples/b_app_config-rqt_mrta.xml")
+    assert r.invoke(cli, ["app", "validate", app]).exit_code == 0
+    res = r.invoke(cli, ["arch", "validate", app])
+    assert res.exit_code == 2 and "not an architecture file" in res.output
