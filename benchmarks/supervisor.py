@@ -1,0 +1,245 @@
+"""Supervisor benchmark: samples/s through field extraction + state update, and state-change latency.
+
+Prints one JSON line per figure:
+  supervisor_samples_s  a publisher process floods InterRobotCommunication from 1,000 robot ids;
+                        ours = mrta bus → decode → field paths → Supervisor state, baseline = a raw
+                        zenoh-python subscriber that only unpacks msgpack, in the same run
+  state_change_latency  under a steady 10,000 samples/s background load, a probe robot appears
+                        every 50 ms; latency = its rising edge in the Supervisor − its send time
+
+Run: python benchmarks/supervisor.py [--n 200000] [--rate 10000] [--seconds 10]
+Processes on loopback with a private rendezvous port, started with subprocess (never fork).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import socket
+import statistics
+import subprocess
+import sys
+import threading
+import time
+
+HERE = os.path.abspath(__file__)
+# This file is named like the `supervisor` package it measures: keep its folder off the path.
+sys.path[:] = [p for p in sys.path if os.path.abspath(p or ".") != os.path.dirname(HERE)]
+IRC_KEY = "{}/alliance/inter_robot_communication"
+
+
+def free_port() -> int:
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def patrol():
+    from supervisor.cli import resolve_application
+    return resolve_application("patrol")
+
+
+# ----------------------------------------------------------------------------- child roles
+
+def child_publisher(n: int, rate: float, seconds: float, probes: bool) -> None:
+    """Flood (rate 0) or pace IRC samples from 1,000 robots; optionally probes every 50 ms."""
+    from mrta_zenoh.bus import BusOptions, open_bus
+    from mrta_zenoh.messages import Header, InterRobotCommunication
+
+    with open_bus(BusOptions()) as bus:
+        bus.declare_token("bench/publisher")
+        print("ready", flush=True)
+        sys.stdin.readline()  # go
+        msgs = [(IRC_KEY.format(f"robot{i}"),
+                 InterRobotCommunication(Header(f"robot{i}", 0.0), "wander", 60.0))
+                for i in range(1000)]
+        t0 = time.perf_counter()
+        if rate <= 0:
+            for k in range(n):
+                key, m = msgs[k % 1000]
+                bus.publish(key, m)
+        else:
+            period = 1.0 / rate
+            k, probe = 0, 0
+            next_probe = t0
+            while time.perf_counter() - t0 < seconds:
+                target = t0 + k * period
+                while time.perf_counter() < target:
+                    pass
+                key, m = msgs[k % 1000]
+                bus.publish(key, m)
+                k += 1
+                if probes and time.perf_counter() >= next_probe:
+                    rid = f"probe{probe}"
+                    bus.publish(IRC_KEY.format(rid), InterRobotCommunication(
+                        Header(rid, time.time()), "report", 1.0))
+                    probe += 1
+                    next_probe += 0.05
+        print(json.dumps({"sent": k if rate > 0 else n,
+                          "seconds": time.perf_counter() - t0}), flush=True)
+        sys.stdin.readline()
+
+
+def child_raw_receiver() -> None:
+    import msgpack
+    from mrta_zenoh.bus import BusOptions
+    from mrta_zenoh.bus.zenoh_bus import open_session
+
+    count = [0, 0.0, 0.0]
+
+    def on(smp):
+        msgpack.unpackb(smp.payload.to_bytes())
+        if count[0] == 0:
+            count[1] = time.perf_counter()
+        count[0] += 1
+        count[2] = time.perf_counter()
+
+    s = open_session(BusOptions())
+    sub = s.declare_subscriber("*/alliance/inter_robot_communication", on)
+    tok = s.liveliness().declare_token("bench/receiver")
+    print("ready", flush=True)
+    sys.stdin.readline()
+    print(json.dumps({"n": count[0], "seconds": count[2] - count[1]}), flush=True)
+    tok.undeclare(); sub.undeclare(); s.close()
+
+
+def spawn(env: dict, *args: str) -> subprocess.Popen:
+    p = subprocess.Popen([sys.executable, HERE, "--child", *args], env=env, stdin=subprocess.PIPE,
+                         stdout=subprocess.PIPE, text=True)
+    if p.stdout.readline().strip() != "ready":
+        raise RuntimeError(f"child {args} did not start")
+    return p
+
+
+def tell(p: subprocess.Popen) -> None:
+    p.stdin.write("\n")
+    p.stdin.flush()
+
+
+# ------------------------------------------------------------------------------ measurements
+
+def run_ours(env: dict, n: int) -> tuple[float, int]:
+    from mrta_zenoh.bus import BusOptions, open_bus
+    from mrta_zenoh.clock import WallClock
+    from supervisor.cli import attach
+    from supervisor.state import Supervisor
+
+    app, arch = patrol()
+    clock = WallClock()
+    with open_bus(BusOptions()) as bus:
+        sup = Supervisor(arch, app, clock.now())
+        seen = threading.Event()
+        bus.watch_liveliness("bench/publisher", lambda k, a: a and seen.set())
+        pub = spawn(env, "publisher", str(n), "0", "0", "0")
+        seen.wait(10)
+        handles = attach(sup, bus, clock)
+        time.sleep(0.5)
+        first = [None]
+        orig = sup.on_sample
+
+        def timed(*a):
+            if first[0] is None:
+                first[0] = time.perf_counter()
+            orig(*a)
+            timed.last = time.perf_counter()
+        sup.on_sample = timed
+        tell(pub)
+        json.loads(pub.stdout.readline())
+        time.sleep(1.0)
+        tell(pub)
+        pub.wait(10)
+        count = sup.counts["samples"]
+        for h in handles:
+            h.close()
+    return count / (timed.last - first[0]), count
+
+
+def run_raw(env: dict, n: int) -> tuple[float, int]:
+    recv = spawn(env, "raw_receiver")
+    pub = spawn(env, "publisher", str(n), "0", "0", "0")
+    time.sleep(0.5)
+    tell(pub)
+    json.loads(pub.stdout.readline())
+    time.sleep(1.0)
+    tell(recv)
+    res = json.loads(recv.stdout.readline())
+    tell(pub)
+    pub.wait(10)
+    recv.wait(10)
+    return res["n"] / res["seconds"], res["n"]
+
+
+def run_latency(env: dict, rate: float, seconds: float) -> dict:
+    from mrta_zenoh.bus import BusOptions, open_bus
+    from mrta_zenoh.clock import WallClock
+    from supervisor.cli import attach
+    from supervisor.state import Supervisor
+
+    app, arch = patrol()
+    clock = WallClock()
+    latencies: list[float] = []
+    with open_bus(BusOptions()) as bus:
+        sup = Supervisor(arch, app, clock.now())
+        orig = sup.on_sample
+
+        def probe_aware(monitors, key, type_name, message, now):
+            orig(monitors, key, type_name, message, now)
+            if key.startswith("probe"):
+                # the rising edge just happened inside orig(): measure it now
+                latencies.append(time.time() - message.header.stamp)
+        sup.on_sample = probe_aware
+        handles = attach(sup, bus, clock)
+        pub = spawn(env, "publisher", "0", str(rate), str(seconds), "1")
+        time.sleep(0.5)
+        tell(pub)
+        stopper = threading.Event()
+
+        def ticker():  # the supervise loop's periodic update under the same load
+            while not stopper.wait(0.25):
+                sup.update(clock.now())
+        t = threading.Thread(target=ticker, daemon=True)
+        t.start()
+        sent = json.loads(pub.stdout.readline())
+        stopper.set()
+        t.join()
+        tell(pub)
+        pub.wait(10)
+        for h in handles:
+            h.close()
+    lat = sorted(latencies)
+    return {"probes": len(lat), "p50_ms": round(statistics.median(lat) * 1e3, 2),
+            "p99_ms": round(lat[int(len(lat) * 0.99) - 1] * 1e3, 2),
+            "max_ms": round(lat[-1] * 1e3, 2),
+            "achieved_rate": round(sent["sent"] / sent["seconds"])}
+
+
+def main() -> None:
+    if len(sys.argv) > 2 and sys.argv[1] == "--child":
+        role = sys.argv[2]
+        if role == "publisher":
+            n, rate, seconds, probes = sys.argv[3:7]
+            child_publisher(int(n), float(rate), float(seconds), probes == "1")
+        else:
+            child_raw_receiver()
+        return
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--n", type=int, default=200_000)
+    ap.add_argument("--rate", type=float, default=10_000)
+    ap.add_argument("--seconds", type=float, default=10.0)
+    args = ap.parse_args()
+    env = dict(os.environ, MRTA_RENDEZVOUS=f"tcp/127.0.0.1:{free_port()}", RUST_LOG="error")
+    os.environ.update(env)
+    raw, raw_n = run_raw(env, args.n)
+    ours, ours_n = run_ours(env, args.n)
+    print(json.dumps({"figure": "supervisor_samples_s", "ours": round(ours),
+                      "baseline_raw_zenoh_unpack": round(raw), "ratio": round(ours / raw, 2),
+                      "ours_received": ours_n, "raw_received": raw_n, "sent": args.n,
+                      "target": 100_000}), flush=True)
+    lat = run_latency(env, args.rate, args.seconds)
+    print(json.dumps({"figure": "state_change_latency", "load_samples_s": args.rate, **lat,
+                      "target_p99_ms": 50}), flush=True)
+
+
+if __name__ == "__main__":
+    main()

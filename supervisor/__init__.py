@@ -1,0 +1,1 @@
+"""Supervisor: robots busy / idle / offline, tasks, allocations and alarms from any architecture file."""

@@ -1,0 +1,169 @@
+"""Supervisor logic on a manual clock: holders, robot and task states, alarms, bad samples."""
+
+import textwrap
+
+import pytest
+
+from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
+from mrta_zenoh.clock import ManualClock
+from mrta_zenoh.messages import GenericMessage, Header, InterRobotCommunication, Twist
+from mrta_zenoh.paths import CONFIGS
+from mrta_zenoh.toolchain.model import Application, RobotEntry
+from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
+from supervisor.cli import attach, resolve_application
+from supervisor.holders import SampleHolder
+from supervisor.state import Supervisor, key_expr_for
+
+IRC = "alliance_msgs/InterRobotCommunication"
+
+
+def test_sample_holder_edges():
+    h = SampleHolder(2.0)
+    assert h.sample(0.0) is True and h.sample(1.0) is False
+    assert h.update(2.9) is False and h.high
+    assert h.update(3.0) is True and not h.high
+    assert h.update(4.0) is False
+    assert h.sample(5.0) is True
+    with pytest.raises(ValueError):
+        SampleHolder(0)
+
+
+@pytest.fixture
+def patrol():
+    app, arch = resolve_application("patrol")
+    return app, arch
+
+
+def irc(sup, monitors, robot, task, now):
+    sup.on_sample(monitors, f"{robot}/alliance/inter_robot_communication", IRC,
+                  InterRobotCommunication(Header(robot, now), task, 60.0), now)
+
+
+def state(sup, now):
+    snap = sup.snapshot(now)
+    return ({r["id"]: (r["state"], r["task"]) for r in snap["robots"]},
+            {t["id"]: (t["state"], t["robots"]) for t in snap["tasks"]},
+            {(a["kind"], a["subject"]) for a in snap["alarms"]})
+
+
+def test_busy_idle_offline_and_tasks_from_the_alliance_architecture(patrol):
+    app, arch = patrol
+    sup = Supervisor(arch, app, 0.0, unattended_after=10.0, duplicate_after=3.0)
+    mons = sup.monitors
+    robots, tasks, alarms = state(sup, 0.0)
+    assert robots == {r: ("offline", None) for r in ("robot1", "robot2", "robot3")}
+    sup.on_liveliness("robot1/alliance/agent", True, 0.5)
+    sup.on_liveliness("robot2/alliance/agent", True, 0.5)
+    irc(sup, mons, "robot1", "wander", 1.0)
+    robots, tasks, _ = state(sup, 1.0)
+    assert robots["robot1"] == ("busy", "wander") and robots["robot2"] == ("idle", None)
+    assert robots["robot3"] == ("offline", None)
+    assert tasks["wander"] == ("allocated", ["robot1"]) and tasks["report"][0] == "unallocated"
+    sup.update(3.4)  # within the 2.5 s timeout of the sample at 1.0
+    assert state(sup, 3.4)[0]["robot1"][0] == "busy"
+    sup.update(3.6)
+    robots, tasks, alarms = state(sup, 3.6)
+    assert robots["robot1"] == ("idle", None) and tasks["wander"] == ("unallocated", [])
+    # tasks nobody took for 10 s raise an alarm; allocation clears it
+    sup.update(10.5)
+    assert ("task_unattended", "border_protection") in state(sup, 10.5)[2]
+    irc(sup, mons, "robot2", "border_protection", 11.0)
+    assert ("task_unattended", "border_protection") not in state(sup, 11.0)[2]
+    # two robots on a single-robot task for 3 s → alarm
+    for t in (12.0, 13.0, 14.0, 15.0):
+        irc(sup, mons, "robot1", "border_protection", t)
+        irc(sup, mons, "robot2", "border_protection", t)
+        sup.update(t)
+    assert ("task_duplicated", "border_protection") in state(sup, 15.0)[2]
+    # token lost → offline at once, its allocation dropped, alarm raised
+    sup.on_liveliness("robot2/alliance/agent", False, 15.2)
+    robots, tasks, alarms = state(sup, 15.2)
+    assert robots["robot2"] == ("offline", None)
+    assert tasks["border_protection"] == ("allocated", ["robot1"])
+    assert ("communication_lost", "robot2") in alarms
+    assert ("task_duplicated", "border_protection") not in alarms
+    sup.on_liveliness("robot2/alliance/agent", True, 16.0)
+    assert ("communication_lost", "robot2") not in state(sup, 16.0)[2]
+    kinds = [(t.kind, t.subject, t.new) for t in sup.history.all()]
+    assert ("robot", "robot2", "offline") in kinds and ("alarm", "task_duplicated:border_protection",
+                                                       "raised") in kinds
+
+
+def test_unknown_robots_wrong_types_and_bad_fields_do_not_disturb_state(patrol):
+    app, arch = patrol
+    sup = Supervisor(arch, app, 0.0)
+    mons = sup.monitors
+    sup.on_liveliness("robot1/alliance/agent", True, 0.0)
+    irc(sup, mons, "robot1", "wander", 1.0)
+    before = state(sup, 1.0)
+    sup.on_sample(mons, "robot1/alliance/inter_robot_communication", "mrta_msgs/Twist",
+                  Twist(1.0, 0.0), 1.1)
+    sup.on_sample(mons, "robot1/alliance/inter_robot_communication", IRC,
+                  GenericMessage(IRC, {"task_id": "wander"}), 1.2)  # no header: bad field
+    sup.on_sample(mons, "robot1/alliance/inter_robot_communication", IRC,
+                  InterRobotCommunication(Header("not a robot id!", 1.3), "x", 1.0), 1.3)
+    assert state(sup, 1.3) == before
+    assert sup.counts["wrong_type"] == 1 and sup.counts["field_errors"] == 2
+    irc(sup, mons, "robot9", "wander", 2.0)  # not in the application
+    robots, tasks, alarms = state(sup, 2.0)
+    assert robots["robot9"] == ("unknown", "wander")
+    assert tasks["wander"] == ("allocated", ["robot1", "robot9"])
+
+
+OTHER_ARCH = textwrap.dedent("""\
+    <rqt_mrta><architecture><name>Market</name>
+      <robots><type>MT</type>
+        <busy_robots><topic><name>market/award</name><type>market_msgs/Award</type>
+          <field>winner/name</field><queue_size>5</queue_size><timeout>1.0</timeout></topic></busy_robots>
+        <idle_robots><topic><name>fleet/*/heartbeat</name><type>market_msgs/Heartbeat</type>
+          <field>robot</field><queue_size>5</queue_size><timeout>1.0</timeout></topic></idle_robots>
+      </robots>
+      <tasks><type>MR</type>
+        <incoming_tasks><topic><name>market/offer</name><type>market_msgs/Offer</type>
+          <field>jobs/0</field><queue_size>5</queue_size><timeout>1.0</timeout></topic></incoming_tasks>
+      </tasks>
+      <allocations><type>TA</type>
+        <allocated_tasks><topic><name>market/award</name><type>market_msgs/Award</type>
+          <field>job</field><queue_size>5</queue_size><timeout>1.0</timeout></topic></allocated_tasks>
+      </allocations></architecture></rqt_mrta>""")
+
+
+def test_a_different_architecture_drives_the_same_supervisor_over_a_bus(tmp_path):
+    (tmp_path / "arch.xml").write_text(OTHER_ARCH)
+    arch = load_rqt_mrta(tmp_path / "arch.xml")
+    app = Application("market", "Warehouse", [RobotEntry("amr1", ["pick", "drop"]),
+                                              RobotEntry("amr2", ["pick", "drop"])])
+    clock = ManualClock(0.0)
+    net = InProcNetwork()
+    with InProcBus(net) as watcher, InProcBus(net) as fleet:
+        sup = Supervisor(arch, app, 0.0)
+        handles = attach(sup, watcher, clock)
+        fleet.publish("fleet/amr1/heartbeat", GenericMessage("market_msgs/Heartbeat", {"robot": "amr1"}))
+        fleet.publish("fleet/amr2/heartbeat", GenericMessage("market_msgs/Heartbeat", {"robot": "amr2"}))
+        fleet.publish("market/offer", GenericMessage("market_msgs/Offer", {"jobs": ["drop", "x"]}))
+        fleet.publish("market/award", GenericMessage("market_msgs/Award",
+                                                     {"winner": {"name": "amr2"}, "job": "pick"}))
+        fleet.publish("market/award", GenericMessage("market_msgs/Bid", {"winner": {"name": "amr1"}}))
+        robots, tasks, _ = state(sup, 0.0)
+        assert robots == {"amr1": ("idle", None), "amr2": ("busy", "pick")}
+        assert tasks == {"pick": ("allocated", ["amr2"]), "drop": ("incoming", [])}
+        assert sup.counts["wrong_type"] == 1
+        clock.set(1.5)
+        sup.update(1.5)
+        robots, tasks, _ = state(sup, 1.5)
+        # no tokens in this architecture: a robot whose messages stop is offline, and alarmed
+        assert robots == {"amr1": ("offline", None), "amr2": ("offline", None)}
+        assert ("messages_stopped", "amr2") in state(sup, 1.5)[2]
+        for h in handles:
+            h.close()
+
+
+def test_ros_style_names_become_key_expressions():
+    assert key_expr_for("/alliance/inter_robot_communication") == "**/alliance/inter_robot_communication"
+    assert key_expr_for("*/alliance/x") == "*/alliance/x"
+
+
+def test_our_architecture_file_is_what_the_supervisor_reads():
+    arch = load_rqt_mrta(CONFIGS / "alliance" / "rqt_mrta.xml")
+    sup = Supervisor(arch, Application("alliance", "x", [RobotEntry("r1", ["t"])]), 0.0)
+    assert {m.role for m in sup.monitors} == {"busy_robots", "allocated_tasks"}
