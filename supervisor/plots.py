@@ -72,8 +72,9 @@ class TimeBase:
         return "simulated time (s)" if self.simulated else "time (s)"
 
 
-def plot_motivation(recording: Path, robot: str, task: str, output: Path) -> Path:
-    records = list(read_recording(recording))
+def plot_motivation(recording: Path, robot: str, task: str, output: Path,
+                    records: list | None = None) -> Path:
+    records = list(read_recording(recording)) if records is None else records
     tb = TimeBase(records)
     key = keys.motivation(robot, task)
     rows = []
@@ -126,7 +127,7 @@ def plot_motivation(recording: Path, robot: str, task: str, output: Path) -> Pat
 def replay(records, tb: TimeBase, app: Application, arch: Architecture) -> Supervisor:
     """Feed a recording through a Supervisor, in recorded order, on recorded time."""
     start = tb(records[0][2]) if records else 0.0
-    sup = Supervisor(arch, app, start, unattended_after=1e9, duplicate_after=1e9)
+    sup = Supervisor(arch, app, start, unattended_after=1e9, duplicate_after=1e9, quiet=True)
     by_key: dict[str, list] = {}
     last_update = start
     for k, enc, t, payload in records:
@@ -167,18 +168,19 @@ def allocation_intervals(sup: Supervisor, end: float) -> dict[str, list[tuple[st
         if tr.new == "allocated":
             open_[(task, robot)] = tr.time
         elif (task, robot) in open_:
-            out.setdefault(robot, []).append((task, open_.pop((task, robot)), tr.time))
+            out.setdefault(robot, []).append((task, open_.pop((task, robot)), min(tr.time, end)))
     for (task, robot), t0 in open_.items():
         out.setdefault(robot, []).append((task, t0, end))
     return out
 
 
-def plot_timeline(recording: Path, app: Application, arch: Architecture, output: Path) -> Path:
-    records = list(read_recording(recording))
+def plot_timeline(recording: Path, app: Application, arch: Architecture, output: Path,
+                  records: list | None = None, sup: Supervisor | None = None) -> Path:
+    records = list(read_recording(recording)) if records is None else records
     if not records:
         raise ConfigError("the recording is empty", file=str(recording))
     tb = TimeBase(records)
-    sup = replay(records, tb, app, arch)
+    sup = replay(records, tb, app, arch) if sup is None else sup
     end = tb(records[-1][2])
     intervals = allocation_intervals(sup, end)
     robots = [r.id for r in app.robots] + sorted(set(intervals) - {r.id for r in app.robots})

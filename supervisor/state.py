@@ -81,7 +81,8 @@ class TaskInfo:
 
 class Supervisor:
     def __init__(self, arch: Architecture, app: Application, now: float = 0.0,
-                 unattended_after: float = 30.0, duplicate_after: float = 5.0):
+                 unattended_after: float = 30.0, duplicate_after: float = 5.0,
+                 quiet: bool = False):
         self.arch, self.app = arch, app
         self.monitors = monitors_of(arch)
         self._timeouts = {m.role: m.topic.timeout for m in self.monitors}
@@ -96,6 +97,9 @@ class Supervisor:
         self.tasks: dict[str, TaskInfo] = {}
         self.allocations: dict[tuple[str, str], SampleHolder] = {}
         self.started = now
+        self._log = log if not quiet else logging.getLogger("mrta.supervisor.replay")
+        if quiet:
+            self._log.setLevel(logging.ERROR)  # a replay re-lives old alarms; do not re-announce
         self._dup_since: dict[str, float] = {}
         self._robot_alloc: dict[str, set[str]] = {}  # robot → tasks whose holder is high
         self._task_alloc: dict[str, set[str]] = {}   # task → robots whose holder is high
@@ -138,7 +142,7 @@ class Supervisor:
                     self.counts["wrong_type"] += 1
                     if (m.key_expr, type_name) not in self._warned:
                         self._warned.add((m.key_expr, type_name))
-                        log.warning("%s: ignoring samples of type %s (the architecture says %s)",
+                        self._log.warning("%s: ignoring samples of type %s (the architecture says %s)",
                                     m.key_expr, type_name, m.topic.type)
                     return
                 try:
@@ -312,7 +316,7 @@ class Supervisor:
         if (kind, subject) not in self.alarms:
             self.alarms[(kind, subject)] = now if since is None else since
             self.history.add(Transition(now, "alarm", f"{kind}:{subject}", "", "raised"))
-            log.warning("alarm: %s %s", kind, subject)
+            self._log.warning("alarm: %s %s", kind, subject)
 
     def _clear(self, kind: str, subject: str, now: float) -> None:
         if self.alarms.pop((kind, subject), None) is not None:

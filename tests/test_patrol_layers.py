@@ -1,0 +1,102 @@
+"""The patrol layers in the simulator, in simulated time; and the patrol evaluators."""
+
+import math
+
+import numpy as np
+import pytest
+import yaml
+
+from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
+from mrta_zenoh.clock import ManualClock
+from mrta_zenoh.messages import Header, Point2D, PointCloud
+from mrta_zenoh.paths import CONFIGS, bundled_world
+from robot_agent.builtin import PointCloudSensor
+from robot_agent.params import SensorParams
+from robot_agent.patrol import BorderProtection, Report, ReportDue, WallInRange, Wander
+from robot_agent.plugins import AgentContext
+from simulator.engine import Simulation
+from simulator.world import load_world
+from tests.layer_harness import LayerRun
+
+LAYERS = yaml.safe_load((CONFIGS / "applications/patrol/config/layers_alliance_params.yaml").read_text())
+WORLD = load_world(bundled_world("patrol"))
+
+
+def test_wander_moves_through_open_space_without_a_collision_for_120_s():
+    for seed in (0, 1):
+        sim = Simulation(WORLD, {"robot1": WORLD.starts["robot1"]}, seed=seed)
+        run = LayerRun(sim, "robot1", Wander, LAYERS, seed=seed)
+        run.run(120.0)
+        assert sim.collisions[0] == 0
+        assert sim.distance[0] > 30.0  # it keeps moving (0.5 m/s cruise, slower near walls)
+
+
+def test_wander_avoids_other_robots_too():
+    sim = Simulation(WORLD, {"robot1": WORLD.starts["robot1"], "robot4": WORLD.starts["robot4"],
+                             "robot2": WORLD.starts["robot2"]}, seed=3)
+    run = LayerRun(sim, "robot1", Wander, LAYERS, seed=3)
+    run.run(60.0)
+    assert sim.collisions[0] == 0
+
+
+def _wall_distance(x, y):
+    return min(x + 20, 20 - x, y + 6, 6 - y)
+
+
+def test_border_protection_keeps_its_distance_and_goes_round_the_perimeter():
+    sim = Simulation(WORLD, {"robot2": WORLD.starts["robot2"]}, seed=1, record_trails=True)
+    run = LayerRun(sim, "robot2", BorderProtection, LAYERS)
+    dist = []
+    run.run(300.0, each=lambda r: dist.append(_wall_distance(*r.sim.pose[0, :2])))
+    dist = np.array(dist)
+    reached = int(np.argmax(dist < 1.5))  # first time at the wall
+    assert 0 < reached < 200  # within 20 s of starting (it starts 3 m from the nearest wall)
+    band = dist[reached:]
+    set_point = 1.0 + 0.15  # layer distance, seen from the centre (sonar 7 is 136 mm off-axis)
+    assert np.mean(np.abs(band - set_point) < 0.35) > 0.95, np.percentile(band, [1, 50, 99])
+    assert sim.collisions[0] == 0
+    # it advances along the wall: the trail passes near most of the perimeter
+    trail = np.stack(sim.trails)[:, 0, :]
+    cells = [(x, y) for x in np.arange(-19.5, 20, 1.0) for y in (-6.0, 6.0)] + \
+            [(x, y) for x in (-20.0, 20.0) for y in np.arange(-5.5, 6, 1.0)]
+    seen = [np.min(np.hypot(trail[:, 0] - x, trail[:, 1] - y)) < 2.0 for x, y in cells]
+    assert np.mean(seen) > 0.9
+
+
+@pytest.fixture
+def ctx():
+    net = InProcNetwork()
+    bus = InProcBus(net)
+    yield AgentContext("robot1", bus, ManualClock(10.0), np.random.default_rng(0), {}, LAYERS), bus
+    bus.close()
+
+
+def cloud(*ranges_angles):
+    return PointCloud(Header("robot1", 10.0), tuple(
+        Point2D(r * math.cos(math.radians(a)), r * math.sin(math.radians(a)))
+        for r, a in ranges_angles))
+
+
+def test_wall_in_range_needs_a_fresh_echo_within_range(ctx):
+    c, _ = ctx
+    s = PointCloudSensor(SensorParams("patrol/point_cloud", "sonar", 1.0, 1.0))
+    ev = WallInRange("border_protection", [s], c)
+    assert not ev.is_applicable(10.0)  # nothing heard yet
+    s.on_message(cloud((5.0, 0), (5.0, 90)), 10.0)
+    assert not ev.is_applicable(10.0)  # only "no echo"
+    s.on_message(cloud((5.0, 0), (3.0, -90)), 10.0)
+    assert ev.is_applicable(10.0)
+    assert not ev.is_applicable(11.5)  # stale
+
+
+def test_report_due_until_someone_reports_then_again_after_the_period(ctx):
+    c, bus = ctx
+    s = PointCloudSensor(SensorParams("patrol/point_cloud", "sonar", 1.0, 1.0))
+    s.on_message(cloud((2.0, 0)), 10.0)
+    ev = ReportDue("report", [s], c)
+    assert ev.is_applicable(10.0)
+    bus.publish("robot3/patrol/report", Report(Header("robot3", 10.0), 12.0, 0.3, ()))
+    assert not ev.is_applicable(10.0)
+    c.clock.set(10.0 + LAYERS["Report"]["period"])
+    s.on_message(cloud((2.0, 0)), c.clock.now())
+    assert ev.is_applicable(c.clock.now())

@@ -1,0 +1,87 @@
+"""The patrol mission as a user runs it: `mrta demo`, separate terminals, simulated time."""
+
+import json
+import random
+import struct
+
+import pytest
+
+from mrta_zenoh.paths import CONFIGS
+
+CONFIG = CONFIGS / "applications" / "patrol" / "config"
+
+
+def png_size(path):
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    return struct.unpack(">II", data[16:24])
+
+
+def run_demo(children, out, *args, timeout=120):
+    demo = children.mrta("demo", "--output", str(out), "--no-live", *args, name="demo")
+    assert demo.wait(timeout) == 0, demo.stderr[-20:] + demo.stdout[-20:]
+    return json.loads((out / "summary.json").read_text()), demo
+
+
+def test_demo_with_a_failure_takes_over_within_the_bound_and_writes_everything(children, tmp_path):
+    out = tmp_path / "demo"
+    s, demo = run_demo(children, out, "--duration", "40", "--speed", "8", "--fail", "robot2@20")
+    who = {r: [x["task"] for x in spans] for r, spans in s["who_did_what"].items()}
+    assert who["robot1"] == ["wander"] and who["robot2"] == ["border_protection"]
+    assert who["robot3"][0] == "report"
+    f = s["failure"]
+    print(f"takeover of {f['task']} by {f['taken_over_by']}: {f['takeover_seconds']} s "
+          f"(bound {f['bound_seconds']} s)")
+    assert f["task"] == "border_protection" and f["taken_over_by"] in ("robot1", "robot3")
+    assert 0 < f["takeover_seconds"] <= f["bound_seconds"]
+    assert s["coverage"]["wander"]["exactly_one"] > 0.9
+    assert s["coverage"]["border_protection"]["more_than_one"] == 0
+    assert s["collisions_total"] == 0
+    assert 0 < s["border_visited"] <= 1
+    for name in ("run.mcap", "world.png", "timeline.png", "motivation_robot1_wander.png"):
+        assert (out / name).stat().st_size > 5_000, name
+    assert png_size(out / "world.png")[0] == 1600
+    assert any("took over after" in line for line in demo.stdout)
+
+
+def allocation_sequence(summary):
+    return sorted((x["from"], r, x["task"]) for r, spans in summary["who_did_what"].items()
+                  for x in spans)
+
+
+def test_same_seed_same_allocations_at_speed_1_and_10(children, tmp_path):
+    slow, _ = run_demo(children, tmp_path / "slow", "--duration", "12", "--speed", "1",
+                       "--fail", "none")
+    fast, _ = run_demo(children, tmp_path / "fast", "--duration", "12", "--speed", "10",
+                       "--fail", "none")
+    a, b = allocation_sequence(slow), allocation_sequence(fast)
+    assert [(r, t) for _, r, t in a] == [(r, t) for _, r, t in b]
+    for (ta, *_), (tb, *_) in zip(a, b):
+        assert abs(ta - tb) <= 0.1 + 1e-9  # within one tick at spin_rate 10 Hz
+
+
+@pytest.mark.parametrize("seed", [0, 5])
+def test_separate_terminals_in_any_order(children, tmp_path, seed):
+    commands = {
+        "sim": ["sim", "--world", "patrol", "--robot", "robot1", "--robot", "robot2",
+                "--robot", "robot3", "--speed", "3"],
+        "supervise": ["supervise", "patrol", "--json", "--sim-time", "--rate", "4"],
+    }
+    for rid in ("robot1", "robot2", "robot3"):
+        commands[rid] = ["agent", rid, "--robot-params", str(CONFIG / f"{rid}_alliance_params.yaml"),
+                         "--tasks-params", str(CONFIG / "tasks_alliance_params.yaml"),
+                         "--layers-params", str(CONFIG / "layers_alliance_params.yaml"),
+                         "--sim-time"]
+    order = list(commands)
+    random.Random(seed).shuffle(order)
+    procs = {name: children.mrta(*commands[name], name=name) for name in order}
+
+    def allocated(snap):
+        tasks = {t["id"]: t["robots"] for t in snap["tasks"]}
+        robots = {r["id"]: r["state"] for r in snap["robots"]}
+        return (len(tasks["wander"]) == 1 and len(tasks["border_protection"]) == 1
+                and tasks["wander"] != tasks["border_protection"]
+                and all(robots[r] != "offline" for r in ("robot1", "robot2", "robot3")))
+
+    snap = procs["supervise"].wait_json(allocated, 60)
+    print("start order:", order, "→", {t["id"]: t["robots"] for t in snap["tasks"]})
