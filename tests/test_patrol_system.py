@@ -44,9 +44,14 @@ def test_demo_with_a_failure_takes_over_within_the_bound_and_writes_everything(c
     assert any("took over after" in line for line in demo.stdout)
 
 
-def allocation_sequence(summary):
-    return sorted((x["from"], r, x["task"]) for r, spans in summary["who_did_what"].items()
-                  for x in spans)
+def allocations(summary):
+    """(robot, task, n-th time) → start, so robots starting in the same tick may swap order."""
+    out, seen = {}, {}
+    for r, spans in summary["who_did_what"].items():
+        for x in spans:
+            n = seen[(r, x["task"])] = seen.get((r, x["task"]), -1) + 1
+            out[(r, x["task"], n)] = x["from"]
+    return out
 
 
 def test_same_seed_same_allocations_at_speed_1_and_10(children, tmp_path):
@@ -54,10 +59,12 @@ def test_same_seed_same_allocations_at_speed_1_and_10(children, tmp_path):
                        "--fail", "none")
     fast, _ = run_demo(children, tmp_path / "fast", "--duration", "12", "--speed", "10",
                        "--fail", "none")
-    a, b = allocation_sequence(slow), allocation_sequence(fast)
-    assert [(r, t) for _, r, t in a] == [(r, t) for _, r, t in b]
-    for (ta, *_), (tb, *_) in zip(a, b):
-        assert abs(ta - tb) <= 0.1 + 1e-9  # within one tick at spin_rate 10 Hz
+    a, b = allocations(slow), allocations(fast)
+    print("speed 1:", a, "\nspeed 10:", b)
+    assert a.keys() == b.keys() and len(a) == 3
+    for k in a:
+        # within one tick (spin_rate 10 Hz) plus the recording's 20 ms clock resolution
+        assert abs(a[k] - b[k]) <= 0.1 + 0.02 + 1e-9, (k, a[k], b[k])
 
 
 @pytest.mark.parametrize("seed", [0, 5])

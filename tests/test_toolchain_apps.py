@@ -12,6 +12,7 @@ from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
 from mrta_zenoh.paths import CONFIGS
+from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
 from robot_agent.params import load_agent_params
 from tests.helpers import REFERENCE
 
@@ -30,8 +31,9 @@ WIZARD_KEYS = [
     "90", "25", "40", "80", "1", "", "1", "sonar",
     # tasks_alliance_params
     "2", "wander", "Wander", "1", "patrol/wander", "report", "Report", "1", "patrol/report",
-    # layers_alliance_params: keep every default
-    *[""] * 11,
+    # layers_alliance_params: keep every default (one Enter per parameter of the template)
+    *[""] * sum(len(group.children) for group in load_rqt_mrta(
+        CONFIGS / "alliance" / "rqt_mrta.xml").config("layers_alliance_params").children),
     "y",
 ]
 
