@@ -328,7 +328,8 @@ class Supervisor:
         """DESIGN §9's snapshot: robots, tasks, alarms (+ recent transitions and counters)."""
         with self._lock:
             robots = []
-            for r in sorted(self.robots.values(), key=lambda r: (not r.known, r.id)):
+            order = {rid: i for i, rid in enumerate(self.robots)}  # application order first
+            for r in sorted(self.robots.values(), key=lambda r: (not r.known, order[r.id])):
                 tasks = self._robot_tasks(r.id)
                 robots.append({"id": r.id, "state": r.state, "task": tasks[0] if tasks else None,
                                "online": self._online(r), "since": r.since})

@@ -167,3 +167,29 @@ def test_our_architecture_file_is_what_the_supervisor_reads():
     arch = load_rqt_mrta(CONFIGS / "alliance" / "rqt_mrta.xml")
     sup = Supervisor(arch, Application("alliance", "x", [RobotEntry("r1", ["t"])]), 0.0)
     assert {m.role for m in sup.monitors} == {"busy_robots", "allocated_tasks"}
+
+
+def test_live_view_fits_80_by_24_with_ten_robots(patrol):
+    import io
+
+    from rich.console import Console
+
+    from supervisor.view import render
+
+    app, arch = patrol
+    app = Application(app.architecture, app.name,
+                      [RobotEntry(f"robot{i}", ["wander", "border_protection", "report"])
+                       for i in range(1, 11)])
+    sup = Supervisor(arch, app, 0.0, unattended_after=1.0)
+    for i in range(1, 11):
+        sup.on_liveliness(f"robot{i}/alliance/agent", True, 0.0)
+    for i, task in ((1, "wander"), (2, "border_protection"), (3, "report")):
+        irc(sup, sup.monitors, f"robot{i}", task, 1.0)
+    sup.update(5.0)
+    sup.on_liveliness("robot7/alliance/agent", False, 5.0)
+    buf = io.StringIO()
+    Console(file=buf, width=80, height=24, color_system=None).print(render(sup.snapshot(5.0)))
+    lines = buf.getvalue().rstrip("\n").splitlines()
+    assert len(lines) <= 24 and max(len(x) for x in lines) <= 80, "\n".join(lines)
+    text = buf.getvalue()
+    assert "robot10" in text and "offline" in text and "ALARM communication_lost robot7" in text
