@@ -13,20 +13,15 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import socket
 import statistics
 import subprocess
 import sys
 import threading
 import time
 
+from mrta_zenoh.bus.options import private_rendezvous
+
 HERE = os.path.abspath(__file__)
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def irc(seq: int):
@@ -182,7 +177,7 @@ def main() -> None:
     ap.add_argument("--pings", type=int, default=1000)
     ap.add_argument("--rounds", type=int, default=3)
     args = ap.parse_args()
-    env = dict(os.environ, MRTA_RENDEZVOUS=f"tcp/127.0.0.1:{free_port()}", RUST_LOG="error")
+    env = dict(os.environ, MRTA_RENDEZVOUS=private_rendezvous(), RUST_LOG="error")
     os.environ.update(env)
 
     # Alternate raw and ours in rounds: loopback latency drifts by ±10 % between blocks here,

@@ -15,7 +15,6 @@ import argparse
 import json
 import math
 import os
-import socket
 import subprocess
 import sys
 import threading
@@ -24,14 +23,9 @@ import time
 import numpy as np
 import pymunk
 
+from mrta_zenoh.bus.options import private_rendezvous
 from simulator.engine import DT, SENSOR_EVERY, Simulation
 from simulator.world import Pose, World
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def arena(n: int) -> tuple[World, dict[str, Pose]]:
@@ -106,15 +100,13 @@ def run_naive(n: int, seconds: float) -> float:
     return seconds / (time.perf_counter() - t0)
 
 
+# A raw zenoh-python receiver, opened with our loopback defaults (it joins $MRTA_RENDEZVOUS).
 SUBSCRIBER = r"""
-import sys, threading, zenoh
-conf = zenoh.Config()
-conf.insert_json5("scouting/multicast/enabled", "false")
-conf.insert_json5("mode", '"peer"')
-conf.insert_json5("connect/endpoints", '["%s"]')
-conf.insert_json5("listen/endpoints", '["tcp/127.0.0.1:0"]')
+import sys
+from mrta_zenoh.bus import BusOptions
+from mrta_zenoh.bus.zenoh_bus import open_session
 n = [0]
-with zenoh.open(conf) as s:
+with open_session(BusOptions()) as s:
     sub = s.declare_subscriber("**", lambda smp: n.__setitem__(0, n[0] + 1))
     tok = s.liveliness().declare_token("bench/subscriber")
     print("ready", flush=True)
@@ -127,14 +119,14 @@ def run_with_bus(n: int, seconds: float) -> tuple[float, int]:
     from mrta_zenoh.bus import BusOptions, open_bus
     from simulator.node import SimNode
 
-    endpoint = f"tcp/127.0.0.1:{free_port()}"
+    endpoint = private_rendezvous()
     os.environ["MRTA_RENDEZVOUS"] = endpoint
     world, poses = arena(n)
     sim = Simulation(world, poses)
     with open_bus(BusOptions()) as bus:
         seen = threading.Event()
         watch = bus.watch_liveliness("bench/subscriber", lambda k, alive: alive and seen.set())
-        sub = subprocess.Popen([sys.executable, "-c", SUBSCRIBER % endpoint], text=True,
+        sub = subprocess.Popen([sys.executable, "-c", SUBSCRIBER], text=True,
                                stdin=subprocess.PIPE, stdout=subprocess.PIPE)
         try:
             sub.stdout.readline()

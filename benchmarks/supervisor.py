@@ -16,7 +16,6 @@ from __future__ import annotations
 import argparse
 import json
 import os
-import socket
 import statistics
 import subprocess
 import sys
@@ -26,13 +25,9 @@ import time
 HERE = os.path.abspath(__file__)
 # This file is named like the `supervisor` package it measures: keep its folder off the path.
 sys.path[:] = [p for p in sys.path if os.path.abspath(p or ".") != os.path.dirname(HERE)]
+
+from mrta_zenoh.bus.options import private_rendezvous  # noqa: E402
 IRC_KEY = "{}/alliance/inter_robot_communication"
-
-
-def free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def patrol():
@@ -228,7 +223,7 @@ def main() -> None:
     ap.add_argument("--rate", type=float, default=10_000)
     ap.add_argument("--seconds", type=float, default=10.0)
     args = ap.parse_args()
-    env = dict(os.environ, MRTA_RENDEZVOUS=f"tcp/127.0.0.1:{free_port()}", RUST_LOG="error")
+    env = dict(os.environ, MRTA_RENDEZVOUS=private_rendezvous(), RUST_LOG="error")
     os.environ.update(env)
     raw, raw_n = run_raw(env, args.n)
     ours, ours_n = run_ours(env, args.n)

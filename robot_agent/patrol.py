@@ -24,6 +24,7 @@ import threading
 from dataclasses import field
 
 from mrta_zenoh import keys
+from mrta_zenoh.geometry import rectangle_cells
 from mrta_zenoh.messages import (
     Header, InterRobotCommunication, Message, Odometry, PointCloud, message,
 )
@@ -274,13 +275,7 @@ class PatrolLedger:
             x1, y1 = float(border.get("x_max")), float(border.get("y_max"))
         except (TypeError, ValueError):
             x0 = y0 = x1 = y1 = None
-        self.cells: list[tuple[float, float]] = []
-        if x0 is not None:
-            for (ax, ay), (bx, by) in (((x0, y0), (x1, y0)), ((x1, y0), (x1, y1)),
-                                       ((x1, y1), (x0, y1)), ((x0, y1), (x0, y0))):
-                n = max(1, int(math.hypot(bx - ax, by - ay) / self.CELL))
-                self.cells += [(ax + (bx - ax) * (i + 0.5) / n, ay + (by - ay) * (i + 0.5) / n)
-                               for i in range(n)]
+        self.cells = rectangle_cells(x0, y0, x1, y1, self.CELL) if x0 is not None else []
         self.visited = [False] * len(self.cells)
         ctx.bus.subscribe(keys.ALL_INTER_ROBOT_COMMUNICATION, self._on_bc,
                           msg_type=InterRobotCommunication)

@@ -18,7 +18,6 @@ import logging
 import math
 import os
 import signal
-import socket
 import subprocess
 import sys
 import threading
@@ -34,12 +33,15 @@ from rich.text import Text
 
 from mrta_zenoh import keys
 from mrta_zenoh.bus import BusOptions, open_bus
+from mrta_zenoh.bus.options import private_rendezvous
 from mrta_zenoh.cli.common import BadInput, RuntimeFailure, user_errors
 from mrta_zenoh.clock import SimClock
 from mrta_zenoh.codec import DecodeError, decode, type_from_encoding
 from mrta_zenoh.errors import ConfigError, MrtaRuntimeError
+from mrta_zenoh.geometry import rectangle_cells
 from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.messages import Clock as ClockMsg
+from mrta_zenoh.toolchain.model import RobotEntry
 from mrta_zenoh.toolchain.registry import Registry
 
 from .cli import attach
@@ -72,12 +74,6 @@ class Child:
             time.sleep(0.05)
         raise MrtaRuntimeError(f"{self.name} did not start ({text!r} not seen); its last output:\n"
                                + "\n".join(self.lines[-10:]))
-
-
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
 
 
 def _spawn(name: str, args: list[str], env: dict) -> Child:
@@ -137,11 +133,7 @@ def mission_metrics(records, tb: TimeBase, border: dict) -> dict:
     """Collisions (from the simulator's bumper counters) and the share of the border visited."""
     collisions: dict[str, int] = {}
     x0, y0, x1, y1 = (float(border[k]) for k in ("x_min", "y_min", "x_max", "y_max"))
-    cells = []
-    for (ax, ay), (bx, by) in (((x0, y0), (x1, y0)), ((x1, y0), (x1, y1)), ((x1, y1), (x0, y1)),
-                               ((x0, y1), (x0, y0))):
-        m = max(1, int(math.hypot(bx - ax, by - ay) / 0.5))
-        cells += [(ax + (bx - ax) * (i + 0.5) / m, ay + (by - ay) * (i + 0.5) / m) for i in range(m)]
+    cells = rectangle_cells(x0, y0, x1, y1, 0.5)
     visited = [False] * len(cells)
     reach = float(border.get("distance", 1.0)) + 1.0
     for key, enc, _t, payload in records:
@@ -189,9 +181,8 @@ def main(duration: float = 60.0, speed: float = 2.0, fail: str | None = "robot2@
             config / "layers_alliance_params.yaml"
         output.mkdir(parents=True, exist_ok=True)
     # the application lists 3 robots; a demo with more runs them under the same monitors
-    from mrta_zenoh.toolchain.model import RobotEntry
     app.robots = [RobotEntry(rid, app.tasks()) for rid in ids]
-    rendezvous = f"tcp/127.0.0.1:{_free_port()}"
+    rendezvous = private_rendezvous()
     os.environ["MRTA_RENDEZVOUS"] = rendezvous  # our own bus joins the private rendezvous too
     env = dict(os.environ, MRTA_RENDEZVOUS=rendezvous, PYTHONUNBUFFERED="1")
     children: list[Child] = []

@@ -54,10 +54,11 @@ class TimeBase:
         for key, enc, t, payload in records:
             if key == keys.CLOCK:
                 try:
-                    self.logs.append(t)
-                    self.stamps.append(codec.decode(codec.type_from_encoding(enc), payload).stamp)
+                    stamp = codec.decode(codec.type_from_encoding(enc), payload).stamp
                 except (codec.DecodeError, AttributeError):
-                    self.logs.pop()
+                    continue
+                self.logs.append(t)
+                self.stamps.append(stamp)
         self.t0 = records[0][2] if records else 0
         self.simulated = bool(self.logs)
 

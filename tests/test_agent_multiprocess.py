@@ -1,6 +1,5 @@
 """Three agent processes on real Zenoh: allocation, then fault-tolerant takeover after SIGKILL."""
 
-import json
 import math
 import signal
 import time

@@ -18,7 +18,7 @@ def test_sim_process_moves_a_robot_on_command_and_its_watchdog_stops_it(children
     cmd = children.python("commander.py", "robot1", "0.5", "6", name="commander")
     cmd.wait_line(lambda line: line == "ready", 20)
     report = json.loads(cmd.wait_line(lambda line: line.startswith("{"), 60))
-    (t0, x0, y0), (t1, x1, y1) = report["start"], report["at_silence"]
+    (_, x0, y0), (_, x1, y1) = report["start"], report["at_silence"]
     # the robot drove along +x for the commanded time, give or take one network/step latency
     expected = 0.5 * report["commanded_for"] - 0.5 ** 2 / (2 * M.linear_accel)
     assert x1 - x0 == pytest.approx(expected, abs=0.15)

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import os
 import re
+import socket
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -22,6 +23,14 @@ MODES = ("peer", "client", "router")
 
 _ENDPOINT = re.compile(r"^(tcp|udp|tls|quic|ws|unixsock-stream|unixpipe)/(.+)$")
 _HOSTPORT = re.compile(r"^(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9.\-]+):(\d{1,5})(#.*)?$")
+
+
+def private_rendezvous() -> str:
+    """`tcp/127.0.0.1:PORT` on a port free right now: a rendezvous of one's own, so a demo, a
+    test or a benchmark never meets (or blocks) whoever uses the default 7447."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return f"tcp/127.0.0.1:{s.getsockname()[1]}"
 
 
 def check_endpoint(endpoint: str, what: str = "endpoint") -> str:

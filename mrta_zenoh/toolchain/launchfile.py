@@ -18,10 +18,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
-from lxml import etree
 
 from ..errors import ConfigError
 from ..yamlfile import did_you_mean
+from .xmlio import parse_xml_file
 
 EXECUTABLES_GROUP = "mrta.executables"
 
@@ -130,13 +130,7 @@ class LaunchEvaluator:
     def _file(self, path: Path, given: dict[str, str], ns: str, env: dict[str, str]) -> None:
         if path.resolve() in self._stack:
             raise ConfigError("launch file includes itself", file=str(path))
-        try:
-            root = etree.parse(str(path)).getroot()
-        except OSError as exc:
-            raise ConfigError(f"cannot read launch file: {exc}", file=str(path)) from None
-        except etree.XMLSyntaxError as exc:
-            raise ConfigError(f"not well-formed XML: {exc.msg}", file=str(path),
-                              line=exc.lineno or None) from None
+        root = parse_xml_file(path)
         if root.tag != "launch":
             raise self._err(path, root, "the root element must be <launch>")
         self._stack.append(path.resolve())

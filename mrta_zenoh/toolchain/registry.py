@@ -19,13 +19,12 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from lxml import etree
 
 from ..errors import ConfigError
 from ..paths import CONFIGS
 from ..yamlfile import did_you_mean
 from .model import ALLOCATION_TYPES, ROBOT_TYPES, TASK_TYPES, Application, Architecture
-from .xmlio import load_rqt_mrta
+from .xmlio import load_rqt_mrta, parse_xml_file
 
 ENTRY_POINT_GROUP = "mrta.packages"
 _SKIP_DIRS = {".git", "__pycache__", "node_modules", ".venv", "venv", "build", "dist"}
@@ -47,13 +46,7 @@ class Package:
 
 
 def load_package_xml(path: Path, origin: str = "") -> Package:
-    try:
-        root = etree.parse(str(path)).getroot()
-    except OSError as exc:
-        raise ConfigError(f"cannot read: {exc}", file=str(path)) from None
-    except etree.XMLSyntaxError as exc:
-        raise ConfigError(f"not well-formed XML: {exc.msg}", file=str(path),
-                          line=exc.lineno or None) from None
+    root = parse_xml_file(path)
     if root.tag != "package":
         raise ConfigError("the root element must be <package>", file=str(path),
                           line=root.sourceline, element=f"<{root.tag}>")
@@ -178,7 +171,7 @@ class Registry:
 
     def _named(self, name: str, kind: str, items: list) -> tuple[Package, object]:
         for pkg, model in items:
-            if name in (pkg.name,) or name.lower() == model.name.lower():
+            if name == pkg.name or name.lower() == model.name.lower():
                 return pkg, model
         names = [p.name for p, _ in items]
         # a package that exists but failed to load: say why instead of "unknown"

@@ -132,12 +132,13 @@ class _Reader:
         if el is None:
             return []
         out = []
-        for c in self.children(el, (), ("config",)):
+        elements = self.children(el, (), ("config",))
+        for c in elements:
             self.children(c, ("id",), ("param", "params", "array"))
             kids = [self.param_node(k) for k in c if isinstance(k.tag, str) and k.tag != "id"]
             out.append(Config(self.text(c, "id"), kids, line=c.sourceline))
         ids = [c.id for c in out]
-        for c, el_c in zip(out, self.children(el, (), ("config",))):
+        for c, el_c in zip(out, elements):
             if ids.count(c.id) > 1:
                 raise self.error(el_c, f"config id {c.id!r} is used twice")
         return out
@@ -186,7 +187,10 @@ def type_problem(type_: str | None, value: str | None) -> str | None:
     return None
 
 
-def _parse(path: Path):
+def parse_xml_file(path: Path):
+    """The root element of an XML file; unreadable or malformed → ConfigError with file and line.
+
+    Shared by every XML the toolchain reads (rqt_mrta files, package.xml, launch files)."""
     try:
         parser = etree.XMLParser(remove_blank_text=False, resolve_entities=False, no_network=True)
         return etree.parse(str(path), parser).getroot()
@@ -200,7 +204,7 @@ def _parse(path: Path):
 def load_rqt_mrta(path: Path | str) -> Architecture | Application:
     """An rqt_mrta.xml file: an architecture (appendix A) or an application (appendix B)."""
     path = Path(path)
-    root = _parse(path)
+    root = parse_xml_file(path)
     r = _Reader(path)
     if root.tag != "rqt_mrta":
         raise r.error(root, "the root element must be <rqt_mrta>"
