@@ -40,14 +40,15 @@ def patrol():
 def child_publisher(n: int, rate: float, seconds: float, probes: bool) -> None:
     """Flood (rate 0) or pace IRC samples from 1,000 robots; optionally probes every 50 ms."""
     from mrta_zenoh.bus import BusOptions, open_bus
-    from mrta_zenoh.messages import Header, InterRobotCommunication
+    from mrta_zenoh.messages import Header
+    from robot_agent.messages import InterRobotCommunication
 
     with open_bus(BusOptions()) as bus:
         bus.declare_token("bench/publisher")
         print("ready", flush=True)
         sys.stdin.readline()  # go
         msgs = [(IRC_KEY.format(f"robot{i}"),
-                 InterRobotCommunication(Header(f"robot{i}", 0.0), "wander", 60.0))
+                 InterRobotCommunication(Header(f"robot{i}", 0.0, 0), "wander", 60.0))
                 for i in range(1000)]
         t0 = time.perf_counter()
         if rate <= 0:

@@ -6,9 +6,12 @@ time, k× faster under the simulator, and step by step in a unit test.
 
 from __future__ import annotations
 
+import logging
 import threading
 import time
 from typing import Protocol
+
+log = logging.getLogger("mrta.clock")
 
 
 class Clock(Protocol):
@@ -62,20 +65,92 @@ class ManualClock:
 
 
 class SimClock(ManualClock):
-    """Simulation time as last published on the `clock` key.
+    """Simulation time as published on the `clock` key, defended against what a bus can bring.
 
     Before the first clock sample arrives, now() is 0 and `started` is unset; sleepers wait for the
     simulator (a paused simulator pauses every agent, which is what simulation time means).
+
+    Which samples move time (docs/architecture.md, "the clock"):
+      * the first source heard is adopted; samples carry the publishing run's `source` id;
+      * from the adopted source, time moves forward by at most `max_jump` simulated seconds per
+        sample (a simulator publishes every 20 ms step); a late duplicate is ignored, a larger
+        jump (a forged 1e9) is rejected and counted;
+      * a sample from another source is adopted as a new run (a restarted simulator) — with a
+        log line, time restarting from its stamp — once the adopted source has been silent for
+        `silence` wall seconds or its liveliness token is gone; before that it is rejected and
+        counted (a second simulator, or a forgery);
+      * non-finite stamps never get here: the Clock message rejects them when decoding.
+    `stalled(wall_seconds)` tells a follower that time stopped (the simulator died or hangs).
     """
 
-    def __init__(self) -> None:
+    def __init__(self, max_jump: float = 10.0, silence: float = 2.0, wall=time.monotonic) -> None:
         super().__init__(0.0)
         self.started = threading.Event()
+        self.max_jump = max_jump
+        self.silence = silence
+        self.source: str | None = None
+        self.rejected = 0
+        self.restarts = 0
+        self._wall = wall
+        self._last_wall = wall()
+        self._source_alive = True
 
-    def on_clock(self, stamp: float) -> None:
-        if stamp >= self._now:  # a late duplicate must not move time backwards
-            self.set(stamp)
+    def on_clock(self, stamp: float, source: str = "") -> bool:
+        """Offer a clock sample; True if it moved (or restarted) time."""
+        with self._cond:
+            now_wall = self._wall()
+            if self.source is None:
+                self.source = source
+            elif source != self.source:
+                silent = now_wall - self._last_wall >= self.silence or not self._source_alive
+                if not silent:
+                    self.rejected += 1
+                    return False
+                log.warning("clock: new simulation run %r adopted at t=%.3f (was %r at t=%.3f)",
+                            source, stamp, self.source, self._now)
+                self.source = source
+                self.restarts += 1
+                self._source_alive = True
+                self._now = stamp
+                self._last_wall = now_wall
+                self._cond.notify_all()
+                self.started.set()
+                return True
+            if stamp < self._now:  # a late duplicate must not move time backwards
+                return False
+            if self.started.is_set() and stamp - self._now > self.max_jump:
+                self.rejected += 1
+                return False
+            self._now = stamp
+            self._last_wall = now_wall
+            self._cond.notify_all()
         self.started.set()
+        return True
+
+    def source_lost(self) -> None:
+        """The adopted source's liveliness token is gone: the next run may be adopted at once."""
+        with self._cond:
+            self._source_alive = False
+
+    def stalled(self, wall_seconds: float) -> bool:
+        """No accepted sample for `wall_seconds` of wall time (only meaningful once started)."""
+        return self.started.is_set() and self._wall() - self._last_wall >= wall_seconds
+
+
+def follow_sim_clock(bus, clock: SimClock) -> list:
+    """Subscribe `clock` to the bus's `clock` key and watch the clock source's liveliness.
+
+    The one place that makes a process follow the simulator; returns the handles to close."""
+    from .keys import CLOCK, CLOCK_SOURCE_TOKEN
+    from .messages import Clock as ClockMsg
+
+    def on_token(key: str, alive: bool) -> None:
+        if not alive:
+            clock.source_lost()
+
+    return [bus.subscribe(CLOCK, lambda s: clock.on_clock(s.message.stamp, s.message.source),
+                          msg_type=ClockMsg),
+            bus.watch_liveliness(CLOCK_SOURCE_TOKEN + "/**", on_token)]
 
 
 class Rate:

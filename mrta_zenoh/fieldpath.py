@@ -6,10 +6,9 @@ resolved per sample with a flat loop: no string handling, never `eval`.
 
 from __future__ import annotations
 
-import dataclasses
 from typing import Any
 
-from .messages import GenericMessage, Message
+from .messages import GenericMessage, Message, fields_of
 
 
 class FieldPathError(ValueError):
@@ -83,13 +82,14 @@ class FieldPath:
                 continue
             if kind == "scalar" or type(step) is int:
                 raise FieldPathError(self._explain(i, current if kind == "message" else "scalar"))
-            spec = {s.name: s for s in current.FIELDS}.get(step)
+            spec = fields_of(current).get(step)
             if spec is None:
                 raise FieldPathError(self._explain(i, current))
-            if spec.kind == "message":
-                current = spec.message_class
-            elif spec.kind.endswith("[]"):
-                kind, current = "list", spec.message_class
+            field_kind, sub = spec
+            if field_kind == "message":
+                current = sub
+            elif field_kind == "list":
+                kind, current = "list", sub
             else:
                 kind = "scalar"
 
@@ -105,9 +105,9 @@ def _is_message_class(x: Any) -> bool:
 
 def _describe(at: Any) -> str:
     if _is_message_class(at):
-        return f"fields there: {', '.join(s.name for s in at.FIELDS)}"
+        return f"fields there: {', '.join(at.__struct_fields__)}"
     if isinstance(at, Message):
-        return f"fields there: {', '.join(f.name for f in dataclasses.fields(at))}"
+        return f"fields there: {', '.join(at.__struct_fields__)}"
     if isinstance(at, dict):
         return f"fields there: {', '.join(map(str, at)) or '(none)'}"
     if at == "list" or isinstance(at, (list, tuple)):

@@ -1,7 +1,14 @@
-"""Every key the project publishes on, in one place (DESIGN §3), plus key-expression rules.
+"""Key helpers and the keys every part shares (docs/architecture.md lists them all).
 
 Call sites never format keys themselves: a typo in a hand-built key is a silent loss of traffic.
+The core owns only what is common to any robot and any architecture — the simulation clock and
+the standard per-robot topics (`cmd_vel`, `odom`, `sonar`, `ground_truth`, as a ROS robot driver
+names them). Architectures and applications keep their own keys in their own packages.
+
 Robot ids are bare (`robot1`); the ROS form `/robot1` found in old files is normalised here.
+Infrastructure tokens (the clock source, recorders) live under `@mrta/…`: Zenoh matches a chunk
+that starts with `@` only literally, so a supervisor watching `**` for robots never mistakes a
+simulator or a recorder for a robot.
 """
 
 from __future__ import annotations
@@ -9,49 +16,41 @@ from __future__ import annotations
 import re
 
 CLOCK = "clock"
-SIMULATOR_TOKEN = "simulator"
-ALL_INTER_ROBOT_COMMUNICATION = "*/alliance/inter_robot_communication"
-ALL_MOTIVATION = "*/alliance/motivation/*"
+CLOCK_SOURCE_TOKEN = "@mrta/clock_source"       # held by whoever publishes `clock`
+RECORDER_TOKEN = "@mrta/recorder"               # prefix; one token per recorder process
 ALL_CMD_VEL = "*/cmd_vel"
 
-_ID = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_\-.]*$")
+# One key chunk: what robot and task ids may be. 64 characters is plenty for a name and keeps a
+# flood of forged ids from costing more than a bounded amount of memory per id.
+ID_PATTERN = r"[A-Za-z0-9_][A-Za-z0-9_\-.]{0,63}"
+_ID = re.compile(rf"^{ID_PATTERN}$")
 _BAD_CHARS = set("#?$ ")
 
 
-class KeyError_(ValueError):
-    """A key expression or robot id that Zenoh would reject (named to avoid shadowing KeyError)."""
+class KeyExprError(ValueError):
+    """A key expression, robot id or task id that Zenoh or our conventions would reject."""
+
+
+def is_id(text: str) -> bool:
+    return bool(_ID.match(text))
 
 
 def normalize_robot_id(robot_id: str) -> str:
     """`/robot1` → `robot1`; rejects ids that cannot be a single key chunk."""
     rid = robot_id.strip().strip("/")
     if not _ID.match(rid):
-        raise KeyError_(
-            f"invalid robot id {robot_id!r}: use letters, digits, '_', '-' or '.', one key chunk"
-        )
+        raise KeyExprError(
+            f"invalid robot id {robot_id!r:.80}: use up to 64 letters, digits, '_', '-' or '.', "
+            "one key chunk")
     return rid
 
 
-def _task(task_id: str) -> str:
+def task_chunk(task_id: str) -> str:
+    """A task id checked to be one key chunk (task ids appear in keys, e.g. motivation/<task>)."""
     if not _ID.match(task_id):
-        raise KeyError_(f"invalid task id {task_id!r}: it must be a single key chunk")
+        raise KeyExprError(f"invalid task id {task_id!r:.80}: use up to 64 letters, digits, '_', "
+                           "'-' or '.', one key chunk")
     return task_id
-
-
-def inter_robot_communication(robot_id: str) -> str:
-    return f"{robot_id}/alliance/inter_robot_communication"
-
-
-def motivation(robot_id: str, task_id: str) -> str:
-    return f"{robot_id}/alliance/motivation/{_task(task_id)}"
-
-
-def sensory_feedback(robot_id: str) -> str:
-    return f"{robot_id}/alliance/sensory_feedback"
-
-
-def agent_token(robot_id: str) -> str:
-    return f"{robot_id}/alliance/agent"
 
 
 def robot_topic(robot_id: str, topic: str) -> str:
@@ -77,16 +76,8 @@ def ground_truth(robot_id: str) -> str:
     return f"{robot_id}/ground_truth"
 
 
-def bumper(robot_id: str) -> str:
-    return f"{robot_id}/bumper"
-
-
-def patrol_report(robot_id: str) -> str:
-    return f"{robot_id}/patrol/report"
-
-
 def robot_tokens(robot_id: str) -> str:
-    """Liveliness expression meaning 'any process of this robot is alive' (DESIGN §7)."""
+    """Liveliness expression meaning 'any process of this robot is alive' (docs/architecture.md)."""
     return f"{robot_id}/**"
 
 
@@ -98,29 +89,31 @@ def validate_key_expr(expr: str) -> str:
     """Check a key expression against Zenoh's canonical rules; returns it unchanged.
 
     Catching these here gives the user one clear line instead of a Rust error from deep inside
-    the session (issue: a bad key expression exits 2 naming the value).
+    the session (a bad key expression exits 2 naming the value).
     """
     if not expr:
-        raise KeyError_("empty key expression")
+        raise KeyExprError("empty key expression")
     if expr.startswith("/") or expr.endswith("/"):
-        raise KeyError_(f"key expression {expr!r} must not start or end with '/'")
+        raise KeyExprError(f"key expression {expr!r} must not start or end with '/'")
     for chunk in expr.split("/"):
         if chunk == "":
-            raise KeyError_(f"key expression {expr!r} has an empty chunk ('//')")
+            raise KeyExprError(f"key expression {expr!r} has an empty chunk ('//')")
         if chunk in ("*", "**"):
             continue
         if "*" in chunk:
-            raise KeyError_(
+            raise KeyExprError(
                 f"key expression {expr!r}: '*' must be a whole chunk ('a/*/b'), not {chunk!r}"
             )
         bad = _BAD_CHARS.intersection(chunk)
         if bad:
-            raise KeyError_(f"key expression {expr!r}: character {sorted(bad)[0]!r} is not allowed")
+            raise KeyExprError(f"key expression {expr!r}: character {sorted(bad)[0]!r} is not allowed")
     return expr
 
 
 def matches(expr: str, key: str) -> bool:
-    """Does concrete `key` fall under key expression `expr` (`*` one chunk, `**` any number)?"""
+    """Does concrete `key` fall under key expression `expr` (`*` one chunk, `**` any number)?
+
+    As in Zenoh, a wildcard never matches a chunk that starts with `@` (a verbatim chunk)."""
     return _match(expr.split("/"), key.split("/"))
 
 
@@ -129,10 +122,11 @@ def _match(pat: list[str], parts: list[str]) -> bool:
         return not parts
     head = pat[0]
     if head == "**":
-        return any(_match(pat[1:], parts[i:]) for i in range(len(parts) + 1))
+        return any(_match(pat[1:], parts[i:]) for i in range(len(parts) + 1)
+                   if not any(p.startswith("@") for p in parts[:i]))
     if not parts:
         return False
-    if head == "*" or head == parts[0]:
+    if (head == "*" and not parts[0].startswith("@")) or head == parts[0]:
         return _match(pat[1:], parts[1:])
     return False
 

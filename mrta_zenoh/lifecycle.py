@@ -2,7 +2,7 @@
 
 A signal only sets an event; the tool's main loop sees it and leaves its `with` blocks, which
 undeclare everything and close the Zenoh session. Closing from inside a signal handler, or not
-closing at all, is how a Zenoh process hangs at exit (ZENOH_NOTES trap 2).
+closing at all, is how a Zenoh process hangs at exit (docs/zenoh.md, "exit hang").
 """
 
 from __future__ import annotations

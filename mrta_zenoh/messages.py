@@ -1,95 +1,123 @@
-"""Typed messages: small frozen dataclasses, each with the type name that travels on the wire.
+"""Typed messages: frozen msgspec Structs, each with the type name that travels on the wire.
 
 The type name is what a generic subscriber (the supervisor, `mrta echo`) reads to know what it
-received, as variant_topic_tools read the ROS connection header. Field names follow alliance_msgs
-and the common ROS messages so field paths written for the original (`header/frame_id`) still work.
+received, as variant_topic_tools read the ROS connection header. Field names follow the common
+ROS messages so field paths written for the original (`header/frame_id`) still work.
 
-A message class declares its fields with plain annotations; `@message("pkg/Type")` turns it into a
-frozen, slotted dataclass and records a field spec that the codec uses for strict decoding.
-Sequences are tuples so that a message really is immutable.
+Declaring a type (the same for this core, the architectures, the applications and a third party):
+
+    @message("my_msgs/Ping")
+    class Ping(Message):
+        header: Header
+        count: int
+
+and list it in the `mrta.messages` entry-point group (name = type name, value = `module:Class`),
+so that every process — echo, supervise, record, plot — decodes it in a fresh interpreter,
+whatever it happened to import before. The wire format is in docs/wire-format.md.
+
+A field without a default is mandatory on the wire: a payload that lacks it is rejected. The
+standard types below declare no defaults for that reason. A float annotated `Finite` rejects NaN
+and ±inf on decoding, and on construction through `checked()`: physical quantities (stamps,
+poses, velocities) use it, so one bad sample cannot poison a robot's state.
 """
 
 from __future__ import annotations
 
-import dataclasses
+import importlib
+import logging
+import sys
+import threading
 import typing
-from dataclasses import dataclass, field
-from typing import Any, ClassVar
+from importlib.metadata import entry_points
+from typing import Annotated, Any, ClassVar
 
-# Field kinds understood by the codec.
-FLOAT, INT, STR, BOOL, MESSAGE, MESSAGE_LIST, FLOAT_LIST = (
-    "float", "int", "str", "bool", "message", "message[]", "float[]",
-)
+import msgspec
 
+log = logging.getLogger("mrta.messages")
 
-@dataclass(frozen=True, slots=True)
-class FieldSpec:
-    name: str
-    kind: str
-    message_class: type | None = None  # for MESSAGE / MESSAGE_LIST
+ENTRY_POINT_GROUP = "mrta.messages"
+
+# The largest finite float: msgspec checks ge/le before building the value, and NaN fails both.
+_FMAX = sys.float_info.max
+Finite = Annotated[float, msgspec.Meta(ge=-_FMAX, le=_FMAX)]
 
 
-class Message:
-    """Base of every typed message (a marker; the dataclass machinery does the work)."""
+class Message(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
+    """Base of every typed message. Subclasses inherit frozen and forbid_unknown_fields."""
 
-    __slots__ = ()
     TYPE_NAME: ClassVar[str] = ""
-    FIELDS: ClassVar[tuple[FieldSpec, ...]] = ()
 
 
 _REGISTRY: dict[str, type[Message]] = {}
-
-_SCALARS = {float: FLOAT, int: INT, str: STR, bool: BOOL}
-
-
-def _kind_of(annotation: Any) -> tuple[str, type | None]:
-    if annotation in _SCALARS:
-        return _SCALARS[annotation], None
-    if isinstance(annotation, type) and issubclass(annotation, Message):
-        return MESSAGE, annotation
-    origin = typing.get_origin(annotation)
-    if origin is tuple:
-        args = typing.get_args(annotation)
-        if len(args) == 2 and args[1] is Ellipsis:
-            item = args[0]
-            if isinstance(item, type) and issubclass(item, Message):
-                return MESSAGE_LIST, item
-            if item is float:
-                return FLOAT_LIST, None
-    raise TypeError(f"unsupported message field annotation {annotation!r}")
+_lock = threading.Lock()
+_entry_points_loaded = False
+_entry_point_problems: list[str] = []
 
 
 def message(type_name: str):
-    """Class decorator: make a frozen slotted dataclass and register it under `type_name`."""
+    """Class decorator: register a Message subclass under `type_name` (once per process)."""
 
     def wrap(cls):
-        if type_name in _REGISTRY:
-            raise ValueError(f"message type {type_name!r} is already registered")
-        cls = dataclass(frozen=True, slots=True)(cls)
-        hints = typing.get_type_hints(cls)
-        specs = []
-        for f in dataclasses.fields(cls):
-            kind, sub = _kind_of(hints[f.name])
-            specs.append(FieldSpec(f.name, kind, sub))
-        cls.TYPE_NAME = type_name
-        cls.FIELDS = tuple(specs)
-        _REGISTRY[type_name] = cls
+        if not (isinstance(cls, type) and issubclass(cls, Message)):
+            raise TypeError(f"@message({type_name!r}) needs a Message subclass, got {cls!r}")
+        with _lock:
+            known = _REGISTRY.get(type_name)
+            if known is not None and known is not cls:
+                raise ValueError(f"message type {type_name!r} is already registered "
+                                 f"by {known.__module__}.{known.__qualname__}")
+            cls.TYPE_NAME = type_name
+            _REGISTRY[type_name] = cls
         return cls
 
     return wrap
 
 
+def load_entry_points() -> list[str]:
+    """Import every module listed under `mrta.messages`; returns the problems met (once)."""
+    global _entry_points_loaded
+    if _entry_points_loaded:
+        return _entry_point_problems
+    _entry_points_loaded = True
+    for ep in entry_points(group=ENTRY_POINT_GROUP):
+        module, _, attr = ep.value.partition(":")
+        try:
+            cls = getattr(importlib.import_module(module), attr) if attr else None
+        except (ImportError, AttributeError) as exc:
+            _entry_point_problems.append(f"message entry point {ep.name!r} ({ep.value}): {exc}")
+            continue
+        if cls is None or getattr(cls, "TYPE_NAME", None) != ep.name:
+            _entry_point_problems.append(
+                f"message entry point {ep.name!r} ({ep.value}) does not name a class registered "
+                f"with @message({ep.name!r})")
+    for p in _entry_point_problems:
+        log.warning("%s", p)
+    return _entry_point_problems
+
+
 def message_class(type_name: str) -> type[Message] | None:
-    """The registered class for a type name, or None when the type is not known here."""
-    return _REGISTRY.get(type_name)
+    """The registered class for a type name, or None when no installed package declares it."""
+    cls = _REGISTRY.get(type_name)
+    if cls is None and not _entry_points_loaded:
+        load_entry_points()
+        cls = _REGISTRY.get(type_name)
+    return cls
 
 
 def registered_types() -> dict[str, type[Message]]:
+    """Every type this process can decode: the core's and those of every installed package."""
+    load_entry_points()
     return dict(_REGISTRY)
 
 
-@dataclass(frozen=True, slots=True)
-class GenericMessage:
+def checked(msg: Message) -> Message:
+    """The message itself, after the checks decoding would apply (finite floats, types).
+
+    Construction does not validate (msgspec Structs don't); code that builds a message from
+    values it did not produce itself can call this to fail early instead of on the receiver."""
+    return msgspec.convert(msgspec.to_builtins(msg), type(msg))
+
+
+class GenericMessage(msgspec.Struct, frozen=True):
     """A sample of a type this process does not know: its type name and the decoded map.
 
     Generic tools (echo, supervisor, recorder) can still read any field of it by path.
@@ -101,95 +129,82 @@ class GenericMessage:
     TYPE_NAME: ClassVar[str] = ""
 
 
-# ---------------------------------------------------------------- common messages
+def fields_of(cls: type[Message]) -> dict[str, tuple[str, type | None]]:
+    """Field name → (kind, message class): kind is "message", "list" (of the class, or of
+    scalars when None) or "scalar". For field-path checks and schema generation."""
+    out: dict[str, tuple[str, type | None]] = {}
+    hints = typing.get_type_hints(cls)
+    for name in cls.__struct_fields__:
+        t = hints[name]
+        if isinstance(t, type) and issubclass(t, Message):
+            out[name] = ("message", t)
+        elif typing.get_origin(t) in (tuple, list):
+            item = typing.get_args(t)[0]
+            out[name] = ("list", item if isinstance(item, type) and issubclass(item, Message)
+                         else None)
+        else:
+            out[name] = ("scalar", None)
+    return out
+
+
+def type_name_of(msg: Message | GenericMessage) -> str:
+    return msg.type_name if type(msg) is GenericMessage else msg.TYPE_NAME
+
+
+def is_message(value: Any) -> bool:
+    return isinstance(value, (Message, GenericMessage))
+
+
+# ---------------------------------------------------------------- standard types
 
 
 @message("std_msgs/Header")
 class Header(Message):
-    frame_id: str = ""
-    stamp: float = 0.0  # seconds on the sender's clock (wall or simulation)
-    seq: int = 0
+    frame_id: str
+    stamp: Finite  # seconds on the sender's clock (wall or simulation)
+    seq: int
 
 
 @message("rosgraph_msgs/Clock")
 class Clock(Message):
-    stamp: float = 0.0
+    """Simulated time. `source` names the run that publishes it (empty from other clients),
+    so followers can tell a restarted simulator from a late or forged sample."""
+
+    stamp: Finite
+    source: str = ""
 
 
 @message("geometry_msgs/Pose2D")
 class Pose2D(Message):
-    x: float = 0.0
-    y: float = 0.0
-    theta: float = 0.0
+    x: Finite
+    y: Finite
+    theta: Finite
 
 
 @message("mrta_msgs/Twist")
 class Twist(Message):
     """Planar velocity command: linear (m/s, along the robot's x) and angular (rad/s)."""
 
-    linear: float = 0.0
-    angular: float = 0.0
+    linear: Finite
+    angular: Finite
 
 
 @message("mrta_msgs/Odometry")
 class Odometry(Message):
-    header: Header = field(default_factory=Header)
-    pose: Pose2D = field(default_factory=Pose2D)
-    twist: Twist = field(default_factory=Twist)
+    header: Header
+    pose: Pose2D
+    twist: Twist
 
 
 @message("mrta_msgs/Point2D")
 class Point2D(Message):
-    x: float = 0.0
-    y: float = 0.0
+    x: Finite
+    y: Finite
 
 
 @message("mrta_msgs/PointCloud")
 class PointCloud(Message):
     """Sonar returns in the robot frame, metres, like RosAria's `sonar` topic."""
 
-    header: Header = field(default_factory=Header)
-    points: tuple[Point2D, ...] = ()
-
-
-@message("mrta_msgs/Bumper")
-class Bumper(Message):
-    """Contact state of a simulated robot (RosAria's bumper_state, reduced to what a 2-D body has).
-
-    `stalled`: the motors push but the robot does not move; `collisions`: contacts begun so far."""
-
-    header: Header = field(default_factory=Header)
-    stalled: bool = False
-    contact: bool = False
-    collisions: int = 0
-
-
-# ---------------------------------------------------------------- alliance_msgs
-
-
-@message("alliance_msgs/InterRobotCommunication")
-class InterRobotCommunication(Message):
-    header: Header = field(default_factory=Header)
-    task_id: str = ""
-    expected_duration: float = 0.0
-
-
-@message("alliance_msgs/Motivation")
-class Motivation(Message):
-    header: Header = field(default_factory=Header)
-    task_id: str = ""
-    impatience: float = 0.0
-    acquiescent: bool = False
-    suppressed: bool = False
-    resetted: bool = False
-    applicable: bool = False
-    motivation: float = 0.0
-    threshold: float = 0.0
-    active: bool = False
-
-
-@message("alliance_msgs/SensoryFeedback")
-class SensoryFeedback(Message):
-    header: Header = field(default_factory=Header)
-    task_id: str = ""
-    applicable: bool = False
+    header: Header
+    points: tuple[Point2D, ...]

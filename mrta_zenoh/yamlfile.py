@@ -7,9 +7,11 @@ parameter files and the config toolchain.
 from __future__ import annotations
 
 import difflib
+import re
 from pathlib import Path
 from typing import Any
 
+import msgspec
 import yaml
 
 from .errors import ConfigError
@@ -32,19 +34,91 @@ class YamlDoc:
         key = "/".join(map(str, path)) or "(top level)"
         return ConfigError(message, file=str(self.path), line=self.line(path), element=f"'{key}'")
 
+    def convert(self, path: tuple, kind: type) -> Any:
+        """The mapping at `path` as the msgspec Struct `kind` (absent: all defaults), checked:
+        a wrong type, an unknown key or a non-finite number is a ConfigError naming the key."""
+        data = get_path(self.data, path)
+        if data is None:
+            data = {}
+        if not isinstance(data, dict):
+            raise self.error(path, f"expected a mapping of parameters, got {type(data).__name__}")
+        try:
+            return msgspec.convert(data, kind, strict=True)
+        except msgspec.ValidationError as exc:
+            text = str(exc)
+            where = re.search(r" - at `\$\.?([^`]*)`$", text)
+            sub = tuple(p for p in re.split(r"[.\[\]]+", where.group(1)) if p) if where else ()
+            what = text[:where.start()] if where else text
+            unknown = re.match(r"Object contains unknown field `([^`]*)`", what)
+            if unknown:
+                key = unknown.group(1)
+                fields = getattr(kind, "__struct_fields__", ())
+                raise self.error(path + sub + (key,), f"unknown key {key!r}"
+                                 + did_you_mean(key, fields)) from None
+            if "float` >=" in what or "float` <=" in what:
+                what = "expected a finite number"
+            raise self.error(path + sub, what.replace("`", "")) from None
+
     def warning(self, path: tuple, message: str) -> str:
         """The same `file:line: 'key': message` text as error(), for legal but suspicious values."""
         return str(self.error(path, message))
 
 
-def load_yaml(path: Path | str) -> YamlDoc:
+class _StrictLoader(yaml.SafeLoader):
+    """SafeLoader that refuses duplicate keys (YAML's "last one wins" silently loses a value)
+    and, for parameter files, anchors and aliases (a "billion laughs" file would otherwise
+    expand without bound wherever the data is walked)."""
+
+    allow_aliases = False
+
+    def compose_node(self, parent, index):
+        if self.allow_aliases:
+            return super().compose_node(parent, index)
+        if self.check_event(yaml.AliasEvent):
+            event = self.peek_event()
+            raise yaml.composer.ComposerError(
+                None, None, "YAML aliases (*name) are not allowed in parameter files",
+                event.start_mark)
+        event = self.peek_event()
+        if getattr(event, "anchor", None):
+            raise yaml.composer.ComposerError(
+                None, None, "YAML anchors (&name) are not allowed in parameter files",
+                event.start_mark)
+        return super().compose_node(parent, index)
+
+    def construct_mapping(self, node, deep=False):
+        seen: dict = {}
+        for key_node, _ in node.value:
+            key = key_node.value
+            if key in seen:
+                raise yaml.constructor.ConstructorError(
+                    None, None, f"duplicate key {key!r} (first on line {seen[key]})",
+                    key_node.start_mark)
+            seen[key] = key_node.start_mark.line + 1
+        return super().construct_mapping(node, deep)
+
+
+_StrictLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG,
+                              _StrictLoader.construct_mapping)
+
+
+class _AliasLoader(_StrictLoader):
+    allow_aliases = True
+
+
+def load_yaml(path: Path | str, aliases: bool = False) -> YamlDoc:
+    """A YAML file with line numbers per key; ConfigError (file, line) for anything malformed,
+    duplicate keys included, and aliases unless `aliases` (answers files use them to share a
+    block; each node is then walked once)."""
     path = Path(path)
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise ConfigError(f"cannot read: {exc.strerror}", file=str(path)) from None
+    except UnicodeDecodeError:
+        raise ConfigError("not a UTF-8 text file", file=str(path)) from None
     try:
-        loader = yaml.SafeLoader(text)
+        loader = (_AliasLoader if aliases else _StrictLoader)(text)
         try:
             node = loader.get_single_node()
             data = loader.construct_document(node) if node is not None else {}
@@ -55,22 +129,27 @@ def load_yaml(path: Path | str) -> YamlDoc:
         problem = getattr(exc, "problem", None) or str(exc)
         raise ConfigError(f"invalid YAML: {problem}", file=str(path),
                           line=mark.line + 1 if mark else None) from None
+    except RecursionError:
+        raise ConfigError("invalid YAML: nested too deeply", file=str(path)) from None
     lines: dict[tuple, int] = {}
     if node is not None:
-        _walk(node, (), lines)
+        _walk(node, (), lines, set())
     return YamlDoc(path, data if data is not None else {}, lines)
 
 
-def _walk(node: yaml.Node, path: tuple, lines: dict) -> None:
+def _walk(node: yaml.Node, path: tuple, lines: dict, seen: set) -> None:
     lines[path] = node.start_mark.line + 1
+    if id(node) in seen:  # an aliased node: its lines were recorded where it was defined
+        return
+    seen.add(id(node))
     if isinstance(node, yaml.MappingNode):
         for k, v in node.value:
             key = k.value
-            _walk(v, path + (key,), lines)
+            _walk(v, path + (key,), lines, seen)
             lines[path + (key,)] = k.start_mark.line + 1  # the key's line, not its value's
     elif isinstance(node, yaml.SequenceNode):
         for i, v in enumerate(node.value):
-            _walk(v, path + (i,), lines)
+            _walk(v, path + (i,), lines, seen)
 
 
 def did_you_mean(word: str, options) -> str:

@@ -10,73 +10,108 @@ from __future__ import annotations
 import collections
 import logging
 import threading
+from typing import Any
+
+import msgspec
 import numpy as np
 
-from mrta_zenoh import keys
 from mrta_zenoh.bus import Bus, Sample
 from mrta_zenoh.clock import Clock
-from mrta_zenoh.messages import (
-    Header, InterRobotCommunication, Motivation, SensoryFeedback,
-)
+from mrta_zenoh.keys import first_chunk, normalize_robot_id
+from mrta_zenoh.messages import Header
+from mrta_zenoh.seeds import robot_rng
 
-from .high_level import HighLevel, Transition
+from . import keys
+from .high_level import HighLevel, TaskSwitch
+from .messages import InterRobotCommunication, Motivation, SensoryFeedback
 from .params import AgentParams
-from .plugins import AgentContext, Layer, SensoryEvaluator, Sensor, load_plugin
+from .plugins import (
+    AgentContext, Layer, Plugin, SensoryEvaluator, Sensor, declared_sections, load_plugin,
+)
 
 log = logging.getLogger("mrta.agent")
 
 
 class Plugins:
-    """Instantiated low-level plugins; built before the bus opens so bad names fail early."""
+    """The robot's low-level plugins with their typed parameters, built before the bus opens so
+    that a bad plugin name or parameter is bad input (exit 2, file and line) and nothing runs."""
 
-    def __init__(self, params: AgentParams, ctx: AgentContext, robot_file: str = ""):
+    def __init__(self, params: AgentParams):
+        self.sections: dict[tuple[str, type], Any] = {}
+        self._doc = params.layers
         self.sensors: dict[str, Sensor] = {}
         for sp in params.robot.sensors:
-            cls = load_plugin("sensor", sp.plugin_name, robot_file)
+            cls = self._load("sensor", sp.plugin_name, sp.where)
             self.sensors[sp.topic_name] = cls(sp)
-        ctx.sensors = self.sensors
         self.evaluators: dict[str, SensoryEvaluator] = {}
         for bs in params.robot.behaviour_sets:
-            cls = load_plugin("evaluator", bs.evaluator_plugin, robot_file)
-            self.evaluators[bs.task_id] = cls(bs.task_id, [self.sensors[t] for t in bs.evaluator_topics], ctx)
+            cls = self._load("evaluator", bs.evaluator_plugin, bs.where)
+            self.evaluators[bs.task_id] = cls(bs.task_id, [self.sensors[t] for t in bs.evaluator_topics])
         self.layers: dict[str, list[Layer]] = {}
         for bs in params.robot.behaviour_sets:
             task = params.tasks[bs.task_id]
-            self.layers[bs.task_id] = [load_plugin("layer", name)(ctx) for name in task.layers]
+            self.layers[bs.task_id] = [self._load("layer", name, where)()
+                                       for name, where in zip(task.layers, task.where)]
+        read = {name for name, _ in self.sections}
+        self.unread_sections = [n for n in (self._doc.data if self._doc else {}) if n not in read]
+
+    def _load(self, kind: str, name: str, where: str) -> type:
+        cls = load_plugin(kind, name, where)
+        for section, struct in declared_sections(cls).items():
+            if (section, struct) not in self.sections:
+                self.sections[(section, struct)] = (
+                    self._doc.convert((section,), struct) if self._doc is not None
+                    else msgspec.convert({}, struct))
+        return cls
+
+    def all(self) -> list[Plugin]:
+        return [*self.sensors.values(), *self.evaluators.values(),
+                *(layer for layers in self.layers.values() for layer in layers)]
+
+    def setup(self, ctx: AgentContext) -> None:
+        ctx.sensors = self.sensors
+        ctx.sections = self.sections
+        for plugin in self.all():
+            plugin.setup(ctx)
+
+    def shutdown(self) -> None:
+        for plugin in self.all():
+            plugin.shutdown()
 
 
 class Agent:
     def __init__(self, robot_id: str, params: AgentParams, bus: Bus, clock: Clock,
-                 rng: np.random.Generator | None = None, robot_file: str = ""):
-        self.robot_id = keys.normalize_robot_id(robot_id)
+                 rng: np.random.Generator | None = None, plugins: Plugins | None = None):
+        self.robot_id = normalize_robot_id(robot_id)
         self.params = params
         self.bus = bus
         self.clock = clock
-        self.ctx = AgentContext(self.robot_id, bus, clock, rng or np.random.default_rng(0),
-                                layer_params=params.layers)
-        self.plugins = Plugins(params, self.ctx, robot_file)
+        self.ctx = AgentContext(self.robot_id, bus, clock,
+                                rng if rng is not None else robot_rng(0, self.robot_id))
+        self.plugins = plugins if plugins is not None else Plugins(params)
         self.high = HighLevel(self.robot_id, params.robot)
         self._inbox: collections.deque = collections.deque(maxlen=10_000)
         self.ignored_own = 0
         self.ignored_mismatch = 0
-        self.transitions: list[tuple[float, Transition]] = []
+        self.transitions: list[tuple[float, TaskSwitch]] = []
         self._seq: dict[str, int] = collections.defaultdict(int)
         self._last_broadcast: float | None = None
         self._token = None
+        self._irc_sub = None
 
     # ------------------------------------------------------------ set-up
     def start(self) -> None:
-        for s in self.plugins.sensors.values():
-            s.setup(self.ctx)
-        self.bus.subscribe(keys.ALL_INTER_ROBOT_COMMUNICATION, self._on_irc,
-                           msg_type=InterRobotCommunication)
+        """py_trees' setup: plugins subscribe, then the agent listens to its teammates."""
+        self.plugins.setup(self.ctx)
+        self._irc_sub = self.bus.subscribe(keys.ALL_INTER_ROBOT_COMMUNICATION, self._on_irc,
+                                           msg_type=InterRobotCommunication)
 
     def declare_alive(self) -> None:
-        """Last step of start-up: alive means ready (ZENOH_NOTES trap 6)."""
+        """Last step of start-up: alive means ready (docs/zenoh.md, the start-up race)."""
         self._token = self.bus.declare_token(keys.agent_token(self.robot_id))
 
     def _on_irc(self, sample: Sample) -> None:
-        sender = keys.first_chunk(sample.key)
+        sender = first_chunk(sample.key)
         if sender == self.robot_id:
             self.ignored_own += 1
             return
@@ -94,7 +129,7 @@ class Agent:
         self._seq[key] += 1
         return Header(self.robot_id, now, self._seq[key])
 
-    def tick_high(self, now: float) -> list[Transition]:
+    def tick_high(self, now: float) -> list[TaskSwitch]:
         while self._inbox:
             sender, msg, t = self._inbox.popleft()
             self.high.on_broadcast(sender, msg.task_id, msg.expected_duration, t)
@@ -170,8 +205,13 @@ class Agent:
                     next_ctrl = now + ctrl_period
 
     def shutdown(self) -> None:
-        """Stop the robot: deactivate the running layers and command zero velocity."""
+        """Stop the robot: deactivate the running layers, command zero velocity, and let every
+        plugin close what it opened (py_trees' terminate, then shutdown)."""
         now = self.clock.now()
         for layer in self._layers(self.high.active_task):
             layer.on_deactivate(now)
         self.ctx.publish_cmd(0.0, 0.0)
+        self.plugins.shutdown()
+        if self._irc_sub is not None:
+            self._irc_sub.close()
+            self._irc_sub = None

@@ -1,5 +1,5 @@
-"""The plugins the reference application names: odometry and point-cloud sensors, and the
-`updated_sensory` evaluator (a behaviour is applicable while all of its sensors are up to date)."""
+"""ALLIANCE's built-in plugins, registered as `alliance/odometry`, `alliance/point_cloud` and
+`alliance/updated_sensory` (a behaviour is applicable while all of its sensors are up to date)."""
 
 from __future__ import annotations
 

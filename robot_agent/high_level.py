@@ -78,7 +78,7 @@ class MotivationState:
 
 
 @dataclass(frozen=True)
-class Transition:
+class TaskSwitch:
     task_id: str
     active: bool
     reason: str  # threshold reached | acquiesced (yielded) | gave up | reset | inapplicable | suppressed
@@ -122,8 +122,8 @@ class HighLevel:
         return None
 
     # ------------------------------------------------------------ the update
-    def tick(self, now: float) -> tuple[list[MotivationState], list[Transition]]:
-        transitions: list[Transition] = []
+    def tick(self, now: float) -> tuple[list[MotivationState], list[TaskSwitch]]:
+        transitions: list[TaskSwitch] = []
         candidates: list[tuple[float, str]] = []
         for task, s in self.sets.items():
             p = s.params
@@ -149,7 +149,7 @@ class HighLevel:
                 if s.active:
                     reason = ("acquiesced (yielded)" if yielded else "gave up") if s.acquiescent else \
                         "reset" if s.resetted else "inapplicable" if not s.applicable else "suppressed"
-                    transitions.append(Transition(task, False, reason))
+                    transitions.append(TaskSwitch(task, False, reason))
                 s.motivation = 0.0
                 s.active = False
                 s.activated_at = None
@@ -168,7 +168,7 @@ class HighLevel:
             s = self.sets[winner]
             s.active, s.activated_at = True, now
             s.motivation = s.params.threshold
-            transitions.append(Transition(winner, True, "threshold reached"))
+            transitions.append(TaskSwitch(winner, True, "threshold reached"))
         states = [MotivationState(t, s.impatience, s.acquiescent, s.suppressed, s.resetted,
                                   s.applicable, s.motivation, s.params.threshold, s.active)
                   for t, s in self.sets.items()]

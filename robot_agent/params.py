@@ -8,14 +8,17 @@ returned as warnings naming file and key.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.keys import is_id
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, get_path, load_yaml, sized_array
 
 NUMBER = (int, float)
+MIN_RATE, MAX_RATE = 0.01, 1000.0  # Hz: below, a tick a minute and a half; above, a busy loop
 
 
 @dataclass(frozen=True)
@@ -24,6 +27,7 @@ class SensorParams:
     topic_name: str
     timeout_duration: float = 5.0
     buffer_horizon: float = 5.0
+    where: str = ""  # file:line of plugin_name, for errors about the plugin
 
 
 @dataclass(frozen=True)
@@ -36,6 +40,7 @@ class BehaviourSetParams:
     fast_rate: float
     evaluator_plugin: str
     evaluator_topics: tuple[str, ...]
+    where: str = ""  # file:line of the evaluator's plugin_name
 
 
 @dataclass(frozen=True)
@@ -55,17 +60,18 @@ class TaskParams:
     id: str
     name: str
     layers: tuple[str, ...]
+    where: tuple[str, ...] = ()  # file:line of each layer's plugin_name
 
 
 @dataclass
 class AgentParams:
     robot: RobotParams
     tasks: dict[str, TaskParams]
-    layers: dict[str, Any] = field(default_factory=dict)
+    layers: YamlDoc | None = None  # the layers file; plugins' typed sections are read from it
     warnings: list[str] = field(default_factory=list)
 
 
-class _Reader:
+class _Mapping:
     """Reads one mapping, remembering which keys were used, so leftovers can be reported."""
 
     def __init__(self, doc: YamlDoc, path: tuple, allowed: set[str]):
@@ -87,14 +93,28 @@ class _Reader:
         value = self.data[key]
         if kind is float:
             if type(value) is bool or not isinstance(value, NUMBER):
-                raise self.doc.error(self.path + (key,), f"{key} must be a number, got {value!r}")
+                raise self.doc.error(self.path + (key,), f"{key} must be a number, got {value!r:.40}")
             value = float(value)
+            if not math.isfinite(value):
+                raise self.doc.error(self.path + (key,), f"{key} must be a finite number, got {value}")
             if positive and value <= 0:
                 raise self.doc.error(self.path + (key,), f"{key} must be > 0, got {value:g}")
         elif kind is str:
             if not isinstance(value, str) or not value.strip():
-                raise self.doc.error(self.path + (key,), f"{key} must be a non-empty string, got {value!r}")
+                raise self.doc.error(self.path + (key,), f"{key} must be a non-empty string, got {value!r:.40}")
         return value
+
+    def rate(self, key: str, default: Any = ...) -> float:
+        """A frequency in Hz: positive, finite, and within what a process can honour."""
+        value = self.get(key, float, default, positive=True)
+        if not MIN_RATE <= value <= MAX_RATE:
+            raise self.doc.error(self.path + (key,), f"{key} must be between {MIN_RATE:g} and "
+                                 f"{MAX_RATE:g} Hz, got {value:g}")
+        return value
+
+    def where(self, key: str) -> str:
+        line = self.doc.line(self.path + (key,))
+        return f"{self.doc.path}:{line}" if line else str(self.doc.path)
 
 
 ROBOT_KEYS = {"name", "spin_rate", "broadcast_rate", "timeout_duration", "buffer_horizon",
@@ -105,33 +125,37 @@ def load_robot_params(path: Path | str) -> tuple[RobotParams, list[str]]:
     doc = load_yaml(path)
     if not isinstance(doc.data, dict):
         raise doc.error((), "a robot parameter file must be a mapping")
-    top = _Reader(doc, (), ROBOT_KEYS)
+    top = _Mapping(doc, (), ROBOT_KEYS)
     warnings: list[str] = []
     sensors = []
     for spath, _ in sized_array(doc, ("sensors",), "sensor"):
-        r = _Reader(doc, spath, {"plugin_name", "topic_name", "timeout_duration", "buffer_horizon"})
+        r = _Mapping(doc, spath, {"plugin_name", "topic_name", "timeout_duration", "buffer_horizon"})
         sensors.append(SensorParams(
             plugin_name=r.get("plugin_name", str), topic_name=r.get("topic_name", str),
             timeout_duration=r.get("timeout_duration", float, 5.0, positive=True),
-            buffer_horizon=r.get("buffer_horizon", float, 5.0, positive=True)))
+            buffer_horizon=r.get("buffer_horizon", float, 5.0, positive=True),
+            where=r.where("plugin_name")))
     topics = {s.topic_name for s in sensors}
     sets = []
     seen_tasks: set[str] = set()
     for bpath, _ in sized_array(doc, ("behaviour_sets",), "behaviour_set"):
-        b = _Reader(doc, bpath, {"task_id", "task_expected_duration", "motivational_behaviour"})
+        b = _Mapping(doc, bpath, {"task_id", "task_expected_duration", "motivational_behaviour"})
         mpath = bpath + ("motivational_behaviour",)
-        m = _Reader(doc, mpath, {"threshold", "acquiescence", "impatience", "sensory_feedback"})
-        a = _Reader(doc, mpath + ("acquiescence",), {"yielding_delay", "giving_up_delay"})
-        i = _Reader(doc, mpath + ("impatience",), {"fast_rate"})
-        f = _Reader(doc, mpath + ("sensory_feedback",), {"plugin_name", "sensors"})
+        m = _Mapping(doc, mpath, {"threshold", "acquiescence", "impatience", "sensory_feedback"})
+        a = _Mapping(doc, mpath + ("acquiescence",), {"yielding_delay", "giving_up_delay"})
+        i = _Mapping(doc, mpath + ("impatience",), {"fast_rate"})
+        f = _Mapping(doc, mpath + ("sensory_feedback",), {"plugin_name", "sensors"})
         ftopics = []
         for fp, _ in sized_array(doc, mpath + ("sensory_feedback", "sensors"), "sensor"):
-            t = _Reader(doc, fp, {"topic_name"}).get("topic_name", str)
+            t = _Mapping(doc, fp, {"topic_name"}).get("topic_name", str)
             if t not in topics:
                 raise doc.error(fp + ("topic_name",), f"sensor topic {t!r} is not among the robot's "
                                 f"sensors ({', '.join(sorted(topics)) or 'none'})" + did_you_mean(t, topics))
             ftopics.append(t)
         task_id = b.get("task_id", str)
+        if not is_id(task_id):
+            raise doc.error(bpath + ("task_id",), f"task id {task_id!r:.80} must be one key chunk: "
+                            "up to 64 letters, digits, '_', '-' or '.'")
         if task_id in seen_tasks:
             raise doc.error(bpath + ("task_id",), f"task {task_id!r} has two behaviour sets")
         seen_tasks.add(task_id)
@@ -144,6 +168,7 @@ def load_robot_params(path: Path | str) -> tuple[RobotParams, list[str]]:
             fast_rate=i.get("fast_rate", float, positive=True),
             evaluator_plugin=f.get("plugin_name", str),
             evaluator_topics=tuple(ftopics),
+            where=f.where("plugin_name"),
         )
         if bs.yielding_delay > bs.giving_up_delay:
             warnings.append(doc.warning(
@@ -153,47 +178,73 @@ def load_robot_params(path: Path | str) -> tuple[RobotParams, list[str]]:
         sets.append(bs)
     robot = RobotParams(
         name=top.get("name", str, ""),
-        spin_rate=top.get("spin_rate", float, positive=True),
-        broadcast_rate=top.get("broadcast_rate", float, positive=True),
+        spin_rate=top.rate("spin_rate"),
+        broadcast_rate=top.rate("broadcast_rate"),
         timeout_duration=top.get("timeout_duration", float, positive=True),
         buffer_horizon=top.get("buffer_horizon", float, 10.0, positive=True),
         sensors=tuple(sensors), behaviour_sets=tuple(sets),
-        control_rate=top.get("control_rate", float, 10.0, positive=True),
+        control_rate=top.rate("control_rate", 10.0),
     )
-    if robot.broadcast_rate > 0 and 1.0 / robot.broadcast_rate >= robot.timeout_duration:
+    tick = 1.0 / robot.spin_rate
+    if robot.timeout_duration <= tick:
+        raise doc.error(("timeout_duration",), f"timeout_duration {robot.timeout_duration:g} s must "
+                        f"be longer than the tick period 1/spin_rate = {tick:g} s, or a teammate "
+                        "heard between two ticks is never seen")
+    period = effective_broadcast_period(robot)
+    if robot.timeout_duration < 2 * period:
         warnings.append(doc.warning(
-            ("broadcast_rate",),
-            f"a broadcast every {1 / robot.broadcast_rate:g} s is not faster than timeout_duration "
-            f"{robot.timeout_duration:g} s: other robots will think this one stopped between broadcasts"))
+            ("timeout_duration",),
+            f"broadcasts leave on ticks, so every {period:g} s (broadcast_rate "
+            f"{robot.broadcast_rate:g} Hz at spin_rate {robot.spin_rate:g} Hz); timeout_duration "
+            f"{robot.timeout_duration:g} s is less than twice that: one late broadcast makes "
+            "teammates think this robot stopped"))
     return robot, warnings
+
+
+def effective_broadcast_period(robot: RobotParams) -> float:
+    """Broadcasts go out on high-level ticks: the period is 1/broadcast_rate rounded up to ticks."""
+    ticks = math.ceil(round(robot.spin_rate / robot.broadcast_rate, 9))
+    return max(1, ticks) / robot.spin_rate
 
 
 def load_tasks_params(path: Path | str) -> dict[str, TaskParams]:
     doc = load_yaml(path)
     if not isinstance(doc.data, dict):
         raise doc.error((), "a tasks parameter file must be a mapping")
-    _Reader(doc, (), {"tasks"})
+    _Mapping(doc, (), {"tasks"})
     tasks: dict[str, TaskParams] = {}
     for tpath, _ in sized_array(doc, ("tasks",), "task"):
-        r = _Reader(doc, tpath, {"id", "name", "layers"})
+        r = _Mapping(doc, tpath, {"id", "name", "layers"})
         task_id = r.get("id", str)
         if task_id in tasks:
             raise doc.error(tpath + ("id",), f"task id {task_id!r} appears twice")
-        layers = []
+        if not is_id(task_id):
+            raise doc.error(tpath + ("id",), f"task id {task_id!r:.80} must be one key chunk: "
+                            "up to 64 letters, digits, '_', '-' or '.'")
+        layers, where = [], []
         if "layers" in r.data:
             for lpath, _ in sized_array(doc, tpath + ("layers",), "layer"):
-                layers.append(_Reader(doc, lpath, {"plugin_name"}).get("plugin_name", str))
-        tasks[task_id] = TaskParams(task_id, r.get("name", str, task_id), tuple(layers))
+                lr = _Mapping(doc, lpath, {"plugin_name"})
+                layers.append(lr.get("plugin_name", str))
+                where.append(lr.where("plugin_name"))
+        tasks[task_id] = TaskParams(task_id, r.get("name", str, task_id), tuple(layers),
+                                    tuple(where))
     return tasks
 
 
-def load_layers_params(path: Path | str | None) -> dict[str, Any]:
+def load_layers_params(path: Path | str | None) -> YamlDoc | None:
+    """The layers file: a mapping of sections, each a mapping (its keys are checked by the
+    plugins' typed parameters once the plugins are known)."""
     if path is None:
-        return {}
+        return None
     doc = load_yaml(path)
     if not isinstance(doc.data, dict):
         raise doc.error((), "a layers parameter file must be a mapping of layer sections")
-    return doc.data
+    for name, section in doc.data.items():
+        if not isinstance(section, dict):
+            raise doc.error((name,), f"section {name!r} must be a mapping of parameters, "
+                            f"got {type(section).__name__}")
+    return doc
 
 
 def load_agent_params(robot_file, tasks_file, layers_file=None) -> AgentParams:

@@ -1,17 +1,28 @@
 """The low level's plugin roles (dissertation §4.1): Sensor, SensoryEvaluator, Layer.
 
-Like py_trees' `Behaviour.tick()`, the agent is a fixed driver and plugins fill in hooks:
+The agent is a fixed driver and plugins fill in hooks, with py_trees' life cycle:
 
-    Sensor            setup(ctx) subscribes `<robot>/<topic_name>`; on_message(msg, now) keeps
-                      the latest; is_up_to_date(now) uses the sensor's *own* timeout_duration.
-    SensoryEvaluator  is_applicable(now) -> bool, once per high-level tick; published as
-                      SensoryFeedback and fed to the behaviour set.
-    Layer             on_activate(now), step(now, dt) at the control rate while its task is
-                      active (read sensors, publish commands), on_deactivate(now).
+    __init__(params)    cheap: keep the typed parameters, touch nothing else
+    setup(ctx)          once, before the agent says it is ready: subscribe here (self.subscribe)
+    ── per tick ──
+    Sensor              on_message(msg, now) keeps the latest; is_up_to_date(now) uses the
+                        sensor's *own* timeout_duration
+    SensoryEvaluator    is_applicable(now) -> bool, once per high-level tick
+    Layer               on_activate(now) (py_trees' initialise), step(now, dt) at the control
+                        rate while its task is active (update), on_deactivate(now) (terminate)
+    ──
+    shutdown()          once: every subscription opened through self.subscribe is closed
+
+Parameters are typed: a plugin lists the sections of the layers file it reads and the msgspec
+Struct each must fit (`sections`). They are checked when the parameter files load, so a bad
+value exits 2 naming file, line and key before the bus opens, instead of crashing when a layer
+first runs; plugins read attributes, never re-parse strings per tick.
 
 Plugins are found by name through entry points — groups `mrta.alliance.sensors`,
 `mrta.alliance.evaluators`, `mrta.alliance.layers` — so a pip-installed package can add its own,
-as pluginlib did; or directly as `package.module:Class`.
+as pluginlib did; or directly as `package.module:Class`. Old names (the reference files'
+`alliance_test/*`) are aliases a package declares in `mrta.alliance.aliases` (a dict
+old name → registered name), resolved here and nowhere else.
 """
 
 from __future__ import annotations
@@ -21,12 +32,13 @@ import logging
 import threading
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
-from typing import Any
+from typing import Any, ClassVar
 
+import msgspec
 import numpy as np
 
 from mrta_zenoh import keys
-from mrta_zenoh.bus import Bus
+from mrta_zenoh.bus import Bus, Subscription
 from mrta_zenoh.clock import Clock
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.messages import Message, Twist
@@ -39,43 +51,82 @@ GROUPS = {
     "evaluator": "mrta.alliance.evaluators",
     "layer": "mrta.alliance.layers",
 }
+ALIASES_GROUP = "mrta.alliance.aliases"
+
+
+class NoParams(msgspec.Struct, forbid_unknown_fields=True):
+    """The parameters of a plugin that reads none."""
 
 
 @dataclass
 class AgentContext:
-    """What plugins may use: the robot's id, the bus, the clock, its sensors and a seeded RNG."""
+    """What plugins may use: the robot's id, the bus, the clock, its sensors, a seeded RNG and
+    the typed sections of the layers file."""
 
     robot_id: str
     bus: Bus
     clock: Clock
     rng: np.random.Generator
     sensors: dict[str, "Sensor"] = field(default_factory=dict)  # by topic_name
-    layer_params: dict[str, Any] = field(default_factory=dict)
+    sections: dict[tuple[str, type], Any] = field(default_factory=dict)
     log: logging.Logger = field(default_factory=lambda: logging.getLogger("mrta.agent"))
 
     def publish_cmd(self, linear: float, angular: float) -> None:
         self.bus.publish(keys.cmd_vel(self.robot_id), Twist(float(linear), float(angular)))
 
+    def section(self, name: str, kind: type) -> Any:
+        """The layers file's section `name` as `kind` (checked at load; defaults if absent)."""
+        value = self.sections.get((name, kind))
+        if value is None:
+            value = self.sections[(name, kind)] = msgspec.convert({}, kind)
+        return value
 
-class Sensor:
+
+class Plugin:
+    """What the three roles share: declared parameter sections and tracked subscriptions."""
+
+    # layers-file section → the Struct it must fit; read with ctx.section(name, kind)
+    sections: ClassVar[dict[str, type]] = {}
+
+    def __init__(self) -> None:
+        self._subscriptions: list[Subscription] = []
+        self.ctx: AgentContext | None = None
+
+    def setup(self, ctx: AgentContext) -> None:
+        self.ctx = ctx
+
+    def subscribe(self, key_expr: str, handler, **kwargs) -> Subscription:
+        """ctx.bus.subscribe, remembered so shutdown() closes it."""
+        sub = self.ctx.bus.subscribe(key_expr, handler, **kwargs)
+        self._subscriptions.append(sub)
+        return sub
+
+    def shutdown(self) -> None:
+        for sub in self._subscriptions:
+            sub.close()
+        self._subscriptions.clear()
+
+
+class Sensor(Plugin):
     message_type: type[Message] | None = None  # None: accept any type
 
     def __init__(self, params: SensorParams):
+        super().__init__()
         self.params = params
         self.latest: Message | None = None
         self.latest_time: float | None = None
         self.received = 0
         self._lock = threading.Lock()
-        self._sub = None
 
     def setup(self, ctx: AgentContext) -> None:
-        key = keys.robot_topic(ctx.robot_id, self.params.topic_name)
+        super().setup(ctx)
         clock = ctx.clock
 
         def handler(sample):
             self.on_message(sample.message, clock.now())
 
-        self._sub = ctx.bus.subscribe(key, handler, msg_type=self.message_type)
+        self.subscribe(keys.robot_topic(ctx.robot_id, self.params.topic_name), handler,
+                       msg_type=self.message_type)
 
     def on_message(self, msg: Message, now: float) -> None:
         with self._lock:
@@ -87,23 +138,37 @@ class Sensor:
         return t is not None and now - t <= self.params.timeout_duration
 
 
-class SensoryEvaluator:
-    def __init__(self, task_id: str, sensors: list[Sensor], ctx: AgentContext):
+class SensoryEvaluator(Plugin):
+    def __init__(self, task_id: str, sensors: list[Sensor]):
+        super().__init__()
         self.task_id = task_id
         self.sensors = sensors
-        self.ctx = ctx
 
     def is_applicable(self, now: float) -> bool:
         raise NotImplementedError
 
 
-class Layer:
-    params_section: str = ""  # the section of the layers file this layer reads, if any
+class Layer(Plugin):
+    """A task's behaviour. `params` is the typed section `params_section` (Params)."""
 
-    def __init__(self, ctx: AgentContext):
-        self.ctx = ctx
-        self.params: dict[str, Any] = dict(ctx.layer_params.get(self.params_section, {}) or {}) \
-            if self.params_section else {}
+    params_section: ClassVar[str] = ""
+    Params: ClassVar[type] = NoParams
+
+    def __init__(self) -> None:
+        super().__init__()
+        self.params: Any = None
+
+    def setup(self, ctx: AgentContext) -> None:
+        super().setup(ctx)
+        self.params = ctx.section(self.params_section, self.Params) if self.params_section \
+            else self.Params()
+
+    @classmethod
+    def declared_sections(cls) -> dict[str, type]:
+        out = dict(cls.sections)
+        if cls.params_section:
+            out[cls.params_section] = cls.Params
+        return out
 
     def on_activate(self, now: float) -> None:
         pass
@@ -115,28 +180,48 @@ class Layer:
         self.ctx.publish_cmd(0.0, 0.0)
 
 
+def declared_sections(cls: type) -> dict[str, type]:
+    return cls.declared_sections() if issubclass(cls, Layer) else dict(cls.sections)
+
+
+# ------------------------------------------------------------------------- finding plugins
+
+def aliases() -> dict[str, str]:
+    """Old plugin name → registered name, from every package's `mrta.alliance.aliases`."""
+    out: dict[str, str] = {}
+    for ep in entry_points(group=ALIASES_GROUP):
+        table = ep.load()
+        if not isinstance(table, dict):
+            raise ConfigError(f"alias entry point {ep.name!r} ({ep.value}) is not a dict")
+        out.update(table)
+    return out
+
+
 def known_plugins(kind: str) -> list[str]:
     return sorted(ep.name for ep in entry_points(group=GROUPS[kind]))
 
 
 def load_plugin(kind: str, name: str, where: str = "") -> type:
-    """The class for a plugin name (entry point or `module:Class`); ConfigError lists known ones."""
+    """The class for a plugin name (entry point, alias or `module:Class`); ConfigError naming
+    `where` (file:line) and the known names otherwise."""
     base = {"sensor": Sensor, "evaluator": SensoryEvaluator, "layer": Layer}[kind]
+    where = where or None
     if ":" in name:
         module, _, attr = name.partition(":")
         try:
             cls = getattr(importlib.import_module(module), attr)
         except (ImportError, AttributeError) as exc:
-            raise ConfigError(f"cannot load {kind} plugin {name!r}: {exc}", file=where or None) from None
+            raise ConfigError(f"cannot load {kind} plugin {name!r}: {exc}", file=where) from None
     else:
         eps = {ep.name: ep for ep in entry_points(group=GROUPS[kind])}
-        ep = eps.get(name)
+        alias = {old: new for old, new in aliases().items() if new in eps}
+        ep = eps.get(name) or eps.get(alias.get(name, ""))
         if ep is None:
+            known = sorted(eps) + sorted(alias)
             raise ConfigError(
-                f"unknown {kind} plugin {name!r}{did_you_mean(name, eps)}; known: "
-                f"{', '.join(sorted(eps)) or 'none'} (or give package.module:Class)",
-                file=where or None)
+                f"unknown {kind} plugin {name!r}{did_you_mean(name, known)}; known: "
+                f"{', '.join(known) or 'none'} (or give package.module:Class)", file=where)
         cls = ep.load()
     if not (isinstance(cls, type) and issubclass(cls, base)):
-        raise ConfigError(f"{kind} plugin {name!r} is not a {base.__name__} subclass", file=where or None)
+        raise ConfigError(f"{kind} plugin {name!r} is not a {base.__name__} subclass", file=where)
     return cls

@@ -13,13 +13,16 @@ from dataclasses import dataclass
 
 from mrta_zenoh import keys
 from mrta_zenoh.bus import Bus
-from mrta_zenoh.messages import (
-    Bumper, Clock, Header, Odometry, Point2D, PointCloud, Pose2D, Twist,
-)
+from mrta_zenoh.messages import Clock, Header, Odometry, Point2D, PointCloud, Pose2D, Twist
 
 from .engine import SENSOR_EVERY, Simulation
+from .messages import Bumper
 
 log = logging.getLogger("mrta.sim")
+
+
+def bumper_key(robot_id: str) -> str:
+    return f"{robot_id}/bumper"
 
 
 @dataclass
@@ -40,19 +43,20 @@ class SimNode:
     """Runs a Simulation against a bus. `speed`: 1 real time, k faster, 0 as fast as possible."""
 
     def __init__(self, sim: Simulation, bus: Bus, speed: float = 1.0,
-                 publish_sensors: bool = True, monotonic=time.monotonic):
+                 publish_sensors: bool = True, monotonic=time.monotonic, run_id: str = ""):
         if speed < 0:
             raise ValueError(f"speed must be ≥ 0, got {speed}")
         self.sim = sim
         self.bus = bus
         self.speed = speed
+        self.run_id = run_id
         self.publish_sensors = publish_sensors
         self.stats = RunStats()
         self._monotonic = monotonic  # pacing is the one place that must follow the wall clock
         self._pending: dict[str, tuple[float, float]] = {}
         self._lock = threading.Lock()
         self._warned: set[str] = set()
-        self._keys = [(keys.sonar(r), keys.odom(r), keys.ground_truth(r), keys.bumper(r))
+        self._keys = [(keys.sonar(r), keys.odom(r), keys.ground_truth(r), bumper_key(r))
                       for r in sim.ids]
         self._sub = bus.subscribe(keys.ALL_CMD_VEL, self._on_cmd, msg_type=Twist)
 
@@ -84,7 +88,7 @@ class SimNode:
 
     def run(self, stop: threading.Event, duration: float | None = None) -> RunStats:
         sim = self.sim
-        self.bus.publish(keys.CLOCK, Clock(sim.time))
+        self.bus.publish(keys.CLOCK, Clock(sim.time, self.run_id))
         if self.publish_sensors:
             self.publish_all()
         wall0, sim0 = self._monotonic(), sim.time
@@ -93,7 +97,7 @@ class SimNode:
                 break
             self._apply_commands()
             sim.step()
-            self.bus.publish(keys.CLOCK, Clock(sim.time))
+            self.bus.publish(keys.CLOCK, Clock(sim.time, self.run_id))
             if self.publish_sensors and sim.steps % SENSOR_EVERY == 0:
                 self.publish_all()
             if self.speed > 0:
@@ -117,12 +121,12 @@ class SimNode:
         publish = self.bus.publish
         for i, rid in enumerate(sim.ids):
             k_sonar, k_odom, k_truth, k_bump = self._keys[i]
-            publish(k_sonar, PointCloud(Header(f"{rid}/sonar", t),
+            publish(k_sonar, PointCloud(Header(f"{rid}/sonar", t, 0),
                                         tuple(Point2D(x, y) for x, y in pts[i])))
-            publish(k_odom, Odometry(Header(f"{rid}/odom", t), Pose2D(*odom[i]),
+            publish(k_odom, Odometry(Header(f"{rid}/odom", t, 0), Pose2D(*odom[i]),
                                      Twist(*twist[i])))
-            publish(k_truth, Odometry(Header("world", t), Pose2D(*pose[i]), Twist(*vel[i])))
-            publish(k_bump, Bumper(Header(rid, t), stalled[i], contacts[i], collisions[i]))
+            publish(k_truth, Odometry(Header("world", t, 0), Pose2D(*pose[i]), Twist(*vel[i])))
+            publish(k_bump, Bumper(Header(rid, t, 0), stalled[i], contacts[i], collisions[i]))
 
     def close(self) -> None:
         self._sub.close()

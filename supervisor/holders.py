@@ -49,7 +49,7 @@ class SampleHolder:
 
 
 @dataclass(frozen=True)
-class Transition:
+class StateChange:
     time: float
     kind: str       # robot | task | allocation | alarm
     subject: str    # robot id, task id, "task->robot", alarm subject
@@ -65,15 +65,15 @@ class History:
     """Every transition with its time; bounded so a week-long run does not grow without end."""
 
     def __init__(self, maxlen: int = 100_000):
-        self._items: collections.deque[Transition] = collections.deque(maxlen=maxlen)
+        self._items: collections.deque[StateChange] = collections.deque(maxlen=maxlen)
 
-    def add(self, t: Transition) -> None:
+    def add(self, t: StateChange) -> None:
         self._items.append(t)
 
-    def recent(self, n: int) -> list[Transition]:
+    def recent(self, n: int) -> list[StateChange]:
         return list(self._items)[-n:]
 
-    def all(self) -> list[Transition]:
+    def all(self) -> list[StateChange]:
         return list(self._items)
 
     def __len__(self) -> int:

@@ -1,4 +1,8 @@
-"""`mrta plot motivation|timeline RECORDING …`: PNGs from an MCAP recording."""
+"""`mrta plot KIND RECORDING …`: PNGs from an MCAP recording.
+
+The kinds come from the `mrta.plots` entry points: the supervisor's `timeline` (any
+architecture), ALLIANCE's `motivation`, and whatever an installed package adds.
+"""
 
 from __future__ import annotations
 
@@ -7,29 +11,22 @@ from pathlib import Path
 import click
 
 from mrta_zenoh.cli.common import user_errors
+from mrta_zenoh.cli.main import EntryPointGroup
 
-from .cli import resolve_application
-from .plots import plot_motivation, plot_timeline
+from .api import resolve_application
+from .plots import plot_timeline
 
 
-@click.group()
+class PlotGroup(EntryPointGroup):
+    GROUP = "mrta.plots"
+
+
+@click.group(cls=PlotGroup)
 def plot() -> None:
-    """Plots from a recording made with `mrta record`."""
+    """Plots from a recording made with `mrta record` (or `mrta demo`)."""
 
 
-@plot.command()
-@click.argument("recording", type=click.Path(dir_okay=False, exists=True, path_type=Path))
-@click.option("--robot", required=True)
-@click.option("--task", required=True)
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path))
-def motivation(recording: Path, robot: str, task: str, output: Path) -> None:
-    """rqt_alliance's seven panels for one robot and task, over time."""
-    with user_errors():
-        plot_motivation(recording, robot, task, output)
-    click.echo(f"wrote {output}")
-
-
-@plot.command()
+@click.command()
 @click.argument("recording", type=click.Path(dir_okay=False, exists=True, path_type=Path))
 @click.option("--app", "app_spec", default="patrol", show_default=True,
               help="The application whose monitors read the recording (name or rqt_mrta.xml).")

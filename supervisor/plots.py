@@ -17,112 +17,13 @@ import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
-from mcap.reader import make_reader  # noqa: E402
-
 from mrta_zenoh import codec, keys  # noqa: E402
 from mrta_zenoh.errors import ConfigError  # noqa: E402
-from mrta_zenoh.messages import Motivation  # noqa: E402
+from mrta_zenoh.files import save_figure  # noqa: E402
+from mrta_zenoh.recording import TimeBase, read_recording  # noqa: E402
 from mrta_zenoh.toolchain.model import Application, Architecture  # noqa: E402
 
 from .state import Supervisor  # noqa: E402
-
-
-def read_recording(path: Path) -> Iterator[tuple[str, str, int, bytes]]:
-    """(key, encoding, log_time_ns, payload) in log-time order."""
-    try:
-        f = open(path, "rb")
-    except OSError as exc:
-        raise ConfigError(f"cannot read recording: {exc.strerror}", file=str(path)) from None
-    with f:
-        try:
-            reader = make_reader(f)
-            for _schema, channel, message in reader.iter_messages(log_time_order=True):
-                yield (channel.topic, channel.metadata.get("encoding", ""), message.log_time,
-                       message.data)
-        except Exception as exc:  # the mcap library raises many unrelated types for a bad file
-            if isinstance(exc, ConfigError):
-                raise
-            raise ConfigError(f"not a readable MCAP file: {exc}", file=str(path)) from None
-
-
-class TimeBase:
-    """log time (ns) → seconds: simulated when a `clock` was recorded, else wall since start."""
-
-    def __init__(self, records: list[tuple[str, str, int, bytes]]):
-        self.logs: list[int] = []
-        self.stamps: list[float] = []
-        for key, enc, t, payload in records:
-            if key == keys.CLOCK:
-                try:
-                    stamp = codec.decode(codec.type_from_encoding(enc), payload).stamp
-                except (codec.DecodeError, AttributeError):
-                    continue
-                self.logs.append(t)
-                self.stamps.append(stamp)
-        self.t0 = records[0][2] if records else 0
-        self.simulated = bool(self.logs)
-
-    def __call__(self, t: int) -> float:
-        if not self.simulated:
-            return (t - self.t0) / 1e9
-        i = bisect.bisect_right(self.logs, t) - 1
-        return self.stamps[max(i, 0)]
-
-    @property
-    def label(self) -> str:
-        return "simulated time (s)" if self.simulated else "time (s)"
-
-
-def plot_motivation(recording: Path, robot: str, task: str, output: Path,
-                    records: list | None = None) -> Path:
-    records = list(read_recording(recording)) if records is None else records
-    tb = TimeBase(records)
-    key = keys.motivation(robot, task)
-    rows = []
-    for k, enc, t, payload in records:
-        if k != key:
-            continue
-        try:
-            msg = codec.decode(codec.type_from_encoding(enc), payload)
-        except codec.DecodeError:
-            continue
-        if isinstance(msg, Motivation):
-            rows.append((tb(t), msg))
-    if not rows:
-        found = sorted({k.rsplit("/", 1)[-1] for k, *_ in records if k.startswith(f"{robot}/alliance/motivation/")})
-        raise ConfigError(f"no motivation samples for {robot} / {task} in the recording"
-                          + (f" (tasks recorded for {robot}: {', '.join(found)})" if found else ""),
-                          file=str(recording))
-    ts = [r[0] for r in rows]
-    panels = [("motivation", [m.motivation for _, m in rows]),
-              ("impatience", [m.impatience for _, m in rows]),
-              ("acquiescent", [m.acquiescent for _, m in rows]),
-              ("suppressed", [m.suppressed for _, m in rows]),
-              ("resetted", [m.resetted for _, m in rows]),
-              ("applicable", [m.applicable for _, m in rows]),
-              ("active", [m.active for _, m in rows])]
-    fig, axes = plt.subplots(7, 1, figsize=(10, 12), dpi=100, sharex=True,
-                             gridspec_kw={"height_ratios": [3, 2, 1, 1, 1, 1, 1]})
-    try:
-        for ax, (name, ys) in zip(axes, panels):
-            if name in ("motivation", "impatience"):
-                ax.plot(ts, ys, lw=1.2)
-                if name == "motivation":
-                    ax.plot(ts, [m.threshold for _, m in rows], "r--", lw=1, label="threshold")
-                    ax.legend(loc="upper left", fontsize=8)
-            else:
-                ax.step(ts, [int(v) for v in ys], where="post", lw=1.2)
-                ax.set_ylim(-0.2, 1.2)
-                ax.set_yticks([0, 1])
-            ax.set_ylabel(name, fontsize=9)
-            ax.grid(alpha=0.3)
-        axes[-1].set_xlabel(tb.label)
-        fig.suptitle(f"{robot}: motivational behaviour for {task}")
-        fig.tight_layout()
-        _save(fig, output)
-    finally:
-        plt.close(fig)
-    return output
 
 
 def replay(records, tb: TimeBase, app: Application, arch: Architecture) -> Supervisor:
@@ -208,7 +109,7 @@ def plot_timeline(recording: Path, app: Application, arch: Architecture, output:
         ax.set_title(f"{app.name}: which robot did which task when")
         ax.grid(axis="x", alpha=0.3)
         fig.tight_layout()
-        _save(fig, output)
+        save_figure(fig, output)
     finally:
         plt.close(fig)
     return output
@@ -229,8 +130,3 @@ def _offline_spans(sup: Supervisor, end: float) -> dict[str, list[tuple[float, f
     return spans
 
 
-def _save(fig, output: Path) -> None:
-    output = Path(output)
-    tmp = output.with_name(output.name + ".tmp")
-    fig.savefig(tmp, format="png")
-    tmp.replace(output)

@@ -26,7 +26,7 @@ from mrta_zenoh import keys
 from mrta_zenoh.fieldpath import FieldPath, FieldPathError
 from mrta_zenoh.toolchain.model import Application, Architecture, Topic
 
-from .holders import History, SampleHolder, Transition
+from .holders import History, SampleHolder, StateChange
 
 log = logging.getLogger("mrta.supervisor")
 
@@ -118,7 +118,7 @@ class Supervisor:
                           state="offline" if known else "unknown", since=now)
             self.robots[rid] = r
             if not known:
-                self.history.add(Transition(now, "robot", rid, "", "unknown"))
+                self.history.add(StateChange(now, "robot", rid, "", "unknown"))
         return r
 
     def _task(self, tid: str, now: float, known: bool = False) -> TaskInfo:
@@ -161,7 +161,7 @@ class Supervisor:
                 if "allocated_tasks" in values:
                     values["@robot"] = keys.normalize_robot_id(
                         values.get("busy_robots") or keys.first_chunk(key))
-            except keys.KeyError_:
+            except keys.KeyExprError:
                 self.counts["field_errors"] += 1
                 return
             touched_robots: set[str] = set()
@@ -200,9 +200,9 @@ class Supervisor:
         with self._lock:
             try:
                 rid = keys.normalize_robot_id(keys.first_chunk(key))
-            except keys.KeyError_:
+            except keys.KeyExprError:
                 return
-            if rid == keys.SIMULATOR_TOKEN or (rid not in self.robots and not alive):
+            if rid not in self.robots and not alive:
                 return
             r = self._robot(rid, now)
             if alive:
@@ -273,7 +273,7 @@ class Supervisor:
         else:
             state = "idle"
         if state != r.state:
-            self.history.add(Transition(now, "robot", r.id, r.state, state))
+            self.history.add(StateChange(now, "robot", r.id, r.state, state))
             r.state, r.since = state, now
         if r.known and r.ever_token:
             if not r.tokens:
@@ -288,12 +288,12 @@ class Supervisor:
         state = "allocated" if robots else ("incoming" if t.incoming.high else "unallocated")
         if robots != t.robots:
             for robot in set(t.robots) - set(robots):
-                self.history.add(Transition(now, "allocation", f"{t.id}->{robot}", "allocated", ""))
+                self.history.add(StateChange(now, "allocation", f"{t.id}->{robot}", "allocated", ""))
             for robot in set(robots) - set(t.robots):
-                self.history.add(Transition(now, "allocation", f"{t.id}->{robot}", "", "allocated"))
+                self.history.add(StateChange(now, "allocation", f"{t.id}->{robot}", "", "allocated"))
             t.robots = robots
         if state != t.state:
-            self.history.add(Transition(now, "task", t.id, t.state, state))
+            self.history.add(StateChange(now, "task", t.id, t.state, state))
             t.state, t.since = state, now
         self._task_alarms(t, now)
 
@@ -315,17 +315,17 @@ class Supervisor:
     def _raise(self, kind: str, subject: str, now: float, since: float | None = None) -> None:
         if (kind, subject) not in self.alarms:
             self.alarms[(kind, subject)] = now if since is None else since
-            self.history.add(Transition(now, "alarm", f"{kind}:{subject}", "", "raised"))
+            self.history.add(StateChange(now, "alarm", f"{kind}:{subject}", "", "raised"))
             self._log.warning("alarm: %s %s", kind, subject)
 
     def _clear(self, kind: str, subject: str, now: float) -> None:
         if self.alarms.pop((kind, subject), None) is not None:
-            self.history.add(Transition(now, "alarm", f"{kind}:{subject}", "raised", "cleared"))
+            self.history.add(StateChange(now, "alarm", f"{kind}:{subject}", "raised", "cleared"))
 
     # -------------------------------------------------------------------------------- output
 
     def snapshot(self, now: float, transitions: int = 20) -> dict:
-        """DESIGN §9's snapshot: robots, tasks, alarms (+ recent transitions and counters)."""
+        """The snapshot of docs/architecture.md: robots, tasks, alarms (+ recent transitions and counters)."""
         with self._lock:
             robots = []
             order = {rid: i for i, rid in enumerate(self.robots)}  # application order first

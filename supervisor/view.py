@@ -1,4 +1,11 @@
-"""The live terminal view: robots, tasks, alarms and recent transitions, sized for 80×24."""
+"""The live terminal view: robots, tasks, alarms and recent transitions, readable at 80×24.
+
+Ids are never truncated (a user must be able to tell `robot10` from `robot1`): on a terminal
+narrower than WIDE the robot and task tables are stacked instead of side by side. Everything
+that came from the bus is shown as plain text — `Text(...)`, never a markup string — with
+control characters made visible, so an id like `[/x]` or one holding terminal escape codes can
+neither break the view nor style the screen.
+"""
 
 from __future__ import annotations
 
@@ -7,37 +14,54 @@ from rich.console import Group
 from rich.table import Table
 from rich.text import Text
 
+WIDE = 110  # columns from which the two tables stand side by side
+
 STATE_STYLE = {"busy": "bold green", "idle": "yellow", "offline": "bold red", "unknown": "magenta",
                "allocated": "green", "unallocated": "red", "incoming": "yellow"}
 
 
-def render(snap: dict) -> Group:
+def plain(value: object) -> Text:
+    """Untrusted text as a Text: no markup parsed, control characters shown as \\xNN."""
+    s = str(value)
+    if not s.isprintable():
+        s = "".join(c if c.isprintable() else f"\\x{ord(c):02x}" for c in s)
+    return Text(s)
+
+
+def render(snap: dict, width: int = 120) -> Group:
     t = snap["time"]
     robots = Table(box=box.SIMPLE_HEAD, pad_edge=False, expand=False, title_justify="left",
-                   title=f"robots ({snap['application']}, {snap['architecture']})")
+                   show_edge=False,
+                   title=plain(f"robots ({snap['application']}, {snap['architecture']})"))
     for col in ("robot", "state", "task", "for"):
-        robots.add_column(col, no_wrap=True, overflow="ellipsis",
-                          max_width={"robot": 10, "task": 18}.get(col))
+        robots.add_column(col, no_wrap=True, overflow="fold")
     for r in snap["robots"]:
-        robots.add_row(r["id"], Text(r["state"], style=STATE_STYLE.get(r["state"], "")),
-                       r["task"] or "-", f"{t - r['since']:.0f}s")
-    tasks = Table(box=box.SIMPLE_HEAD, pad_edge=False, title="tasks", title_justify="left")
+        robots.add_row(plain(r["id"]), Text(r["state"], style=STATE_STYLE.get(r["state"], "")),
+                       plain(r["task"] or "-"), Text(f"{t - r['since']:.0f}s"))
+    tasks = Table(box=box.SIMPLE_HEAD, pad_edge=False, title="tasks", title_justify="left",
+                  show_edge=False)
     for col in ("task", "state", "robots"):
-        tasks.add_column(col, no_wrap=True, overflow="ellipsis",
-                         max_width={"task": 18, "robots": 14}.get(col))
+        tasks.add_column(col, no_wrap=True, overflow="fold")
     for task in snap["tasks"]:
-        tasks.add_row(task["id"], Text(task["state"], style=STATE_STYLE.get(task["state"], "")),
-                      ",".join(task["robots"]) or "-")
-    top = Table.grid(padding=(0, 2))
-    top.add_row(robots, tasks)
-    lines = []
+        tasks.add_row(plain(task["id"]), Text(task["state"], style=STATE_STYLE.get(task["state"], "")),
+                      plain(",".join(task["robots"]) or "-"))
+    if width >= WIDE:
+        top = Table.grid(padding=(0, 2))
+        top.add_row(robots, tasks)
+        parts: list = [top]
+    else:
+        parts = [robots, tasks]
     for a in snap["alarms"][-3:]:
-        lines.append(Text(f"ALARM {a['kind']} {a['subject']} since {a['since']:.1f}s",
-                          style="bold red"))
-    for tr in snap["transitions"][-(6 - min(3, len(snap["alarms"]))):]:
-        lines.append(Text(f"{tr['time']:9.1f}  {tr['kind']:<10} {tr['subject']:<24} "
-                          f"{tr['from'] or '·'} → {tr['to'] or '·'}", style="dim"))
+        line = Text("ALARM ", style="bold red")
+        line.append(plain(f"{a['kind']} {a['subject']} since {a['since']:.1f}s"))
+        parts.append(line)
+    room = 6 - min(3, len(snap["alarms"])) - (0 if width >= WIDE else 3)
+    for tr in snap["transitions"][-max(room, 1):]:
+        text = plain(f"{tr['time']:9.1f}  {tr['kind']:<10} {tr['subject']:<24} "
+                     f"{tr['from'] or '·'} → {tr['to'] or '·'}")
+        text.stylize("dim")
+        parts.append(text)
     c = snap["counts"]
-    footer = Text(f"t={t:.1f}s  samples {c['samples']}  wrong type {c['wrong_type']}  "
-                  f"bad field {c['field_errors']}", style="dim")
-    return Group(top, *lines, footer)
+    parts.append(Text(f"t={t:.1f}s  samples {c['samples']}  wrong type {c['wrong_type']}  "
+                      f"bad field {c['field_errors']}", style="dim"))
+    return Group(*parts)

@@ -20,6 +20,10 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 PROCS = Path(__file__).resolve().parent / "procs"
 REFERENCE = ROOT.parent / "shared" / "reference"
+CONFIGS = ROOT / "configs"
+ALLIANCE_ARCH = ROOT / "robot_agent" / "architecture"
+PATROL = CONFIGS / "applications" / "patrol"
+PATROL_WORLD = PATROL / "worlds" / "patrol.yaml"
 
 
 def free_port() -> int:

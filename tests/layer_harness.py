@@ -13,23 +13,34 @@ from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
 from mrta_zenoh.clock import ManualClock
 from mrta_zenoh.messages import Header, Odometry, Point2D, PointCloud, Pose2D, Twist
 from robot_agent.builtin import OdometrySensor, PointCloudSensor
-from robot_agent.params import SensorParams
-from robot_agent.plugins import AgentContext
+from robot_agent.params import SensorParams, load_layers_params
+from robot_agent.plugins import AgentContext, declared_sections
 from simulator.engine import DT, SENSOR_EVERY, Simulation
+from tests.helpers import PATROL
+
+LAYERS_FILE = PATROL / "config" / "layers_alliance_params.yaml"
+
+
+def typed_sections(*classes, layers_file=LAYERS_FILE) -> dict:
+    """The layers file's sections as the given plugin classes declare them (as the agent does)."""
+    doc = load_layers_params(layers_file)
+    return {(name, kind): doc.convert((name,), kind)
+            for cls in classes for name, kind in declared_sections(cls).items()}
 
 
 class LayerRun:
-    def __init__(self, sim: Simulation, robot: str, layer_cls, layer_params: dict, seed: int = 0):
+    def __init__(self, sim: Simulation, robot: str, layer_cls, seed: int = 0):
         self.sim, self.robot = sim, robot
         self.clock = ManualClock(0.0)
         self.net = InProcNetwork()
         self.bus = InProcBus(self.net)
-        self.sonar = PointCloudSensor(SensorParams("patrol/point_cloud", "sonar", 1.0, 1.0))
-        self.odom = OdometrySensor(SensorParams("patrol/odometry", "odom", 1.0, 1.0))
+        self.sonar = PointCloudSensor(SensorParams("alliance/point_cloud", "sonar", 1.0, 1.0))
+        self.odom = OdometrySensor(SensorParams("alliance/odometry", "odom", 1.0, 1.0))
         self.ctx = AgentContext(robot, self.bus, self.clock, np.random.default_rng(seed),
-                                {"sonar": self.sonar, "odom": self.odom}, layer_params)
+                                {"sonar": self.sonar, "odom": self.odom}, typed_sections(layer_cls))
         self.bus.subscribe(keys.cmd_vel(robot), self._on_cmd, msg_type=Twist)
-        self.layer = layer_cls(self.ctx)
+        self.layer = layer_cls()
+        self.layer.setup(self.ctx)
         self.i = sim.index[robot]
 
     def _on_cmd(self, sample) -> None:
@@ -38,9 +49,9 @@ class LayerRun:
     def feed(self) -> None:
         sim, i, t = self.sim, self.i, self.sim.time
         pts = sim.sonar().points[i]
-        self.sonar.on_message(PointCloud(Header(self.robot, t),
+        self.sonar.on_message(PointCloud(Header(self.robot, t, 0),
                                          tuple(Point2D(float(x), float(y)) for x, y in pts)), t)
-        self.odom.on_message(Odometry(Header(self.robot, t), Pose2D(*map(float, sim.odom[i])),
+        self.odom.on_message(Odometry(Header(self.robot, t, 0), Pose2D(*map(float, sim.odom[i])),
                                       Twist(*map(float, sim.odom_twist[i]))), t)
 
     def run(self, seconds: float, each=None) -> None:

@@ -6,9 +6,9 @@ from mrta_zenoh import keys
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.clock import ManualClock
 from mrta_zenoh.codec import encoding_for
-from mrta_zenoh.messages import (
-    Header, InterRobotCommunication, Odometry, PointCloud, Twist,
-)
+
+from mrta_zenoh.messages import Header, Odometry, PointCloud, Pose2D, Twist
+from robot_agent.messages import InterRobotCommunication
 from robot_agent.agent import Agent
 from robot_agent.params import load_agent_params
 from robot_agent.plugins import Layer
@@ -32,8 +32,8 @@ def make(tmp_path, sets, layers=None):
 
 
 def feed(bus, clock, robot="robot1"):
-    bus.publish(keys.odom(robot), Odometry(Header(robot, clock.now())))
-    bus.publish(keys.sonar(robot), PointCloud(Header(robot, clock.now())))
+    bus.publish(keys.odom(robot), Odometry(Header(robot, clock.now(), 0), Pose2D(0.0, 0.0, 0.0), Twist(0.0, 0.0)))
+    bus.publish(keys.sonar(robot), PointCloud(Header(robot, clock.now(), 0), ()))
 
 
 def step(agent, bus, clock, n, fresh=True):
@@ -78,9 +78,9 @@ def test_stalled_sensor_makes_behaviours_inapplicable_and_stops_the_robot(tmp_pa
 def test_ignores_own_broadcasts_mismatched_frame_ids_and_malformed_samples(tmp_path):
     agent, bus, clock = make(tmp_path, [{"task": "a", "fast": 1.0}])
     bus.publish("robot1/alliance/inter_robot_communication",
-                InterRobotCommunication(Header("robot1", 0.0), "a", 10.0))
+                InterRobotCommunication(Header("robot1", 0.0, 0), "a", 10.0))
     bus.publish("robot2/alliance/inter_robot_communication",
-                InterRobotCommunication(Header("robot7", 0.0), "a", 10.0))
+                InterRobotCommunication(Header("robot7", 0.0, 0), "a", 10.0))
     bus.publish_raw("robot2/alliance/inter_robot_communication",
                     encoding_for("alliance_msgs/InterRobotCommunication"), b"\x93garbage")
     step(agent, bus, clock, 3)
@@ -94,7 +94,7 @@ def test_another_robots_broadcast_slows_impatience(tmp_path):
     agent, bus, clock = make(tmp_path, [{"task": "a", "fast": 5.0, "theta": 100.0}])
     for _ in range(3):
         bus.publish("/robot2/alliance/inter_robot_communication".strip("/"),
-                    InterRobotCommunication(Header("/robot2", clock.now()), "a", 100.0))
+                    InterRobotCommunication(Header("/robot2", clock.now(), 0), "a", 100.0))
         step(agent, bus, clock, 1)
     # slow = θ / (expected · ρ) = 100 / (100 · 10) = 0.1 per tick
     assert agent.high.sets["a"].impatience == 0.1

@@ -14,7 +14,7 @@ def test_all_reference_files_load_unchanged(reference):
         p = load_agent_params(cfg / f"robot{i}_alliance_params.yaml",
                               cfg / "tasks_alliance_params.yaml", cfg / "layers_alliance_params.yaml")
         assert [b.task_id for b in p.robot.behaviour_sets] == ["wander", "border_protection", "report"]
-        assert p.layers["BorderProtection"]["x_max"] == 30
+        assert p.layers.data["BorderProtection"]["x_max"] == 30
     r1 = load_agent_params(cfg / "robot1_alliance_params.yaml", cfg / "tasks_alliance_params.yaml")
     assert r1.robot.spin_rate == 2.0 and r1.robot.behaviour_sets[0].threshold == 150.0
     assert r1.robot.sensors[1].topic_name == "sonar"
@@ -23,9 +23,11 @@ def test_all_reference_files_load_unchanged(reference):
 def test_reference_robot3_gets_a_warning_naming_file_and_key(reference):
     cfg = reference / "alliance_test" / "config"
     p = load_agent_params(cfg / "robot3_alliance_params.yaml", cfg / "tasks_alliance_params.yaml")
-    assert len(p.warnings) == 1
+    assert len(p.warnings) == 2
     assert "robot3_alliance_params.yaml:60" in p.warnings[0]
     assert "behaviour_set2/motivational_behaviour/acquiescence/yielding_delay" in p.warnings[0]
+    # broadcasts leave on ticks: 0.7 Hz at 1 Hz spin is one every 2 s, and τ = 3 s < 2 × 2 s
+    assert "robot3_alliance_params.yaml:4" in p.warnings[1] and "every 2 s" in p.warnings[1]
 
 
 def _mutate(doc, path, value):

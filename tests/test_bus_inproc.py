@@ -4,7 +4,8 @@ import msgpack
 
 from mrta_zenoh.bus import InProcBus, InProcNetwork
 from mrta_zenoh.codec import encoding_for
-from mrta_zenoh.messages import Header, InterRobotCommunication, Twist
+from mrta_zenoh.messages import Header, Twist
+from robot_agent.messages import InterRobotCommunication
 
 
 def irc(frame, seq=0):
@@ -26,9 +27,9 @@ def test_double_star_matches_any_depth():
     bus = InProcBus()
     got = []
     bus.subscribe("robot1/**", got.append)
-    bus.publish("robot1/cmd_vel", Twist())
+    bus.publish("robot1/cmd_vel", Twist(0.0, 0.0))
     bus.publish("robot1/alliance/motivation/wander", irc("robot1"))
-    bus.publish("robot2/cmd_vel", Twist())
+    bus.publish("robot2/cmd_vel", Twist(0.0, 0.0))
     assert [s.key for s in got] == ["robot1/cmd_vel", "robot1/alliance/motivation/wander"]
 
 

@@ -2,7 +2,7 @@ import pytest
 
 from mrta_zenoh.bus.options import BusOptions, check_endpoint, session_configs
 from mrta_zenoh.errors import ConfigError
-from mrta_zenoh.keys import KeyError_, matches, normalize_robot_id, validate_key_expr
+from mrta_zenoh.keys import KeyExprError, matches, normalize_robot_id, validate_key_expr
 
 
 @pytest.mark.parametrize("ep", ["tcp/127.0.0.1:18000", "tcp/[::1]:0", "udp/localhost:9000",
@@ -59,7 +59,7 @@ def test_bad_config_file_names_file_and_line(tmp_path):
 
 @pytest.mark.parametrize("bad", ["", "/a", "a/", "a//b", "a/b*", "a?b", "a#"])
 def test_bad_key_expressions(bad):
-    with pytest.raises(KeyError_):
+    with pytest.raises(KeyExprError):
         validate_key_expr(bad)
 
 
@@ -71,5 +71,5 @@ def test_key_matching():
 
 def test_robot_ids_are_normalised():
     assert normalize_robot_id("/robot1") == "robot1"
-    with pytest.raises(KeyError_):
+    with pytest.raises(KeyExprError):
         normalize_robot_id("robot 1")

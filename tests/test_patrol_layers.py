@@ -4,28 +4,28 @@ import math
 
 import numpy as np
 import pytest
-import yaml
 
 from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
 from mrta_zenoh.clock import ManualClock
 from mrta_zenoh.messages import Header, Point2D, PointCloud
-from mrta_zenoh.paths import CONFIGS, bundled_world
+from tests.helpers import PATROL_WORLD
 from robot_agent.builtin import PointCloudSensor
 from robot_agent.params import SensorParams
-from robot_agent.patrol import BorderProtection, Report, ReportDue, WallInRange, Wander
+from mrta_patrol.evaluators import ReportDue, WallInRange
+from mrta_patrol.layers import BorderProtection, ReportParams, Wander
+from mrta_patrol.messages import Report
 from robot_agent.plugins import AgentContext
 from simulator.engine import Simulation
 from simulator.world import load_world
-from tests.layer_harness import LayerRun
+from tests.layer_harness import LayerRun, typed_sections
 
-LAYERS = yaml.safe_load((CONFIGS / "applications/patrol/config/layers_alliance_params.yaml").read_text())
-WORLD = load_world(bundled_world("patrol"))
+WORLD = load_world(PATROL_WORLD)
 
 
 def test_wander_moves_through_open_space_without_a_collision_for_120_s():
     for seed in (0, 1):
         sim = Simulation(WORLD, {"robot1": WORLD.starts["robot1"]}, seed=seed)
-        run = LayerRun(sim, "robot1", Wander, LAYERS, seed=seed)
+        run = LayerRun(sim, "robot1", Wander, seed=seed)
         run.run(120.0)
         assert sim.collisions[0] == 0
         assert sim.distance[0] > 30.0  # it keeps moving (0.5 m/s cruise, slower near walls)
@@ -34,7 +34,7 @@ def test_wander_moves_through_open_space_without_a_collision_for_120_s():
 def test_wander_avoids_other_robots_too():
     sim = Simulation(WORLD, {"robot1": WORLD.starts["robot1"], "robot4": WORLD.starts["robot4"],
                              "robot2": WORLD.starts["robot2"]}, seed=3)
-    run = LayerRun(sim, "robot1", Wander, LAYERS, seed=3)
+    run = LayerRun(sim, "robot1", Wander, seed=3)
     run.run(60.0)
     assert sim.collisions[0] == 0
 
@@ -45,7 +45,7 @@ def _wall_distance(x, y):
 
 def test_border_protection_keeps_its_distance_and_goes_round_the_perimeter():
     sim = Simulation(WORLD, {"robot2": WORLD.starts["robot2"]}, seed=1, record_trails=True)
-    run = LayerRun(sim, "robot2", BorderProtection, LAYERS)
+    run = LayerRun(sim, "robot2", BorderProtection)
     dist = []
     run.run(300.0, each=lambda r: dist.append(_wall_distance(*r.sim.pose[0, :2])))
     dist = np.array(dist)
@@ -67,20 +67,22 @@ def test_border_protection_keeps_its_distance_and_goes_round_the_perimeter():
 def ctx():
     net = InProcNetwork()
     bus = InProcBus(net)
-    yield AgentContext("robot1", bus, ManualClock(10.0), np.random.default_rng(0), {}, LAYERS), bus
+    sections = typed_sections(WallInRange, ReportDue)
+    yield AgentContext("robot1", bus, ManualClock(10.0), np.random.default_rng(0), {}, sections), bus
     bus.close()
 
 
 def cloud(*ranges_angles):
-    return PointCloud(Header("robot1", 10.0), tuple(
+    return PointCloud(Header("robot1", 10.0, 0), tuple(
         Point2D(r * math.cos(math.radians(a)), r * math.sin(math.radians(a)))
         for r, a in ranges_angles))
 
 
 def test_wall_in_range_needs_a_fresh_echo_within_range(ctx):
     c, _ = ctx
-    s = PointCloudSensor(SensorParams("patrol/point_cloud", "sonar", 1.0, 1.0))
-    ev = WallInRange("border_protection", [s], c)
+    s = PointCloudSensor(SensorParams("alliance/point_cloud", "sonar", 1.0, 1.0))
+    ev = WallInRange("border_protection", [s])
+    ev.setup(c)
     assert not ev.is_applicable(10.0)  # nothing heard yet
     s.on_message(cloud((5.0, 0), (5.0, 90)), 10.0)
     assert not ev.is_applicable(10.0)  # only "no echo"
@@ -91,12 +93,25 @@ def test_wall_in_range_needs_a_fresh_echo_within_range(ctx):
 
 def test_report_due_until_someone_reports_then_again_after_the_period(ctx):
     c, bus = ctx
-    s = PointCloudSensor(SensorParams("patrol/point_cloud", "sonar", 1.0, 1.0))
+    s = PointCloudSensor(SensorParams("alliance/point_cloud", "sonar", 1.0, 1.0))
     s.on_message(cloud((2.0, 0)), 10.0)
-    ev = ReportDue("report", [s], c)
+    ev = ReportDue("report", [s])
+    ev.setup(c)
     assert ev.is_applicable(10.0)
-    bus.publish("robot3/patrol/report", Report(Header("robot3", 10.0), 12.0, 0.3, ()))
+    bus.publish("robot3/patrol/report", Report(Header("robot3", 10.0, 0), 12.0, 0.3, ()))
     assert not ev.is_applicable(10.0)
-    c.clock.set(10.0 + LAYERS["Report"]["period"])
+    c.clock.set(10.0 + c.section("Report", ReportParams).period)
     s.on_message(cloud((2.0, 0)), c.clock.now())
     assert ev.is_applicable(c.clock.now())
+
+
+def test_shutdown_closes_every_subscription_a_plugin_opened(ctx):
+    c, bus = ctx
+    s = PointCloudSensor(SensorParams("alliance/point_cloud", "sonar", 1.0, 1.0))
+    ev = ReportDue("report", [s])
+    s.setup(c)
+    ev.setup(c)
+    assert len(bus._subs) == 2
+    ev.shutdown()
+    s.shutdown()
+    assert bus._subs == []

@@ -6,7 +6,7 @@ import struct
 
 import pytest
 
-from mrta_zenoh.paths import CONFIGS
+from tests.helpers import ALLIANCE_ARCH, CONFIGS
 
 CONFIG = CONFIGS / "applications" / "patrol" / "config"
 

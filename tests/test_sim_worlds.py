@@ -6,9 +6,9 @@ from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
 from mrta_zenoh.errors import ConfigError
-from simulator.cli import parse_robot, place_robots
+from simulator.api import parse_robot, place_robots
 from simulator.world import Pose, load_world
-from tests.helpers import REFERENCE
+from tests.helpers import PATROL_WORLD, REFERENCE
 
 MAPS = {"map1.map": (12, 3), "map2.map": (32, 11), "map3.map": (25, 0), "office.map": (101, 1)}
 
@@ -41,8 +41,7 @@ def test_yaml_world_with_segments_polygons_starts_and_border(tmp_path):
 
 
 def test_bundled_patrol_world_loads():
-    from mrta_zenoh.paths import bundled_world
-    w = load_world(bundled_world("patrol"))
+    w = load_world(PATROL_WORLD)
     assert {"robot1", "robot2", "robot3"} <= set(w.starts) and w.border is not None
 
 
@@ -93,7 +92,7 @@ def test_mrta_sim_bad_arguments_exit_2(args, message):
 
 
 def test_robots_take_named_then_free_start_poses():
-    w = load_world(__import__("mrta_zenoh.paths", fromlist=["x"]).bundled_world("patrol"))
+    w = load_world(PATROL_WORLD)
     poses = place_robots(w, [parse_robot("robot2"), parse_robot("x=robot1"),
                              parse_robot("y"), parse_robot("z=1,2")])
     assert poses["robot2"] == w.starts["robot2"] and poses["x"] == w.starts["robot1"]

@@ -6,11 +6,12 @@ import pytest
 
 from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
 from mrta_zenoh.clock import ManualClock
-from mrta_zenoh.messages import GenericMessage, Header, InterRobotCommunication, Twist
-from mrta_zenoh.paths import CONFIGS
+from mrta_zenoh.messages import GenericMessage, Header, Twist
+from robot_agent.messages import InterRobotCommunication
+from tests.helpers import ALLIANCE_ARCH, CONFIGS
 from mrta_zenoh.toolchain.model import Application, RobotEntry
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
-from supervisor.cli import attach, resolve_application
+from supervisor.api import attach, resolve_application
 from supervisor.holders import SampleHolder
 from supervisor.state import Supervisor, key_expr_for
 
@@ -36,7 +37,7 @@ def patrol():
 
 def irc(sup, monitors, robot, task, now):
     sup.on_sample(monitors, f"{robot}/alliance/inter_robot_communication", IRC,
-                  InterRobotCommunication(Header(robot, now), task, 60.0), now)
+                  InterRobotCommunication(Header(robot, now, 0), task, 60.0), now)
 
 
 def state(sup, now):
@@ -101,7 +102,7 @@ def test_unknown_robots_wrong_types_and_bad_fields_do_not_disturb_state(patrol):
     sup.on_sample(mons, "robot1/alliance/inter_robot_communication", IRC,
                   GenericMessage(IRC, {"task_id": "wander"}), 1.2)  # no header: bad field
     sup.on_sample(mons, "robot1/alliance/inter_robot_communication", IRC,
-                  InterRobotCommunication(Header("not a robot id!", 1.3), "x", 1.0), 1.3)
+                  InterRobotCommunication(Header("not a robot id!", 1.3, 0), "x", 1.0), 1.3)
     assert state(sup, 1.3) == before
     assert sup.counts["wrong_type"] == 1 and sup.counts["field_errors"] == 2
     irc(sup, mons, "robot9", "wander", 2.0)  # not in the application
@@ -164,7 +165,7 @@ def test_ros_style_names_become_key_expressions():
 
 
 def test_our_architecture_file_is_what_the_supervisor_reads():
-    arch = load_rqt_mrta(CONFIGS / "alliance" / "rqt_mrta.xml")
+    arch = load_rqt_mrta(ALLIANCE_ARCH / "rqt_mrta.xml")
     sup = Supervisor(arch, Application("alliance", "x", [RobotEntry("r1", ["t"])]), 0.0)
     assert {m.role for m in sup.monitors} == {"busy_robots", "allocated_tasks"}
 
@@ -188,8 +189,30 @@ def test_live_view_fits_80_by_24_with_ten_robots(patrol):
     sup.update(5.0)
     sup.on_liveliness("robot7/alliance/agent", False, 5.0)
     buf = io.StringIO()
-    Console(file=buf, width=80, height=24, color_system=None).print(render(sup.snapshot(5.0)))
+    Console(file=buf, width=80, height=24, color_system=None).print(render(sup.snapshot(5.0), 80))
     lines = buf.getvalue().rstrip("\n").splitlines()
     assert len(lines) <= 24 and max(len(x) for x in lines) <= 80, "\n".join(lines)
     text = buf.getvalue()
     assert "robot10" in text and "offline" in text and "ALARM communication_lost robot7" in text
+    assert "border_protection" in text  # never cut to "border_prote…"
+
+
+def test_ids_with_markup_and_escape_codes_are_shown_as_plain_text(patrol):
+    """A task id holding rich markup or terminal escapes neither breaks nor styles the view."""
+    import io
+
+    from rich.console import Console
+
+    from supervisor.view import render
+
+    app, arch = patrol
+    sup = Supervisor(arch, app, 0.0)
+    snap = sup.snapshot(1.0)
+    snap["tasks"].append({"id": "[/x][bold red]boom\x1b[2J", "state": "unallocated",
+                          "robots": [], "since": 0.0})
+    buf = io.StringIO()
+    Console(file=buf, width=80, color_system="truecolor", force_terminal=True).print(
+        render(snap, 80))
+    out = buf.getvalue()
+    assert "[/x][bold red]boom\\x1b[2J" in out  # literally, escape made visible
+    assert "\x1b[2J" not in out

@@ -11,7 +11,7 @@ import yaml
 from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
-from mrta_zenoh.paths import CONFIGS
+from tests.helpers import ALLIANCE_ARCH, CONFIGS
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
 from robot_agent.params import load_agent_params
 from tests.helpers import REFERENCE
@@ -33,7 +33,7 @@ WIZARD_KEYS = [
     "2", "wander", "Wander", "1", "patrol/wander", "report", "Report", "1", "patrol/report",
     # layers_alliance_params: keep every default (one Enter per parameter of the template)
     *[""] * sum(len(group.children) for group in load_rqt_mrta(
-        CONFIGS / "alliance" / "rqt_mrta.xml").config("layers_alliance_params").children),
+        ALLIANCE_ARCH / "rqt_mrta.xml").config("layers_alliance_params").children),
     "y",
 ]
 

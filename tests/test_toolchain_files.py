@@ -5,7 +5,7 @@ from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
 from mrta_zenoh.errors import ConfigError
-from mrta_zenoh.paths import CONFIGS
+from tests.helpers import ALLIANCE_ARCH, CONFIGS
 from mrta_zenoh.toolchain.model import Application, Architecture, Array, Param, Params
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta, to_xml
 from tests.helpers import REFERENCE
@@ -41,7 +41,7 @@ def test_reference_models_hold_what_the_files_say(reference):
 
 
 def test_our_architecture_round_trips_and_uses_zenoh_keys(tmp_path):
-    arch = load_rqt_mrta(CONFIGS / "alliance" / "rqt_mrta.xml")
+    arch = load_rqt_mrta(ALLIANCE_ARCH / "rqt_mrta.xml")
     assert arch.busy_robots.name == "*/alliance/inter_robot_communication"
     (tmp_path / "a.xml").write_bytes(to_xml(arch))
     assert load_rqt_mrta(tmp_path / "a.xml") == arch

@@ -212,6 +212,7 @@ class Subscription:
             with self._cond:
                 self._cond.notify_all()
         self.bus._undeclare(self)
+        self.bus._forget(self.bus._subs, self)
 
     def __enter__(self) -> "Subscription":
         return self
@@ -242,6 +243,7 @@ class LivelinessWatch:
         if not self._closed:
             self._closed = True
             self.bus._undeclare_watch(self)
+            self.bus._forget(self.bus._watches, self)
 
     def __enter__(self) -> "LivelinessWatch":
         return self
@@ -261,6 +263,7 @@ class Token:
         if not self._closed:
             self._closed = True
             self.bus._undeclare_token(self)
+            self.bus._forget(self.bus._tokens, self)
 
     def __enter__(self) -> "Token":
         return self
@@ -361,6 +364,12 @@ class Bus:
         self.close()
 
     # ---- for implementations
+    def _forget(self, items: list, item: object) -> None:
+        """A closed entity leaves the bus's books (long-running processes open and close many)."""
+        with self._lock:
+            if item in items:
+                items.remove(item)
+
     def _wire(self, key: str) -> str:
         return f"{self.namespace}/{key}" if self.namespace else key
 

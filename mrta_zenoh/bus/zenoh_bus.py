@@ -1,6 +1,6 @@
 """The real bus: eclipse-zenoh. The only module of the project that imports `zenoh`.
 
-Traps handled here (ZENOH_NOTES.md): every entity is undeclared and the session closed in
+Traps handled here (docs/zenoh.md): every entity is undeclared and the session closed in
 close(), so no callback thread keeps the interpreter from exiting; publishers use
 CongestionControl.BLOCK, because DROP loses state under bursts; Python references to tokens and
 subscribers are kept for as long as they are meant to live.
@@ -13,7 +13,6 @@ import logging
 import threading
 from typing import Any
 
-import msgpack
 import zenoh
 
 from .. import codec
@@ -22,9 +21,9 @@ from .base import Bus, LivelinessWatch, Subscription, Token
 from .options import BusOptions, session_configs
 from ..messages import GenericMessage, Message
 
-_packb = msgpack.packb
 
 log = logging.getLogger("mrta.bus")
+_encode = codec.encode_struct
 zenoh.init_log_from_env_or("error")
 
 
@@ -85,10 +84,10 @@ class ZenohBus(Bus):
             if type(msg) is GenericMessage:
                 return super().publish(key, msg)
             entry = (type(msg), self._publisher(key),
-                     self._encoding(codec.encoding_for(msg.TYPE_NAME)), codec.encoder_for(type(msg)))
+                     self._encoding(codec.encoding_for(msg.TYPE_NAME)))
             self._typed[key] = entry
-        _, pub, enc, to_map = entry
-        pub.put(_packb(to_map(msg), use_bin_type=True), encoding=enc)
+        _, pub, enc = entry
+        pub.put(_encode(msg), encoding=enc)
 
     def publish_raw(self, key: str, encoding: str, payload: bytes) -> None:
         self._publisher(key).put(payload, encoding=self._encoding(encoding))

@@ -1,8 +1,11 @@
-"""What every networked subcommand shares: the bus options and the error → exit-code mapping."""
+"""What every subcommand shares: the bus options, logging, checked numbers, and the one mapping
+of the library's errors to exit codes (click's style: bad input 2, a runtime failure 1)."""
 
 from __future__ import annotations
 
 import functools
+import logging
+import math
 from pathlib import Path
 from typing import Any, Callable
 
@@ -11,11 +14,11 @@ import click
 from ..bus.options import MODES, BusOptions
 from ..errors import ConfigError, MrtaRuntimeError
 from ..fieldpath import FieldPathError
-from ..keys import KeyError_
+from ..keys import KeyExprError, validate_key_expr
 
 
 class BadInput(click.ClickException):
-    """Exit 2 with one line: bad usage, file, parameter or value (DESIGN §9)."""
+    """Exit 2 with one line: bad usage, file, parameter or value (docs/architecture.md, "exit codes")."""
 
     exit_code = 2
 
@@ -43,7 +46,6 @@ def bus_options(f: Callable) -> Callable:
             opts = BusOptions(mode=mode, connect=list(connect), listen=list(listen),
                               zenoh_config=zenoh_config, namespace=namespace)
             if opts.namespace:
-                from ..keys import validate_key_expr
                 validate_key_expr(opts.namespace)
             opts.user_config()  # a bad file is bad input: fail before anything starts
         return f(*args, bus_options=opts, **kwargs)
@@ -60,8 +62,52 @@ class user_errors:
     def __exit__(self, exc_type, exc, tb) -> bool:
         if exc is None:
             return False
-        if isinstance(exc, (ConfigError, FieldPathError, KeyError_)):
+        if isinstance(exc, (ConfigError, FieldPathError, KeyExprError)):
             raise BadInput(str(exc)) from exc
         if isinstance(exc, MrtaRuntimeError):
             raise RuntimeFailure(str(exc)) from exc
         return False
+
+
+class FiniteFloat(click.ParamType):
+    """A float option that must be finite (and within bounds): `--duration nan` is bad input."""
+
+    name = "number"
+
+    def __init__(self, min: float | None = None, min_open: bool = False, max: float | None = None):
+        self.min, self.min_open, self.max = min, min_open, max
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, float):
+            x = value
+        else:
+            try:
+                x = float(value)
+            except (TypeError, ValueError):
+                self.fail(f"{value!r} is not a number", param, ctx)
+        if not math.isfinite(x):
+            self.fail(f"{value!r} is not a finite number", param, ctx)
+        if self.min is not None and (x < self.min or (self.min_open and x == self.min)):
+            self.fail(f"{x:g} must be {'>' if self.min_open else '≥'} {self.min:g}", param, ctx)
+        if self.max is not None and x > self.max:
+            self.fail(f"{x:g} must be ≤ {self.max:g}", param, ctx)
+        return x
+
+
+def finite_float(min: float | None = None, min_open: bool = False,
+                 max: float | None = None) -> FiniteFloat:
+    return FiniteFloat(min, min_open, max)
+
+
+LOG_FORMAT = "%(levelname)s %(name)s: %(message)s"
+
+
+def setup_logging(verbosity: int = 0) -> None:
+    """Once per process: `mrta` loggers at INFO (activations, readiness), -v DEBUG, -q WARNING,
+    -qq ERROR; other libraries at WARNING. The `mrta` group and run_node both call this."""
+    level = {-2: logging.ERROR, -1: logging.WARNING, 0: logging.INFO}.get(
+        max(-2, min(verbosity, 1)), logging.DEBUG)
+    root = logging.getLogger()
+    if not root.handlers:
+        logging.basicConfig(format=LOG_FORMAT, level=logging.WARNING)
+    logging.getLogger("mrta").setLevel(level)

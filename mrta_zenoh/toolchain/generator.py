@@ -17,7 +17,7 @@ import yaml
 from lxml import etree
 
 from ..errors import ConfigError
-from ..keys import KeyError_, normalize_robot_id
+from ..keys import KeyExprError, is_id, normalize_robot_id
 from ..yamlfile import YamlDoc, did_you_mean, load_yaml
 from .model import Application, Architecture, Config, Launch, LaunchArg, LaunchInclude, RobotEntry
 from .registry import Package
@@ -27,7 +27,6 @@ from .xmlio import to_xml
 PACKAGE_NAME = re.compile(r"^[a-z][a-z0-9_]*$")
 VERSION = re.compile(r"^\d+\.\d+\.\d+$")
 EMAIL = re.compile(r"^[^@\s]+@[^@\s]+\.[A-Za-z]{2,}$")
-TASK_ID = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_\-.]*$")
 
 
 @dataclass
@@ -65,12 +64,12 @@ def check_general(a: Answers) -> None:
     for rid, tasks in a.robots.items():
         try:
             normalize_robot_id(rid)
-        except KeyError_ as exc:
+        except KeyExprError as exc:
             raise ConfigError(f"robots: {exc}") from None
         if not tasks:
             raise ConfigError(f"robots/{rid}: give at least one task this robot can do")
         for t in tasks:
-            if not TASK_ID.match(str(t)):
+            if not is_id(str(t)):
                 raise ConfigError(f"robots/{rid}: task id {t!r} must be one key chunk "
                                   "(letters, digits, '_', '-', '.')")
 
@@ -80,7 +79,7 @@ _ANSWER_KEYS = ("package", "name", "architecture", "robots", "configs", "version
 
 
 def load_answers(path: Path) -> tuple[Answers, YamlDoc]:
-    doc = load_yaml(path)
+    doc = load_yaml(path, aliases=True)
     d = doc.data
     if not isinstance(d, dict):
         raise doc.error((), "an answers file is a mapping (see docs/toolchain.md)")

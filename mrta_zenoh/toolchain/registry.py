@@ -5,9 +5,13 @@ A package is a folder with a `package.xml` whose `<export>` holds
 this order (the first package of a name wins, later ones are reported as shadowed):
 
 1. `MRTA_PACKAGE_PATH`: colon-separated folders, each a package or a tree of packages;
-2. the project's `configs/` folder;
-3. entry points in the `mrta.packages` group: the value names an importable module whose folder is
-   the package, so `pip install my-arch` makes `my_arch` appear with no path set.
+2. entry points in the `mrta.packages` group: the value names an importable module whose folder is
+   the package, so `pip install my-arch` makes `my_arch` appear with no path set. Our own
+   architecture (ALLIANCE) and application (patrol) are found this way too, from a wheel as
+   from a clone: nothing is looked up relative to the source tree.
+
+A package may also ship simulator worlds in a `worlds/` folder (`worlds/patrol.yaml` is found as
+the world `patrol`).
 """
 
 from __future__ import annotations
@@ -21,7 +25,6 @@ from pathlib import Path
 
 
 from ..errors import ConfigError
-from ..paths import CONFIGS
 from ..yamlfile import did_you_mean
 from .model import ALLOCATION_TYPES, ROBOT_TYPES, TASK_TYPES, Application, Architecture
 from .xmlio import load_rqt_mrta, parse_xml_file
@@ -101,8 +104,7 @@ def _walk(root: Path, depth: int = 0):
 
 
 class Registry:
-    def __init__(self, search_path: list[Path] | None = None, use_configs: bool = True,
-                 use_entry_points: bool = True):
+    def __init__(self, search_path: list[Path] | None = None, use_entry_points: bool = True):
         self.packages: dict[str, Package] = {}
         self.problems: list[str] = []
         if search_path is None:
@@ -111,9 +113,6 @@ class Registry:
         for root in search_path:
             for xml in _walk(root):
                 self._add(xml, f"MRTA_PACKAGE_PATH ({root})")
-        if use_configs and CONFIGS.is_dir():
-            for xml in _walk(CONFIGS):
-                self._add(xml, "project configs/")
         if use_entry_points:
             for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
                 try:
@@ -144,7 +143,7 @@ class Registry:
         pkg = self.packages.get(name)
         if pkg is None:
             raise ConfigError(f"unknown package {name!r}" + did_you_mean(name, self.packages)
-                              + " (packages come from MRTA_PACKAGE_PATH, configs/ and entry points)")
+                              + " (packages come from MRTA_PACKAGE_PATH and entry points)")
         return pkg
 
     def _models(self, attr: str) -> list[tuple[Package, Architecture | Application]]:
@@ -180,6 +179,27 @@ class Registry:
                 raise ConfigError(f"{kind} {name!r} did not load: {problem}")
         raise ConfigError(f"unknown {kind} {name!r}" + did_you_mean(name, names)
                           + f" (known: {', '.join(names) or 'none'})")
+
+    WORLD_SUFFIXES = (".yaml", ".yml", ".map")
+
+    def worlds(self) -> dict[str, Path]:
+        """World name → file, from every package's `worlds/` folder (first package wins)."""
+        out: dict[str, Path] = {}
+        for pkg in self.packages.values():
+            folder = pkg.path / "worlds"
+            if folder.is_dir():
+                for f in sorted(folder.iterdir()):
+                    if f.suffix in self.WORLD_SUFFIXES and f.is_file():
+                        out.setdefault(f.stem, f)
+        return out
+
+    def world(self, name: str) -> Path:
+        worlds = self.worlds()
+        if name not in worlds:
+            raise ConfigError(f"no such world file or registered world: {name!r}"
+                              + did_you_mean(name, worlds)
+                              + f" (registered: {', '.join(sorted(worlds)) or 'none'})")
+        return worlds[name]
 
     def architecture(self, name: str) -> tuple[Package, Architecture]:
         return self._named(name, "architecture", self.architectures())

@@ -10,6 +10,7 @@ import sys
 
 import click
 
+from ..cli.common import setup_logging
 from .launchfile import executables
 
 
@@ -22,6 +23,7 @@ def main(argv: list[str]) -> int:
     if ep is None:
         print(f"error: no executable registered as {name!r}", file=sys.stderr)
         return 2
+    setup_logging(0)
     target = ep.load()
     if isinstance(target, click.Command):
         return target.main(args=args, prog_name=name, standalone_mode=True) or 0

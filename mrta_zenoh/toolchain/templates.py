@@ -17,7 +17,7 @@ from ..yamlfile import did_you_mean
 from .model import Array, Config, Node, Param, Params
 
 ARRAY_SIZE = "@array_size@"
-TASK_ID = "@task_id@"
+TASK_PLACEHOLDER = "@task_id@"
 INDEX = "@index@"
 
 
@@ -61,7 +61,7 @@ def _size_param(children: list[Node]) -> Param | None:
 
 def _uses_task_id(node: Node) -> bool:
     if isinstance(node, Param):
-        return node.value == TASK_ID
+        return node.value == TASK_PLACEHOLDER
     return any(_uses_task_id(c) for c in node.children)
 
 
@@ -127,7 +127,7 @@ def _fill(children: list[Node], values: dict | list, where: str,
         if p.value == ARRAY_SIZE:
             sizes = list(size_of_array.values())
             p.value = str(sizes[0] if sizes else 0)
-        elif p.value == TASK_ID:
+        elif p.value == TASK_PLACEHOLDER:
             if child.name in values:
                 raise ConfigError(f"{path}: filled from the robot's task list; do not set it")
         elif child.name in values:
@@ -153,7 +153,7 @@ def _fill_item(children: list[Node], item: Any, where: str,
     filled = _fill(children, item, where, robot_tasks)
     if task is not None:
         for p in filled:
-            if isinstance(p, Param) and p.value == TASK_ID:
+            if isinstance(p, Param) and p.value == TASK_PLACEHOLDER:
                 p.value = task
     return filled
 

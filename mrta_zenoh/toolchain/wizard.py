@@ -13,10 +13,11 @@ from typing import Any, Callable
 import click
 
 from ..errors import ConfigError
-from .generator import EMAIL, PACKAGE_NAME, TASK_ID, VERSION, Answers
+from ..keys import is_id
+from .generator import EMAIL, PACKAGE_NAME, VERSION, Answers
 from .model import Architecture, Node, Param, Params
 from .registry import Package, Registry, matches_taxonomy, taxonomy_value
-from .templates import ARRAY_SIZE, TASK_ID as TASK_PLACEHOLDER, convert
+from .templates import ARRAY_SIZE, TASK_PLACEHOLDER, convert
 
 
 def _check(pattern, message: str) -> Callable[[str], str]:
@@ -89,7 +90,7 @@ def collect(registry: Registry, echo: Callable[[str], None] = click.echo) -> tup
 
     def ids(v: str) -> list[str]:
         out = _csv(v)
-        if not out or not all(TASK_ID.match(x) for x in out):
+        if not out or not all(is_id(x) for x in out):
             raise click.UsageError("give one or more ids (letters, digits, '_', '-', '.'), "
                                    "comma-separated")
         if len(set(out)) != len(out):

@@ -10,8 +10,10 @@ import threading
 
 from mrta_zenoh import keys
 from mrta_zenoh.bus import BusOptions, open_bus
-from mrta_zenoh.clock import SimClock
-from mrta_zenoh.messages import Bumper, Clock, Odometry, PointCloud, Twist
+from mrta_zenoh.clock import SimClock, follow_sim_clock
+from simulator.node import bumper_key
+from mrta_zenoh.messages import Clock, Odometry, PointCloud, Twist
+from simulator.messages import Bumper
 
 robot, linear, seconds = sys.argv[1], float(sys.argv[2]), float(sys.argv[3])
 clock = SimClock()
@@ -35,11 +37,11 @@ def count(kind):
 
 
 with open_bus(BusOptions()) as bus:
-    bus.subscribe(keys.CLOCK, lambda s: clock.on_clock(s.message.stamp), msg_type=Clock)
+    follow_sim_clock(bus, clock)
     bus.subscribe(keys.ground_truth(robot), on_truth, msg_type=Odometry)
     bus.subscribe(keys.sonar(robot), count("sonar"), msg_type=PointCloud)
     bus.subscribe(keys.odom(robot), count("odom"), msg_type=Odometry)
-    bus.subscribe(keys.bumper(robot), count("bumper"), msg_type=Bumper)
+    bus.subscribe(bumper_key(robot), count("bumper"), msg_type=Bumper)
     print("ready", flush=True)
     clock.started.wait(30)
     while True:

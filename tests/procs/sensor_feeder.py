@@ -6,7 +6,7 @@ import time
 from mrta_zenoh import keys
 from mrta_zenoh.bus import BusOptions, open_bus
 from mrta_zenoh.lifecycle import stop_on_signals
-from mrta_zenoh.messages import Header, Odometry, Point2D, PointCloud
+from mrta_zenoh.messages import Header, Odometry, Point2D, PointCloud, Pose2D, Twist
 
 robots = sys.argv[1:]
 with stop_on_signals() as stop, open_bus(BusOptions()) as bus:
@@ -15,6 +15,6 @@ with stop_on_signals() as stop, open_bus(BusOptions()) as bus:
     while not stop.is_set():
         now = time.time()
         for r in robots:
-            bus.publish(keys.odom(r), Odometry(Header(r, now)))
-            bus.publish(keys.sonar(r), PointCloud(Header(r, now), (Point2D(1.0, 0.0),)))
+            bus.publish(keys.odom(r), Odometry(Header(r, now, 0), Pose2D(0.0, 0.0, 0.0), Twist(0.0, 0.0)))
+            bus.publish(keys.sonar(r), PointCloud(Header(r, now, 0), (Point2D(1.0, 0.0),)))
         stop.wait(0.1)

@@ -1,55 +1,70 @@
-"""The patrol application's plugins (dissertation §4.2): wander, border protection, report.
+"""The patrol application's layers (dissertation §4.2): wander, border protection, report.
 
 All three read the sonar as the simulator (or RosAria) publishes it: points in the robot frame,
 metres; a point at the maximum range means "no echo". They never see the world map: a layer
 knows only what its sensors tell it, as on the real robot.
 
-* `wander`: keeps moving through open space; slows down as the way ahead closes, turns towards
-  the more open side, and turns in place (committing to one direction) when blocked.
-* `border_protection`: a PD wall follower on the side and diagonal sonars — distance error from
-  the perpendicular beam, heading error from the line through the perpendicular and diagonal
-  echoes — that turns at inner corners and curves back to a wall it lost at outer ones, so it
-  goes round the whole perimeter (the original was stubbed to spin in place).
-* `report`: drives to the report point, then publishes a team report on `robotN/patrol/report`
-  (distance covered, share of the border visited, time each robot spent on each task) — made
-  from what every robot broadcasts on the bus, like a patrol leader's log.
-* evaluators: `wall_in_range` (border protection is applicable once a wall is within reach) and
-  `report_due` (a report is due when nobody has published one for `Report/period` seconds).
+* `patrol/wander`: keeps moving through open space; slows down as the way ahead closes, turns
+  towards the more open side, and turns in place (committing to one direction) when blocked.
+* `patrol/border_protection`: a PD wall follower on the side and diagonal sonars — distance
+  error from the perpendicular beam, heading error from the line through the perpendicular and
+  diagonal echoes — that turns at inner corners and curves back to a wall it lost at outer ones,
+  so it goes round the whole perimeter (the original was stubbed to spin in place).
+* `patrol/report`: drives to the report point, then publishes a team report on
+  `robotN/patrol/report` (see ledger.py).
+
+Parameters are typed (msgspec Structs below): the agent checks the layers file against them when
+it loads, so `speed: fast` is an error naming file and line before anything runs.
 """
 
 from __future__ import annotations
 
 import math
-import threading
-from dataclasses import field
+from typing import Literal
 
-from mrta_zenoh import keys
-from mrta_zenoh.geometry import rectangle_cells
-from mrta_zenoh.messages import (
-    Header, InterRobotCommunication, Message, Odometry, PointCloud, message,
-)
+import msgspec
 
-from .plugins import AgentContext, Layer, SensoryEvaluator
+from mrta_zenoh.messages import Finite, Odometry, PointCloud
+from robot_agent.plugins import AgentContext, Layer
+
+from .keys import report_key
+from .ledger import PatrolLedger
 
 NO_ECHO = 4.85  # m from the robot centre: beyond this a point is the sensor's "no echo"
 
 
-@message("patrol_msgs/TaskTime")
-class TaskTime(Message):
-    robot_id: str = ""
-    task_id: str = ""
-    seconds: float = 0.0
+class WanderParams(msgspec.Struct, forbid_unknown_fields=True):
+    speed: Finite = 0.5
+    safe_distance: Finite = 0.8
+    turn_rate: Finite = 0.8
 
 
-@message("patrol_msgs/Report")
-class Report(Message):
-    header: Header = field(default_factory=Header)
-    distance: float = 0.0          # metres covered by the whole team
-    border_covered: float = 0.0    # share of the border's 0.5 m cells some robot came near
-    task_times: tuple[TaskTime, ...] = ()
+class BorderParams(msgspec.Struct, forbid_unknown_fields=True):
+    """BorderProtection: the wall follower's gains, and the border rectangle (world metres)."""
+
+    distance: Finite = 1.0
+    speed: Finite = 0.4
+    side: Literal["right", "left"] = "right"
+    kp: Finite = 1.5
+    kd: Finite = 2.0
+    wall_range: Finite = 4.0
+    x_min: Finite | None = None
+    y_min: Finite | None = None
+    x_max: Finite | None = None
+    y_max: Finite | None = None
+
+    def border(self) -> tuple[float, float, float, float] | None:
+        corners = (self.x_min, self.y_min, self.x_max, self.y_max)
+        return None if any(c is None for c in corners) else corners
 
 
-# ------------------------------------------------------------------------------ sonar view
+class ReportParams(msgspec.Struct, forbid_unknown_fields=True):
+    x: Finite = 0.0
+    y: Finite = 0.0
+    speed: Finite = 0.5
+    period: Finite = 60.0
+
+
 
 class SonarView:
     """Echo points of the latest scan in polar form, with sector queries."""
@@ -112,6 +127,7 @@ def avoid(view: SonarView, speed: float, safe: float, turn: float, state: dict,
 
 class Wander(_SonarLayer):
     params_section = "Wander"
+    Params = WanderParams
 
     def on_activate(self, now: float) -> None:
         self.state: dict = {}
@@ -124,17 +140,17 @@ class Wander(_SonarLayer):
             return
         # a slowly varying seeded drift so the robot explores instead of tracing one loop
         self.drift = 0.9 * self.drift + 0.1 * float(self.ctx.rng.normal(0.0, 0.6))
-        v, w = avoid(view, float(self.params.get("speed", 0.5)),
-                     float(self.params.get("safe_distance", 0.8)),
-                     float(self.params.get("turn_rate", 0.8)), self.state, bias=self.drift)
+        p = self.params
+        v, w = avoid(view, p.speed, p.safe_distance, p.turn_rate, self.state, bias=self.drift)
         self.ctx.publish_cmd(v, w)
 
 
 class BorderProtection(_SonarLayer):
     params_section = "BorderProtection"
+    Params = BorderParams
 
     def on_activate(self, now: float) -> None:
-        self.side = -1.0 if str(self.params.get("side", "right")) == "right" else 1.0
+        self.side = -1.0 if self.params.side == "right" else 1.0
         self.lost_for = 0.0
         self.had_wall = False
         self._avoid: dict = {}
@@ -149,9 +165,8 @@ class BorderProtection(_SonarLayer):
 
     def command(self, view: SonarView, dt: float,
                 pose: tuple[float, float, float] | None = None) -> tuple[float, float]:
-        d_set = float(self.params.get("distance", 1.0))
-        speed = float(self.params.get("speed", 0.4))
-        kp, kd = float(self.params.get("kp", 1.5)), float(self.params.get("kd", 2.0))
+        p = self.params
+        d_set, speed, kp, kd = p.distance, p.speed, p.kp, p.kd
         reach = 2.5 * d_set  # echoes further than this on the side are not "the wall"
         s = self.side  # −1: wall on the right; turning away from it is +angular
         front = view.nearest(-30, 30)
@@ -210,11 +225,10 @@ class BorderProtection(_SonarLayer):
         return nearest is None or math.hypot(nearest[0] - wx, nearest[1] - wy) < 1.5
 
     def _nearest_border_point(self, pose) -> tuple[float, float] | None:
-        try:
-            x0, y0 = float(self.params["x_min"]), float(self.params["y_min"])
-            x1, y1 = float(self.params["x_max"]), float(self.params["y_max"])
-        except (KeyError, TypeError, ValueError):
+        border = self.params.border()
+        if border is None:
             return None
+        x0, y0, x1, y1 = border
         x, y = pose[0], pose[1]
         options = [(x0, _clip(y, y0, y1)), (x1, _clip(y, y0, y1)),
                    (_clip(x, x0, x1), y0), (_clip(x, x0, x1), y1)]
@@ -223,10 +237,12 @@ class BorderProtection(_SonarLayer):
 
 class ReportLayer(_SonarLayer):
     params_section = "Report"
+    Params = ReportParams
+    sections = {"BorderProtection": BorderParams}  # the ledger counts border cells
 
-    def __init__(self, ctx: AgentContext):
-        super().__init__(ctx)
-        self.ledger = PatrolLedger(ctx, ctx.layer_params.get("BorderProtection") or {})
+    def setup(self, ctx: AgentContext) -> None:
+        super().setup(ctx)
+        self.ledger = PatrolLedger(self, ctx.section("BorderProtection", BorderParams).border())
 
     def on_activate(self, now: float) -> None:
         self.state: dict = {}
@@ -237,113 +253,34 @@ class ReportLayer(_SonarLayer):
         if view is None or pose is None:
             self.ctx.publish_cmd(0.0, 0.0)
             return
-        gx, gy = float(self.params.get("x", 0.0)), float(self.params.get("y", 0.0))
+        gx, gy = self.params.x, self.params.y
         x, y, th = pose
         dist = math.hypot(gx - x, gy - y)
         if dist < 0.5:
             self.ctx.publish_cmd(0.0, 0.0)
             if not self.sent:
-                self.ctx.bus.publish(keys.patrol_report(self.ctx.robot_id),
+                self.ctx.bus.publish(report_key(self.ctx.robot_id),
                                      self.ledger.report(self.ctx.robot_id, now))
                 self.ctx.log.info("%s: report published at (%.1f, %.1f)", self.ctx.robot_id, x, y)
                 self.sent = True
             return
         err = math.atan2(gy - y, gx - x) - th
         err = math.atan2(math.sin(err), math.cos(err))
-        speed = float(self.params.get("speed", 0.5)) * _clip(dist / 1.5, 0.3, 1.0)
+        speed = self.params.speed * _clip(dist / 1.5, 0.3, 1.0)
         v, w = avoid(view, speed, 0.8, 0.8, self.state, bias=_clip(1.2 * err, -0.8, 0.8))
         if abs(err) > 1.2 and v > 0:
             v *= 0.3  # mostly turn first
         self.ctx.publish_cmd(v, w)
 
 
-class PatrolLedger:
-    """Team bookkeeping from the bus: time per robot and task, distance, border cells visited."""
-
-    CELL = 0.5
-    REACH = 2.0  # a border cell counts as visited when a robot passes within this distance
-
-    def __init__(self, ctx: AgentContext, border: dict):
-        self.ctx = ctx
-        self._lock = threading.Lock()
-        self.task_time: dict[tuple[str, str], float] = {}
-        self._last_bc: dict[str, tuple[str, float]] = {}
-        self._last_pos: dict[str, tuple[float, float]] = {}
-        self.distance: dict[str, float] = {}
-        try:
-            x0, y0 = float(border.get("x_min")), float(border.get("y_min"))
-            x1, y1 = float(border.get("x_max")), float(border.get("y_max"))
-        except (TypeError, ValueError):
-            x0 = y0 = x1 = y1 = None
-        self.cells = rectangle_cells(x0, y0, x1, y1, self.CELL) if x0 is not None else []
-        self.visited = [False] * len(self.cells)
-        ctx.bus.subscribe(keys.ALL_INTER_ROBOT_COMMUNICATION, self._on_bc,
-                          msg_type=InterRobotCommunication)
-        ctx.bus.subscribe("*/odom", self._on_odom, msg_type=Odometry)
-
-    def _on_bc(self, sample) -> None:
-        msg = sample.message
-        rid, now = msg.header.frame_id, self.ctx.clock.now()
-        with self._lock:
-            last = self._last_bc.get(rid)
-            if last is not None and last[0] == msg.task_id and now - last[1] < 5.0:
-                k = (rid, msg.task_id)
-                self.task_time[k] = self.task_time.get(k, 0.0) + (now - last[1])
-            self._last_bc[rid] = (msg.task_id, now)
-
-    def _on_odom(self, sample) -> None:
-        rid = keys.first_chunk(sample.key)
-        p = sample.message.pose
-        with self._lock:
-            last = self._last_pos.get(rid)
-            if last is not None:
-                self.distance[rid] = self.distance.get(rid, 0.0) + math.hypot(p.x - last[0],
-                                                                              p.y - last[1])
-            self._last_pos[rid] = (p.x, p.y)
-            for i, (cx, cy) in enumerate(self.cells):
-                if not self.visited[i] and math.hypot(cx - p.x, cy - p.y) <= self.REACH:
-                    self.visited[i] = True
-
-    def report(self, reporter: str, now: float) -> Report:
-        with self._lock:
-            covered = sum(self.visited) / len(self.cells) if self.cells else 0.0
-            times = tuple(TaskTime(r, t, s) for (r, t), s in sorted(self.task_time.items()))
-            return Report(Header(reporter, now), sum(self.distance.values()), covered, times)
-
-
-# ------------------------------------------------------------------------------ evaluators
-
-class WallInRange(SensoryEvaluator):
-    """Applicable while the sonar is fresh and some echo is within `range` metres (default 4)."""
-
-    def __init__(self, task_id, sensors, ctx: AgentContext):
-        super().__init__(task_id, sensors, ctx)
-        self.range = float((ctx.layer_params.get("BorderProtection") or {}).get("wall_range", 4.0))
-
-    def is_applicable(self, now: float) -> bool:
-        for s in self.sensors:
-            if not s.is_up_to_date(now):
-                return False
-            if isinstance(s.latest, PointCloud):
-                view = SonarView(s.latest)
-                if any(r <= self.range for _, _, r, _ in view.points):
-                    return True
-        return False
-
-
-class ReportDue(SensoryEvaluator):
-    """Applicable while sensors are fresh and no robot has reported for `Report/period` seconds."""
-
-    def __init__(self, task_id, sensors, ctx: AgentContext):
-        super().__init__(task_id, sensors, ctx)
-        self.period = float((ctx.layer_params.get("Report") or {}).get("period", 60.0))
-        self.last_report: float | None = None
-        ctx.bus.subscribe("*/patrol/report", self._on_report, msg_type=Report)
-
-    def _on_report(self, sample) -> None:
-        self.last_report = self.ctx.clock.now()
-
-    def is_applicable(self, now: float) -> bool:
-        if not all(s.is_up_to_date(now) for s in self.sensors):
-            return False
-        return self.last_report is None or now - self.last_report >= self.period
+# The reference application (alliance_test) named these plugins; its files load unchanged.
+ALIASES = {
+    "alliance_test/odometry": "alliance/odometry",
+    "alliance_test/point_cloud": "alliance/point_cloud",
+    "alliance_test/updated_sensory": "alliance/updated_sensory",
+    "alliance_test/wall_in_range": "patrol/wall_in_range",
+    "alliance_test/report_due": "patrol/report_due",
+    "alliance_test/wander": "patrol/wander",
+    "alliance_test/border_protection": "patrol/border_protection",
+    "alliance_test/report": "patrol/report",
+}

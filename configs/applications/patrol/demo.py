@@ -1,0 +1,303 @@
+"""`mrta demo`: the patrol application end to end, in one command.
+
+It runs the application's own launch file, `patrol_sim.launch` (the simulator and one ALLIANCE
+agent per robot), through the runner `mrta launch` uses, plus a recorder, all as separate
+processes on a private loopback rendezvous; this process is the supervisor and shows its view.
+Readiness is read from liveliness tokens (each robot's agent, the recorder, the clock source),
+never from log lines; the simulator itself starts the clock only once every robot is up. It can
+SIGKILL one agent mid-mission. Afterwards it writes, into the output folder, the recording, a
+world picture with trails, the allocation timeline, the motivation plots and a summary (who did
+what, takeover time beside the bound ALLIANCE states for it, mission metrics).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import os
+import signal
+import threading
+import time
+from pathlib import Path
+
+import click
+from rich.console import Console, Group
+from rich.live import Live
+from rich.text import Text
+
+from mrta_zenoh import keys
+from mrta_zenoh.bus import BusOptions, open_bus
+from mrta_zenoh.bus.options import private_rendezvous
+from mrta_zenoh.cli.common import BadInput, finite_float, user_errors
+from mrta_zenoh.clock import SimClock, follow_sim_clock
+from mrta_zenoh.errors import ConfigError, MrtaRuntimeError
+from mrta_zenoh.files import write_text
+from mrta_zenoh.lifecycle import stop_on_signals
+from mrta_zenoh.processes import Child, ProcessGroup, mrta_argv
+from mrta_zenoh.recording import read_recording
+from mrta_zenoh.toolchain.launchfile import LaunchEvaluator, check_executables
+from mrta_zenoh.toolchain.registry import Registry
+from mrta_zenoh.toolchain.runner import start_nodes
+from robot_agent.api import takeover_bound
+from robot_agent.params import load_layers_params
+from robot_agent.plots import plot_motivation
+from supervisor.api import attach
+from supervisor.plots import TimeBase, allocation_intervals, plot_timeline, replay
+from supervisor.state import Supervisor
+from supervisor.view import render
+
+from .layers import BorderParams
+from .metrics import coverage, mission_metrics
+
+log = logging.getLogger("mrta.demo")
+LAUNCH = "patrol_sim.launch"
+READY_TIMEOUT = 60.0  # wall seconds for every process to come up
+
+
+def parse_fail(spec: str | None) -> tuple[str, float] | None:
+    if spec is None or spec.lower() == "none":
+        return None
+    robot, sep, when = spec.partition("@")
+    try:
+        t = float(when)
+        if not sep or t <= 0 or not math.isfinite(t):
+            raise ValueError
+        return keys.normalize_robot_id(robot), t
+    except (ValueError, keys.KeyExprError):
+        raise BadInput(f"--fail {spec!r}: expected ROBOT@SECONDS, e.g. robot2@30, or none") from None
+
+
+class Readiness:
+    """Who is up, from liveliness tokens: robots (any token under robotN/**), the recorder and
+    the clock source (tokens under @mrta/…, which `**` does not match)."""
+
+    def __init__(self, bus, robots: list[str]):
+        self.robots = {r: set() for r in robots}
+        self.recorder = threading.Event()
+        self.clock = threading.Event()
+        self._lock = threading.Lock()
+        self._handles = [
+            bus.watch_liveliness("**", self._robot),
+            bus.watch_liveliness(keys.RECORDER_TOKEN + "/**", lambda k, up: up and self.recorder.set()),
+            bus.watch_liveliness(keys.CLOCK_SOURCE_TOKEN + "/**", lambda k, up: up and self.clock.set()),
+        ]
+
+    def _robot(self, key: str, up: bool) -> None:
+        rid = keys.first_chunk(key)
+        with self._lock:
+            if rid in self.robots:
+                (self.robots[rid].add if up else self.robots[rid].discard)(key)
+
+    def robots_up(self) -> bool:
+        with self._lock:
+            return all(self.robots.values())
+
+    def wait(self, what, label: str, group: ProcessGroup, stop: threading.Event) -> None:
+        deadline = time.monotonic() + READY_TIMEOUT
+        while not what():
+            failed = group.failed()
+            if failed:
+                raise MrtaRuntimeError(f"{failed[0].name} failed while starting:\n{failed[0].tail()}")
+            if stop.is_set():
+                raise click.Abort()
+            if time.monotonic() > deadline:
+                raise MrtaRuntimeError(f"{label} did not come up within {READY_TIMEOUT:.0f} s")
+            stop.wait(0.05)
+
+    def close(self) -> None:
+        for h in self._handles:
+            h.close()
+
+
+def run_demo(*, duration: float = 60.0, speed: float = 2.0, fail: str | None = "robot2@30",
+             output: Path = Path("demo-output"), seed: int = 0, live: bool | None = None,
+             stop: threading.Event | None = None, out=None) -> dict:
+    console = Console(file=out) if out is not None else Console()
+    failure = parse_fail(fail)
+    reg = Registry()
+    pkg, app = reg.application("patrol")
+    _, arch = reg.architecture(app.architecture)
+    ids = [r.id for r in app.robots]
+    if failure and failure[0] not in ids:
+        raise BadInput(f"--fail {fail}: {failure[0]} is not one of {', '.join(ids)}")
+    if failure and failure[1] >= duration:
+        raise BadInput(f"--fail at {failure[1]} s is not before the end ({duration} s)")
+    output.mkdir(parents=True, exist_ok=True)
+    config = pkg.path / "config"
+    params = {rid: config / f"{rid}_alliance_params.yaml" for rid in ids}
+    layers = load_layers_params(config / "layers_alliance_params.yaml")
+    border = layers.convert(("BorderProtection",), BorderParams)
+    launch_args = {"speed": str(speed), "seed": str(seed),
+                   "sim_args": f"--duration {duration} --snapshot {output / 'world.png'}"}
+    nodes = LaunchEvaluator(lambda name: reg.find(name).path).run(pkg.path / "launch" / LAUNCH,
+                                                                 launch_args)
+    check_executables(nodes)
+    rendezvous = private_rendezvous()
+    env = dict(os.environ, MRTA_RENDEZVOUS=rendezvous, PYTHONUNBUFFERED="1")
+    failed_at: float | None = None
+    t_wall0 = time.monotonic()
+    with stop_on_signals(stop) as stop, ProcessGroup(env) as group, \
+            open_bus(BusOptions(rendezvous=rendezvous)) as bus:
+        ready = Readiness(bus, ids)
+        group.start(mrta_argv("record", "-o", output / "run.mcap"), name="record")
+        ready.wait(ready.recorder.is_set, "the recorder", group, stop)
+        clock = SimClock()
+        clock_handles = follow_sim_clock(bus, clock)
+        sup = Supervisor(arch, app, 0.0, unattended_after=30.0, duplicate_after=5.0)
+        handles = attach(sup, bus, clock)
+        children = start_nodes(group, nodes)
+        agents = {rid: next(c for c in children if c.name.startswith(rid + "/")) for rid in ids}
+        sim = next(c for c in children if c not in agents.values())
+        ready.wait(ready.robots_up, "the robots' agents", group, stop)
+        ready.wait(ready.clock.is_set, "the simulator", group, stop)
+        show_live = console.is_terminal if live is None else live
+        failed_at = _run(sim, sup, clock, agents, failure, duration, speed, stop, console,
+                         show_live)
+        for h in handles + clock_handles:
+            h.close()
+        ready.close()
+        if stop.is_set() and sim.running():
+            raise click.Abort()
+        if sim.wait(30) != 0:
+            raise MrtaRuntimeError("the simulator failed:\n" + sim.tail())
+        group.stop_all()
+        crashed = group.failed(ignore=[agents[failure[0]].name] if failure else [])
+        if crashed:
+            raise MrtaRuntimeError(f"{', '.join(c.name for c in crashed)} exited with an error:\n"
+                                   + "\n".join(c.tail(5) for c in crashed))
+    summary = analyse(output, app, arch, ids, params, border, failure, failed_at, duration,
+                      speed, time.monotonic() - t_wall0)
+    print_summary(console, summary)
+    return summary
+
+
+def _run(sim: Child, sup: Supervisor, clock: SimClock, agents: dict[str, Child], failure,
+         duration: float,
+         speed: float, stop: threading.Event, console: Console, show_live: bool) -> float | None:
+    failed_at = None
+    last_line = -10.0
+
+    def header() -> Text:
+        t = clock.now()
+        fail_txt = "" if not failure else (f" · {failure[0]} killed at {failed_at:.1f} s"
+                                           if failed_at is not None
+                                           else f" · will kill {failure[0]} at {failure[1]:.0f} s")
+        return Text(f"mrta demo · patrol · simulated {t:5.1f} / {duration:.0f} s · "
+                    f"speed {speed or 'max'}{fail_txt}", style="bold")
+
+    live = Live(Group(header(), render(sup.snapshot(clock.now()), console.width)), console=console,
+                refresh_per_second=4, transient=False) if show_live else None
+    if live:
+        live.start()
+    try:
+        while sim.running() and not stop.is_set():
+            stop.wait(0.25)
+            now = clock.now()
+            sup.update(now)
+            if failure and failed_at is None and now >= failure[1]:
+                agents[failure[0]].signal(signal.SIGKILL)
+                failed_at = now
+                log.info("killed %s at %.1f s", failure[0], now)
+            if live:
+                live.update(Group(header(), render(sup.snapshot(now), console.width)))
+            elif now - last_line >= 10.0:
+                last_line = now
+                snap = sup.snapshot(now)
+                console.print(f"t={now:5.1f}s  " + "  ".join(
+                    f"{r['id']}:{r['state']}{'/' + r['task'] if r['task'] else ''}"
+                    for r in snap["robots"]), highlight=False)
+    finally:
+        if live:
+            live.stop()
+    return failed_at
+
+
+def analyse(output: Path, app, arch, ids, params, border: BorderParams, failure, failed_at,
+            duration: float, speed: float, wall: float) -> dict:
+    records = read_recording(output / "run.mcap")
+    tb = TimeBase(records)
+    sup = replay(records, tb, app, arch)
+    t0 = 0.0
+    t1 = max((tb(t) for _, _, t, _ in records), default=duration)
+    intervals = allocation_intervals(sup, t1)
+    plot_timeline(output / "run.mcap", app, arch, output / "timeline.png", records, sup)
+    plots = []
+    for rid in ids:
+        for task in app.tasks():
+            f = output / f"motivation_{rid}_{task}.png"
+            try:
+                plot_motivation(output / "run.mcap", rid, task, f, records)
+                plots.append(f.name)
+            except ConfigError:
+                pass  # a robot killed before its first sample of this task
+    who = {rid: [{"task": t, "from": round(a, 1), "to": round(b, 1)}
+                 for t, a, b in sorted(intervals.get(rid, []), key=lambda x: x[1])] for rid in ids}
+    summary = {"duration": duration, "speed": speed, "wall_seconds": round(wall, 1),
+               "robots": ids, "who_did_what": who,
+               "coverage": coverage(intervals, app.tasks(), t0, t1),
+               "output": str(output), "files": sorted(p.name for p in output.iterdir())}
+    summary.update(mission_metrics(records, border.border() or (-20.0, -6.0, 20.0, 6.0),
+                                   border.distance + 1.0))
+    if failure:
+        robot, _ = failure
+        summary["failure"] = {"robot": robot, "killed_at": failed_at}
+        if failed_at is not None:
+            task = next((t for t, a, b in intervals.get(robot, []) if a <= failed_at <= b + 0.5),
+                        None)
+            taken = sorted((a, r) for r, iv in intervals.items() if r != robot
+                           for t, a, b in iv if t == task and a >= failed_at - 1e-6) if task else []
+            summary["failure"]["task"] = task
+            if taken:
+                t_take, by = taken[0]
+                summary["failure"].update({
+                    "taken_over_by": by, "takeover_seconds": round(t_take - failed_at, 2),
+                    "bound_seconds": round(takeover_bound(params[by], task), 2)})
+    write_text(output / "summary.json", json.dumps(summary, indent=2))
+    return summary
+
+
+def print_summary(console: Console, s: dict) -> None:
+    console.print(Text(f"\nPatrol mission: {s['duration']:.0f} s simulated at speed "
+                       f"{s['speed'] or 'max'} in {s['wall_seconds']:.0f} s", style="bold"))
+    for rid, spans in s["who_did_what"].items():
+        txt = ", ".join(f"{x['task']} {x['from']:.1f}–{x['to']:.1f} s" for x in spans) or "idle"
+        console.print(f"  {rid}: {txt}", highlight=False)
+    f = s.get("failure")
+    if f:
+        if "takeover_seconds" in f:
+            ok = "within" if f["takeover_seconds"] <= f["bound_seconds"] else "OVER"
+            console.print(f"  {f['robot']} killed at {f['killed_at']:.1f} s while doing {f['task']}; "
+                          f"{f['taken_over_by']} took over after {f['takeover_seconds']:.2f} s "
+                          f"({ok} the bound τ + (⌈θ/fast⌉ + 1)/ρ = {f['bound_seconds']:.2f} s)",
+                          highlight=False)
+        else:
+            console.print(f"  {f['robot']} killed at {f.get('killed_at')}; task "
+                          f"{f.get('task')} was not taken over before the end", highlight=False)
+    for task, c in s["coverage"].items():
+        console.print(f"  {task}: exactly one robot {c['exactly_one']:.0%}, none {c['none']:.0%}, "
+                      f"more than one {c['more_than_one']:.0%}", highlight=False)
+    console.print(f"  collisions: {s['collisions_total']}; border visited: "
+                  f"{s['border_visited']:.0%}", highlight=False)
+    console.print(f"  files in {s['output']}: {', '.join(s['files'])}", highlight=False)
+
+
+@click.command()
+@click.option("--duration", type=finite_float(min=0, min_open=True), default=60.0,
+              show_default=True, help="Simulated seconds of mission.")
+@click.option("--speed", type=finite_float(min=0), default=2.0, show_default=True,
+              help="Simulated seconds per wall second (0: as fast as possible).")
+@click.option("--fail", default="robot2@30", show_default=True, metavar="ROBOT@SECONDS|none",
+              help="SIGKILL this robot's agent at this simulated time.")
+@click.option("--output", type=click.Path(file_okay=False, path_type=Path),
+              default=Path("demo-output"), show_default=True,
+              help="Folder for the recording, pictures and summary.json.")
+@click.option("--seed", type=int, default=0, show_default=True,
+              help="The run's master seed (each robot derives its own stream).")
+@click.option("--live/--no-live", default=None,
+              help="Show the live supervisor view (default: when the output is a terminal).")
+def demo(duration: float, speed: float, fail: str, output: Path, seed: int,
+         live: bool | None) -> None:
+    """The patrol application end to end: simulator, agents and supervisor, then a summary."""
+    with user_errors():
+        run_demo(duration=duration, speed=speed, fail=fail, output=output, seed=seed, live=live)

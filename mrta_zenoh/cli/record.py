@@ -1,0 +1,26 @@
+"""`mrta record`: a thin click wrapper over mrta_zenoh.tools.record.run_record."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from ..bus import BusOptions
+from ..tools.record import run_record
+from .common import bus_options, finite_float, user_errors
+
+
+@click.command()
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path),
+              help="The MCAP file to write.")
+@click.argument("key_exprs", nargs=-1)
+@click.option("--duration", type=finite_float(min=0, min_open=True),
+              help="Stop after this many seconds.")
+@bus_options
+def record(output: Path, key_exprs: tuple[str, ...], duration: float | None,
+           bus_options: BusOptions) -> None:
+    """Record every sample on KEYEXPR… (default: everything) to an MCAP file."""
+    with user_errors():
+        run_record(output=output, key_exprs=list(key_exprs) or ["**"], bus_options=bus_options,
+                   duration=duration)

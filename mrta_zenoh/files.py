@@ -1,0 +1,30 @@
+"""Writing output files whole or not at all (a plot, a summary): write beside, then rename."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from .errors import ConfigError
+
+
+def save_figure(fig, output: Path) -> None:
+    """A matplotlib figure to `output` as PNG, atomically; ConfigError if it cannot be written."""
+    output = Path(output)
+    tmp = output.with_name(output.name + ".tmp")
+    try:
+        fig.savefig(tmp, format="png")
+        tmp.replace(output)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise ConfigError(f"cannot write: {exc.strerror}", file=str(output)) from None
+
+
+def write_text(output: Path, text: str) -> None:
+    output = Path(output)
+    tmp = output.with_name(output.name + ".tmp")
+    try:
+        tmp.write_text(text, encoding="utf-8")
+        tmp.replace(output)
+    except OSError as exc:
+        tmp.unlink(missing_ok=True)
+        raise ConfigError(f"cannot write: {exc.strerror}", file=str(output)) from None

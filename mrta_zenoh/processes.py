@@ -1,0 +1,195 @@
+"""Child processes: the one manager behind `mrta launch`, `mrta demo`, experiments and the tests.
+
+Children are started with subprocess (a fresh interpreter each, never a fork of a process that
+has Zenoh loaded: docs/zenoh.md, "fork"), their output is read line by line on threads, and they
+are the only processes this ever signals — by PID, SIGINT first, SIGKILL after a grace period.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import queue
+import signal
+import subprocess
+import sys
+import threading
+import time
+from typing import Callable, Iterable
+
+LineSink = Callable[[str, str], None]  # (child name, line)
+
+
+class Child:
+    """One child process; stdout and stderr lines are kept (and optionally echoed)."""
+
+    def __init__(self, argv: list[str], *, name: str, env: dict | None = None,
+                 cwd: str | None = None, merge_stderr: bool = False,
+                 echo: LineSink | None = None):
+        self.name = name
+        self.argv = argv
+        self.proc = subprocess.Popen(
+            argv, env=env, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+            stderr=subprocess.STDOUT if merge_stderr else subprocess.PIPE, text=True)
+        self.stdout: list[str] = []
+        self.stderr: list[str] = []
+        self.lines: "queue.Queue[str]" = queue.Queue()  # stdout lines not yet consumed
+        self._echo = echo
+        self._threads = [threading.Thread(target=self._pump, args=(self.proc.stdout, self.stdout, True),
+                                          daemon=True)]
+        if not merge_stderr:
+            self._threads.append(threading.Thread(
+                target=self._pump, args=(self.proc.stderr, self.stderr, False), daemon=True))
+        for t in self._threads:
+            t.start()
+
+    def _pump(self, stream, store: list[str], to_queue: bool) -> None:
+        for line in stream:
+            line = line.rstrip("\n")
+            store.append(line)
+            if to_queue:
+                self.lines.put(line)
+            if self._echo is not None:
+                self._echo(self.name, line)
+
+    @property
+    def pid(self) -> int:
+        return self.proc.pid
+
+    @property
+    def returncode(self) -> int | None:
+        return self.proc.poll()
+
+    def running(self) -> bool:
+        return self.proc.poll() is None
+
+    def signal(self, sig: int) -> None:
+        if self.proc.poll() is None:
+            os.kill(self.proc.pid, sig)
+
+    def wait(self, timeout: float | None = None) -> int:
+        rc = self.proc.wait(timeout=timeout)
+        for t in self._threads:
+            t.join(timeout=2)
+        return rc
+
+    def stop(self, grace: float = 5.0) -> int:
+        """SIGINT (a clean shutdown: Zenoh sessions closed), SIGKILL after `grace` seconds."""
+        if self.proc.poll() is None:
+            self.signal(signal.SIGINT)
+            try:
+                self.proc.wait(timeout=grace)
+            except subprocess.TimeoutExpired:
+                self.signal(signal.SIGKILL)
+                self.proc.wait(timeout=grace)
+        return self.wait(grace)
+
+    # ---- waiting for output (tests and tools that read a child's answers)
+    def wait_line(self, predicate: Callable[[str], bool], timeout: float,
+                  from_start: bool = False) -> str:
+        """The first stdout line satisfying predicate (lines are consumed as read), or
+        TimeoutError; from_start also looks at lines consumed earlier."""
+        if from_start:
+            for line in list(self.stdout):
+                if predicate(line):
+                    return line
+        deadline = time.monotonic() + timeout
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise TimeoutError(f"{self.name}: no matching line within {timeout}s\n"
+                                   f"stdout: {self.stdout[-20:]}\nstderr: {self.stderr[-20:]}")
+            try:
+                line = self.lines.get(timeout=min(remaining, 0.2))
+            except queue.Empty:
+                if self.proc.poll() is not None and self.lines.empty():
+                    for t in self._threads:
+                        t.join(timeout=1)
+                    if self.lines.empty():
+                        raise ChildExited(self) from None
+                continue
+            if predicate(line):
+                return line
+
+    def wait_json(self, predicate: Callable[[dict], bool], timeout: float,
+                  from_start: bool = False) -> dict:
+        def pred(line: str) -> bool:
+            try:
+                obj = json.loads(line)
+            except ValueError:
+                return False
+            return isinstance(obj, dict) and predicate(obj)
+
+        return json.loads(self.wait_line(pred, timeout, from_start))
+
+    def wait_stderr(self, predicate: Callable[[str], bool], timeout: float) -> str:
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            for line in list(self.stderr) + list(self.stdout):
+                if predicate(line):
+                    return line
+            if self.proc.poll() is not None:
+                for t in self._threads:
+                    t.join(timeout=1)
+                for line in list(self.stderr) + list(self.stdout):
+                    if predicate(line):
+                        return line
+                raise ChildExited(self)
+            time.sleep(0.05)
+        raise TimeoutError(f"{self.name}: no matching stderr line within {timeout}s\n"
+                           f"stderr: {self.stderr[-20:]}")
+
+    def tail(self, n: int = 10) -> str:
+        return "\n".join((self.stderr + self.stdout)[-n:])
+
+
+class ChildExited(AssertionError):
+    """A child ended before producing what was waited for."""
+
+    def __init__(self, child: Child):
+        super().__init__(f"{child.name} exited ({child.proc.returncode}) before a matching line\n"
+                         f"stdout: {child.stdout[-20:]}\nstderr: {child.stderr[-20:]}")
+        self.child = child
+
+
+def mrta_argv(*args: str) -> list[str]:
+    """`mrta ARGS…` in this interpreter (children get the same environment as the parent)."""
+    return [sys.executable, "-m", "mrta_zenoh.cli.main", *map(str, args)]
+
+
+class ProcessGroup:
+    """Children started together and ended together (reverse order), each only by its PID."""
+
+    def __init__(self, env: dict | None = None, echo: LineSink | None = None):
+        self.env = dict(os.environ if env is None else env)
+        self.env.setdefault("PYTHONUNBUFFERED", "1")
+        self.echo = echo
+        self.children: list[Child] = []
+
+    def start(self, argv: list[str], *, name: str, env: dict | None = None,
+              merge_stderr: bool = False, cwd: str | None = None) -> Child:
+        child_env = dict(self.env)
+        child_env.update(env or {})
+        child = Child(argv, name=name, env=child_env, cwd=cwd, merge_stderr=merge_stderr,
+                      echo=self.echo)
+        self.children.append(child)
+        return child
+
+    def failed(self, ignore: Iterable[str] = ()) -> list[Child]:
+        """Children that ended with an error (not by our SIGINT or SIGKILL), except `ignore`."""
+        skip = set(ignore)
+        return [c for c in self.children if c.name not in skip
+                and c.returncode not in (None, 0, -signal.SIGINT, -signal.SIGKILL)]
+
+    def stop_all(self, grace: float = 5.0) -> None:
+        for c in reversed(self.children):
+            if c.running():
+                c.signal(signal.SIGINT)
+        for c in reversed(self.children):
+            c.stop(grace)
+
+    def __enter__(self) -> "ProcessGroup":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop_all()

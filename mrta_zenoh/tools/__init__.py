@@ -1,0 +1,1 @@
+"""The generic tools' api (echo, record, router): what their `mrta` verbs call."""

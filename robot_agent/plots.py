@@ -1,0 +1,90 @@
+"""rqt_alliance's seven motivation panels from a recording: `mrta plot motivation`.
+
+ALLIANCE-specific, so it lives with ALLIANCE and joins `mrta plot` through the `mrta.plots`
+entry points; the supervisor's plots know no architecture.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+import matplotlib
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+
+from mrta_zenoh import codec  # noqa: E402
+from mrta_zenoh.cli.common import user_errors  # noqa: E402
+from mrta_zenoh.errors import ConfigError  # noqa: E402
+from mrta_zenoh.files import save_figure  # noqa: E402
+from mrta_zenoh.recording import TimeBase, read_recording  # noqa: E402
+
+from . import keys  # noqa: E402
+from .messages import Motivation  # noqa: E402
+
+
+def plot_motivation(recording: Path, robot: str, task: str, output: Path,
+                    records: list | None = None) -> Path:
+    records = list(read_recording(recording)) if records is None else records
+    tb = TimeBase(records)
+    key = keys.motivation(robot, task)
+    rows = []
+    for k, enc, t, payload in records:
+        if k != key:
+            continue
+        try:
+            msg = codec.decode(codec.type_from_encoding(enc), payload)
+        except codec.DecodeError:
+            continue
+        if isinstance(msg, Motivation):
+            rows.append((tb(t), msg))
+    if not rows:
+        found = sorted({k.rsplit("/", 1)[-1] for k, *_ in records if k.startswith(f"{robot}/alliance/motivation/")})
+        raise ConfigError(f"no motivation samples for {robot} / {task} in the recording"
+                          + (f" (tasks recorded for {robot}: {', '.join(found)})" if found else ""),
+                          file=str(recording))
+    ts = [r[0] for r in rows]
+    panels = [("motivation", [m.motivation for _, m in rows]),
+              ("impatience", [m.impatience for _, m in rows]),
+              ("acquiescent", [m.acquiescent for _, m in rows]),
+              ("suppressed", [m.suppressed for _, m in rows]),
+              ("resetted", [m.resetted for _, m in rows]),
+              ("applicable", [m.applicable for _, m in rows]),
+              ("active", [m.active for _, m in rows])]
+    fig, axes = plt.subplots(7, 1, figsize=(10, 12), dpi=100, sharex=True,
+                             gridspec_kw={"height_ratios": [3, 2, 1, 1, 1, 1, 1]})
+    try:
+        for ax, (name, ys) in zip(axes, panels):
+            if name in ("motivation", "impatience"):
+                ax.plot(ts, ys, lw=1.2)
+                if name == "motivation":
+                    ax.plot(ts, [m.threshold for _, m in rows], "r--", lw=1, label="threshold")
+                    ax.legend(loc="upper left", fontsize=8)
+            else:
+                ax.step(ts, [int(v) for v in ys], where="post", lw=1.2)
+                ax.set_ylim(-0.2, 1.2)
+                ax.set_yticks([0, 1])
+            ax.set_ylabel(name, fontsize=9)
+            ax.grid(alpha=0.3)
+        axes[-1].set_xlabel(tb.label)
+        fig.suptitle(f"{robot}: motivational behaviour for {task}")
+        fig.tight_layout()
+        save_figure(fig, output)
+    finally:
+        plt.close(fig)
+    return output
+
+
+
+
+@click.command()
+@click.argument("recording", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.option("--robot", required=True)
+@click.option("--task", required=True)
+@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path))
+def motivation(recording: Path, robot: str, task: str, output: Path) -> None:
+    """rqt_alliance's seven panels for one robot and task, over time."""
+    with user_errors():
+        plot_motivation(recording, robot, task, output)
+    click.echo(f"wrote {output}")

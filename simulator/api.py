@@ -1,0 +1,152 @@
+"""Run the simulator: what `mrta sim` does, callable from Python and tests."""
+
+from __future__ import annotations
+
+import logging
+import math
+import os
+import threading
+import time
+from pathlib import Path
+
+from mrta_zenoh import keys
+from mrta_zenoh.bus import BusOptions, open_bus
+from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.lifecycle import stop_on_signals
+from mrta_zenoh.toolchain.registry import Registry
+
+from .engine import Simulation
+from .node import RunStats, SimNode
+from .robot_model import RobotModel
+from .snapshot import save_snapshot
+from .world import Pose, World, load_world
+
+log = logging.getLogger("mrta.sim")
+
+
+def resolve_world(spec: str) -> Path:
+    """A path, or the name of a world a registered package ships (`patrol`)."""
+    path = Path(spec)
+    if path.exists():
+        return path
+    return Registry().world(spec)
+
+
+def parse_robot(spec: str) -> tuple[str, str | Pose | None]:
+    """`robot1`, `robot1=home0` (a named start) or `robot1=x,y,theta_degrees`."""
+    rid, sep, rest = spec.partition("=")
+    rid = keys.normalize_robot_id(rid)
+    if not sep:
+        return rid, None
+    parts = rest.split(",")
+    if len(parts) == 1:
+        return rid, rest.strip()
+    if len(parts) not in (2, 3):
+        raise ConfigError(f"--robot {spec!r}: expected ID, ID=START or ID=x,y[,theta_degrees]")
+    try:
+        vals = [float(p) for p in parts] + ([0.0] if len(parts) == 2 else [])
+    except ValueError:
+        raise ConfigError(f"--robot {spec!r}: x, y and theta must be numbers") from None
+    if not all(math.isfinite(v) for v in vals):
+        raise ConfigError(f"--robot {spec!r}: x, y and theta must be finite")
+    return rid, Pose.from_degrees(*vals)
+
+
+def place_robots(world: World, specs: list[tuple[str, str | Pose | None]]) -> dict[str, Pose]:
+    """Start poses: explicit, a named start, the start named like the robot, or the next free one."""
+    ids = [rid for rid, _ in specs]
+    dupes = {r for r in ids if ids.count(r) > 1}
+    if dupes:
+        raise ConfigError(f"robot {sorted(dupes)[0]!r} is given more than once")
+    used: set[str] = set()
+    poses: dict[str, Pose] = {}
+    for rid, spec in specs:
+        if isinstance(spec, str):
+            if spec not in world.starts:
+                raise ConfigError(f"--robot {rid}={spec}: the world has no start named {spec!r} "
+                                  f"(it has: {', '.join(world.starts) or 'none'})")
+            poses[rid] = world.starts[spec]
+            used.add(spec)
+        elif isinstance(spec, Pose):
+            poses[rid] = spec
+        elif rid in world.starts:
+            poses[rid] = world.starts[rid]
+            used.add(rid)
+    for rid, spec in specs:
+        if rid in poses:
+            continue
+        free = [n for n in world.starts if n not in used and n not in ids]
+        if not free:
+            raise ConfigError(f"no start pose left for {rid}: give --robot {rid}=x,y,theta")
+        poses[rid] = world.starts[free[0]]
+        used.add(free[0])
+    return {rid: poses[rid] for rid in ids}
+
+
+def run_simulator(*, world: str, robots: list[str], bus_options: BusOptions, speed: float = 1.0,
+                  seed: int = 0, duration: float | None = None, snapshot: Path | None = None,
+                  rear_sonars: bool = False, wait_robots: float | None = None,
+                  stop: threading.Event | None = None) -> RunStats:
+    world_spec, robot_specs = world, robots
+    if speed < 0 or not math.isfinite(speed):
+        raise ConfigError(f"--speed must be a finite number ≥ 0, got {speed}")
+    if duration is not None and not (math.isfinite(duration) and duration > 0):
+        raise ConfigError(f"--duration must be a positive finite number, got {duration}")
+    if not robot_specs:
+        raise ConfigError("give at least one --robot")
+    if snapshot is not None and not Path(snapshot).parent.resolve().is_dir():
+        raise ConfigError(f"--snapshot {snapshot}: folder {Path(snapshot).parent} does not exist")
+    world = load_world(resolve_world(world_spec))
+    robots = place_robots(world, [parse_robot(s) for s in robot_specs])
+    for note in world.notes:
+        log.info("%s: %s", world.source, note)
+    sim = Simulation(world, robots, RobotModel(rear_sonars=rear_sonars), seed=seed,
+                     record_trails=snapshot is not None)
+    run_id = os.urandom(6).hex()  # tells followers a restarted simulator from this run
+    with stop_on_signals(stop) as stop, open_bus(bus_options) as bus:
+        node = SimNode(sim, bus, speed, run_id=run_id)
+        if wait_robots is not None and not wait_for_robots(bus, list(robots), wait_robots, stop):
+            return node.stats
+        with bus.declare_token(f"{keys.CLOCK_SOURCE_TOKEN}/{run_id}"):
+            log.info("ready: %d robots in %s (%d walls), speed %s, seed %d", len(robots),
+                     world.name, len(world.walls), speed if speed else "max", seed)
+            try:
+                stats = node.run(stop, duration)
+            finally:
+                node.close()
+                if snapshot is not None:
+                    save_snapshot(sim, snapshot)
+                    log.info("snapshot written to %s", snapshot)
+    log.info("done: %.1f s simulated in %.1f s (%.1f× real time), %d commands",
+             stats.sim_time, stats.wall_time, stats.real_time_factor, stats.commands)
+    return stats
+
+
+
+
+def wait_for_robots(bus, robot_ids: list[str], timeout: float, stop: threading.Event) -> bool:
+    """Block until every robot has a liveliness token under `robotN/**` (its agent is up), so the
+    clock starts with every controller ready. False if stopped; a log line (and go on) after
+    `timeout` wall seconds, so one robot that never comes cannot hold the world forever."""
+    alive: dict[str, set[str]] = {r: set() for r in robot_ids}
+    changed = threading.Event()
+
+    def on_token(key: str, up: bool) -> None:
+        rid = keys.first_chunk(key)
+        if rid in alive:
+            (alive[rid].add if up else alive[rid].discard)(key)
+            changed.set()
+
+    deadline = time.monotonic() + timeout
+    with bus.watch_liveliness("**", on_token):
+        log.info("waiting for %s", ", ".join(robot_ids))
+        while not all(alive.values()):
+            if stop.is_set():
+                return False
+            if time.monotonic() >= deadline:
+                log.warning("still no process for %s after %.0f s: starting anyway",
+                            ", ".join(r for r, t in alive.items() if not t), timeout)
+                break
+            changed.wait(0.1)
+            changed.clear()
+    return True

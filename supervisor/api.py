@@ -1,0 +1,136 @@
+"""The supervisor as a library: what `mrta supervise` does, and what other tools reuse
+(resolve an application, attach a Supervisor to a bus)."""
+
+from __future__ import annotations
+
+import json
+import logging
+import math
+import threading
+from collections import defaultdict
+from pathlib import Path
+
+from rich.console import Console
+from rich.live import Live
+
+from mrta_zenoh.bus import Bus, BusOptions, open_bus
+from mrta_zenoh.clock import SimClock, WallClock, follow_sim_clock
+from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.lifecycle import stop_on_signals
+from mrta_zenoh.toolchain.model import Application, Architecture
+from mrta_zenoh.toolchain.registry import Registry
+from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
+
+from .state import Supervisor
+from .view import render
+
+log = logging.getLogger("mrta.supervisor")
+
+
+def to_json(snapshot: dict) -> str:
+    """Always valid JSON: a non-finite number (which no valid input should produce) is null."""
+    return json.dumps(_finite(snapshot), allow_nan=False)
+
+
+def _finite(v):
+    if isinstance(v, float) and not math.isfinite(v):
+        return None
+    if isinstance(v, dict):
+        return {k: _finite(x) for k, x in v.items()}
+    if isinstance(v, (list, tuple)):
+        return [_finite(x) for x in v]
+    return v
+
+
+def resolve_application(spec: str, registry: Registry | None = None) -> tuple[Application, Architecture]:
+    """An application by name (registry) or by path, and the architecture it names."""
+    reg = registry or Registry()
+    path = Path(spec)
+    if path.is_dir():
+        path = path / "rqt_mrta.xml"
+    if path.suffix == ".xml" and path.is_file():
+        app = load_rqt_mrta(path)
+        if not isinstance(app, Application):
+            raise ConfigError("not an application file", file=str(path))
+    else:
+        _, app = reg.application(spec)
+    _, arch = reg.architecture(app.architecture)
+    return app, arch
+
+
+def attach(sup: Supervisor, bus: Bus, clock) -> list:
+    """Subscribe once per key expression for the monitors that read it, and watch liveliness."""
+    by_key = defaultdict(list)
+    for m in sup.monitors:
+        by_key[m.key_expr].append(m)
+    handles = []
+    for key_expr, monitors in by_key.items():
+        def handler(sample, monitors=monitors):
+            sup.on_sample(monitors, sample.key, sample.type_name, sample.message, clock.now())
+        handles.append(bus.subscribe(key_expr, handler))
+    handles.append(bus.watch_liveliness("**", lambda k, alive: sup.on_liveliness(k, alive,
+                                                                                clock.now())))
+    return handles
+
+
+def run_supervise(*, app: str, bus_options: BusOptions, as_json: bool = False,
+                  once: bool = False, duration: float | None = None, sim_time: bool = False,
+                  rate: float = 4.0, unattended_after: float = 30.0, duplicate_after: float = 5.0,
+                  stop: threading.Event | None = None, out=None) -> int:
+    app_spec = app
+    app, arch = resolve_application(app_spec)
+    clock = SimClock() if sim_time else WallClock()
+    console = Console(file=out) if out is not None else Console()
+    with stop_on_signals(stop) as stop, open_bus(bus_options) as bus:
+        if sim_time:
+            follow_sim_clock(bus, clock)
+            while not clock.started.wait(0.1):
+                if stop.is_set():
+                    return 0
+        sup = Supervisor(arch, app, clock.now(), unattended_after, duplicate_after)
+        handles = attach(sup, bus, clock)
+        start = clock.now()
+        settle = max([m.topic.timeout for m in sup.monitors] + [1.0])
+        period = 1.0 / rate
+
+        def done() -> bool:
+            now = clock.now()
+            if once:
+                return now - start >= settle
+            return stop.is_set() or (duration is not None and now - start >= duration)
+
+        def wait() -> None:
+            target = clock.now() + period
+            if sim_time:
+                clock.sleep_until(target, stop)
+            else:
+                stop.wait(period)
+
+        try:
+            if as_json or once:
+                while True:
+                    wait()
+                    sup.update(clock.now())
+                    if done() or stop.is_set():
+                        break
+                    if as_json and not once:
+                        print(to_json(sup.snapshot(clock.now())), flush=True, file=out)
+                snap = sup.snapshot(clock.now())
+                if once:
+                    if as_json:
+                        print(to_json(snap), flush=True, file=out)
+                    else:
+                        console.print(render(snap, console.width))
+            else:
+                with Live(render(sup.snapshot(clock.now()), console.width), console=console,
+                          refresh_per_second=rate, transient=False) as live:
+                    while not done():
+                        wait()
+                        sup.update(clock.now())
+                        live.update(render(sup.snapshot(clock.now()), console.width))
+        finally:
+            for h in handles:
+                h.close()
+    return 0
+
+
