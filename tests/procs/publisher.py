@@ -12,7 +12,8 @@ import zenoh
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.bus.zenoh_bus import open_session
 
-# argv: KEY then items: "irc:<frame>:<task>", "garbage", "wrongtype", "rawirc:<frame>"
+# argv: KEY then items: "irc:<frame>:<task>", "garbage", "wrongtype", "rawirc:<frame>",
+# "hex:<type name>:<payload in hex>"
 key = sys.argv[1]
 items = sys.argv[2:]
 session = open_session(BusOptions())
@@ -41,6 +42,10 @@ try:
         elif kind == "missing":
             pub.put(msgpack.packb({"task_id": "x"}),
                     encoding=zenoh.Encoding("application/msgpack;alliance_msgs/InterRobotCommunication"))
+        elif kind == "hex":
+            type_name, _, payload = rest.rpartition(":")
+            pub.put(bytes.fromhex(payload),
+                    encoding=zenoh.Encoding(f"application/msgpack;{type_name}"))
         elif kind == "unknown":
             pub.put(msgpack.packb({"level": 3, "items": [1, 2]}),
                     encoding=zenoh.Encoding("application/msgpack;vendor_msgs/Battery"))
