@@ -83,6 +83,7 @@ def type_from_encoding(encoding: str) -> str:
 # ---------------------------------------------------------------- encoding
 
 _encoder = msgspec.msgpack.Encoder()
+_plain = msgspec.msgpack.Decoder()
 encode_struct = _encoder.encode  # the hot path: one C call
 
 
@@ -90,7 +91,7 @@ def to_dict(msg: Message | GenericMessage) -> dict:
     """The message as the plain map that goes on the wire (also used for JSON output)."""
     if type(msg) is GenericMessage:
         return msg.data
-    return msgspec.to_builtins(msg)
+    return _plain.decode(_encoder.encode(msg))  # exactly the wire map (lists, not tuples)
 
 
 def encode(msg: Message | GenericMessage) -> bytes:
@@ -184,6 +185,25 @@ def decoder_for(encoding: str) -> tuple[str, Callable[[bytes], Any]]:
         return value if cls is not None else GenericMessage(type_name, value)
 
     return type_name, dec
+
+
+def typed_decoder(encoding: str) -> tuple[str, Callable[[bytes], Any] | None]:
+    """(type name, msgspec's own decode for its class) — None for a type this process does not
+    know. For receive paths that inline decoder_for's checks; they must translate errors with
+    `translate` and refuse payloads over MAX_PAYLOAD_BYTES themselves."""
+    type_name = type_from_encoding(encoding)
+    cls = message_class(type_name)
+    return type_name, (_typed_decoder(cls) if cls is not None else None)
+
+
+DECODE_ERRORS = (msgspec.ValidationError, msgspec.DecodeError, RecursionError)
+
+
+def translate(exc: Exception, type_name: str) -> DecodeError:
+    """msgspec's error for a payload of `type_name` as one of our DecodeError classes."""
+    if isinstance(exc, RecursionError):
+        return NotMsgpack("not msgpack: nesting too deep")
+    return _translate(exc, type_name)
 
 
 def decode(type_name: str, payload: bytes) -> Message | GenericMessage:

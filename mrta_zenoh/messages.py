@@ -42,8 +42,10 @@ _FMAX = sys.float_info.max
 Finite = Annotated[float, msgspec.Meta(ge=-_FMAX, le=_FMAX)]
 
 
-class Message(msgspec.Struct, frozen=True, forbid_unknown_fields=True):
-    """Base of every typed message. Subclasses inherit frozen and forbid_unknown_fields."""
+class Message(msgspec.Struct, frozen=True, forbid_unknown_fields=True, gc=False):
+    """Base of every typed message. Subclasses inherit frozen, forbid_unknown_fields and
+    gc=False: a frozen message of scalars and other messages cannot form a reference cycle, so
+    the cycle collector need not track the hundreds of thousands decoded per second."""
 
     TYPE_NAME: ClassVar[str] = ""
 

@@ -7,6 +7,7 @@ import json
 import logging
 import math
 import threading
+import time
 from collections import defaultdict
 from pathlib import Path
 
@@ -25,6 +26,7 @@ from .state import Supervisor
 from .view import render
 
 log = logging.getLogger("mrta.supervisor")
+CLOCK_STALL = 2.0  # wall seconds without a clock sample: the `clock_stopped` alarm
 
 
 def to_json(snapshot: dict) -> str:
@@ -65,9 +67,7 @@ def attach(sup: Supervisor, bus: Bus, clock) -> list:
         by_key[m.key_expr].append(m)
     handles = []
     for key_expr, monitors in by_key.items():
-        def handler(sample, monitors=monitors):
-            sup.on_sample(monitors, sample.key, sample.type_name, sample.message, clock.now())
-        handles.append(bus.subscribe(key_expr, handler))
+        handles.append(bus.subscribe(key_expr, sup.handler_for(monitors, clock.now)))
     handles.append(bus.watch_liveliness("**", lambda k, alive: sup.on_liveliness(k, alive,
                                                                                 clock.now())))
     return handles
@@ -89,28 +89,33 @@ def run_supervise(*, app: str, bus_options: BusOptions, as_json: bool = False,
                     return 0
         sup = Supervisor(arch, app, clock.now(), unattended_after, duplicate_after)
         handles = attach(sup, bus, clock)
-        start = clock.now()
+        start, wall_start = clock.now(), time.monotonic()
         settle = max([m.topic.timeout for m in sup.monitors] + [1.0])
         period = 1.0 / rate
+        restarts = 0
 
         def done() -> bool:
-            now = clock.now()
-            if once:
-                return now - start >= settle
-            return stop.is_set() or (duration is not None and now - start >= duration)
+            if once:  # wall time: a stopped simulation must not hold `--once` forever
+                return time.monotonic() - wall_start >= settle
+            return stop.is_set() or (duration is not None and clock.now() - start >= duration)
 
         def wait() -> None:
-            target = clock.now() + period
+            """The refresh cadence is wall time even on simulation time, so that a simulator
+            that stops (or restarts) is noticed instead of freezing the supervisor."""
+            nonlocal restarts
+            stop.wait(period)
+            now = clock.now()
             if sim_time:
-                clock.sleep_until(target, stop)
-            else:
-                stop.wait(period)
+                if clock.restarts != restarts:
+                    restarts = clock.restarts
+                    sup.restart(now)
+                sup.on_clock(clock.stalled(CLOCK_STALL), now)
+            sup.update(now)
 
         try:
             if as_json or once:
                 while True:
                     wait()
-                    sup.update(clock.now())
                     if done() or stop.is_set():
                         break
                     if as_json and not once:
@@ -126,7 +131,6 @@ def run_supervise(*, app: str, bus_options: BusOptions, as_json: bool = False,
                           refresh_per_second=rate, transient=False) as live:
                     while not done():
                         wait()
-                        sup.update(clock.now())
                         live.update(render(sup.snapshot(clock.now()), console.width))
         finally:
             for h in handles:

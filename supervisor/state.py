@@ -13,17 +13,31 @@ works unchanged. The rules:
   A robot that never declared a token (an architecture without liveliness) counts as online
   while any of its monitors is high.
 * Architecture names in the ROS form (`/alliance/x`) become `**/alliance/x`.
+
+What the bus cannot be trusted with (docs/architecture.md):
+* every id is checked (one key chunk, ≤ 64 characters) before it reaches any state;
+* where a monitor's key expression starts with a wildcard (`*/alliance/…`), the first chunk of a
+  sample's key is the publishing robot: a sample whose robot field names another robot is
+  dropped and counted (`key_mismatch`) — robot1 cannot make robot2 look busy;
+* robots and tasks that are not in the application never join the picture: they raise an
+  `unknown_robot` / `unknown_task` alarm, kept for at most MAX_UNKNOWN ids (the rest counted
+  as `unknown_overflow`) and cleared `unknown_expiry` seconds after the id was last seen, so a
+  flood of invented ids costs bounded memory;
+* while the simulation clock is stopped (`clock_stopped` alarm) robots are shown `unknown`:
+  their held states are stale, not busy.
 """
 
 from __future__ import annotations
 
 import logging
+import operator
 import threading
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, Callable
 
 from mrta_zenoh import keys
 from mrta_zenoh.fieldpath import FieldPath, FieldPathError
+from mrta_zenoh.messages import GenericMessage
 from mrta_zenoh.toolchain.model import Application, Architecture, Topic
 
 from .holders import History, SampleHolder, StateChange
@@ -46,6 +60,24 @@ class Monitor:
     topic: Topic
     key_expr: str
     path: FieldPath
+
+    @property
+    def by_sender(self) -> bool:
+        """`*/…` or `**/…`: one key per robot, whose first chunk is the publishing robot."""
+        return self.key_expr.split("/", 1)[0] in ("*", "**")
+
+
+def group_reader(monitors: list[Monitor]):
+    """One attrgetter reading every monitor's field at once, for a group of monitors of one
+    type whose paths are all names; None otherwise (the full path resolves them one by one)."""
+    paths = [m.path.steps for m in monitors]
+    if len({m.topic.type for m in monitors}) != 1 or \
+            not all(p and all(type(x) is str for x in p) for p in paths):
+        return None
+    r = operator.attrgetter(*(".".join(p) for p in paths))
+    if len(paths) == 1:
+        return lambda msg: (r(msg),)  # the same shape as the multi-field getter
+    return r
 
 
 def monitors_of(arch: Architecture) -> list[Monitor]:
@@ -80,22 +112,28 @@ class TaskInfo:
 
 
 class Supervisor:
+    MAX_UNKNOWN = 100  # unknown robot / task ids remembered (and alarmed) at once
+
     def __init__(self, arch: Architecture, app: Application, now: float = 0.0,
                  unattended_after: float = 30.0, duplicate_after: float = 5.0,
-                 quiet: bool = False):
+                 quiet: bool = False, unknown_expiry: float = 30.0):
         self.arch, self.app = arch, app
         self.monitors = monitors_of(arch)
         self._timeouts = {m.role: m.topic.timeout for m in self.monitors}
         self.unattended_after = unattended_after
         self.duplicate_after = duplicate_after
+        self.unknown_expiry = unknown_expiry
         self.history = History()
         self.alarms: dict[tuple[str, str], float] = {}
-        self.counts = {"samples": 0, "wrong_type": 0, "field_errors": 0}
+        self.counts = {"samples": 0, "wrong_type": 0, "field_errors": 0, "key_mismatch": 0,
+                       "unknown": 0, "unknown_overflow": 0}
         self._warned: set[tuple[str, str]] = set()
-        self._lock = threading.RLock()
+        self._lock = threading.Lock()
         self.robots: dict[str, RobotInfo] = {}
         self.tasks: dict[str, TaskInfo] = {}
         self.allocations: dict[tuple[str, str], SampleHolder] = {}
+        self.unknown: dict[tuple[str, str], float] = {}  # (kind, id) → last seen
+        self.clock_stopped = False
         self.started = now
         self._log = log if not quiet else logging.getLogger("mrta.supervisor.replay")
         if quiet:
@@ -103,108 +141,207 @@ class Supervisor:
         self._dup_since: dict[str, float] = {}
         self._robot_alloc: dict[str, set[str]] = {}  # robot → tasks whose holder is high
         self._task_alloc: dict[str, set[str]] = {}   # task → robots whose holder is high
+        self._ids: dict[str, str | None] = {}        # raw id text → normalised id (None: invalid)
+        self._fast: dict[str, tuple] = {}            # key → (type, field values, holders) last accepted
+        self._ingest: dict[int, tuple] = {}          # id(monitor group) → (group, ingest)
         for r in app.robots:
-            self._robot(keys.normalize_robot_id(r.id), now, known=True)
+            rid = keys.normalize_robot_id(r.id)
+            self.robots[rid] = RobotInfo(rid, True, SampleHolder(self._timeouts.get("busy_robots", 1.0)),
+                                         SampleHolder(self._timeouts.get("idle_robots", 1.0)),
+                                         state="offline", since=now)
         for t in app.tasks():
-            self._task(t, now, known=True)
-
-    # ------------------------------------------------------------------------------ entities
-
-    def _robot(self, rid: str, now: float, known: bool = False) -> RobotInfo:
-        r = self.robots.get(rid)
-        if r is None:
-            r = RobotInfo(rid, known, SampleHolder(self._timeouts.get("busy_robots", 1.0)),
-                          SampleHolder(self._timeouts.get("idle_robots", 1.0)),
-                          state="offline" if known else "unknown", since=now)
-            self.robots[rid] = r
-            if not known:
-                self.history.add(StateChange(now, "robot", rid, "", "unknown"))
-        return r
-
-    def _task(self, tid: str, now: float, known: bool = False) -> TaskInfo:
-        t = self.tasks.get(tid)
-        if t is None:
-            t = TaskInfo(tid, known, SampleHolder(self._timeouts.get("incoming_tasks", 1.0)),
-                         since=now)
-            self.tasks[tid] = t
-        return t
+            self.tasks[t] = TaskInfo(t, True, SampleHolder(self._timeouts.get("incoming_tasks", 1.0)),
+                                     since=now)
 
     # -------------------------------------------------------------------------------- inputs
+
+    def _id(self, raw: str) -> str | None:
+        """A valid id (robot ids lose a leading `/`), or None; memoised, as ids repeat."""
+        out = self._ids.get(raw, False)
+        if out is False:
+            rid = raw.strip().strip("/")
+            out = rid if keys.is_id(rid) else None
+            if len(self._ids) >= 10_000:
+                self._ids.clear()
+            self._ids[raw] = out
+        return out
+
+    def _unknown(self, kind: str, ident: str, now: float) -> None:
+        self.counts["unknown"] += 1
+        k = (kind, ident)
+        if k not in self.unknown and len(self.unknown) >= self.MAX_UNKNOWN:
+            self.counts["unknown_overflow"] += 1
+            return
+        self.unknown[k] = now
+        self._raise(f"unknown_{kind}", ident, now)
 
     def on_sample(self, monitors: list[Monitor], key: str, type_name: str, message: Any,
                   now: float) -> None:
         """A sample for the monitors reading its key expression (one subscription serves them)."""
-        with self._lock:
-            self.counts["samples"] += 1
-            values: dict[str, str] = {}
-            for m in monitors:
-                if type_name != m.topic.type:
-                    self.counts["wrong_type"] += 1
-                    if (m.key_expr, type_name) not in self._warned:
-                        self._warned.add((m.key_expr, type_name))
-                        self._log.warning("%s: ignoring samples of type %s (the architecture says %s)",
-                                    m.key_expr, type_name, m.topic.type)
-                    return
+        self._ingest_fn(monitors)(key, type_name, message, lambda: now)
+
+    def handler_for(self, monitors: list[Monitor], now: Callable[[], float]):
+        """The bus handler for one group of monitors: `handler(sample)`, timed by `now()`."""
+        ingest = self._ingest_fn(monitors)
+
+        def handler(sample) -> None:
+            ingest(sample.key, sample.type_name, sample.message, now)
+
+        return handler
+
+    def _ingest_fn(self, monitors: list[Monitor]):
+        """`ingest(key, type_name, message, now)` for one group of monitors.
+
+        The hot path: a sample that says again what the last accepted sample on its key said
+        (same type, same field values) while every state it holds is still high only moves
+        those holders' deadlines — one C-level read of all fields, a dict lookup, a comparison.
+        Anything else (a new value, a state that fell, a robot that went offline, a bad sample)
+        takes the full path, which is also what fills the cache."""
+        cached = self._ingest.get(id(monitors))
+        if cached is not None and cached[0] is monitors:  # the group is kept: its id stays its own
+            return cached[1]
+        read = group_reader(monitors)
+        fast, lock, counts, full = self._fast, self._lock, self.counts, self._on_sample
+
+        def ingest(key: str, type_name: str, message: Any, now: Callable[[], float]) -> None:
+            vals = None
+            if read is not None and type(message) is not GenericMessage:
                 try:
-                    value = m.path.resolve(message)
-                except FieldPathError:
-                    self.counts["field_errors"] += 1
-                    return
-                if not isinstance(value, (str, int, float)) or isinstance(value, bool):
-                    self.counts["field_errors"] += 1
-                    return
-                values[m.role] = str(value)
-            try:  # a sample is used whole or not at all: one bad field drops it, counted once
-                for role in ("busy_robots", "idle_robots"):
-                    if role in values:
-                        values[role] = keys.normalize_robot_id(values[role])
-                if "allocated_tasks" in values:
-                    values["@robot"] = keys.normalize_robot_id(
-                        values.get("busy_robots") or keys.first_chunk(key))
-            except keys.KeyExprError:
+                    vals = read(message)
+                except AttributeError:
+                    pass
+            t = now()
+            with lock:
+                if vals is not None:
+                    hit = fast.get(key)
+                    if hit is not None and hit[0] == type_name and hit[1] == vals:
+                        for h in hit[2]:
+                            if not h.high:
+                                break
+                            h.last, h.until = t, t + h.timeout
+                        else:
+                            counts["samples"] += 1
+                            return
+                full(monitors, key, type_name, message, t, vals)
+
+        self._ingest[id(monitors)] = (monitors, ingest)
+        return ingest
+
+    def _on_sample(self, monitors: list[Monitor], key: str, type_name: str, message: Any,
+                   now: float, vals) -> None:
+        self.counts["samples"] += 1
+        values: dict[str, str] = {}
+        for m in monitors:
+            if type_name != m.topic.type:
+                self.counts["wrong_type"] += 1
+                if (m.key_expr, type_name) not in self._warned and len(self._warned) < 1000:
+                    self._warned.add((m.key_expr, type_name))
+                    self._log.warning("%s: ignoring samples of type %s (the architecture says %s)",
+                                      m.key_expr, type_name, m.topic.type)
+                return
+            try:
+                value = m.path.get(message)
+            except FieldPathError:
                 self.counts["field_errors"] += 1
                 return
-            touched_robots: set[str] = set()
-            touched_tasks: set[str] = set()
-            for role, value in values.items():
-                if role == "@robot":
-                    continue
-                # Only rising edges change a state; a sample that merely keeps a state high
-                # costs a dict lookup and a timestamp (the supervisor's hot path).
-                if role in ("busy_robots", "idle_robots"):
-                    r = self._robot(value, now)
-                    if (r.busy if role == "busy_robots" else r.idle).sample(now):
-                        touched_robots.add(value)
-                elif role == "incoming_tasks":
-                    if self._task(value, now).incoming.sample(now):
-                        touched_tasks.add(value)
-                else:
-                    robot = values["@robot"]
-                    holder = self.allocations.get((value, robot))
-                    if holder is None:
-                        self._robot(robot, now)
-                        self._task(value, now)
-                        holder = SampleHolder(self._timeouts["allocated_tasks"])
-                        self.allocations[(value, robot)] = holder
-                    if holder.sample(now, value):
-                        self._robot_alloc.setdefault(robot, set()).add(value)
-                        self._task_alloc.setdefault(value, set()).add(robot)
-                        touched_robots.add(robot)
-                        touched_tasks.add(value)
-            for rid in touched_robots:
+            if type(value) is not str:
+                if not isinstance(value, (int, float)) or isinstance(value, bool):
+                    self.counts["field_errors"] += 1
+                    return
+                value = str(value)
+            ident = self._id(value)
+            if ident is None:  # not an id: a sample is used whole or not at all
+                self.counts["field_errors"] += 1
+                return
+            values[m.role] = ident
+        sender = keys.first_chunk(key)
+        robot = values.get("busy_robots") or values.get("idle_robots")
+        if robot is not None and monitors[0].by_sender and robot != sender:
+            self.counts["key_mismatch"] += 1
+            return
+        held: list[SampleHolder] = []
+        for role in ("busy_robots", "idle_robots"):
+            rid = values.get(role)
+            if rid is not None:
+                r = self.robots.get(rid)
+                if r is None:
+                    self._unknown("robot", rid, now)
+                    return
+                h = r.busy if role == "busy_robots" else r.idle
+                held.append(h)
+                if h.sample(now):  # only rising edges change a state
+                    self._reassess_robot(r, now)
+        tid = values.get("incoming_tasks")
+        if tid is not None:
+            t = self.tasks.get(tid)
+            if t is None:
+                self._unknown("task", tid, now)
+                return
+            held.append(t.incoming)
+            if t.incoming.sample(now):
+                self._reassess_task(t, now)
+        tid = values.get("allocated_tasks")
+        if tid is not None:
+            rid = robot or self._id(sender)
+            if rid is None or rid not in self.robots:
+                if rid is not None:
+                    self._unknown("robot", rid, now)
+                return
+            if tid not in self.tasks:
+                self._unknown("task", tid, now)
+                return
+            holder = self.allocations.get((tid, rid))
+            if holder is None:
+                holder = SampleHolder(self._timeouts["allocated_tasks"])
+                self.allocations[(tid, rid)] = holder
+            held.append(holder)
+            if holder.sample(now, tid):
+                self._robot_alloc.setdefault(rid, set()).add(tid)
+                self._task_alloc.setdefault(tid, set()).add(rid)
                 self._reassess_robot(self.robots[rid], now)
-            for tid in touched_tasks:
                 self._reassess_task(self.tasks[tid], now)
+        if vals is not None and held:
+            if len(self._fast) >= 10_000:  # keys come from the network: bounded
+                self._fast.clear()
+            self._fast[key] = (type_name, vals, tuple(held))
+
+    def on_clock(self, stopped: bool, now: float) -> None:
+        """The simulation clock stopped (or came back): robots are `unknown` meanwhile."""
+        with self._lock:
+            if stopped == self.clock_stopped:
+                return
+            self.clock_stopped = stopped
+            if stopped:
+                self._raise("clock_stopped", "clock", now)
+            else:
+                self._clear("clock_stopped", "clock", now)
+            for r in self.robots.values():
+                self._reassess_robot(r, now)
+
+    def restart(self, now: float) -> None:
+        """Time restarted (a new simulation run): everything held belongs to the old run."""
+        with self._lock:
+            for r in self.robots.values():
+                r.busy.drop()
+                r.idle.drop()
+            for (tid, rid), h in self.allocations.items():
+                if h.drop():
+                    self._unallocate(tid, rid)
+            for t in self.tasks.values():
+                t.incoming.drop()
+                t.since = now
+            self._dup_since.clear()
+            for r in self.robots.values():
+                self._reassess_robot(r, now)
+            for t in self.tasks.values():
+                self._reassess_task(t, now)
 
     def on_liveliness(self, key: str, alive: bool, now: float) -> None:
         with self._lock:
-            try:
-                rid = keys.normalize_robot_id(keys.first_chunk(key))
-            except keys.KeyExprError:
+            r = self.robots.get(keys.first_chunk(key))
+            if r is None:  # not a robot of this application (a tool, another team, a forgery)
                 return
-            if rid not in self.robots and not alive:
-                return
-            r = self._robot(rid, now)
+            rid = r.id
             if alive:
                 r.tokens.add(key)
                 r.ever_token = True
@@ -245,6 +382,10 @@ class Supervisor:
                 self._reassess_task(self.tasks[tid], now)
             for t in self.tasks.values():
                 self._task_alarms(t, now)
+            for (kind, ident), seen in list(self.unknown.items()):
+                if now - seen >= self.unknown_expiry:
+                    del self.unknown[(kind, ident)]
+                    self._clear(f"unknown_{kind}", ident, now)
 
     # ----------------------------------------------------------------------------- derivation
 
@@ -264,7 +405,7 @@ class Supervisor:
 
     def _reassess_robot(self, r: RobotInfo, now: float) -> None:
         online = self._online(r)
-        if not r.known:
+        if not r.known or (self.clock_stopped and online):
             state = "unknown"
         elif not online:
             state = "offline"
@@ -298,7 +439,7 @@ class Supervisor:
         self._task_alarms(t, now)
 
     def _task_alarms(self, t: TaskInfo, now: float) -> None:
-        if not t.known:
+        if not t.known or self.clock_stopped:
             return
         if t.robots:
             self._clear("task_unattended", t.id, now)

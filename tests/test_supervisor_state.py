@@ -1,5 +1,6 @@
 """Supervisor logic on a manual clock: holders, robot and task states, alarms, bad samples."""
 
+import json
 import textwrap
 
 import pytest
@@ -105,10 +106,68 @@ def test_unknown_robots_wrong_types_and_bad_fields_do_not_disturb_state(patrol):
                   InterRobotCommunication(Header("not a robot id!", 1.3, 0), "x", 1.0), 1.3)
     assert state(sup, 1.3) == before
     assert sup.counts["wrong_type"] == 1 and sup.counts["field_errors"] == 2
-    irc(sup, mons, "robot9", "wander", 2.0)  # not in the application
+    irc(sup, mons, "robot9", "wander", 2.0)  # not in the application: an alarm, not a robot
     robots, tasks, alarms = state(sup, 2.0)
-    assert robots["robot9"] == ("unknown", "wander")
-    assert tasks["wander"] == ("allocated", ["robot1", "robot9"])
+    assert "robot9" not in robots
+    assert tasks["wander"] == ("allocated", ["robot1"])
+    assert ("unknown_robot", "robot9") in alarms
+    sup.update(2.0 + sup.unknown_expiry)  # forgotten once it stops
+    assert ("unknown_robot", "robot9") not in state(sup, 40.0)[2]
+
+
+def test_a_sample_on_one_robots_key_cannot_speak_for_another(patrol):
+    app, arch = patrol
+    sup = Supervisor(arch, app, 0.0)
+    sup.on_liveliness("robot2/alliance/agent", True, 0.0)
+    sup.on_sample(sup.monitors, "robot1/alliance/inter_robot_communication", IRC,
+                  InterRobotCommunication(Header("robot2", 1.0, 0), "border_protection", 60.0), 1.0)
+    robots, tasks, _ = state(sup, 1.0)
+    assert robots["robot2"] == ("idle", None) and tasks["border_protection"][1] == []
+    assert sup.counts["key_mismatch"] == 1
+
+
+def test_unknown_tasks_raise_an_alarm_and_stay_out(patrol):
+    app, arch = patrol
+    sup = Supervisor(arch, app, 0.0)
+    sup.on_liveliness("robot1/alliance/agent", True, 0.0)
+    irc(sup, sup.monitors, "robot1", "dance", 1.0)
+    robots, tasks, alarms = state(sup, 1.0)
+    assert "dance" not in tasks and ("unknown_task", "dance") in alarms
+
+
+def test_a_flood_of_invented_ids_costs_bounded_state(patrol):
+    app, arch = patrol
+    sup = Supervisor(arch, app, 0.0)
+    mons = sup.monitors
+    for i in range(20_000):
+        rid = f"r{i}"
+        sup.on_sample(mons, f"{rid}/alliance/inter_robot_communication", IRC,
+                      InterRobotCommunication(Header(rid, 1.0, 0), f"t{i}", 60.0), 1.0)
+        sup.on_sample(mons, "robot1/alliance/inter_robot_communication", IRC,
+                      InterRobotCommunication(Header("robot1", 1.0, 0), "x" * 70 + str(i), 1.0), 1.0)
+    assert len(sup.robots) == 3 and len(sup.tasks) == 3 and len(sup.allocations) == 0
+    assert len(sup.unknown) == Supervisor.MAX_UNKNOWN
+    assert len(sup.alarms) == Supervisor.MAX_UNKNOWN
+    assert sup.counts["unknown_overflow"] == 20_000 - Supervisor.MAX_UNKNOWN
+    assert sup.counts["field_errors"] == 20_000  # 74-character task ids are not ids
+    assert len(sup._ids) <= 10_000
+    assert len(json.dumps(sup.snapshot(1.0))) < 100_000
+
+
+def test_a_stopped_clock_makes_robots_unknown_and_a_restart_drops_stale_states(patrol):
+    app, arch = patrol
+    sup = Supervisor(arch, app, 0.0)
+    sup.on_liveliness("robot1/alliance/agent", True, 0.0)
+    irc(sup, sup.monitors, "robot1", "wander", 50.0)
+    sup.on_clock(True, 50.0)
+    robots, _, alarms = state(sup, 50.0)
+    assert robots["robot1"][0] == "unknown" and ("clock_stopped", "clock") in alarms
+    sup.on_clock(False, 50.0)
+    assert state(sup, 50.0)[0]["robot1"][0] == "busy"
+    sup.restart(0.5)  # a new simulation run: time went back to 0
+    robots, tasks, alarms = state(sup, 0.5)
+    assert robots["robot1"] == ("idle", None) and tasks["wander"] == ("unallocated", [])
+    assert ("clock_stopped", "clock") not in alarms
 
 
 OTHER_ARCH = textwrap.dedent("""\

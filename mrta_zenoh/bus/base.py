@@ -11,7 +11,9 @@ import collections
 import logging
 import threading
 import time
-from typing import Any, Callable, Iterator, NamedTuple
+from typing import Any, Callable, Iterator
+
+import msgspec
 
 from .. import codec
 from ..keys import validate_key_expr
@@ -20,16 +22,17 @@ from ..messages import GenericMessage, Message
 log = logging.getLogger("mrta.bus")
 
 
-class Sample(NamedTuple):
-    """A decoded sample. A NamedTuple: immutable and the cheapest object to build per sample."""
+class Sample(msgspec.Struct, frozen=True, gc=False):
+    """A decoded sample. A frozen msgspec Struct: immutable, and built in C (a quarter of a
+    NamedTuple's cost, which matters once per sample on the receive path)."""
 
     key: str
     type_name: str
-    message: Message | GenericMessage
+    message: Any
     payload: bytes
 
 
-class RawSample(NamedTuple):
+class RawSample(msgspec.Struct, frozen=True, gc=False):
     key: str
     encoding: str
     payload: bytes
@@ -123,35 +126,52 @@ class Subscription:
         if self.raw:
             self._deliver(RawSample(key, encoding, payload))
             return
+        entry = self._decoder(key, encoding)
+        if entry is None:
+            return
+        type_name, decode = entry
         try:
-            entry = self._decoders.get(encoding)
-            if entry is None:
-                entry = codec.decoder_for(encoding)
-                if len(self._decoders) < 64:  # bounded: encodings come from the network
-                    self._decoders[encoding] = entry
-            type_name, decode = entry
-            if self._expected_type is not None and type_name != self._expected_type:
-                self.wrong_type += 1
-                self.bus.stats.add("wrong_type")
-                self.bus._warn(
-                    "wrong_type", self.key_expr,
-                    f"sample on {key} is {type_name}, expected {self._expected_type}: ignored",
-                    self.wrong_type,
-                )
-                return
             msg = decode(payload)
         except codec.DecodeError as exc:
-            self.malformed += 1
-            self.bus.stats.add("malformed")
-            if self.on_error is not None:
-                self.on_error(key, exc)
-            else:
-                self.bus._warn(
-                    "malformed", self.key_expr, f"dropped malformed sample on {key}: {exc}",
-                    self.malformed,
-                )
+            self._malformed(key, exc)
             return
         self._deliver(Sample(key, type_name, msg, payload))
+
+    def _decoder(self, key: str, encoding: str) -> tuple | None:
+        """(type name, decode) for an encoding string; None (counted) for a wrong type or a
+        foreign encoding. Cached: encodings come from the network, so the cache is bounded."""
+        entry = self._decoders.get(encoding)
+        if entry is None:
+            try:
+                entry = codec.decoder_for(encoding)
+            except codec.DecodeError as exc:
+                self._malformed(key, exc)
+                return None
+            if len(self._decoders) < 64:
+                self._decoders[encoding] = entry
+        if self._expected_type is not None and entry[0] != self._expected_type:
+            self.wrong_type += 1
+            self.bus.stats.add("wrong_type")
+            self.bus._warn("wrong_type", self.key_expr,
+                           f"sample on {key} is {entry[0]}, expected {self._expected_type}: ignored",
+                           self.wrong_type)
+            return None
+        return entry
+
+    def _malformed(self, key: str, exc: Exception) -> None:
+        self.malformed += 1
+        self.bus.stats.add("malformed")
+        if self.on_error is not None:
+            self.on_error(key, exc)
+        else:
+            self.bus._warn("malformed", self.key_expr, f"dropped malformed sample on {key}: {exc}",
+                           self.malformed)
+
+    @property
+    def direct(self) -> bool:
+        """Typed samples handed straight to a handler on the receive thread (the hot path an
+        implementation may inline)."""
+        return not self.raw and self._queue is None and self.handler is not None
 
     def _deliver(self, sample: Any) -> None:
         self.received += 1
