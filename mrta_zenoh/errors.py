@@ -27,3 +27,7 @@ class ConfigError(MrtaError):
 
 class MrtaRuntimeError(MrtaError):
     """Something failed while running (a session could not open, a child process died)."""
+
+
+class Interrupted(MrtaError):
+    """The user stopped a run (Ctrl-C, SIGTERM) before it finished."""

@@ -12,7 +12,7 @@ from typing import Any, Callable
 import click
 
 from ..bus.options import MODES, BusOptions
-from ..errors import ConfigError, MrtaRuntimeError
+from ..errors import ConfigError, Interrupted, MrtaRuntimeError
 from ..fieldpath import FieldPathError
 from ..keys import KeyExprError, validate_key_expr
 
@@ -66,6 +66,8 @@ class user_errors:
             raise BadInput(str(exc)) from exc
         if isinstance(exc, MrtaRuntimeError):
             raise RuntimeFailure(str(exc)) from exc
+        if isinstance(exc, Interrupted):
+            raise click.Abort() from exc
         return False
 
 

@@ -21,7 +21,6 @@ import threading
 import time
 from pathlib import Path
 
-import click
 from rich.console import Console, Group
 from rich.live import Live
 from rich.text import Text
@@ -29,9 +28,8 @@ from rich.text import Text
 from mrta_zenoh import keys
 from mrta_zenoh.bus import BusOptions, open_bus
 from mrta_zenoh.bus.options import private_rendezvous
-from mrta_zenoh.cli.common import BadInput, finite_float, user_errors
 from mrta_zenoh.clock import SimClock, follow_sim_clock
-from mrta_zenoh.errors import ConfigError, MrtaRuntimeError
+from mrta_zenoh.errors import ConfigError, Interrupted, MrtaRuntimeError
 from mrta_zenoh.files import write_text
 from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.processes import Child, ProcessGroup, mrta_argv
@@ -65,7 +63,7 @@ def parse_fail(spec: str | None) -> tuple[str, float] | None:
             raise ValueError
         return keys.normalize_robot_id(robot), t
     except (ValueError, keys.KeyExprError):
-        raise BadInput(f"--fail {spec!r}: expected ROBOT@SECONDS, e.g. robot2@30, or none") from None
+        raise ConfigError(f"--fail {spec!r}: expected ROBOT@SECONDS, e.g. robot2@30, or none") from None
 
 
 class Readiness:
@@ -100,7 +98,7 @@ class Readiness:
             if failed:
                 raise MrtaRuntimeError(f"{failed[0].name} failed while starting:\n{failed[0].tail()}")
             if stop.is_set():
-                raise click.Abort()
+                raise Interrupted()
             if time.monotonic() > deadline:
                 raise MrtaRuntimeError(f"{label} did not come up within {READY_TIMEOUT:.0f} s")
             stop.wait(0.05)
@@ -120,9 +118,9 @@ def run_demo(*, duration: float = 60.0, speed: float = 2.0, fail: str | None = "
     _, arch = reg.architecture(app.architecture)
     ids = [r.id for r in app.robots]
     if failure and failure[0] not in ids:
-        raise BadInput(f"--fail {fail}: {failure[0]} is not one of {', '.join(ids)}")
+        raise ConfigError(f"--fail {fail}: {failure[0]} is not one of {', '.join(ids)}")
     if failure and failure[1] >= duration:
-        raise BadInput(f"--fail at {failure[1]} s is not before the end ({duration} s)")
+        raise ConfigError(f"--fail at {failure[1]} s is not before the end ({duration} s)")
     output.mkdir(parents=True, exist_ok=True)
     config = pkg.path / "config"
     params = {rid: config / f"{rid}_alliance_params.yaml" for rid in ids}
@@ -158,7 +156,7 @@ def run_demo(*, duration: float = 60.0, speed: float = 2.0, fail: str | None = "
             h.close()
         ready.close()
         if stop.is_set() and sim.running():
-            raise click.Abort()
+            raise Interrupted()
         if sim.wait(30) != 0:
             raise MrtaRuntimeError("the simulator failed:\n" + sim.tail())
         group.stop_all()
@@ -280,24 +278,3 @@ def print_summary(console: Console, s: dict) -> None:
     console.print(f"  collisions: {s['collisions_total']}; border visited: "
                   f"{s['border_visited']:.0%}", highlight=False)
     console.print(f"  files in {s['output']}: {', '.join(s['files'])}", highlight=False)
-
-
-@click.command()
-@click.option("--duration", type=finite_float(min=0, min_open=True), default=60.0,
-              show_default=True, help="Simulated seconds of mission.")
-@click.option("--speed", type=finite_float(min=0), default=2.0, show_default=True,
-              help="Simulated seconds per wall second (0: as fast as possible).")
-@click.option("--fail", default="robot2@30", show_default=True, metavar="ROBOT@SECONDS|none",
-              help="SIGKILL this robot's agent at this simulated time.")
-@click.option("--output", type=click.Path(file_okay=False, path_type=Path),
-              default=Path("demo-output"), show_default=True,
-              help="Folder for the recording, pictures and summary.json.")
-@click.option("--seed", type=int, default=0, show_default=True,
-              help="The run's master seed (each robot derives its own stream).")
-@click.option("--live/--no-live", default=None,
-              help="Show the live supervisor view (default: when the output is a terminal).")
-def demo(duration: float, speed: float, fail: str, output: Path, seed: int,
-         live: bool | None) -> None:
-    """The patrol application end to end: simulator, agents and supervisor, then a summary."""
-    with user_errors():
-        run_demo(duration=duration, speed=speed, fail=fail, output=output, seed=seed, live=live)
