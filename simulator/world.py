@@ -116,10 +116,10 @@ def load_mobilesim_map(path: Path) -> World:
                 raise ConfigError(f"a LINES entry needs 4 numbers (x1 y1 x2 y2 in mm), got "
                                   f"{len(parts)}: {line!r}", file=str(path), line=n)
             try:
-                x1, y1, x2, y2 = (float(p) / 1000.0 for p in parts)
+                x1, y1, x2, y2 = (_finite(p) / 1000.0 for p in parts)
             except ValueError:
-                raise ConfigError(f"a LINES entry must be numbers, got {line!r}", file=str(path),
-                                  line=n) from None
+                raise ConfigError(f"a LINES entry must be finite numbers, got {line!r}",
+                                  file=str(path), line=n) from None
             walls.append((x1, y1, x2, y2))
             continue
         if section != "header":
@@ -130,7 +130,7 @@ def load_mobilesim_map(path: Path) -> World:
             fields = rest.split()
             if fields and fields[0] == "RobotHome":
                 try:
-                    x, y, th = (float(v) for v in fields[1:4])
+                    x, y, th = (_finite(v) for v in fields[1:4])
                 except ValueError:
                     raise ConfigError(f"Cairn RobotHome needs x y theta numbers: {line!r}",
                                       file=str(path), line=n) from None
@@ -151,9 +151,16 @@ def load_mobilesim_map(path: Path) -> World:
                  notes=notes)
 
 
+def _finite(text: str) -> float:
+    x = float(text)
+    if not math.isfinite(x):
+        raise ValueError(f"{text!r} is not finite")
+    return x
+
+
 def _number(text: str, path: Path, line: int) -> float:
     try:
-        return float(text.split()[0])
+        return _finite(text.split()[0])
     except (ValueError, IndexError):
         raise ConfigError(f"expected a number, got {text.strip()!r}", file=str(path),
                           line=line) from None
@@ -210,7 +217,9 @@ def load_yaml_world(path: Path) -> World:
 def _numbers(doc: YamlDoc, where: tuple, value, n: int) -> list[float]:
     if not isinstance(value, list) or len(value) != n or not all(
             isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
-        raise doc.error(where, f"expected a list of {n} numbers, got {value!r}")
+        raise doc.error(where, f"expected a list of {n} numbers, got {value!r:.80}")
+    if not all(math.isfinite(v) for v in value):
+        raise doc.error(where, f"expected {n} finite numbers, got {value!r:.80}")
     return [float(v) for v in value]
 
 

@@ -256,13 +256,21 @@ class LaunchEvaluator:
     def _remap(self, scope: _Scope, el, given) -> None:
         pass  # Zenoh keys are not remapped; accepted so reference files load
 
+    def _args(self, scope: _Scope, el) -> list[str]:
+        text = self._sub(scope, el, el.get("args"))
+        try:
+            return shlex.split(text)
+        except ValueError as exc:  # "No closing quotation"
+            raise ConfigError(f"args={text!r:.80}: {str(exc).lower()}", file=str(scope.file),
+                              line=el.sourceline, element="<node>") from None
+
     def _node(self, scope: _Scope, el, given) -> None:
         ns = "/".join(p for p in (scope.ns, self._sub(scope, el, el.get("ns")).strip("/")) if p)
         name = self._sub(scope, el, el.get("name")) or el.get("type")
         spec = NodeSpec(name="/".join(p for p in (ns, name) if p),
                         pkg=self._sub(scope, el, el.get("pkg")),
                         type=self._sub(scope, el, el.get("type")),
-                        args=shlex.split(self._sub(scope, el, el.get("args"))),
+                        args=self._args(scope, el),
                         env=dict(scope.env),
                         required=el.get("required", "false").lower() == "true",
                         file=str(scope.file), line=el.sourceline)

@@ -122,11 +122,25 @@ class _Reader:
                     raise self.error(self.one(el, what), f"<{what}> of {p.name!r}: {problem}")
             return p
         self.children(el, ("name",), ("param", "params", "array"))
-        kids = [self.param_node(c) for c in el if isinstance(c.tag, str) and c.tag != "name"]
+        elements = [c for c in el if isinstance(c.tag, str) and c.tag != "name"]
+        kids = [self.param_node(c) for c in elements]
         name = self.text(el, "name")
         if base == "array":
+            self.no_arrays(elements, kids, f"array {name!r}")
             return Array(name, kids, line=el.sourceline)
+        if any(isinstance(k, Array) for k in kids) and not any(
+                isinstance(k, Param) and k.name == "size" for k in kids):
+            bad = next(e for e, k in zip(elements, kids) if isinstance(k, Array))
+            raise self.error(bad, f"an <array> needs a sibling <param> named 'size' (dissertation "
+                                  f"§3.1): <params> {name!r} has none")
         return Params(name, kids, line=el.sourceline)
+
+    def no_arrays(self, elements, kids, where: str) -> None:
+        """An array is repeated per its sibling `size`, so it must sit inside a <params>."""
+        for e, k in zip(elements, kids):
+            if isinstance(k, Array):
+                raise self.error(e, f"an <array> must be the child of a <params> (dissertation "
+                                    f"§3.1), not of {where}")
 
     def configs(self, el) -> list[Config]:
         if el is None:
@@ -135,7 +149,9 @@ class _Reader:
         elements = self.children(el, (), ("config",))
         for c in elements:
             self.children(c, ("id",), ("param", "params", "array"))
-            kids = [self.param_node(k) for k in c if isinstance(k.tag, str) and k.tag != "id"]
+            elements = [k for k in c if isinstance(k.tag, str) and k.tag != "id"]
+            kids = [self.param_node(k) for k in elements]
+            self.no_arrays(elements, kids, f"config {self.text(c, 'id')!r}")
             out.append(Config(self.text(c, "id"), kids, line=c.sourceline))
         ids = [c.id for c in out]
         for c, el_c in zip(out, elements):
