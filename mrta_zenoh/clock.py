@@ -126,6 +126,18 @@ class SimClock(ManualClock):
         self.started.set()
         return True
 
+    def sleep_until(self, t: float, stop: threading.Event | None = None) -> bool:
+        """Like ManualClock's, but also returns when time restarts (a new simulation run moved
+        now() backwards): the caller re-reads now() and reschedules instead of waiting for the
+        new run to reach a time of the old one."""
+        with self._cond:
+            epoch = self.restarts
+            while self._now < t and self.restarts == epoch:
+                if stop is not None and stop.is_set():
+                    return False
+                self._cond.wait(0.05)
+        return True
+
     def source_lost(self) -> None:
         """The adopted source's liveliness token is gone: the next run may be adopted at once."""
         with self._cond:

@@ -21,7 +21,9 @@ import time
 from pathlib import Path
 from typing import Iterator
 
-from mcap.reader import NonSeekingReader, make_reader
+from mcap.reader import make_reader
+from mcap.records import Channel, Message as McapMessage
+from mcap.stream_reader import StreamReader
 from mcap.writer import Writer
 
 from . import codec, keys
@@ -127,9 +129,13 @@ def read_recording(path: Path) -> Recovered:
             pass
         f.seek(0)
         out.clear()
-        try:
-            for _schema, channel, message in NonSeekingReader(f).iter_messages():
-                out.append(_row(channel, message))
+        channels: dict[int, Channel] = {}
+        try:  # record by record (chunks unpacked): everything before the cut is usable
+            for rec in StreamReader(f).records:
+                if isinstance(rec, Channel):
+                    channels[rec.id] = rec
+                elif isinstance(rec, McapMessage) and rec.channel_id in channels:
+                    out.append(_row(channels[rec.channel_id], rec))
         except Exception as exc:  # noqa: BLE001 - the truncated tail, whatever it looks like
             log.debug("recording %s ends early: %s", path, exc)
     if not out:

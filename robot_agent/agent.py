@@ -137,14 +137,15 @@ class Agent:
         for task, ev in self.plugins.evaluators.items():
             applicable = bool(ev.is_applicable(now))
             self.high.on_feedback(task, applicable, now)
-            self.bus.publish(fb_key, SensoryFeedback(self._header(fb_key, now), task, applicable))
+            self.bus.publish(fb_key, SensoryFeedback(self._header(fb_key, now), task, applicable),
+                             lossy=True)
         before = self.high.active_task
         states, transitions = self.high.tick(now)
         for st in states:
             key = keys.motivation(self.robot_id, st.task_id)
             self.bus.publish(key, Motivation(
                 self._header(key, now), st.task_id, st.impatience, st.acquiescent, st.suppressed,
-                st.resetted, st.applicable, st.motivation, st.threshold, st.active))
+                st.resetted, st.applicable, st.motivation, st.threshold, st.active), lossy=True)
         for tr in transitions:
             self.transitions.append((now, tr))
             log.info("%s: %s %s (%s) at t=%.2f", self.robot_id,
@@ -180,11 +181,25 @@ class Agent:
             layer.step(now, dt)
 
     # ------------------------------------------------------------ the loop
+    def restart(self, now: float) -> None:
+        """Time restarted (a new simulation run): the old run's world is gone, so start afresh —
+        layers deactivated, sensors forgotten, motivations back to zero."""
+        log.warning("%s: time restarted at t=%.2f (a new simulation run): starting afresh",
+                    self.robot_id, now)
+        for layer in self._layers(self.high.active_task):
+            layer.on_deactivate(now)
+        for sensor in self.plugins.sensors.values():
+            sensor.forget()
+        self._inbox.clear()
+        self.high = HighLevel(self.robot_id, self.params.robot)
+        self._last_broadcast = None
+
     def run(self, stop: threading.Event, until: float | None = None) -> None:
         r = self.params.robot
         high_period, ctrl_period = 1.0 / r.spin_rate, 1.0 / r.control_rate
         now = self.clock.now()
         next_high, next_ctrl, last_ctrl = now, now, now
+        epoch = getattr(self.clock, "restarts", 0)
         while not stop.is_set():
             t = min(next_high, next_ctrl)
             if until is not None and t > until:
@@ -192,6 +207,12 @@ class Agent:
             if not self.clock.sleep_until(t, stop):
                 break
             now = self.clock.now()
+            if getattr(self.clock, "restarts", 0) != epoch:
+                epoch = self.clock.restarts
+                self.restart(now)
+                next_high, next_ctrl, last_ctrl = now, now, now
+                if until is not None:
+                    until = now + (until - t)
             if now >= next_high:
                 self.tick_high(now)
                 next_high += high_period

@@ -133,6 +133,11 @@ class Sensor(Plugin):
             self.latest, self.latest_time = msg, now
             self.received += 1
 
+    def forget(self) -> None:
+        """Drop the latest sample (time restarted: it belongs to another run)."""
+        with self._lock:
+            self.latest, self.latest_time = None, None
+
     def is_up_to_date(self, now: float) -> bool:
         t = self.latest_time
         return t is not None and now - t <= self.params.timeout_duration

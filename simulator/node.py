@@ -6,6 +6,7 @@ simulation itself stays deterministic; only *when* a networked command lands dep
 
 from __future__ import annotations
 
+import functools
 import logging
 import threading
 import time
@@ -88,7 +89,7 @@ class SimNode:
 
     def run(self, stop: threading.Event, duration: float | None = None) -> RunStats:
         sim = self.sim
-        self.bus.publish(keys.CLOCK, Clock(sim.time, self.run_id))
+        self.bus.publish(keys.CLOCK, Clock(sim.time, self.run_id), lossy=True)
         if self.publish_sensors:
             self.publish_all()
         wall0, sim0 = self._monotonic(), sim.time
@@ -97,7 +98,7 @@ class SimNode:
                 break
             self._apply_commands()
             sim.step()
-            self.bus.publish(keys.CLOCK, Clock(sim.time, self.run_id))
+            self.bus.publish(keys.CLOCK, Clock(sim.time, self.run_id), lossy=True)
             if self.publish_sensors and sim.steps % SENSOR_EVERY == 0:
                 self.publish_all()
             if self.speed > 0:
@@ -118,7 +119,7 @@ class SimNode:
         vel = sim.vel.tolist()
         stalled, contacts = sim.stalled.tolist(), (sim.contacts > 0).tolist()
         collisions = sim.collisions.tolist()
-        publish = self.bus.publish
+        publish = functools.partial(self.bus.publish, lossy=True)  # sensor data: best effort
         for i, rid in enumerate(sim.ids):
             k_sonar, k_odom, k_truth, k_bump = self._keys[i]
             publish(k_sonar, PointCloud(Header(f"{rid}/sonar", t, 0),

@@ -97,3 +97,12 @@ def test_router_relays_between_a_client_and_a_peer(children):
     assert echo.stdout == [f"{KEY}: wander"]
     router.signal(signal.SIGTERM)
     assert router.wait(5) == 0
+
+
+def test_json_output_is_always_valid_json():
+    """A foreign type (decoded generically) may carry NaN; JSON has none: it is written as a
+    string, and the line parses."""
+    from mrta_zenoh.tools.echo import format_sample
+    line = format_sample("robot1/battery", "vendor_msgs/Battery",
+                         {"level": float("nan"), "cells": [1.0, float("inf")]}, True, None)
+    assert json.loads(line)["message"] == {"level": "nan", "cells": [1.0, "inf"]}

@@ -115,3 +115,46 @@ def test_shutdown_closes_every_subscription_a_plugin_opened(ctx):
     ev.shutdown()
     s.shutdown()
     assert bus._subs == []
+
+
+def test_the_ledger_counts_only_teammates_and_finite_distances(ctx):
+    """A NaN odometry sample used to poison every later report; a forged robot9 used to appear
+    in reports. Teammates are robots whose agent holds its token, heard on their own keys."""
+    import msgpack
+
+    from mrta_patrol.layers import ReportLayer
+    from mrta_zenoh.codec import encoding_for
+    from mrta_zenoh.messages import Odometry, Pose2D, Twist
+    from robot_agent.messages import InterRobotCommunication
+
+    c, bus = ctx
+    c.sections.update(typed_sections(ReportLayer))
+    layer = ReportLayer()
+    layer.setup(c)
+    tokens = [bus.declare_token(f"robot{i}/alliance/agent") for i in (1, 2)]
+
+    def odom(robot, x):
+        bus.publish(f"{robot}/odom", Odometry(Header(robot, 10.0, 0), Pose2D(x, 0.0, 0.0),
+                                              Twist(0.0, 0.0)))
+
+    odom("robot1", 0.0)
+    odom("robot1", 3.0)
+    nan = {"header": {"frame_id": "robot1", "stamp": 10.0, "seq": 0},
+           "pose": {"x": float("nan"), "y": 0.0, "theta": 0.0}, "twist": {"linear": 0.0, "angular": 0.0}}
+    bus.publish_raw("robot1/odom", encoding_for("mrta_msgs/Odometry"), msgpack.packb(nan))
+    odom("robot1", 4.0)
+    odom("robot9", 0.0)
+    odom("robot9", 100.0)  # not a teammate: no token
+    for t in (10.0, 11.0):
+        bus.publish("robot9/alliance/inter_robot_communication",
+                    InterRobotCommunication(Header("robot9", t, 0), "border_protection", 60.0))
+        bus.publish("robot1/alliance/inter_robot_communication",  # claims to be robot2
+                    InterRobotCommunication(Header("robot2", t, 0), "border_protection", 60.0))
+    report = layer.ledger.report("robot1", 12.0)
+    assert report.distance == 4.0 and math.isfinite(report.distance)
+    assert {tt.robot_id for tt in report.task_times} <= {"robot1", "robot2"}
+    assert not any(tt.robot_id == "robot9" for tt in report.task_times)
+    assert bus.stats["malformed"] == 1
+    layer.shutdown()
+    for t in tokens:
+        t.close()

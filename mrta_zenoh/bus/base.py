@@ -312,11 +312,16 @@ class Bus:
         self._closed = False
 
     # ---- public API
-    def publish(self, key: str, msg: Message | GenericMessage) -> None:
+    def publish(self, key: str, msg: Message | GenericMessage, lossy: bool = False) -> None:
+        """Send `msg` on `key`. `lossy`: a stream whose next sample supersedes this one (sensor
+        data, motivations, the clock) — dropped rather than waited for when a receiver does not
+        keep up, like ROS best-effort, so a stopped observer cannot slow the world. Otherwise
+        (commands, broadcasts, state) the publisher waits. A key keeps the choice of its first
+        publish."""
         type_name = msg.type_name if type(msg) is GenericMessage else msg.TYPE_NAME
-        self.publish_raw(key, codec.encoding_for(type_name), codec.encode(msg))
+        self.publish_raw(key, codec.encoding_for(type_name), codec.encode(msg), lossy)
 
-    def publish_raw(self, key: str, encoding: str, payload: bytes) -> None:
+    def publish_raw(self, key: str, encoding: str, payload: bytes, lossy: bool = False) -> None:
         raise NotImplementedError
 
     def subscribe(

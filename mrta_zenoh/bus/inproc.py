@@ -26,7 +26,7 @@ class InProcBus(Bus):
         super().__init__(namespace)
         self.network = network or InProcNetwork()
 
-    def publish_raw(self, key: str, encoding: str, payload: bytes) -> None:
+    def publish_raw(self, key: str, encoding: str, payload: bytes, lossy: bool = False) -> None:
         wire = self._wire(key)
         with self.network.lock:
             targets = [s for s in self.network.subs if matches(s.bus._wire(s.key_expr), wire)]

@@ -2,7 +2,8 @@
 
 Traps handled here (docs/zenoh.md): every entity is undeclared and the session closed in
 close(), so no callback thread keeps the interpreter from exiting; publishers use
-CongestionControl.BLOCK, because DROP loses state under bursts; Python references to tokens and
+CongestionControl.BLOCK, because DROP loses state under bursts — except lossy streams (sensor
+data, motivations, the clock), which use DROP so that a stopped subscriber cannot stall them; Python references to tokens and
 subscribers are kept for as long as they are meant to live.
 """
 
@@ -76,31 +77,31 @@ class ZenohBus(Bus):
     def zid(self) -> str:
         return str(self.session.zid())
 
-    def publish(self, key: str, msg: Message | GenericMessage) -> None:
-        # Hot path: one dict lookup gives publisher, encoding and encoder (a key nearly always
+    def publish(self, key: str, msg: Message | GenericMessage, lossy: bool = False) -> None:
+        # Hot path: one dict lookup gives publisher and encoding (a key nearly always
         # carries one type; a different type just rebuilds the entry).
         entry = self._typed.get(key)
         if entry is None or entry[0] is not type(msg):
             if type(msg) is GenericMessage:
-                return super().publish(key, msg)
-            entry = (type(msg), self._publisher(key),
+                return super().publish(key, msg, lossy)
+            entry = (type(msg), self._publisher(key, lossy),
                      self._encoding(codec.encoding_for(msg.TYPE_NAME)))
             self._typed[key] = entry
         _, pub, enc = entry
         pub.put(_encode(msg), encoding=enc)
 
-    def publish_raw(self, key: str, encoding: str, payload: bytes) -> None:
-        self._publisher(key).put(payload, encoding=self._encoding(encoding))
+    def publish_raw(self, key: str, encoding: str, payload: bytes, lossy: bool = False) -> None:
+        self._publisher(key, lossy).put(payload, encoding=self._encoding(encoding))
 
-    def _publisher(self, key: str) -> Any:
+    def _publisher(self, key: str, lossy: bool = False) -> Any:
         pub = self._publishers.get(key)
         if pub is None:
             with self._pub_lock:
                 pub = self._publishers.get(key)
                 if pub is None:
                     pub = self.session.declare_publisher(
-                        self._wire(key), congestion_control=zenoh.CongestionControl.BLOCK
-                    )
+                        self._wire(key), congestion_control=zenoh.CongestionControl.DROP
+                        if lossy else zenoh.CongestionControl.BLOCK)
                     self._publishers[key] = pub
         return pub
 
