@@ -114,7 +114,14 @@ def base_config(mode: str) -> dict[str, Any]:
             "retry": {"period_init_ms": 100, "period_max_ms": 1000, "period_increase_factor": 1.5},
         },
         "listen": {"endpoints": ["tcp/127.0.0.1:0"]},
-        "transport": {"link": {"tx": {"lease": 3000}}},
+        # lease 3 s: a frozen peer is dropped after 3 s. wait_before_drop 1 µs (default 1 ms):
+        # a lossy put towards a peer whose queue is full gives up at once — with 1 ms per put,
+        # a stopped observer still held a simulator publishing 10,000 samples/s to ~1,000/s
+        # open/accept timeouts 2 s (default 10 s): a connection attempt to a frozen peer
+        # (SIGSTOP) otherwise holds session.close() for 10 s
+        "transport": {"link": {"tx": {"lease": 3000, "queue": {"congestion_control": {
+            "drop": {"wait_before_drop": 1}}}}},
+            "unicast": {"open_timeout": 2000, "accept_timeout": 2000}},
     }
 
 
