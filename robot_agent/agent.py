@@ -93,6 +93,9 @@ class Agent:
         self._inbox: collections.deque = collections.deque(maxlen=10_000)
         self.ignored_own = 0
         self.ignored_mismatch = 0
+        self.ignored_strangers = 0  # broadcasts from robots with no live agent token
+        self.refused = 0
+        self._teammates: set[str] = set()
         self.transitions: list[tuple[float, TaskSwitch]] = []
         self._seq: dict[str, int] = collections.defaultdict(int)
         self._last_broadcast: float | None = None
@@ -105,6 +108,16 @@ class Agent:
         self.plugins.setup(self.ctx)
         self._irc_sub = self.bus.subscribe(keys.ALL_INTER_ROBOT_COMMUNICATION, self._on_irc,
                                            msg_type=InterRobotCommunication)
+        self._team_watch = self.bus.watch_liveliness(keys.ALL_AGENT_TOKENS, self._on_teammate)
+
+    def _on_teammate(self, key: str, alive: bool) -> None:
+        """Teammates are robots whose ALLIANCE agent holds its token; a broadcast from anyone
+        else (a forged robot9) is ignored."""
+        robot = first_chunk(key)
+        if alive:
+            self._teammates.add(robot)
+        else:
+            self._teammates.discard(robot)
 
     def declare_alive(self) -> None:
         """Last step of start-up: alive means ready (docs/zenoh.md, the start-up race)."""
@@ -122,6 +135,12 @@ class Agent:
                             self.robot_id, sample.key, sample.message.header.frame_id,
                             self.ignored_mismatch)
             return
+        if sender not in self._teammates:
+            self.ignored_strangers += 1
+            if self.ignored_strangers == 1 or self.ignored_strangers % 100 == 0:
+                log.warning("%s: ignoring broadcasts from %s, which holds no agent token "
+                            "(%d so far)", self.robot_id, sender, self.ignored_strangers)
+            return
         self._inbox.append((sender, sample.message, self.clock.now()))
 
     # ------------------------------------------------------------ one step of each level
@@ -132,7 +151,13 @@ class Agent:
     def tick_high(self, now: float) -> list[TaskSwitch]:
         while self._inbox:
             sender, msg, t = self._inbox.popleft()
-            self.high.on_broadcast(sender, msg.task_id, msg.expected_duration, t)
+            if not self.high.on_broadcast(sender, msg.task_id, msg.expected_duration, t,
+                                          msg.active_since):
+                self.refused += 1
+                if self.refused == 1 or self.refused % 100 == 0:
+                    log.warning("%s: refused a broadcast from %s for %r with expected_duration "
+                                "%g (%d so far)", self.robot_id, sender, msg.task_id,
+                                msg.expected_duration, self.refused)
         fb_key = keys.sensory_feedback(self.robot_id)
         for task, ev in self.plugins.evaluators.items():
             applicable = bool(ev.is_applicable(now))
@@ -148,8 +173,12 @@ class Agent:
                 st.resetted, st.applicable, st.motivation, st.threshold, st.active), lossy=True)
         for tr in transitions:
             self.transitions.append((now, tr))
-            log.info("%s: %s %s (%s) at t=%.2f", self.robot_id,
-                     "activated" if tr.active else "deactivated", tr.task_id, tr.reason, now)
+            if tr.kind == "reset":
+                log.info("%s: motivation for %s reset (%s) at t=%.2f", self.robot_id, tr.task_id,
+                         tr.reason, now)
+            else:
+                log.info("%s: %s %s (%s) at t=%.2f", self.robot_id, tr.kind, tr.task_id,
+                         tr.reason, now)
         after = self.high.active_task
         if before != after:
             for layer in self._layers(before):
@@ -170,8 +199,9 @@ class Agent:
             return
         self._last_broadcast = now
         key = keys.inter_robot_communication(self.robot_id)
-        self.bus.publish(key, InterRobotCommunication(self._header(key, now), task,
-                                                       self.high.sets[task].params.expected_duration))
+        self.bus.publish(key, InterRobotCommunication(
+            self._header(key, now), task, self.high.sets[task].params.expected_duration,
+            self.high.active_since()))
 
     def _layers(self, task: str | None) -> list[Layer]:
         return self.plugins.layers.get(task, []) if task is not None else []
@@ -235,4 +265,5 @@ class Agent:
         self.plugins.shutdown()
         if self._irc_sub is not None:
             self._irc_sub.close()
+            self._team_watch.close()
             self._irc_sub = None

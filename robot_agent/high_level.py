@@ -16,33 +16,70 @@ Deliberate choices, where appendix E or the original C++ (reference/) leave room
     a warning is logged once — the C++ killed the node.
   * φ (E.7, the time this robot allows another to do the task): the other robot's announced
     expected_duration. Once it has been broadcasting for longer, impatience returns to fast.
-  * Reset (E.4): fires on each rising edge of "robot k's broadcasts for this task are fresh",
-    i.e. once for each robot that newly starts the task (and again if it lapsed for > τ and
-    starts anew — a new attempt deserves a fresh allowance). The C++ latched it once per process.
-  * Suppression (E.2): a true OR over the other sets' previous activation; if several sets
-    cross θ on the same tick, the one furthest past its threshold (θ-normalised) wins and the
-    others count as suppressed. The C++ used "last toggle wins".
-  * τ must be > 0 (the parameter loader rejects τ ≤ 0; the C++ hung).
+    A broadcast whose expected_duration is not in (0, max_expected_duration] is refused
+    (the agent counts it): a forged 1e300 must not freeze everybody's impatience.
+  * Suppression (E.2): a true OR over the other sets' activity *at the start of the tick*, so
+    the result does not depend on the order of `behaviour_set0/1/…` (a set that gives up in a
+    tick does not un-suppress the sets listed after it in the same tick). If several sets cross
+    θ on the same tick, the one furthest past its threshold (θ-normalised) wins; the C++ used
+    "last toggle wins".
+  * Acquiescence (E.5): "more than" — yielding when active for *more than* ψ, giving up when
+    active for more than λ (the dissertation, lines ≈ 2580–2600).
+  * Who yields (E.5 and E.4 together): broadcasts carry `active_since`, the time on the
+    sender's clock at which its current activation began (an addition to alliance_msgs; a
+    client that does not send it is handled as described below). Two robots doing the same
+    single-robot task are ordered by (active_since, robot id); the *earlier* one is the one that
+    acquiesces once it has been active for more than ψ — Parker's rule that a robot which has
+    done a task for ψ gives way to one that has taken it over. Both robots compare the same two
+    reported numbers, so they always agree on who yields, whatever the clocks' offset; identical
+    robots that activate on the same tick differ by id. This replaces the dissertation's
+    "yield when another robot does the task", under which two robots that hear each other both
+    yield (after a partition heals nobody did the task for 3 s, and robots ticking in phase
+    livelocked).
+  * Reset (E.4) applies to a set that is *not active*: its motivation returns to 0 when
+    another robot newly starts the task — newly meaning a new `active_since`, not a new run of
+    receptions. Late, lost or jittered broadcasts therefore never reset anybody, a robot heard
+    again after a partition is not "new", and an active robot is never reset (the ordering
+    above decides between active robots). The C++ latched the reset once per process; our
+    previous version reset on every lapse of freshness, which 10 ms of jitter triggered.
+    For a sender without `active_since`, a new start is a lapse of freshness longer than
+    max(τ, 1.5 × its observed broadcast interval (τ until one is observed)), and its start is
+    taken as when this robot first heard the run.
+  * A robot that was frozen (SIGSTOP, a stalled process) keeps its old `active_since`, so the
+    robot that took over while it was away is the later one and keeps the task: a resumed robot
+    does not evict its replacement.
+  * τ must be longer than a tick (the parameter loader rejects τ ≤ 1/ρ: a teammate heard
+    between two ticks would never be seen) and should be at least twice the effective broadcast
+    period (broadcasts leave on ticks: the loader warns).
 """
 
 from __future__ import annotations
 
 import logging
+import math
 from dataclasses import dataclass, field
 
 from .params import BehaviourSetParams, RobotParams
 
 log = logging.getLogger("mrta.alliance")
 
+UNKNOWN = -1.0  # active_since of a sender that does not report it
+
 
 @dataclass
 class OtherRobot:
     """What this robot knows of another robot doing one task (E.3's communication record)."""
 
-    first_heard: float  # start of the current run of fresh broadcasts
+    first_heard: float    # when this robot first heard the current activation
     last_heard: float
     expected_duration: float
-    fresh_at_last_tick: bool = False
+    active_since: float   # on the sender's clock; UNKNOWN if it does not say
+    interval: float = 0.0  # last interval between two of its broadcasts (for UNKNOWN senders)
+    new: bool = True      # a new activation not yet seen by a tick
+
+    def started(self) -> float:
+        """The start used to order this robot against others (its own report if it has one)."""
+        return self.active_since if self.active_since != UNKNOWN else self.first_heard
 
 
 @dataclass
@@ -79,9 +116,17 @@ class MotivationState:
 
 @dataclass(frozen=True)
 class TaskSwitch:
+    """A change worth telling the user: an activation, a deactivation, or the reset of a set
+    that was not active (`active` is then False and the set was already inactive)."""
+
     task_id: str
     active: bool
-    reason: str  # threshold reached | acquiesced (yielded) | gave up | reset | inapplicable | suppressed
+    reason: str  # threshold reached | yielded to … | gave up … | … started the task | inapplicable | suppressed
+    kind: str = ""  # activated | deactivated | reset
+
+    def __post_init__(self) -> None:
+        if not self.kind:
+            object.__setattr__(self, "kind", "activated" if self.active else "deactivated")
 
 
 class HighLevel:
@@ -90,6 +135,8 @@ class HighLevel:
         self.params = params
         self.rho = params.spin_rate
         self.tau = params.timeout_duration
+        self.tick_period = 1.0 / params.spin_rate
+        self.max_expected = params.max_expected_duration
         # Sensory feedback is held for this long; after that the set is inapplicable.
         self.feedback_timeout = feedback_timeout if feedback_timeout is not None else max(
             3.0 / params.spin_rate, 1.0)
@@ -101,18 +148,36 @@ class HighLevel:
         if s is not None:
             s.feedback, s.feedback_stamp = applicable, now
 
-    def on_broadcast(self, robot_id: str, task_id: str, expected_duration: float, now: float) -> None:
-        """Another robot announced it is doing `task_id` (received at `now`, our clock)."""
-        if robot_id == self.robot_id:
-            return
+    def sane_expected(self, expected_duration: float) -> bool:
+        return math.isfinite(expected_duration) and 0.0 < expected_duration <= self.max_expected
+
+    def on_broadcast(self, robot_id: str, task_id: str, expected_duration: float, now: float,
+                     active_since: float = UNKNOWN) -> bool:
+        """Another robot announced it is doing `task_id` (received at `now`, our clock).
+
+        False when the broadcast is refused (our own, an unknown task, an absurd
+        expected_duration); the caller counts those."""
+        if robot_id == self.robot_id or not self.sane_expected(expected_duration):
+            return False
+        if not math.isfinite(active_since):
+            active_since = UNKNOWN
         s = self.sets.get(task_id)
         if s is None:
-            return
+            return False
         rec = s.others.get(robot_id)
-        if rec is None or now - rec.last_heard > self.tau:
-            s.others[robot_id] = OtherRobot(now, now, expected_duration)
+        if rec is None or self._new_activation(rec, active_since, now):
+            s.others[robot_id] = OtherRobot(now, now, expected_duration, active_since)
         else:
+            rec.interval = now - rec.last_heard
             rec.last_heard, rec.expected_duration = now, expected_duration
+        return True
+
+    def _new_activation(self, rec: OtherRobot, active_since: float, now: float) -> bool:
+        if active_since != UNKNOWN or rec.active_since != UNKNOWN:
+            return active_since != rec.active_since
+        # a sender without active_since: a lapse longer than its broadcasts' own jitter (its
+        # interval unknown after one broadcast: assume the worst legal one, τ)
+        return now - rec.last_heard > max(self.tau, 1.5 * (rec.interval or self.tau))
 
     @property
     def active_task(self) -> str | None:
@@ -121,25 +186,36 @@ class HighLevel:
                 return task
         return None
 
+    def active_since(self) -> float:
+        """When the current activation began (what broadcasts report), UNKNOWN if idle."""
+        task = self.active_task
+        return self.sets[task].activated_at if task is not None else UNKNOWN
+
     # ------------------------------------------------------------ the update
     def tick(self, now: float) -> tuple[list[MotivationState], list[TaskSwitch]]:
         transitions: list[TaskSwitch] = []
         candidates: list[tuple[float, str]] = []
+        was_active = {task for task, s in self.sets.items() if s.active}  # E.2: previous tick
         for task, s in self.sets.items():
             p = s.params
             s.applicable = s.feedback and s.feedback_stamp is not None and \
                 now - s.feedback_stamp <= self.feedback_timeout
-            s.suppressed = any(o.active for t, o in self.sets.items() if t != task)
+            s.suppressed = any(t != task for t in was_active)
+            for k in [k for k, r in s.others.items() if now - r.last_heard > 10 * self.tau]:
+                del s.others[k]  # long gone: forget it (heard again, it is a new start)
             fresh = {k: r for k, r in s.others.items() if now - r.last_heard <= self.tau}
-            s.resetted = False
-            for k, r in s.others.items():
-                is_fresh = k in fresh
-                if is_fresh and not r.fresh_at_last_tick:
-                    s.resetted = True
-                r.fresh_at_last_tick = is_fresh
+            started = [k for k, r in fresh.items() if r.new]
+            for r in s.others.values():
+                r.new = False
+            # E.4, for a set that is not active: another robot newly started the task
+            s.resetted = bool(started) and not s.active
+            if s.resetted and s.motivation > 0.0:
+                transitions.append(TaskSwitch(task, False, f"{', '.join(sorted(started))} "
+                                                           "started the task", "reset"))
             active_for = now - s.activated_at if s.active and s.activated_at is not None else -1.0
-            yielded = bool(fresh) and active_for >= p.yielding_delay
-            gave_up = active_for >= p.giving_up_delay
+            later = self._later_holders(s, fresh) if s.active else []
+            yielded = bool(later) and active_for > p.yielding_delay
+            gave_up = active_for > p.giving_up_delay
             s.acquiescent = s.active and (yielded or gave_up)
             s.impatience = self._impatience(s, fresh, now)
             keep = s.applicable and not s.suppressed and not s.resetted and not s.acquiescent
@@ -147,8 +223,14 @@ class HighLevel:
                 s.motivation = s.motivation + s.impatience
             else:
                 if s.active:
-                    reason = ("acquiesced (yielded)" if yielded else "gave up") if s.acquiescent else \
-                        "reset" if s.resetted else "inapplicable" if not s.applicable else "suppressed"
+                    if yielded:
+                        reason = f"yielded to {later[0]} (it took the task over later)"
+                    elif s.acquiescent:
+                        reason = f"gave up after {active_for:.1f} s (giving_up_delay {p.giving_up_delay:g} s)"
+                    elif not s.applicable:
+                        reason = "inapplicable"
+                    else:
+                        reason = "suppressed"
                     transitions.append(TaskSwitch(task, False, reason))
                 s.motivation = 0.0
                 s.active = False
@@ -157,8 +239,8 @@ class HighLevel:
                 s.motivation = min(s.motivation, p.threshold)
             elif s.motivation >= p.threshold:
                 candidates.append((s.motivation / p.threshold, task))
-        # A set beside an active one is suppressed (motivation 0), so candidates only exist
-        # while no set is active.
+        # A set beside one that was active when the tick began is suppressed (motivation 0),
+        # so candidates only exist when none was; only one activates.
         if candidates:
             candidates.sort(key=lambda c: -c[0])  # stable: ties go to the first listed set
             _, winner = candidates[0]
@@ -173,6 +255,11 @@ class HighLevel:
                                   s.applicable, s.motivation, s.params.threshold, s.active)
                   for t, s in self.sets.items()]
         return states, transitions
+
+    def _later_holders(self, s: SetState, fresh: dict[str, OtherRobot]) -> list[str]:
+        """Robots doing this task whose activation comes after ours in (start, id) order."""
+        mine = (s.activated_at, self.robot_id)
+        return sorted(k for k, r in fresh.items() if (r.started(), k) > mine)
 
     def _impatience(self, s: SetState, fresh: dict[str, OtherRobot], now: float) -> float:
         p = s.params

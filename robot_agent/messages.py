@@ -8,11 +8,16 @@ from mrta_zenoh.messages import Finite, Header, Message, message
 
 @message("alliance_msgs/InterRobotCommunication")
 class InterRobotCommunication(Message):
-    """"I am doing `task_id`": broadcast while a behaviour set is active (Parker's E.3)."""
+    """"I am doing `task_id`": broadcast while a behaviour set is active (Parker's E.3).
+
+    `active_since` (our addition; optional on the wire, -1 = not reported): when the sender's
+    current activation began, on its clock — what lets two robots on one task agree on which
+    one yields (robot_agent/high_level.py)."""
 
     header: Header
     task_id: str
     expected_duration: Finite
+    active_since: Finite = -1.0
 
 
 @message("alliance_msgs/Motivation")

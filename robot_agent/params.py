@@ -53,6 +53,7 @@ class RobotParams:
     sensors: tuple[SensorParams, ...]
     behaviour_sets: tuple[BehaviourSetParams, ...]
     control_rate: float = 10.0
+    max_expected_duration: float = 3600.0  # broadcasts announcing more are refused
 
 
 @dataclass(frozen=True)
@@ -118,7 +119,7 @@ class _Mapping:
 
 
 ROBOT_KEYS = {"name", "spin_rate", "broadcast_rate", "timeout_duration", "buffer_horizon",
-              "sensors", "behaviour_sets", "control_rate", "id"}
+              "sensors", "behaviour_sets", "control_rate", "id", "max_expected_duration"}
 
 
 def load_robot_params(path: Path | str) -> tuple[RobotParams, list[str]]:
@@ -184,6 +185,7 @@ def load_robot_params(path: Path | str) -> tuple[RobotParams, list[str]]:
         buffer_horizon=top.get("buffer_horizon", float, 10.0, positive=True),
         sensors=tuple(sensors), behaviour_sets=tuple(sets),
         control_rate=top.rate("control_rate", 10.0),
+        max_expected_duration=top.get("max_expected_duration", float, 3600.0, positive=True),
     )
     tick = 1.0 / robot.spin_rate
     if robot.timeout_duration <= tick:

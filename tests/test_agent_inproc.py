@@ -92,9 +92,30 @@ def test_ignores_own_broadcasts_mismatched_frame_ids_and_malformed_samples(tmp_p
 
 def test_another_robots_broadcast_slows_impatience(tmp_path):
     agent, bus, clock = make(tmp_path, [{"task": "a", "fast": 5.0, "theta": 100.0}])
+    bus.declare_token("robot2/alliance/agent")  # a teammate: its agent is alive
     for _ in range(3):
         bus.publish("/robot2/alliance/inter_robot_communication".strip("/"),
                     InterRobotCommunication(Header("/robot2", clock.now(), 0), "a", 100.0))
         step(agent, bus, clock, 1)
     # slow = θ / (expected · ρ) = 100 / (100 · 10) = 0.1 per tick
     assert agent.high.sets["a"].impatience == 0.1
+
+
+def test_broadcasts_from_robots_without_an_agent_token_are_ignored(tmp_path):
+    """A forged robot9 (no agent token) doing the task cannot slow anybody down."""
+    agent, bus, clock = make(tmp_path, [{"task": "a", "fast": 5.0, "theta": 100.0}])
+    for _ in range(3):
+        bus.publish("robot9/alliance/inter_robot_communication",
+                    InterRobotCommunication(Header("robot9", clock.now(), 0), "a", 100.0))
+        step(agent, bus, clock, 1)
+    assert agent.ignored_strangers == 3 and agent.high.sets["a"].others == {}
+    assert agent.high.sets["a"].impatience == 5.0
+
+
+def test_absurd_expected_durations_are_refused_and_counted(tmp_path):
+    agent, bus, clock = make(tmp_path, [{"task": "a", "fast": 5.0, "theta": 100.0}])
+    bus.declare_token("robot2/alliance/agent")
+    bus.publish("robot2/alliance/inter_robot_communication",
+                InterRobotCommunication(Header("robot2", clock.now(), 0), "a", 1e300))
+    step(agent, bus, clock, 2)
+    assert agent.refused == 1 and agent.high.sets["a"].impatience == 5.0

@@ -3,19 +3,22 @@
 import logging
 import math
 
+import pytest
+
 from robot_agent.high_level import HighLevel
 from tests.alliance_fixtures import bset, robot
 
 
 def run(hl, t0, ticks, applicable=True, others=(), spin=1.0):
-    """Tick `ticks` times from t0; `others`: (robot, task, expected) broadcast before each tick."""
+    """Tick `ticks` times from t0; `others`: (robot, task, expected[, active_since]) broadcast
+    before each tick."""
     out = []
     for i in range(ticks):
         now = t0 + i / spin
         for task in hl.sets:
             hl.on_feedback(task, applicable, now)
-        for rid, task, expected in others:
-            hl.on_broadcast(rid, task, expected, now)
+        for rid, task, expected, *since in others:
+            hl.on_broadcast(rid, task, expected, now, *since)
         states, transitions = hl.tick(now)
         out.append(({s.task_id: s for s in states}, transitions))
     return out
@@ -69,50 +72,100 @@ def test_phi_expiry_switches_back_to_fast():
     assert [st["t"].impatience for st, _ in trace] == [25.0] * 4 + [50.0] * 2
 
 
-def test_yield_and_give_up_timing():
-    # Active from t=1 (θ=20, fast=10). Another robot appears at t=2 and keeps broadcasting.
+def test_an_active_robot_is_not_reset_by_a_newcomer_and_yields_to_it_after_more_than_psi():
+    # Active from t=1 (θ=20, fast=10 → 2 ticks). r2 starts the task at t=2 (active_since 2).
     hl = HighLevel("r1", robot(bset("t", theta=20.0, fast=10.0, yielding=4.0, giving_up=100.0)))
     run(hl, 0.0, 2)
     assert hl.sets["t"].active and hl.sets["t"].activated_at == 1.0
-    trace = run(hl, 2.0, 4, others=[("r2", "t", 1000.0)])
-    # reset at t=2 (r2 newly started) deactivates immediately
-    assert trace[0][1][0].reason == "reset" and not trace[0][0]["t"].active
-
-
-def test_yield_when_other_robot_already_known():
-    hl = HighLevel("r1", robot(bset("t", theta=20.0, fast=10.0, yielding=4.0, giving_up=100.0)))
-    hl.sets["t"].active, hl.sets["t"].activated_at, hl.sets["t"].motivation = True, 0.0, 20.0
-    hl.on_broadcast("r2", "t", 1000.0, 0.0)
-    hl.sets["t"].others["r2"].fresh_at_last_tick = True  # already known: no reset
-    trace = run(hl, 1.0, 5, others=[("r2", "t", 1000.0)])
+    trace = run(hl, 2.0, 5, others=[("r2", "t", 1000.0, 2.0)])
     actives = [st["t"].active for st, _ in trace]
-    assert actives == [True, True, True, False, False]  # active for 4 s at t=4 → yields
-    assert trace[3][1][0].reason == "acquiesced (yielded)"
-    assert trace[3][0]["t"].acquiescent
+    # active for 1, 2, 3, 4 s at t=2…5: not *more than* ψ=4 (E.5); at t=6, 5 s > 4 → yields
+    assert actives == [True, True, True, True, False]
+    assert not any(st["t"].resetted for st, _ in trace)  # E.4 does not apply to an active set
+    (switch,) = trace[4][1]
+    assert switch.reason.startswith("yielded to r2") and trace[4][0]["t"].acquiescent
+    assert trace[4][0]["t"].motivation == 0.0
 
 
-def test_give_up_after_lambda_even_alone():
+def test_the_later_holder_keeps_the_task():
+    # r1 active from t=1; r2 reports it has been active since t=0.5 (earlier): r1 keeps
+    hl = HighLevel("r1", robot(bset("t", theta=20.0, fast=10.0, yielding=1.0, giving_up=100.0)))
+    run(hl, 0.0, 2)
+    trace = run(hl, 2.0, 6, others=[("r2", "t", 1000.0, 0.5)])
+    assert all(st["t"].active for st, _ in trace)
+
+
+def test_same_start_ties_break_by_robot_id():
+    # ordered by (start, id): (1.0, "r2") comes after (1.0, "r1") — r2 keeps, r1 yields
+    for me, other, keeps in (("r1", "r2", False), ("r3", "r2", True)):
+        hl = HighLevel(me, robot(bset("t", theta=20.0, fast=10.0, yielding=1.0, giving_up=100.0)))
+        run(hl, 0.0, 2)  # active from t=1
+        trace = run(hl, 2.0, 2, others=[(other, "t", 1000.0, 1.0)])
+        assert trace[-1][0]["t"].active is keeps
+
+
+def test_give_up_after_more_than_lambda_even_alone():
     hl = HighLevel("r1", robot(bset("t", theta=20.0, fast=10.0, yielding=1.0, giving_up=5.0)))
-    trace = run(hl, 0.0, 10)
+    trace = run(hl, 0.0, 11)
     actives = [st["t"].active for st, _ in trace]
-    # active at t=1, gives up at t=6 (active 5 s), motivation restarts: 10 at t=7, active at t=8
-    assert actives == [False, True, True, True, True, True, False, False, True, True]
-    assert trace[6][1][0].reason == "gave up"
+    # active at t=1; active for exactly λ=5 s at t=6 (kept), 6 s at t=7 → gives up (E.5 ">");
+    # motivation restarts: 10 at t=8, 20 → active at t=9
+    assert actives == [False, True, True, True, True, True, True, False, False, True, True]
+    (switch,) = trace[7][1]
+    assert switch.reason.startswith("gave up after 6.0 s") and not switch.active
 
 
-def test_reset_once_for_each_newly_started_robot():
+def test_the_switch_off_tick():
+    # the tick where the active set switches off publishes motivation 0, active False,
+    # acquiescent True, and the previous tick still showed it active at θ
+    hl = HighLevel("r1", robot(bset("t", theta=20.0, fast=10.0, yielding=1.0, giving_up=2.0)))
+    trace = run(hl, 0.0, 5)
+    before, off = trace[3][0]["t"], trace[4][0]["t"]
+    assert (before.active, before.motivation, before.acquiescent) == (True, 20.0, False)
+    assert (off.active, off.motivation, off.acquiescent) == (False, 0.0, True)
+
+
+def test_reset_once_for_each_new_activation_not_for_late_or_lost_broadcasts():
     hl = HighLevel("r1", robot(bset("t", theta=1000.0, fast=10.0), tau=2.0))
     resets = []
-    for i in range(12):
+    for i in range(20):
         now = float(i)
         hl.on_feedback("t", True, now)
-        if 2 <= i:
-            hl.on_broadcast("r2", "t", 500.0, now)
+        if 2 <= i < 15 and i not in (8, 9, 10):  # r2's broadcasts lost 4 s (> τ): same activation
+            hl.on_broadcast("r2", "t", 500.0, now, 2.0)
         if 6 <= i:
-            hl.on_broadcast("r3", "t", 500.0, now)
+            hl.on_broadcast("r3", "t", 500.0, now + 0.01, 6.0)  # jittered
+        if i >= 15:
+            hl.on_broadcast("r2", "t", 500.0, now, 15.0)  # r2 started anew
         states, _ = hl.tick(now)
         resets.append(states[0].resetted)
-    assert [i for i, r in enumerate(resets) if r] == [2, 6]  # not once per process: once per robot
+    assert [i for i, r in enumerate(resets) if r] == [2, 6, 15]
+
+
+def test_a_sender_without_active_since_is_new_only_after_a_long_lapse():
+    hl = HighLevel("r1", robot(bset("t", theta=1000.0, fast=10.0), tau=2.0))
+    resets = []
+    for i in range(16):
+        now = float(i)
+        hl.on_feedback("t", True, now)
+        # every 2 s, +10 ms of latency on every other one: gaps of 2.01 s > τ = 2 s, but within
+        # 1.5 × its own interval; then silent 6 s (> τ and > 1.5 × 2 s): a new start at 14
+        if i <= 8 and i % 2 == 0:
+            hl.on_broadcast("r2", "t", 500.0, now + (0.01 if i % 4 else 0.0))
+        if i == 14:
+            hl.on_broadcast("r2", "t", 500.0, now)
+        states, _ = hl.tick(now + 0.02)
+        resets.append(states[0].resetted)
+    assert [i for i, r in enumerate(resets) if r] == [0, 14]
+
+
+@pytest.mark.parametrize("expected", [0.0, -5.0, 1e300, math.inf])
+def test_absurd_expected_durations_are_refused(expected):
+    hl = HighLevel("r1", robot(bset("t", theta=100.0, fast=10.0)))
+    assert hl.on_broadcast("r2", "t", expected, 0.0) is False
+    assert hl.sets["t"].others == {}
+    trace = run(hl, 0.0, 3)
+    assert [st["t"].impatience for st, _ in trace] == [10.0] * 3  # impatience not frozen
 
 
 def test_suppression_one_active_set_at_a_time():
@@ -125,11 +178,31 @@ def test_suppression_one_active_set_at_a_time():
         assert st["b"].suppressed and st["b"].motivation == 0.0
 
 
-def test_simultaneous_threshold_crossing_picks_one():
-    hl = HighLevel("r1", robot(bset("a", theta=30.0, fast=10.0), bset("b", theta=20.0, fast=10.0)))
-    trace = run(hl, 0.0, 3)
-    # b crosses at tick 2 (20/20), a would at tick 3; b wins tick 2 then a is suppressed
-    assert trace[1][0]["b"].active and not trace[2][0]["a"].active
+def test_a_true_simultaneous_threshold_crossing_picks_the_furthest_past_its_threshold():
+    # both cross on tick 2: a at 24/20 = 1.2 θ, b at 22/20 = 1.1 θ → a wins, b suppressed
+    for order in (("a", "b"), ("b", "a")):
+        sets = {"a": bset("a", theta=20.0, fast=12.0), "b": bset("b", theta=20.0, fast=11.0)}
+        hl = HighLevel("r1", robot(*(sets[k] for k in order)))
+        trace = run(hl, 0.0, 3)
+        st, switches = trace[1]
+        assert [(s.task_id, s.active) for s in switches] == [("a", True)]
+        assert st["a"].active and st["a"].motivation == 20.0
+        assert st["b"].suppressed and st["b"].motivation == 0.0 and not st["b"].active
+
+
+def test_suppression_uses_the_previous_ticks_activity_whatever_the_order():
+    # a (active from t=0) gives up at t=3 (active 3 s > λ=2); on that tick b is still
+    # suppressed — a was active when the tick began — whichever set is listed first
+    traces = []
+    for order in (("a", "b"), ("b", "a")):
+        sets = {"a": bset("a", theta=20.0, fast=20.0, giving_up=2.0, yielding=100.0),
+                "b": bset("b", theta=20.0, fast=10.0, giving_up=100.0, yielding=100.0)}
+        hl = HighLevel("r1", robot(*(sets[k] for k in order)))
+        trace = run(hl, 0.0, 6)
+        assert [st["a"].active for st, _ in trace][:4] == [True, True, True, False], order
+        assert trace[3][0]["b"].suppressed and trace[3][0]["b"].motivation == 0.0, order
+        traces.append([(st["a"], st["b"]) for st, _ in trace])
+    assert traces[0] == traces[1]
 
 
 def test_inapplicable_deactivates_and_zeroes():
