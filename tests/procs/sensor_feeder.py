@@ -1,4 +1,7 @@
-"""Publishes fresh odometry and sonar for the named robots at 10 Hz (a stand-in simulator)."""
+"""Publishes fresh odometry and sonar for the named robots at 10 Hz (a stand-in simulator).
+
+argv: [--connect ENDPOINT] ROBOT… — with --connect, a client of that router (a robot's own
+sensors on its own island), else a zero-configuration peer."""
 
 import sys
 import time
@@ -8,9 +11,14 @@ from mrta_zenoh.bus import BusOptions, open_bus
 from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.messages import Header, Odometry, Point2D, PointCloud, Pose2D, Twist
 
-robots = sys.argv[1:]
-with stop_on_signals() as stop, open_bus(BusOptions()) as bus:
-    bus.declare_token("feeder")
+args = sys.argv[1:]
+options = BusOptions()
+if args[:1] == ["--connect"]:
+    options = BusOptions(mode="client", connect=[args[1]])
+    args = args[2:]
+robots = args
+with stop_on_signals() as stop, open_bus(options) as bus:
+    bus.declare_token("@mrta/test/feeder")
     print("ready", flush=True)
     while not stop.is_set():
         now = time.time()
