@@ -41,11 +41,15 @@ def test_round_trip(msg):
 
 
 def test_wire_format_is_a_plain_msgpack_map():
-    msg = InterRobotCommunication(Header("robot1", 1.5, 2), "wander", 100.0)
+    msg = InterRobotCommunication(Header("robot1", 1.5, 2), "wander", 100.0, 0.5)
     assert msgpack.unpackb(codec.encode(msg)) == {
         "header": {"frame_id": "robot1", "stamp": 1.5, "seq": 2},
-        "task_id": "wander", "expected_duration": 100.0,
+        "task_id": "wander", "expected_duration": 100.0, "active_since": 0.5,
     }
+    # a client that does not know active_since (the original alliance_msgs) is still understood
+    old = msgpack.packb({"header": {"frame_id": "robot1", "stamp": 1.5, "seq": 2},
+                         "task_id": "wander", "expected_duration": 100.0})
+    assert codec.decode(msg.TYPE_NAME, old).active_since == -1.0
     assert codec.encoding_for(msg.TYPE_NAME) == "application/msgpack;alliance_msgs/InterRobotCommunication"
 
 

@@ -47,7 +47,7 @@ def test_bundled_patrol_world_loads():
 
 BAD = [
     ("bad.map", "2D-Map\nLINES\n0 0 1000\n", 3, "needs 4 numbers"),
-    ("bad.map", "2D-Map\nLINES\n0 0 1000 x\n", 3, "must be numbers"),
+    ("bad.map", "2D-Map\nLINES\n0 0 1000 x\n", 3, "must be finite numbers"),
     ("bad.map", "hello\n", 1, "2D-Map"),
     ("bad.map", "2D-Map\nNumLines: 3\nLINES\n0 0 1000 0\nDATA\n", 2, "NumLines says 3"),
     ("bad.map", "2D-Map\nCairn: RobotHome 1 x 0 \"\" ICON \"\"\nLINES\n", 2, "RobotHome needs"),
