@@ -12,6 +12,7 @@ import time
 from typing import Protocol
 
 log = logging.getLogger("mrta.clock")
+EPSILON = 1e-9  # simulated times this close are the same instant (sums of 0.02 s steps drift)
 
 
 class Clock(Protocol):
@@ -132,7 +133,7 @@ class SimClock(ManualClock):
         new run to reach a time of the old one."""
         with self._cond:
             epoch = self.restarts
-            while self._now < t and self.restarts == epoch:
+            while self._now < t - EPSILON and self.restarts == epoch:
                 if stop is not None and stop.is_set():
                     return False
                 self._cond.wait(0.05)

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 import collections
 import logging
+import os
+import signal
 import threading
 from typing import Any
 
@@ -16,7 +18,7 @@ import msgspec
 import numpy as np
 
 from mrta_zenoh.bus import Bus, Sample
-from mrta_zenoh.clock import Clock
+from mrta_zenoh.clock import EPSILON, Clock
 from mrta_zenoh.keys import first_chunk, normalize_robot_id
 from mrta_zenoh.messages import Header
 from mrta_zenoh.seeds import robot_rng
@@ -101,6 +103,7 @@ class Agent:
         self._last_broadcast: float | None = None
         self._token = None
         self._irc_sub = None
+        self.crash_at: float | None = None  # fault injection: SIGKILL itself at this time
 
     # ------------------------------------------------------------ set-up
     def start(self) -> None:
@@ -141,7 +144,15 @@ class Agent:
                 log.warning("%s: ignoring broadcasts from %s, which holds no agent token "
                             "(%d so far)", self.robot_id, sender, self.ignored_strangers)
             return
-        self._inbox.append((sender, sample.message, self.clock.now()))
+        msg = sample.message
+        # in lockstep every robot shares one simulated time: the sender's stamp is exact and
+        # does not depend on when the network delivered it
+        t = msg.header.stamp if self._lockstep() else self.clock.now()
+        self._inbox.append((sender, msg, t))
+
+    def _lockstep(self) -> bool:
+        flag = getattr(self.clock, "lockstep", None)
+        return flag is not None and flag.is_set()
 
     # ------------------------------------------------------------ one step of each level
     def _header(self, key: str, now: float) -> Header:
@@ -149,8 +160,12 @@ class Agent:
         return Header(self.robot_id, now, self._seq[key])
 
     def tick_high(self, now: float) -> list[TaskSwitch]:
+        later = []  # in lockstep, a broadcast stamped at this very time waits for the next tick
         while self._inbox:
             sender, msg, t = self._inbox.popleft()
+            if t >= now and self._lockstep():
+                later.append((sender, msg, t))
+                continue
             if not self.high.on_broadcast(sender, msg.task_id, msg.expected_duration, t,
                                           msg.active_since):
                 self.refused += 1
@@ -158,6 +173,7 @@ class Agent:
                     log.warning("%s: refused a broadcast from %s for %r with expected_duration "
                                 "%g (%d so far)", self.robot_id, sender, msg.task_id,
                                 msg.expected_duration, self.refused)
+        self._inbox.extendleft(reversed(later))
         fb_key = keys.sensory_feedback(self.robot_id)
         for task, ev in self.plugins.evaluators.items():
             applicable = bool(ev.is_applicable(now))
@@ -237,18 +253,22 @@ class Agent:
             if not self.clock.sleep_until(t, stop):
                 break
             now = self.clock.now()
+            if self.crash_at is not None and now >= self.crash_at:
+                log.warning("%s: crashing at t=%.2f as asked (fault injection)", self.robot_id, now)
+                logging.shutdown()
+                os.kill(os.getpid(), signal.SIGKILL)  # no shutdown, no goodbye: a real crash
             if getattr(self.clock, "restarts", 0) != epoch:
                 epoch = self.clock.restarts
                 self.restart(now)
                 next_high, next_ctrl, last_ctrl = now, now, now
                 if until is not None:
                     until = now + (until - t)
-            if now >= next_high:
+            if now >= next_high - EPSILON:
                 self.tick_high(now)
                 next_high += high_period
                 if next_high <= now:  # fell behind: skip, don't burst
                     next_high = now + high_period
-            if now >= next_ctrl:
+            if now >= next_ctrl - EPSILON:
                 self.step_layers(now, now - last_ctrl)
                 last_ctrl = now
                 next_ctrl += ctrl_period

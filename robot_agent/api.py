@@ -8,11 +8,13 @@ from __future__ import annotations
 
 import logging
 import math
+import os
 import threading
 from pathlib import Path
 
 from mrta_zenoh.bus import BusOptions, open_bus
 from mrta_zenoh.clock import SimClock, WallClock, follow_sim_clock
+from mrta_zenoh.lockstep import LockstepClock
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.keys import normalize_robot_id
 from mrta_zenoh.lifecycle import stop_on_signals
@@ -40,22 +42,47 @@ def prepare(*, robot_id: str, robot_params: Path, tasks_params: Path,
     return rid, params, plugins
 
 
+CRASH_ENV = "MRTA_CRASH"  # ROBOT@SECONDS[,ROBOT@SECONDS…]: fault injection for experiments
+
+
+def crash_time(robot_id: str, crash_at: float | None) -> float | None:
+    """When this robot's agent is to crash: --crash-at, or its entry in $MRTA_CRASH."""
+    if crash_at is not None:
+        return crash_at
+    for item in filter(None, os.environ.get(CRASH_ENV, "").split(",")):
+        robot, sep, when = item.strip().partition("@")
+        try:
+            t = float(when)
+        except ValueError:
+            raise ConfigError(f"${CRASH_ENV}: {item!r} is not ROBOT@SECONDS") from None
+        if not sep or not math.isfinite(t):
+            raise ConfigError(f"${CRASH_ENV}: {item!r} is not ROBOT@SECONDS")
+        if robot == robot_id:
+            return t
+    return None
+
+
 def run_agent(*, robot_id: str, robot_params: Path, tasks_params: Path,
               layers_params: Path | None = None, bus_options: BusOptions,
               sim_time: bool = False, seed: int = 0, duration: float | None = None,
-              stop: threading.Event | None = None) -> int:
+              crash_at: float | None = None, stop: threading.Event | None = None) -> int:
     rid, params, plugins = prepare(robot_id=robot_id, robot_params=robot_params,
                                    tasks_params=tasks_params, layers_params=layers_params)
     for w in params.warnings:
         log.warning("%s", w)
-    clock = SimClock() if sim_time else WallClock()
+    crash = crash_time(rid, crash_at)
+    clock = LockstepClock(rid) if sim_time else WallClock()
     with stop_on_signals(stop) as stop, open_bus(bus_options) as bus:
         agent = Agent(rid, params, bus, clock, robot_rng(seed, rid), plugins)
-        handles = follow_sim_clock(bus, clock) if sim_time else []
+        # on simulation time, follow the clock, and take part in lockstep when the simulator
+        # runs it (the participant token goes out before the agent's own: alive means ready)
+        handles = follow_sim_clock(bus, clock) + clock.join(bus) if sim_time else []
         agent.start()
         agent.declare_alive()
         log.info("%s: ready (%d behaviour sets, %s time)", rid, len(params.robot.behaviour_sets),
                  "simulation" if sim_time else "wall")
+        if crash is not None:
+            agent.crash_at = crash
         watchdog = None
         if sim_time:
             watchdog = threading.Thread(target=_clock_watchdog, args=(agent, clock, stop),

@@ -25,11 +25,15 @@ from .api import run_agent
               help="The run's master seed; this robot's stream is derived from it and its id.")
 @click.option("--duration", type=finite_float(min=0, min_open=True),
               help="Stop after this many seconds (of the agent's clock).")
+@click.option("--crash-at", type=finite_float(min=0), metavar="SECONDS",
+              help="Fault injection: SIGKILL itself when its clock reaches SECONDS (also "
+                   "$MRTA_CRASH=ROBOT@SECONDS,…). Exact in lockstep: experiments replay it.")
 @bus_options
 def agent(robot_id: str, robot_params: Path, tasks_params: Path, layers_params: Path | None,
-          sim_time: bool, seed: int, duration: float | None, bus_options: BusOptions) -> None:
+          sim_time: bool, seed: int, duration: float | None, crash_at: float | None,
+          bus_options: BusOptions) -> None:
     """Run ROBOT_ID's ALLIANCE agent: motivational behaviours, sensors, evaluators and layers."""
     with user_errors():
         run_agent(robot_id=robot_id, robot_params=robot_params, tasks_params=tasks_params,
                   layers_params=layers_params, bus_options=bus_options, sim_time=sim_time,
-                  seed=seed, duration=duration)
+                  seed=seed, duration=duration, crash_at=crash_at)

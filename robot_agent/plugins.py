@@ -121,9 +121,14 @@ class Sensor(Plugin):
     def setup(self, ctx: AgentContext) -> None:
         super().setup(ctx)
         clock = ctx.clock
+        lockstep = getattr(clock, "lockstep", None)
 
         def handler(sample):
-            self.on_message(sample.message, clock.now())
+            # in lockstep, simulated time is shared: the sample's own stamp is exact, whatever
+            # step the participant's clock shows when it arrives
+            header = getattr(sample.message, "header", None)
+            stamped = lockstep is not None and lockstep.is_set() and header is not None
+            self.on_message(sample.message, header.stamp if stamped else clock.now())
 
         self.subscribe(keys.robot_topic(ctx.robot_id, self.params.topic_name), handler,
                        msg_type=self.message_type)

@@ -15,6 +15,8 @@ from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.toolchain.registry import Registry
 
+from mrta_zenoh.lockstep import Barrier
+
 from .engine import Simulation
 from .node import RunStats, SimNode
 from .robot_model import RobotModel
@@ -86,6 +88,7 @@ def place_robots(world: World, specs: list[tuple[str, str | Pose | None]]) -> di
 def run_simulator(*, world: str, robots: list[str], bus_options: BusOptions, speed: float = 1.0,
                   seed: int = 0, duration: float | None = None, snapshot: Path | None = None,
                   rear_sonars: bool = False, wait_robots: float | None = None,
+                  lockstep: bool = False, lockstep_timeout: float = 5.0,
                   stop: threading.Event | None = None) -> RunStats:
     world_spec, robot_specs = world, robots
     if speed < 0 or not math.isfinite(speed):
@@ -104,16 +107,24 @@ def run_simulator(*, world: str, robots: list[str], bus_options: BusOptions, spe
                      record_trails=snapshot is not None)
     run_id = os.urandom(6).hex()  # tells followers a restarted simulator from this run
     with stop_on_signals(stop) as stop, open_bus(bus_options) as bus:
+        bus.counting = lockstep  # from the start: lockstep counts the commands it receives
         node = SimNode(sim, bus, speed, run_id=run_id)
         if wait_robots is not None and not wait_for_robots(bus, list(robots), wait_robots, stop):
             return node.stats
+        barrier = Barrier(bus, run_id, lockstep_timeout) if lockstep else None
+        if barrier is not None:
+            time.sleep(0.2)  # the participants' tokens arrive (history of the liveliness watch)
         with bus.declare_token(f"{keys.CLOCK_SOURCE_TOKEN}/{run_id}"):
-            log.info("ready: %d robots in %s (%d walls), speed %s, seed %d", len(robots),
-                     world.name, len(world.walls), speed if speed else "max", seed)
+            log.info("ready: %d robots in %s (%d walls), speed %s, seed %d%s", len(robots),
+                     world.name, len(world.walls), speed if speed else "max", seed,
+                     f", lockstep with {len(barrier.participants)} participants"
+                     if barrier is not None else "")
             try:
-                stats = node.run(stop, duration)
+                stats = node.run(stop, duration, barrier)
             finally:
                 node.close()
+                if barrier is not None:
+                    barrier.close()
                 if snapshot is not None:
                     save_snapshot(sim, snapshot)
                     log.info("snapshot written to %s", snapshot)

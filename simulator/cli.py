@@ -26,15 +26,23 @@ from .api import run_simulator
 @click.option("--snapshot", type=click.Path(dir_okay=False, path_type=Path),
               help="On exit, write a PNG of the world with robots, sonar beams and trails.")
 @click.option("--rear-sonars", is_flag=True, help="Also simulate the 8 rear transducers.")
+@click.option("--lockstep", is_flag=True,
+              help="Advance only when every agent following simulation time is done with the "
+                   "current step: runs reproducible whatever the machine's load.")
+@click.option("--lockstep-timeout", type=finite_float(min=0, min_open=True), default=5.0,
+              show_default=True, metavar="SECONDS",
+              help="Stop waiting for a participant silent this long (wall time); it is reported.")
 @click.option("--wait-robots", type=finite_float(min=0), metavar="SECONDS",
               help="Start the clock only once every robot has a process up (a liveliness token "
                    "under robotN/**), waiting at most this long.")
 @bus_options
 def sim(world_spec: str, robots: tuple[str, ...], speed: float, seed: int,
         duration: float | None, snapshot: Path | None, rear_sonars: bool,
-        wait_robots: float | None, bus_options: BusOptions) -> None:
+        wait_robots: float | None, lockstep: bool, lockstep_timeout: float,
+        bus_options: BusOptions) -> None:
     """Simulate Pioneer 3-DX robots: cmd_vel in; clock, sonar, odom, ground_truth, bumper out."""
     with user_errors():
         run_simulator(world=world_spec, robots=list(robots), bus_options=bus_options, speed=speed,
                       seed=seed, duration=duration, snapshot=snapshot, rear_sonars=rear_sonars,
-                      wait_robots=wait_robots)
+                      wait_robots=wait_robots, lockstep=lockstep,
+                      lockstep_timeout=lockstep_timeout)

@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 from mrta_zenoh import keys
 from mrta_zenoh.bus import Bus
+from mrta_zenoh.lockstep import Barrier
 from mrta_zenoh.messages import Clock, Header, Odometry, Point2D, PointCloud, Pose2D, Twist
 
 from .engine import SENSOR_EVERY, Simulation
@@ -87,11 +88,22 @@ class SimNode:
             self._warned.add(what)
             log.warning(text)
 
-    def run(self, stop: threading.Event, duration: float | None = None) -> RunStats:
+    def run(self, stop: threading.Event, duration: float | None = None,
+            barrier: Barrier | None = None) -> RunStats:
+        """Step until `duration` (simulated) or `stop`. With a lockstep `barrier`, each step's
+        sensor data go out first, then the step, and the next step waits for every participant
+        (mrta_zenoh.lockstep)."""
         sim = self.sim
-        self.bus.publish(keys.CLOCK, Clock(sim.time, self.run_id), lossy=True)
+        if barrier is None:
+            self.bus.publish(keys.CLOCK, Clock(sim.time, self.run_id), lossy=True)
         if self.publish_sensors:
             self.publish_all()
+        if barrier is not None:
+            # participants follow steps; the clock (for observers) only once they are in step,
+            # so that no participant starts on the clock ahead of its sensor data
+            barrier.publish(sim.time)
+            barrier.wait(sim.time, stop)
+            self.bus.publish(keys.CLOCK, Clock(sim.time, self.run_id), lossy=True)
         wall0, sim0 = self._monotonic(), sim.time
         while not stop.is_set():
             if duration is not None and sim.time >= duration - 1e-9:
@@ -101,6 +113,9 @@ class SimNode:
             self.bus.publish(keys.CLOCK, Clock(sim.time, self.run_id), lossy=True)
             if self.publish_sensors and sim.steps % SENSOR_EVERY == 0:
                 self.publish_all()
+            if barrier is not None and barrier.due(sim.time):
+                barrier.publish(sim.time)
+                barrier.wait(sim.time, stop)
             if self.speed > 0:
                 ahead = (sim.time - sim0) / self.speed - (self._monotonic() - wall0)
                 if ahead > 0 and stop.wait(ahead):

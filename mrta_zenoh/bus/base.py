@@ -16,7 +16,7 @@ from typing import Any, Callable, Iterator
 import msgspec
 
 from .. import codec
-from ..keys import validate_key_expr
+from ..keys import matches, validate_key_expr
 from ..messages import GenericMessage, Message
 
 log = logging.getLogger("mrta.bus")
@@ -99,6 +99,7 @@ class Subscription:
         self.msg_type = msg_type
         self.on_error = on_error
         self.raw = raw
+        self.counts: collections.Counter[str] = collections.Counter()  # per key, when counting
         self.received = 0
         self.malformed = 0
         self.wrong_type = 0
@@ -181,7 +182,11 @@ class Subscription:
             except Exception:  # a user's handler must never kill the network thread
                 self.bus.stats.add("handler_errors")
                 log.exception("handler for %s raised", self.key_expr)
+            if self.bus.counting:  # after the handler: "received" means "taken into account"
+                self.bus._counted(self, sample.key)
             return
+        if self.bus.counting:
+            self.bus._counted(self, sample.key)
         with self._cond:
             if len(self._queue) == self._queue.maxlen:
                 self.dropped += 1
@@ -310,6 +315,11 @@ class Bus:
         self._tokens: list[Token] = []
         self._lock = threading.Lock()
         self._closed = False
+        # Lockstep bookkeeping (mrta_zenoh.lockstep), off unless a participant turns it on:
+        # samples published (per key) and received (per subscription and key).
+        self.counting = False
+        self.sent_counts: collections.Counter[str] = collections.Counter()
+        self.on_counted: Callable[[], None] | None = None
 
     # ---- public API
     def publish(self, key: str, msg: Message | GenericMessage, lossy: bool = False) -> None:
@@ -388,7 +398,28 @@ class Bus:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
+    def received_all(self, required: dict[str, int]) -> bool:
+        """Has every subscription of this bus received, per key, at least `required` samples?
+        Keys this bus does not subscribe to, and keys it publishes itself, are not waited for."""
+        own = self.sent_counts
+        for key, n in required.items():
+            if key in own:
+                continue
+            for sub in list(self._subs):
+                if not sub.raw and sub.counts[key] < n and matches(sub.key_expr, key):
+                    return False
+        return True
+
     # ---- for implementations
+    def _count_sent(self, key: str, lossy: bool) -> None:
+        if not key.startswith("@"):  # lockstep's own traffic is not counted
+            self.sent_counts[key] += 1
+
+    def _counted(self, sub: "Subscription", key: str) -> None:
+        sub.counts[key] += 1
+        if self.on_counted is not None:
+            self.on_counted()
+
     def _forget(self, items: list, item: object) -> None:
         """A closed entity leaves the bus's books (long-running processes open and close many)."""
         with self._lock:

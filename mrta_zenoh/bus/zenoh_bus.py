@@ -89,9 +89,13 @@ class ZenohBus(Bus):
             self._typed[key] = entry
         _, pub, enc = entry
         pub.put(_encode(msg), encoding=enc)
+        if self.counting:
+            self._count_sent(key, lossy)
 
     def publish_raw(self, key: str, encoding: str, payload: bytes, lossy: bool = False) -> None:
         self._publisher(key, lossy).put(payload, encoding=self._encoding(encoding))
+        if self.counting:
+            self._count_sent(key, lossy)
 
     def _publisher(self, key: str, lossy: bool = False) -> Any:
         pub = self._publishers.get(key)
@@ -133,7 +137,7 @@ class ZenohBus(Bus):
         encoding string while samples keep the same encoding (comparing Encoding objects costs
         half of converting one to a string), which is what a subscription nearly always sees,
         and calls msgspec's decoder for a known type directly."""
-        handler, make, limit = sub.handler, Sample, codec.MAX_PAYLOAD_BYTES
+        handler, make, limit, bus = sub.handler, Sample, codec.MAX_PAYLOAD_BYTES, sub.bus
         errors, translate = codec.DECODE_ERRORS, codec.translate
         # the last Encoding object, its type name, generic decode, and msgspec's typed decode
         last: tuple = (None, None, None, None)
@@ -170,6 +174,8 @@ class ZenohBus(Bus):
             except Exception:  # a user's handler must never kill the network thread
                 sub.bus.stats.add("handler_errors")
                 log.exception("handler for %s raised", sub.key_expr)
+            if bus.counting:  # after the handler: "received" means "taken into account"
+                bus._counted(sub, key)
 
         return on_sample
 

@@ -25,8 +25,12 @@ from .demo import run_demo
               help="The run's master seed (each robot derives its own stream).")
 @click.option("--live/--no-live", default=None,
               help="Show the live supervisor view (default: when the output is a terminal).")
+@click.option("--lockstep/--no-lockstep", default=True, show_default=True,
+              help="The simulator waits for every agent at each step: the same seed gives the "
+                   "same run whatever the machine's load.")
 def demo(duration: float, speed: float, fail: str, output: Path, seed: int,
-         live: bool | None) -> None:
+         live: bool | None, lockstep: bool) -> None:
     """The patrol application end to end: simulator, agents and supervisor, then a summary."""
     with user_errors():
-        run_demo(duration=duration, speed=speed, fail=fail, output=output, seed=seed, live=live)
+        run_demo(duration=duration, speed=speed, fail=fail, output=output, seed=seed, live=live,
+                 lockstep=lockstep)

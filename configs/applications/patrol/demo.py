@@ -37,7 +37,7 @@ from mrta_zenoh.recording import read_recording
 from mrta_zenoh.toolchain.launchfile import LaunchEvaluator, check_executables
 from mrta_zenoh.toolchain.registry import Registry
 from mrta_zenoh.toolchain.runner import start_nodes
-from robot_agent.api import takeover_bound
+from robot_agent.api import CRASH_ENV, takeover_bound
 from robot_agent.params import load_layers_params
 from robot_agent.plots import plot_motivation
 from supervisor.api import attach
@@ -110,7 +110,7 @@ class Readiness:
 
 def run_demo(*, duration: float = 60.0, speed: float = 2.0, fail: str | None = "robot2@30",
              output: Path = Path("demo-output"), seed: int = 0, live: bool | None = None,
-             stop: threading.Event | None = None, out=None) -> dict:
+             lockstep: bool = True, stop: threading.Event | None = None, out=None) -> dict:
     console = Console(file=out) if out is not None else Console()
     failure = parse_fail(fail)
     reg = Registry()
@@ -127,12 +127,16 @@ def run_demo(*, duration: float = 60.0, speed: float = 2.0, fail: str | None = "
     layers = load_layers_params(config / "layers_alliance_params.yaml")
     border = layers.convert(("BorderProtection",), BorderParams)
     launch_args = {"speed": str(speed), "seed": str(seed),
-                   "sim_args": f"--duration {duration} --snapshot {output / 'world.png'}"}
+                   "sim_args": f"--duration {duration} --snapshot {output / 'world.png'}"
+                               + (" --lockstep" if lockstep else "")}
     nodes = LaunchEvaluator(lambda name: reg.find(name).path).run(pkg.path / "launch" / LAUNCH,
                                                                  launch_args)
     check_executables(nodes)
     rendezvous = private_rendezvous()
     env = dict(os.environ, MRTA_RENDEZVOUS=rendezvous, PYTHONUNBUFFERED="1")
+    if lockstep and failure:
+        # the agent crashes itself at that simulated time: exact, so a run replays exactly
+        env[CRASH_ENV] = f"{failure[0]}@{failure[1]}"
     failed_at: float | None = None
     t_wall0 = time.monotonic()
     with stop_on_signals(stop) as stop, ProcessGroup(env) as group, \
@@ -151,7 +155,7 @@ def run_demo(*, duration: float = 60.0, speed: float = 2.0, fail: str | None = "
         ready.wait(ready.clock.is_set, "the simulator", group, stop)
         show_live = console.is_terminal if live is None else live
         failed_at = _run(sim, sup, clock, agents, failure, duration, speed, stop, console,
-                         show_live)
+                         show_live, kill=not lockstep)
         for h in handles + clock_handles:
             h.close()
         ready.close()
@@ -172,7 +176,7 @@ def run_demo(*, duration: float = 60.0, speed: float = 2.0, fail: str | None = "
 
 def _run(sim: Child, sup: Supervisor, clock: SimClock, agents: dict[str, Child], failure,
          duration: float,
-         speed: float, stop: threading.Event, console: Console, show_live: bool) -> float | None:
+         speed: float, stop: threading.Event, console: Console, show_live: bool, kill: bool = True) -> float | None:
     failed_at = None
     last_line = -10.0
 
@@ -194,9 +198,10 @@ def _run(sim: Child, sup: Supervisor, clock: SimClock, agents: dict[str, Child],
             now = clock.now()
             sup.update(now)
             if failure and failed_at is None and now >= failure[1]:
-                agents[failure[0]].signal(signal.SIGKILL)
-                failed_at = now
-                log.info("killed %s at %.1f s", failure[0], now)
+                if kill:  # otherwise the agent crashed itself at exactly failure[1]
+                    agents[failure[0]].signal(signal.SIGKILL)
+                failed_at = now if kill else failure[1]
+                log.info("killed %s at %.1f s", failure[0], failed_at)
             if live:
                 live.update(Group(header(), render(sup.snapshot(now), console.width)))
             elif now - last_line >= 10.0:
