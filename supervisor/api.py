@@ -18,6 +18,7 @@ from mrta_zenoh.bus import Bus, BusOptions, open_bus
 from mrta_zenoh.clock import SimClock, WallClock, follow_sim_clock
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.lifecycle import stop_on_signals
+from mrta_zenoh.lockstep import STATUS, LockstepStatus
 from mrta_zenoh.toolchain.model import Application, Architecture
 from mrta_zenoh.toolchain.registry import Registry
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
@@ -70,6 +71,9 @@ def attach(sup: Supervisor, bus: Bus, clock) -> list:
         handles.append(bus.subscribe(key_expr, sup.handler_for(monitors, clock.now)))
     handles.append(bus.watch_liveliness("**", lambda k, alive: sup.on_liveliness(k, alive,
                                                                                 clock.now())))
+    handles.append(bus.subscribe(STATUS, lambda s: sup.on_lockstep(s.message.unresponsive,
+                                                                   clock.now()),
+                                 msg_type=LockstepStatus))
     return handles
 
 

@@ -24,7 +24,9 @@ What the bus cannot be trusted with (docs/architecture.md):
   as `unknown_overflow`) and cleared `unknown_expiry` seconds after the id was last seen, so a
   flood of invented ids costs bounded memory;
 * while the simulation clock is stopped (`clock_stopped` alarm) robots are shown `unknown`:
-  their held states are stale, not busy.
+  their held states are stale, not busy;
+* a lockstep simulator's report of participants it no longer waits for raises
+  `participant_unresponsive` (mrta_zenoh.lockstep).
 """
 
 from __future__ import annotations
@@ -317,6 +319,16 @@ class Supervisor:
                 self._clear("clock_stopped", "clock", now)
             for r in self.robots.values():
                 self._reassess_robot(r, now)
+
+    def on_lockstep(self, unresponsive: tuple[str, ...], now: float) -> None:
+        """The lockstep simulator's report: participants it stopped waiting for."""
+        with self._lock:
+            names = set(unresponsive[:self.MAX_UNKNOWN])
+            for kind, subject in list(self.alarms):
+                if kind == "participant_unresponsive" and subject not in names:
+                    self._clear(kind, subject, now)
+            for name in sorted(names):
+                self._raise("participant_unresponsive", name, now)
 
     def restart(self, now: float) -> None:
         """Time restarted (a new simulation run): everything held belongs to the old run."""

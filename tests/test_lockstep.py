@@ -1,0 +1,99 @@
+"""Lockstep simulation time with real processes: the same seed gives the same run whatever the
+machine's load; a dead participant is no longer waited for; a hung one is reported and, after
+the limit, no longer waited for."""
+
+import json
+import signal
+import subprocess
+import sys
+import time
+
+from mrta_zenoh import codec
+from mrta_zenoh.recording import read_recording
+from tests.helpers import PATROL
+
+CONFIG = PATROL / "config"
+
+
+def demo(children, out, *args):
+    d = children.mrta("demo", "--output", out, "--no-live", "--speed", "0", *args, name="demo")
+    assert d.wait(240) == 0, d.stderr[-20:] + d.stdout[-20:]
+    return json.loads((out / "summary.json").read_text())
+
+
+def trace(out):
+    """Activation times from the agents' own stamps, and ground-truth poses at every 2 s."""
+    activations, poses = {}, {}
+    for key, enc, _, payload in read_recording(out / "run.mcap"):
+        if "/alliance/motivation/" in key:
+            m = codec.decode(codec.type_from_encoding(enc), payload)
+            was = activations.setdefault((key.split("/")[0], m.task_id), [])
+            if m.active and (not was or was[-1][1] is None):
+                was.append((m.header.stamp, None))
+            elif not m.active and was and was[-1][1] is None:
+                was[-1] = (was[-1][0], m.header.stamp)
+        elif key.endswith("/ground_truth"):
+            m = codec.decode(codec.type_from_encoding(enc), payload)
+            if abs(m.header.stamp / 2 - round(m.header.stamp / 2)) < 1e-6:
+                poses[(key.split("/")[0], round(m.header.stamp, 2))] = (m.pose.x, m.pose.y,
+                                                                       m.pose.theta)
+    return activations, poses
+
+
+def test_the_same_seed_gives_the_same_run_under_load(children, tmp_path):
+    args = ("--duration", "30", "--fail", "robot2@18", "--seed", "7")
+    demo(children, tmp_path / "quiet", *args)
+    burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
+    try:
+        demo(children, tmp_path / "loaded", *args)
+    finally:
+        for b in burners:
+            b.kill()
+            b.wait()
+    demo(children, tmp_path / "other", "--duration", "30", "--fail", "robot2@18", "--seed", "8")
+    quiet, loaded, other = (trace(tmp_path / d) for d in ("quiet", "loaded", "other"))
+    assert quiet[0] == loaded[0]              # the same activations at the same times, exactly
+    assert quiet[1] == loaded[1] and len(quiet[1]) >= 3 * 15   # the same poses, bit for bit
+    assert ("robot2", "border_protection") in quiet[0]
+    assert quiet[1] != other[1]               # another seed: another run
+
+
+def start(children, *robots, timeout="5"):
+    sim = children.mrta("sim", "--world", "patrol", *sum((["--robot", r] for r in robots), []),
+                        "--speed", "4", "--lockstep", "--lockstep-timeout", timeout,
+                        "--wait-robots", "60", name="sim")
+    agents = {r: children.mrta("agent", r, "--robot-params", CONFIG / f"{r}_alliance_params.yaml",
+                               "--tasks-params", CONFIG / "tasks_alliance_params.yaml",
+                               "--layers-params", CONFIG / "layers_alliance_params.yaml",
+                               "--sim-time", name=r) for r in robots}
+    sim.wait_stderr(lambda line: f"lockstep with {len(robots)} participants" in line, 90)
+    return sim, agents
+
+
+def test_a_killed_participant_is_no_longer_waited_for_and_its_task_is_taken_over(children):
+    sim, agents = start(children, "robot1", "robot2", "robot3")
+    agents["robot2"].wait_stderr(lambda line: "activated border_protection" in line, 60)
+    sup = children.mrta("supervise", "patrol", "--sim-time", "--json", name="supervise")
+    sup.wait_json(lambda o: o["time"] > 3.0, 60)
+    agents["robot2"].signal(signal.SIGKILL)
+    taken = sup.wait_json(lambda o: next(t for t in o["tasks"] if t["id"] == "border_protection")
+                          ["robots"] in (["robot1"], ["robot3"]), 60)
+    later = sup.wait_json(lambda o: o["time"] > taken["time"] + 5.0, 60)  # the world goes on
+    assert later["time"] > taken["time"]
+    assert not any("no longer waited for" in line for line in sim.stderr)  # death ≠ hang
+
+
+def test_a_hung_participant_is_reported_and_after_the_limit_no_longer_waited_for(children):
+    sim, agents = start(children, "robot1", "robot2", timeout="2")
+    agents["robot1"].wait_stderr(lambda line: "activated" in line, 60)
+    sup = children.mrta("supervise", "patrol", "--sim-time", "--json", name="supervise")
+    before = sup.wait_json(lambda o: o["time"] > 2.0, 60)
+    agents["robot2"].signal(signal.SIGSTOP)
+    try:
+        alarm = sup.wait_json(lambda o: any(a["kind"] == "participant_unresponsive" and
+                                            a["subject"] == "robot2" for a in o["alarms"]), 60)
+        sim.wait_stderr(lambda line: "robot2 did not finish" in line, 10)
+        after = sup.wait_json(lambda o: o["time"] > alarm["time"] + 3.0, 60)  # it goes on
+        assert after["time"] > before["time"]
+    finally:
+        agents["robot2"].signal(signal.SIGCONT)
