@@ -170,6 +170,7 @@ class Barrier:
         self.done: dict[str, StepDone] = {}
         self.unresponsive: set[str] = set()
         self._cond = threading.Condition()
+        self._changed, self._changed_at = 0, time.monotonic()
         bus.counting = True  # set before the commands' subscription (SimNode) exists
         bus.on_counted = self._poke
         self.handles = [
@@ -179,9 +180,22 @@ class Barrier:
         ]
         self.step = 0
 
+    def settle(self, quiet: float = 0.5, limit: float = 3.0) -> None:
+        """Give participants that are already up the time to be heard: until the set has not
+        changed for `quiet` seconds (a new session first has to reach every peer)."""
+        deadline = time.monotonic() + limit
+        with self._cond:
+            while time.monotonic() < deadline:
+                changed = self._changed
+                self._cond.wait(min(quiet, max(0.0, deadline - time.monotonic())))
+                if self._changed == changed and time.monotonic() - self._changed_at >= quiet:
+                    return
+
     def _on_participant(self, key: str, alive: bool) -> None:
         name = key.rsplit("/", 1)[-1]
         with self._cond:
+            self._changed += 1
+            self._changed_at = time.monotonic()
             (self.participants.add if alive else self.participants.discard)(name)
             if not alive:
                 self.done.pop(name, None)

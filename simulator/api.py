@@ -113,7 +113,7 @@ def run_simulator(*, world: str, robots: list[str], bus_options: BusOptions, spe
             return node.stats
         barrier = Barrier(bus, run_id, lockstep_timeout) if lockstep else None
         if barrier is not None:
-            time.sleep(0.2)  # the participants' tokens arrive (history of the liveliness watch)
+            barrier.settle()  # the participants already up are heard
         with bus.declare_token(f"{keys.CLOCK_SOURCE_TOKEN}/{run_id}"):
             log.info("ready: %d robots in %s (%d walls), speed %s, seed %d%s", len(robots),
                      world.name, len(world.walls), speed if speed else "max", seed,

@@ -1,0 +1,149 @@
+"""Lockstep benchmark: what reproducibility costs, and what experiments gain from parallel runs.
+
+Prints one JSON line per figure:
+  lockstep_patrol       the patrol mission (3 agents, 300 s simulated) at --speed 0: real-time
+                        factor in lockstep, against the same mission without lockstep (agents
+                        following the clock as fast as they can) in the same run
+  lockstep_step_cost    wall time per physics step with N participants that answer every step
+                        (10 and 100, hosted by 2 processes), against the same simulator with no
+                        participant in the same run
+  experiment_20_runs    20 patrol runs (60 s each) through `mrta experiment --jobs 2`, against
+                        20 × the wall time of one run measured in the same run
+
+Run: python benchmarks/lockstep.py [--only patrol|steps|experiment]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import re
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+HERE = os.path.abspath(__file__)
+sys.path[:] = [p for p in sys.path if os.path.abspath(p or ".") != os.path.dirname(HERE)]
+
+from mrta_zenoh.bus.options import private_rendezvous  # noqa: E402
+from mrta_zenoh.processes import ProcessGroup, mrta_argv  # noqa: E402
+
+CONFIG = Path(__file__).resolve().parent.parent / "configs" / "applications" / "patrol" / "config"
+
+
+def sim_rtf(line: str) -> tuple[float, float]:
+    m = re.search(r"done: ([\d.]+) s simulated in ([\d.]+) s", line)
+    return float(m.group(1)), float(m.group(2))
+
+
+def patrol(env: dict, lockstep: bool, seconds: float = 300.0) -> float:
+    with ProcessGroup(env) as group:
+        for r in (1, 2, 3):
+            group.start(mrta_argv("-q", "agent", f"robot{r}", "--robot-params",
+                                  CONFIG / f"robot{r}_alliance_params.yaml", "--tasks-params",
+                                  CONFIG / "tasks_alliance_params.yaml", "--layers-params",
+                                  CONFIG / "layers_alliance_params.yaml", "--sim-time"),
+                        name=f"robot{r}")
+        sim = group.start(mrta_argv("sim", "--world", "patrol", "--robot", "robot1", "--robot",
+                                    "robot2", "--robot", "robot3", "--speed", "0", "--duration",
+                                    str(seconds), "--wait-robots", "60",
+                                    *(["--lockstep"] if lockstep else [])), name="sim")
+        sim.wait(900)
+        simulated, wall = sim_rtf(next(x for x in sim.stderr if "done:" in x))
+        return simulated / wall
+
+
+def child_participants(first: int, count: int) -> None:
+    """Fake participants: answer every step at once, asking to be woken at the next one."""
+    from mrta_zenoh.bus import BusOptions, open_bus
+    from mrta_zenoh.lifecycle import stop_on_signals
+    from mrta_zenoh.lockstep import DONE, PARTICIPANT, STEP, Step, StepDone
+
+    with stop_on_signals() as stop, open_bus(BusOptions()) as bus:
+        names = [f"fake{i}" for i in range(first, first + count)]
+
+        def on_step(sample):
+            s = sample.message
+            for n in names:
+                bus.publish(f"{DONE}/{n}", StepDone(n, s.stamp, {}, s.stamp + 0.015))
+
+        bus.subscribe(STEP, on_step, msg_type=Step)
+        tokens = [bus.declare_token(f"{PARTICIPANT}/{n}") for n in names]
+        print("ready", flush=True)
+        stop.wait()  # until the benchmark ends this process (SIGINT)
+        for t in tokens:
+            t.close()
+
+
+def step_cost(env: dict, participants: int, seconds: float) -> float:
+    with ProcessGroup(env) as group:
+        per = participants // 2
+        for k in range(2):
+            c = group.start([sys.executable, HERE, "--child", str(k * per), str(per)],
+                            name=f"participants{k}")
+            c.wait_line(lambda line: line == "ready", 60)
+        args = ["sim", "--world", "patrol", "--robot", "robot1", "--speed", "0", "--duration",
+                str(seconds)]
+        if participants:
+            args.append("--lockstep")
+        sim = group.start(mrta_argv(*args), name="sim")
+        sim.wait(900)
+        ready = next(x for x in sim.stderr if "ready:" in x)
+        if participants and f"lockstep with {participants} participants" not in ready:
+            raise RuntimeError(f"the participants did not join: {ready}")
+        simulated, wall = sim_rtf(next(x for x in sim.stderr if "done:" in x))
+        return wall / (simulated / 0.02)
+
+
+def experiment(env: dict) -> dict:
+    with tempfile.TemporaryDirectory() as tmp:
+        one = Path(tmp) / "one"
+        t0 = time.monotonic()
+        with ProcessGroup(env) as group:
+            group.start(mrta_argv("-q", "demo", "--duration", "60", "--speed", "0", "--fail",
+                                  "robot2@30", "--no-live", "--output", one), name="one").wait(600)
+        single = time.monotonic() - t0
+        f = Path(tmp) / "exp.yaml"
+        f.write_text("application: patrol\nduration: 60\nseeds: [1, 2, 3, 4, 5, 6, 7, 8, 9, 10]\n"
+                     "failures: [none, robot2@30]\n")
+        t0 = time.monotonic()
+        with ProcessGroup(env) as group:
+            run = group.start(mrta_argv("experiment", f, "--output", Path(tmp) / "out",
+                                        "--jobs", "2"), name="experiment")
+            run.wait(3600)
+        total = time.monotonic() - t0
+    return {"figure": "experiment_20_runs", "runs": 20, "jobs": 2, "wall_s": round(total, 1),
+            "one_run_s": round(single, 1), "twenty_times_one_s": round(20 * single, 1),
+            "speedup": round(20 * single / total, 2)}
+
+
+def main() -> None:
+    if len(sys.argv) > 2 and sys.argv[1] == "--child":
+        child_participants(int(sys.argv[2]), int(sys.argv[3]))
+        return
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--only", choices=("patrol", "steps", "experiment"))
+    args = ap.parse_args()
+    env = dict(os.environ, MRTA_RENDEZVOUS=private_rendezvous(), RUST_LOG="error")
+    if args.only in (None, "patrol"):
+        lock, free = patrol(env, True), patrol(env, False)
+        print(json.dumps({"figure": "lockstep_patrol", "simulated_s": 300,
+                          "rtf_lockstep": round(lock, 1), "rtf_without_lockstep": round(free, 1),
+                          "ratio": round(lock / free, 2), "target_rtf_min": 30}), flush=True)
+    if args.only in (None, "steps"):
+        base = step_cost(env, 0, 200.0)
+        for n in (10, 100):
+            cost = step_cost(env, n, 40.0 if n == 100 else 100.0)
+            print(json.dumps({"figure": "lockstep_step_cost", "participants": n,
+                              "ms_per_step": round(cost * 1e3, 3),
+                              "ms_per_step_without_lockstep": round(base * 1e3, 3),
+                              "lockstep_ms_per_step": round((cost - base) * 1e3, 3),
+                              "target_ms_with_10": 1.0}), flush=True)
+    if args.only in (None, "experiment"):
+        print(json.dumps(experiment(env)), flush=True)
+
+
+if __name__ == "__main__":
+    main()
