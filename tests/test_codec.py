@@ -9,6 +9,7 @@ from mrta_zenoh.messages import Clock, GenericMessage, Header, Odometry, Point2D
 from robot_agent.messages import InterRobotCommunication, Motivation, SensoryFeedback
 from simulator.messages import Bumper
 from mrta_patrol.messages import Report, TaskTime
+from mrta_zenoh.lockstep import LockstepStatus, Step, StepDone
 
 EXAMPLES = [
     Header("robot1", 12.5, 7),
@@ -25,6 +26,9 @@ EXAMPLES = [
     TaskTime("robot1", "wander", 12.5),
     Report(Header("robot3", 9.0, 1), 42.0, 0.5, (TaskTime("robot1", "wander", 12.5),)),
     Clock(3.25, "run-a"),
+    Step(12.5, 625, {"robot1/alliance/inter_robot_communication": 40}),
+    StepDone("robot1", 12.5, {"robot1/cmd_vel": 125}, 12.6),
+    LockstepStatus(30.0, ("robot2",)),
 ]
 
 

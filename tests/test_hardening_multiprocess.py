@@ -37,6 +37,13 @@ def test_a_stopped_observer_does_not_stall_the_simulator(children):
     assert after["max_gap"] < 1.5, (stopped, after)
 
 
+def patrol_agent(children, robot):
+    return children.mrta("agent", robot, "--robot-params", CONFIG / f"{robot}_alliance_params.yaml",
+                         "--tasks-params", CONFIG / "tasks_alliance_params.yaml",
+                         "--layers-params", CONFIG / "layers_alliance_params.yaml", "--sim-time",
+                         name="agent")
+
+
 def forged_clock(children, stamp):
     payload = msgpack.packb({"stamp": stamp, "source": "forger"})
     pub = children.python("publisher.py", "clock", f"hex:rosgraph_msgs/Clock:{payload.hex()}",
@@ -47,10 +54,7 @@ def forged_clock(children, stamp):
 def test_forged_clock_samples_neither_stop_nor_melt_the_fleet(children):
     sim = children.mrta("sim", "--world", "patrol", "--robot", "robot1", "--speed", "2", name="sim")
     sim.wait_stderr(lambda line: "ready:" in line, 60)
-    agent = children.mrta("agent", "robot1", "--robot-params", CONFIG / "robot1_alliance_params.yaml",
-                          "--tasks-params", CONFIG / "tasks_alliance_params.yaml",
-                          "--layers-params", CONFIG / "layers_alliance_params.yaml", "--sim-time",
-                          name="agent")
+    agent = patrol_agent(children, "robot1")
     agent.wait_stderr(lambda line: "activated wander" in line, 60)
     sup = children.mrta("supervise", "patrol", "--sim-time", "--json", name="supervise")
     sup.wait_json(lambda o: o["time"] > 0, 60)
@@ -72,10 +76,7 @@ def test_a_restarted_simulator_is_followed_and_a_dead_one_is_reported(children):
     args = ["sim", "--world", "patrol", "--robot", "robot1", "--speed", "4"]
     sim = children.mrta(*args, name="sim A")
     sim.wait_stderr(lambda line: "ready:" in line, 60)
-    agent = children.mrta("agent", "robot1", "--robot-params", CONFIG / "robot1_alliance_params.yaml",
-                          "--tasks-params", CONFIG / "tasks_alliance_params.yaml",
-                          "--layers-params", CONFIG / "layers_alliance_params.yaml", "--sim-time",
-                          name="agent")
+    agent = patrol_agent(children, "robot1")
     agent.wait_stderr(lambda line: "activated wander" in line, 60)
     sup = children.mrta("supervise", "patrol", "--sim-time", "--json", name="supervise")
     sup.wait_json(lambda o: o["time"] > 8.0, 60)  # the old run is well past the new run's start
