@@ -19,24 +19,56 @@ import queue
 import threading
 import time
 from pathlib import Path
-from typing import Iterator
+from typing import Any, Iterator
 
 from mcap.reader import make_reader
 from mcap.records import Channel, Message as McapMessage
 from mcap.stream_reader import StreamReader
 from mcap.writer import Writer
+import msgspec
 
 from . import codec, keys
 from .codec import DecodeError, type_from_encoding
 from .errors import ConfigError
+from .messages import message_class
+
+_json = msgspec.json  # lossless for our values: shortest round-trip floats
 
 log = logging.getLogger("mrta.record")
 
 Record = tuple[str, str, int, bytes]  # (key, encoding, log time ns, payload)
 
 
+LIVELINESS_SCHEMA = {"title": "liveliness", "type": "object",
+                     "properties": {"alive": {"type": "boolean"}}, "required": ["alive"]}
+
+
+def json_channel(encoding: str) -> tuple[tuple[str, str, bytes], Any] | None:
+    """For a sample of our wire format: ((schema name, "jsonschema", schema), payload → JSON
+    bytes); None for anything else. What viewers (Foxglove, Lichtblick) decode."""
+    try:
+        type_name = type_from_encoding(encoding)
+    except DecodeError:
+        return None
+    cls = message_class(type_name)
+    schema = msgspec.json.schema(cls) if cls is not None else {"title": type_name, "type": "object"}
+    _, decode = codec.decoder_for(encoding)
+    return (type_name, "jsonschema", json.dumps(schema).encode()), \
+        (lambda payload: _json.encode(decode(payload)))
+
+
 class McapRecorder:
-    """Writes from one thread; bus callbacks only enqueue (they must stay tiny)."""
+    """Writes from one thread; bus callbacks only enqueue (they must stay tiny).
+
+    Every bus channel is written as Foxglove and Lichtblick read it: JSON messages with a JSON
+    Schema generated from the message definition (msgspec), topic = the Zenoh key. The channel
+    metadata keeps the Zenoh encoding and type name, and msgspec's JSON is lossless for our
+    values, so a recording still replays the bus exactly (read_recording turns it back into the
+    wire's msgpack). A sample that is not in our wire format, or malformed, is kept as it came
+    (message encoding `msgpack` or the raw one): preserved, though no viewer decodes it.
+    Derived channels (a scene, a supervisor's state) are added with `add`. Log time: the wall
+    time the sample was received, for every channel alike.
+    """
 
     def __init__(self, path: Path, flush_every: float = 1.0):
         self.path = path
@@ -47,31 +79,72 @@ class McapRecorder:
             raise ConfigError(f"cannot write the recording: {exc.strerror}", file=str(path)) from None
         self._w = Writer(self._f)
         self._w.start(profile="", library="mrta-zenoh")
-        self._channels: dict[tuple[str, str], int] = {}
+        self._channels: dict[tuple[str, str], tuple[int, Any]] = {}
+        self._schemas: dict[tuple[str, str], int] = {}
         self._q: queue.SimpleQueue = queue.SimpleQueue()
         self.count = 0
         self._thread = threading.Thread(target=self._run, name="mcap-writer", daemon=True)
         self._thread.start()
 
-    def sample(self, key: str, encoding: str, payload: bytes) -> None:
-        self._q.put((time.time_ns(), key, encoding, payload))
+    def sample(self, key: str, encoding: str, payload: bytes, t: int | None = None) -> None:
+        self._q.put((t or time.time_ns(), key, encoding, payload))
 
-    def liveliness(self, key: str, alive: bool) -> None:
-        self._q.put((time.time_ns(), f"@liveliness/{key}", "application/json",
+    def liveliness(self, key: str, alive: bool, t: int | None = None) -> None:
+        self._q.put((t or time.time_ns(), f"@liveliness/{key}", "application/json",
                      json.dumps({"alive": alive}).encode()))
 
-    def _channel(self, key: str, encoding: str) -> int:
-        ch = self._channels.get((key, encoding))
-        if ch is None:
+    def add(self, topic: str, schema: tuple[str, str, bytes], message_encoding: str,
+            data: bytes, t: int | None = None) -> None:
+        """A derived channel's message: schema = (name, encoding, data)."""
+        self._q.put((t or time.time_ns(), topic, ("derived", schema, message_encoding), data))
+
+    def _schema(self, name: str, encoding: str, data: bytes) -> int:
+        sid = self._schemas.get((name, encoding))
+        if sid is None:
+            sid = self._schemas[(name, encoding)] = self._w.register_schema(name, encoding, data)
+        return sid
+
+    def _channel(self, key: str, encoding) -> tuple[int, Any]:
+        """(channel id, payload converter) for a key and its encoding, registered once."""
+        ident = (key, encoding if isinstance(encoding, str) else encoding[1][0])
+        entry = self._channels.get(ident)
+        if entry is not None:
+            return entry
+        if not isinstance(encoding, str):  # a derived channel
+            _, (name, schema_enc, data), msg_enc = encoding
+            ch = self._w.register_channel(topic=key, message_encoding=msg_enc,
+                                          schema_id=self._schema(name, schema_enc, data))
+            entry = (ch, None)
+        elif key.startswith("@liveliness/"):
+            sid = self._schema("liveliness", "jsonschema", json.dumps(LIVELINESS_SCHEMA).encode())
+            entry = (self._w.register_channel(topic=key, message_encoding="json", schema_id=sid,
+                                              metadata={"encoding": encoding, "type": ""}), None)
+        else:
+            converter = json_channel(encoding)
+            if converter is not None:
+                (name, schema_enc, data), convert = converter
+                ch = self._w.register_channel(topic=key, message_encoding="json",
+                                              schema_id=self._schema(name, schema_enc, data),
+                                              metadata={"encoding": encoding, "type": name})
+                entry = (ch, convert)
+            else:  # not our wire format: recorded as is, bytes untouched
+                msg_enc = "json" if encoding.startswith("application/json") else "msgpack"
+                entry = (self._w.register_channel(topic=key, message_encoding=msg_enc, schema_id=0,
+                                                  metadata={"encoding": encoding, "type": ""}),
+                         None)
+        self._channels[ident] = entry
+        return entry
+
+    def _write(self, t: int, key: str, enc, payload: bytes) -> None:
+        ch, convert = self._channel(key, enc)
+        if convert is not None:
             try:
-                type_name = type_from_encoding(encoding)
-            except DecodeError:
-                type_name = ""  # not our wire format: recorded as is, bytes untouched
-            msg_enc = "json" if encoding.startswith("application/json") else "msgpack"
-            ch = self._w.register_channel(topic=key, message_encoding=msg_enc, schema_id=0,
-                                          metadata={"encoding": encoding, "type": type_name})
-            self._channels[(key, encoding)] = ch
-        return ch
+                payload = convert(payload)
+            except DecodeError:  # malformed: kept as it came, on a channel of its own
+                ch, _ = self._channel(key + "/@malformed", "application/octet-stream")
+        self._w.add_message(channel_id=ch, log_time=t, publish_time=t, data=payload,
+                            sequence=self.count)
+        self.count += 1
 
     def _run(self) -> None:
         """Write as samples come; close the chunk and flush the file at least every
@@ -85,10 +158,7 @@ class McapRecorder:
             if item is None:
                 return
             if item:
-                t, key, enc, payload = item
-                self._w.add_message(channel_id=self._channel(key, enc), log_time=t, publish_time=t,
-                                    data=payload, sequence=self.count)
-                self.count += 1
+                self._write(*item)
             if time.monotonic() >= next_flush:
                 self._w.flush()
                 next_flush = time.monotonic() + self.flush_every
@@ -98,8 +168,6 @@ class McapRecorder:
         self._thread.join()
         self._w.finish()
         self._f.close()
-
-
 
 
 class Recovered(list):
@@ -123,7 +191,9 @@ def read_recording(path: Path) -> Recovered:
         try:
             reader = make_reader(f)
             for _schema, channel, message in reader.iter_messages(log_time_order=True):
-                out.append(_row(channel, message))
+                row = _row(channel, message)
+                if row is not None:
+                    out.append(row)
             return out
         except Exception:  # noqa: BLE001 - the mcap library raises many types for a bad end
             pass
@@ -135,7 +205,9 @@ def read_recording(path: Path) -> Recovered:
                 if isinstance(rec, Channel):
                     channels[rec.id] = rec
                 elif isinstance(rec, McapMessage) and rec.channel_id in channels:
-                    out.append(_row(channels[rec.channel_id], rec))
+                    row = _row(channels[rec.channel_id], rec)
+                    if row is not None:
+                        out.append(row)
         except Exception as exc:  # noqa: BLE001 - the truncated tail, whatever it looks like
             log.debug("recording %s ends early: %s", path, exc)
     if not out:
@@ -149,8 +221,26 @@ def read_recording(path: Path) -> Recovered:
     return out
 
 
-def _row(channel, message) -> Record:
-    return (channel.topic, channel.metadata.get("encoding", ""), message.log_time, message.data)
+def _row(channel, message) -> Record | None:
+    """A bus record: (key, Zenoh encoding, log time, wire payload); None for derived channels
+    (topics starting with '/'), which are for viewers, not the bus."""
+    if channel.topic.startswith("/") or channel.topic.endswith("/@malformed"):
+        return None
+    encoding = channel.metadata.get("encoding", "")
+    data = message.data
+    if channel.message_encoding == "json" and channel.metadata.get("type"):
+        data = _to_wire(channel.metadata["type"], data)
+    return (channel.topic, encoding, message.log_time, data)
+
+
+def _to_wire(type_name: str, data: bytes) -> bytes:
+    """A recorded JSON message back to the msgpack the bus carried (lossless for our values)."""
+    cls = message_class(type_name)
+    try:
+        value = _json.decode(data, type=cls) if cls is not None else _json.decode(data)
+    except (msgspec.ValidationError, msgspec.DecodeError):
+        return data  # kept; the decoder downstream reports it
+    return codec.encode(value) if cls is not None else codec.encode_struct(value)
 
 
 class TimeBase:

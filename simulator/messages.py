@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from mrta_zenoh.messages import Header, Message, message
+from mrta_zenoh.messages import Finite, Header, Message, message
 
 
 @message("mrta_msgs/Bumper")
@@ -15,3 +15,21 @@ class Bumper(Message):
     stalled: bool
     contact: bool
     collisions: int
+
+
+@message("mrta_msgs/Segment")
+class Segment(Message):
+    x1: Finite
+    y1: Finite
+    x2: Finite
+    y2: Finite
+
+
+@message("mrta_msgs/World")
+class World(Message):
+    """The simulated world's walls (metres), published on `world` now and then, so that any
+    viewer can draw the scene without reading the world file."""
+
+    header: Header
+    name: str
+    walls: tuple[Segment, ...]

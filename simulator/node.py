@@ -18,13 +18,17 @@ from mrta_zenoh.lockstep import Barrier
 from mrta_zenoh.messages import Clock, Header, Odometry, Point2D, PointCloud, Pose2D, Twist
 
 from .engine import SENSOR_EVERY, Simulation
-from .messages import Bumper
+from .messages import Bumper, Segment, World
 
 log = logging.getLogger("mrta.sim")
 
 
 def bumper_key(robot_id: str) -> str:
     return f"{robot_id}/bumper"
+
+
+WORLD_KEY = "world"
+WORLD_EVERY = 50  # steps: the walls go out once a simulated second (a late viewer gets them)
 
 
 @dataclass
@@ -113,6 +117,8 @@ class SimNode:
             self.bus.publish(keys.CLOCK, Clock(sim.time, self.run_id), lossy=True)
             if self.publish_sensors and sim.steps % SENSOR_EVERY == 0:
                 self.publish_all()
+            if sim.steps % WORLD_EVERY == 0:
+                self.publish_world()
             if barrier is not None and barrier.due(sim.time):
                 barrier.publish(sim.time)
                 barrier.wait(sim.time, stop)
@@ -124,6 +130,11 @@ class SimNode:
         self.stats.wall_time = self._monotonic() - wall0
         self.stats.steps = sim.steps
         return self.stats
+
+    def publish_world(self) -> None:
+        walls = tuple(Segment(*map(float, w)) for w in self.sim.world.walls)
+        self.bus.publish(WORLD_KEY, World(Header("world", self.sim.time, 0), self.sim.world.name,
+                                          walls), lossy=True)
 
     def publish_all(self) -> None:
         sim = self.sim

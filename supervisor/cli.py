@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import click
 
 from mrta_zenoh.bus import BusOptions
@@ -32,3 +34,29 @@ def supervise(app: str, as_json: bool, once: bool, duration: float | None, sim_t
         run_supervise(app=app, bus_options=bus_options, as_json=as_json, once=once,
                       duration=duration, sim_time=sim_time, rate=rate,
                       unattended_after=unattended_after, duplicate_after=duplicate_after)
+
+
+@click.command()
+@click.argument("app", required=False)
+@click.option("--port", type=click.IntRange(0, 65535), default=8765, show_default=True,
+              help="Foxglove WebSocket port (on --host).")
+@click.option("--host", default="127.0.0.1", show_default=True,
+              help="Address to serve on (loopback unless you say otherwise).")
+@click.option("--no-server", is_flag=True, help="Do not serve: only write --output.")
+@click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path),
+              help="Also record everything (bus, scene, supervisor) to this MCAP file.")
+@click.option("--sim-time", is_flag=True, help="Follow the simulator's clock.")
+@click.option("--duration", type=finite_float(min=0, min_open=True),
+              help="Stop after this many wall seconds.")
+@bus_options
+def view(app: str | None, port: int, host: str, no_server: bool, output: Path | None,
+         sim_time: bool, duration: float | None, bus_options: BusOptions) -> None:
+    """Serve APP's robots, scene and supervisor to Foxglove (ws://HOST:PORT), live."""
+    from .viewer import run_view
+
+    def ready(url):
+        if url:
+            click.echo(f"Foxglove / Lichtblick: Open connection → {url}", err=True)
+    with user_errors():
+        run_view(app=app, bus_options=bus_options, port=None if no_server else port, host=host,
+                 output=output, sim_time=sim_time, duration=duration, on_ready=ready)

@@ -28,9 +28,12 @@ from .demo import run_demo
 @click.option("--lockstep/--no-lockstep", default=True, show_default=True,
               help="The simulator waits for every agent at each step: the same seed gives the "
                    "same run whatever the machine's load.")
+@click.option("--foxglove", "foxglove_port", type=click.IntRange(0, 65535), is_flag=False,
+              flag_value=8765, default=None, metavar="[PORT]",
+              help="Also serve the run live to Foxglove / Lichtblick (ws://127.0.0.1:8765).")
 def demo(duration: float, speed: float, fail: str, output: Path, seed: int,
-         live: bool | None, lockstep: bool) -> None:
+         live: bool | None, lockstep: bool, foxglove_port: int | None) -> None:
     """The patrol application end to end: simulator, agents and supervisor, then a summary."""
     with user_errors():
         run_demo(duration=duration, speed=speed, fail=fail, output=output, seed=seed, live=live,
-                 lockstep=lockstep)
+                 lockstep=lockstep, foxglove_port=foxglove_port)

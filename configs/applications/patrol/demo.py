@@ -110,7 +110,8 @@ class Readiness:
 
 def run_demo(*, duration: float = 60.0, speed: float = 2.0, fail: str | None = "robot2@30",
              output: Path = Path("demo-output"), seed: int = 0, live: bool | None = None,
-             lockstep: bool = True, stop: threading.Event | None = None, out=None) -> dict:
+             lockstep: bool = True, foxglove_port: int | None = None,
+             stop: threading.Event | None = None, out=None) -> dict:
     console = Console(file=out) if out is not None else Console()
     failure = parse_fail(fail)
     reg = Registry()
@@ -142,8 +143,15 @@ def run_demo(*, duration: float = 60.0, speed: float = 2.0, fail: str | None = "
     with stop_on_signals(stop) as stop, ProcessGroup(env) as group, \
             open_bus(BusOptions(rendezvous=rendezvous)) as bus:
         ready = Readiness(bus, ids)
-        group.start(mrta_argv("record", "-o", output / "run.mcap"), name="record")
+        # the recording: the bus, the scene and the supervisor's channels, readable by Foxglove;
+        # with --foxglove the same channels are also served live
+        view = ["view", "patrol", "--sim-time", "--output", output / "run.mcap"]
+        view += ["--port", str(foxglove_port)] if foxglove_port is not None else ["--no-server"]
+        group.start(mrta_argv(*view), name="record")
         ready.wait(ready.recorder.is_set, "the recorder", group, stop)
+        if foxglove_port is not None:
+            console.print(f"Foxglove / Lichtblick: Open connection → ws://127.0.0.1:{foxglove_port}",
+                          highlight=False)
         clock = SimClock()
         clock_handles = follow_sim_clock(bus, clock)
         sup = Supervisor(arch, app, 0.0, unattended_after=30.0, duplicate_after=5.0)

@@ -1,0 +1,27 @@
+"""`mrta replay`: a thin click wrapper over mrta_zenoh.tools.replay.run_replay."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+
+from ..bus import BusOptions
+from ..tools.replay import run_replay
+from .common import bus_options, finite_float, user_errors
+
+
+@click.command()
+@click.argument("recording", type=click.Path(dir_okay=False, exists=True, path_type=Path))
+@click.option("--speed", type=finite_float(min=0), default=1.0, show_default=True,
+              help="Pace relative to the recording (0: as fast as possible).")
+@click.option("--keys", "key_expr", default="**", show_default=True, metavar="EXPR",
+              help="Only samples (and tokens) whose key matches this key expression.")
+@click.option("--clock", is_flag=True, help="Republish the simulated clock too.")
+@bus_options
+def replay(recording: Path, speed: float, key_expr: str, clock: bool,
+           bus_options: BusOptions) -> None:
+    """Republish RECORDING's bus channels with their original timing (rosbag play)."""
+    with user_errors():
+        run_replay(recording=recording, bus_options=bus_options, speed=speed,
+                   key_expr=key_expr, clock=clock)

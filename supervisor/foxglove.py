@@ -1,0 +1,152 @@
+"""What Foxglove (or Lichtblick) shows: the bus, a 3-D scene, poses, the supervisor's state.
+
+Channels, for a recording (McapRecorder) and for the live WebSocket server alike:
+
+* every bus key, as JSON with a JSON Schema (mrta_zenoh.recording): motivations plot directly
+  (`robotN/alliance/motivation/<task>` → `.motivation`, `.impatience`, …);
+* `/world` (`foxglove.SceneUpdate`): walls, each robot as a disc with its heading and id label,
+  its sonar beams, and its trail;
+* `/robots/<id>/pose` (`foxglove.PoseInFrame`, frame `world`);
+* `/robots/<id>/task` (JSON: state and task) — what the State Transitions panel draws as the
+  allocation timeline;
+* `/supervisor/state` (JSON: the supervisor snapshot) and `/supervisor/alarms`
+  (`foxglove.Log`: each alarm raised or cleared, for the Log panel).
+
+The scene is built from bus data only (the simulator's `world`, `*/ground_truth`, `*/sonar`), so
+it needs no world file and knows no application. The well-known schemas and their protobuf
+encoding come from the official `foxglove-sdk` package.
+"""
+
+from __future__ import annotations
+
+import collections
+import json
+import math
+import threading
+from typing import Callable
+
+from foxglove.messages import (
+    ArrowPrimitive, Color, CylinderPrimitive, LinePrimitive, LinePrimitiveLineType, Log,
+    LogLevel, Point3, Pose, PoseInFrame, Quaternion, SceneEntity, SceneUpdate, TextPrimitive,
+    Timestamp, Vector3,
+)
+
+from mrta_zenoh.keys import first_chunk
+
+Emit = Callable[[str, tuple[str, str, bytes], str, bytes, int], None]  # topic, schema, enc, data, t
+
+JSON_OBJECT = json.dumps({"type": "object"}).encode()
+TRAIL = 300  # poses kept per robot
+GREY, BLUE, ORANGE, WHITE = (Color(r=.6, g=.6, b=.6, a=1), Color(r=.2, g=.5, b=1, a=1),
+                             Color(r=1, g=.6, b=.1, a=.8), Color(r=1, g=1, b=1, a=1))
+
+
+def _schema(cls) -> tuple[str, str, bytes]:
+    s = cls.get_schema()
+    return s.name, s.encoding, s.data
+
+
+def _quat(theta: float) -> Quaternion:
+    return Quaternion(x=0.0, y=0.0, z=math.sin(theta / 2), w=math.cos(theta / 2))
+
+
+def _stamp(t_ns: int) -> Timestamp:
+    return Timestamp(sec=t_ns // 1_000_000_000, nsec=t_ns % 1_000_000_000)
+
+
+class Scene:
+    """Walls, robots, beams and trails, from the bus."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self.walls: list[tuple[float, float, float, float]] = []
+        self.poses: dict[str, tuple[float, float, float]] = {}
+        self.trails: dict[str, collections.deque] = {}
+        self.beams: dict[str, list[tuple[float, float]]] = {}
+
+    def on_sample(self, key: str, message) -> None:
+        with self._lock:
+            if key == "world":
+                self.walls = [(w.x1, w.y1, w.x2, w.y2) for w in message.walls]
+            elif key.endswith("/ground_truth"):
+                robot, p = first_chunk(key), message.pose
+                self.poses[robot] = (p.x, p.y, p.theta)
+                self.trails.setdefault(robot, collections.deque(maxlen=TRAIL)).append((p.x, p.y))
+            elif key.endswith("/sonar"):
+                self.beams[first_chunk(key)] = [(q.x, q.y) for q in message.points]
+
+    def update(self) -> SceneUpdate:
+        with self._lock:
+            ents = [SceneEntity(id="walls", frame_id="world", lines=[LinePrimitive(
+                type=LinePrimitiveLineType.LineList, thickness=0.08, color=GREY,
+                points=[Point3(x=a, y=b, z=0) for x1, y1, x2, y2 in self.walls
+                        for a, b in ((x1, y1), (x2, y2))])])]
+            for robot, (x, y, th) in sorted(self.poses.items()):
+                beams = [Point3(x=v, y=w, z=0.1) for bx, by in self.beams.get(robot, [])
+                         for v, w in ((x, y), (x + bx * math.cos(th) - by * math.sin(th),
+                                               y + bx * math.sin(th) + by * math.cos(th)))]
+                pose = Pose(position=Vector3(x=x, y=y, z=0.0), orientation=_quat(th))
+                ents.append(SceneEntity(
+                    id=robot, frame_id="world",
+                    cylinders=[CylinderPrimitive(pose=pose, size=Vector3(x=0.5, y=0.5, z=0.25),
+                                                 bottom_scale=1, top_scale=1, color=BLUE)],
+                    arrows=[ArrowPrimitive(pose=pose, shaft_length=0.35, shaft_diameter=0.06,
+                                           head_length=0.15, head_diameter=0.15, color=WHITE)],
+                    texts=[TextPrimitive(pose=Pose(position=Vector3(x=x, y=y, z=0.6),
+                                                   orientation=_quat(0)),
+                                         text=robot, font_size=14, billboard=True,
+                                         scale_invariant=True, color=WHITE)],
+                    lines=[LinePrimitive(type=LinePrimitiveLineType.LineStrip, thickness=0.04,
+                                         color=BLUE, points=[Point3(x=a, y=b, z=0.02) for a, b
+                                                             in self.trails.get(robot, ())]),
+                           LinePrimitive(type=LinePrimitiveLineType.LineList, thickness=0.02,
+                                         color=ORANGE, points=beams)]))
+            return SceneUpdate(entities=ents)
+
+    def poses_now(self) -> dict[str, tuple[float, float, float]]:
+        with self._lock:
+            return dict(self.poses)
+
+
+class FoxgloveOutputs:
+    """Turns bus samples and supervisor snapshots into the channels above, through `emit`."""
+
+    def __init__(self, emit: Emit):
+        self.emit = emit
+        self.scene = Scene()
+        self._alarms: set[tuple[str, str]] = set()
+        self._tasks: dict[str, tuple] = {}
+
+    def on_sample(self, key: str, message) -> None:
+        if key == "world" or key.endswith(("/ground_truth", "/sonar")):
+            self.scene.on_sample(key, message)
+
+    def frame(self, t_ns: int, snapshot: dict | None) -> None:
+        """One refresh: the scene and poses; with a snapshot, the supervisor's channels."""
+        self.emit("/world", _schema(SceneUpdate), "protobuf", self.scene.update().encode(), t_ns)
+        for robot, (x, y, th) in self.scene.poses_now().items():
+            msg = PoseInFrame(timestamp=_stamp(t_ns), frame_id="world",
+                              pose=Pose(position=Vector3(x=x, y=y, z=0.0), orientation=_quat(th)))
+            self.emit(f"/robots/{robot}/pose", _schema(PoseInFrame), "protobuf", msg.encode(),
+                      t_ns)
+        if snapshot is None:
+            return
+        self.emit("/supervisor/state", ("mrta.SupervisorSnapshot", "jsonschema", JSON_OBJECT),
+                  "json", json.dumps(snapshot, allow_nan=False).encode(), t_ns)
+        for r in snapshot["robots"]:
+            state = (r["state"], r["task"])
+            if self._tasks.get(r["id"]) != state:
+                self._tasks[r["id"]] = state
+            self.emit(f"/robots/{r['id']}/task", ("mrta.RobotTask", "jsonschema", JSON_OBJECT),
+                      "json", json.dumps({"state": r["state"], "task": r["task"] or "-"}).encode(),
+                      t_ns)
+        alarms = {(a["kind"], a["subject"]) for a in snapshot["alarms"]}
+        for kind, subject in sorted(alarms - self._alarms):
+            self._log(t_ns, LogLevel.Warning, f"ALARM {kind} {subject}")
+        for kind, subject in sorted(self._alarms - alarms):
+            self._log(t_ns, LogLevel.Info, f"cleared {kind} {subject}")
+        self._alarms = alarms
+
+    def _log(self, t_ns: int, level, text: str) -> None:
+        msg = Log(timestamp=_stamp(t_ns), level=level, message=text, name="supervisor")
+        self.emit("/supervisor/alarms", _schema(Log), "protobuf", msg.encode(), t_ns)
