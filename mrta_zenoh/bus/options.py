@@ -119,8 +119,11 @@ def base_config(mode: str) -> dict[str, Any]:
         # a stopped observer still held a simulator publishing 10,000 samples/s to ~1,000/s
         # open/accept timeouts 2 s (default 10 s): a connection attempt to a frozen peer
         # (SIGSTOP) otherwise holds session.close() for 10 s
-        "transport": {"link": {"tx": {"lease": 3000, "queue": {"congestion_control": {
-            "drop": {"wait_before_drop": 1}}}}},
+        # data queue 16 batches per link (default 2): bursts from a simulator at full speed are
+        # absorbed instead of dropped for a subscriber that keeps up on average (a recorder)
+        "transport": {"link": {"tx": {"lease": 3000, "queue": {
+            "size": {"data": 16},
+            "congestion_control": {"drop": {"wait_before_drop": 1}}}}},
             "unicast": {"open_timeout": 2000, "accept_timeout": 2000}},
     }
 
