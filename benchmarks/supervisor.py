@@ -3,7 +3,8 @@
 Prints one JSON line per figure:
   supervisor_samples_s  a publisher process floods InterRobotCommunication from 1,000 robot ids;
                         ours = mrta bus → decode → field paths → Supervisor state, baseline = a raw
-                        zenoh-python subscriber that only unpacks msgpack, in the same run
+                        zenoh-python subscriber that only unpacks msgpack, in the same run; each
+                        receiver in a process of its own, timed the same way
   state_change_latency  under a steady 10,000 samples/s background load, a probe robot appears
                         every 50 ms; latency = its rising edge in the Supervisor − its send time
 
@@ -120,7 +121,9 @@ def tell(p: subprocess.Popen) -> None:
 
 # ------------------------------------------------------------------------------ measurements
 
-def run_ours(env: dict, n: int) -> tuple[float, int]:
+def child_ours_receiver() -> None:
+    """The supervisor as `mrta supervise` runs it (decode, field paths, state), in a process of
+    its own like the raw baseline's, timing the first and last sample the same way."""
     from mrta_zenoh.bus import BusOptions, open_bus
     from mrta_zenoh.clock import WallClock
     from supervisor.api import attach
@@ -128,16 +131,12 @@ def run_ours(env: dict, n: int) -> tuple[float, int]:
 
     app, arch = patrol()
     clock = WallClock()
+    first, last = [None], [None]
     with open_bus(BusOptions()) as bus:
         sup = Supervisor(arch, app, clock.now())
-        seen = threading.Event()
-        bus.watch_liveliness("bench/publisher", lambda k, a: a and seen.set())
-        pub = spawn(env, "publisher", str(n), "0", "0", "0")
-        seen.wait(10)
-        first, last = [None], [None]
         make_handler = sup.handler_for
 
-        def timed_for(monitors, now):  # time stamps per sample, as the raw baseline takes them
+        def timed_for(monitors, now):
             handler = make_handler(monitors, now)
 
             def timed(sample):
@@ -148,20 +147,24 @@ def run_ours(env: dict, n: int) -> tuple[float, int]:
             return timed
         sup.handler_for = timed_for
         handles = attach(sup, bus, clock)
-        time.sleep(0.5)
-        tell(pub)
-        json.loads(pub.stdout.readline())
-        time.sleep(1.0)
-        tell(pub)
-        pub.wait(10)
-        count = sup.counts["samples"]
+        bus.declare_token("bench/receiver")
+        print("ready", flush=True)
+        sys.stdin.readline()
+        print(json.dumps({"n": sup.counts["samples"], "seconds": last[0] - first[0]}), flush=True)
         for h in handles:
             h.close()
-    return count / (last[0] - first[0]), count
+
+
+def run_ours(env: dict, n: int) -> tuple[float, int]:
+    return _run_receiver(env, n, "ours_receiver")
 
 
 def run_raw(env: dict, n: int) -> tuple[float, int]:
-    recv = spawn(env, "raw_receiver")
+    return _run_receiver(env, n, "raw_receiver")
+
+
+def _run_receiver(env: dict, n: int, role: str) -> tuple[float, int]:
+    recv = spawn(env, role)
     pub = spawn(env, "publisher", str(n), "0", "0", "0")
     time.sleep(0.5)
     tell(pub)
@@ -229,6 +232,8 @@ def main() -> None:
         if role == "publisher":
             n, rate, seconds, probes = sys.argv[3:7]
             child_publisher(int(n), float(rate), float(seconds), probes == "1")
+        elif role == "ours_receiver":
+            child_ours_receiver()
         else:
             child_raw_receiver()
         return

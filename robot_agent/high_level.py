@@ -18,13 +18,14 @@ Deliberate choices, where appendix E or the original C++ (reference/) leave room
     expected_duration. Once it has been broadcasting for longer, impatience returns to fast.
     A broadcast whose expected_duration is not in (0, max_expected_duration] is refused
     (the agent counts it): a forged 1e300 must not freeze everybody's impatience.
-  * Suppression (E.2): a true OR over the other sets' activity *at the start of the tick*, so
+  * Suppression (E.2, dissertation line 2549): a true OR over the other sets' activity *at
+    the start of the tick*, so
     the result does not depend on the order of `behaviour_set0/1/…` (a set that gives up in a
     tick does not un-suppress the sets listed after it in the same tick). If several sets cross
     θ on the same tick, the one furthest past its threshold (θ-normalised) wins; the C++ used
     "last toggle wins".
-  * Acquiescence (E.5): "more than" — yielding when active for *more than* ψ, giving up when
-    active for more than λ (the dissertation, lines ≈ 2580–2600).
+  * Acquiescence (E.5/E.6, lines 2566–2576): "more than" — yielding when active for *more
+    than* ψ, giving up when active for more than λ.
   * Who yields (E.5 and E.4 together): broadcasts carry `active_since`, the time on the
     sender's clock at which its current activation began (an addition to alliance_msgs; a
     client that does not send it is handled as described below). Two robots doing the same
@@ -32,11 +33,13 @@ Deliberate choices, where appendix E or the original C++ (reference/) leave room
     acquiesces once it has been active for more than ψ — Parker's rule that a robot which has
     done a task for ψ gives way to one that has taken it over. Both robots compare the same two
     reported numbers, so they always agree on who yields, whatever the clocks' offset; identical
-    robots that activate on the same tick differ by id. This replaces the dissertation's
-    "yield when another robot does the task", under which two robots that hear each other both
-    yield (after a partition heals nobody did the task for 3 s, and robots ticking in phase
-    livelocked).
-  * Reset (E.4) applies to a set that is *not active*: its motivation returns to 0 when
+    robots that activate on the same tick differ by id. This replaces E.6's "yield when another
+    robot does the task" (line 2573), under which two robots that hear each other both yield
+    (after a partition heals nobody did the task for 3 s, and robots ticking in phase
+    livelocked). Bound: once two holders hear each other, the earlier yields within ψ + one
+    tick (ψ + τ + one tick counting a lost broadcast) — identical robots started in phase
+    included; the later one never yields to it, so there is no gap.
+  * Reset (E.4, line 2559) applies to a set that is *not active*: its motivation returns to 0 when
     another robot newly starts the task — newly meaning a new `active_since`, not a new run of
     receptions. Late, lost or jittered broadcasts therefore never reset anybody, a robot heard
     again after a partition is not "new", and an active robot is never reset (the ordering

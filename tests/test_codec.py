@@ -7,7 +7,7 @@ from mrta_zenoh import codec
 
 from mrta_zenoh.messages import Clock, GenericMessage, Header, Odometry, Point2D, PointCloud, Pose2D, Twist, registered_types
 from robot_agent.messages import InterRobotCommunication, Motivation, SensoryFeedback
-from simulator.messages import Bumper
+from simulator.messages import Bumper, Segment, World
 from mrta_patrol.messages import Report, TaskTime
 from mrta_zenoh.lockstep import LockstepStatus, Step, StepDone
 
@@ -29,6 +29,8 @@ EXAMPLES = [
     Step(12.5, 625, {"robot1/alliance/inter_robot_communication": 40}),
     StepDone("robot1", 12.5, {"robot1/cmd_vel": 125}, 12.6),
     LockstepStatus(30.0, ("robot2",)),
+    Segment(0.0, 0.0, 1.0, 2.0),
+    World(Header("world", 1.0, 0), "patrol", (Segment(-20.0, -6.0, 20.0, -6.0),)),
 ]
 
 
