@@ -87,6 +87,21 @@ def test_replay_feeds_a_live_supervisor_as_the_run_did(recorded, children):
     assert player.wait(60) == 0, player.stderr
     allocated = {t.subject for t in offline.history.all() if t.kind == "allocation" and t.new}
     assert {"wander->robot1", "border_protection->robot2", "border_protection->robot3"} <= allocated
+    # the sequence of changes: robots' states and allocations, as the live supervisor saw them
+    # on the replayed bus and as the supervisor reading the file saw them
+    live_changes = {}
+    for line in sup.stdout:
+        try:
+            snap = json.loads(line)
+        except ValueError:
+            continue
+        for t in snap["transitions"]:
+            live_changes[(t["time"], t["kind"], t["subject"], t["from"], t["to"])] = None
+    live_seq = [c[1:] for c in sorted(live_changes) if c[1] in ("robot", "allocation")
+                and c[0] <= live["time"]]
+    file_seq = [(t.kind, t.subject, t.old, t.new) for t in offline.history.all()
+                if t.kind in ("robot", "allocation") and t.time <= live["time"]]
+    assert sorted(live_seq) == sorted(file_seq), (live_seq, file_seq)
 
 
 def test_a_websocket_client_sees_the_channels_and_receives_scene_updates(children):
