@@ -19,7 +19,7 @@ import queue
 import threading
 import time
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any
 
 from mcap.reader import make_reader
 from mcap.records import Channel, Message as McapMessage

@@ -31,7 +31,7 @@ from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
 from .errors import ConfigError
-from .keys import CLOCK, CLOCK_SOURCE_TOKEN, RECORDER_TOKEN, is_id, normalize_robot_id
+from .keys import CLOCK, CLOCK_SOURCE_TOKEN, is_id, normalize_robot_id
 
 DEFAULT_ENDPOINT = "tls/127.0.0.1:7448"
 VALID_DAYS = 365

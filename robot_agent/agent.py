@@ -132,23 +132,26 @@ class Agent:
             self.ignored_own += 1
             return
         if sample.message.header.frame_id.strip("/") != sender:
-            self.ignored_mismatch += 1
-            if self.ignored_mismatch == 1 or self.ignored_mismatch % 100 == 0:
-                log.warning("%s: ignoring InterRobotCommunication on %s with frame_id %r (%d so far)",
-                            self.robot_id, sample.key, sample.message.header.frame_id,
-                            self.ignored_mismatch)
+            self._drop("ignored_mismatch", "ignoring InterRobotCommunication on %s with frame_id %r",
+                       sample.key, sample.message.header.frame_id)
             return
         if sender not in self._teammates:
-            self.ignored_strangers += 1
-            if self.ignored_strangers == 1 or self.ignored_strangers % 100 == 0:
-                log.warning("%s: ignoring broadcasts from %s, which holds no agent token "
-                            "(%d so far)", self.robot_id, sender, self.ignored_strangers)
+            self._drop("ignored_strangers", "ignoring broadcasts from %s, which holds no agent token",
+                       sender)
             return
         msg = sample.message
         # in lockstep every robot shares one simulated time: the sender's stamp is exact and
         # does not depend on when the network delivered it
         t = msg.header.stamp if self._lockstep() else self.clock.now()
         self._inbox.append((sender, msg, t))
+
+    def _drop(self, counter: str, reason: str, *args) -> None:
+        """Count a dropped broadcast in `counter`; log the first and every 100th, so a flood
+        (a forger, a misconfigured teammate) cannot flood the log."""
+        n = getattr(self, counter) + 1
+        setattr(self, counter, n)
+        if n == 1 or n % 100 == 0:
+            log.warning("%s: " + reason + " (%d so far)", self.robot_id, *args, n)
 
     def _lockstep(self) -> bool:
         flag = getattr(self.clock, "lockstep", None)
@@ -168,11 +171,8 @@ class Agent:
                 continue
             if not self.high.on_broadcast(sender, msg.task_id, msg.expected_duration, t,
                                           msg.active_since):
-                self.refused += 1
-                if self.refused == 1 or self.refused % 100 == 0:
-                    log.warning("%s: refused a broadcast from %s for %r with expected_duration "
-                                "%g (%d so far)", self.robot_id, sender, msg.task_id,
-                                msg.expected_duration, self.refused)
+                self._drop("refused", "refused a broadcast from %s for %r with expected_duration %g",
+                           sender, msg.task_id, msg.expected_duration)
         self._inbox.extendleft(reversed(later))
         fb_key = keys.sensory_feedback(self.robot_id)
         for task, ev in self.plugins.evaluators.items():

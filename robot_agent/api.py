@@ -16,6 +16,7 @@ from mrta_zenoh.bus import BusOptions, open_bus
 from mrta_zenoh.clock import SimClock, WallClock, follow_sim_clock
 from mrta_zenoh.lockstep import LockstepClock
 from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.failure import parse_failure
 from mrta_zenoh.keys import normalize_robot_id
 from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.seeds import robot_rng
@@ -50,15 +51,12 @@ def crash_time(robot_id: str, crash_at: float | None) -> float | None:
     if crash_at is not None:
         return crash_at
     for item in filter(None, os.environ.get(CRASH_ENV, "").split(",")):
-        robot, sep, when = item.strip().partition("@")
         try:
-            t = float(when)
-        except ValueError:
-            raise ConfigError(f"${CRASH_ENV}: {item!r} is not ROBOT@SECONDS") from None
-        if not sep or not math.isfinite(t):
-            raise ConfigError(f"${CRASH_ENV}: {item!r} is not ROBOT@SECONDS")
-        if robot == robot_id:
-            return t
+            failure = parse_failure(item.strip())
+        except ValueError as exc:
+            raise ConfigError(f"${CRASH_ENV}: {exc}") from None
+        if failure.robot == robot_id:
+            return failure.at
     return None
 
 

@@ -3,9 +3,7 @@
 
 from __future__ import annotations
 
-import json
 import logging
-import math
 import threading
 import time
 from collections import defaultdict
@@ -14,6 +12,7 @@ from pathlib import Path
 from rich.console import Console
 from rich.live import Live
 
+from mrta_zenoh import jsonsafe
 from mrta_zenoh.bus import Bus, BusOptions, open_bus
 from mrta_zenoh.clock import SimClock, WallClock, follow_sim_clock
 from mrta_zenoh.errors import ConfigError
@@ -32,17 +31,7 @@ CLOCK_STALL = 2.0  # wall seconds without a clock sample: the `clock_stopped` al
 
 def to_json(snapshot: dict) -> str:
     """Always valid JSON: a non-finite number (which no valid input should produce) is null."""
-    return json.dumps(_finite(snapshot), allow_nan=False)
-
-
-def _finite(v):
-    if isinstance(v, float) and not math.isfinite(v):
-        return None
-    if isinstance(v, dict):
-        return {k: _finite(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_finite(x) for x in v]
-    return v
+    return jsonsafe.dumps(snapshot, nonfinite=lambda _: None)
 
 
 def resolve_application(spec: str, registry: Registry | None = None) -> tuple[Application, Architecture]:
@@ -77,6 +66,28 @@ def attach(sup: Supervisor, bus: Bus, clock) -> list:
     return handles
 
 
+class Refresh:
+    """One refresh of a Supervisor at its clock's time: what every tool that shows one does
+    (`mrta supervise`, `mrta view`, the patrol demo). On simulation time a new run (time
+    restarted) drops what the old run held, and a clock that stopped raises `clock_stopped`.
+    The cadence is the caller's, in wall time even on simulation time, so that a simulator that
+    stops or restarts is noticed instead of freezing the picture."""
+
+    def __init__(self, sup: Supervisor, clock, sim_time: bool):
+        self.sup, self.clock, self.sim_time = sup, clock, sim_time
+        self._restarts = 0
+
+    def __call__(self) -> float:
+        now = self.clock.now()
+        if self.sim_time:
+            if self.clock.restarts != self._restarts:
+                self._restarts = self.clock.restarts
+                self.sup.restart(now)
+            self.sup.on_clock(self.clock.stalled(CLOCK_STALL), now)
+        self.sup.update(now)
+        return now
+
+
 def run_supervise(*, app: str, bus_options: BusOptions, as_json: bool = False,
                   once: bool = False, duration: float | None = None, sim_time: bool = False,
                   rate: float = 4.0, unattended_after: float = 30.0, duplicate_after: float = 5.0,
@@ -96,7 +107,7 @@ def run_supervise(*, app: str, bus_options: BusOptions, as_json: bool = False,
         start, wall_start = clock.now(), time.monotonic()
         settle = max([m.topic.timeout for m in sup.monitors] + [1.0])
         period = 1.0 / rate
-        restarts = 0
+        refresh = Refresh(sup, clock, sim_time)
 
         def done() -> bool:
             if once:  # wall time: a stopped simulation must not hold `--once` forever
@@ -104,17 +115,8 @@ def run_supervise(*, app: str, bus_options: BusOptions, as_json: bool = False,
             return stop.is_set() or (duration is not None and clock.now() - start >= duration)
 
         def wait() -> None:
-            """The refresh cadence is wall time even on simulation time, so that a simulator
-            that stops (or restarts) is noticed instead of freezing the supervisor."""
-            nonlocal restarts
             stop.wait(period)
-            now = clock.now()
-            if sim_time:
-                if clock.restarts != restarts:
-                    restarts = clock.restarts
-                    sup.restart(now)
-                sup.on_clock(clock.stalled(CLOCK_STALL), now)
-            sup.update(now)
+            refresh()
 
         try:
             if as_json or once:

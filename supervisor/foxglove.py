@@ -20,6 +20,7 @@ encoding come from the official `foxglove-sdk` package.
 from __future__ import annotations
 
 import collections
+import functools
 import json
 import math
 import threading
@@ -33,6 +34,8 @@ from foxglove.messages import (
 
 from mrta_zenoh.keys import first_chunk
 
+from .api import to_json
+
 Emit = Callable[[str, tuple[str, str, bytes], str, bytes, int], None]  # topic, schema, enc, data, t
 
 JSON_OBJECT = json.dumps({"type": "object"}).encode()
@@ -41,6 +44,7 @@ GREY, BLUE, ORANGE, WHITE = (Color(r=.6, g=.6, b=.6, a=1), Color(r=.2, g=.5, b=1
                              Color(r=1, g=.6, b=.1, a=.8), Color(r=1, g=1, b=1, a=1))
 
 
+@functools.cache
 def _schema(cls) -> tuple[str, str, bytes]:
     s = cls.get_schema()
     return s.name, s.encoding, s.data
@@ -48,6 +52,10 @@ def _schema(cls) -> tuple[str, str, bytes]:
 
 def _quat(theta: float) -> Quaternion:
     return Quaternion(x=0.0, y=0.0, z=math.sin(theta / 2), w=math.cos(theta / 2))
+
+
+def _pose(x: float, y: float, theta: float, z: float = 0.0) -> Pose:
+    return Pose(position=Vector3(x=x, y=y, z=z), orientation=_quat(theta))
 
 
 def _stamp(t_ns: int) -> Timestamp:
@@ -85,15 +93,14 @@ class Scene:
                 beams = [Point3(x=v, y=w, z=0.1) for bx, by in self.beams.get(robot, [])
                          for v, w in ((x, y), (x + bx * math.cos(th) - by * math.sin(th),
                                                y + bx * math.sin(th) + by * math.cos(th)))]
-                pose = Pose(position=Vector3(x=x, y=y, z=0.0), orientation=_quat(th))
+                pose = _pose(x, y, th)
                 ents.append(SceneEntity(
                     id=robot, frame_id="world",
                     cylinders=[CylinderPrimitive(pose=pose, size=Vector3(x=0.5, y=0.5, z=0.25),
                                                  bottom_scale=1, top_scale=1, color=BLUE)],
                     arrows=[ArrowPrimitive(pose=pose, shaft_length=0.35, shaft_diameter=0.06,
                                            head_length=0.15, head_diameter=0.15, color=WHITE)],
-                    texts=[TextPrimitive(pose=Pose(position=Vector3(x=x, y=y, z=0.6),
-                                                   orientation=_quat(0)),
+                    texts=[TextPrimitive(pose=_pose(x, y, 0.0, z=0.6),
                                          text=robot, font_size=14, billboard=True,
                                          scale_invariant=True, color=WHITE)],
                     lines=[LinePrimitive(type=LinePrimitiveLineType.LineStrip, thickness=0.04,
@@ -115,7 +122,6 @@ class FoxgloveOutputs:
         self.emit = emit
         self.scene = Scene()
         self._alarms: set[tuple[str, str]] = set()
-        self._tasks: dict[str, tuple] = {}
 
     def on_sample(self, key: str, message) -> None:
         if key == "world" or key.endswith(("/ground_truth", "/sonar")):
@@ -125,18 +131,14 @@ class FoxgloveOutputs:
         """One refresh: the scene and poses; with a snapshot, the supervisor's channels."""
         self.emit("/world", _schema(SceneUpdate), "protobuf", self.scene.update().encode(), t_ns)
         for robot, (x, y, th) in self.scene.poses_now().items():
-            msg = PoseInFrame(timestamp=_stamp(t_ns), frame_id="world",
-                              pose=Pose(position=Vector3(x=x, y=y, z=0.0), orientation=_quat(th)))
+            msg = PoseInFrame(timestamp=_stamp(t_ns), frame_id="world", pose=_pose(x, y, th))
             self.emit(f"/robots/{robot}/pose", _schema(PoseInFrame), "protobuf", msg.encode(),
                       t_ns)
         if snapshot is None:
             return
         self.emit("/supervisor/state", ("mrta.SupervisorSnapshot", "jsonschema", JSON_OBJECT),
-                  "json", json.dumps(snapshot, allow_nan=False).encode(), t_ns)
+                  "json", to_json(snapshot).encode(), t_ns)
         for r in snapshot["robots"]:
-            state = (r["state"], r["task"])
-            if self._tasks.get(r["id"]) != state:
-                self._tasks[r["id"]] = state
             self.emit(f"/robots/{r['id']}/task", ("mrta.RobotTask", "jsonschema", JSON_OBJECT),
                       "json", json.dumps({"state": r["state"], "task": r["task"] or "-"}).encode(),
                       t_ns)

@@ -8,10 +8,8 @@ application's monitors, so it draws exactly what `mrta supervise` would have sho
 
 from __future__ import annotations
 
-import bisect
 import json
 from pathlib import Path
-from typing import Iterator
 
 import matplotlib
 

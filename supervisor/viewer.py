@@ -19,7 +19,7 @@ from mrta_zenoh.keys import RECORDER_TOKEN
 from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.recording import McapRecorder, json_channel
 
-from .api import attach, resolve_application
+from .api import Refresh, attach, resolve_application
 from .foxglove import FoxgloveOutputs
 from .state import Supervisor
 
@@ -34,13 +34,13 @@ class LiveChannels:
         self.context = foxglove.Context()
         self.server = foxglove.start_server(name="mrta-zenoh", host=host, port=port,
                                             context=self.context)
+        self.host = host
         self.channels: dict[str, foxglove.Channel] = {}
         self._lock = threading.Lock()
 
     @property
     def url(self) -> str:
-        return f"ws://{self.server.host if hasattr(self.server, 'host') else '127.0.0.1'}:" \
-               f"{self.server.port}"
+        return f"ws://{self.host}:{self.server.port}"
 
     def emit(self, topic: str, schema: tuple[str, str, bytes], encoding: str, data: bytes,
              t_ns: int) -> None:
@@ -70,10 +70,8 @@ def run_view(*, app: str | None, bus_options: BusOptions, port: int | None = 876
     with stop_on_signals(stop) as stop, open_bus(bus_options) as bus:
         live = LiveChannels(host, port) if port is not None else None
         recorder = McapRecorder(Path(output)) if output is not None else None
-        sinks = [s for s in (live.emit if live else None,
-                             (lambda topic, schema, enc, data, t: recorder.add(topic, schema, enc,
-                                                                               data, t))
-                             if recorder else None) if s is not None]
+        sinks = [s for s in (live.emit if live else None, recorder.add if recorder else None)
+                 if s is not None]
 
         def emit(topic, schema, enc, data, t_ns):
             for sink in sinks:
@@ -104,11 +102,12 @@ def run_view(*, app: str | None, bus_options: BusOptions, port: int | None = 876
         for expr in SCENE_KEYS:
             handles.append(bus.subscribe(expr, lambda s: outputs.on_sample(s.key, s.message),
                                          queue_size=100))
-        sup = None
+        sup = refresh = None
         if application is not None:
             app_model, arch = application
             sup = Supervisor(arch, app_model, clock.now())
             handles += attach(sup, bus, clock)
+            refresh = Refresh(sup, clock, sim_time)
         if recorder is not None:
             handles.append(bus.declare_token(f"{RECORDER_TOKEN}/{bus.zid}"))
         if live is not None:
@@ -118,12 +117,7 @@ def run_view(*, app: str | None, bus_options: BusOptions, port: int | None = 876
         start = time.monotonic()
         try:
             while not stop.wait(1.0 / rate):
-                now = clock.now()
-                snap = None
-                if sup is not None:
-                    sup.update(now)
-                    snap = sup.snapshot(now)
-                outputs.frame(time.time_ns(), snap)
+                outputs.frame(time.time_ns(), sup.snapshot(refresh()) if sup is not None else None)
                 if duration is not None and time.monotonic() - start >= duration:
                     break
         finally:

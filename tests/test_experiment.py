@@ -61,6 +61,9 @@ def test_an_override_changes_the_files_of_that_run_only(tmp_path):
     ("application: patrol\nduration: 10\nseeds: [1, x]\n", ":3", "seeds[1]"),
     ("application: patrol\nduration: 10\nseeds: [1]\nfailures: [robot2 at 5]\n", ":4",
      "ROBOT@SECONDS"),
+    # accepted here once, then refused by the mission in every run: one grammar now
+    ("application: patrol\nduration: 10\nseeds: [1]\nfailures: [none, robot2@0]\n", ":4",
+     "seconds > 0"),
     ("application: patrol\nduration: 10\n", "exp.yaml", "missing mandatory key 'seeds'"),
     ("application: patrol\nduration: 10\nseeds: [1]\noverrides: {timeout: [1]}\n", ":4",
      "FILE_GLOB.KEY.PATH"),

@@ -6,13 +6,13 @@ import textwrap
 import pytest
 
 from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
-from mrta_zenoh.clock import ManualClock
+from mrta_zenoh.clock import ManualClock, SimClock
 from mrta_zenoh.messages import GenericMessage, Header, Twist
 from robot_agent.messages import InterRobotCommunication
 from tests.helpers import ALLIANCE_ARCH, CONFIGS
 from mrta_zenoh.toolchain.model import Application, RobotEntry
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
-from supervisor.api import attach, resolve_application
+from supervisor.api import CLOCK_STALL, Refresh, attach, resolve_application
 from supervisor.holders import SampleHolder
 from supervisor.state import Supervisor, key_expr_for
 
@@ -168,6 +168,36 @@ def test_a_stopped_clock_makes_robots_unknown_and_a_restart_drops_stale_states(p
     robots, tasks, alarms = state(sup, 0.5)
     assert robots["robot1"] == ("idle", None) and tasks["wander"] == ("unallocated", [])
     assert ("clock_stopped", "clock") not in alarms
+
+
+
+def test_every_tool_refreshes_alike_a_stall_and_a_new_run(patrol):
+    """`Refresh` is what supervise, view and the demo call: on simulation time it raises
+    `clock_stopped` when the clock stops, and drops the old run's states when time restarts."""
+    app, arch = patrol
+    wall = [0.0]
+    clock = SimClock(silence=2.0, wall=lambda: wall[0])
+    clock.on_clock(50.0, "run-a")
+    sup = Supervisor(arch, app, clock.now())
+    refresh = Refresh(sup, clock, sim_time=True)
+    sup.on_liveliness("robot1/alliance/agent", True, 50.0)
+    irc(sup, sup.monitors, "robot1", "wander", 50.0)
+    assert refresh() == 50.0 and state(sup, 50.0)[0]["robot1"][0] == "busy"
+    wall[0] = CLOCK_STALL  # no clock sample for CLOCK_STALL wall seconds
+    refresh()
+    robots, _, alarms = state(sup, 50.0)
+    assert robots["robot1"][0] == "unknown" and ("clock_stopped", "clock") in alarms
+    clock.on_clock(0.5, "run-b")  # the old source silent: a new run, time back to 0.5
+    assert refresh() == 0.5
+    robots, tasks, alarms = state(sup, 0.5)
+    assert robots["robot1"] == ("idle", None) and tasks["wander"] == ("unallocated", [])
+    assert ("clock_stopped", "clock") not in alarms
+    # on wall time neither applies: the same stall raises nothing
+    sup2 = Supervisor(arch, app, 0.0)
+    Refresh(sup2, clock, sim_time=False)()
+    wall[0] += 10 * CLOCK_STALL
+    Refresh(sup2, clock, sim_time=False)()
+    assert ("clock_stopped", "clock") not in state(sup2, 0.5)[2]
 
 
 OTHER_ARCH = textwrap.dedent("""\

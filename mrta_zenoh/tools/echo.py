@@ -9,7 +9,7 @@ from typing import Any
 
 import yaml
 
-from .. import codec
+from .. import codec, jsonsafe
 from ..bus import BusOptions, open_bus
 from ..fieldpath import FieldPath, FieldPathError
 from ..keys import validate_key_expr
@@ -21,7 +21,9 @@ def format_sample(key: str, type_name: str, value: Any, as_json: bool, field: Fi
     if as_json:
         out = {"key": key, "type": type_name}
         out["value" if field else "message"] = value
-        return json.dumps(_finite(out), default=_json_default, allow_nan=False)
+        # JSON has no NaN or Infinity: such a number (only a foreign client can send one, in a
+        # type we do not know) is written as its string, so the line stays valid JSON
+        return jsonsafe.dumps(out, nonfinite=str, default=_json_default)
     if field is not None:
         return f"{key}: {_scalar(value)}"
     body = yaml.safe_dump(value, sort_keys=False, default_flow_style=None).rstrip()
@@ -41,18 +43,6 @@ def _scalar(value: Any) -> str:
     if isinstance(value, (dict, list)):
         return json.dumps(value, default=_json_default)
     return str(value)
-
-
-def _finite(v: Any) -> Any:
-    """JSON has no NaN or Infinity: such a number (only a foreign client can send one, in a
-    type we do not know) is written as its string, so the line stays valid JSON."""
-    if isinstance(v, float) and v != v or v in (float("inf"), float("-inf")):
-        return str(v)
-    if isinstance(v, dict):
-        return {k: _finite(x) for k, x in v.items()}
-    if isinstance(v, (list, tuple)):
-        return [_finite(x) for x in v]
-    return v
 
 
 def _json_default(v: Any) -> Any:

@@ -29,7 +29,6 @@ import json
 import logging
 import math
 import os
-import re
 import shutil
 import statistics
 import sys
@@ -41,6 +40,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ConfigError, Interrupted
+from ..failure import parse_failure
 from ..files import write_text
 from ..processes import ProcessGroup
 from ..toolchain.registry import Registry
@@ -50,7 +50,6 @@ log = logging.getLogger("mrta.experiment")
 
 MISSIONS_GROUP = "mrta.missions"
 KEYS = {"application", "duration", "seeds", "robots", "failures", "overrides"}
-FAIL = re.compile(r"^(none|[A-Za-z0-9_][A-Za-z0-9_\-.]*@\d+(\.\d+)?)$")
 
 
 @dataclass(frozen=True)
@@ -100,6 +99,16 @@ def _list(doc: YamlDoc, key: str, kind, check=None) -> list:
     return value
 
 
+def _failure_problem(spec: str) -> str | None:
+    if spec == "none":
+        return None
+    try:
+        parse_failure(spec)
+    except ValueError as exc:
+        return f"{exc}, or none"
+    return None
+
+
 def load_experiment(path: Path) -> Experiment:
     doc = load_yaml(path)
     if not isinstance(doc.data, dict):
@@ -120,8 +129,7 @@ def load_experiment(path: Path) -> Experiment:
                                        f"got {duration!r:.40}")
     seeds = _list(doc, "seeds", int, lambda s: None if s >= 0 else "a seed is ≥ 0")
     failures = [str(f) for f in _list(doc, "failures", str,
-                                      lambda f: None if FAIL.match(str(f)) else
-                                      "expected none or ROBOT@SECONDS")] \
+                                      _failure_problem)] \
         if "failures" in doc.data else ["none"]
     overrides: dict[str, list] = {}
     raw = doc.data.get("overrides") or {}

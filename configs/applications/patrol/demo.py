@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import json
 import logging
-import math
 import os
 import signal
 import threading
@@ -30,6 +29,7 @@ from mrta_zenoh.bus import BusOptions, open_bus
 from mrta_zenoh.bus.options import private_rendezvous
 from mrta_zenoh.clock import SimClock, follow_sim_clock
 from mrta_zenoh.errors import ConfigError, Interrupted, MrtaRuntimeError
+from mrta_zenoh.failure import USAGE, Failure, parse_failure
 from mrta_zenoh.files import write_text
 from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.processes import Child, ProcessGroup, mrta_argv
@@ -40,7 +40,7 @@ from mrta_zenoh.toolchain.runner import start_nodes
 from robot_agent.api import CRASH_ENV, takeover_bound
 from robot_agent.params import load_layers_params
 from robot_agent.plots import plot_motivation
-from supervisor.api import attach
+from supervisor.api import Refresh, attach
 from supervisor.plots import TimeBase, allocation_intervals, plot_timeline, replay
 from supervisor.state import Supervisor
 from supervisor.view import render
@@ -53,17 +53,13 @@ LAUNCH = "patrol_sim.launch"
 READY_TIMEOUT = 60.0  # wall seconds for every process to come up
 
 
-def parse_fail(spec: str | None) -> tuple[str, float] | None:
+def parse_fail(spec: str | None) -> Failure | None:
     if spec is None or spec.lower() == "none":
         return None
-    robot, sep, when = spec.partition("@")
     try:
-        t = float(when)
-        if not sep or t <= 0 or not math.isfinite(t):
-            raise ValueError
-        return keys.normalize_robot_id(robot), t
-    except (ValueError, keys.KeyExprError):
-        raise ConfigError(f"--fail {spec!r}: expected ROBOT@SECONDS, e.g. robot2@30, or none") from None
+        return parse_failure(spec)
+    except ValueError:
+        raise ConfigError(f"--fail {spec!r}: expected {USAGE}, or none") from None
 
 
 class Readiness:
@@ -118,10 +114,10 @@ def run_demo(*, duration: float = 60.0, speed: float = 2.0, fail: str | None = "
     pkg, app = reg.application("patrol")
     _, arch = reg.architecture(app.architecture)
     ids = [r.id for r in app.robots]
-    if failure and failure[0] not in ids:
-        raise ConfigError(f"--fail {fail}: {failure[0]} is not one of {', '.join(ids)}")
-    if failure and failure[1] >= duration:
-        raise ConfigError(f"--fail at {failure[1]} s is not before the end ({duration} s)")
+    if failure and failure.robot not in ids:
+        raise ConfigError(f"--fail {fail}: {failure.robot} is not one of {', '.join(ids)}")
+    if failure and failure.at >= duration:
+        raise ConfigError(f"--fail at {failure.at} s is not before the end ({duration} s)")
     output.mkdir(parents=True, exist_ok=True)
     config = pkg.path / "config"
     params = {rid: config / f"{rid}_alliance_params.yaml" for rid in ids}
@@ -137,7 +133,7 @@ def run_demo(*, duration: float = 60.0, speed: float = 2.0, fail: str | None = "
     env = dict(os.environ, MRTA_RENDEZVOUS=rendezvous, PYTHONUNBUFFERED="1")
     if lockstep and failure:
         # the agent crashes itself at that simulated time: exact, so a run replays exactly
-        env[CRASH_ENV] = f"{failure[0]}@{failure[1]}"
+        env[CRASH_ENV] = failure.spec
     failed_at: float | None = None
     t_wall0 = time.monotonic()
     with stop_on_signals(stop) as stop, ProcessGroup(env) as group, \
@@ -172,7 +168,7 @@ def run_demo(*, duration: float = 60.0, speed: float = 2.0, fail: str | None = "
         if sim.wait(30) != 0:
             raise MrtaRuntimeError("the simulator failed:\n" + sim.tail())
         group.stop_all()
-        crashed = group.failed(ignore=[agents[failure[0]].name] if failure else [])
+        crashed = group.failed(ignore=[agents[failure.robot].name] if failure else [])
         if crashed:
             raise MrtaRuntimeError(f"{', '.join(c.name for c in crashed)} exited with an error:\n"
                                    + "\n".join(c.tail(5) for c in crashed))
@@ -190,9 +186,9 @@ def _run(sim: Child, sup: Supervisor, clock: SimClock, agents: dict[str, Child],
 
     def header() -> Text:
         t = clock.now()
-        fail_txt = "" if not failure else (f" · {failure[0]} killed at {failed_at:.1f} s"
+        fail_txt = "" if not failure else (f" · {failure.robot} killed at {failed_at:.1f} s"
                                            if failed_at is not None
-                                           else f" · will kill {failure[0]} at {failure[1]:.0f} s")
+                                           else f" · will kill {failure.robot} at {failure.at:.0f} s")
         return Text(f"mrta demo · patrol · simulated {t:5.1f} / {duration:.0f} s · "
                     f"speed {speed or 'max'}{fail_txt}", style="bold")
 
@@ -200,16 +196,16 @@ def _run(sim: Child, sup: Supervisor, clock: SimClock, agents: dict[str, Child],
                 refresh_per_second=4, transient=False) if show_live else None
     if live:
         live.start()
+    refresh = Refresh(sup, clock, sim_time=True)
     try:
         while sim.running() and not stop.is_set():
             stop.wait(0.25)
-            now = clock.now()
-            sup.update(now)
-            if failure and failed_at is None and now >= failure[1]:
-                if kill:  # otherwise the agent crashed itself at exactly failure[1]
-                    agents[failure[0]].signal(signal.SIGKILL)
-                failed_at = now if kill else failure[1]
-                log.info("killed %s at %.1f s", failure[0], failed_at)
+            now = refresh()
+            if failure and failed_at is None and now >= failure.at:
+                if kill:  # otherwise the agent crashed itself at exactly failure.at
+                    agents[failure.robot].signal(signal.SIGKILL)
+                failed_at = now if kill else failure.at
+                log.info("killed %s at %.1f s", failure.robot, failed_at)
             if live:
                 live.update(Group(header(), render(sup.snapshot(now), console.width)))
             elif now - last_line >= 10.0:
@@ -251,7 +247,7 @@ def analyse(output: Path, app, arch, ids, params, border: BorderParams, failure,
     summary.update(mission_metrics(records, border.border() or (-20.0, -6.0, 20.0, 6.0),
                                    border.distance + 1.0))
     if failure:
-        robot, _ = failure
+        robot = failure.robot
         summary["failure"] = {"robot": robot, "killed_at": failed_at}
         if failed_at is not None:
             task = next((t for t, a, b in intervals.get(robot, []) if a <= failed_at <= b + 0.5),
