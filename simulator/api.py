@@ -13,6 +13,7 @@ from mrta_zenoh import keys
 from mrta_zenoh.bus import BusOptions, open_bus
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.lifecycle import stop_on_signals
+from mrta_zenoh.presence import RobotPresence
 from mrta_zenoh.toolchain.registry import Registry
 
 from mrta_zenoh.lockstep import Barrier
@@ -133,31 +134,20 @@ def run_simulator(*, world: str, robots: list[str], bus_options: BusOptions, spe
     return stats
 
 
-
-
 def wait_for_robots(bus, robot_ids: list[str], timeout: float, stop: threading.Event) -> bool:
     """Block until every robot has a liveliness token under `robotN/**` (its agent is up), so the
     clock starts with every controller ready. False if stopped; a log line (and go on) after
     `timeout` wall seconds, so one robot that never comes cannot hold the world forever."""
-    alive: dict[str, set[str]] = {r: set() for r in robot_ids}
-    changed = threading.Event()
-
-    def on_token(key: str, up: bool) -> None:
-        rid = keys.first_chunk(key)
-        if rid in alive:
-            (alive[rid].add if up else alive[rid].discard)(key)
-            changed.set()
-
     deadline = time.monotonic() + timeout
-    with bus.watch_liveliness("**", on_token):
+    with RobotPresence(bus, robot_ids) as presence:
         log.info("waiting for %s", ", ".join(robot_ids))
-        while not all(alive.values()):
+        while not presence.all_up():
             if stop.is_set():
                 return False
             if time.monotonic() >= deadline:
                 log.warning("still no process for %s after %.0f s: starting anyway",
-                            ", ".join(r for r, t in alive.items() if not t), timeout)
+                            ", ".join(presence.missing()), timeout)
                 break
-            changed.wait(0.1)
-            changed.clear()
+            presence.changed.wait(0.1)
+            presence.changed.clear()
     return True

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import os
 import socket
+import struct
 import sys
 from pathlib import Path
 
@@ -20,6 +21,13 @@ CONFIGS = ROOT / "configs"
 ALLIANCE_ARCH = ROOT / "robot_agent" / "architecture"
 PATROL = CONFIGS / "applications" / "patrol"
 PATROL_WORLD = PATROL / "worlds" / "patrol.yaml"
+
+
+def png_size(path: Path) -> tuple[int, int]:
+    """(width, height) of a PNG file; fails if it is not one."""
+    data = path.read_bytes()
+    assert data[:8] == b"\x89PNG\r\n\x1a\n"
+    return struct.unpack(">II", data[16:24])
 
 
 def free_port() -> int:

@@ -6,7 +6,6 @@ import json
 import signal
 import subprocess
 import sys
-import time
 
 from mrta_zenoh import codec
 from mrta_zenoh.recording import read_recording

@@ -2,19 +2,12 @@
 
 import json
 import random
-import struct
 
 import pytest
 
-from tests.helpers import ALLIANCE_ARCH, CONFIGS
+from tests.helpers import CONFIGS, png_size
 
 CONFIG = CONFIGS / "applications" / "patrol" / "config"
-
-
-def png_size(path):
-    data = path.read_bytes()
-    assert data[:8] == b"\x89PNG\r\n\x1a\n"
-    return struct.unpack(">II", data[16:24])
 
 
 def run_demo(children, out, *args, timeout=120):

@@ -3,14 +3,12 @@ router (mutual TLS + access control): only certified processes join, a robot spe
 its own key, an observer only listens, and the mission runs end to end."""
 
 import json
-import subprocess
-import sys
 
 import pytest
 from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
-from tests.helpers import PATROL, PROCS, free_port
+from tests.helpers import PATROL, free_port
 
 CONFIG = PATROL / "config"
 

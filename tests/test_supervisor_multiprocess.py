@@ -2,16 +2,10 @@
 
 import json
 import signal
-import struct
 import time
 
 from mcap.reader import make_reader
-
-
-def png_size(path):
-    data = path.read_bytes()
-    assert data[:8] == b"\x89PNG\r\n\x1a\n"
-    return struct.unpack(">II", data[16:24])
+from tests.helpers import png_size
 
 
 def snapshots(sup, pred, timeout):

@@ -9,7 +9,7 @@ from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
 from mrta_zenoh.clock import ManualClock, SimClock
 from mrta_zenoh.messages import GenericMessage, Header, Twist
 from robot_agent.messages import InterRobotCommunication
-from tests.helpers import ALLIANCE_ARCH, CONFIGS
+from tests.helpers import ALLIANCE_ARCH
 from mrta_zenoh.toolchain.model import Application, RobotEntry
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
 from supervisor.api import CLOCK_STALL, Refresh, attach, resolve_application

@@ -5,7 +5,7 @@ from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
 from mrta_zenoh.errors import ConfigError
-from tests.helpers import ALLIANCE_ARCH, CONFIGS
+from tests.helpers import ALLIANCE_ARCH
 from mrta_zenoh.toolchain.model import Application, Architecture, Array, Param, Params
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta, to_xml
 from tests.helpers import REFERENCE

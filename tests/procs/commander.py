@@ -12,7 +12,7 @@ from mrta_zenoh import keys
 from mrta_zenoh.bus import BusOptions, open_bus
 from mrta_zenoh.clock import SimClock, follow_sim_clock
 from simulator.node import bumper_key
-from mrta_zenoh.messages import Clock, Odometry, PointCloud, Twist
+from mrta_zenoh.messages import Odometry, PointCloud, Twist
 from simulator.messages import Bumper
 
 robot, linear, seconds = sys.argv[1], float(sys.argv[2]), float(sys.argv[3])

@@ -32,6 +32,7 @@ from mrta_zenoh.errors import ConfigError, Interrupted, MrtaRuntimeError
 from mrta_zenoh.failure import USAGE, Failure, parse_failure
 from mrta_zenoh.files import write_text
 from mrta_zenoh.lifecycle import stop_on_signals
+from mrta_zenoh.presence import RobotPresence
 from mrta_zenoh.processes import Child, ProcessGroup, mrta_argv
 from mrta_zenoh.recording import read_recording
 from mrta_zenoh.toolchain.launchfile import LaunchEvaluator, check_executables
@@ -63,29 +64,21 @@ def parse_fail(spec: str | None) -> Failure | None:
 
 
 class Readiness:
-    """Who is up, from liveliness tokens: robots (any token under robotN/**), the recorder and
-    the clock source (tokens under @mrta/…, which `**` does not match)."""
+    """Who is up, from liveliness tokens: the robots (RobotPresence), the recorder and the clock
+    source (tokens under @mrta/…, which `**` does not match)."""
 
     def __init__(self, bus, robots: list[str]):
-        self.robots = {r: set() for r in robots}
+        self.presence = RobotPresence(bus, robots)
         self.recorder = threading.Event()
         self.clock = threading.Event()
-        self._lock = threading.Lock()
         self._handles = [
-            bus.watch_liveliness("**", self._robot),
+            self.presence,
             bus.watch_liveliness(keys.RECORDER_TOKEN + "/**", lambda k, up: up and self.recorder.set()),
             bus.watch_liveliness(keys.CLOCK_SOURCE_TOKEN + "/**", lambda k, up: up and self.clock.set()),
         ]
 
-    def _robot(self, key: str, up: bool) -> None:
-        rid = keys.first_chunk(key)
-        with self._lock:
-            if rid in self.robots:
-                (self.robots[rid].add if up else self.robots[rid].discard)(key)
-
     def robots_up(self) -> bool:
-        with self._lock:
-            return all(self.robots.values())
+        return self.presence.all_up()
 
     def wait(self, what, label: str, group: ProcessGroup, stop: threading.Event) -> None:
         deadline = time.monotonic() + READY_TIMEOUT
