@@ -9,88 +9,31 @@ from __future__ import annotations
 
 import collections
 import logging
-import os
-import signal
-import threading
-from typing import Any
 
-import msgspec
 import numpy as np
 
 from mrta_zenoh.bus import Bus, Sample
-from mrta_zenoh.clock import EPSILON, Clock
-from mrta_zenoh.keys import first_chunk, normalize_robot_id
+from mrta_zenoh.clock import Clock
+from mrta_zenoh.keys import first_chunk
 from mrta_zenoh.messages import Header
-from mrta_zenoh.seeds import robot_rng
 
 from . import keys
 from .high_level import HighLevel, TaskSwitch
 from .messages import InterRobotCommunication, Motivation, SensoryFeedback
 from .params import AgentParams
-from .plugins import (
-    AgentContext, Layer, Plugin, SensoryEvaluator, Sensor, declared_sections, load_plugin,
-)
+from .plugins import Layer, Plugins
+from .runtime import AgentLoop
 
 log = logging.getLogger("mrta.agent")
 
 
-class Plugins:
-    """The robot's low-level plugins with their typed parameters, built before the bus opens so
-    that a bad plugin name or parameter is bad input (exit 2, file and line) and nothing runs."""
-
-    def __init__(self, params: AgentParams):
-        self.sections: dict[tuple[str, type], Any] = {}
-        self._doc = params.layers
-        self.sensors: dict[str, Sensor] = {}
-        for sp in params.robot.sensors:
-            cls = self._load("sensor", sp.plugin_name, sp.where)
-            self.sensors[sp.topic_name] = cls(sp)
-        self.evaluators: dict[str, SensoryEvaluator] = {}
-        for bs in params.robot.behaviour_sets:
-            cls = self._load("evaluator", bs.evaluator_plugin, bs.where)
-            self.evaluators[bs.task_id] = cls(bs.task_id, [self.sensors[t] for t in bs.evaluator_topics])
-        self.layers: dict[str, list[Layer]] = {}
-        for bs in params.robot.behaviour_sets:
-            task = params.tasks[bs.task_id]
-            self.layers[bs.task_id] = [self._load("layer", name, where)()
-                                       for name, where in zip(task.layers, task.where)]
-        read = {name for name, _ in self.sections}
-        self.unread_sections = [n for n in (self._doc.data if self._doc else {}) if n not in read]
-
-    def _load(self, kind: str, name: str, where: str) -> type:
-        cls = load_plugin(kind, name, where)
-        for section, struct in declared_sections(cls).items():
-            if (section, struct) not in self.sections:
-                self.sections[(section, struct)] = (
-                    self._doc.convert((section,), struct) if self._doc is not None
-                    else msgspec.convert({}, struct))
-        return cls
-
-    def all(self) -> list[Plugin]:
-        return [*self.sensors.values(), *self.evaluators.values(),
-                *(layer for layers in self.layers.values() for layer in layers)]
-
-    def setup(self, ctx: AgentContext) -> None:
-        ctx.sensors = self.sensors
-        ctx.sections = self.sections
-        for plugin in self.all():
-            plugin.setup(ctx)
-
-    def shutdown(self) -> None:
-        for plugin in self.all():
-            plugin.shutdown()
-
-
-class Agent:
+class Agent(AgentLoop):
     def __init__(self, robot_id: str, params: AgentParams, bus: Bus, clock: Clock,
                  rng: np.random.Generator | None = None, plugins: Plugins | None = None):
-        self.robot_id = normalize_robot_id(robot_id)
+        super().__init__(robot_id, bus, clock, rng,
+                         plugins if plugins is not None else Plugins.for_alliance(params),
+                         params.robot.spin_rate, params.robot.control_rate, log)
         self.params = params
-        self.bus = bus
-        self.clock = clock
-        self.ctx = AgentContext(self.robot_id, bus, clock,
-                                rng if rng is not None else robot_rng(0, self.robot_id))
-        self.plugins = plugins if plugins is not None else Plugins(params)
         self.high = HighLevel(self.robot_id, params.robot)
         self._inbox: collections.deque = collections.deque(maxlen=10_000)
         self.ignored_own = 0
@@ -103,7 +46,6 @@ class Agent:
         self._last_broadcast: float | None = None
         self._token = None
         self._irc_sub = None
-        self.crash_at: float | None = None  # fault injection: SIGKILL itself at this time
 
     # ------------------------------------------------------------ set-up
     def start(self) -> None:
@@ -142,20 +84,7 @@ class Agent:
         msg = sample.message
         # in lockstep every robot shares one simulated time: the sender's stamp is exact and
         # does not depend on when the network delivered it
-        t = msg.header.stamp if self._lockstep() else self.clock.now()
-        self._inbox.append((sender, msg, t))
-
-    def _drop(self, counter: str, reason: str, *args) -> None:
-        """Count a dropped broadcast in `counter`; log the first and every 100th, so a flood
-        (a forger, a misconfigured teammate) cannot flood the log."""
-        n = getattr(self, counter) + 1
-        setattr(self, counter, n)
-        if n == 1 or n % 100 == 0:
-            log.warning("%s: " + reason + " (%d so far)", self.robot_id, *args, n)
-
-    def _lockstep(self) -> bool:
-        flag = getattr(self.clock, "lockstep", None)
-        return flag is not None and flag.is_set()
+        self._inbox.append((sender, msg, self.heard_at(msg.header.stamp)))
 
     # ------------------------------------------------------------ one step of each level
     def _header(self, key: str, now: float) -> Header:
@@ -166,7 +95,7 @@ class Agent:
         later = []  # in lockstep, a broadcast stamped at this very time waits for the next tick
         while self._inbox:
             sender, msg, t = self._inbox.popleft()
-            if t >= now and self._lockstep():
+            if t >= now and self.in_lockstep():
                 later.append((sender, msg, t))
                 continue
             if not self.high.on_broadcast(sender, msg.task_id, msg.expected_duration, t,
@@ -239,41 +168,6 @@ class Agent:
         self._inbox.clear()
         self.high = HighLevel(self.robot_id, self.params.robot)
         self._last_broadcast = None
-
-    def run(self, stop: threading.Event, until: float | None = None) -> None:
-        r = self.params.robot
-        high_period, ctrl_period = 1.0 / r.spin_rate, 1.0 / r.control_rate
-        now = self.clock.now()
-        next_high, next_ctrl, last_ctrl = now, now, now
-        epoch = getattr(self.clock, "restarts", 0)
-        while not stop.is_set():
-            t = min(next_high, next_ctrl)
-            if until is not None and t > until:
-                break
-            if not self.clock.sleep_until(t, stop):
-                break
-            now = self.clock.now()
-            if self.crash_at is not None and now >= self.crash_at:
-                log.warning("%s: crashing at t=%.2f as asked (fault injection)", self.robot_id, now)
-                logging.shutdown()
-                os.kill(os.getpid(), signal.SIGKILL)  # no shutdown, no goodbye: a real crash
-            if getattr(self.clock, "restarts", 0) != epoch:
-                epoch = self.clock.restarts
-                self.restart(now)
-                next_high, next_ctrl, last_ctrl = now, now, now
-                if until is not None:
-                    until = now + (until - t)
-            if now >= next_high - EPSILON:
-                self.tick_high(now)
-                next_high += high_period
-                if next_high <= now:  # fell behind: skip, don't burst
-                    next_high = now + high_period
-            if now >= next_ctrl - EPSILON:
-                self.step_layers(now, now - last_ctrl)
-                last_ctrl = now
-                next_ctrl += ctrl_period
-                if next_ctrl <= now:
-                    next_ctrl = now + ctrl_period
 
     def shutdown(self) -> None:
         """Stop the robot: deactivate the running layers, command zero velocity, and let every

@@ -12,34 +12,25 @@ import os
 import threading
 from pathlib import Path
 
-from mrta_zenoh.bus import BusOptions, open_bus
-from mrta_zenoh.clock import SimClock, WallClock, follow_sim_clock
-from mrta_zenoh.lockstep import LockstepClock
+from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.failure import parse_failure
 from mrta_zenoh.keys import normalize_robot_id
-from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.seeds import robot_rng
 
 from .agent import Agent, Plugins
 from .params import AgentParams, load_agent_params, load_robot_params
+from .runtime import host
 
 log = logging.getLogger("mrta.agent")
-
-# With no clock sample for this long (wall seconds), the robot is stopped: the simulator the
-# robot follows is gone or hung, and a layer must not keep driving on a stale world.
-CLOCK_WATCHDOG = 2.0
-
 
 def prepare(*, robot_id: str, robot_params: Path, tasks_params: Path,
             layers_params: Path | None = None) -> tuple[str, AgentParams, Plugins]:
     """Everything that can fail on bad input, before any bus is opened (ConfigError → exit 2)."""
     rid = normalize_robot_id(robot_id)
     params = load_agent_params(robot_params, tasks_params, layers_params)
-    plugins = Plugins(params)
-    for name in plugins.unread_sections:
-        params.warnings.append(params.layers.warning(
-            (name,), f"section {name!r} is read by none of this robot's plugins"))
+    plugins = Plugins.for_alliance(params)
+    params.warnings += plugins.unread_warnings()
     return rid, params, plugins
 
 
@@ -68,54 +59,10 @@ def run_agent(*, robot_id: str, robot_params: Path, tasks_params: Path,
                                    tasks_params=tasks_params, layers_params=layers_params)
     for w in params.warnings:
         log.warning("%s", w)
-    crash = crash_time(rid, crash_at)
-    clock = LockstepClock(rid) if sim_time else WallClock()
-    with stop_on_signals(stop) as stop, open_bus(bus_options) as bus:
-        agent = Agent(rid, params, bus, clock, robot_rng(seed, rid), plugins)
-        # on simulation time, follow the clock, and take part in lockstep when the simulator
-        # runs it (the participant token goes out before the agent's own: alive means ready)
-        handles = follow_sim_clock(bus, clock) + clock.join(bus) if sim_time else []
-        agent.start()
-        agent.declare_alive()
-        log.info("%s: ready (%d behaviour sets, %s time)", rid, len(params.robot.behaviour_sets),
-                 "simulation" if sim_time else "wall")
-        if crash is not None:
-            agent.crash_at = crash
-        watchdog = None
-        if sim_time:
-            watchdog = threading.Thread(target=_clock_watchdog, args=(agent, clock, stop),
-                                        name="clock-watchdog", daemon=True)
-            watchdog.start()
-        try:
-            if sim_time:
-                while not stop.is_set() and not clock.started.wait(0.1):
-                    pass
-            until = None if duration is None else clock.now() + duration
-            agent.run(stop, until)
-        finally:
-            stop.set()
-            if watchdog is not None:
-                watchdog.join(1.0)
-            agent.shutdown()
-            for h in handles:
-                h.close()
-    return 0
-
-
-def _clock_watchdog(agent: Agent, clock: SimClock, stop: threading.Event) -> None:
-    """Say once that the clock stopped, and command zero velocity; say when it is back."""
-    stopped = False
-    while not stop.wait(0.25):
-        if clock.stalled(CLOCK_WATCHDOG):
-            if not stopped:
-                stopped = True
-                log.warning("%s: the simulation clock stopped at t=%.2f (no sample for %.0f s): "
-                            "robot stopped until it comes back", agent.robot_id, clock.now(),
-                            CLOCK_WATCHDOG)
-                agent.ctx.publish_cmd(0.0, 0.0)
-        elif stopped:
-            stopped = False
-            log.warning("%s: the simulation clock is back at t=%.2f", agent.robot_id, clock.now())
+    return host(lambda bus, clock: Agent(rid, params, bus, clock, robot_rng(seed, rid), plugins),
+                robot_id=rid, bus_options=bus_options, sim_time=sim_time, duration=duration,
+                crash_at=crash_time(rid, crash_at), stop=stop,
+                describe=f"{len(params.robot.behaviour_sets)} behaviour sets")
 
 
 def takeover_bound(robot_params: Path, task: str) -> float:

@@ -12,23 +12,42 @@ from mrta_zenoh.cli.common import bus_options, finite_float, user_errors
 from .api import run_agent
 
 
-@click.command()
-@click.argument("robot_id")
-@click.option("--robot-params", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="The robot's ALLIANCE parameters (e.g. robot1_alliance_params.yaml).")
-@click.option("--tasks-params", required=True, type=click.Path(dir_okay=False, path_type=Path),
-              help="The tasks file (tasks_alliance_params.yaml).")
-@click.option("--layers-params", type=click.Path(dir_okay=False, path_type=Path),
-              help="Parameters for the layer plugins (layers_alliance_params.yaml).")
-@click.option("--sim-time", is_flag=True, help="Follow the simulator's clock instead of wall time.")
-@click.option("--seed", type=int, default=0, show_default=True,
-              help="The run's master seed; this robot's stream is derived from it and its id.")
-@click.option("--duration", type=finite_float(min=0, min_open=True),
-              help="Stop after this many seconds (of the agent's clock).")
-@click.option("--crash-at", type=finite_float(min=0), metavar="SECONDS",
-              help="Fault injection: SIGKILL itself when its clock reaches SECONDS (also "
-                   "$MRTA_CRASH=ROBOT@SECONDS,…). Exact in lockstep: experiments replay it.")
-@bus_options
+def agent_options(architecture: str, stem: str):
+    """The options every robot agent command takes (`mrta agent`, `mrta murdoch`): its
+    parameter files (named after `stem`), time, seed, duration, fault injection and the bus."""
+
+    def wrap(fn):
+        for option in reversed([
+            click.argument("robot_id"),
+            click.option("--robot-params", required=True,
+                         type=click.Path(dir_okay=False, path_type=Path),
+                         help=f"The robot's {architecture} parameters (e.g. "
+                              f"robot1_{stem}_params.yaml)."),
+            click.option("--tasks-params", required=True,
+                         type=click.Path(dir_okay=False, path_type=Path),
+                         help=f"The tasks file (tasks_{stem}_params.yaml)."),
+            click.option("--layers-params", type=click.Path(dir_okay=False, path_type=Path),
+                         help=f"Parameters for the layer plugins (layers_{stem}_params.yaml)."),
+            click.option("--sim-time", is_flag=True,
+                         help="Follow the simulator's clock instead of wall time."),
+            click.option("--seed", type=int, default=0, show_default=True,
+                         help="The run's master seed; this robot's stream is derived from it "
+                              "and its id."),
+            click.option("--duration", type=finite_float(min=0, min_open=True),
+                         help="Stop after this many seconds (of the agent's clock)."),
+            click.option("--crash-at", type=finite_float(min=0), metavar="SECONDS",
+                         help="Fault injection: SIGKILL itself when its clock reaches SECONDS "
+                              "(also $MRTA_CRASH=ROBOT@SECONDS,…). Exact in lockstep: "
+                              "experiments replay it."),
+            bus_options,
+        ]):
+            fn = option(fn)
+        return click.command()(fn)
+
+    return wrap
+
+
+@agent_options("ALLIANCE", "alliance")
 def agent(robot_id: str, robot_params: Path, tasks_params: Path, layers_params: Path | None,
           sim_time: bool, seed: int, duration: float | None, crash_at: float | None,
           bus_options: BusOptions) -> None:

@@ -72,7 +72,7 @@ class AgentParams:
     warnings: list[str] = field(default_factory=list)
 
 
-class _Mapping:
+class StrictMapping:
     """Reads one mapping, remembering which keys were used, so leftovers can be reported."""
 
     def __init__(self, doc: YamlDoc, path: tuple, allowed: set[str]):
@@ -122,37 +122,49 @@ ROBOT_KEYS = {"name", "spin_rate", "broadcast_rate", "timeout_duration", "buffer
               "sensors", "behaviour_sets", "control_rate", "id", "max_expected_duration"}
 
 
-def load_robot_params(path: Path | str) -> tuple[RobotParams, list[str]]:
-    doc = load_yaml(path)
-    if not isinstance(doc.data, dict):
-        raise doc.error((), "a robot parameter file must be a mapping")
-    top = _Mapping(doc, (), ROBOT_KEYS)
-    warnings: list[str] = []
+def load_sensors(doc: YamlDoc) -> tuple[SensorParams, ...]:
+    """The robot file's `sensors` array (shared by every architecture's robot file)."""
     sensors = []
     for spath, _ in sized_array(doc, ("sensors",), "sensor"):
-        r = _Mapping(doc, spath, {"plugin_name", "topic_name", "timeout_duration", "buffer_horizon"})
+        r = StrictMapping(doc, spath, {"plugin_name", "topic_name", "timeout_duration", "buffer_horizon"})
         sensors.append(SensorParams(
             plugin_name=r.get("plugin_name", str), topic_name=r.get("topic_name", str),
             timeout_duration=r.get("timeout_duration", float, 5.0, positive=True),
             buffer_horizon=r.get("buffer_horizon", float, 5.0, positive=True),
             where=r.where("plugin_name")))
+    return tuple(sensors)
+
+
+def load_sensor_topics(doc: YamlDoc, path: tuple, topics: set[str]) -> tuple[str, ...]:
+    """An evaluator's `sensors` array: topic names, each one of the robot's sensors."""
+    out = []
+    for fp, _ in sized_array(doc, path, "sensor"):
+        t = StrictMapping(doc, fp, {"topic_name"}).get("topic_name", str)
+        if t not in topics:
+            raise doc.error(fp + ("topic_name",), f"sensor topic {t!r} is not among the robot's "
+                            f"sensors ({', '.join(sorted(topics)) or 'none'})" + did_you_mean(t, topics))
+        out.append(t)
+    return tuple(out)
+
+
+def load_robot_params(path: Path | str) -> tuple[RobotParams, list[str]]:
+    doc = load_yaml(path)
+    if not isinstance(doc.data, dict):
+        raise doc.error((), "a robot parameter file must be a mapping")
+    top = StrictMapping(doc, (), ROBOT_KEYS)
+    warnings: list[str] = []
+    sensors = load_sensors(doc)
     topics = {s.topic_name for s in sensors}
     sets = []
     seen_tasks: set[str] = set()
     for bpath, _ in sized_array(doc, ("behaviour_sets",), "behaviour_set"):
-        b = _Mapping(doc, bpath, {"task_id", "task_expected_duration", "motivational_behaviour"})
+        b = StrictMapping(doc, bpath, {"task_id", "task_expected_duration", "motivational_behaviour"})
         mpath = bpath + ("motivational_behaviour",)
-        m = _Mapping(doc, mpath, {"threshold", "acquiescence", "impatience", "sensory_feedback"})
-        a = _Mapping(doc, mpath + ("acquiescence",), {"yielding_delay", "giving_up_delay"})
-        i = _Mapping(doc, mpath + ("impatience",), {"fast_rate"})
-        f = _Mapping(doc, mpath + ("sensory_feedback",), {"plugin_name", "sensors"})
-        ftopics = []
-        for fp, _ in sized_array(doc, mpath + ("sensory_feedback", "sensors"), "sensor"):
-            t = _Mapping(doc, fp, {"topic_name"}).get("topic_name", str)
-            if t not in topics:
-                raise doc.error(fp + ("topic_name",), f"sensor topic {t!r} is not among the robot's "
-                                f"sensors ({', '.join(sorted(topics)) or 'none'})" + did_you_mean(t, topics))
-            ftopics.append(t)
+        m = StrictMapping(doc, mpath, {"threshold", "acquiescence", "impatience", "sensory_feedback"})
+        a = StrictMapping(doc, mpath + ("acquiescence",), {"yielding_delay", "giving_up_delay"})
+        i = StrictMapping(doc, mpath + ("impatience",), {"fast_rate"})
+        f = StrictMapping(doc, mpath + ("sensory_feedback",), {"plugin_name", "sensors"})
+        ftopics = load_sensor_topics(doc, mpath + ("sensory_feedback", "sensors"), topics)
         task_id = b.get("task_id", str)
         if not is_id(task_id):
             raise doc.error(bpath + ("task_id",), f"task id {task_id!r:.80} must be one key chunk: "
@@ -168,7 +180,7 @@ def load_robot_params(path: Path | str) -> tuple[RobotParams, list[str]]:
             giving_up_delay=a.get("giving_up_delay", float, positive=True),
             fast_rate=i.get("fast_rate", float, positive=True),
             evaluator_plugin=f.get("plugin_name", str),
-            evaluator_topics=tuple(ftopics),
+            evaluator_topics=ftopics,
             where=f.where("plugin_name"),
         )
         if bs.yielding_delay > bs.giving_up_delay:
@@ -183,7 +195,7 @@ def load_robot_params(path: Path | str) -> tuple[RobotParams, list[str]]:
         broadcast_rate=top.rate("broadcast_rate"),
         timeout_duration=top.get("timeout_duration", float, positive=True),
         buffer_horizon=top.get("buffer_horizon", float, 10.0, positive=True),
-        sensors=tuple(sensors), behaviour_sets=tuple(sets),
+        sensors=sensors, behaviour_sets=tuple(sets),
         control_rate=top.rate("control_rate", 10.0),
         max_expected_duration=top.get("max_expected_duration", float, 3600.0, positive=True),
     )
@@ -213,10 +225,10 @@ def load_tasks_params(path: Path | str) -> dict[str, TaskParams]:
     doc = load_yaml(path)
     if not isinstance(doc.data, dict):
         raise doc.error((), "a tasks parameter file must be a mapping")
-    _Mapping(doc, (), {"tasks"})
+    StrictMapping(doc, (), {"tasks"})
     tasks: dict[str, TaskParams] = {}
     for tpath, _ in sized_array(doc, ("tasks",), "task"):
-        r = _Mapping(doc, tpath, {"id", "name", "layers"})
+        r = StrictMapping(doc, tpath, {"id", "name", "layers"})
         task_id = r.get("id", str)
         if task_id in tasks:
             raise doc.error(tpath + ("id",), f"task id {task_id!r} appears twice")
@@ -226,7 +238,7 @@ def load_tasks_params(path: Path | str) -> dict[str, TaskParams]:
         layers, where = [], []
         if "layers" in r.data:
             for lpath, _ in sized_array(doc, tpath + ("layers",), "layer"):
-                lr = _Mapping(doc, lpath, {"plugin_name"})
+                lr = StrictMapping(doc, lpath, {"plugin_name"})
                 layers.append(lr.get("plugin_name", str))
                 where.append(lr.where("plugin_name"))
         tasks[task_id] = TaskParams(task_id, r.get("name", str, task_id), tuple(layers),

@@ -32,7 +32,7 @@ import logging
 import threading
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
-from typing import Any, ClassVar
+from typing import Any, ClassVar, NamedTuple, Sequence
 
 import msgspec
 import numpy as np
@@ -42,9 +42,9 @@ from mrta_zenoh.bus import Bus, Subscription
 from mrta_zenoh.clock import Clock
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.messages import Message, Twist
-from mrta_zenoh.yamlfile import did_you_mean
+from mrta_zenoh.yamlfile import YamlDoc, did_you_mean
 
-from .params import SensorParams
+from .params import SensorParams, TaskParams
 
 GROUPS = {
     "sensor": "mrta.alliance.sensors",
@@ -52,6 +52,15 @@ GROUPS = {
     "layer": "mrta.alliance.layers",
 }
 ALIASES_GROUP = "mrta.alliance.aliases"
+
+
+class EvaluatorSpec(NamedTuple):
+    """One task's sensory evaluator: which plugin, on which of the robot's sensors."""
+
+    task_id: str
+    plugin_name: str
+    topics: tuple[str, ...]
+    where: str = ""
 
 
 class NoParams(msgspec.Struct, forbid_unknown_fields=True):
@@ -235,3 +244,67 @@ def load_plugin(kind: str, name: str, where: str = "") -> type:
     if not (isinstance(cls, type) and issubclass(cls, base)):
         raise ConfigError(f"{kind} plugin {name!r} is not a {base.__name__} subclass", file=where)
     return cls
+
+
+class Plugins:
+    """A robot's low-level plugins with their typed parameters, built before the bus opens so
+    that a bad plugin name or parameter is bad input (exit 2, file and line) and nothing runs.
+
+    Architecture-neutral: ALLIANCE builds it from behaviour sets (`for_alliance`), MURDOCH from
+    its skills; both give sensors, one evaluator per task and each task's layers."""
+
+    def __init__(self, sensors: Sequence[SensorParams], evaluators: Sequence[EvaluatorSpec],
+                 tasks: dict[str, TaskParams], layers_doc: YamlDoc | None):
+        self.sections: dict[tuple[str, type], Any] = {}
+        self._doc = layers_doc
+        self.sensors: dict[str, Sensor] = {}
+        for sp in sensors:
+            cls = self._load("sensor", sp.plugin_name, sp.where)
+            self.sensors[sp.topic_name] = cls(sp)
+        self.evaluators: dict[str, SensoryEvaluator] = {}
+        for ev in evaluators:
+            cls = self._load("evaluator", ev.plugin_name, ev.where)
+            self.evaluators[ev.task_id] = cls(ev.task_id, [self.sensors[t] for t in ev.topics])
+        self.layers: dict[str, list[Layer]] = {}
+        for ev in evaluators:
+            task = tasks[ev.task_id]
+            self.layers[ev.task_id] = [self._load("layer", name, where)()
+                                       for name, where in zip(task.layers, task.where)]
+        read = {name for name, _ in self.sections}
+        self.unread_sections = [n for n in (self._doc.data if self._doc else {}) if n not in read]
+
+    @classmethod
+    def for_alliance(cls, params) -> "Plugins":
+        """From ALLIANCE's AgentParams: one evaluator and one layer stack per behaviour set."""
+        return cls(params.robot.sensors,
+                   [EvaluatorSpec(bs.task_id, bs.evaluator_plugin, bs.evaluator_topics, bs.where)
+                    for bs in params.robot.behaviour_sets],
+                   params.tasks, params.layers)
+
+    def unread_warnings(self) -> list[str]:
+        """One warning per section of the layers file that none of these plugins reads."""
+        return [self._doc.warning((name,), f"section {name!r} is read by none of this robot's "
+                                  "plugins") for name in self.unread_sections]
+
+    def _load(self, kind: str, name: str, where: str) -> type:
+        cls = load_plugin(kind, name, where)
+        for section, struct in declared_sections(cls).items():
+            if (section, struct) not in self.sections:
+                self.sections[(section, struct)] = (
+                    self._doc.convert((section,), struct) if self._doc is not None
+                    else msgspec.convert({}, struct))
+        return cls
+
+    def all(self) -> list[Plugin]:
+        return [*self.sensors.values(), *self.evaluators.values(),
+                *(layer for layers in self.layers.values() for layer in layers)]
+
+    def setup(self, ctx: AgentContext) -> None:
+        ctx.sensors = self.sensors
+        ctx.sections = self.sections
+        for plugin in self.all():
+            plugin.setup(ctx)
+
+    def shutdown(self) -> None:
+        for plugin in self.all():
+            plugin.shutdown()

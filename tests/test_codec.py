@@ -10,6 +10,7 @@ from robot_agent.messages import InterRobotCommunication, Motivation, SensoryFee
 from simulator.messages import Bumper, Segment, World
 from mrta_patrol.messages import Report, TaskTime
 from mrta_zenoh.lockstep import LockstepStatus, Step, StepDone
+from mrta_murdoch.messages import Announcement, Award, Bid, Claim, Release
 
 EXAMPLES = [
     Header("robot1", 12.5, 7),
@@ -31,6 +32,11 @@ EXAMPLES = [
     LockstepStatus(30.0, ("robot2",)),
     Segment(0.0, 0.0, 1.0, 2.0),
     World(Header("world", 1.0, 0), "patrol", (Segment(-20.0, -6.0, 20.0, -6.0),)),
+    Announcement(Header("robot1", 3.0, 1), 7, "report", ("odom", "sonar"), 0.5),
+    Bid(Header("robot3", 3.1, 1), "robot1", 7, "report", 0.84),
+    Award(Header("robot1", 3.5, 2), 7, "report", "robot3", 0.84),
+    Claim(Header("robot3", 3.6, 1), "report", 3.6, 2.0),
+    Release(Header("robot3", 20.0, 9), "report", "no progress for 3.0 s"),
 ]
 
 

@@ -18,14 +18,22 @@ PACKAGES = {
     "robot_agent": ROOT / "robot_agent",
     "simulator": ROOT / "simulator",
     "supervisor": ROOT / "supervisor",
+    "mrta_murdoch": ROOT / "configs" / "architectures" / "murdoch",
     "mrta_patrol": ROOT / "configs" / "applications" / "patrol",
+    "mrta_patrol_murdoch": ROOT / "configs" / "applications" / "patrol_murdoch",
 }
 FORBIDDEN = {
-    "mrta_zenoh": {"robot_agent", "simulator", "supervisor", "mrta_patrol", "ping_app"},
-    "robot_agent": {"simulator", "supervisor", "mrta_patrol"},
-    "simulator": {"robot_agent", "supervisor", "mrta_patrol"},
-    "supervisor": {"robot_agent", "simulator", "mrta_patrol"},
+    "mrta_zenoh": {"robot_agent", "simulator", "supervisor", "mrta_murdoch", "mrta_patrol",
+                   "mrta_patrol_murdoch", "ping_app"},
+    "robot_agent": {"simulator", "supervisor", "mrta_murdoch", "mrta_patrol",
+                    "mrta_patrol_murdoch"},
+    # MURDOCH shares robot_agent's low level (plugins, loop, hosting) and nothing else
+    "mrta_murdoch": {"simulator", "supervisor", "mrta_patrol", "mrta_patrol_murdoch"},
+    "simulator": {"robot_agent", "supervisor", "mrta_murdoch", "mrta_patrol"},
+    "supervisor": {"robot_agent", "simulator", "mrta_murdoch", "mrta_patrol"},
     "mrta_patrol": set(),
+    "mrta_patrol_murdoch": {"mrta_zenoh", "robot_agent", "mrta_murdoch", "simulator",
+                            "supervisor", "mrta_patrol"},  # holds no code at all
 }
 PATROL_WORDS = ("patrol", "wander", "border_protection", "report_due", "wall_in_range")
 
@@ -55,7 +63,7 @@ def test_the_framework_has_no_patrol_specific_code():
     """Not even by name: robot_agent, simulator, supervisor and the core never mention the
     patrol application's plugins, messages or keys (docstrings aside)."""
     bad = []
-    for package in ("mrta_zenoh", "robot_agent", "simulator", "supervisor"):
+    for package in ("mrta_zenoh", "robot_agent", "mrta_murdoch", "simulator", "supervisor"):
         for f in sorted(PACKAGES[package].rglob("*.py")):
             tree = ast.parse(f.read_text(encoding="utf-8"))
             docstrings = {id(n.body[0].value) for n in ast.walk(tree)

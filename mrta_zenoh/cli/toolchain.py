@@ -97,18 +97,30 @@ def arch_show(name: str) -> None:
 
 
 def _validate(path: Path, kind: type) -> None:
+    """PATH is an rqt_mrta.xml file, a package folder holding one, or a registered package's
+    name. An application's architecture must also be registered: a package naming an
+    architecture nobody installed would validate, then fail at launch."""
     with user_errors():
+        if path.is_dir():
+            path = path / "rqt_mrta.xml"
+        elif not path.exists() and len(path.parts) == 1:
+            reg = Registry()
+            if path.name in reg.packages:
+                path = reg.find(path.name).path / "rqt_mrta.xml"
         model = load_rqt_mrta(path)
         if not isinstance(model, kind):
             raise ConfigError(f"this is an {type(model).__name__.lower()} file, not an "
                               f"{kind.__name__.lower()} file", file=str(path))
+        if isinstance(model, Application):
+            Registry().architecture(model.architecture)
     click.echo(f"{path}: valid {kind.__name__.lower()} {model.name!r}")
 
 
 @arch.command("validate")
-@click.argument("path", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("path", type=click.Path(path_type=Path))
 def arch_validate(path: Path) -> None:
-    """Check an architecture file; exit 2 naming file, line and element on the first error."""
+    """Check an architecture (file, package folder or package name); exit 2 naming file, line
+    and element on the first error."""
     _validate(path, Architecture)
 
 
@@ -144,9 +156,10 @@ def app_show(name: str) -> None:
 
 
 @app.command("validate")
-@click.argument("path", type=click.Path(dir_okay=False, path_type=Path))
+@click.argument("path", type=click.Path(path_type=Path))
 def app_validate(path: Path) -> None:
-    """Check an application file; exit 2 naming file, line and element on the first error."""
+    """Check an application (file, package folder or package name); exit 2 naming file, line
+    and element on the first error."""
     _validate(path, Application)
 
 

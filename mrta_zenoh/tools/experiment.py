@@ -218,6 +218,10 @@ def row_for(run: Run, out: Path, wall: float, error: str = "") -> dict:
         for k in ("exactly_one", "none", "more_than_one"):
             row[f"{task}.{k}"] = c[k]
     row["collisions"] = s.get("collisions_total", "")
+    row["first_full_allocation"] = s.get("first_full_allocation", "")
+    rates = s.get("messages") or {}
+    row["messages_per_second"] = rates.get("total_per_second", "")
+    row["coordination_messages_per_second"] = rates.get("coordination_per_second", "")
     try:
         from ..recording import read_recording
         row["messages"] = sum(1 for r in read_recording(out / "run.mcap")

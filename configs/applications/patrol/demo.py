@@ -1,13 +1,16 @@
 """`mrta demo`: the patrol application end to end, in one command.
 
-It runs the application's own launch file, `patrol_sim.launch` (the simulator and one ALLIANCE
-agent per robot), through the runner `mrta launch` uses, plus a recorder, all as separate
+It runs the application's own launch file, `patrol_sim.launch` (the simulator and one agent per
+robot: ALLIANCE's, or MURDOCH's with `--architecture murdoch`, whose application is the generated
+package `patrol_murdoch`), through the runner `mrta launch` uses, plus a recorder, all as separate
 processes on a private loopback rendezvous; this process is the supervisor and shows its view.
 Readiness is read from liveliness tokens (each robot's agent, the recorder, the clock source),
 never from log lines; the simulator itself starts the clock only once every robot is up. It can
 SIGKILL one agent mid-mission. Afterwards it writes, into the output folder, the recording, a
 world picture with trails, the allocation timeline, the motivation plots and a summary (who did
-what, takeover time beside the bound ALLIANCE states for it, mission metrics).
+what, takeover time beside the bound the architecture states for it, mission metrics). The
+supervisor, recorder and plots are the same for both architectures; the ALLIANCE-only motivation
+panels are simply not produced for MURDOCH (there are no motivation samples to plot).
 """
 
 from __future__ import annotations
@@ -19,6 +22,7 @@ import signal
 import threading
 import time
 from pathlib import Path
+from typing import Callable, NamedTuple
 
 from rich.console import Console, Group
 from rich.live import Live
@@ -38,7 +42,8 @@ from mrta_zenoh.recording import read_recording
 from mrta_zenoh.toolchain.launchfile import LaunchEvaluator, check_executables
 from mrta_zenoh.toolchain.registry import Registry
 from mrta_zenoh.toolchain.runner import start_nodes
-from robot_agent.api import CRASH_ENV, takeover_bound
+from mrta_murdoch.api import takeover_bound as murdoch_bound
+from robot_agent.api import CRASH_ENV, takeover_bound as alliance_bound
 from robot_agent.params import load_layers_params
 from robot_agent.plots import plot_motivation
 from supervisor.api import Refresh, attach
@@ -52,6 +57,23 @@ from .metrics import coverage, mission_metrics
 log = logging.getLogger("mrta.demo")
 LAUNCH = "patrol_sim.launch"
 READY_TIMEOUT = 60.0  # wall seconds for every process to come up
+
+
+class Flavour(NamedTuple):
+    """The patrol mission under one architecture: its application package, the stem of its
+    parameter files, and the takeover bound the architecture states (with its formula)."""
+
+    application: str
+    stem: str
+    bound: Callable[[Path, str], float]
+    formula: str
+
+
+ARCHITECTURES = {
+    "alliance": Flavour("patrol", "alliance", alliance_bound, "τ + (⌈θ/fast⌉ + 1)/ρ"),
+    "murdoch": Flavour("patrol_murdoch", "murdoch", murdoch_bound,
+                       "lease + bid window + 3 ticks"),
+}
 
 
 def parse_fail(spec: str | None) -> Failure | None:
@@ -100,11 +122,16 @@ class Readiness:
 def run_demo(*, duration: float = 60.0, speed: float = 2.0, fail: str | None = "robot2@30",
              output: Path = Path("demo-output"), seed: int = 0, live: bool | None = None,
              lockstep: bool = True, foxglove_port: int | None = None,
-             stop: threading.Event | None = None, out=None) -> dict:
+             architecture: str = "alliance", stop: threading.Event | None = None,
+             out=None) -> dict:
     console = Console(file=out) if out is not None else Console()
     failure = parse_fail(fail)
+    flavour = ARCHITECTURES.get(architecture)
+    if flavour is None:
+        raise ConfigError(f"--architecture {architecture!r}: expected one of "
+                          f"{', '.join(ARCHITECTURES)}")
     reg = Registry()
-    pkg, app = reg.application("patrol")
+    pkg, app = reg.application(flavour.application)
     _, arch = reg.architecture(app.architecture)
     ids = [r.id for r in app.robots]
     if failure and failure.robot not in ids:
@@ -113,8 +140,8 @@ def run_demo(*, duration: float = 60.0, speed: float = 2.0, fail: str | None = "
         raise ConfigError(f"--fail at {failure.at} s is not before the end ({duration} s)")
     output.mkdir(parents=True, exist_ok=True)
     config = pkg.path / "config"
-    params = {rid: config / f"{rid}_alliance_params.yaml" for rid in ids}
-    layers = load_layers_params(config / "layers_alliance_params.yaml")
+    params = {rid: config / f"{rid}_{flavour.stem}_params.yaml" for rid in ids}
+    layers = load_layers_params(config / f"layers_{flavour.stem}_params.yaml")
     border = layers.convert(("BorderProtection",), BorderParams)
     launch_args = {"speed": str(speed), "seed": str(seed),
                    "sim_args": f"--duration {duration} --snapshot {output / 'world.png'}"
@@ -134,7 +161,7 @@ def run_demo(*, duration: float = 60.0, speed: float = 2.0, fail: str | None = "
         ready = Readiness(bus, ids)
         # the recording: the bus, the scene and the supervisor's channels, readable by Foxglove;
         # with --foxglove the same channels are also served live
-        view = ["view", "patrol", "--sim-time", "--output", output / "run.mcap"]
+        view = ["view", flavour.application, "--sim-time", "--output", output / "run.mcap"]
         view += ["--port", str(foxglove_port)] if foxglove_port is not None else ["--no-server"]
         group.start(mrta_argv(*view), name="record")
         ready.wait(ready.recorder.is_set, "the recorder", group, stop)
@@ -152,7 +179,7 @@ def run_demo(*, duration: float = 60.0, speed: float = 2.0, fail: str | None = "
         ready.wait(ready.clock.is_set, "the simulator", group, stop)
         show_live = console.is_terminal if live is None else live
         failed_at = _run(sim, sup, clock, agents, failure, duration, speed, stop, console,
-                         show_live, kill=not lockstep)
+                         show_live, kill=not lockstep, title=f"patrol ({arch.name})")
         for h in handles + clock_handles:
             h.close()
         ready.close()
@@ -166,14 +193,15 @@ def run_demo(*, duration: float = 60.0, speed: float = 2.0, fail: str | None = "
             raise MrtaRuntimeError(f"{', '.join(c.name for c in crashed)} exited with an error:\n"
                                    + "\n".join(c.tail(5) for c in crashed))
     summary = analyse(output, app, arch, ids, params, border, failure, failed_at, duration,
-                      speed, time.monotonic() - t_wall0)
+                      speed, time.monotonic() - t_wall0, flavour)
     print_summary(console, summary)
     return summary
 
 
 def _run(sim: Child, sup: Supervisor, clock: SimClock, agents: dict[str, Child], failure,
          duration: float,
-         speed: float, stop: threading.Event, console: Console, show_live: bool, kill: bool = True) -> float | None:
+         speed: float, stop: threading.Event, console: Console, show_live: bool, kill: bool = True,
+         title: str = "patrol") -> float | None:
     failed_at = None
     last_line = -10.0
 
@@ -182,7 +210,7 @@ def _run(sim: Child, sup: Supervisor, clock: SimClock, agents: dict[str, Child],
         fail_txt = "" if not failure else (f" · {failure.robot} killed at {failed_at:.1f} s"
                                            if failed_at is not None
                                            else f" · will kill {failure.robot} at {failure.at:.0f} s")
-        return Text(f"mrta demo · patrol · simulated {t:5.1f} / {duration:.0f} s · "
+        return Text(f"mrta demo · {title} · simulated {t:5.1f} / {duration:.0f} s · "
                     f"speed {speed or 'max'}{fail_txt}", style="bold")
 
     live = Live(Group(header(), render(sup.snapshot(clock.now()), console.width)), console=console,
@@ -214,7 +242,8 @@ def _run(sim: Child, sup: Supervisor, clock: SimClock, agents: dict[str, Child],
 
 
 def analyse(output: Path, app, arch, ids, params, border: BorderParams, failure, failed_at,
-            duration: float, speed: float, wall: float) -> dict:
+            duration: float, speed: float, wall: float,
+            flavour: Flavour = ARCHITECTURES["alliance"]) -> dict:
     records = read_recording(output / "run.mcap")
     tb = TimeBase(records)
     sup = replay(records, tb, app, arch)
@@ -233,12 +262,15 @@ def analyse(output: Path, app, arch, ids, params, border: BorderParams, failure,
                 pass  # a robot killed before its first sample of this task
     who = {rid: [{"task": t, "from": round(a, 1), "to": round(b, 1)}
                  for t, a, b in sorted(intervals.get(rid, []), key=lambda x: x[1])] for rid in ids}
-    summary = {"duration": duration, "speed": speed, "wall_seconds": round(wall, 1),
+    summary = {"architecture": arch.name, "application": flavour.application,
+               "duration": duration, "speed": speed, "wall_seconds": round(wall, 1),
                "robots": ids, "who_did_what": who,
+               "first_full_allocation": first_full_allocation(intervals, app.tasks()),
                "coverage": coverage(intervals, app.tasks(), t0, t1),
                "output": str(output), "files": sorted(p.name for p in output.iterdir())}
     summary.update(mission_metrics(records, border.border() or (-20.0, -6.0, 20.0, 6.0),
                                    border.distance + 1.0))
+    summary["messages"] = message_rates(records, arch, max(t1 - t0, 1e-9))
     if failure:
         robot = failure.robot
         summary["failure"] = {"robot": robot, "killed_at": failed_at}
@@ -252,13 +284,44 @@ def analyse(output: Path, app, arch, ids, params, border: BorderParams, failure,
                 t_take, by = taken[0]
                 summary["failure"].update({
                     "taken_over_by": by, "takeover_seconds": round(t_take - failed_at, 2),
-                    "bound_seconds": round(takeover_bound(params[by], task), 2)})
+                    "bound_seconds": round(flavour.bound(params[by], task), 2),
+                    "bound_formula": flavour.formula})
     write_text(output / "summary.json", json.dumps(summary, indent=2))
     return summary
 
 
+def message_rates(records, arch, seconds: float) -> dict:
+    """Samples per simulated second on the bus (liveliness events aside), and the share the
+    architecture's own coordination takes: keys under its namespace — the second chunk of its
+    busy-robots topic (`*/alliance/…`, `*/murdoch/…`), read from the architecture file."""
+    topic = arch.busy_robots.name if arch.busy_robots else ""
+    parts = topic.strip("/").split("/")
+    namespace = parts[1] if len(parts) > 1 else None
+    total = coordination = 0
+    for key, _, _, _ in records:
+        if key.startswith("@"):
+            continue
+        total += 1
+        chunks = key.split("/")
+        if namespace is not None and len(chunks) > 1 and chunks[1] == namespace:
+            coordination += 1
+    return {"total_per_second": round(total / seconds, 1),
+            "coordination_per_second": round(coordination / seconds, 1),
+            "coordination_namespace": namespace}
+
+
+def first_full_allocation(intervals: dict, tasks) -> float | None:
+    """The first time every task was held by some robot (None: never during the run)."""
+    events = sorted({a for iv in intervals.values() for _, a, _ in iv})
+    for t in events:
+        held = {task for iv in intervals.values() for task, a, b in iv if a <= t <= b}
+        if set(tasks) <= held:
+            return round(t, 2)
+    return None
+
+
 def print_summary(console: Console, s: dict) -> None:
-    console.print(Text(f"\nPatrol mission: {s['duration']:.0f} s simulated at speed "
+    console.print(Text(f"\nPatrol mission ({s['architecture']}): {s['duration']:.0f} s simulated at speed "
                        f"{s['speed'] or 'max'} in {s['wall_seconds']:.0f} s", style="bold"))
     for rid, spans in s["who_did_what"].items():
         txt = ", ".join(f"{x['task']} {x['from']:.1f}–{x['to']:.1f} s" for x in spans) or "idle"
@@ -269,7 +332,7 @@ def print_summary(console: Console, s: dict) -> None:
             ok = "within" if f["takeover_seconds"] <= f["bound_seconds"] else "OVER"
             console.print(f"  {f['robot']} killed at {f['killed_at']:.1f} s while doing {f['task']}; "
                           f"{f['taken_over_by']} took over after {f['takeover_seconds']:.2f} s "
-                          f"({ok} the bound τ + (⌈θ/fast⌉ + 1)/ρ = {f['bound_seconds']:.2f} s)",
+                          f"({ok} the bound {f['bound_formula']} = {f['bound_seconds']:.2f} s)",
                           highlight=False)
         else:
             console.print(f"  {f['robot']} killed at {f.get('killed_at')}; task "

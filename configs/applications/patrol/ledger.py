@@ -1,9 +1,11 @@
 """The report layer's team ledger: time per robot and task, distance covered, border visited.
 
 Made from what the team publishes on the bus, like a patrol leader's log. Only *teammates*
-count: robots whose ALLIANCE agent holds its liveliness token (`robotN/alliance/agent`), heard on
-their own keys with a matching `header/frame_id` — a forged `robot9` or a sample on robot1's key
-claiming to be robot2 adds nothing. Odometry is finite by construction (the message type rejects
+count: robots whose agent — ALLIANCE or MURDOCH — holds its liveliness token (`robotN/alliance/agent`,
+`robotN/murdoch/agent`), heard on their own keys with a matching `header/frame_id` — a forged
+`robot9` or a sample on robot1's key claiming to be robot2 adds nothing. Who does what is read
+from whichever architecture runs: ALLIANCE's broadcasts or MURDOCH's claims (both carry
+`header` and `task_id`; the patrol application knows both architectures, the framework neither). Odometry is finite by construction (the message type rejects
 NaN and ±inf), so one bad sample cannot turn every later report's distance into NaN.
 """
 
@@ -14,13 +16,19 @@ import threading
 
 from mrta_zenoh.keys import first_chunk
 from mrta_zenoh.messages import Header, Odometry
-from robot_agent.keys import ALL_AGENT_TOKENS, ALL_INTER_ROBOT_COMMUNICATION
+from mrta_murdoch import keys as murdoch_keys
+from mrta_murdoch.messages import Claim
+from robot_agent import keys as alliance_keys
 from robot_agent.messages import InterRobotCommunication
 from robot_agent.plugins import Plugin
 
 from .messages import Report, TaskTime
 
 MAX_TEAMMATES = 64
+# each architecture's "robot R does task T" feed and its agents' liveliness tokens
+DOING = ((alliance_keys.ALL_INTER_ROBOT_COMMUNICATION, InterRobotCommunication),
+         (murdoch_keys.ALL_CLAIMS, Claim))
+AGENT_TOKENS = (alliance_keys.ALL_AGENT_TOKENS, murdoch_keys.ALL_AGENT_TOKENS)
 
 
 def rectangle_cells(x0: float, y0: float, x1: float, y1: float,
@@ -51,10 +59,11 @@ class PatrolLedger:
         self.distance: dict[str, float] = {}
         self.cells = rectangle_cells(*border, self.CELL) if border is not None else []
         self.visited = [False] * len(self.cells)
-        owner.subscribe(ALL_INTER_ROBOT_COMMUNICATION, self._on_bc, msg_type=InterRobotCommunication)
+        for key_expr, kind in DOING:
+            owner.subscribe(key_expr, self._on_bc, msg_type=kind)
         owner.subscribe("*/odom", self._on_odom, msg_type=Odometry)
-        watch = owner.ctx.bus.watch_liveliness(ALL_AGENT_TOKENS, self._on_token)
-        owner._subscriptions.append(watch)
+        for key_expr in AGENT_TOKENS:
+            owner._subscriptions.append(owner.ctx.bus.watch_liveliness(key_expr, self._on_token))
 
     def _on_token(self, key: str, alive: bool) -> None:
         with self._lock:

@@ -1,0 +1,298 @@
+"""MURDOCH's decisions for one robot, as pure logic on an injected time (like ALLIANCE's
+HighLevel): messages heard go in through `on_*`, `tick(now, readings)` returns what to publish.
+No bus, no clock, no threads — the agent wires it, tests drive it in virtual time.
+
+The protocol (Gerkey & Matarić 2002; docs/murdoch.md):
+
+* **Auction.** An auctioneer publishes an Announcement (task, required resources, bid window).
+  Every *idle* robot whose required resources are fresh and whose progress evaluator says the
+  task is applicable bids its utility: `skill_weight·level − distance_weight·distance` to the
+  nearest of the task's locations (if it has any and the robot knows its pose). When the window
+  closes the auctioneer awards greedily over every auction it closes at that tick — highest
+  utility first, ties to the lower robot id, each robot and task at most once — a single-round,
+  first-price auction. No bids, no award.
+* **Leases.** The winner publishes a Claim at once and every renewal_period. A task none of
+  whose claims was heard for lease_timeout is unheld again and is auctioned anew. A winner
+  whose progress evaluator (or resources) stays false for give_up_delay releases the task and
+  does not bid for it again for as long. A robot awarded a task while busy releases it at once.
+* **Who auctions.** Every robot knows the mission's tasks, and any robot may auction an unheld
+  one: the auctioneer of rank k (k-th lowest id among live MURDOCH agents, this one included)
+  announces once the task has been unheld for k·reannounce_period and nobody announced it for
+  (k+1)·reannounce_period. Rank 0 therefore announces at once and re-announces every period
+  while nobody bids; the others stay silent while it lives and step in, in turn, when it dies
+  or is cut off. Gerkey's MURDOCH let the task's introducer be its auctioneer; in a team with
+  no introducer this rule is what keeps allocation going when any robot is lost.
+* **Two holders** (two auctioneers on either side of a healed partition): the earlier
+  (since, id) keeps the task, the other releases it. Both compare the same reported numbers.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import NamedTuple, Protocol
+
+from .messages import Announcement, Award, Bid, Claim, Release
+from .params import MurdochRobot, MurdochTask
+
+EPS = 1e-9
+
+
+class Readings(Protocol):
+    """What the robot knows of itself (from its sensor and evaluator plugins)."""
+
+    def fresh(self, topic: str, now: float) -> bool: ...
+    def applicable(self, task_id: str, now: float) -> bool: ...
+    def pose(self) -> tuple[float, float] | None: ...
+
+
+class Out(NamedTuple):
+    """A message to publish: `kind` names the key (announcement, bid, award, claim, release);
+    `fields` are the message's fields after its header."""
+
+    kind: str
+    fields: tuple
+
+
+class Change(NamedTuple):
+    """A change of this robot's task, for the log and the tests: won / released."""
+
+    kind: str
+    task_id: str
+    reason: str
+
+
+@dataclass
+class Lease:
+    since: float
+    heard: float
+    lease: float
+
+    def expiry(self) -> float:
+        return self.heard + self.lease
+
+
+@dataclass
+class OpenAuction:
+    number: int
+    task_id: str
+    deadline: float
+    bids: dict[str, float] = field(default_factory=dict)
+
+
+class Murdoch:
+    def __init__(self, robot_id: str, robot: MurdochRobot, tasks: dict[str, MurdochTask]):
+        self.id = robot_id
+        self.p = robot
+        self.tasks = tasks
+        self.teammates: set[str] = set()
+        self.leases: dict[str, dict[str, Lease]] = {t: {} for t in tasks}
+        self.held_until: dict[str, float] = {}     # task → when its last claim/award lapses
+        self.last_announced: dict[str, float] = {}
+        self.open: dict[int, OpenAuction] = {}
+        self.next_auction = 1
+        self._announcements: list[tuple[str, Announcement, float]] = []
+        self._awards: list[tuple[str, Award, float]] = []
+        self.task: str | None = None
+        self.since = 0.0
+        self.last_claim: float | None = None
+        self.stalled_since: float | None = None
+        self.cooldown: dict[str, float] = {}
+        self.start: float | None = None
+        self.counts = {"announced": 0, "bids": 0, "awarded": 0, "late_bids": 0}
+
+    # ------------------------------------------------------------------ what was heard
+    def on_teammate(self, robot: str, alive: bool) -> None:
+        (self.teammates.add if alive else self.teammates.discard)(robot)
+
+    def on_announcement(self, sender: str, msg: Announcement, t: float) -> None:
+        if msg.task_id not in self.tasks:
+            return
+        self.last_announced[msg.task_id] = max(self.last_announced.get(msg.task_id, t), t)
+        if sender != self.id:
+            self._announcements.append((sender, msg, t))
+
+    def on_bid(self, sender: str, msg: Bid, t: float) -> None:
+        auction = self.open.get(msg.auction)
+        if msg.auctioneer != self.id or auction is None or auction.task_id != msg.task_id:
+            return
+        if t > auction.deadline + EPS:
+            self.counts["late_bids"] += 1
+            return
+        auction.bids[sender] = msg.utility
+
+    def on_award(self, sender: str, msg: Award, t: float) -> None:
+        if msg.task_id not in self.tasks:
+            return
+        # the winner claims at its next tick: until then (and for a lease) the task is taken
+        self.held_until[msg.task_id] = max(self.held_until.get(msg.task_id, t),
+                                           t + self.p.lease_timeout)
+        if msg.winner == self.id:
+            self._awards.append((sender, msg, t))
+
+    def on_claim(self, sender: str, msg: Claim, t: float) -> None:
+        if msg.task_id not in self.tasks or sender == self.id:
+            return
+        lease = Lease(msg.since, t, min(msg.lease, 10 * self.p.lease_timeout))
+        self.leases[msg.task_id][sender] = lease
+        self.held_until[msg.task_id] = max(self.held_until.get(msg.task_id, t), lease.expiry())
+
+    def on_release(self, sender: str, msg: Release, t: float) -> None:
+        if msg.task_id not in self.tasks:
+            return
+        self.leases[msg.task_id].pop(sender, None)
+        others = [lease.expiry() for lease in self.leases[msg.task_id].values()
+                  if lease.expiry() >= t]
+        self.held_until[msg.task_id] = max(others, default=t)
+
+    # ------------------------------------------------------------------ one tick
+    def tick(self, now: float, readings: Readings) -> tuple[list[Out], list[Change]]:
+        if self.start is None:
+            self.start = now
+        out: list[Out] = []
+        changes: list[Change] = []
+        self._expire(now)
+        self._take_awards(now, out, changes)
+        self._keep_or_release(now, readings, out, changes)
+        self._bid(now, readings, out)
+        self._close_auctions(now, readings, out, changes)
+        self._announce(now, readings, out)
+        return out, changes
+
+    def _expire(self, now: float) -> None:
+        for leases in self.leases.values():
+            for robot in [r for r, lease in leases.items() if lease.expiry() < now]:
+                del leases[robot]
+
+    def capable(self, task_id: str, now: float, readings: Readings) -> bool:
+        skill = self.p.skill(task_id)
+        return (skill is not None and skill.level > 0 and now >= self.cooldown.get(task_id, -math.inf)
+                and self.progressing(task_id, now, readings))
+
+    def progressing(self, task_id: str, now: float, readings: Readings) -> bool:
+        return (all(readings.fresh(r, now) for r in self.tasks[task_id].resources)
+                and readings.applicable(task_id, now))
+
+    def utility(self, task_id: str, readings: Readings) -> float:
+        skill = self.p.skill(task_id)
+        value = self.p.skill_weight * (skill.level if skill else 0.0)
+        pose, places = readings.pose(), self.tasks[task_id].locations
+        if pose is not None and places and self.p.distance_weight:
+            value -= self.p.distance_weight * min(math.hypot(x - pose[0], y - pose[1])
+                                                  for x, y in places)
+        return value
+
+    def _become(self, task: str, now: float, out: list[Out], changes: list[Change], why: str) -> None:
+        self.task, self.since, self.last_claim, self.stalled_since = task, now, now, None
+        out.append(Out("claim", (task, now, self.p.lease_timeout)))
+        changes.append(Change("won", task, why))
+
+    def _release(self, reason: str, now: float, out: list[Out], changes: list[Change]) -> None:
+        task = self.task
+        self.task = None
+        self.held_until[task] = max((lease.expiry() for lease in self.leases[task].values()),
+                                    default=now)
+        out.append(Out("release", (task, reason)))
+        changes.append(Change("released", task, reason))
+
+    def _take_awards(self, now: float, out: list[Out], changes: list[Change]) -> None:
+        awards, self._awards = self._awards, []
+        awards.sort(key=lambda a: (-a[1].utility, a[1].task_id))
+        for auctioneer, award, _ in awards:
+            if self.task is None:
+                self._become(award.task_id, now, out, changes,
+                             f"won auction {auctioneer}#{award.auction} with {award.utility:.3g}")
+            elif award.task_id != self.task:
+                out.append(Out("release", (award.task_id, f"busy with {self.task}")))
+
+    def _keep_or_release(self, now: float, readings: Readings, out: list[Out],
+                         changes: list[Change]) -> None:
+        if self.task is None:
+            return
+        earlier = [(lease.since, r) for r, lease in self.leases[self.task].items()
+                   if (lease.since, r) < (self.since, self.id)]
+        if earlier:
+            since, robot = min(earlier)
+            self._release(f"duplicate: {robot} holds it since {since:.2f}", now, out, changes)
+            return
+        if self.progressing(self.task, now, readings):
+            self.stalled_since = None
+        else:
+            if self.stalled_since is None:
+                self.stalled_since = now
+            if now - self.stalled_since >= self.p.give_up_delay - EPS:
+                self.cooldown[self.task] = now + self.p.give_up_delay
+                self._release(f"no progress for {now - self.stalled_since:.1f} s", now, out,
+                              changes)
+                return
+        if now - self.last_claim >= self.p.renewal_period - EPS:
+            self.last_claim = now
+            out.append(Out("claim", (self.task, self.since, self.p.lease_timeout)))
+
+    def _bid(self, now: float, readings: Readings, out: list[Out]) -> None:
+        pending, self._announcements = self._announcements, []
+        if self.task is not None:
+            return
+        for auctioneer, ann, t in pending:
+            if now > t + ann.bid_window + EPS or not self.capable(ann.task_id, now, readings):
+                continue
+            if not all(readings.fresh(r, now) for r in ann.resources):
+                continue
+            self.counts["bids"] += 1
+            out.append(Out("bid", (auctioneer, ann.auction, ann.task_id,
+                                   self.utility(ann.task_id, readings))))
+
+    def _close_auctions(self, now: float, readings: Readings, out: list[Out],
+                        changes: list[Change]) -> None:
+        closed = [a for a in self.open.values() if now >= a.deadline - EPS]
+        if not closed:
+            return
+        for a in closed:
+            del self.open[a.number]
+        busy = {r for leases in self.leases.values() for r in leases}
+        if self.task is not None:
+            busy.add(self.id)
+        candidates = sorted((-u, robot, a.task_id, a.number) for a in closed
+                            if self._unheld(a.task_id, now) for robot, u in a.bids.items()
+                            if robot not in busy)
+        done_tasks: set[str] = set()
+        for neg_u, robot, task, number in candidates:
+            if task in done_tasks or robot in busy:
+                continue
+            done_tasks.add(task)
+            busy.add(robot)
+            self.counts["awarded"] += 1
+            out.append(Out("award", (number, task, robot, -neg_u)))
+            self.held_until[task] = max(self.held_until.get(task, now), now + self.p.lease_timeout)
+            if robot == self.id:
+                self._become(task, now, out, changes,
+                             f"won its own auction #{number} with {-neg_u:.3g}")
+
+    def _unheld(self, task: str, now: float) -> bool:
+        return self.task != task and self.held_until.get(task, -math.inf) < now - EPS
+
+    def rank(self) -> int:
+        return sorted(self.teammates | {self.id}).index(self.id)
+
+    def _announce(self, now: float, readings: Readings, out: list[Out]) -> None:
+        period = self.p.reannounce_period
+        wait = self.rank() * period
+        auctioning = {a.task_id for a in self.open.values()}
+        for task in self.tasks:
+            if task in auctioning or not self._unheld(task, now):
+                continue
+            unheld_since = max(self.held_until.get(task, self.start), self.start)
+            if now < unheld_since + wait - EPS:
+                continue
+            last = self.last_announced.get(task)
+            if last is not None and last >= unheld_since and now - last < period + wait - EPS:
+                continue
+            number, self.next_auction = self.next_auction, self.next_auction + 1
+            auction = OpenAuction(number, task, now + self.p.bid_window)
+            self.open[number] = auction
+            self.last_announced[task] = now
+            self.counts["announced"] += 1
+            out.append(Out("announcement", (number, task, self.tasks[task].resources,
+                                            self.p.bid_window)))
+            if self.task is None and self.capable(task, now, readings):
+                auction.bids[self.id] = self.utility(task, readings)

@@ -1,0 +1,183 @@
+"""What every robot agent process shares, whatever its architecture: the two-rate loop on the
+injected clock and the hosting around it (bus, simulation clock, lockstep, clock watchdog,
+fault injection, signals).
+
+ALLIANCE (robot_agent.agent) and MURDOCH (mrta_murdoch) both run on it, so a fix to timing,
+lockstep or shutdown reaches both; an architecture supplies only its decision step
+(`tick_high`), its layers (`step_layers`) and what a restart of time means to it (`restart`).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import signal
+import threading
+from typing import Callable, Protocol
+
+import numpy as np
+
+from mrta_zenoh.bus import Bus, BusOptions, open_bus
+from mrta_zenoh.clock import EPSILON, Clock, SimClock, WallClock, follow_sim_clock
+from mrta_zenoh.keys import normalize_robot_id
+from mrta_zenoh.lifecycle import stop_on_signals
+from mrta_zenoh.lockstep import LockstepClock
+from mrta_zenoh.seeds import robot_rng
+
+from .plugins import AgentContext, Plugins
+
+log = logging.getLogger("mrta.agent")
+
+# With no clock sample for this long (wall seconds), the robot is stopped: the simulator the
+# robot follows is gone or hung, and a layer must not keep driving on a stale world.
+CLOCK_WATCHDOG = 2.0
+
+
+class AgentLoop:
+    """The single-threaded loop: the decision step at `high_period`, the layers at
+    `ctrl_period`, both scheduled on the injected clock so that the loop runs identically in
+    real time, at k× simulation speed, in lockstep and step by step in tests.
+
+    Subclasses call `__init__` with the robot, its bus, clock and plugins and their two rates,
+    and implement `tick_high(now)`, `step_layers(now, dt)` and `restart(now)`."""
+
+    crash_at: float | None = None  # fault injection: SIGKILL itself at this time
+
+    def __init__(self, robot_id: str, bus: Bus, clock: Clock, rng: np.random.Generator | None,
+                 plugins: Plugins, spin_rate: float, control_rate: float,
+                 logger: logging.Logger = log):
+        self.robot_id = normalize_robot_id(robot_id)
+        self.bus = bus
+        self.clock = clock
+        self.ctx = AgentContext(self.robot_id, bus, clock,
+                                rng if rng is not None else robot_rng(0, self.robot_id),
+                                log=logger)
+        self.plugins = plugins
+        self.high_period = 1.0 / spin_rate
+        self.ctrl_period = 1.0 / control_rate
+        self.log = logger
+
+    def in_lockstep(self) -> bool:
+        flag = getattr(self.clock, "lockstep", None)
+        return flag is not None and flag.is_set()
+
+    def heard_at(self, stamp: float) -> float:
+        """When a message stamped `stamp` counts as heard: in lockstep every robot shares one
+        simulated time, so its own stamp, exact whatever the network did; otherwise now."""
+        return stamp if self.in_lockstep() else self.clock.now()
+
+    def _drop(self, counter: str, reason: str, *args) -> None:
+        """Count a dropped message in `counter`; log the first and every 100th, so a flood (a
+        forger, a misconfigured teammate) cannot flood the log."""
+        n = getattr(self, counter) + 1
+        setattr(self, counter, n)
+        if n == 1 or n % 100 == 0:
+            self.log.warning("%s: " + reason + " (%d so far)", self.robot_id, *args, n)
+
+    def tick_high(self, now: float):
+        raise NotImplementedError
+
+    def step_layers(self, now: float, dt: float) -> None:
+        raise NotImplementedError
+
+    def restart(self, now: float) -> None:
+        raise NotImplementedError
+
+    def run(self, stop: threading.Event, until: float | None = None) -> None:
+        high_period, ctrl_period = self.high_period, self.ctrl_period
+        now = self.clock.now()
+        next_high, next_ctrl, last_ctrl = now, now, now
+        epoch = getattr(self.clock, "restarts", 0)
+        while not stop.is_set():
+            t = min(next_high, next_ctrl)
+            if until is not None and t > until:
+                break
+            if not self.clock.sleep_until(t, stop):
+                break
+            now = self.clock.now()
+            if self.crash_at is not None and now >= self.crash_at:
+                self.log.warning("%s: crashing at t=%.2f as asked (fault injection)",
+                                 self.robot_id, now)
+                logging.shutdown()
+                os.kill(os.getpid(), signal.SIGKILL)  # no shutdown, no goodbye: a real crash
+            if getattr(self.clock, "restarts", 0) != epoch:
+                epoch = self.clock.restarts
+                self.restart(now)
+                next_high, next_ctrl, last_ctrl = now, now, now
+                if until is not None:
+                    until = now + (until - t)
+            if now >= next_high - EPSILON:
+                self.tick_high(now)
+                next_high += high_period
+                if next_high <= now:  # fell behind: skip, don't burst
+                    next_high = now + high_period
+            if now >= next_ctrl - EPSILON:
+                self.step_layers(now, now - last_ctrl)
+                last_ctrl = now
+                next_ctrl += ctrl_period
+                if next_ctrl <= now:
+                    next_ctrl = now + ctrl_period
+
+
+class HostedAgent(Protocol):
+    robot_id: str
+    crash_at: float | None
+    ctx: object
+
+    def start(self) -> None: ...
+    def declare_alive(self) -> None: ...
+    def run(self, stop: threading.Event, until: float | None = None) -> None: ...
+    def shutdown(self) -> None: ...
+
+
+def host(make_agent: Callable[[Bus, Clock], HostedAgent], *, robot_id: str,
+         bus_options: BusOptions, sim_time: bool, duration: float | None,
+         crash_at: float | None, stop: threading.Event | None, describe: str) -> int:
+    """Open the bus, build the agent, follow simulation time (and lockstep) if asked, declare
+    the agent alive once it is ready, run until stopped, then shut it down."""
+    clock = LockstepClock(robot_id) if sim_time else WallClock()
+    with stop_on_signals(stop) as stop, open_bus(bus_options) as bus:
+        agent = make_agent(bus, clock)
+        # on simulation time, follow the clock, and take part in lockstep when the simulator
+        # runs it (the participant token goes out before the agent's own: alive means ready)
+        handles = follow_sim_clock(bus, clock) + clock.join(bus) if sim_time else []
+        agent.start()
+        agent.declare_alive()
+        log.info("%s: ready (%s, %s time)", robot_id, describe, "simulation" if sim_time else "wall")
+        if crash_at is not None:
+            agent.crash_at = crash_at
+        watchdog = None
+        if sim_time:
+            watchdog = threading.Thread(target=_clock_watchdog, args=(agent, clock, stop),
+                                        name="clock-watchdog", daemon=True)
+            watchdog.start()
+        try:
+            if sim_time:
+                while not stop.is_set() and not clock.started.wait(0.1):
+                    pass
+            until = None if duration is None else clock.now() + duration
+            agent.run(stop, until)
+        finally:
+            stop.set()
+            if watchdog is not None:
+                watchdog.join(1.0)
+            agent.shutdown()
+            for h in handles:
+                h.close()
+    return 0
+
+
+def _clock_watchdog(agent: HostedAgent, clock: SimClock, stop: threading.Event) -> None:
+    """Say once that the clock stopped, and command zero velocity; say when it is back."""
+    stopped = False
+    while not stop.wait(0.25):
+        if clock.stalled(CLOCK_WATCHDOG):
+            if not stopped:
+                stopped = True
+                log.warning("%s: the simulation clock stopped at t=%.2f (no sample for %.0f s): "
+                            "robot stopped until it comes back", agent.robot_id, clock.now(),
+                            CLOCK_WATCHDOG)
+                agent.ctx.publish_cmd(0.0, 0.0)
+        elif stopped:
+            stopped = False
+            log.warning("%s: the simulation clock is back at t=%.2f", agent.robot_id, clock.now())

@@ -1,0 +1,108 @@
+"""A MURDOCH team on the in-process bus and one manual clock: real agents (plugins, auctions,
+leases) stepped tick by tick in virtual time, with robots that can be killed (their bus closes,
+so their token goes as a process exit takes it) or frozen (still "alive", never ticking)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from mrta_murdoch.agent import MurdochAgent
+from mrta_murdoch.params import load_params
+from mrta_zenoh import keys
+from mrta_zenoh.bus import InProcBus
+from mrta_zenoh.bus.inproc import InProcNetwork
+from mrta_zenoh.clock import ManualClock
+from mrta_zenoh.messages import Header, Odometry, PointCloud, Pose2D, Twist
+from tests.alliance_fixtures import write
+
+TIMING = {"spin_rate": 10.0, "bid_window": 0.5, "renewal_period": 0.5, "lease_timeout": 2.0,
+          "reannounce_period": 2.0, "give_up_delay": 3.0}
+
+
+def robot_doc(skills: dict[str, float], **timing) -> dict:
+    doc = {"name": "test robot", **TIMING, **timing, "pose_topic": "odom",
+           "utility": {"skill_weight": 1.0, "distance_weight": 0.1},
+           "sensors": {"size": 2}, "skills": {"size": len(skills)}}
+    for i, (t, plugin) in enumerate((("odom", "alliance/odometry"),
+                                     ("sonar", "alliance/point_cloud"))):
+        doc["sensors"][f"sensor{i}"] = {"plugin_name": plugin, "topic_name": t,
+                                        "timeout_duration": 1.0}
+    for i, (task, level) in enumerate(skills.items()):
+        doc["skills"][f"skill{i}"] = {"task_id": task, "level": level, "progress": {
+            "plugin_name": "alliance/updated_sensory",
+            "sensors": {"size": 1, "sensor0": {"topic_name": "sonar"}}}}
+    return doc
+
+
+def tasks_doc(tasks: list[str], locations: dict[str, tuple[float, float]] | None = None) -> dict:
+    doc = {"tasks": {"size": len(tasks)}}
+    for i, t in enumerate(tasks):
+        loc = (locations or {}).get(t)
+        doc["tasks"][f"task{i}"] = {
+            "id": t, "name": t, "resources": {"size": 1, "resource0": {"topic_name": "sonar"}},
+            "locations": {"size": 1, "location0": {"x": loc[0], "y": loc[1]}} if loc
+            else {"size": 0}}
+    return doc
+
+
+class Team:
+    def __init__(self, tmp: Path, skills: dict[str, dict[str, float]], tasks: list[str],
+                 locations=None, start: float = 100.0, **timing):
+        self.net = InProcNetwork()
+        self.clock = ManualClock(start)
+        tf = write(tmp / "tasks.yaml", tasks_doc(tasks, locations))
+        self.agents: dict[str, MurdochAgent] = {}
+        self.buses: dict[str, InProcBus] = {}
+        self.frozen: set[str] = set()
+        self.blind: set[str] = set()  # robots whose sonar stopped
+        self.pose: dict[str, tuple[float, float]] = {}
+        self.observer = InProcBus(self.net)
+        self.heard: list = []
+        self.observer.subscribe("*/murdoch/*", self.heard.append)
+        for rid, sk in skills.items():
+            rf = write(tmp / f"{rid}.yaml", robot_doc(sk, **timing))
+            bus = InProcBus(self.net)
+            agent = MurdochAgent(rid, load_params(rf, tf), bus, self.clock,
+                                 np.random.default_rng(1))
+            agent.start()
+            agent.declare_alive()
+            self.agents[rid], self.buses[rid] = agent, bus
+
+    def kill(self, rid: str) -> None:
+        self.agents[rid].shutdown()
+        self.buses[rid].close()
+        del self.agents[rid]
+
+    def step(self, n: int = 1) -> None:
+        for _ in range(n):
+            now = self.clock.now()
+            for rid in self.agents:
+                x, y = self.pose.get(rid, (0.0, 0.0))
+                bus = self.buses[rid]
+                bus.publish(keys.odom(rid), Odometry(Header(rid, now, 0), Pose2D(x, y, 0.0),
+                                                     Twist(0.0, 0.0)))
+                if rid not in self.blind:
+                    bus.publish(keys.sonar(rid), PointCloud(Header(rid, now, 0), ()))
+            for rid, agent in self.agents.items():
+                if rid not in self.frozen:
+                    agent.tick_high(now)
+            self.clock.advance(0.1)
+
+    def holders(self, task: str) -> list[str]:
+        """Who holds `task`, among the robots still ticking (a frozen one believes what it
+        believed when it froze)."""
+        return sorted(r for r, a in self.agents.items()
+                      if a.core.task == task and r not in self.frozen)
+
+    def until(self, cond, limit: float = 30.0) -> float:
+        """Step until cond() holds; the virtual seconds it took (AssertionError past limit)."""
+        t0 = self.clock.now()
+        while not cond():
+            assert self.clock.now() - t0 < limit, f"not within {limit} s"
+            self.step()
+        return self.clock.now() - t0
+
+    def messages(self, kind: str) -> list:
+        return [s for s in self.heard if s.key.endswith("/" + kind)]
