@@ -53,6 +53,7 @@ def main() -> int:
     ap.add_argument("--doc", type=Path, default=ROOT / "docs" / "comparison.md")
     args = ap.parse_args()
     out = args.output or Path(tempfile.mkdtemp(prefix="mrta-compare-"))
+    out.mkdir(parents=True, exist_ok=True)
     results: dict[str, list[dict]] = {}
     for arch, app in ARCHITECTURES.items():
         exp = out / f"{app}.yaml"

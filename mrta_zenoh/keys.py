@@ -18,6 +18,7 @@ import re
 CLOCK = "clock"
 CLOCK_SOURCE_TOKEN = "@mrta/clock_source"       # held by whoever publishes `clock`
 RECORDER_TOKEN = "@mrta/recorder"               # prefix; one token per recorder process
+ROS2_BRIDGE_TOKEN = "@mrta/ros2_bridge"         # prefix; /<robot>, held while it bridges
 ALL_CMD_VEL = "*/cmd_vel"
 
 # One key chunk: what robot and task ids may be. 64 characters is plenty for a name and keeps a

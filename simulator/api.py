@@ -14,12 +14,14 @@ from mrta_zenoh.bus import BusOptions, open_bus
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.presence import RobotPresence
+from mrta_zenoh.ros2.types import SONAR_TYPES
 from mrta_zenoh.toolchain.registry import Registry
 
 from mrta_zenoh.lockstep import Barrier
 
 from .engine import Simulation
 from .node import RunStats, SimNode
+from .ros2 import Ros2Driver
 from .robot_model import RobotModel
 from .snapshot import save_snapshot
 from .world import Pose, World, load_world
@@ -90,6 +92,8 @@ def run_simulator(*, world: str, robots: list[str], bus_options: BusOptions, spe
                   seed: int = 0, duration: float | None = None, snapshot: Path | None = None,
                   rear_sonars: bool = False, wait_robots: float | None = None,
                   lockstep: bool = False, lockstep_timeout: float = 5.0,
+                  ros2: list[str] | None = None, ros2_domain: int = 0,
+                  ros2_sonar_type: str = "pointcloud", ros2_distro: str = "jazzy",
                   stop: threading.Event | None = None) -> RunStats:
     world_spec, robot_specs = world, robots
     if speed < 0 or not math.isfinite(speed):
@@ -102,6 +106,17 @@ def run_simulator(*, world: str, robots: list[str], bus_options: BusOptions, spe
         raise ConfigError(f"--snapshot {snapshot}: folder {Path(snapshot).parent} does not exist")
     world = load_world(resolve_world(world_spec))
     robots = place_robots(world, [parse_robot(s) for s in robot_specs])
+    ros2_ids = [keys.normalize_robot_id(r) for r in ros2 or []]
+    for rid in ros2_ids:
+        if rid not in robots:
+            raise ConfigError(f"--ros2 {rid}: not one of the simulated robots "
+                              f"({', '.join(robots)})")
+    if ros2_ids and lockstep:
+        raise ConfigError("--ros2 and --lockstep exclude each other: a ROS 2 robot's driver and "
+                          "bridge run on their own time, so its runs could not be reproduced")
+    if ros2_sonar_type not in SONAR_TYPES:
+        raise ConfigError(f"--ros2-sonar-type {ros2_sonar_type!r}: expected one of "
+                          f"{', '.join(SONAR_TYPES)}")
     for note in world.notes:
         log.info("%s: %s", world.source, note)
     sim = Simulation(world, robots, RobotModel(rear_sonars=rear_sonars), seed=seed,
@@ -109,7 +124,10 @@ def run_simulator(*, world: str, robots: list[str], bus_options: BusOptions, spe
     run_id = os.urandom(6).hex()  # tells followers a restarted simulator from this run
     with stop_on_signals(stop) as stop, open_bus(bus_options) as bus:
         bus.counting = lockstep  # from the start: lockstep counts the commands it receives
-        node = SimNode(sim, bus, speed, run_id=run_id)
+        driver = (lambda command: Ros2Driver(bus, ros2_ids, command, domain=ros2_domain,
+                                             distro=ros2_distro, sonar_type=ros2_sonar_type)
+                  ) if ros2_ids else None
+        node = SimNode(sim, bus, speed, run_id=run_id, ros2=driver)
         if wait_robots is not None and not wait_for_robots(bus, list(robots), wait_robots, stop):
             return node.stats
         barrier = Barrier(bus, run_id, lockstep_timeout) if lockstep else None

@@ -9,6 +9,8 @@ import click
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.cli.common import bus_options, finite_float, user_errors
 
+from mrta_zenoh.ros2.types import SONAR_TYPES
+
 from .api import run_simulator
 
 
@@ -35,14 +37,23 @@ from .api import run_simulator
 @click.option("--wait-robots", type=finite_float(min=0), metavar="SECONDS",
               help="Start the clock only once every robot has a process up (a liveliness token "
                    "under robotN/**), waiting at most this long.")
+@click.option("--ros2", "ros2", multiple=True, metavar="ID",
+              help="Serve this robot as a ROS 2 robot over rmw_zenoh (Twist in; Odometry and "
+                   "sonar out), reachable only through `mrta ros2 bridge`. Repeatable.")
+@click.option("--ros2-domain", type=click.IntRange(0, 232), default=0, show_default=True,
+              help="ROS_DOMAIN_ID of the ROS 2 robots.")
+@click.option("--ros2-sonar-type", type=click.Choice(sorted(SONAR_TYPES)), default="pointcloud",
+              show_default=True, help="How the ROS 2 robots publish their sonar.")
 @bus_options
 def sim(world_spec: str, robots: tuple[str, ...], speed: float, seed: int,
         duration: float | None, snapshot: Path | None, rear_sonars: bool,
         wait_robots: float | None, lockstep: bool, lockstep_timeout: float,
+        ros2: tuple[str, ...], ros2_domain: int, ros2_sonar_type: str,
         bus_options: BusOptions) -> None:
     """Simulate Pioneer 3-DX robots: cmd_vel in; clock, sonar, odom, ground_truth, bumper out."""
     with user_errors():
         run_simulator(world=world_spec, robots=list(robots), bus_options=bus_options, speed=speed,
                       seed=seed, duration=duration, snapshot=snapshot, rear_sonars=rear_sonars,
                       wait_robots=wait_robots, lockstep=lockstep,
-                      lockstep_timeout=lockstep_timeout)
+                      lockstep_timeout=lockstep_timeout, ros2=list(ros2),
+                      ros2_domain=ros2_domain, ros2_sonar_type=ros2_sonar_type)

@@ -39,6 +39,7 @@ class RunStats:
     commands: int = 0
     rejected_commands: int = 0
     unknown_robot_commands: int = 0
+    ros2_bypass_commands: int = 0
 
     @property
     def real_time_factor(self) -> float:
@@ -49,7 +50,8 @@ class SimNode:
     """Runs a Simulation against a bus. `speed`: 1 real time, k faster, 0 as fast as possible."""
 
     def __init__(self, sim: Simulation, bus: Bus, speed: float = 1.0,
-                 publish_sensors: bool = True, monotonic=time.monotonic, run_id: str = ""):
+                 publish_sensors: bool = True, monotonic=time.monotonic, run_id: str = "",
+                 ros2=None):
         if speed < 0:
             raise ValueError(f"speed must be ≥ 0, got {speed}")
         self.sim = sim
@@ -65,12 +67,25 @@ class SimNode:
         self._keys = [(keys.sonar(r), keys.odom(r), keys.ground_truth(r), bumper_key(r))
                       for r in sim.ids]
         self._sub = bus.subscribe(keys.ALL_CMD_VEL, self._on_cmd, msg_type=Twist)
+        # robots served as ROS 2 robots (simulator/ros2.py): their data go out there only, and
+        # only commands from there move them
+        self.ros2 = ros2(self.command) if ros2 is not None else None
+        self._ros2_ids = set(self.ros2.nodes) if self.ros2 is not None else set()
 
     def _on_cmd(self, sample) -> None:
         rid = keys.first_chunk(sample.key)
+        if rid in self._ros2_ids:
+            self.stats.ros2_bypass_commands += 1
+            self._warn_once(rid + "/ros2", f"{rid} is a ROS 2 robot: commands on {sample.key} "
+                            "are ignored (they reach it through its ROS 2 cmd_vel)")
+            return
         msg = sample.message
+        self.command(rid, msg.linear, msg.angular)
+
+    def command(self, rid: str, linear: float, angular: float) -> None:
+        """A velocity command for the next step boundary (our keys, or a ROS 2 driver)."""
         with self._lock:
-            self._pending[rid] = (msg.linear, msg.angular)
+            self._pending[rid] = (linear, angular)
 
     def _apply_commands(self) -> None:
         with self._lock:
@@ -148,13 +163,18 @@ class SimNode:
         publish = functools.partial(self.bus.publish, lossy=True)  # sensor data: best effort
         for i, rid in enumerate(sim.ids):
             k_sonar, k_odom, k_truth, k_bump = self._keys[i]
-            publish(k_sonar, PointCloud(Header(f"{rid}/sonar", t, 0),
-                                        tuple(Point2D(x, y) for x, y in pts[i])))
-            publish(k_odom, Odometry(Header(f"{rid}/odom", t, 0), Pose2D(*odom[i]),
-                                     Twist(*twist[i])))
+            cloud = PointCloud(Header(f"{rid}/sonar", t, 0), tuple(Point2D(x, y) for x, y in pts[i]))
+            odometry = Odometry(Header(f"{rid}/odom", t, 0), Pose2D(*odom[i]), Twist(*twist[i]))
+            if rid in self._ros2_ids:
+                self.ros2.publish(rid, odometry, cloud)
+            else:
+                publish(k_sonar, cloud)
+                publish(k_odom, odometry)
             publish(k_truth, Odometry(Header("world", t, 0), Pose2D(*pose[i]), Twist(*vel[i])))
             publish(k_bump, Bumper(Header(rid, t, 0), stalled[i], contacts[i], collisions[i]))
 
     def close(self) -> None:
         self._sub.close()
+        if self.ros2 is not None:
+            self.ros2.close()
 

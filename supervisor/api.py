@@ -60,6 +60,9 @@ def attach(sup: Supervisor, bus: Bus, clock) -> list:
         handles.append(bus.subscribe(key_expr, sup.handler_for(monitors, clock.now)))
     handles.append(bus.watch_liveliness("**", lambda k, alive: sup.on_liveliness(k, alive,
                                                                                 clock.now())))
+    # the ROS 2 graph (rmw_zenoh's tokens): an `@` chunk is matched only literally
+    handles.append(bus.watch_absolute(sup.ros2.key_expr, lambda k, alive: sup.on_ros2_token(
+        k, alive, clock.now())))
     handles.append(bus.subscribe(STATUS, lambda s: sup.on_lockstep(s.message.unresponsive,
                                                                    clock.now()),
                                  msg_type=LockstepStatus))
@@ -91,7 +94,7 @@ class Refresh:
 def run_supervise(*, app: str, bus_options: BusOptions, as_json: bool = False,
                   once: bool = False, duration: float | None = None, sim_time: bool = False,
                   rate: float = 4.0, unattended_after: float = 30.0, duplicate_after: float = 5.0,
-                  stop: threading.Event | None = None, out=None) -> int:
+                  ros2_domain: int = 0, stop: threading.Event | None = None, out=None) -> int:
     app_spec = app
     app, arch = resolve_application(app_spec)
     clock = SimClock() if sim_time else WallClock()
@@ -102,7 +105,8 @@ def run_supervise(*, app: str, bus_options: BusOptions, as_json: bool = False,
             while not clock.started.wait(0.1):
                 if stop.is_set():
                     return 0
-        sup = Supervisor(arch, app, clock.now(), unattended_after, duplicate_after)
+        sup = Supervisor(arch, app, clock.now(), unattended_after, duplicate_after,
+                         ros2_domain=ros2_domain)
         handles = attach(sup, bus, clock)
         start, wall_start = clock.now(), time.monotonic()
         settle = max([m.topic.timeout for m in sup.monitors] + [1.0])

@@ -25,15 +25,19 @@ from .api import run_supervise
               help="Alarm when a task has had no robot for this many seconds.")
 @click.option("--duplicate-after", type=finite_float(min=0, min_open=True), default=5.0, show_default=True,
               help="Alarm when two robots do a single-robot task for this many seconds.")
+@click.option("--ros2-domain", type=click.IntRange(0, 232), default=0, show_default=True,
+              envvar="ROS_DOMAIN_ID", help="The ROS 2 domain whose graph is shown (ROS_DOMAIN_ID).")
 @bus_options
 def supervise(app: str, as_json: bool, once: bool, duration: float | None, sim_time: bool,
-              rate: float, unattended_after: float, duplicate_after: float,
+              rate: float, unattended_after: float, duplicate_after: float, ros2_domain: int,
               bus_options: BusOptions) -> None:
-    """Supervise APP (a registered application or its rqt_mrta.xml): robots, tasks, alarms."""
+    """Supervise APP (a registered application or its rqt_mrta.xml): robots, tasks, alarms,
+    and the ROS 2 graph (a robot whose ROS 2 driver node is gone is offline)."""
     with user_errors():
         run_supervise(app=app, bus_options=bus_options, as_json=as_json, once=once,
                       duration=duration, sim_time=sim_time, rate=rate,
-                      unattended_after=unattended_after, duplicate_after=duplicate_after)
+                      unattended_after=unattended_after, duplicate_after=duplicate_after,
+                      ros2_domain=ros2_domain)
 
 
 @click.command()

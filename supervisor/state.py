@@ -40,6 +40,7 @@ from typing import Any, Callable
 from mrta_zenoh import keys
 from mrta_zenoh.fieldpath import FieldPath, FieldPathError
 from mrta_zenoh.messages import GenericMessage
+from mrta_zenoh.ros2.graph import Ros2Graph
 from mrta_zenoh.toolchain.model import Application, Architecture, Topic
 
 from .holders import History, SampleHolder, StateChange
@@ -99,6 +100,8 @@ class RobotInfo:
     idle: SampleHolder
     tokens: set[str] = field(default_factory=set)
     ever_token: bool = False
+    ros2_nodes: tuple[str, ...] = ()  # ROS 2 nodes in the robot's namespace (its driver)
+    ever_ros2: bool = False
     state: str = "offline"
     since: float = 0.0
 
@@ -118,8 +121,9 @@ class Supervisor:
 
     def __init__(self, arch: Architecture, app: Application, now: float = 0.0,
                  unattended_after: float = 30.0, duplicate_after: float = 5.0,
-                 quiet: bool = False, unknown_expiry: float = 30.0):
+                 quiet: bool = False, unknown_expiry: float = 30.0, ros2_domain: int = 0):
         self.arch, self.app = arch, app
+        self.ros2 = Ros2Graph(ros2_domain)
         self.monitors = monitors_of(arch)
         self._timeouts = {m.role: m.topic.timeout for m in self.monitors}
         self.unattended_after = unattended_after
@@ -369,6 +373,27 @@ class Supervisor:
                         self._reassess_task(self.tasks[tid], now)
             self._reassess_robot(r, now)
 
+    def on_ros2_token(self, key: str, alive: bool, now: float) -> None:
+        """A token of the ROS 2 graph (`@ros2_lv/<domain>/…`). A robot with a ROS 2 node in its
+        namespace (`/robot2/pioneer_driver`) is driven through ROS 2: once its driver has been
+        seen, the robot is online only while a node of it lives — an agent still running
+        cannot move a robot whose driver is gone."""
+        self.ros2.on_token(key, alive)
+        nodes = self.ros2.robot_nodes()
+        with self._lock:
+            for r in self.robots.values():
+                now_nodes = tuple(nodes.get(r.id, ()))
+                if now_nodes == r.ros2_nodes:
+                    continue
+                r.ros2_nodes = now_nodes
+                r.ever_ros2 = r.ever_ros2 or bool(now_nodes)
+                if r.ever_ros2:
+                    if now_nodes:
+                        self._clear("driver_lost", r.id, now)
+                    else:
+                        self._raise("driver_lost", r.id, now)
+                self._reassess_robot(r, now)
+
     def update(self, now: float) -> None:
         """Falling edges and time-based alarms; call a few times a second."""
         with self._lock:
@@ -402,6 +427,8 @@ class Supervisor:
     # ----------------------------------------------------------------------------- derivation
 
     def _online(self, r: RobotInfo) -> bool:
+        if r.ever_ros2 and not r.ros2_nodes:
+            return False
         if r.tokens:
             return True
         if r.ever_token:
@@ -492,5 +519,6 @@ class Supervisor:
                       for (k, s), since in sorted(self.alarms.items(), key=lambda kv: kv[1])]
             return {"time": now, "application": self.app.name, "architecture": self.arch.name,
                     "robots": robots, "tasks": tasks, "alarms": alarms,
+                    "ros2": self.ros2.snapshot(),
                     "transitions": [t.to_json() for t in self.history.recent(transitions)],
                     "counts": dict(self.counts)}

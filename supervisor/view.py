@@ -61,6 +61,12 @@ def render(snap: dict, width: int = 120) -> Group:
                      f"{tr['from'] or '·'} → {tr['to'] or '·'}")
         text.stylize("dim")
         parts.append(text)
+    ros2 = snap.get("ros2") or {}
+    if ros2.get("nodes"):
+        line = Text(f"ROS 2 (domain {ros2['domain']}): ", style="bold")
+        line.append(plain(", ".join(ros2["nodes"])))
+        line.append(Text(f" · {len(ros2['topics'])} topics", style="dim"))
+        parts.append(line)
     c = snap["counts"]
     parts.append(Text(f"t={t:.1f}s  samples {c['samples']}  wrong type {c['wrong_type']}  "
                       f"bad field {c['field_errors']}", style="dim"))

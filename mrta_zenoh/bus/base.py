@@ -16,6 +16,7 @@ from typing import Any, Callable, Iterator
 import msgspec
 
 from .. import codec
+from ..errors import MrtaRuntimeError
 from ..keys import matches, validate_key_expr
 from ..messages import GenericMessage, Message
 
@@ -373,6 +374,15 @@ class Bus:
         w = LivelinessWatch(self, key_expr, on_change)
         self._declare_watch(w, history)
         return w
+
+    def watch_absolute(self, key_expr: str, on_change: Callable[[str, bool], None]) -> Any:
+        """Liveliness of `key_expr` as given, whatever this bus's namespace (ROS 2's
+        `@ros2_lv/…`). ZenohBus watches it directly; here, without a namespace, it is the same
+        as watch_liveliness."""
+        if self.namespace:
+            raise MrtaRuntimeError(f"{type(self).__name__} cannot watch {key_expr!r} outside "
+                                   f"its namespace {self.namespace!r}")
+        return self.watch_liveliness(key_expr, on_change)
 
     def close(self) -> None:
         with self._lock:

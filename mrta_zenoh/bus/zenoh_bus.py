@@ -12,7 +12,7 @@ from __future__ import annotations
 import json
 import logging
 import threading
-from typing import Any
+from typing import Any, Callable
 
 import zenoh
 
@@ -72,6 +72,7 @@ class ZenohBus(Bus):
         self._pub_lock = threading.Lock()
         self._encodings: dict[str, Any] = {}
         self._typed: dict[str, tuple] = {}
+        self._attached: list = []  # attached publishers and subscribers (ROS 2)
 
     @property
     def zid(self) -> str:
@@ -209,12 +210,89 @@ class ZenohBus(Bus):
             w._native.undeclare()
             w._native = None
 
+    # ------------------------------------------------------------ samples with attachments
+    # What ROS 2 over rmw_zenoh needs (mrta_zenoh.ros2): absolute keys (no namespace), raw
+    # payloads, and the per-sample attachment rmw_zenoh requires. Kept here so that this stays
+    # the only module importing zenoh.
+    def declare_attached_publisher(self, key: str, *, lossy: bool) -> "AttachedPublisher":
+        pub = AttachedPublisher(self.session.declare_publisher(
+            key, congestion_control=zenoh.CongestionControl.DROP if lossy
+            else zenoh.CongestionControl.BLOCK), self._encoding("application/cdr"))
+        self._attached.append(pub)
+        return pub
+
+    def subscribe_attached(self, key_expr: str,
+                           handler: Callable[[str, bytes, bytes | None], None]) -> "Closable":
+        """handler(key, payload, attachment or None), on Zenoh's thread; an exception it raises
+        is counted (`handler_errors`) and logged, never kills the network thread."""
+        stats = self.stats
+
+        def on_sample(s: "zenoh.Sample") -> None:
+            att = s.attachment
+            try:
+                handler(str(s.key_expr), s.payload.to_bytes(),
+                        att.to_bytes() if att is not None else None)
+            except Exception:
+                stats.add("handler_errors")
+                log.exception("handler for %s raised", key_expr)
+
+        sub = Closable(self.session.declare_subscriber(key_expr, on_sample))
+        self._attached.append(sub)
+        return sub
+
+    def declare_absolute_token(self, key: str) -> "Closable":
+        """A liveliness token on `key` as given (no namespace): ROS 2's `@ros2_lv/…`."""
+        tok = Closable(self.session.liveliness().declare_token(key))
+        self._attached.append(tok)
+        return tok
+
+    def watch_absolute(self, key_expr: str, on_change: Callable[[str, bool], None]) -> "Closable":
+        """Liveliness of `key_expr` as given (no namespace), current tokens first."""
+        stats = self.stats
+
+        def on_sample(s: "zenoh.Sample") -> None:
+            try:
+                on_change(str(s.key_expr), s.kind == zenoh.SampleKind.PUT)
+            except Exception:
+                stats.add("handler_errors")
+                log.exception("liveliness handler for %s raised", key_expr)
+
+        watch = Closable(self.session.liveliness().declare_subscriber(key_expr, on_sample,
+                                                                      history=True))
+        self._attached.append(watch)
+        return watch
+
     def _close_impl(self) -> None:
+        for item in self._attached:
+            item.close()
+        self._attached.clear()
         for pub in self._publishers.values():
             pub.undeclare()
         self._publishers.clear()
         self._typed.clear()
         self.session.close()
+
+
+class Closable:
+    """A declared Zenoh entity, undeclared once by close()."""
+
+    def __init__(self, native: Any):
+        self._native = native
+
+    def close(self) -> None:
+        if self._native is not None:
+            self._native.undeclare()
+            self._native = None
+
+
+class AttachedPublisher(Closable):
+    def __init__(self, native: Any, encoding: Any):
+        super().__init__(native)
+        self._encoding = encoding
+
+    def put(self, payload: bytes, attachment: bytes) -> None:
+        if self._native is not None:
+            self._native.put(payload, encoding=self._encoding, attachment=attachment)
 
 
 def run_router(options: BusOptions, stop: threading.Event) -> str:

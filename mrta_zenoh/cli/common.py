@@ -27,30 +27,37 @@ class RuntimeFailure(click.ClickException):
     exit_code = 1
 
 
-def bus_options(f: Callable) -> Callable:
-    """Add --connect/--listen/--mode/--zenoh-config/--namespace and pass `bus_options=BusOptions`."""
+def bus_options(f: Callable | None = None, *, namespace_option: str = "--namespace") -> Callable:
+    """Add --connect/--listen/--mode/--zenoh-config/--namespace and pass `bus_options=BusOptions`.
 
-    @click.option("--connect", "connect", multiple=True, metavar="ENDPOINT",
-                  help="Zenoh endpoint to connect to (repeatable), e.g. tcp/192.168.1.10:7447.")
-    @click.option("--listen", "listen", multiple=True, metavar="ENDPOINT",
-                  help="Zenoh endpoint to listen on (repeatable). Default: tcp/127.0.0.1:0.")
-    @click.option("--mode", type=click.Choice(MODES[:2]), default="peer", show_default=True,
-                  help="Zenoh session mode.")
-    @click.option("--zenoh-config", type=click.Path(dir_okay=False, path_type=Path),
-                  metavar="FILE.json5", help="Zenoh configuration file (merged over our loopback defaults).")
-    @click.option("--namespace", default="", metavar="NS",
-                  help="Prefix for every key, so several teams can share one network.")
-    @functools.wraps(f)
-    def wrapper(*args: Any, connect, listen, mode, zenoh_config, namespace, **kwargs: Any):
-        with user_errors():
-            opts = BusOptions(mode=mode, connect=list(connect), listen=list(listen),
-                              zenoh_config=zenoh_config, namespace=namespace)
-            if opts.namespace:
-                validate_key_expr(opts.namespace)
-            opts.user_config()  # a bad file is bad input: fail before anything starts
-        return f(*args, bus_options=opts, **kwargs)
+    `namespace_option` renames --namespace for a command that needs the name for something else
+    (`mrta ros2 bridge --namespace` is the robot's ROS 2 namespace)."""
 
-    return wrapper
+    def decorate(f: Callable) -> Callable:
+        @click.option("--connect", "connect", multiple=True, metavar="ENDPOINT",
+                      help="Zenoh endpoint to connect to (repeatable), e.g. tcp/192.168.1.10:7447.")
+        @click.option("--listen", "listen", multiple=True, metavar="ENDPOINT",
+                      help="Zenoh endpoint to listen on (repeatable). Default: tcp/127.0.0.1:0.")
+        @click.option("--mode", type=click.Choice(MODES[:2]), default="peer", show_default=True,
+                      help="Zenoh session mode.")
+        @click.option("--zenoh-config", type=click.Path(dir_okay=False, path_type=Path),
+                      metavar="FILE.json5",
+                      help="Zenoh configuration file (merged over our loopback defaults).")
+        @click.option(namespace_option, "bus_namespace", default="", metavar="NS",
+                      help="Prefix for every key, so several teams can share one network.")
+        @functools.wraps(f)
+        def wrapper(*args: Any, connect, listen, mode, zenoh_config, bus_namespace, **kwargs: Any):
+            with user_errors():
+                opts = BusOptions(mode=mode, connect=list(connect), listen=list(listen),
+                                  zenoh_config=zenoh_config, namespace=bus_namespace)
+                if opts.namespace:
+                    validate_key_expr(opts.namespace)
+                opts.user_config()  # a bad file is bad input: fail before anything starts
+            return f(*args, bus_options=opts, **kwargs)
+
+        return wrapper
+
+    return decorate(f) if f is not None else decorate
 
 
 class user_errors:

@@ -1,0 +1,72 @@
+"""`mrta ros2 bridge | graph`: thin click wrappers over mrta_zenoh.ros2.bridge and .graph."""
+
+from __future__ import annotations
+
+import json
+
+import click
+
+from ..bus import BusOptions
+from ..ros2.bridge import RobotLink, run_bridge
+from ..ros2.graph import read_graph
+from ..ros2.types import DEFAULT_DISTRO, DISTROS, SONAR_TYPES
+from .common import BadInput, bus_options, finite_float, user_errors
+
+DOMAIN = click.IntRange(0, 232)
+
+
+@click.group()
+def ros2() -> None:
+    """ROS 2 robots over rmw_zenoh, with no ROS 2 installation (docs/ros2.md)."""
+
+
+@ros2.command()
+@click.option("--robot", "robots", multiple=True, required=True, metavar="ID",
+              help="Our robot id (robotN/…); repeat it to bridge a fleet from one process.")
+@click.option("--namespace", default=None, metavar="NS",
+              help="The robot's ROS 2 namespace (default /<robot id>; one robot only).")
+@click.option("--domain", type=DOMAIN, default=0, show_default=True, help="ROS_DOMAIN_ID.")
+@click.option("--cmd-vel", default="cmd_vel", show_default=True, help="The driver's command topic.")
+@click.option("--odom", default="odom", show_default=True, help="The driver's odometry topic.")
+@click.option("--sonar", default="sonar", show_default=True, help="The driver's sonar topic.")
+@click.option("--sonar-type", type=click.Choice(sorted(SONAR_TYPES)), default="pointcloud",
+              show_default=True,
+              help="sensor_msgs PointCloud (as RosAria published it), PointCloud2 or LaserScan.")
+@click.option("--mirror", is_flag=True,
+              help="Also publish the robots' architecture traffic (ALLIANCE's "
+                   "InterRobotCommunication and Motivation) as ROS 2 topics.")
+@click.option("--distro", type=click.Choice(sorted(DISTROS)), default=DEFAULT_DISTRO,
+              show_default=True, help="The robot's ROS 2 distro (message definitions, hashes).")
+@bus_options(namespace_option="--bus-namespace")
+def bridge(robots: tuple[str, ...], namespace: str | None, domain: int, cmd_vel: str, odom: str,
+           sonar: str, sonar_type: str, mirror: bool, distro: str,
+           bus_options: BusOptions) -> None:
+    """Map our robotN/cmd_vel, odom and sonar to a ROS 2 robot's topics over rmw_zenoh."""
+    with user_errors():
+        if namespace is not None and len(robots) > 1:
+            raise BadInput("--namespace names one robot's namespace: give one --robot with it")
+        links = [RobotLink.make(r, namespace, cmd_vel=cmd_vel, odom=odom, sonar=sonar,
+                                sonar_type=sonar_type) for r in robots]
+        run_bridge(links=links, bus_options=bus_options, domain=domain, distro=distro,
+                   mirror=mirror)
+
+
+@ros2.command()
+@click.option("--domain", type=DOMAIN, default=0, show_default=True, help="ROS_DOMAIN_ID.")
+@click.option("--wait", type=finite_float(min=0), default=1.0, show_default=True,
+              metavar="SECONDS", help="How long to gather liveliness tokens.")
+@click.option("--json", "as_json", is_flag=True, help="One JSON object: nodes and topics.")
+@bus_options
+def graph(domain: int, wait: float, as_json: bool, bus_options: BusOptions) -> None:
+    """List ROS 2 nodes and topics from rmw_zenoh's liveliness tokens."""
+    with user_errors():
+        snap = read_graph(bus_options=bus_options, domain=domain, wait=wait)
+    if as_json:
+        click.echo(json.dumps(snap))
+        return
+    click.echo(f"ROS 2 domain {domain}: {len(snap['nodes'])} nodes, {len(snap['topics'])} topics")
+    for node in snap["nodes"]:
+        click.echo(f"  {node}")
+    for t in snap["topics"]:
+        click.echo(f"  {t['topic']} [{', '.join(t['types'])}] {t['publishers']} publishers, "
+                   f"{t['subscriptions']} subscriptions")

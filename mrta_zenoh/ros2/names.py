@@ -1,0 +1,182 @@
+"""rmw_zenoh's names, as strings (rmw_zenoh_cpp 0.14, `liveliness_utils.cpp`, `docs/design.md`).
+
+* Topic key: `<domain>/<topic without outer slashes>/<pkg>::msg::dds_::<Name>_/RIHS01_<hex>`.
+* Liveliness token of a node:
+  `@ros2_lv/<domain>/<zid>/<nid>/<nid>/NN/<enclave>/<namespace>/<node>`; of a publisher or
+  subscription the same with its own entity id and kind (MP, MS), then
+  `/<topic>/<dds type>/<type hash>/<qos>`. Inside a chunk `/` is written `%`, an empty field `%`.
+* QoS: `rel:dur:hist,depth:deadline:lifespan:liveliness` (deadline and lifespan `sec,nsec`,
+  liveliness `kind,sec,nsec`), a field equal to rmw_zenoh's default left empty — reliable,
+  volatile, keep-last — while the depth is always written: reliable depth 10 is `::,10:,:,:,,`.
+
+Everything here is pure and has fixed test vectors (tests/test_ros2_names.py): a wrong chunk
+means silence on the ROS side, never an error (rmw_zenoh #479, #569).
+"""
+
+from __future__ import annotations
+
+import re
+from dataclasses import dataclass
+
+from ..errors import ConfigError
+
+ADMIN_SPACE = "@ros2_lv"
+KINDS = {"NN": "node", "MP": "publisher", "MS": "subscription", "SS": "service", "SC": "client"}
+RELIABLE, BEST_EFFORT = 1, 2
+TRANSIENT_LOCAL, VOLATILE = 1, 2
+KEEP_LAST, KEEP_ALL = 1, 2
+_TYPE = re.compile(r"^([A-Za-z][A-Za-z0-9_]*)/(msg|srv)/([A-Za-z][A-Za-z0-9_]*)$")
+_DDS = re.compile(r"^([A-Za-z][A-Za-z0-9_]*)::(msg|srv)::dds_::([A-Za-z][A-Za-z0-9_]*)_$")
+_NAME = re.compile(r"^(/[A-Za-z_][A-Za-z0-9_]*)*/?$")
+
+
+class Ros2NameError(ConfigError):
+    """A ROS name, type or token we cannot use (the message says which and why)."""
+
+
+def dds_type(ros_type: str) -> str:
+    """`geometry_msgs/msg/Twist` → `geometry_msgs::msg::dds_::Twist_`."""
+    m = _TYPE.match(ros_type)
+    if m is None:
+        raise Ros2NameError(f"ROS 2 type {ros_type!r}: expected package/msg/Name")
+    return f"{m.group(1)}::{m.group(2)}::dds_::{m.group(3)}_"
+
+
+def ros_type(dds: str) -> str:
+    """The inverse of dds_type."""
+    m = _DDS.match(dds)
+    if m is None:
+        raise Ros2NameError(f"DDS type {dds!r}: expected package::msg::dds_::Name_")
+    return f"{m.group(1)}/{m.group(2)}/{m.group(3)}"
+
+
+def resolve(namespace: str, name: str) -> str:
+    """A topic's fully qualified name: `cmd_vel` in `/robot1` → `/robot1/cmd_vel`; an absolute
+    name is kept. Both must be ROS names (letters, digits, `_`, `/`)."""
+    for what, text in (("namespace", namespace), ("name", name)):
+        if not _NAME.match(text if text.startswith("/") else "/" + text):
+            raise Ros2NameError(f"ROS 2 {what} {text!r}: use letters, digits, '_' and '/'")
+    if name.startswith("/"):
+        full = name
+    else:
+        full = namespace.rstrip("/") + "/" + name
+    if not full.startswith("/"):
+        full = "/" + full
+    return full.rstrip("/") or "/"
+
+
+def normalize_namespace(namespace: str) -> str:
+    ns = "/" + namespace.strip("/")
+    resolve(ns, "x")
+    return ns
+
+
+def topic_key(domain: int, topic: str, ros_type_name: str, type_hash: str) -> str:
+    """The data key of a topic (its fully qualified name)."""
+    return f"{domain}/{topic.strip('/')}/{dds_type(ros_type_name)}/{type_hash}"
+
+
+def mangle(text: str) -> str:
+    """A name as one key chunk: `/` → `%`; empty → `%`."""
+    return text.replace("/", "%") if text else "%"
+
+
+def demangle(chunk: str) -> str:
+    return "" if chunk == "%" else chunk.replace("%", "/")
+
+
+@dataclass(frozen=True)
+class Qos:
+    reliability: int = RELIABLE
+    durability: int = VOLATILE
+    history: int = KEEP_LAST
+    depth: int = 10
+
+    def encode(self) -> str:
+        rel = "" if self.reliability == RELIABLE else str(self.reliability)
+        dur = "" if self.durability == VOLATILE else str(self.durability)
+        hist = "" if self.history == KEEP_LAST else str(self.history)
+        depth = str(self.depth) if self.history == KEEP_LAST else ""
+        return f"{rel}:{dur}:{hist},{depth}:,:,:,,"
+
+    @classmethod
+    def decode(cls, text: str) -> "Qos":
+        parts = text.split(":")
+        if len(parts) != 6 or "," not in parts[2]:
+            raise Ros2NameError(f"QoS {text!r}: expected rel:dur:hist,depth:deadline:lifespan:liveliness")
+        hist, _, depth = parts[2].partition(",")
+        try:
+            return cls(int(parts[0] or RELIABLE), int(parts[1] or VOLATILE), int(hist or KEEP_LAST),
+                       int(depth) if depth else 0)
+        except ValueError:
+            raise Ros2NameError(f"QoS {text!r}: a field is not a number") from None
+
+
+COMMANDS = Qos(RELIABLE, VOLATILE, KEEP_LAST, 10)   # what a driver's cmd_vel subscription takes
+SENSOR_DATA = Qos(BEST_EFFORT, VOLATILE, KEEP_LAST, 5)  # rclcpp's SensorDataQoS
+
+
+@dataclass(frozen=True)
+class Entity:
+    """One liveliness token of the ROS 2 graph, parsed."""
+
+    domain: int
+    zid: str
+    nid: str
+    eid: str
+    kind: str              # NN, MP, MS, SS, SC
+    enclave: str
+    namespace: str         # "/robot1", or "/" for none
+    node: str
+    topic: str = ""        # fully qualified, for MP / MS / SS / SC
+    type: str = ""         # ROS form: geometry_msgs/msg/Twist
+    type_hash: str = ""
+    qos: Qos | None = None
+
+    @property
+    def node_name(self) -> str:
+        """Fully qualified: `/robot1/pioneer_driver`."""
+        return resolve(self.namespace or "/", self.node)
+
+
+def node_token(domain: int, zid: str, nid: int, namespace: str, node: str,
+               enclave: str = "") -> str:
+    return (f"{ADMIN_SPACE}/{domain}/{zid}/{nid}/{nid}/NN/{mangle(enclave)}/"
+            f"{mangle(namespace if namespace != '/' else '')}/{mangle(node)}")
+
+
+def endpoint_token(domain: int, zid: str, nid: int, eid: int, kind: str, namespace: str,
+                   node: str, topic: str, ros_type_name: str, type_hash: str, qos: Qos,
+                   enclave: str = "") -> str:
+    if kind not in ("MP", "MS", "SS", "SC"):
+        raise Ros2NameError(f"endpoint kind {kind!r}: expected MP, MS, SS or SC")
+    return (f"{ADMIN_SPACE}/{domain}/{zid}/{nid}/{eid}/{kind}/{mangle(enclave)}/"
+            f"{mangle(namespace if namespace != '/' else '')}/{mangle(node)}/{mangle(topic)}/"
+            f"{dds_type(ros_type_name)}/{type_hash}/{qos.encode()}")
+
+
+def parse_token(key: str) -> Entity:
+    """A liveliness key as an Entity; Ros2NameError naming what is wrong otherwise."""
+    parts = key.split("/")
+    if len(parts) < 9 or parts[0] != ADMIN_SPACE:
+        raise Ros2NameError(f"not a ROS 2 liveliness token: {key[:120]!r}")
+    kind = parts[5]
+    if kind not in KINDS:
+        raise Ros2NameError(f"unknown entity kind {kind!r} in {key[:120]!r}")
+    try:
+        domain = int(parts[1])
+    except ValueError:
+        raise Ros2NameError(f"domain {parts[1]!r} is not a number in {key[:120]!r}") from None
+    ns = demangle(parts[7])
+    common = dict(domain=domain, zid=parts[2], nid=parts[3], eid=parts[4], kind=kind,
+                  enclave=demangle(parts[6]), namespace=ns if ns.startswith("/") else "/" + ns,
+                  node=demangle(parts[8]))
+    if kind == "NN":
+        if len(parts) != 9:
+            raise Ros2NameError(f"a node token has 9 chunks, this has {len(parts)}: {key[:120]!r}")
+        return Entity(**common)
+    if len(parts) != 13:
+        raise Ros2NameError(f"an endpoint token has 13 chunks, this has {len(parts)}: {key[:120]!r}")
+    topic = demangle(parts[9])
+    return Entity(**common, topic=topic if topic.startswith("/") else "/" + topic,
+                  type=ros_type(parts[10]), type_hash=parts[11], qos=Qos.decode(parts[12]))
