@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import Any, Iterator
 
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.keys import is_id
@@ -147,13 +147,28 @@ def load_sensor_topics(doc: YamlDoc, path: tuple, topics: set[str]) -> tuple[str
     return tuple(out)
 
 
-def load_robot_params(path: Path | str) -> tuple[RobotParams, list[str]]:
+def task_id_of(m: StrictMapping, key: str) -> str:
+    """The task id under `key` of a mapping: one key chunk, or a ConfigError naming the key."""
+    task_id = m.get(key, str)
+    if not is_id(task_id):
+        raise m.doc.error(m.path + (key,), f"task id {task_id!r:.80} must be one key chunk: "
+                          "up to 64 letters, digits, '_', '-' or '.'")
+    return task_id
+
+
+def open_robot_file(path: Path | str, keys: set[str], what: str
+                    ) -> tuple[YamlDoc, StrictMapping, tuple[SensorParams, ...]]:
+    """A robot parameter file (every architecture's): its document, its top-level keys
+    checked against `keys`, and its sensors."""
     doc = load_yaml(path)
     if not isinstance(doc.data, dict):
-        raise doc.error((), "a robot parameter file must be a mapping")
-    top = StrictMapping(doc, (), ROBOT_KEYS)
+        raise doc.error((), f"{what} must be a mapping")
+    return doc, StrictMapping(doc, (), keys), load_sensors(doc)
+
+
+def load_robot_params(path: Path | str) -> tuple[RobotParams, list[str]]:
+    doc, top, sensors = open_robot_file(path, ROBOT_KEYS, "a robot parameter file")
     warnings: list[str] = []
-    sensors = load_sensors(doc)
     topics = {s.topic_name for s in sensors}
     sets = []
     seen_tasks: set[str] = set()
@@ -165,10 +180,7 @@ def load_robot_params(path: Path | str) -> tuple[RobotParams, list[str]]:
         i = StrictMapping(doc, mpath + ("impatience",), {"fast_rate"})
         f = StrictMapping(doc, mpath + ("sensory_feedback",), {"plugin_name", "sensors"})
         ftopics = load_sensor_topics(doc, mpath + ("sensory_feedback", "sensors"), topics)
-        task_id = b.get("task_id", str)
-        if not is_id(task_id):
-            raise doc.error(bpath + ("task_id",), f"task id {task_id!r:.80} must be one key chunk: "
-                            "up to 64 letters, digits, '_', '-' or '.'")
+        task_id = task_id_of(b, "task_id")
         if task_id in seen_tasks:
             raise doc.error(bpath + ("task_id",), f"task {task_id!r} has two behaviour sets")
         seen_tasks.add(task_id)
@@ -221,29 +233,33 @@ def effective_broadcast_period(robot: RobotParams) -> float:
     return max(1, ticks) / robot.spin_rate
 
 
-def load_tasks_params(path: Path | str) -> dict[str, TaskParams]:
+def iter_tasks(path: Path | str, extra_keys: frozenset[str] = frozenset()
+               ) -> Iterator[tuple[StrictMapping, TaskParams]]:
+    """Each task of a tasks file (every architecture's): its mapping — with `extra_keys` allowed
+    beside id, name and layers, for the architecture to read — and its TaskParams. Ids are
+    checked and must be unique."""
     doc = load_yaml(path)
     if not isinstance(doc.data, dict):
         raise doc.error((), "a tasks parameter file must be a mapping")
     StrictMapping(doc, (), {"tasks"})
-    tasks: dict[str, TaskParams] = {}
+    seen: set[str] = set()
     for tpath, _ in sized_array(doc, ("tasks",), "task"):
-        r = StrictMapping(doc, tpath, {"id", "name", "layers"})
-        task_id = r.get("id", str)
-        if task_id in tasks:
+        r = StrictMapping(doc, tpath, {"id", "name", "layers"} | extra_keys)
+        task_id = task_id_of(r, "id")
+        if task_id in seen:
             raise doc.error(tpath + ("id",), f"task id {task_id!r} appears twice")
-        if not is_id(task_id):
-            raise doc.error(tpath + ("id",), f"task id {task_id!r:.80} must be one key chunk: "
-                            "up to 64 letters, digits, '_', '-' or '.'")
+        seen.add(task_id)
         layers, where = [], []
         if "layers" in r.data:
             for lpath, _ in sized_array(doc, tpath + ("layers",), "layer"):
                 lr = StrictMapping(doc, lpath, {"plugin_name"})
                 layers.append(lr.get("plugin_name", str))
                 where.append(lr.where("plugin_name"))
-        tasks[task_id] = TaskParams(task_id, r.get("name", str, task_id), tuple(layers),
-                                    tuple(where))
-    return tasks
+        yield r, TaskParams(task_id, r.get("name", str, task_id), tuple(layers), tuple(where))
+
+
+def load_tasks_params(path: Path | str) -> dict[str, TaskParams]:
+    return {t.id: t for _, t in iter_tasks(path)}
 
 
 def load_layers_params(path: Path | str | None) -> YamlDoc | None:

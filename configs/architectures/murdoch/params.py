@@ -16,10 +16,10 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from mrta_zenoh.errors import ConfigError
-from mrta_zenoh.keys import is_id
-from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, load_yaml, sized_array
+from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, sized_array
 from robot_agent.params import (
-    SensorParams, StrictMapping, TaskParams, load_layers_params, load_sensor_topics, load_sensors,
+    SensorParams, StrictMapping, TaskParams, iter_tasks, load_layers_params, load_sensor_topics,
+    open_robot_file, task_id_of,
 )
 from robot_agent.plugins import EvaluatorSpec
 
@@ -79,28 +79,16 @@ ROBOT_KEYS = {"name", "spin_rate", "control_rate", "bid_window", "renewal_period
               "sensors", "skills"}
 
 
-def _task_id(doc: YamlDoc, m: StrictMapping, key: str, path: tuple) -> str:
-    task_id = m.get(key, str)
-    if not is_id(task_id):
-        raise doc.error(path + (key,), f"task id {task_id!r:.80} must be one key chunk: "
-                        "up to 64 letters, digits, '_', '-' or '.'")
-    return task_id
-
-
 def load_robot(path: Path | str) -> tuple[MurdochRobot, list[str]]:
-    doc = load_yaml(path)
-    if not isinstance(doc.data, dict):
-        raise doc.error((), "a MURDOCH robot parameter file must be a mapping")
-    top = StrictMapping(doc, (), ROBOT_KEYS)
+    doc, top, sensors = open_robot_file(path, ROBOT_KEYS, "a MURDOCH robot parameter file")
     warnings: list[str] = []
-    sensors = load_sensors(doc)
     topics = {s.topic_name for s in sensors}
     u = StrictMapping(doc, ("utility",), {"skill_weight", "distance_weight"}) \
         if "utility" in top.data else None
     skills: list[Skill] = []
     for spath, _ in sized_array(doc, ("skills",), "skill"):
         s = StrictMapping(doc, spath, {"task_id", "level", "progress"})
-        task_id = _task_id(doc, s, "task_id", spath)
+        task_id = task_id_of(s, "task_id")
         if any(k.task_id == task_id for k in skills):
             raise doc.error(spath + ("task_id",), f"task {task_id!r} has two skills")
         p = StrictMapping(doc, spath + ("progress",), {"plugin_name", "sensors"})
@@ -148,16 +136,10 @@ def load_robot(path: Path | str) -> tuple[MurdochRobot, list[str]]:
 
 
 def load_tasks(path: Path | str) -> dict[str, MurdochTask]:
-    doc = load_yaml(path)
-    if not isinstance(doc.data, dict):
-        raise doc.error((), "a tasks parameter file must be a mapping")
-    StrictMapping(doc, (), {"tasks"})
+    """The tasks file: ALLIANCE's (id, name, layers), plus resources and locations."""
     tasks: dict[str, MurdochTask] = {}
-    for tpath, _ in sized_array(doc, ("tasks",), "task"):
-        r = StrictMapping(doc, tpath, {"id", "name", "resources", "locations", "layers"})
-        task_id = _task_id(doc, r, "id", tpath)
-        if task_id in tasks:
-            raise doc.error(tpath + ("id",), f"task id {task_id!r} appears twice")
+    for r, layers in iter_tasks(path, frozenset({"resources", "locations"})):
+        doc, tpath = r.doc, r.path
         resources = []
         if "resources" in r.data:
             for rp, _ in sized_array(doc, tpath + ("resources",), "resource"):
@@ -167,15 +149,8 @@ def load_tasks(path: Path | str) -> dict[str, MurdochTask]:
             for lp, _ in sized_array(doc, tpath + ("locations",), "location"):
                 m = StrictMapping(doc, lp, {"x", "y"})
                 locations.append((m.get("x", float), m.get("y", float)))
-        layers, where = [], []
-        if "layers" in r.data:
-            for lpath, _ in sized_array(doc, tpath + ("layers",), "layer"):
-                lr = StrictMapping(doc, lpath, {"plugin_name"})
-                layers.append(lr.get("plugin_name", str))
-                where.append(lr.where("plugin_name"))
-        name = r.get("name", str, task_id)
-        tasks[task_id] = MurdochTask(task_id, name, tuple(resources), tuple(locations),
-                                     TaskParams(task_id, name, tuple(layers), tuple(where)))
+        tasks[layers.id] = MurdochTask(layers.id, layers.name, tuple(resources),
+                                       tuple(locations), layers)
     return tasks
 
 
