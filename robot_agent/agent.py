@@ -21,7 +21,7 @@ from . import keys
 from .high_level import HighLevel, TaskSwitch
 from .messages import InterRobotCommunication, Motivation, SensoryFeedback
 from .params import AgentParams
-from .plugins import Layer, Plugins
+from .plugins import Plugins
 from .runtime import AgentLoop
 
 log = logging.getLogger("mrta.agent")
@@ -35,7 +35,6 @@ class Agent(AgentLoop):
                          params.robot.spin_rate, params.robot.control_rate, log)
         self.params = params
         self.high = HighLevel(self.robot_id, params.robot)
-        self._inbox: collections.deque = collections.deque(maxlen=10_000)
         self.ignored_own = 0
         self.ignored_mismatch = 0
         self.ignored_strangers = 0  # broadcasts from robots with no live agent token
@@ -82,9 +81,7 @@ class Agent(AgentLoop):
                        sender)
             return
         msg = sample.message
-        # in lockstep every robot shares one simulated time: the sender's stamp is exact and
-        # does not depend on when the network delivered it
-        self._inbox.append((sender, msg, self.heard_at(msg.header.stamp)))
+        self.heard(msg.header.stamp, sender, msg)
 
     # ------------------------------------------------------------ one step of each level
     def _header(self, key: str, now: float) -> Header:
@@ -92,17 +89,11 @@ class Agent(AgentLoop):
         return Header(self.robot_id, now, self._seq[key])
 
     def tick_high(self, now: float) -> list[TaskSwitch]:
-        later = []  # in lockstep, a broadcast stamped at this very time waits for the next tick
-        while self._inbox:
-            sender, msg, t = self._inbox.popleft()
-            if t >= now and self.in_lockstep():
-                later.append((sender, msg, t))
-                continue
+        for t, sender, msg in self.take_due(now):
             if not self.high.on_broadcast(sender, msg.task_id, msg.expected_duration, t,
                                           msg.active_since):
                 self._drop("refused", "refused a broadcast from %s for %r with expected_duration %g",
                            sender, msg.task_id, msg.expected_duration)
-        self._inbox.extendleft(reversed(later))
         fb_key = keys.sensory_feedback(self.robot_id)
         for task, ev in self.plugins.evaluators.items():
             applicable = bool(ev.is_applicable(now))
@@ -125,13 +116,8 @@ class Agent(AgentLoop):
                 log.info("%s: %s %s (%s) at t=%.2f", self.robot_id, tr.kind, tr.task_id,
                          tr.reason, now)
         after = self.high.active_task
-        if before != after:
-            for layer in self._layers(before):
-                layer.on_deactivate(now)
-            for layer in self._layers(after):
-                layer.on_activate(now)
-            if after is not None:
-                self._last_broadcast = None  # announce a new activation at once
+        if self.switch_layers(before, after, now) and after is not None:
+            self._last_broadcast = None  # announce a new activation at once
         self.maybe_broadcast(now)
         return transitions
 
@@ -148,35 +134,22 @@ class Agent(AgentLoop):
             self._header(key, now), task, self.high.sets[task].params.expected_duration,
             self.high.active_since()))
 
-    def _layers(self, task: str | None) -> list[Layer]:
-        return self.plugins.layers.get(task, []) if task is not None else []
-
-    def step_layers(self, now: float, dt: float) -> None:
-        for layer in self._layers(self.high.active_task):
-            layer.step(now, dt)
+    @property
+    def active_task(self) -> str | None:
+        return self.high.active_task
 
     # ------------------------------------------------------------ the loop
     def restart(self, now: float) -> None:
         """Time restarted (a new simulation run): the old run's world is gone, so start afresh —
         layers deactivated, sensors forgotten, motivations back to zero."""
-        log.warning("%s: time restarted at t=%.2f (a new simulation run): starting afresh",
-                    self.robot_id, now)
-        for layer in self._layers(self.high.active_task):
-            layer.on_deactivate(now)
-        for sensor in self.plugins.sensors.values():
-            sensor.forget()
-        self._inbox.clear()
+        self.reset_low_level(now)
         self.high = HighLevel(self.robot_id, self.params.robot)
         self._last_broadcast = None
 
     def shutdown(self) -> None:
         """Stop the robot: deactivate the running layers, command zero velocity, and let every
         plugin close what it opened (py_trees' terminate, then shutdown)."""
-        now = self.clock.now()
-        for layer in self._layers(self.high.active_task):
-            layer.on_deactivate(now)
-        self.ctx.publish_cmd(0.0, 0.0)
-        self.plugins.shutdown()
+        self.shutdown_low_level()
         if self._irc_sub is not None:
             self._irc_sub.close()
             self._team_watch.close()

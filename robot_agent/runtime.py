@@ -9,6 +9,7 @@ lockstep or shutdown reaches both; an architecture supplies only its decision st
 
 from __future__ import annotations
 
+import collections
 import logging
 import os
 import signal
@@ -24,7 +25,7 @@ from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.lockstep import LockstepClock
 from mrta_zenoh.seeds import robot_rng
 
-from .plugins import AgentContext, Plugins
+from .plugins import AgentContext, Layer, Plugins
 
 log = logging.getLogger("mrta.agent")
 
@@ -38,8 +39,12 @@ class AgentLoop:
     `ctrl_period`, both scheduled on the injected clock so that the loop runs identically in
     real time, at k× simulation speed, in lockstep and step by step in tests.
 
+    Also the low level's bookkeeping both architectures share: the inbox network callbacks fill
+    and the loop drains (`heard`, `take_due`), and the active task's layers (`switch_layers`,
+    `step_layers`, `reset_low_level`, `shutdown_low_level`).
+
     Subclasses call `__init__` with the robot, its bus, clock and plugins and their two rates,
-    and implement `tick_high(now)`, `step_layers(now, dt)` and `restart(now)`."""
+    and implement `active_task`, `tick_high(now)` and `restart(now)`."""
 
     crash_at: float | None = None  # fault injection: SIGKILL itself at this time
 
@@ -56,6 +61,8 @@ class AgentLoop:
         self.high_period = 1.0 / spin_rate
         self.ctrl_period = 1.0 / control_rate
         self.log = logger
+        # (time heard, *what): filled by network callbacks, drained by the loop thread only
+        self._inbox: collections.deque = collections.deque(maxlen=10_000)
 
     def in_lockstep(self) -> bool:
         flag = getattr(self.clock, "lockstep", None)
@@ -66,6 +73,21 @@ class AgentLoop:
         simulated time, so its own stamp, exact whatever the network did; otherwise now."""
         return stamp if self.in_lockstep() else self.clock.now()
 
+    def heard(self, stamp: float, *item) -> None:
+        """Queue a message for the loop, timed by heard_at(stamp)."""
+        self._inbox.append((self.heard_at(stamp), *item))
+
+    def take_due(self, now: float) -> list[tuple]:
+        """Every queued item due at `now`. In lockstep, one stamped at this very time waits for
+        the next tick: the sender handled this step too, and what it said belongs after it."""
+        lockstep = self.in_lockstep()
+        due, later = [], []
+        while self._inbox:
+            item = self._inbox.popleft()
+            (later if lockstep and item[0] >= now else due).append(item)
+        self._inbox.extendleft(reversed(later))
+        return due
+
     def _drop(self, counter: str, reason: str, *args) -> None:
         """Count a dropped message in `counter`; log the first and every 100th, so a flood (a
         forger, a misconfigured teammate) cannot flood the log."""
@@ -74,14 +96,53 @@ class AgentLoop:
         if n == 1 or n % 100 == 0:
             self.log.warning("%s: " + reason + " (%d so far)", self.robot_id, *args, n)
 
-    def tick_high(self, now: float):
+    @property
+    def active_task(self) -> str | None:
         raise NotImplementedError
 
-    def step_layers(self, now: float, dt: float) -> None:
+    def tick_high(self, now: float):
         raise NotImplementedError
 
     def restart(self, now: float) -> None:
         raise NotImplementedError
+
+    # ------------------------------------------------------------ the active task's layers
+    def layers_of(self, task: str | None) -> list[Layer]:
+        return self.plugins.layers.get(task, []) if task is not None else []
+
+    def switch_layers(self, before: str | None, after: str | None, now: float) -> bool:
+        """The active task changed from `before` to `after`: terminate and initialise layers."""
+        if before == after:
+            return False
+        for layer in self.layers_of(before):
+            layer.on_deactivate(now)
+        for layer in self.layers_of(after):
+            layer.on_activate(now)
+        return True
+
+    def step_layers(self, now: float, dt: float) -> None:
+        for layer in self.layers_of(self.active_task):
+            layer.step(now, dt)
+
+    def reset_low_level(self, now: float) -> None:
+        """Time restarted (a new simulation run): the old run's world is gone — layers
+        deactivated, sensors forgotten, queued messages dropped."""
+        self.log.warning("%s: time restarted at t=%.2f (a new simulation run): starting afresh",
+                         self.robot_id, now)
+        for layer in self.layers_of(self.active_task):
+            layer.on_deactivate(now)
+        for sensor in self.plugins.sensors.values():
+            sensor.forget()
+        self._inbox.clear()
+
+    def shutdown_low_level(self) -> None:
+        """Stop the robot: deactivate the running layers, command zero velocity, and let every
+        plugin close what it opened (py_trees' terminate, then shutdown)."""
+        now = self.clock.now()
+        for layer in self.layers_of(self.active_task):
+            layer.on_deactivate(now)
+        self.ctx.publish_cmd(0.0, 0.0)
+        self.plugins.shutdown()
 
     def run(self, stop: threading.Event, until: float | None = None) -> None:
         high_period, ctrl_period = self.high_period, self.ctrl_period

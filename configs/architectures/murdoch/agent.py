@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import collections
 import logging
+import math
 
 import numpy as np
 
@@ -17,7 +18,7 @@ from mrta_zenoh.bus import Bus, Sample
 from mrta_zenoh.clock import Clock
 from mrta_zenoh.keys import first_chunk
 from mrta_zenoh.messages import Header, Odometry
-from robot_agent.plugins import Layer, Plugins
+from robot_agent.plugins import Plugins
 from robot_agent.runtime import AgentLoop
 
 from . import keys
@@ -66,7 +67,6 @@ class MurdochAgent(AgentLoop):
         self.params = params
         self.readings = _Readings(self.plugins, params.robot.pose_topic)
         self.core = Murdoch(self.robot_id, params.robot, params.tasks)
-        self._inbox: collections.deque = collections.deque(maxlen=10_000)
         self._teammates: set[str] = set()
         self._seq: dict[str, int] = collections.defaultdict(int)
         self.changes: list[tuple[float, Change]] = []
@@ -87,7 +87,8 @@ class MurdochAgent(AgentLoop):
         self._token = self.bus.declare_token(keys.of(self.robot_id, "agent"))
 
     def _on_teammate(self, key: str, alive: bool) -> None:
-        self._inbox.append(("teammate", first_chunk(key), alive))
+        """Queued like the messages, always due: the loop thread owns the team too."""
+        self._inbox.append((-math.inf, "teammate", first_chunk(key), alive))
 
     def _on_message(self, handler: str, sample: Sample) -> None:
         sender = first_chunk(sample.key)
@@ -98,30 +99,22 @@ class MurdochAgent(AgentLoop):
             self._drop("ignored_mismatch", "ignoring %s on %s with frame_id %r",
                        type(msg).__name__, sample.key, msg.header.frame_id)
             return
-        self._inbox.append((handler, sender, msg, self.heard_at(msg.header.stamp)))
+        self.heard(msg.header.stamp, handler, sender, msg)
 
     # ------------------------------------------------------------ one step of each level
     def tick_high(self, now: float) -> list[Change]:
-        in_lockstep = self.in_lockstep()
-        later = []
-        while self._inbox:
-            item = self._inbox.popleft()
-            if item[0] == "teammate":
-                _, robot, alive = item
-                (self._teammates.add if alive else self._teammates.discard)(robot)
-                if robot != self.robot_id:
-                    self.core.on_teammate(robot, alive)
+        for t, handler, sender, what in self.take_due(now):
+            if handler == "teammate":
+                (self._teammates.add if what else self._teammates.discard)(sender)
+                if sender != self.robot_id:
+                    self.core.on_teammate(sender, what)
                 continue
-            handler, sender, msg, t = item
-            if in_lockstep and t >= now:  # stamped at this very time: next tick, as ALLIANCE
-                later.append(item)
-                continue
+            msg = what
             if sender not in self._teammates:
                 self._drop("ignored_strangers", "ignoring %s from %s, which holds no agent token",
                            type(msg).__name__, sender)
                 continue
             getattr(self.core, handler)(sender, msg, t)
-        self._inbox.extendleft(reversed(later))
         before = self.core.task
         out, changes = self.core.tick(now, self.readings)
         for kind, fields in out:
@@ -133,40 +126,22 @@ class MurdochAgent(AgentLoop):
             self.changes.append((now, change))
             log.info("%s: %s %s (%s) at t=%.2f", self.robot_id, change.kind, change.task_id,
                      change.reason, now)
-        after = self.core.task
-        if before != after:
-            for layer in self._layers(before):
-                layer.on_deactivate(now)
-            for layer in self._layers(after):
-                layer.on_activate(now)
+        self.switch_layers(before, self.core.task, now)
         return changes
 
-    def _layers(self, task: str | None) -> list[Layer]:
-        return self.plugins.layers.get(task, []) if task is not None else []
-
-    def step_layers(self, now: float, dt: float) -> None:
-        for layer in self._layers(self.core.task):
-            layer.step(now, dt)
+    @property
+    def active_task(self) -> str | None:
+        return self.core.task
 
     def restart(self, now: float) -> None:
         """Time restarted (a new simulation run): forget every lease, auction and sensor."""
-        log.warning("%s: time restarted at t=%.2f (a new simulation run): starting afresh",
-                    self.robot_id, now)
-        for layer in self._layers(self.core.task):
-            layer.on_deactivate(now)
-        for sensor in self.plugins.sensors.values():
-            sensor.forget()
-        self._inbox.clear()
+        self.reset_low_level(now)
         teammates = self.core.teammates
         self.core = Murdoch(self.robot_id, self.params.robot, self.params.tasks)
         self.core.teammates = set(teammates)
 
     def shutdown(self) -> None:
-        now = self.clock.now()
-        for layer in self._layers(self.core.task):
-            layer.on_deactivate(now)
-        self.ctx.publish_cmd(0.0, 0.0)
-        self.plugins.shutdown()
+        self.shutdown_low_level()
         for h in self._handles:
             h.close()
         self._handles.clear()
