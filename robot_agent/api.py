@@ -6,23 +6,18 @@ run is measured against (the patrol demo and `mrta experiment` use it).
 
 from __future__ import annotations
 
-import logging
 import math
-import os
 import threading
 from pathlib import Path
 
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.errors import ConfigError
-from mrta_zenoh.failure import parse_failure
 from mrta_zenoh.keys import normalize_robot_id
-from mrta_zenoh.seeds import robot_rng
 
 from .agent import Agent, Plugins
 from .params import AgentParams, load_agent_params, load_robot_params
 from .runtime import host
 
-log = logging.getLogger("mrta.agent")
 
 def prepare(*, robot_id: str, robot_params: Path, tasks_params: Path,
             layers_params: Path | None = None) -> tuple[str, AgentParams, Plugins]:
@@ -34,34 +29,15 @@ def prepare(*, robot_id: str, robot_params: Path, tasks_params: Path,
     return rid, params, plugins
 
 
-CRASH_ENV = "MRTA_CRASH"  # ROBOT@SECONDS[,ROBOT@SECONDS…]: fault injection for experiments
-
-
-def crash_time(robot_id: str, crash_at: float | None) -> float | None:
-    """When this robot's agent is to crash: --crash-at, or its entry in $MRTA_CRASH."""
-    if crash_at is not None:
-        return crash_at
-    for item in filter(None, os.environ.get(CRASH_ENV, "").split(",")):
-        try:
-            failure = parse_failure(item.strip())
-        except ValueError as exc:
-            raise ConfigError(f"${CRASH_ENV}: {exc}") from None
-        if failure.robot == robot_id:
-            return failure.at
-    return None
-
-
 def run_agent(*, robot_id: str, robot_params: Path, tasks_params: Path,
               layers_params: Path | None = None, bus_options: BusOptions,
               sim_time: bool = False, seed: int = 0, duration: float | None = None,
               crash_at: float | None = None, stop: threading.Event | None = None) -> int:
     rid, params, plugins = prepare(robot_id=robot_id, robot_params=robot_params,
                                    tasks_params=tasks_params, layers_params=layers_params)
-    for w in params.warnings:
-        log.warning("%s", w)
-    return host(lambda bus, clock: Agent(rid, params, bus, clock, robot_rng(seed, rid), plugins),
-                robot_id=rid, bus_options=bus_options, sim_time=sim_time, duration=duration,
-                crash_at=crash_time(rid, crash_at), stop=stop,
+    return host(lambda bus, clock, rng: Agent(rid, params, bus, clock, rng, plugins),
+                robot_id=rid, warnings=params.warnings, seed=seed, bus_options=bus_options,
+                sim_time=sim_time, duration=duration, crash_at=crash_at, stop=stop,
                 describe=f"{len(params.robot.behaviour_sets)} behaviour sets")
 
 

@@ -277,13 +277,18 @@ def load_layers_params(path: Path | str | None) -> YamlDoc | None:
     return doc
 
 
+def require_task(task_id: str, tasks, robot_file, what: str) -> None:
+    """A robot file's `what` (behaviour set, skill) names a task the tasks file must have."""
+    if task_id not in tasks:
+        raise ConfigError(
+            f"{what} for task {task_id!r} but the tasks file has "
+            f"{', '.join(sorted(tasks)) or 'no tasks'}" + did_you_mean(task_id, tasks),
+            file=str(robot_file), element="'task_id'")
+
+
 def load_agent_params(robot_file, tasks_file, layers_file=None) -> AgentParams:
     robot, warnings = load_robot_params(robot_file)
     tasks = load_tasks_params(tasks_file)
     for bs in robot.behaviour_sets:
-        if bs.task_id not in tasks:
-            raise ConfigError(
-                f"behaviour set for task {bs.task_id!r} but the tasks file has "
-                f"{', '.join(sorted(tasks)) or 'no tasks'}" + did_you_mean(bs.task_id, tasks),
-                file=str(robot_file), element="'task_id'")
+        require_task(bs.task_id, tasks, robot_file, "behaviour set")
     return AgentParams(robot, tasks, load_layers_params(layers_file), warnings)

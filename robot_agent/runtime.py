@@ -20,6 +20,8 @@ import numpy as np
 
 from mrta_zenoh.bus import Bus, BusOptions, open_bus
 from mrta_zenoh.clock import EPSILON, Clock, SimClock, WallClock, follow_sim_clock
+from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.failure import parse_failure
 from mrta_zenoh.keys import normalize_robot_id
 from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.lockstep import LockstepClock
@@ -32,6 +34,23 @@ log = logging.getLogger("mrta.agent")
 # With no clock sample for this long (wall seconds), the robot is stopped: the simulator the
 # robot follows is gone or hung, and a layer must not keep driving on a stale world.
 CLOCK_WATCHDOG = 2.0
+
+
+CRASH_ENV = "MRTA_CRASH"  # ROBOT@SECONDS[,ROBOT@SECONDS…]: fault injection for experiments
+
+
+def crash_time(robot_id: str, crash_at: float | None) -> float | None:
+    """When this robot's agent is to crash: --crash-at, or its entry in $MRTA_CRASH."""
+    if crash_at is not None:
+        return crash_at
+    for item in filter(None, os.environ.get(CRASH_ENV, "").split(",")):
+        try:
+            failure = parse_failure(item.strip())
+        except ValueError as exc:
+            raise ConfigError(f"${CRASH_ENV}: {exc}") from None
+        if failure.robot == robot_id:
+            return failure.at
+    return None
 
 
 class AgentLoop:
@@ -182,6 +201,7 @@ class AgentLoop:
 
 class HostedAgent(Protocol):
     robot_id: str
+    log: logging.Logger
     crash_at: float | None
     ctx: object
 
@@ -191,22 +211,29 @@ class HostedAgent(Protocol):
     def shutdown(self) -> None: ...
 
 
-def host(make_agent: Callable[[Bus, Clock], HostedAgent], *, robot_id: str,
-         bus_options: BusOptions, sim_time: bool, duration: float | None,
-         crash_at: float | None, stop: threading.Event | None, describe: str) -> int:
-    """Open the bus, build the agent, follow simulation time (and lockstep) if asked, declare
-    the agent alive once it is ready, run until stopped, then shut it down."""
+def host(make_agent: Callable[[Bus, Clock, np.random.Generator], HostedAgent], *,
+         robot_id: str, warnings: list[str], seed: int, bus_options: BusOptions, sim_time: bool,
+         duration: float | None, crash_at: float | None, stop: threading.Event | None,
+         describe: str, logger: logging.Logger = log) -> int:
+    """Say the parameter warnings, open the bus, build the agent with its random stream (from
+    the run's seed and its id), follow simulation time (and lockstep) if asked, declare the
+    agent alive once it is ready, run until stopped — or until it crashes itself at --crash-at
+    or its $MRTA_CRASH entry — then shut it down."""
+    crash = crash_time(robot_id, crash_at)  # a bad $MRTA_CRASH is bad input: before the bus
+    for w in warnings:
+        logger.warning("%s", w)
     clock = LockstepClock(robot_id) if sim_time else WallClock()
     with stop_on_signals(stop) as stop, open_bus(bus_options) as bus:
-        agent = make_agent(bus, clock)
+        agent = make_agent(bus, clock, robot_rng(seed, robot_id))
         # on simulation time, follow the clock, and take part in lockstep when the simulator
         # runs it (the participant token goes out before the agent's own: alive means ready)
         handles = follow_sim_clock(bus, clock) + clock.join(bus) if sim_time else []
         agent.start()
         agent.declare_alive()
-        log.info("%s: ready (%s, %s time)", robot_id, describe, "simulation" if sim_time else "wall")
-        if crash_at is not None:
-            agent.crash_at = crash_at
+        logger.info("%s: ready (%s, %s time)", robot_id, describe,
+                    "simulation" if sim_time else "wall")
+        if crash is not None:
+            agent.crash_at = crash
         watchdog = None
         if sim_time:
             watchdog = threading.Thread(target=_clock_watchdog, args=(agent, clock, stop),
@@ -235,10 +262,11 @@ def _clock_watchdog(agent: HostedAgent, clock: SimClock, stop: threading.Event) 
         if clock.stalled(CLOCK_WATCHDOG):
             if not stopped:
                 stopped = True
-                log.warning("%s: the simulation clock stopped at t=%.2f (no sample for %.0f s): "
-                            "robot stopped until it comes back", agent.robot_id, clock.now(),
-                            CLOCK_WATCHDOG)
+                agent.log.warning("%s: the simulation clock stopped at t=%.2f (no sample for "
+                                  "%.0f s): robot stopped until it comes back", agent.robot_id,
+                                  clock.now(), CLOCK_WATCHDOG)
                 agent.ctx.publish_cmd(0.0, 0.0)
         elif stopped:
             stopped = False
-            log.warning("%s: the simulation clock is back at t=%.2f", agent.robot_id, clock.now())
+            agent.log.warning("%s: the simulation clock is back at t=%.2f", agent.robot_id,
+                              clock.now())

@@ -43,7 +43,8 @@ from mrta_zenoh.toolchain.launchfile import LaunchEvaluator, check_executables
 from mrta_zenoh.toolchain.registry import Registry
 from mrta_zenoh.toolchain.runner import start_nodes
 from mrta_murdoch.api import takeover_bound as murdoch_bound
-from robot_agent.api import CRASH_ENV, takeover_bound as alliance_bound
+from robot_agent.api import takeover_bound as alliance_bound
+from robot_agent.runtime import CRASH_ENV
 from robot_agent.params import load_layers_params
 from robot_agent.plots import plot_motivation
 from supervisor.api import Refresh, attach

@@ -9,8 +9,6 @@ from pathlib import Path
 
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.keys import normalize_robot_id
-from mrta_zenoh.seeds import robot_rng
-from robot_agent.api import crash_time
 from robot_agent.runtime import host
 
 from . import params as murdoch_params
@@ -36,13 +34,10 @@ def run_agent(*, robot_id: str, robot_params: Path, tasks_params: Path,
               crash_at: float | None = None, stop: threading.Event | None = None) -> int:
     rid, params, plugins = prepare(robot_id=robot_id, robot_params=robot_params,
                                    tasks_params=tasks_params, layers_params=layers_params)
-    for w in params.warnings:
-        log.warning("%s", w)
-    return host(lambda bus, clock: MurdochAgent(rid, params, bus, clock, robot_rng(seed, rid),
-                                                plugins),
-                robot_id=rid, bus_options=bus_options, sim_time=sim_time, duration=duration,
-                crash_at=crash_time(rid, crash_at), stop=stop,
-                describe=f"MURDOCH, {len(params.robot.skills)} skills")
+    return host(lambda bus, clock, rng: MurdochAgent(rid, params, bus, clock, rng, plugins),
+                robot_id=rid, warnings=params.warnings, seed=seed, bus_options=bus_options,
+                sim_time=sim_time, duration=duration, crash_at=crash_at, stop=stop,
+                describe=f"MURDOCH, {len(params.robot.skills)} skills", logger=log)
 
 
 def takeover_bound(robot_params: Path, task: str) -> float:

@@ -15,11 +15,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, sized_array
 from robot_agent.params import (
     SensorParams, StrictMapping, TaskParams, iter_tasks, load_layers_params, load_sensor_topics,
-    open_robot_file, task_id_of,
+    open_robot_file, require_task, task_id_of,
 )
 from robot_agent.plugins import EvaluatorSpec
 
@@ -159,11 +158,7 @@ def load_params(robot_file, tasks_file, layers_file=None) -> MurdochParams:
     tasks = load_tasks(tasks_file)
     topics = {s.topic_name for s in robot.sensors}
     for skill in robot.skills:
-        if skill.task_id not in tasks:
-            raise ConfigError(
-                f"skill for task {skill.task_id!r} but the tasks file has "
-                f"{', '.join(sorted(tasks)) or 'no tasks'}" + did_you_mean(skill.task_id, tasks),
-                file=str(robot_file), element="'task_id'")
+        require_task(skill.task_id, tasks, robot_file, "skill")
         missing = [r for r in tasks[skill.task_id].resources if r not in topics]
         if missing:
             warnings.append(f"{robot_file}: task {skill.task_id!r} needs {', '.join(missing)}, "
