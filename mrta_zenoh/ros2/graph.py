@@ -21,7 +21,6 @@ class Ros2Graph:
         self._entities: dict[str, Entity] = {}
         self._lock = threading.Lock()
         self.invalid = 0
-        self.changed = threading.Event()
 
     @property
     def key_expr(self) -> str:
@@ -45,7 +44,6 @@ class Ros2Graph:
                 self._entities[key] = entity
             else:
                 self._entities.pop(key, None)
-        self.changed.set()
 
     def entities(self) -> list[Entity]:
         with self._lock:

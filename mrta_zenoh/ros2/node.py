@@ -54,7 +54,7 @@ class Ros2Publisher:
 
 class Ros2Subscription:
     def __init__(self, node: "Ros2Node", topic: str, ros_type: str, qos: Qos,
-                 callback: Callable[[Any, Attachment], None], decode: bool = True):
+                 callback: Callable[[Any, Attachment], None]):
         self.topic, self.ros_type, self.qos = topic, ros_type, qos
         self.type_hash = node.types.hash(ros_type)
         self.key = names.topic_key(node.domain, topic, ros_type, self.type_hash)
@@ -70,14 +70,11 @@ class Ros2Subscription:
             except AttachmentError as exc:
                 self._drop("no_attachment" if attachment is None else "bad_attachment", key, exc)
                 return
-            if decode:
-                try:
-                    msg = types.deserialize(payload, ros_type)
-                except Exception as exc:  # rosbags raises several kinds on bad CDR
-                    self._drop("malformed", key, exc)
-                    return
-            else:
-                msg = payload
+            try:
+                msg = types.deserialize(payload, ros_type)
+            except Exception as exc:  # rosbags raises several kinds on bad CDR
+                self._drop("malformed", key, exc)
+                return
             with self._lock:
                 self.counts["received"] += 1
             callback(msg, att)
@@ -125,9 +122,8 @@ class Ros2Node:
         return pub
 
     def subscription(self, name: str, ros_type: str, qos: Qos,
-                     callback: Callable[[Any, Attachment], None], decode: bool = True
-                     ) -> Ros2Subscription:
-        sub = Ros2Subscription(self, self.topic(name), ros_type, qos, callback, decode)
+                     callback: Callable[[Any, Attachment], None]) -> Ros2Subscription:
+        sub = Ros2Subscription(self, self.topic(name), ros_type, qos, callback)
         self._entities.append(sub)
         return sub
 

@@ -67,7 +67,6 @@ class MurdochAgent(AgentLoop):
         self.params = params
         self.readings = _Readings(self.plugins, params.robot.pose_topic)
         self.core = Murdoch(self.robot_id, params.robot, params.tasks)
-        self._teammates: set[str] = set()
         self._seq: dict[str, int] = collections.defaultdict(int)
         self.changes: list[tuple[float, Change]] = []
         self.ignored_mismatch = 0
@@ -105,12 +104,11 @@ class MurdochAgent(AgentLoop):
     def tick_high(self, now: float) -> list[Change]:
         for t, handler, sender, what in self.take_due(now):
             if handler == "teammate":
-                (self._teammates.add if what else self._teammates.discard)(sender)
                 if sender != self.robot_id:
                     self.core.on_teammate(sender, what)
                 continue
             msg = what
-            if sender not in self._teammates:
+            if sender not in self.core.teammates:
                 self._drop("ignored_strangers", "ignoring %s from %s, which holds no agent token",
                            type(msg).__name__, sender)
                 continue

@@ -99,7 +99,6 @@ class Murdoch:
         self.stalled_since: float | None = None
         self.cooldown: dict[str, float] = {}
         self.start: float | None = None
-        self.counts = {"announced": 0, "bids": 0, "awarded": 0, "late_bids": 0}
 
     # ------------------------------------------------------------------ what was heard
     def on_teammate(self, robot: str, alive: bool) -> None:
@@ -117,7 +116,6 @@ class Murdoch:
         if msg.auctioneer != self.id or auction is None or auction.task_id != msg.task_id:
             return
         if t > auction.deadline + EPS:
-            self.counts["late_bids"] += 1
             return
         auction.bids[sender] = msg.utility
 
@@ -238,7 +236,6 @@ class Murdoch:
                 continue
             if not all(readings.fresh(r, now) for r in ann.resources):
                 continue
-            self.counts["bids"] += 1
             out.append(Out("bid", (auctioneer, ann.auction, ann.task_id,
                                    self.utility(ann.task_id, readings))))
 
@@ -261,7 +258,6 @@ class Murdoch:
                 continue
             done_tasks.add(task)
             busy.add(robot)
-            self.counts["awarded"] += 1
             out.append(Out("award", (number, task, robot, -neg_u)))
             self.held_until[task] = max(self.held_until.get(task, now), now + self.p.lease_timeout)
             if robot == self.id:
@@ -291,7 +287,6 @@ class Murdoch:
             auction = OpenAuction(number, task, now + self.p.bid_window)
             self.open[number] = auction
             self.last_announced[task] = now
-            self.counts["announced"] += 1
             out.append(Out("announcement", (number, task, self.tasks[task].resources,
                                             self.p.bid_window)))
             if self.task is None and self.capable(task, now, readings):
