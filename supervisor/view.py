@@ -61,8 +61,8 @@ def render(snap: dict, width: int = 120) -> Group:
                      f"{tr['from'] or '·'} → {tr['to'] or '·'}")
         text.stylize("dim")
         parts.append(text)
-    ros2 = snap.get("ros2") or {}
-    if ros2.get("nodes"):
+    ros2 = snap["ros2"]
+    if ros2["nodes"]:
         line = Text(f"ROS 2 (domain {ros2['domain']}): ", style="bold")
         line.append(plain(", ".join(ros2["nodes"])))
         line.append(Text(f" · {len(ros2['topics'])} topics", style="dim"))

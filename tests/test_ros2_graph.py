@@ -57,3 +57,24 @@ def test_a_robot_is_offline_once_its_ros2_driver_node_is_gone():
     snap = sup.snapshot(4.0)
     assert {r["id"]: r["state"] for r in snap["robots"]}["robot2"] == "idle"
     assert not snap["alarms"]
+
+
+def test_the_live_view_has_a_ros2_line_once_there_are_nodes():
+    import io
+
+    from rich.console import Console
+
+    from supervisor.view import render
+
+    app, arch = resolve_application("patrol")
+    sup = Supervisor(arch, app, 0.0)
+
+    def shown() -> str:
+        buf = io.StringIO()
+        Console(file=buf, width=120, color_system=None).print(render(sup.snapshot(1.0), 120))
+        return buf.getvalue()
+
+    assert "ROS 2" not in shown()
+    for key in (DRIVER, ODOM, BRIDGE):
+        sup.on_ros2_token(key, True, 1.0)
+    assert "ROS 2 (domain 0): /mrta_bridge_robot2, /robot2/pioneer_driver · 1 topics" in shown()
