@@ -28,7 +28,7 @@ HERE = os.path.abspath(__file__)
 
 def irc(seq: int):
     from mrta_zenoh.messages import Header
-    from robot_agent.messages import InterRobotCommunication
+    from mrta_agent.alliance.messages import InterRobotCommunication
     return InterRobotCommunication(Header("robot1", 1.0, seq), "border_protection", 200.0)
 
 

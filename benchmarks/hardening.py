@@ -45,7 +45,7 @@ def child_flood(rate: float, seconds: float) -> None:
     from mrta_zenoh.bus import BusOptions, open_bus
     from mrta_zenoh.codec import encode, encoding_for
     from mrta_zenoh.messages import Header
-    from robot_agent.messages import InterRobotCommunication
+    from mrta_agent.alliance.messages import InterRobotCommunication
 
     encoding = zenoh.Encoding(encoding_for(InterRobotCommunication.TYPE_NAME))
     sent_valid = 0

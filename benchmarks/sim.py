@@ -24,8 +24,8 @@ import numpy as np
 import pymunk
 
 from mrta_zenoh.bus.options import private_rendezvous
-from simulator.engine import DT, SENSOR_EVERY, Simulation
-from simulator.world import Pose, World
+from mrta_simulator.engine import DT, SENSOR_EVERY, Simulation
+from mrta_simulator.world import Pose, World
 
 
 def arena(n: int) -> tuple[World, dict[str, Pose]]:
@@ -117,7 +117,7 @@ with open_session(BusOptions()) as s:
 
 def run_with_bus(n: int, seconds: float) -> tuple[float, int]:
     from mrta_zenoh.bus import BusOptions, open_bus
-    from simulator.node import SimNode
+    from mrta_simulator.node import SimNode
 
     endpoint = private_rendezvous()
     os.environ["MRTA_RENDEZVOUS"] = endpoint

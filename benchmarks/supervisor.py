@@ -35,7 +35,7 @@ def patrol():
     """The patrol application's monitors, with the 1,000 robots the publisher speaks for (robots
     outside the application would only raise `unknown_robot` alarms)."""
     from mrta_zenoh.toolchain.model import Application, RobotEntry
-    from supervisor.api import resolve_application
+    from mrta_supervisor.api import resolve_application
     app, arch = resolve_application("patrol")
     robots = [RobotEntry(f"robot{i}", app.tasks()) for i in range(1000)]
     return Application(app.architecture, app.name, robots), arch
@@ -47,7 +47,7 @@ def child_publisher(n: int, rate: float, seconds: float, probes: bool) -> None:
     """Flood (rate 0) or pace IRC samples from 1,000 robots; optionally probes every 50 ms."""
     from mrta_zenoh.bus import BusOptions, open_bus
     from mrta_zenoh.messages import Header
-    from robot_agent.messages import InterRobotCommunication
+    from mrta_agent.alliance.messages import InterRobotCommunication
 
     with open_bus(BusOptions()) as bus:
         bus.declare_token("bench/publisher")
@@ -126,8 +126,8 @@ def child_ours_receiver() -> None:
     its own like the raw baseline's, timing the first and last sample the same way."""
     from mrta_zenoh.bus import BusOptions, open_bus
     from mrta_zenoh.clock import WallClock
-    from supervisor.api import attach
-    from supervisor.state import Supervisor
+    from mrta_supervisor.api import attach
+    from mrta_supervisor.state import Supervisor
 
     app, arch = patrol()
     clock = WallClock()
@@ -181,8 +181,8 @@ def _run_receiver(env: dict, n: int, role: str) -> tuple[float, int]:
 def run_latency(env: dict, rate: float, seconds: float) -> dict:
     from mrta_zenoh.bus import BusOptions, open_bus
     from mrta_zenoh.clock import WallClock
-    from supervisor.api import attach
-    from supervisor.state import Supervisor
+    from mrta_supervisor.api import attach
+    from mrta_supervisor.state import Supervisor
 
     app, arch = patrol()
     clock = WallClock()

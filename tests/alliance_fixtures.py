@@ -4,7 +4,7 @@ from pathlib import Path
 
 import yaml
 
-from robot_agent.params import BehaviourSetParams, RobotParams
+from mrta_agent.alliance.params import BehaviourSetParams, RobotParams
 
 
 def bset(task, theta=100.0, fast=10.0, expected=50.0, yielding=30.0, giving_up=60.0):

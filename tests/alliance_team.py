@@ -15,8 +15,8 @@ import math
 import random
 from dataclasses import dataclass, field
 
-from robot_agent.high_level import HighLevel
-from robot_agent.params import BehaviourSetParams, RobotParams
+from mrta_agent.alliance.high_level import HighLevel
+from mrta_agent.alliance.params import BehaviourSetParams, RobotParams
 
 TASK = "t"
 
@@ -43,7 +43,7 @@ class Spec:
         return 1.0 / self.spin
 
     def takeover_bound(self) -> float:
-        """τ + ⌈θ/δ_fast⌉/ρ + one tick (robot_agent.api.takeover_bound)."""
+        """τ + ⌈θ/δ_fast⌉/ρ + one tick (mrta_agent.alliance.api.takeover_bound)."""
         return self.tau + (math.ceil(self.theta / self.fast - 1e-9) + 1) / self.spin
 
 

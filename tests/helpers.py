@@ -18,7 +18,7 @@ ROOT = Path(__file__).resolve().parent.parent
 PROCS = Path(__file__).resolve().parent / "procs"
 REFERENCE = ROOT.parent / "shared" / "reference"
 CONFIGS = ROOT / "configs"
-ALLIANCE_ARCH = ROOT / "robot_agent" / "architecture"
+ALLIANCE_ARCH = ROOT / "robot_agent" / "alliance"
 PATROL = CONFIGS / "applications" / "patrol"
 PATROL_WORLD = PATROL / "worlds" / "patrol.yaml"
 

@@ -12,10 +12,10 @@ from mrta_zenoh import keys
 from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
 from mrta_zenoh.clock import ManualClock
 from mrta_zenoh.messages import Header, Odometry, Point2D, PointCloud, Pose2D, Twist
-from robot_agent.builtin import OdometrySensor, PointCloudSensor
-from robot_agent.params import SensorParams, load_layers_params
-from robot_agent.plugins import AgentContext, declared_sections
-from simulator.engine import DT, SENSOR_EVERY, Simulation
+from mrta_agent.runtime.builtin import OdometrySensor, PointCloudSensor
+from mrta_agent.runtime.params import SensorParams, load_layers_params
+from mrta_agent.runtime.plugins import AgentContext, declared_sections
+from mrta_simulator.engine import DT, SENSOR_EVERY, Simulation
 from tests.helpers import PATROL
 
 LAYERS_FILE = PATROL / "config" / "layers_alliance_params.yaml"

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mrta_murdoch.agent import MurdochAgent
-from mrta_murdoch.params import load_params
+from mrta_agent.murdoch.agent import MurdochAgent
+from mrta_agent.murdoch.params import load_params
 from mrta_zenoh import keys
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.bus.inproc import InProcNetwork

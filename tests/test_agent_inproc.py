@@ -8,10 +8,10 @@ from mrta_zenoh.clock import ManualClock
 from mrta_zenoh.codec import encoding_for
 
 from mrta_zenoh.messages import Header, Odometry, PointCloud, Pose2D, Twist
-from robot_agent.messages import InterRobotCommunication
-from robot_agent.agent import Agent
-from robot_agent.params import load_agent_params
-from robot_agent.plugins import Layer
+from mrta_agent.alliance.messages import InterRobotCommunication
+from mrta_agent.alliance.agent import Agent
+from mrta_agent.alliance.params import load_agent_params
+from mrta_agent.runtime.plugins import Layer
 from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
 
 

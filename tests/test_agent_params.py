@@ -4,7 +4,7 @@ from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
 from mrta_zenoh.errors import ConfigError
-from robot_agent.params import load_agent_params
+from mrta_agent.alliance.params import load_agent_params
 from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
 
 

@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from robot_agent.high_level import HighLevel
+from mrta_agent.alliance.high_level import HighLevel
 from tests.alliance_fixtures import bset, robot
 
 

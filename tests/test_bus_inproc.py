@@ -5,7 +5,7 @@ import msgpack
 from mrta_zenoh.bus import InProcBus, InProcNetwork
 from mrta_zenoh.codec import encoding_for
 from mrta_zenoh.messages import Header, Twist
-from robot_agent.messages import InterRobotCommunication
+from mrta_agent.alliance.messages import InterRobotCommunication
 
 
 def irc(frame, seq=0):

@@ -6,11 +6,11 @@ import pytest
 from mrta_zenoh import codec
 
 from mrta_zenoh.messages import Clock, GenericMessage, Header, Odometry, Point2D, PointCloud, Pose2D, Twist, registered_types
-from robot_agent.messages import InterRobotCommunication, Motivation, SensoryFeedback
-from simulator.messages import Bumper, Segment, World
+from mrta_agent.alliance.messages import InterRobotCommunication, Motivation, SensoryFeedback
+from mrta_simulator.messages import Bumper, Segment, World
 from mrta_patrol.messages import Report, TaskTime
 from mrta_zenoh.lockstep import LockstepStatus, Step, StepDone
-from mrta_murdoch.messages import Announcement, Award, Bid, Claim, Release
+from mrta_agent.murdoch.messages import Announcement, Award, Bid, Claim, Release
 
 EXAMPLES = [
     Header("robot1", 12.5, 7),
@@ -170,4 +170,4 @@ def test_every_type_decodes_in_a_fresh_interpreter_whatever_was_imported():
         "assert 'robot_agent' not in sys.modules or True\n"
         "print(type(a).__module__, type(b).__module__, isinstance(a, GenericMessage))\n")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True)
-    assert out.stdout.split() == ["robot_agent.messages", "mrta_patrol.messages", "False"]
+    assert out.stdout.split() == ["mrta_agent.alliance.messages", "mrta_patrol.messages", "False"]

@@ -6,7 +6,7 @@ import pytest
 from mrta_patrol.demo import parse_fail
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.failure import Failure, parse_failure
-from robot_agent.runtime import CRASH_ENV, crash_time
+from mrta_agent.runtime.host import CRASH_ENV, crash_time
 
 BAD = ["robot2@0", "robot2@0.0", "robot2@-1", "robot2@inf", "robot2@1e3", "robot2 at 5",
        "robot2@", "@30", "/robot2@30", "robot2@30@1", "r" * 65 + "@30"]

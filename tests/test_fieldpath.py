@@ -3,7 +3,7 @@ import pytest
 from mrta_zenoh.fieldpath import FieldPath, FieldPathError
 
 from mrta_zenoh.messages import GenericMessage, Header, Odometry, Point2D, PointCloud
-from robot_agent.messages import InterRobotCommunication
+from mrta_agent.alliance.messages import InterRobotCommunication
 
 IRC = InterRobotCommunication(Header("robot2", 3.0, 9), "border_protection", 200.0)
 CLOUD = PointCloud(Header("robot1", 0.0, 0), (Point2D(1.0, 2.0), Point2D(3.0, 4.0)))

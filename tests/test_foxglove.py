@@ -10,8 +10,8 @@ import pytest
 from mcap.reader import make_reader
 
 from mrta_zenoh.recording import read_recording
-from supervisor.api import resolve_application
-from supervisor.plots import TimeBase, replay
+from mrta_supervisor.api import resolve_application
+from mrta_supervisor.plots import TimeBase, replay
 from tests.helpers import free_port
 
 

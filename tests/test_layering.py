@@ -1,9 +1,10 @@
 """The framework/application split, checked on the source: who may import whom.
 
-mrta_zenoh (the core) knows no architecture, simulator, supervisor or application; robot_agent
-(ALLIANCE), simulator and supervisor build on the core only and never on each other or on an
-application; the patrol application reaches the framework only through public modules and is
-itself reached only through entry points.
+mrta_zenoh (the core) knows no architecture, simulator, supervisor or application — it defines
+the architecture contract, not an architecture. The agent runtime (mrta_agent.runtime) knows no
+architecture; ALLIANCE and MURDOCH build on it and never on each other; the simulator and the
+supervisor build on the core only; applications reach an architecture only through its
+registered contract (entry points), never by importing it.
 """
 
 import ast
@@ -15,55 +16,95 @@ from tests.helpers import ROOT
 
 PACKAGES = {
     "mrta_zenoh": ROOT / "mrta_zenoh",
-    "robot_agent": ROOT / "robot_agent",
-    "simulator": ROOT / "simulator",
-    "supervisor": ROOT / "supervisor",
-    "mrta_murdoch": ROOT / "configs" / "architectures" / "murdoch",
+    "mrta_agent.runtime": ROOT / "robot_agent" / "runtime",
+    "mrta_agent.alliance": ROOT / "robot_agent" / "alliance",
+    "mrta_agent.murdoch": ROOT / "robot_agent" / "murdoch",
+    "mrta_simulator": ROOT / "simulator",
+    "mrta_supervisor": ROOT / "supervisor",
     "mrta_patrol": ROOT / "configs" / "applications" / "patrol",
     "mrta_patrol_murdoch": ROOT / "configs" / "applications" / "patrol_murdoch",
 }
+APPS = {"mrta_patrol", "mrta_patrol_murdoch", "ping_app"}
 FORBIDDEN = {
-    "mrta_zenoh": {"robot_agent", "simulator", "supervisor", "mrta_murdoch", "mrta_patrol",
-                   "mrta_patrol_murdoch", "ping_app"},
-    "robot_agent": {"simulator", "supervisor", "mrta_murdoch", "mrta_patrol",
-                    "mrta_patrol_murdoch"},
-    # MURDOCH shares robot_agent's low level (plugins, loop, hosting) and nothing else
-    "mrta_murdoch": {"simulator", "supervisor", "mrta_patrol", "mrta_patrol_murdoch"},
-    "simulator": {"robot_agent", "supervisor", "mrta_murdoch", "mrta_patrol"},
-    "supervisor": {"robot_agent", "simulator", "mrta_murdoch", "mrta_patrol"},
-    "mrta_patrol": set(),
-    "mrta_patrol_murdoch": {"mrta_zenoh", "robot_agent", "mrta_murdoch", "simulator",
-                            "supervisor", "mrta_patrol"},  # holds no code at all
+    "mrta_zenoh": {"mrta_agent", "mrta_simulator", "mrta_supervisor"} | APPS,
+    "mrta_agent.runtime": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_simulator",
+                           "mrta_supervisor"} | APPS,
+    "mrta_agent.alliance": {"mrta_agent.murdoch", "mrta_simulator", "mrta_supervisor"} | APPS,
+    "mrta_agent.murdoch": {"mrta_agent.alliance", "mrta_simulator", "mrta_supervisor"} | APPS,
+    "mrta_simulator": {"mrta_agent", "mrta_supervisor"} | APPS,
+    "mrta_supervisor": {"mrta_agent", "mrta_simulator"} | APPS,
+    # an application reaches an architecture only through its registered contract
+    "mrta_patrol": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_patrol_murdoch"},
+    "mrta_patrol_murdoch": {"mrta_zenoh", "mrta_agent", "mrta_simulator", "mrta_supervisor",
+                            "mrta_patrol"},  # holds no code at all
 }
-PATROL_WORDS = ("patrol", "wander", "border_protection", "report_due", "wall_in_range")
+# the top-level import names the wheel installs: none may be another PyPI project's
+TOP_LEVEL = {"mrta_zenoh", "mrta_agent", "mrta_simulator", "mrta_supervisor", "mrta_patrol",
+             "mrta_patrol_murdoch"}
 
 
-def imports_of(path: Path) -> set[str]:
-    tree = ast.parse(path.read_text(encoding="utf-8"))
+def module_of(path: Path, package: str) -> str:
+    rel = path.relative_to(PACKAGES[package]).with_suffix("")
+    parts = [p for p in rel.parts if p != "__init__"]
+    return ".".join([package, *parts])
+
+
+def imports_of(path: Path, package: str) -> set[str]:
+    """Every module `path` imports, relative imports resolved to absolute names."""
+    here = module_of(path, package).split(".")
+    if path.name != "__init__.py":
+        here = here[:-1]
     out = set()
-    for node in ast.walk(tree):
+    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
         if isinstance(node, ast.Import):
-            out |= {a.name.split(".")[0] for a in node.names}
-        elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-            out.add(node.module.split(".")[0])
+            out |= {a.name for a in node.names}
+        elif isinstance(node, ast.ImportFrom):
+            base = here[:len(here) - node.level + 1] if node.level else []
+            mod = ".".join(base + ([node.module] if node.module else []))
+            out |= {mod} | {f"{mod}.{a.name}" for a in node.names}
     return out
+
+
+def hits(imported: set[str], forbidden: set[str]) -> set[str]:
+    return {f for f in forbidden for m in imported if m == f or m.startswith(f + ".")}
 
 
 @pytest.mark.parametrize("package", list(PACKAGES))
 def test_no_package_imports_what_it_must_not_know(package):
     bad = []
     for f in sorted(PACKAGES[package].rglob("*.py")):
-        hit = imports_of(f) & FORBIDDEN[package]
+        hit = hits(imports_of(f, package), FORBIDDEN[package])
         if hit:
             bad.append(f"{f.relative_to(ROOT)} imports {', '.join(sorted(hit))}")
     assert not bad, "\n".join(bad)
 
 
+def test_relative_imports_are_resolved():
+    """The checker itself: a relative import reaching into a sibling architecture is caught."""
+    f = ROOT / "robot_agent" / "alliance" / "agent.py"
+    assert "mrta_agent.runtime.loop" in imports_of(f, "mrta_agent.alliance")
+
+
+def test_configs_hold_applications_only():
+    """No architecture in configs/: every rqt_mrta file there describes an application."""
+    for f in (ROOT / "configs").rglob("rqt_mrta.xml"):
+        assert "<application>" in f.read_text(encoding="utf-8"), f
+    assert not (ROOT / "configs" / "architectures").exists()
+
+
+def test_the_wheel_installs_only_mrta_import_names():
+    text = (ROOT / "pyproject.toml").read_text(encoding="utf-8")
+    block = text.split("packages = [", 1)[1].split("]", 1)[0]
+    names = {p.strip().strip('"').split(".")[0] for p in block.split(",") if p.strip()}
+    assert names == TOP_LEVEL
+
+
 def test_the_framework_has_no_patrol_specific_code():
-    """Not even by name: robot_agent, simulator, supervisor and the core never mention the
-    patrol application's plugins, messages or keys (docstrings aside)."""
+    """Not even by name: the agent runtime, the architectures, simulator, supervisor and the
+    core never mention the patrol application's plugins, messages or keys (docstrings aside)."""
     bad = []
-    for package in ("mrta_zenoh", "robot_agent", "mrta_murdoch", "simulator", "supervisor"):
+    for package in ("mrta_zenoh", "mrta_agent.runtime", "mrta_agent.alliance",
+                    "mrta_agent.murdoch", "mrta_simulator", "mrta_supervisor"):
         for f in sorted(PACKAGES[package].rglob("*.py")):
             tree = ast.parse(f.read_text(encoding="utf-8"))
             docstrings = {id(n.body[0].value) for n in ast.walk(tree)
@@ -74,6 +115,6 @@ def test_the_framework_has_no_patrol_specific_code():
                 if isinstance(node, ast.Constant) and isinstance(node.value, str) \
                         and id(node) not in docstrings \
                         and any(w in node.value for w in ("patrol_msgs", "patrol/", "wander",
-                                                          "border_protection")):
+                                                          "border_protection", "patrol")):
                     bad.append(f"{f.relative_to(ROOT)}:{node.lineno}: {node.value[:60]!r}")
     assert not bad, "\n".join(bad)

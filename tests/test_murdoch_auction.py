@@ -6,9 +6,9 @@ from pathlib import Path
 
 import pytest
 
-from mrta_murdoch.auction import Murdoch
-from mrta_murdoch.messages import Claim
-from mrta_murdoch.params import load_params, load_robot, takeover_bound
+from mrta_agent.murdoch.auction import Murdoch
+from mrta_agent.murdoch.messages import Claim
+from mrta_agent.murdoch.params import load_params, load_robot, takeover_bound
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.messages import Header
 from tests.alliance_fixtures import write
@@ -184,7 +184,7 @@ def test_a_skill_for_a_task_the_tasks_file_lacks_is_refused(tmp_path):
 
 
 def test_the_shipped_patrol_parameters_load_and_bound_the_takeover():
-    from mrta_murdoch.api import takeover_bound as bound_of
+    from mrta_agent.murdoch.api import takeover_bound as bound_of
     from tests.helpers import CONFIGS
     cfg = CONFIGS / "applications" / "patrol_murdoch" / "config"
     for rid in ("robot1", "robot2", "robot3"):

@@ -4,7 +4,7 @@ the simulator, and the supervisor built from MURDOCH's rqt_mrta.xml alone."""
 import json
 import signal
 
-from mrta_murdoch.api import takeover_bound
+from mrta_agent.murdoch.api import takeover_bound
 from tests.helpers import CONFIGS
 
 CONFIG = CONFIGS / "applications" / "patrol_murdoch" / "config"

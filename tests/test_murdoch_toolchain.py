@@ -6,7 +6,7 @@ import json
 
 from click.testing import CliRunner
 
-from mrta_murdoch.params import load_params
+from mrta_agent.murdoch.params import load_params
 from mrta_zenoh.cli.main import cli
 from tests.helpers import CONFIGS
 

@@ -9,14 +9,14 @@ from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
 from mrta_zenoh.clock import ManualClock
 from mrta_zenoh.messages import Header, Point2D, PointCloud
 from tests.helpers import PATROL_WORLD
-from robot_agent.builtin import PointCloudSensor
-from robot_agent.params import SensorParams
+from mrta_agent.runtime.builtin import PointCloudSensor
+from mrta_agent.runtime.params import SensorParams
 from mrta_patrol.evaluators import ReportDue, WallInRange
 from mrta_patrol.layers import BorderProtection, ReportParams, Wander
 from mrta_patrol.messages import Report
-from robot_agent.plugins import AgentContext
-from simulator.engine import Simulation
-from simulator.world import load_world
+from mrta_agent.runtime.plugins import AgentContext
+from mrta_simulator.engine import Simulation
+from mrta_simulator.world import load_world
 from tests.layer_harness import LayerRun, typed_sections
 
 WORLD = load_world(PATROL_WORLD)
@@ -125,7 +125,7 @@ def test_the_ledger_counts_only_teammates_and_finite_distances(ctx):
     from mrta_patrol.layers import ReportLayer
     from mrta_zenoh.codec import encoding_for
     from mrta_zenoh.messages import Odometry, Pose2D, Twist
-    from robot_agent.messages import InterRobotCommunication
+    from mrta_agent.alliance.messages import InterRobotCommunication
 
     c, bus = ctx
     c.sections.update(typed_sections(ReportLayer))

@@ -5,10 +5,10 @@ import math
 import numpy as np
 import pytest
 
-from simulator.engine import DT, Simulation
-from simulator.robot_model import RobotModel
-from simulator.sonar import ray_walls, sonar_origins
-from simulator.world import Pose, World
+from mrta_simulator.engine import DT, Simulation
+from mrta_simulator.robot_model import RobotModel
+from mrta_simulator.sonar import ray_walls, sonar_origins
+from mrta_simulator.world import Pose, World
 
 BOX = World("box", np.array([[-20, -20, 20, -20], [20, -20, 20, 20],
                              [20, 20, -20, 20], [-20, 20, -20, -20]], dtype=float))

@@ -5,7 +5,7 @@ import signal
 
 import pytest
 
-from simulator.robot_model import RobotModel
+from mrta_simulator.robot_model import RobotModel
 
 M = RobotModel()
 

@@ -8,13 +8,13 @@ import pytest
 from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
 from mrta_zenoh.clock import ManualClock, SimClock
 from mrta_zenoh.messages import GenericMessage, Header, Twist
-from robot_agent.messages import InterRobotCommunication
+from mrta_agent.alliance.messages import InterRobotCommunication
 from tests.helpers import ALLIANCE_ARCH
 from mrta_zenoh.toolchain.model import Application, RobotEntry
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
-from supervisor.api import CLOCK_STALL, Refresh, attach, resolve_application
-from supervisor.holders import SampleHolder
-from supervisor.state import Supervisor, key_expr_for
+from mrta_supervisor.api import CLOCK_STALL, Refresh, attach, resolve_application
+from mrta_supervisor.holders import SampleHolder
+from mrta_supervisor.state import Supervisor, key_expr_for
 
 IRC = "alliance_msgs/InterRobotCommunication"
 
@@ -264,7 +264,7 @@ def test_live_view_fits_80_by_24_with_ten_robots(patrol):
 
     from rich.console import Console
 
-    from supervisor.view import render
+    from mrta_supervisor.view import render
 
     app, arch = patrol
     app = Application(app.architecture, app.name,
@@ -292,7 +292,7 @@ def test_ids_with_markup_and_escape_codes_are_shown_as_plain_text(patrol):
 
     from rich.console import Console
 
-    from supervisor.view import render
+    from mrta_supervisor.view import render
 
     app, arch = patrol
     sup = Supervisor(arch, app, 0.0)

@@ -13,7 +13,7 @@ from click.testing import CliRunner
 from mrta_zenoh.cli.main import cli
 from tests.helpers import ALLIANCE_ARCH, CONFIGS
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
-from robot_agent.params import load_agent_params
+from mrta_agent.alliance.params import load_agent_params
 from tests.helpers import REFERENCE
 
 PATROL_ANSWERS = CONFIGS / "applications" / "patrol_answers.yaml"

@@ -11,9 +11,9 @@ import threading
 from mrta_zenoh import keys
 from mrta_zenoh.bus import BusOptions, open_bus
 from mrta_zenoh.clock import SimClock, follow_sim_clock
-from simulator.node import bumper_key
+from mrta_simulator.node import bumper_key
 from mrta_zenoh.messages import Odometry, PointCloud, Twist
-from simulator.messages import Bumper
+from mrta_simulator.messages import Bumper
 
 robot, linear, seconds = sys.argv[1], float(sys.argv[2]), float(sys.argv[3])
 clock = SimClock()

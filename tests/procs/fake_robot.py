@@ -7,11 +7,11 @@ Every 2 s it also sends a wrong-type sample and a malformed payload on the broad
 import sys
 import time
 
-from robot_agent import keys
+from mrta_agent.alliance import keys
 from mrta_zenoh.bus import BusOptions, open_bus
 from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.messages import Header, Twist
-from robot_agent.messages import InterRobotCommunication, Motivation
+from mrta_agent.alliance.messages import InterRobotCommunication, Motivation
 
 robot = sys.argv[1]
 task = sys.argv[2] if len(sys.argv) > 2 else None

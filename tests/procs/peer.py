@@ -9,7 +9,7 @@ import time
 from mrta_zenoh.bus import BusOptions, open_bus
 from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.messages import Header
-from robot_agent.messages import InterRobotCommunication
+from mrta_agent.alliance.messages import InterRobotCommunication
 
 name = sys.argv[1]
 duration = float(sys.argv[2]) if len(sys.argv) > 2 else 60.0

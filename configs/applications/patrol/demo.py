@@ -42,15 +42,15 @@ from mrta_zenoh.recording import read_recording
 from mrta_zenoh.toolchain.launchfile import LaunchEvaluator, check_executables
 from mrta_zenoh.toolchain.registry import Registry
 from mrta_zenoh.toolchain.runner import start_nodes
-from mrta_murdoch.api import takeover_bound as murdoch_bound
-from robot_agent.api import takeover_bound as alliance_bound
-from robot_agent.runtime import CRASH_ENV
-from robot_agent.params import load_layers_params
-from robot_agent.plots import plot_motivation
-from supervisor.api import Refresh, attach
-from supervisor.plots import TimeBase, allocation_intervals, plot_timeline, replay
-from supervisor.state import Supervisor
-from supervisor.view import render
+from mrta_agent.murdoch.api import takeover_bound as murdoch_bound
+from mrta_agent.alliance.api import takeover_bound as alliance_bound
+from mrta_agent.runtime.host import CRASH_ENV
+from mrta_agent.runtime.params import load_layers_params
+from mrta_agent.alliance.plots import plot_motivation
+from mrta_supervisor.api import Refresh, attach
+from mrta_supervisor.plots import TimeBase, allocation_intervals, plot_timeline, replay
+from mrta_supervisor.state import Supervisor
+from mrta_supervisor.view import render
 
 from .layers import BorderParams
 from .metrics import coverage, mission_metrics

@@ -5,7 +5,7 @@ published one for Report/period seconds)."""
 from __future__ import annotations
 
 from mrta_zenoh.messages import PointCloud
-from robot_agent.plugins import AgentContext, SensoryEvaluator
+from mrta_agent.runtime.plugins import AgentContext, SensoryEvaluator
 
 from .keys import ALL_REPORTS
 from .layers import BorderParams, ReportParams, SonarView

@@ -25,7 +25,7 @@ from typing import Literal
 import msgspec
 
 from mrta_zenoh.messages import Finite, Odometry, PointCloud
-from robot_agent.plugins import AgentContext, Layer
+from mrta_agent.runtime.plugins import AgentContext, Layer
 
 from .keys import report_key
 from .ledger import PatrolLedger

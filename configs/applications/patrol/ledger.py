@@ -16,11 +16,11 @@ import threading
 
 from mrta_zenoh.keys import first_chunk
 from mrta_zenoh.messages import Header, Odometry
-from mrta_murdoch import keys as murdoch_keys
-from mrta_murdoch.messages import Claim
-from robot_agent import keys as alliance_keys
-from robot_agent.messages import InterRobotCommunication
-from robot_agent.plugins import Plugin
+from mrta_agent.murdoch import keys as murdoch_keys
+from mrta_agent.murdoch.messages import Claim
+from mrta_agent.alliance import keys as alliance_keys
+from mrta_agent.alliance.messages import InterRobotCommunication
+from mrta_agent.runtime.plugins import Plugin
 
 from .messages import Report, TaskTime
 

@@ -1,9 +1,9 @@
-"""One layer and one evaluator, written against robot_agent.plugins as any plugin is."""
+"""One layer and one evaluator, written against mrta_agent.runtime.plugins as any plugin is."""
 
 import msgspec
 
 from mrta_zenoh.messages import Finite, Header
-from robot_agent.plugins import Layer, SensoryEvaluator
+from mrta_agent.runtime.plugins import Layer, SensoryEvaluator
 
 from .messages import Ping
 

@@ -16,7 +16,7 @@ from mrta_zenoh.keys import normalize_robot_id
 
 from .agent import Agent, Plugins
 from .params import AgentParams, load_agent_params, load_robot_params
-from .runtime import host
+from ..runtime.host import host
 
 
 def prepare(*, robot_id: str, robot_params: Path, tasks_params: Path,

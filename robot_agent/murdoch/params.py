@@ -16,11 +16,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, sized_array
-from robot_agent.params import (
-    SensorParams, StrictMapping, TaskParams, iter_tasks, load_layers_params, load_sensor_topics,
-    open_robot_file, require_task, task_id_of,
-)
-from robot_agent.plugins import EvaluatorSpec
+from mrta_agent.runtime.params import SensorParams, StrictMapping, TaskParams, iter_tasks, load_layers_params, load_sensor_topics, open_robot_file, require_task, task_id_of
+from mrta_agent.runtime.plugins import EvaluatorSpec
 
 
 @dataclass(frozen=True)

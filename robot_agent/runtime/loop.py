@@ -2,7 +2,7 @@
 injected clock and the hosting around it (bus, simulation clock, lockstep, clock watchdog,
 fault injection, signals).
 
-ALLIANCE (robot_agent.agent) and MURDOCH (mrta_murdoch) both run on it, so a fix to timing,
+ALLIANCE (mrta_agent.alliance.agent) and MURDOCH (mrta_agent.murdoch) both run on it, so a fix to timing,
 lockstep or shutdown reaches both; an architecture supplies only its decision step
 (`tick_high`), its layers (`step_layers`) and what a restart of time means to it (`restart`).
 """
@@ -30,28 +30,6 @@ from mrta_zenoh.seeds import robot_rng
 from .plugins import AgentContext, Layer, Plugins
 
 log = logging.getLogger("mrta.agent")
-
-# With no clock sample for this long (wall seconds), the robot is stopped: the simulator the
-# robot follows is gone or hung, and a layer must not keep driving on a stale world.
-CLOCK_WATCHDOG = 2.0
-
-
-CRASH_ENV = "MRTA_CRASH"  # ROBOT@SECONDS[,ROBOT@SECONDS…]: fault injection for experiments
-
-
-def crash_time(robot_id: str, crash_at: float | None) -> float | None:
-    """When this robot's agent is to crash: --crash-at, or its entry in $MRTA_CRASH."""
-    if crash_at is not None:
-        return crash_at
-    for item in filter(None, os.environ.get(CRASH_ENV, "").split(",")):
-        try:
-            failure = parse_failure(item.strip())
-        except ValueError as exc:
-            raise ConfigError(f"${CRASH_ENV}: {exc}") from None
-        if failure.robot == robot_id:
-            return failure.at
-    return None
-
 
 class AgentLoop:
     """The single-threaded loop: the decision step at `high_period`, the layers at
@@ -197,76 +175,3 @@ class AgentLoop:
                 next_ctrl += ctrl_period
                 if next_ctrl <= now:
                     next_ctrl = now + ctrl_period
-
-
-class HostedAgent(Protocol):
-    robot_id: str
-    log: logging.Logger
-    crash_at: float | None
-    ctx: object
-
-    def start(self) -> None: ...
-    def declare_alive(self) -> None: ...
-    def run(self, stop: threading.Event, until: float | None = None) -> None: ...
-    def shutdown(self) -> None: ...
-
-
-def host(make_agent: Callable[[Bus, Clock, np.random.Generator], HostedAgent], *,
-         robot_id: str, warnings: list[str], seed: int, bus_options: BusOptions, sim_time: bool,
-         duration: float | None, crash_at: float | None, stop: threading.Event | None,
-         describe: str, logger: logging.Logger = log) -> int:
-    """Say the parameter warnings, open the bus, build the agent with its random stream (from
-    the run's seed and its id), follow simulation time (and lockstep) if asked, declare the
-    agent alive once it is ready, run until stopped — or until it crashes itself at --crash-at
-    or its $MRTA_CRASH entry — then shut it down."""
-    crash = crash_time(robot_id, crash_at)  # a bad $MRTA_CRASH is bad input: before the bus
-    for w in warnings:
-        logger.warning("%s", w)
-    clock = LockstepClock(robot_id) if sim_time else WallClock()
-    with stop_on_signals(stop) as stop, open_bus(bus_options) as bus:
-        agent = make_agent(bus, clock, robot_rng(seed, robot_id))
-        # on simulation time, follow the clock, and take part in lockstep when the simulator
-        # runs it (the participant token goes out before the agent's own: alive means ready)
-        handles = follow_sim_clock(bus, clock) + clock.join(bus) if sim_time else []
-        agent.start()
-        agent.declare_alive()
-        logger.info("%s: ready (%s, %s time)", robot_id, describe,
-                    "simulation" if sim_time else "wall")
-        if crash is not None:
-            agent.crash_at = crash
-        watchdog = None
-        if sim_time:
-            watchdog = threading.Thread(target=_clock_watchdog, args=(agent, clock, stop),
-                                        name="clock-watchdog", daemon=True)
-            watchdog.start()
-        try:
-            if sim_time:
-                while not stop.is_set() and not clock.started.wait(0.1):
-                    pass
-            until = None if duration is None else clock.now() + duration
-            agent.run(stop, until)
-        finally:
-            stop.set()
-            if watchdog is not None:
-                watchdog.join(1.0)
-            agent.shutdown()
-            for h in handles:
-                h.close()
-    return 0
-
-
-def _clock_watchdog(agent: HostedAgent, clock: SimClock, stop: threading.Event) -> None:
-    """Say once that the clock stopped, and command zero velocity; say when it is back."""
-    stopped = False
-    while not stop.wait(0.25):
-        if clock.stalled(CLOCK_WATCHDOG):
-            if not stopped:
-                stopped = True
-                agent.log.warning("%s: the simulation clock stopped at t=%.2f (no sample for "
-                                  "%.0f s): robot stopped until it comes back", agent.robot_id,
-                                  clock.now(), CLOCK_WATCHDOG)
-                agent.ctx.publish_cmd(0.0, 0.0)
-        elif stopped:
-            stopped = False
-            agent.log.warning("%s: the simulation clock is back at t=%.2f", agent.robot_id,
-                              clock.now())

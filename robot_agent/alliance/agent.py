@@ -21,8 +21,8 @@ from . import keys
 from .high_level import HighLevel, TaskSwitch
 from .messages import InterRobotCommunication, Motivation, SensoryFeedback
 from .params import AgentParams
-from .plugins import Plugins
-from .runtime import AgentLoop
+from ..runtime.loop import AgentLoop
+from ..runtime.plugins import Plugins
 
 log = logging.getLogger("mrta.agent")
 

@@ -1,6 +1,6 @@
 """One robot's MURDOCH agent: the auction logic (auction.Murdoch) and the robot's low level in
 one process, on one clock — the same loop, hosting and plugins as the ALLIANCE agent
-(robot_agent.runtime, robot_agent.plugins), so the patrol layers run here unchanged.
+(robot_agent.runtime, mrta_agent.runtime.plugins), so the patrol layers run here unchanged.
 
 Network callbacks only enqueue; the loop thread owns all state. In lockstep every robot shares
 one simulated time, so a message's own stamp is when it was heard, whatever the network did.
@@ -18,8 +18,8 @@ from mrta_zenoh.bus import Bus, Sample
 from mrta_zenoh.clock import Clock
 from mrta_zenoh.keys import first_chunk
 from mrta_zenoh.messages import Header, Odometry
-from robot_agent.plugins import Plugins
-from robot_agent.runtime import AgentLoop
+from mrta_agent.runtime.plugins import Plugins
+from mrta_agent.runtime.loop import AgentLoop
 
 from . import keys
 from .auction import Change, Murdoch

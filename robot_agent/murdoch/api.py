@@ -9,7 +9,7 @@ from pathlib import Path
 
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.keys import normalize_robot_id
-from robot_agent.runtime import host
+from mrta_agent.runtime.host import host
 
 from . import params as murdoch_params
 from .agent import MurdochAgent, plugins_for

@@ -1,4 +1,4 @@
-"""`mrta agent`: a thin click wrapper over robot_agent.api.run_agent; `agent_command` builds
+"""`mrta agent`: a thin click wrapper over mrta_agent.alliance.api.run_agent; `agent_command` builds
 every architecture's agent command alike."""
 
 from __future__ import annotations
@@ -11,7 +11,6 @@ import click
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.cli.common import bus_options, finite_float, user_errors
 
-from .api import run_agent
 
 
 def agent_command(name: str, architecture: str, stem: str, run: Callable[..., int],
@@ -55,7 +54,3 @@ def agent_command(name: str, architecture: str, stem: str, run: Callable[..., in
         command = option(command)
     return click.command(name=name, help=help)(command)
 
-
-agent = agent_command(
-    "agent", "ALLIANCE", "alliance", run_agent,
-    "Run ROBOT_ID's ALLIANCE agent: motivational behaviours, sensors, evaluators and layers.")

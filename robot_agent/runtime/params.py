@@ -1,21 +1,21 @@
-"""ALLIANCE parameters in the dissertation's YAML layout (the reference files load unchanged).
+"""What every architecture's parameter files share: a strict reader of YAML mappings (unknown
+keys refused with "did you mean", numbers finite, rates in range), the robot file's sensors, the
+tasks file (ids, names, layer stacks) and the layers file the plugins read.
 
-Strict: a missing mandatory key, a non-positive rate or τ, or an unknown key in the robot or tasks
-file is a ConfigError naming file, line and key (with "did you mean"). The layers file belongs to
-the layer plugins, so it is only required to be a mapping. Legal but suspicious values are
-returned as warnings naming file and key.
+Strict: a missing mandatory key or an unknown key is a ConfigError naming file, line and key.
+ALLIANCE's robot file (behaviour sets) is read in mrta_agent.alliance.params, MURDOCH's
+(skills, auctions) in mrta_agent.murdoch.params, both through these helpers.
 """
 
-from __future__ import annotations
-
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterator
 
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.keys import is_id
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, get_path, load_yaml, sized_array
+
 
 NUMBER = (int, float)
 MIN_RATE, MAX_RATE = 0.01, 1000.0  # Hz: below, a tick a minute and a half; above, a busy loop
@@ -31,45 +31,11 @@ class SensorParams:
 
 
 @dataclass(frozen=True)
-class BehaviourSetParams:
-    task_id: str
-    expected_duration: float
-    threshold: float
-    yielding_delay: float
-    giving_up_delay: float
-    fast_rate: float
-    evaluator_plugin: str
-    evaluator_topics: tuple[str, ...]
-    where: str = ""  # file:line of the evaluator's plugin_name
-
-
-@dataclass(frozen=True)
-class RobotParams:
-    name: str
-    spin_rate: float
-    broadcast_rate: float
-    timeout_duration: float
-    buffer_horizon: float
-    sensors: tuple[SensorParams, ...]
-    behaviour_sets: tuple[BehaviourSetParams, ...]
-    control_rate: float = 10.0
-    max_expected_duration: float = 3600.0  # broadcasts announcing more are refused
-
-
-@dataclass(frozen=True)
 class TaskParams:
     id: str
     name: str
     layers: tuple[str, ...]
     where: tuple[str, ...] = ()  # file:line of each layer's plugin_name
-
-
-@dataclass
-class AgentParams:
-    robot: RobotParams
-    tasks: dict[str, TaskParams]
-    layers: YamlDoc | None = None  # the layers file; plugins' typed sections are read from it
-    warnings: list[str] = field(default_factory=list)
 
 
 class StrictMapping:
@@ -118,10 +84,6 @@ class StrictMapping:
         return f"{self.doc.path}:{line}" if line else str(self.doc.path)
 
 
-ROBOT_KEYS = {"name", "spin_rate", "broadcast_rate", "timeout_duration", "buffer_horizon",
-              "sensors", "behaviour_sets", "control_rate", "id", "max_expected_duration"}
-
-
 def load_sensors(doc: YamlDoc) -> tuple[SensorParams, ...]:
     """The robot file's `sensors` array (shared by every architecture's robot file)."""
     sensors = []
@@ -164,73 +126,6 @@ def open_robot_file(path: Path | str, keys: set[str], what: str
     if not isinstance(doc.data, dict):
         raise doc.error((), f"{what} must be a mapping")
     return doc, StrictMapping(doc, (), keys), load_sensors(doc)
-
-
-def load_robot_params(path: Path | str) -> tuple[RobotParams, list[str]]:
-    doc, top, sensors = open_robot_file(path, ROBOT_KEYS, "a robot parameter file")
-    warnings: list[str] = []
-    topics = {s.topic_name for s in sensors}
-    sets = []
-    seen_tasks: set[str] = set()
-    for bpath, _ in sized_array(doc, ("behaviour_sets",), "behaviour_set"):
-        b = StrictMapping(doc, bpath, {"task_id", "task_expected_duration", "motivational_behaviour"})
-        mpath = bpath + ("motivational_behaviour",)
-        m = StrictMapping(doc, mpath, {"threshold", "acquiescence", "impatience", "sensory_feedback"})
-        a = StrictMapping(doc, mpath + ("acquiescence",), {"yielding_delay", "giving_up_delay"})
-        i = StrictMapping(doc, mpath + ("impatience",), {"fast_rate"})
-        f = StrictMapping(doc, mpath + ("sensory_feedback",), {"plugin_name", "sensors"})
-        ftopics = load_sensor_topics(doc, mpath + ("sensory_feedback", "sensors"), topics)
-        task_id = task_id_of(b, "task_id")
-        if task_id in seen_tasks:
-            raise doc.error(bpath + ("task_id",), f"task {task_id!r} has two behaviour sets")
-        seen_tasks.add(task_id)
-        bs = BehaviourSetParams(
-            task_id=task_id,
-            expected_duration=b.get("task_expected_duration", float, positive=True),
-            threshold=m.get("threshold", float, positive=True),
-            yielding_delay=a.get("yielding_delay", float, positive=True),
-            giving_up_delay=a.get("giving_up_delay", float, positive=True),
-            fast_rate=i.get("fast_rate", float, positive=True),
-            evaluator_plugin=f.get("plugin_name", str),
-            evaluator_topics=ftopics,
-            where=f.where("plugin_name"),
-        )
-        if bs.yielding_delay > bs.giving_up_delay:
-            warnings.append(doc.warning(
-                a.path + ("yielding_delay",),
-                f"yielding_delay {bs.yielding_delay:g} s is longer than giving_up_delay "
-                f"{bs.giving_up_delay:g} s: this robot gives up before it would ever yield"))
-        sets.append(bs)
-    robot = RobotParams(
-        name=top.get("name", str, ""),
-        spin_rate=top.rate("spin_rate"),
-        broadcast_rate=top.rate("broadcast_rate"),
-        timeout_duration=top.get("timeout_duration", float, positive=True),
-        buffer_horizon=top.get("buffer_horizon", float, 10.0, positive=True),
-        sensors=sensors, behaviour_sets=tuple(sets),
-        control_rate=top.rate("control_rate", 10.0),
-        max_expected_duration=top.get("max_expected_duration", float, 3600.0, positive=True),
-    )
-    tick = 1.0 / robot.spin_rate
-    if robot.timeout_duration <= tick:
-        raise doc.error(("timeout_duration",), f"timeout_duration {robot.timeout_duration:g} s must "
-                        f"be longer than the tick period 1/spin_rate = {tick:g} s, or a teammate "
-                        "heard between two ticks is never seen")
-    period = effective_broadcast_period(robot)
-    if robot.timeout_duration < 2 * period:
-        warnings.append(doc.warning(
-            ("timeout_duration",),
-            f"broadcasts leave on ticks, so every {period:g} s (broadcast_rate "
-            f"{robot.broadcast_rate:g} Hz at spin_rate {robot.spin_rate:g} Hz); timeout_duration "
-            f"{robot.timeout_duration:g} s is less than twice that: one late broadcast makes "
-            "teammates think this robot stopped"))
-    return robot, warnings
-
-
-def effective_broadcast_period(robot: RobotParams) -> float:
-    """Broadcasts go out on high-level ticks: the period is 1/broadcast_rate rounded up to ticks."""
-    ticks = math.ceil(round(robot.spin_rate / robot.broadcast_rate, 9))
-    return max(1, ticks) / robot.spin_rate
 
 
 def iter_tasks(path: Path | str, extra_keys: frozenset[str] = frozenset()
@@ -284,11 +179,3 @@ def require_task(task_id: str, tasks, robot_file, what: str) -> None:
             f"{what} for task {task_id!r} but the tasks file has "
             f"{', '.join(sorted(tasks)) or 'no tasks'}" + did_you_mean(task_id, tasks),
             file=str(robot_file), element="'task_id'")
-
-
-def load_agent_params(robot_file, tasks_file, layers_file=None) -> AgentParams:
-    robot, warnings = load_robot_params(robot_file)
-    tasks = load_tasks_params(tasks_file)
-    for bs in robot.behaviour_sets:
-        require_task(bs.task_id, tasks, robot_file, "behaviour set")
-    return AgentParams(robot, tasks, load_layers_params(layers_file), warnings)

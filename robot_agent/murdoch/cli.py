@@ -1,9 +1,9 @@
-"""`mrta murdoch`: a thin click wrapper over mrta_murdoch.api.run_agent (the options are every
+"""`mrta murdoch`: a thin click wrapper over mrta_agent.murdoch.api.run_agent (the options are every
 agent's, robot_agent.cli.agent_command)."""
 
 from __future__ import annotations
 
-from robot_agent.cli import agent_command
+from mrta_agent.runtime.cli import agent_command
 
 from .api import run_agent
 
