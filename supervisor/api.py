@@ -3,14 +3,14 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
 import time
 from collections import defaultdict
+from dataclasses import dataclass
 from pathlib import Path
-
-from rich.console import Console
-from rich.live import Live
+from typing import Callable
 
 from mrta_zenoh import jsonsafe
 from mrta_zenoh.bus import Bus, BusOptions, open_bus
@@ -23,7 +23,6 @@ from mrta_zenoh.toolchain.registry import Registry
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
 
 from .state import Supervisor
-from .view import render
 
 log = logging.getLogger("mrta.supervisor")
 CLOCK_STALL = 2.0  # wall seconds without a clock sample: the `clock_stopped` alarm
@@ -34,9 +33,14 @@ def to_json(snapshot: dict) -> str:
     return jsonsafe.dumps(snapshot, nonfinite=lambda _: None)
 
 
-def resolve_application(spec: str, registry: Registry | None = None) -> tuple[Application, Architecture]:
-    """An application by name (registry) or by path, and the architecture it names."""
+def resolve_application(spec: str | None,
+                        registry: Registry | None = None) -> tuple[Application, Architecture]:
+    """An application by name (registry) or by path, and the architecture it names. No name
+    (None) means the only registered application: the framework knows none by name, and with
+    several a guess would silently read the wrong monitors."""
     reg = registry or Registry()
+    if spec is None:
+        spec = only_application(reg)
     path = Path(spec)
     if path.is_dir():
         path = path / "rqt_mrta.xml"
@@ -48,6 +52,17 @@ def resolve_application(spec: str, registry: Registry | None = None) -> tuple[Ap
         _, app = reg.application(spec)
     _, arch = reg.architecture(app.architecture)
     return app, arch
+
+
+def only_application(registry: Registry) -> str:
+    """The package name of the one registered application; bad input if there are none or
+    several (the user must say which)."""
+    names = sorted(p.name for p, _ in registry.applications())
+    if len(names) != 1:
+        raise ConfigError("give the application (--app NAME or a path to its rqt_mrta.xml): "
+                          + (f"{len(names)} are registered ({', '.join(names)})" if names
+                             else "none is registered"))
+    return names[0]
 
 
 def attach(sup: Supervisor, bus: Bus, clock) -> list:
@@ -91,60 +106,54 @@ class Refresh:
         return now
 
 
-def run_supervise(*, app: str, bus_options: BusOptions, as_json: bool = False,
-                  once: bool = False, duration: float | None = None, sim_time: bool = False,
-                  rate: float = 4.0, unattended_after: float = 30.0, duplicate_after: float = 5.0,
-                  ros2_domain: int = 0, stop: threading.Event | None = None, out=None) -> int:
-    app_spec = app
-    app, arch = resolve_application(app_spec)
-    clock = SimClock() if sim_time else WallClock()
-    console = Console(file=out) if out is not None else Console()
-    with stop_on_signals(stop) as stop, open_bus(bus_options) as bus:
-        if sim_time:
-            follow_sim_clock(bus, clock)
+@dataclass(frozen=True)
+class SuperviseOptions:
+    """What `mrta supervise` watches and how often, built by the verb (or a Python caller)
+    and handed to run_supervise. How the snapshots are shown is the caller's."""
+
+    app: str
+    once: bool = False
+    duration: float | None = None
+    sim_time: bool = False
+    rate: float = 4.0
+    unattended_after: float = 30.0
+    duplicate_after: float = 5.0
+    ros2_domain: int = 0
+
+
+def run_supervise(options: SuperviseOptions, bus_options: BusOptions,
+                  on_snapshot: Callable[[dict], None],
+                  stop: threading.Event | None = None) -> int:
+    """Supervise an application on the bus and hand its snapshots to `on_snapshot`: one per
+    refresh (`rate` a second) until `duration` or `stop`; with `once`, a single one after the
+    monitors' timeouts. The supervisor never prints: the verb shows the snapshots."""
+    o = options
+    app, arch = resolve_application(o.app)
+    clock = SimClock() if o.sim_time else WallClock()
+    with stop_on_signals(stop) as stop, open_bus(bus_options) as bus, \
+            contextlib.ExitStack() as handles:
+        if o.sim_time:
+            handles.enter_context(follow_sim_clock(bus, clock))
             while not clock.started.wait(0.1):
                 if stop.is_set():
                     return 0
-        sup = Supervisor(arch, app, clock.now(), unattended_after, duplicate_after,
-                         ros2_domain=ros2_domain)
-        handles = attach(sup, bus, clock)
+        sup = Supervisor(arch, app, clock.now(), o.unattended_after, o.duplicate_after,
+                         ros2_domain=o.ros2_domain)
+        for h in attach(sup, bus, clock):
+            handles.callback(h.close)
         start, wall_start = clock.now(), time.monotonic()
         settle = max([m.topic.timeout for m in sup.monitors] + [1.0])
-        period = 1.0 / rate
-        refresh = Refresh(sup, clock, sim_time)
-
-        def done() -> bool:
-            if once:  # wall time: a stopped simulation must not hold `--once` forever
-                return time.monotonic() - wall_start >= settle
-            return stop.is_set() or (duration is not None and clock.now() - start >= duration)
-
-        def wait() -> None:
-            stop.wait(period)
+        refresh = Refresh(sup, clock, o.sim_time)
+        while True:
+            stop.wait(1.0 / o.rate)
             refresh()
-
-        try:
-            if as_json or once:
-                while True:
-                    wait()
-                    if done() or stop.is_set():
-                        break
-                    if as_json and not once:
-                        print(to_json(sup.snapshot(clock.now())), flush=True, file=out)
-                snap = sup.snapshot(clock.now())
-                if once:
-                    if as_json:
-                        print(to_json(snap), flush=True, file=out)
-                    else:
-                        console.print(render(snap, console.width))
-            else:
-                with Live(render(sup.snapshot(clock.now()), console.width), console=console,
-                          refresh_per_second=rate, transient=False) as live:
-                    while not done():
-                        wait()
-                        live.update(render(sup.snapshot(clock.now()), console.width))
-        finally:
-            for h in handles:
-                h.close()
+            if o.once:  # wall time: a stopped simulation must not hold `--once` forever
+                if time.monotonic() - wall_start >= settle or stop.is_set():
+                    break
+                continue
+            if stop.is_set() or (o.duration is not None and clock.now() - start >= o.duration):
+                break
+            on_snapshot(sup.snapshot(clock.now()))
+        if o.once:
+            on_snapshot(sup.snapshot(clock.now()))
     return 0
-
-

@@ -1,15 +1,20 @@
-"""`mrta supervise APP`: a thin click wrapper over supervisor.api.run_supervise."""
+"""`mrta supervise APP` and `mrta view`: thin click wrappers over supervisor.api.run_supervise
+and supervisor.viewer.run_view. Showing the snapshots (JSON lines, a live table) is done here:
+the supervisor itself never prints."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import click
+from rich.console import Console
+from rich.live import Live
 
 from mrta_zenoh.bus import BusOptions
-from mrta_zenoh.cli.common import bus_options, finite_float, user_errors
+from mrta_zenoh.cli.common import bus_options, finite_float
 
-from .api import run_supervise
+from .api import SuperviseOptions, run_supervise, to_json
+from .view import render
 
 
 @click.command()
@@ -28,16 +33,44 @@ from .api import run_supervise
 @click.option("--ros2-domain", type=click.IntRange(0, 232), default=0, show_default=True,
               envvar="ROS_DOMAIN_ID", help="The ROS 2 domain whose graph is shown (ROS_DOMAIN_ID).")
 @bus_options
-def supervise(app: str, as_json: bool, once: bool, duration: float | None, sim_time: bool,
-              rate: float, unattended_after: float, duplicate_after: float, ros2_domain: int,
-              bus_options: BusOptions) -> None:
+def supervise(as_json: bool, bus_options: BusOptions, **options) -> None:
     """Supervise APP (a registered application or its rqt_mrta.xml): robots, tasks, alarms,
     and the ROS 2 graph (a robot whose ROS 2 driver node is gone is offline)."""
-    with user_errors():
-        run_supervise(app=app, bus_options=bus_options, as_json=as_json, once=once,
-                      duration=duration, sim_time=sim_time, rate=rate,
-                      unattended_after=unattended_after, duplicate_after=duplicate_after,
-                      ros2_domain=ros2_domain)
+    opts = SuperviseOptions(**options)  # each option is named as its field
+    if as_json:
+        run_supervise(opts, bus_options, lambda snap: click.echo(to_json(snap)))
+        return
+    console = Console()
+    if opts.once:
+        run_supervise(opts, bus_options, lambda snap: console.print(render(snap, console.width)))
+        return
+    with LiveTable(console, opts.rate) as table:
+        run_supervise(opts, bus_options, table.show)
+
+
+class LiveTable:
+    """The supervisor's table redrawn in place, started with the first snapshot (so that
+    nothing is drawn for an application that does not load)."""
+
+    def __init__(self, console: Console, rate: float):
+        self.console, self.rate = console, rate
+        self.live: Live | None = None
+
+    def show(self, snap: dict) -> None:
+        table = render(snap, self.console.width)
+        if self.live is None:
+            self.live = Live(table, console=self.console, refresh_per_second=self.rate,
+                             transient=False)
+            self.live.start()
+        else:
+            self.live.update(table)
+
+    def __enter__(self) -> "LiveTable":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        if self.live is not None:
+            self.live.stop()
 
 
 @click.command()
@@ -61,6 +94,5 @@ def view(app: str | None, port: int, host: str, no_server: bool, output: Path | 
     def ready(url):
         if url:
             click.echo(f"Foxglove / Lichtblick: Open connection → {url}", err=True)
-    with user_errors():
-        run_view(app=app, bus_options=bus_options, port=None if no_server else port, host=host,
-                 output=output, sim_time=sim_time, duration=duration, on_ready=ready)
+    run_view(app=app, bus_options=bus_options, port=None if no_server else port, host=host,
+             output=output, sim_time=sim_time, duration=duration, on_ready=ready)

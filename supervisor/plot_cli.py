@@ -10,7 +10,6 @@ from pathlib import Path
 
 import click
 
-from mrta_zenoh.cli.common import user_errors
 from mrta_zenoh.cli.main import EntryPointGroup
 
 from .api import resolve_application
@@ -28,12 +27,12 @@ def plot() -> None:
 
 @click.command()
 @click.argument("recording", type=click.Path(dir_okay=False, exists=True, path_type=Path))
-@click.option("--app", "app_spec", default="patrol", show_default=True,
-              help="The application whose monitors read the recording (name or rqt_mrta.xml).")
+@click.option("--app", "app_spec", metavar="NAME|PATH",
+              help="The application whose monitors read the recording (name or rqt_mrta.xml); "
+                   "default: the only registered application.")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path))
-def timeline(recording: Path, app_spec: str, output: Path) -> None:
+def timeline(recording: Path, app_spec: str | None, output: Path) -> None:
     """Which robot did which task when (a Gantt chart), with offline periods hatched."""
-    with user_errors():
-        app, arch = resolve_application(app_spec)
-        plot_timeline(recording, app, arch, output)
+    app, arch = resolve_application(app_spec)
+    plot_timeline(recording, app, arch, output)
     click.echo(f"wrote {output}")

@@ -32,12 +32,12 @@ def replay(records, tb: TimeBase, app: Application, arch: Architecture) -> Super
     last_update = start
     for k, enc, t, payload in records:
         now = tb(t)
-        if k.startswith("@liveliness/"):
+        if k.startswith(keys.LIVELINESS_PREFIX):
             try:
                 alive = json.loads(payload)["alive"]
             except (ValueError, KeyError, TypeError):
                 continue
-            sup.on_liveliness(k[len("@liveliness/"):], bool(alive), now)
+            sup.on_liveliness(k[len(keys.LIVELINESS_PREFIX):], bool(alive), now)
         else:
             monitors = by_key.get(k)
             if monitors is None:

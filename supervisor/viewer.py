@@ -4,6 +4,7 @@ an MCAP file with the same channels (supervisor/foxglove.py lists them)."""
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
 import time
@@ -56,6 +57,12 @@ class LiveChannels:
     def close(self) -> None:
         self.server.stop()
 
+    def __enter__(self) -> "LiveChannels":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
 
 def run_view(*, app: str | None, bus_options: BusOptions, port: int | None = 8765,
              host: str = "127.0.0.1", output: Path | None = None, sim_time: bool = False,
@@ -67,9 +74,12 @@ def run_view(*, app: str | None, bus_options: BusOptions, port: int | None = 876
         raise ConfigError(f"folder {Path(output).parent} does not exist", file=str(output))
     application = resolve_application(app) if app else None
     clock = SimClock() if sim_time else WallClock()
-    with stop_on_signals(stop) as stop, open_bus(bus_options) as bus:
-        live = LiveChannels(host, port) if port is not None else None
-        recorder = McapRecorder(Path(output)) if output is not None else None
+    with stop_on_signals(stop) as stop, open_bus(bus_options) as bus, \
+            contextlib.ExitStack() as handles:
+        # closed in reverse order: subscriptions and tokens, then the recording and the server
+        live = handles.enter_context(LiveChannels(host, port)) if port is not None else None
+        recorder = handles.enter_context(McapRecorder(Path(output))) \
+            if output is not None else None
         sinks = [s for s in (live.emit if live else None, recorder.add if recorder else None)
                  if s is not None]
 
@@ -95,36 +105,30 @@ def run_view(*, app: str | None, bus_options: BusOptions, port: int | None = 876
                     except DecodeError:
                         pass  # counted by the bus's typed subscribers; nothing to show
 
-        handles = follow_sim_clock(bus, clock) if sim_time else []
-        handles.append(bus.subscribe_raw("**", on_raw))
+        if sim_time:
+            handles.enter_context(follow_sim_clock(bus, clock))
+        handles.enter_context(bus.subscribe_raw("**", on_raw))
         if recorder is not None:
-            handles.append(bus.watch_liveliness("**", recorder.liveliness))
+            handles.enter_context(bus.watch_liveliness("**", recorder.liveliness))
         for expr in SCENE_KEYS:
-            handles.append(bus.subscribe(expr, lambda s: outputs.on_sample(s.key, s.message),
-                                         queue_size=100))
+            handles.enter_context(bus.subscribe(
+                expr, lambda s: outputs.on_sample(s.key, s.message), queue_size=100))
         sup = refresh = None
         if application is not None:
             app_model, arch = application
             sup = Supervisor(arch, app_model, clock.now())
-            handles += attach(sup, bus, clock)
+            for h in attach(sup, bus, clock):
+                handles.callback(h.close)
             refresh = Refresh(sup, clock, sim_time)
         if recorder is not None:
-            handles.append(bus.declare_token(f"{RECORDER_TOKEN}/{bus.zid}"))
+            handles.enter_context(bus.declare_token(f"{RECORDER_TOKEN}/{bus.zid}"))
         if live is not None:
             log.info("Foxglove: open a connection to %s", live.url)
         if on_ready is not None:
             on_ready(live.url if live is not None else None)
         start = time.monotonic()
-        try:
-            while not stop.wait(1.0 / rate):
-                outputs.frame(time.time_ns(), sup.snapshot(refresh()) if sup is not None else None)
-                if duration is not None and time.monotonic() - start >= duration:
-                    break
-        finally:
-            for h in handles:
-                h.close()
-            if recorder is not None:
-                recorder.close()
-            if live is not None:
-                live.close()
+        while not stop.wait(1.0 / rate):
+            outputs.frame(time.time_ns(), sup.snapshot(refresh()) if sup is not None else None)
+            if duration is not None and time.monotonic() - start >= duration:
+                break
     return 0

@@ -1,12 +1,11 @@
-"""`mrta agent`: a thin click wrapper over mrta_agent.alliance.api.run_agent (the options are
-every agent's, mrta_agent.runtime.cli.agent_command)."""
+"""`mrta agent`: ALLIANCE's agent verb (the options are every agent's,
+mrta_agent.runtime.cli.agent_command)."""
 
 from __future__ import annotations
 
 from ..runtime.cli import agent_command
-from .api import run_agent
-
+from .architecture import ALLIANCE
 
 agent = agent_command(
-    "agent", "ALLIANCE", "alliance", run_agent,
+    ALLIANCE,
     "Run ROBOT_ID's ALLIANCE agent: motivational behaviours, sensors, evaluators and layers.")

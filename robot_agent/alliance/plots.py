@@ -1,4 +1,5 @@
-"""rqt_alliance's seven motivation panels from a recording: `mrta plot motivation`.
+"""rqt_alliance's seven motivation panels from a recording (`mrta plot motivation`, whose verb
+is plot_cli.py).
 
 ALLIANCE-specific, so it lives with ALLIANCE and joins `mrta plot` through the `mrta.plots`
 entry points; the supervisor's plots know no architecture.
@@ -8,14 +9,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import click
 import matplotlib
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 
 from mrta_zenoh import codec  # noqa: E402
-from mrta_zenoh.cli.common import user_errors  # noqa: E402
 from mrta_zenoh.errors import ConfigError  # noqa: E402
 from mrta_zenoh.files import save_figure  # noqa: E402
 from mrta_zenoh.recording import TimeBase, read_recording  # noqa: E402
@@ -74,17 +73,3 @@ def plot_motivation(recording: Path, robot: str, task: str, output: Path,
     finally:
         plt.close(fig)
     return output
-
-
-
-
-@click.command()
-@click.argument("recording", type=click.Path(dir_okay=False, exists=True, path_type=Path))
-@click.option("--robot", required=True)
-@click.option("--task", required=True)
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path))
-def motivation(recording: Path, robot: str, task: str, output: Path) -> None:
-    """rqt_alliance's seven panels for one robot and task, over time."""
-    with user_errors():
-        plot_motivation(recording, robot, task, output)
-    click.echo(f"wrote {output}")

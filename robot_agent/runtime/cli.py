@@ -1,38 +1,33 @@
-"""`mrta agent`: a thin click wrapper over mrta_agent.alliance.api.run_agent; `agent_command` builds
-every architecture's agent command alike."""
+"""The options every architecture's agent verb takes (`mrta agent`, `mrta murdoch`, a third
+party's), spelled out once: `agent_command(arch)` builds the verb, a thin wrapper that makes an
+`AgentOptions` and hands it to the architecture's `run`."""
 
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Callable
 
 import click
 
 from mrta_zenoh.bus import BusOptions
-from mrta_zenoh.cli.common import bus_options, finite_float, user_errors
+from mrta_zenoh.cli.common import bus_options, finite_float
+
+from .architecture import AgentArchitecture
+from .host import AgentOptions
 
 
+def agent_command(arch: AgentArchitecture, help: str) -> click.Command:
+    """`mrta <arch.command> ROBOT_ID --robot-params … --tasks-params … [--layers-params …]
+    [--sim-time] [--seed] [--duration] [--crash-at] [bus options]`."""
+    stem = arch.param_stem
 
-def agent_command(name: str, architecture: str, stem: str, run: Callable[..., int],
-                  help: str) -> click.Command:
-    """A robot agent command (`mrta agent`, `mrta murdoch`): the options every agent takes —
-    its parameter files (named after `stem`), time, seed, duration, fault injection, the bus —
-    handed to `run` (the architecture's api.run_agent)."""
-
-    def command(robot_id: str, robot_params: Path, tasks_params: Path,
-                layers_params: Path | None, sim_time: bool, seed: int, duration: float | None,
-                crash_at: float | None, bus_options: BusOptions) -> None:
-        with user_errors():
-            run(robot_id=robot_id, robot_params=robot_params, tasks_params=tasks_params,
-                layers_params=layers_params, bus_options=bus_options, sim_time=sim_time,
-                seed=seed, duration=duration, crash_at=crash_at)
+    def command(bus_options: BusOptions, **kwargs) -> None:
+        arch.run(AgentOptions(bus_options=bus_options, **kwargs))
 
     for option in reversed([
         click.argument("robot_id"),
         click.option("--robot-params", required=True,
                      type=click.Path(dir_okay=False, path_type=Path),
-                     help=f"The robot's {architecture} parameters (e.g. "
-                          f"robot1_{stem}_params.yaml)."),
+                     help=f"The robot's {arch.title} parameters (e.g. robot1_{stem}_params.yaml)."),
         click.option("--tasks-params", required=True,
                      type=click.Path(dir_okay=False, path_type=Path),
                      help=f"The tasks file (tasks_{stem}_params.yaml)."),
@@ -52,5 +47,4 @@ def agent_command(name: str, architecture: str, stem: str, run: Callable[..., in
         bus_options,
     ]):
         command = option(command)
-    return click.command(name=name, help=help)(command)
-
+    return click.command(name=arch.command, help=help)(command)

@@ -4,17 +4,22 @@ run's random stream, simulation time and lockstep, the clock watchdog, fault inj
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import os
 import threading
+from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Callable, Protocol
 
 import numpy as np
 
 from mrta_zenoh.bus import Bus, BusOptions, open_bus
 from mrta_zenoh.clock import Clock, SimClock, WallClock, follow_sim_clock
+from mrta_zenoh.architectures import CRASH_ENV
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.failure import parse_failure
+from mrta_zenoh.keys import normalize_robot_id
 from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.lockstep import LockstepClock
 from mrta_zenoh.seeds import robot_rng
@@ -26,7 +31,21 @@ log = logging.getLogger("mrta.agent")
 CLOCK_WATCHDOG = 2.0
 
 
-CRASH_ENV = "MRTA_CRASH"  # ROBOT@SECONDS[,ROBOT@SECONDS…]: fault injection for experiments
+@dataclass(frozen=True)
+class AgentOptions:
+    """One robot agent's options, whatever its architecture: its parameter files, its clock,
+    the run's seed, how long to run, fault injection and the bus. Built once by the verb
+    (`agent_command`), by a test or by a launch file's node, and read here."""
+
+    robot_id: str
+    robot_params: Path
+    tasks_params: Path
+    layers_params: Path | None = None
+    bus_options: BusOptions = field(default_factory=BusOptions)
+    sim_time: bool = False
+    seed: int = 0
+    duration: float | None = None
+    crash_at: float | None = None
 
 
 def crash_time(robot_id: str, crash_at: float | None) -> float | None:
@@ -43,7 +62,6 @@ def crash_time(robot_id: str, crash_at: float | None) -> float | None:
     return None
 
 
-
 class HostedAgent(Protocol):
     robot_id: str
     log: logging.Logger
@@ -56,23 +74,27 @@ class HostedAgent(Protocol):
     def shutdown(self) -> None: ...
 
 
-def host(make_agent: Callable[[Bus, Clock, np.random.Generator], HostedAgent], *,
-         robot_id: str, warnings: list[str], seed: int, bus_options: BusOptions, sim_time: bool,
-         duration: float | None, crash_at: float | None, stop: threading.Event | None,
-         describe: str, logger: logging.Logger = log) -> int:
+def host(make_agent: Callable[[Bus, Clock, np.random.Generator], HostedAgent],
+         options: AgentOptions, *, warnings: list[str], describe: str,
+         stop: threading.Event | None = None, logger: logging.Logger = log) -> int:
     """Say the parameter warnings, open the bus, build the agent with its random stream (from
     the run's seed and its id), follow simulation time (and lockstep) if asked, declare the
     agent alive once it is ready, run until stopped — or until it crashes itself at --crash-at
     or its $MRTA_CRASH entry — then shut it down."""
-    crash = crash_time(robot_id, crash_at)  # a bad $MRTA_CRASH is bad input: before the bus
+    robot_id, sim_time = normalize_robot_id(options.robot_id), options.sim_time
+    crash = crash_time(robot_id, options.crash_at)  # a bad $MRTA_CRASH is bad input: before the bus
     for w in warnings:
         logger.warning("%s", w)
     clock = LockstepClock(robot_id) if sim_time else WallClock()
-    with stop_on_signals(stop) as stop, open_bus(bus_options) as bus:
-        agent = make_agent(bus, clock, robot_rng(seed, robot_id))
+    with stop_on_signals(stop) as stop, open_bus(options.bus_options) as bus, \
+            contextlib.ExitStack() as handles:
+        agent = make_agent(bus, clock, robot_rng(options.seed, robot_id))
         # on simulation time, follow the clock, and take part in lockstep when the simulator
         # runs it (the participant token goes out before the agent's own: alive means ready)
-        handles = follow_sim_clock(bus, clock) + clock.join(bus) if sim_time else []
+        if sim_time:
+            handles.enter_context(follow_sim_clock(bus, clock))
+            for h in clock.join(bus):
+                handles.callback(h.close)
         agent.start()
         agent.declare_alive()
         logger.info("%s: ready (%s, %s time)", robot_id, describe,
@@ -88,15 +110,13 @@ def host(make_agent: Callable[[Bus, Clock, np.random.Generator], HostedAgent], *
             if sim_time:
                 while not stop.is_set() and not clock.started.wait(0.1):
                     pass
-            until = None if duration is None else clock.now() + duration
+            until = None if options.duration is None else clock.now() + options.duration
             agent.run(stop, until)
         finally:
             stop.set()
             if watchdog is not None:
                 watchdog.join(1.0)
             agent.shutdown()
-            for h in handles:
-                h.close()
     return 0
 
 

@@ -1,66 +1,151 @@
-"""What every robot agent process shares, whatever its architecture: the two-rate loop on the
-injected clock and the hosting around it (bus, simulation clock, lockstep, clock watchdog,
-fault injection, signals).
+"""The agent: one fixed driver for every architecture (composition, as py_trees composes
+behaviours — an architecture is given to it, never subclassed from it).
 
-ALLIANCE (mrta_agent.alliance.agent) and MURDOCH (mrta_agent.murdoch) both run on it, so a fix to timing,
-lockstep or shutdown reaches both; an architecture supplies only its decision step
-(`tick_high`), its layers (`step_layers`) and what a restart of time means to it (`restart`).
+The driver runs a single-threaded two-rate loop on the injected clock — the architecture's
+decision step at its `spin_rate`, the active task's layers at `control_rate` — so the loop runs
+identically in real time, at k× simulation speed, in lockstep and step by step in tests. It owns
+what every architecture needs and none should write twice:
+
+* the inbox: network callbacks only enqueue; the loop thread drains, so the decision logic is
+  never touched by two threads;
+* the team: robots whose agent of this architecture holds its liveliness token
+  (`robotN/<namespace>/agent`); a message from anyone else is ignored and counted;
+* sender checks: a message's key names its sender, and its header must agree;
+* publishing: every message the logic says goes out on `robotN/<namespace>/<kind>` with a header
+  carrying the robot, the time and a per-key sequence number;
+* the low level: plugins' set-up and shutdown, the active task's layers, a restart of time.
+
+An architecture supplies a `Coordinator` (its decision logic for one robot) through
+`mrta_agent.runtime.architecture.AgentArchitecture`.
 """
 
 from __future__ import annotations
 
 import collections
 import logging
+import math
 import os
 import signal
 import threading
-from typing import Callable, Protocol
+import time
+from typing import Callable, Iterable, NamedTuple, Protocol
 
 import numpy as np
 
-from mrta_zenoh.bus import Bus, BusOptions, open_bus
-from mrta_zenoh.clock import EPSILON, Clock, SimClock, WallClock, follow_sim_clock
-from mrta_zenoh.errors import ConfigError
-from mrta_zenoh.failure import parse_failure
-from mrta_zenoh.keys import normalize_robot_id
-from mrta_zenoh.lifecycle import stop_on_signals
-from mrta_zenoh.lockstep import LockstepClock
+from mrta_zenoh.architectures import Architecture
+from mrta_zenoh.bus import Bus, Sample
+from mrta_zenoh.clock import EPSILON, Clock
+from mrta_zenoh.keys import first_chunk, normalize_robot_id
+from mrta_zenoh.messages import Header
 from mrta_zenoh.seeds import robot_rng
 
 from .plugins import AgentContext, Layer, Plugins
 
 log = logging.getLogger("mrta.agent")
 
-class AgentLoop:
-    """The single-threaded loop: the decision step at `high_period`, the layers at
-    `ctrl_period`, both scheduled on the injected clock so that the loop runs identically in
-    real time, at k× simulation speed, in lockstep and step by step in tests.
+INBOX = 10_000  # queued messages at most: a flood drops the oldest, never grows the process
+DROP_LOG_PERIOD = 10.0  # wall seconds between two log lines about the same kind of drop
 
-    Also the low level's bookkeeping both architectures share: the inbox network callbacks fill
-    and the loop drains (`heard`, `take_due`), and the active task's layers (`switch_layers`,
-    `step_layers`, `reset_low_level`, `shutdown_low_level`).
 
-    Subclasses call `__init__` with the robot, its bus, clock and plugins and their two rates,
-    and implement `active_task`, `tick_high(now)` and `restart(now)`."""
+class Say(NamedTuple):
+    """One message the decision logic wants sent: its kind (a key chunk under the
+    architecture's namespace, with an optional sub-key), the fields after the header, and
+    whether it may be dropped under pressure (monitoring) or must arrive (coordination)."""
+
+    kind: str
+    fields: tuple
+    subkey: str | None = None
+    lossy: bool = False
+
+
+class Coordinator(Protocol):
+    """An architecture's decision logic for one robot, driven by `Agent`.
+
+    `listens`: the message kinds it hears from teammates. `hear` gets each one from a teammate
+    (sender checked) at the time it counts as heard, and says whether it accepted it. `tick` is
+    the decision step: what to send. `active_task` is the task whose layers run."""
+
+    listens: tuple[str, ...]
+
+    @property
+    def active_task(self) -> str | None: ...
+
+    def hear(self, kind: str, sender: str, message, at: float) -> bool: ...
+
+    def teammate(self, robot: str, alive: bool) -> None: ...
+
+    def tick(self, now: float) -> Iterable[Say]: ...
+
+
+class Agent:
+    """One robot's agent: `architecture` says which keys and messages, `make_coordinator` builds
+    the decision logic (again when time restarts), `plugins` are the robot's sensors, evaluators
+    and layers."""
 
     crash_at: float | None = None  # fault injection: SIGKILL itself at this time
 
-    def __init__(self, robot_id: str, bus: Bus, clock: Clock, rng: np.random.Generator | None,
-                 plugins: Plugins, spin_rate: float, control_rate: float,
-                 logger: logging.Logger = log):
+    def __init__(self, robot_id: str, architecture: Architecture,
+                 make_coordinator: Callable[[], Coordinator], bus: Bus, clock: Clock,
+                 rng: np.random.Generator | None, plugins: Plugins, spin_rate: float,
+                 control_rate: float, logger: logging.Logger = log):
         self.robot_id = normalize_robot_id(robot_id)
+        self.architecture = architecture
         self.bus = bus
         self.clock = clock
+        self.log = logger
         self.ctx = AgentContext(self.robot_id, bus, clock,
                                 rng if rng is not None else robot_rng(0, self.robot_id),
                                 log=logger)
         self.plugins = plugins
         self.high_period = 1.0 / spin_rate
         self.ctrl_period = 1.0 / control_rate
-        self.log = logger
-        # (time heard, *what): filled by network callbacks, drained by the loop thread only
-        self._inbox: collections.deque = collections.deque(maxlen=10_000)
+        self._make_coordinator = make_coordinator
+        self.coordinator = make_coordinator()
+        self.team: set[str] = set()
+        self.ignored_own = 0
+        self.ignored_mismatch = 0
+        self.ignored_strangers = 0
+        self.refused = 0
+        self._last_drop_log: dict[str, float] = {}
+        self._seq: dict[str, int] = collections.defaultdict(int)
+        # (time heard, what, *args): filled by network callbacks, drained by the loop thread only
+        self._inbox: collections.deque = collections.deque(maxlen=INBOX)
+        self._handles: list = []
+        self._token = None
+        self._layers_task: str | None = None
 
+    # ------------------------------------------------------------ set-up (py_trees' setup)
+    def start(self) -> None:
+        """Plugins subscribe, then the agent listens to its teammates and their tokens."""
+        self.plugins.setup(self.ctx)
+        arch = self.architecture
+        for kind in self.coordinator.listens:
+            self._handles.append(self.bus.subscribe(
+                arch.every(kind), lambda s, k=kind: self._on_message(k, s),
+                msg_type=arch.messages[kind]))
+        self._handles.append(self.bus.watch_liveliness(arch.agent_tokens, self._on_token))
+
+    def declare_alive(self) -> None:
+        """Last step of start-up: alive means ready (docs/zenoh.md, the start-up race)."""
+        self._token = self.bus.declare_token(self.architecture.agent_token(self.robot_id))
+
+    def _on_token(self, key: str, alive: bool) -> None:
+        """Queued like the messages and always due: the loop thread owns the team too."""
+        self._inbox.append((-math.inf, None, first_chunk(key), alive))
+
+    def _on_message(self, kind: str, sample: Sample) -> None:
+        sender = first_chunk(sample.key)
+        msg = sample.message
+        if sender == self.robot_id:
+            self.ignored_own += 1
+            return
+        if msg.header.frame_id.strip("/") != sender:
+            self._drop("ignored_mismatch", "ignoring %s on %s with frame_id %r",
+                       type(msg).__name__, sample.key, msg.header.frame_id)
+            return
+        self._inbox.append((self.heard_at(msg.header.stamp), kind, sender, msg))
+
+    # ------------------------------------------------------------ the inbox
     def in_lockstep(self) -> bool:
         flag = getattr(self.clock, "lockstep", None)
         return flag is not None and flag.is_set()
@@ -69,10 +154,6 @@ class AgentLoop:
         """When a message stamped `stamp` counts as heard: in lockstep every robot shares one
         simulated time, so its own stamp, exact whatever the network did; otherwise now."""
         return stamp if self.in_lockstep() else self.clock.now()
-
-    def heard(self, stamp: float, *item) -> None:
-        """Queue a message for the loop, timed by heard_at(stamp)."""
-        self._inbox.append((self.heard_at(stamp), *item))
 
     def take_due(self, now: float) -> list[tuple]:
         """Every queued item due at `now`. In lockstep, one stamped at this very time waits for
@@ -86,34 +167,62 @@ class AgentLoop:
         return due
 
     def _drop(self, counter: str, reason: str, *args) -> None:
-        """Count a dropped message in `counter`; log the first and every 100th, so a flood (a
-        forger, a misconfigured teammate) cannot flood the log."""
+        """Count a dropped message in `counter`; log at most one line per DROP_LOG_PERIOD wall
+        seconds per counter, so a flood (a forger, a misconfigured teammate) cannot flood the
+        log."""
         n = getattr(self, counter) + 1
         setattr(self, counter, n)
-        if n == 1 or n % 100 == 0:
+        wall = time.monotonic()
+        last = self._last_drop_log.get(counter)
+        if last is None or wall - last >= DROP_LOG_PERIOD:
+            self._last_drop_log[counter] = wall
             self.log.warning("%s: " + reason + " (%d so far)", self.robot_id, *args, n)
+
+    # ------------------------------------------------------------ one decision step
+    def tick_high(self, now: float) -> None:
+        for t, kind, sender, what in self.take_due(now):
+            if kind is None:  # a token came or went
+                if sender != self.robot_id:
+                    (self.team.add if what else self.team.discard)(sender)
+                    self.coordinator.teammate(sender, what)
+                continue
+            if sender not in self.team:
+                self._drop("ignored_strangers", "ignoring %s from %s, which holds no agent token",
+                           type(what).__name__, sender)
+                continue
+            if not self.coordinator.hear(kind, sender, what, t):
+                self._drop("refused", "refused %s from %s", type(what).__name__, sender)
+        for say in self.coordinator.tick(now):
+            self.send(say, now)
+        self.switch_layers(self.coordinator.active_task, now)
+
+    def send(self, say: Say, now: float) -> None:
+        key = self.architecture.key(self.robot_id, say.kind,
+                                    *((say.subkey,) if say.subkey is not None else ()))
+        self._seq[key] += 1
+        header = Header(self.robot_id, now, self._seq[key])
+        self.bus.publish(key, self.architecture.messages[say.kind](header, *say.fields),
+                         lossy=say.lossy)
 
     @property
     def active_task(self) -> str | None:
-        raise NotImplementedError
-
-    def tick_high(self, now: float):
-        raise NotImplementedError
-
-    def restart(self, now: float) -> None:
-        raise NotImplementedError
+        """The task whose layers run: the decision logic's choice as of its last tick."""
+        return self._layers_task
 
     # ------------------------------------------------------------ the active task's layers
     def layers_of(self, task: str | None) -> list[Layer]:
         return self.plugins.layers.get(task, []) if task is not None else []
 
-    def switch_layers(self, before: str | None, after: str | None, now: float) -> bool:
-        """The active task changed from `before` to `after`: terminate and initialise layers."""
-        if before == after:
+    def switch_layers(self, task: str | None, now: float) -> bool:
+        """Make `task`'s layers the running ones: terminate the old task's layers, initialise
+        the new ones (py_trees' terminate / initialise). The driver, not the logic, remembers
+        which task's layers run, so a logic active from its first tick starts them too."""
+        if task == self._layers_task:
             return False
-        for layer in self.layers_of(before):
+        for layer in self.layers_of(self._layers_task):
             layer.on_deactivate(now)
-        for layer in self.layers_of(after):
+        self._layers_task = task
+        for layer in self.layers_of(task):
             layer.on_activate(now)
         return True
 
@@ -121,26 +230,36 @@ class AgentLoop:
         for layer in self.layers_of(self.active_task):
             layer.step(now, dt)
 
-    def reset_low_level(self, now: float) -> None:
+    def restart(self, now: float) -> None:
         """Time restarted (a new simulation run): the old run's world is gone — layers
-        deactivated, sensors forgotten, queued messages dropped."""
+        deactivated, sensors forgotten, queued messages dropped, the decision logic built
+        afresh (it keeps knowing who is on the team: tokens do not restart)."""
         self.log.warning("%s: time restarted at t=%.2f (a new simulation run): starting afresh",
                          self.robot_id, now)
         for layer in self.layers_of(self.active_task):
             layer.on_deactivate(now)
+        self._layers_task = None
         for sensor in self.plugins.sensors.values():
             sensor.forget()
-        self._inbox.clear()
+        self._inbox = collections.deque(
+            (item for item in self._inbox if item[1] is None), maxlen=INBOX)
+        self.coordinator = self._make_coordinator()
+        for robot in sorted(self.team):
+            self.coordinator.teammate(robot, True)
 
-    def shutdown_low_level(self) -> None:
-        """Stop the robot: deactivate the running layers, command zero velocity, and let every
-        plugin close what it opened (py_trees' terminate, then shutdown)."""
+    def shutdown(self) -> None:
+        """Stop the robot: deactivate the running layers, command zero velocity, let every
+        plugin close what it opened (py_trees' terminate, then shutdown), stop listening."""
         now = self.clock.now()
         for layer in self.layers_of(self.active_task):
             layer.on_deactivate(now)
         self.ctx.publish_cmd(0.0, 0.0)
         self.plugins.shutdown()
+        for h in self._handles:
+            h.close()
+        self._handles.clear()
 
+    # ------------------------------------------------------------ the loop
     def run(self, stop: threading.Event, until: float | None = None) -> None:
         high_period, ctrl_period = self.high_period, self.ctrl_period
         now = self.clock.now()

@@ -18,10 +18,12 @@ Struct each must fit (`sections`). They are checked when the parameter files loa
 value exits 2 naming file, line and key before the bus opens, instead of crashing when a layer
 first runs; plugins read attributes, never re-parse strings per tick.
 
-Plugins are found by name through entry points — groups `mrta.alliance.sensors`,
-`mrta.alliance.evaluators`, `mrta.alliance.layers` — so a pip-installed package can add its own,
+Plugins are found by name through entry points — groups `mrta.plugins.sensors`,
+`mrta.plugins.evaluators`, `mrta.plugins.layers`, read by every architecture; the names they had
+while only ALLIANCE read them, `mrta.alliance.*`, are still read — so a pip-installed package can
+add its own,
 as pluginlib did; or directly as `package.module:Class`. Old names (the reference files'
-`alliance_test/*`) are aliases a package declares in `mrta.alliance.aliases` (a dict
+`alliance_test/*`) are aliases a package declares in `mrta.plugins.aliases` (or `mrta.alliance.aliases`) (a dict
 old name → registered name), resolved here and nowhere else.
 """
 
@@ -47,11 +49,21 @@ from mrta_zenoh.yamlfile import YamlDoc, did_you_mean
 from .params import SensorParams, TaskParams
 
 GROUPS = {
-    "sensor": "mrta.alliance.sensors",
-    "evaluator": "mrta.alliance.evaluators",
-    "layer": "mrta.alliance.layers",
+    "sensor": "mrta.plugins.sensors",
+    "evaluator": "mrta.plugins.evaluators",
+    "layer": "mrta.plugins.layers",
 }
-ALIASES_GROUP = "mrta.alliance.aliases"
+ALIASES_GROUP = "mrta.plugins.aliases"
+LEGACY_PREFIX = ("mrta.plugins.", "mrta.alliance.")  # third-party packages may still use these
+
+
+def plugin_entry_points(group: str) -> dict:
+    """The entry points of `group` under its name and its legacy `mrta.alliance.*` name (the
+    current name wins when a plugin is registered under both)."""
+    legacy = group.replace(*LEGACY_PREFIX)
+    out = {ep.name: ep for ep in entry_points(group=legacy)}
+    out.update({ep.name: ep for ep in entry_points(group=group)})
+    return out
 
 
 class EvaluatorSpec(NamedTuple):
@@ -206,9 +218,9 @@ def declared_sections(cls: type) -> dict[str, type]:
 # ------------------------------------------------------------------------- finding plugins
 
 def aliases() -> dict[str, str]:
-    """Old plugin name → registered name, from every package's `mrta.alliance.aliases`."""
+    """Old plugin name → registered name, from every package's `mrta.plugins.aliases`."""
     out: dict[str, str] = {}
-    for ep in entry_points(group=ALIASES_GROUP):
+    for ep in plugin_entry_points(ALIASES_GROUP).values():
         table = ep.load()
         if not isinstance(table, dict):
             raise ConfigError(f"alias entry point {ep.name!r} ({ep.value}) is not a dict")
@@ -217,7 +229,7 @@ def aliases() -> dict[str, str]:
 
 
 def known_plugins(kind: str) -> list[str]:
-    return sorted(ep.name for ep in entry_points(group=GROUPS[kind]))
+    return sorted(plugin_entry_points(GROUPS[kind]))
 
 
 def load_plugin(kind: str, name: str, where: str = "") -> type:
@@ -232,7 +244,7 @@ def load_plugin(kind: str, name: str, where: str = "") -> type:
         except (ImportError, AttributeError) as exc:
             raise ConfigError(f"cannot load {kind} plugin {name!r}: {exc}", file=where) from None
     else:
-        eps = {ep.name: ep for ep in entry_points(group=GROUPS[kind])}
+        eps = plugin_entry_points(GROUPS[kind])
         alias = {old: new for old, new in aliases().items() if new in eps}
         ep = eps.get(name) or eps.get(alias.get(name, ""))
         if ep is None:
@@ -250,8 +262,7 @@ class Plugins:
     """A robot's low-level plugins with their typed parameters, built before the bus opens so
     that a bad plugin name or parameter is bad input (exit 2, file and line) and nothing runs.
 
-    Architecture-neutral: ALLIANCE builds it from behaviour sets (`for_alliance`), MURDOCH from
-    its skills; both give sensors, one evaluator per task and each task's layers."""
+    Architecture-neutral: ALLIANCE builds it from behaviour sets, MURDOCH from its skills; both give sensors, one evaluator per task and each task's layers."""
 
     def __init__(self, sensors: Sequence[SensorParams], evaluators: Sequence[EvaluatorSpec],
                  tasks: dict[str, TaskParams], layers_doc: YamlDoc | None):
@@ -272,14 +283,6 @@ class Plugins:
                                        for name, where in zip(task.layers, task.where)]
         read = {name for name, _ in self.sections}
         self.unread_sections = [n for n in (self._doc.data if self._doc else {}) if n not in read]
-
-    @classmethod
-    def for_alliance(cls, params) -> "Plugins":
-        """From ALLIANCE's AgentParams: one evaluator and one layer stack per behaviour set."""
-        return cls(params.robot.sensors,
-                   [EvaluatorSpec(bs.task_id, bs.evaluator_plugin, bs.evaluator_topics, bs.where)
-                    for bs in params.robot.behaviour_sets],
-                   params.tasks, params.layers)
 
     def unread_warnings(self) -> list[str]:
         """One warning per section of the layers file that none of these plugins reads."""

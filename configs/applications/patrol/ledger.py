@@ -1,12 +1,13 @@
 """The report layer's team ledger: time per robot and task, distance covered, border visited.
 
 Made from what the team publishes on the bus, like a patrol leader's log. Only *teammates*
-count: robots whose agent — ALLIANCE or MURDOCH — holds its liveliness token (`robotN/alliance/agent`,
-`robotN/murdoch/agent`), heard on their own keys with a matching `header/frame_id` — a forged
-`robot9` or a sample on robot1's key claiming to be robot2 adds nothing. Who does what is read
-from whichever architecture runs: ALLIANCE's broadcasts or MURDOCH's claims (both carry
-`header` and `task_id`; the patrol application knows both architectures, the framework neither). Odometry is finite by construction (the message type rejects
-NaN and ±inf), so one bad sample cannot turn every later report's distance into NaN.
+count: robots whose agent holds its liveliness token, heard on their own keys with a matching
+`header/frame_id` — a forged `robot9` or a sample on robot1's key claiming to be robot2 adds
+nothing. Who does what is read through the architecture contract (mrta_zenoh.architectures):
+every registered architecture's agent token and "who is doing what" feed, so the ledger works
+unchanged under ALLIANCE, MURDOCH or a third party's architecture and names none of them.
+Odometry is finite by construction (the message type rejects NaN and ±inf), so one bad sample
+cannot turn every later report's distance into NaN.
 """
 
 from __future__ import annotations
@@ -16,19 +17,13 @@ import threading
 
 from mrta_zenoh.keys import first_chunk
 from mrta_zenoh.messages import Header, Odometry
-from mrta_agent.murdoch import keys as murdoch_keys
-from mrta_agent.murdoch.messages import Claim
-from mrta_agent.alliance import keys as alliance_keys
-from mrta_agent.alliance.messages import InterRobotCommunication
+from mrta_zenoh.architectures import Architecture, architectures
 from mrta_agent.runtime.plugins import Plugin
 
 from .messages import Report, TaskTime
 
 MAX_TEAMMATES = 64
-# each architecture's "robot R does task T" feed and its agents' liveliness tokens
-DOING = ((alliance_keys.ALL_INTER_ROBOT_COMMUNICATION, InterRobotCommunication),
-         (murdoch_keys.ALL_CLAIMS, Claim))
-AGENT_TOKENS = (alliance_keys.ALL_AGENT_TOKENS, murdoch_keys.ALL_AGENT_TOKENS)
+GAP = 5.0  # seconds: two reports of one task further apart than this do not add up
 
 
 def rectangle_cells(x0: float, y0: float, x1: float, y1: float,
@@ -59,30 +54,37 @@ class PatrolLedger:
         self.distance: dict[str, float] = {}
         self.cells = rectangle_cells(*border, self.CELL) if border is not None else []
         self.visited = [False] * len(self.cells)
-        for key_expr, kind in DOING:
-            owner.subscribe(key_expr, self._on_bc, msg_type=kind)
+        for arch in architectures().values():
+            for key_expr, kind in arch.doing_feed():
+                owner.subscribe(key_expr, lambda s, a=arch: self._on_doing(a, s), msg_type=kind)
+            owner._subscriptions.append(owner.ctx.bus.watch_liveliness(arch.agent_tokens,
+                                                                       self._on_token))
         owner.subscribe("*/odom", self._on_odom, msg_type=Odometry)
-        for key_expr in AGENT_TOKENS:
-            owner._subscriptions.append(owner.ctx.bus.watch_liveliness(key_expr, self._on_token))
 
     def _on_token(self, key: str, alive: bool) -> None:
         with self._lock:
             if alive and len(self.teammates) < MAX_TEAMMATES:
                 self.teammates.add(first_chunk(key))
 
-    def _on_bc(self, sample) -> None:
-        msg = sample.message
-        rid, now = first_chunk(sample.key), self.clock.now()
-        if msg.header.frame_id.strip("/") != rid:
+    def _on_doing(self, arch: Architecture, sample) -> None:
+        """Time on a task accrues between two reports of it from the same robot (at most GAP
+        apart); a report that the robot is no longer on it ends the stretch."""
+        doing = arch.read_doing(sample.key, sample.message)
+        if doing is None:
             return
+        rid, now = doing.robot, self.clock.now()
         with self._lock:
             if rid not in self.teammates:
                 return
             last = self._last_bc.get(rid)
-            if last is not None and last[0] == msg.task_id and now - last[1] < 5.0:
-                k = (rid, msg.task_id)
+            if not doing.active:
+                if last is not None and last[0] == doing.task:
+                    del self._last_bc[rid]
+                return
+            if last is not None and last[0] == doing.task and now - last[1] < GAP:
+                k = (rid, doing.task)
                 self.task_time[k] = self.task_time.get(k, 0.0) + (now - last[1])
-            self._last_bc[rid] = (msg.task_id, now)
+            self._last_bc[rid] = (doing.task, now)
 
     def _on_odom(self, sample) -> None:
         rid = first_chunk(sample.key)

@@ -1,5 +1,5 @@
-"""Mission metrics of a patrol run, from its recording: who did what, coverage, collisions,
-share of the border visited. Used by `mrta demo` (and any experiment over patrol runs)."""
+"""Patrol's own metrics of a run, from its recording: collisions and the share of the border
+visited (the mission hook, mission.py, adds them to every run's summary)."""
 
 from __future__ import annotations
 
@@ -8,24 +8,6 @@ import math
 from mrta_zenoh.codec import DecodeError, decode, type_from_encoding
 
 from .ledger import rectangle_cells
-
-
-def coverage(intervals: dict, tasks: list[str], t0: float, t1: float, step: float = 0.1) -> dict:
-    """Per task: share of [t0, t1] with exactly one robot on it, none, more than one."""
-    out = {}
-    n = max(1, int((t1 - t0) / step))
-    for task in tasks:
-        spans = [(a, b) for iv in intervals.values() for tk, a, b in iv if tk == task]
-        one = none = many = 0
-        for k in range(n):
-            t = t0 + (k + 0.5) * step
-            c = sum(1 for a, b in spans if a <= t < b)
-            one += c == 1
-            none += c == 0
-            many += c > 1
-        out[task] = {"exactly_one": round(one / n, 3), "none": round(none / n, 3),
-                     "more_than_one": round(many / n, 3)}
-    return out
 
 
 def mission_metrics(records, border: tuple[float, float, float, float], reach: float) -> dict:

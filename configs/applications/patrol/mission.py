@@ -1,0 +1,41 @@
+"""The patrol mission as `mrta demo` and `mrta experiment` run it: registered under
+`mrta.missions` as `patrol`. The framework's mission runner (mrta_supervisor.mission) launches,
+records, supervises, injects the failure and writes the summary; this hook adds what only the
+patrol application can measure — collisions (the simulator's bumper counters) and the share of
+the border the team came near — from the recording.
+
+Every application package configured for patrol (patrol under ALLIANCE, patrol_murdoch under
+MURDOCH, any other made with `mrta app new` that depends on patrol) holds the same launch file,
+`launch/patrol_sim.launch`, and a layers file whose BorderProtection section gives the border.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from mrta_agent.runtime.params import load_layers_params
+from mrta_supervisor.mission import Mission, MissionRun
+
+from .layers import BorderParams
+from .metrics import mission_metrics
+
+DEFAULT_BORDER = (-20.0, -6.0, 20.0, 6.0)  # the patrol world's inner rectangle
+
+
+class Patrol(Mission):
+    name = "patrol"
+    title = "Patrol mission"
+    launch = "patrol_sim.launch"
+
+    def metrics(self, run: MissionRun, records: list) -> dict[str, Any]:
+        layers = load_layers_params(run.layers_params)
+        border = layers.convert(("BorderProtection",), BorderParams) if layers is not None \
+            else BorderParams()
+        return mission_metrics(records, border.border() or DEFAULT_BORDER, border.distance + 1.0)
+
+    def describe(self, metrics: dict[str, Any]) -> list[str]:
+        return [f"collisions: {metrics['collisions_total']}; border visited: "
+                f"{metrics['border_visited']:.0%}"]
+
+
+PATROL = Patrol()

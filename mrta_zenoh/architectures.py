@@ -1,0 +1,179 @@
+"""The architecture contract: what tools and applications may ask of an MRTA architecture, and
+the registry (`mrta.architectures`) that finds the installed ones.
+
+rqt_mrta registered an architecture as a package of XML (its monitors and templates); the tools
+that measure a run need more than that — which command runs a robot, how long a takeover may
+take, who is doing which task *according to the robots themselves*, how to make one fail. Before
+this contract the patrol application imported both architectures' keys, messages and bounds and
+kept a table of them, so a third architecture meant editing the application. Now an architecture
+is one object registered under the entry-point group `mrta.architectures`; the mission runner,
+`mrta experiment`, the plots and an application's plugins (patrol's ledger) reach it only through
+this class. The core defines the contract and knows no architecture (pluginlib's base class, not
+a plugin).
+
+The agent side of an architecture (how its decision logic is built and driven) lives beside the
+agent runtime, `mrta_agent.runtime.architecture.AgentArchitecture`, which extends this class.
+"""
+
+from __future__ import annotations
+
+import threading
+from abc import ABC, abstractmethod
+from dataclasses import dataclass
+from importlib.metadata import entry_points
+from pathlib import Path
+from typing import ClassVar, Iterable
+
+from .errors import ConfigError
+from .failure import Failure
+from .keys import first_chunk
+from .yamlfile import did_you_mean
+
+GROUP = "mrta.architectures"
+CRASH_ENV = "MRTA_CRASH"  # ROBOT@SECONDS[,ROBOT@SECONDS…]: crash-stop fault injection
+
+
+@dataclass(frozen=True)
+class Doing:
+    """One report read from an architecture's own wire message: at `stamp` (the sender's clock:
+    simulated time in simulated runs), `robot` was on `task` (active) or was not (inactive)."""
+
+    robot: str
+    task: str
+    active: bool
+    stamp: float
+
+
+class Architecture(ABC):
+    """An MRTA architecture as tools see it. Subclasses set the class attributes and implement
+    `doing` and `takeover_bound`; everything else has a default every architecture built on
+    mrta_agent's runtime shares."""
+
+    name: ClassVar[str]            # registry name = its rqt_mrta package name ("alliance")
+    title: ClassVar[str]           # for people ("ALLIANCE")
+    namespace: ClassVar[str]       # coordination keys: robotN/<namespace>/<kind>
+    executable: ClassVar[str]      # a launch file's pkg/type for one robot ("robot_agent/agent")
+    command: ClassVar[str]         # its `mrta` verb ("agent")
+    param_stem: ClassVar[str]      # parameter files: robot1_<stem>_params.yaml, tasks_<stem>_…
+    bound_formula: ClassVar[str]   # the takeover bound as people write it
+    messages: ClassVar[dict[str, type]]  # kind → message type, published on robotN/<ns>/<kind>[/…]
+    doing_kinds: ClassVar[tuple[str, ...]]  # the kinds `doing` reads
+
+    # ------------------------------------------------------------ keys
+    def key(self, robot_id: str, kind: str, *rest: str) -> str:
+        """`robot1/alliance/motivation/wander`: where `robot_id` says `kind` (and its sub-key)."""
+        return "/".join((robot_id, self.namespace, kind, *rest))
+
+    def every(self, kind: str) -> str:
+        """Every robot's `kind` messages, sub-keys included: `*/murdoch/claim`, `*/alliance/motivation/**`."""
+        return f"*/{self.namespace}/{kind}" + ("/**" if self.has_subkeys(kind) else "")
+
+    def has_subkeys(self, kind: str) -> bool:
+        """Whether `kind` is published under one more chunk (ALLIANCE's motivation/<task>)."""
+        return False
+
+    def agent_token(self, robot_id: str) -> str:
+        """The liveliness token a robot's agent declares once it is ready (alive means ready)."""
+        return self.key(robot_id, "agent")
+
+    @property
+    def agent_tokens(self) -> str:
+        """Every robot's agent token: `*/alliance/agent`."""
+        return f"*/{self.namespace}/agent"
+
+    @property
+    def coordination_keys(self) -> str:
+        """Everything the architecture's agents say: `*/alliance/**`."""
+        return f"*/{self.namespace}/**"
+
+    def is_coordination_key(self, key: str) -> bool:
+        chunks = key.split("/")
+        return len(chunks) > 2 and chunks[1] == self.namespace and chunks[2] in self.messages
+
+    # ------------------------------------------------------------ who is doing what
+    def doing_feed(self) -> list[tuple[str, type]]:
+        """(key expression, message type) pairs to subscribe to for `doing`."""
+        return [(self.every(kind), self.messages[kind]) for kind in self.doing_kinds]
+
+    def read_doing(self, key: str, message: object) -> Doing | None:
+        """`doing` for a sample of the feed, after the sender check every architecture needs:
+        the key's first chunk must be the robot its header names (a sample on robot1's key
+        claiming to be robot2 says nothing)."""
+        sender = first_chunk(key)
+        header = getattr(message, "header", None)
+        if header is None or header.frame_id.strip("/") != sender:
+            return None
+        return self.doing(sender, key, message)
+
+    @abstractmethod
+    def doing(self, sender: str, key: str, message: object) -> Doing | None:
+        """What a sample of the feed says `sender` is doing (None: nothing about tasks)."""
+
+    # ------------------------------------------------------------ what a run is measured against
+    @abstractmethod
+    def takeover_bound(self, robot_params: Path, task: str) -> float:
+        """The longest a robot with these parameters takes to pick up `task` after the robot
+        doing it stops (seconds of its clock)."""
+
+    # ------------------------------------------------------------ faults
+    def failure_env(self, failures: Iterable[Failure]) -> dict[str, str]:
+        """Environment for the agents that injects crash-stop failures: every agent reads
+        $MRTA_CRASH and SIGKILLs itself at its time (exact in lockstep)."""
+        specs = [f.spec for f in failures]
+        return {CRASH_ENV: ",".join(specs)} if specs else {}
+
+    # ------------------------------------------------------------ optional extras
+    def plots(self, recording: Path, robots: list[str], tasks: list[str], output: Path,
+              records: list | None = None) -> list[str]:
+        """Architecture-specific pictures of a recorded run written into `output` (ALLIANCE's
+        motivation panels); the names of the files written. Default: none."""
+        return []
+
+    def __repr__(self) -> str:
+        return f"<architecture {self.name}>"
+
+
+_lock = threading.Lock()
+_loaded: dict[str, Architecture] = {}
+
+
+def _entry_points() -> dict:
+    return {ep.name: ep for ep in entry_points(group=GROUP)}
+
+
+def architecture_names() -> list[str]:
+    return sorted(_entry_points())
+
+
+def architecture(name: str) -> Architecture:
+    """The registered architecture `name`; ConfigError with the registered names otherwise.
+    Only this one entry point is loaded, so a broken third-party package cannot stop the
+    others from running."""
+    with _lock:
+        if name in _loaded:
+            return _loaded[name]
+        eps = _entry_points()
+        ep = eps.get(name)
+        if ep is None:
+            raise ConfigError(f"no architecture {name!r} is registered (entry-point group "
+                              f"{GROUP}: {', '.join(sorted(eps)) or 'none'})"
+                              + did_you_mean(name, eps))
+        try:
+            arch = ep.load()
+        except (ImportError, AttributeError) as exc:
+            raise ConfigError(f"architecture {name!r} ({ep.value}) cannot be loaded: {exc}") from exc
+        if isinstance(arch, type):
+            arch = arch()
+        if not isinstance(arch, Architecture):
+            raise ConfigError(f"architecture {name!r} ({ep.value}) is a {type(arch).__name__}, "
+                              "not an mrta_zenoh.architectures.Architecture")
+        if arch.name != name:
+            raise ConfigError(f"architecture registered as {name!r} ({ep.value}) calls itself "
+                              f"{arch.name!r}")
+        _loaded[name] = arch
+        return arch
+
+
+def architectures() -> dict[str, Architecture]:
+    """Every registered architecture, by name."""
+    return {name: architecture(name) for name in architecture_names()}

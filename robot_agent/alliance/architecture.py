@@ -1,0 +1,94 @@
+"""ALLIANCE (Parker 1998) as tools and the agent runtime see it: the object registered under
+`mrta.architectures` as `alliance`.
+
+Who is doing what is read from each robot's own Motivation samples (`active`, one per behaviour
+set per tick, stamped with the robot's clock) — what the robot decided, exact to one tick —
+rather than from its broadcasts (1 Hz, and only while active) or a supervisor's timeout.
+"""
+
+from __future__ import annotations
+
+import math
+from pathlib import Path
+
+from mrta_zenoh.architectures import Doing
+from mrta_zenoh.clock import Clock
+from mrta_zenoh.errors import ConfigError
+
+from ..runtime.architecture import AgentArchitecture, Prepared
+from ..runtime.host import AgentOptions
+from ..runtime.plugins import EvaluatorSpec, Plugins
+from .agent import AllianceCoordinator
+from .messages import InterRobotCommunication, Motivation, SensoryFeedback
+from .params import AgentParams, load_agent_params, load_robot_params
+
+
+def alliance_plugins(params: AgentParams) -> Plugins:
+    """One evaluator and one layer stack per behaviour set."""
+    return Plugins(params.robot.sensors,
+                   [EvaluatorSpec(bs.task_id, bs.evaluator_plugin, bs.evaluator_topics, bs.where)
+                    for bs in params.robot.behaviour_sets],
+                   params.tasks, params.layers)
+
+
+class Alliance(AgentArchitecture):
+    name = "alliance"
+    title = "ALLIANCE"
+    namespace = "alliance"
+    executable = "robot_agent/agent"
+    command = "agent"
+    param_stem = "alliance"
+    bound_formula = "τ + (⌈θ/fast⌉ + 1)/ρ"
+    messages = {"inter_robot_communication": InterRobotCommunication,
+                "motivation": Motivation, "sensory_feedback": SensoryFeedback}
+    doing_kinds = ("motivation",)
+
+    def has_subkeys(self, kind: str) -> bool:
+        return kind == "motivation"
+
+    def prepare(self, options: AgentOptions) -> Prepared:
+        params = load_agent_params(options.robot_params, options.tasks_params,
+                                   options.layers_params)
+        plugins = alliance_plugins(params)
+        return Prepared(options.robot_id, params, plugins, params.robot.spin_rate,
+                        params.robot.control_rate,
+                        f"{len(params.robot.behaviour_sets)} behaviour sets",
+                        params.warnings + plugins.unread_warnings())
+
+    def coordinator(self, prepared: Prepared, agent_clock: Clock) -> AllianceCoordinator:
+        return AllianceCoordinator(prepared.robot_id, prepared.params, prepared.plugins)
+
+    def doing(self, sender: str, key: str, message: object) -> Doing | None:
+        if not isinstance(message, Motivation):
+            return None
+        return Doing(sender, message.task_id, message.active, message.header.stamp)
+
+    def takeover_bound(self, robot_params: Path, task: str) -> float:
+        """τ + ⌈θ / fast_rate⌉ / ρ + one tick: the longest a robot with these parameters takes
+        to pick up `task` after the robot doing it dies (its last broadcast lapses after τ,
+        then impatience grows at fast_rate per tick from 0 to θ)."""
+        robot, _ = load_robot_params(robot_params)
+        for bs in robot.behaviour_sets:
+            if bs.task_id == task:
+                ticks = math.ceil(bs.threshold / bs.fast_rate)
+                return robot.timeout_duration + (ticks + 1) / robot.spin_rate
+        raise ConfigError(f"no behaviour set for task {task!r}", file=str(robot_params))
+
+    def plots(self, recording: Path, robots: list[str], tasks: list[str], output: Path,
+              records: list | None = None) -> list[str]:
+        """rqt_alliance's seven panels per robot and task (a robot killed before its first
+        sample of a task has none)."""
+        from .plots import plot_motivation  # matplotlib: only where pictures are made
+        written = []
+        for robot in robots:
+            for task in tasks:
+                f = output / f"motivation_{robot}_{task}.png"
+                try:
+                    plot_motivation(recording, robot, task, f, records)
+                except ConfigError:
+                    continue
+                written.append(f.name)
+        return written
+
+
+ALLIANCE = Alliance()

@@ -1,0 +1,70 @@
+"""The agent side of the architecture contract: how an architecture's robot agent is prepared
+from its parameter files, which decision logic the fixed driver (`loop.Agent`) is given, and its
+`mrta` verb. An architecture registered under `mrta.architectures` is an instance of a subclass.
+
+To add an architecture (docs/architecture.md, "Adding an architecture"): subclass
+AgentArchitecture, set the class attributes of `mrta_zenoh.architectures.Architecture`,
+implement `prepare`, `coordinator`, `doing` and `takeover_bound`, register the instance under
+`mrta.architectures` and its verb under `mrta.commands` / `mrta.executables`.
+"""
+
+from __future__ import annotations
+
+import logging
+import threading
+from abc import abstractmethod
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from mrta_zenoh.architectures import Architecture
+from mrta_zenoh.bus import Bus
+from mrta_zenoh.clock import Clock
+
+from .host import AgentOptions, host
+from .loop import Agent, Coordinator
+from .plugins import Plugins
+
+
+@dataclass
+class Prepared:
+    """Everything read from a robot's parameter files before any bus opens (a bad file is bad
+    input, exit 2, and nothing runs): the architecture's parameters, the robot's plugins, the
+    two loop rates and the warnings to log."""
+
+    robot_id: str
+    params: Any
+    plugins: Plugins
+    spin_rate: float
+    control_rate: float
+    describe: str
+    warnings: list[str] = field(default_factory=list)
+
+
+class AgentArchitecture(Architecture):
+    """An architecture whose robots run on mrta_agent's runtime."""
+
+    logger_name: str = "mrta.agent"
+
+    @abstractmethod
+    def prepare(self, options: AgentOptions) -> Prepared:
+        """Read and check the robot's parameter files (ConfigError naming file, line, key)."""
+
+    @abstractmethod
+    def coordinator(self, prepared: Prepared, agent_clock: Clock) -> Coordinator:
+        """The decision logic for one robot, fresh (called again when time restarts)."""
+
+    def agent(self, prepared: Prepared, bus: Bus, clock: Clock,
+              rng: np.random.Generator | None = None) -> Agent:
+        """The fixed driver, given this architecture's logic."""
+        return Agent(prepared.robot_id, self, lambda: self.coordinator(prepared, clock), bus,
+                     clock, rng, prepared.plugins, prepared.spin_rate, prepared.control_rate,
+                     logging.getLogger(self.logger_name))
+
+    def run(self, options: AgentOptions, stop: threading.Event | None = None) -> int:
+        """What the architecture's `mrta` verb does: prepare, then host the agent until stopped."""
+        prepared = self.prepare(options)
+        return host(lambda bus, clock, rng: self.agent(prepared, bus, clock, rng), options,
+                    warnings=prepared.warnings, describe=prepared.describe, stop=stop,
+                    logger=logging.getLogger(self.logger_name))

@@ -1,0 +1,372 @@
+"""`mrta experiment`: a matrix of reproducible runs of an application, in parallel.
+
+An experiment file (YAML, checked strictly: file, line and key on any error):
+
+    application: patrol
+    architecture: murdoch  # optional: the application under another architecture
+    duration: 120          # simulated seconds per run
+    seeds: [1, 2, 3, 4, 5]
+    failures: [none, robot2@40, robot1@40]
+    overrides:             # optional sweeps: <parameter file glob>.<key path>: [values]
+      robot*.timeout_duration: [2.0, 4.0]
+
+Every combination × seed is one run: the application's mission (mission.py), run by
+`mrta demo --application A [--architecture N] --duration D --speed 0 --fail F --seed S --output
+DIR --no-live` as a child process (its own private rendezvous, lockstep at full speed). With overrides, the run gets its own copy of the
+application package with the values changed, found first through MRTA_PACKAGE_PATH. The mission
+writes `summary.json` (summary.py: who did what, coverage, failure and takeover, the
+application's metrics) and `run.mcap`; this module gathers them into `results.csv` (one row per run, written as runs end,
+so a Ctrl-C keeps the finished rows), `summary.md` (per configuration: mean and 95 % interval)
+and plots (takeover time per configuration, coverage). A run that fails is a row with its error;
+the others go on.
+"""
+
+from __future__ import annotations
+
+import csv
+import itertools
+import logging
+import math
+import os
+import shutil
+import statistics
+import threading
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from mrta_zenoh.errors import ConfigError, Interrupted
+from mrta_zenoh.failure import parse_failure
+from mrta_zenoh.files import write_text
+from mrta_zenoh.keys import LIVELINESS_PREFIX
+from mrta_zenoh.processes import ProcessGroup, mrta_argv
+from mrta_zenoh.recording import read_recording
+from mrta_zenoh.toolchain.registry import Registry
+from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, load_yaml
+
+from .mission import MissionOptions, resolve
+from .summary import flat_metrics, read_summary
+
+log = logging.getLogger("mrta.experiment")
+
+KEYS = {"application", "architecture", "duration", "seeds", "robots", "failures", "overrides"}
+
+
+@dataclass(frozen=True)
+class Run:
+    index: int
+    seed: int
+    failure: str
+    overrides: tuple[tuple[str, Any], ...]
+
+    @property
+    def config(self) -> str:
+        """Everything but the seed: runs of one configuration are compared together."""
+        parts = [f"fail={self.failure}"] + [f"{k}={v}" for k, v in self.overrides]
+        return " ".join(parts)
+
+
+@dataclass
+class Experiment:
+    file: Path
+    application: str
+    duration: float
+    seeds: list[int]
+    failures: list[str]
+    overrides: dict[str, list[Any]] = field(default_factory=dict)
+    architecture: str | None = None
+
+    def runs(self) -> list[Run]:
+        keys = sorted(self.overrides)
+        combos = list(itertools.product(*(self.overrides[k] for k in keys))) or [()]
+        out = []
+        for failure, combo, seed in itertools.product(self.failures, combos, self.seeds):
+            out.append(Run(len(out), seed, failure, tuple(zip(keys, combo))))
+        return out
+
+
+def _list(doc: YamlDoc, key: str, kind, check=None) -> list:
+    value = doc.data.get(key)
+    if not isinstance(value, list) or not value:
+        raise doc.error((key,), f"{key} must be a non-empty list")
+    for i, v in enumerate(value):
+        if type(v) is bool or not isinstance(v, kind):
+            raise doc.error((key, i), f"{key}[{i}] must be {kind.__name__ if isinstance(kind, type) else 'a number'}, "
+                                      f"got {v!r:.40}")
+        if check is not None:
+            problem = check(v)
+            if problem:
+                raise doc.error((key, i), f"{key}[{i}]: {problem}")
+    return value
+
+
+def _failure_problem(spec: str) -> str | None:
+    if spec == "none":
+        return None
+    try:
+        parse_failure(spec)
+    except ValueError as exc:
+        return f"{exc}, or none"
+    return None
+
+
+def load_experiment(path: Path) -> Experiment:
+    doc = load_yaml(path)
+    if not isinstance(doc.data, dict):
+        raise doc.error((), "an experiment file must be a mapping")
+    for k in doc.data:
+        if k not in KEYS:
+            raise doc.error((k,), f"unknown key {k!r}" + did_you_mean(k, KEYS))
+    for k in ("application", "duration", "seeds"):
+        if k not in doc.data:
+            raise doc.error((), f"missing mandatory key {k!r}")
+    app = doc.data["application"]
+    if not isinstance(app, str) or not app:
+        raise doc.error(("application",), "application must be a name")
+    duration = doc.data["duration"]
+    if type(duration) is bool or not isinstance(duration, (int, float)) or \
+            not math.isfinite(duration) or duration <= 0:
+        raise doc.error(("duration",), f"duration must be a positive number of seconds, "
+                                       f"got {duration!r:.40}")
+    seeds = _list(doc, "seeds", int, lambda s: None if s >= 0 else "a seed is ≥ 0")
+    failures = [str(f) for f in _list(doc, "failures", str,
+                                      _failure_problem)] \
+        if "failures" in doc.data else ["none"]
+    overrides: dict[str, list] = {}
+    raw = doc.data.get("overrides") or {}
+    if not isinstance(raw, dict):
+        raise doc.error(("overrides",), "overrides must map PARAMETER_FILE_GLOB.KEY.PATH to lists")
+    for key, values in raw.items():
+        if not isinstance(key, str) or "." not in key:
+            raise doc.error(("overrides", key), f"{key!r}: expected FILE_GLOB.KEY.PATH, e.g. "
+                                                "robot*.timeout_duration")
+        if not isinstance(values, list) or not values:
+            raise doc.error(("overrides", key), f"{key}: expected a non-empty list of values")
+        overrides[key] = values
+    arch = doc.data.get("architecture")
+    if arch is not None and (not isinstance(arch, str) or not arch):
+        raise doc.error(("architecture",), "architecture must be a name (mrta arch list)")
+    exp = Experiment(path, app, float(duration), seeds, failures, overrides, arch)
+    if "robots" in doc.data:
+        _list(doc, "robots", int)
+        exp.robots = doc.data["robots"]  # checked against the application in prepare()
+    return exp
+
+
+def _set_path(data: dict, path: list[str], value: Any, where: str) -> None:
+    d = data
+    for i, p in enumerate(path[:-1]):
+        if not isinstance(d, dict) or p not in d:
+            raise ConfigError(f"override {where}: no key {'.'.join(path[:i + 1])!r}")
+        d = d[p]
+    if not isinstance(d, dict) or path[-1] not in d:
+        raise ConfigError(f"override {where}: no key {'.'.join(path)!r}")
+    d[path[-1]] = value
+
+
+def package_copy(pkg_path: Path, dest: Path, overrides: tuple[tuple[str, Any], ...]) -> Path:
+    """A copy of the application's package with the overridden parameter values."""
+    import fnmatch
+
+    import yaml
+
+    target = dest / pkg_path.name
+    shutil.copytree(pkg_path, target, ignore=shutil.ignore_patterns("__pycache__", "*.py"))
+    for key, value in overrides:
+        glob, _, dotted = key.partition(".")
+        files = [f for f in sorted((target / "config").glob("*.yaml"))
+                 if fnmatch.fnmatch(f.stem, glob) or fnmatch.fnmatch(f.stem, glob + "_*")]
+        if not files:
+            raise ConfigError(f"override {key}: no parameter file matches {glob!r}")
+        for f in files:
+            data = yaml.safe_load(f.read_text())
+            _set_path(data, dotted.split("."), value, f"{key} in {f.name}")
+            f.write_text(yaml.safe_dump(data, sort_keys=False))
+    return target
+
+
+def mean_ci(xs: list[float]) -> tuple[float, float]:
+    """Mean and the half-width of its 95 % interval (Student's t)."""
+    if not xs:
+        return math.nan, math.nan
+    m = statistics.fmean(xs)
+    if len(xs) < 2:
+        return m, math.nan
+    t = {1: 12.71, 2: 4.30, 3: 3.18, 4: 2.78, 5: 2.57, 6: 2.45, 7: 2.36, 8: 2.31, 9: 2.26}.get(
+        len(xs) - 1, 2.0 if len(xs) < 30 else 1.96)
+    return m, t * statistics.stdev(xs) / math.sqrt(len(xs))
+
+
+def row_for(run: Run, out: Path, wall: float, error: str = "") -> dict:
+    row: dict[str, Any] = {"run": run.index, "config": run.config, "seed": run.seed,
+                           "failure": run.failure, "status": "failed" if error else "ok",
+                           "error": error, "wall_seconds": round(wall, 2)}
+    row.update({k: v for k, v in run.overrides})
+    if error:
+        return row
+    row.update(flat_metrics(read_summary(out / "summary.json")))
+    try:
+        row["messages"] = sum(1 for r in read_recording(out / "run.mcap")
+                              if not r[0].startswith(LIVELINESS_PREFIX))
+    except ConfigError:
+        row["messages"] = ""
+    return row
+
+
+def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
+                   stop: threading.Event | None = None, progress=None) -> list[dict]:
+    exp = load_experiment(file)
+    reg = Registry()
+    resolved = resolve(MissionOptions(application=exp.application,
+                                      architecture=exp.architecture), reg)
+    pkg, app = resolved.package, resolved.app
+    if getattr(exp, "robots", None) and exp.robots != [len(app.robots)]:
+        raise ConfigError(f"robots: the application {app.name!r} has {len(app.robots)} robots "
+                          f"(its launch file starts them); got {exp.robots}", file=str(file))
+    runs = exp.runs()
+    output.mkdir(parents=True, exist_ok=True)
+    jobs = max(1, jobs or os.cpu_count() or 1)
+    stop = stop or threading.Event()
+    rows: list[dict] = []
+    fields: list[str] = []
+    results = output / "results.csv"
+    pending = list(runs)
+    active: dict[int, tuple[Run, Any, float, Path]] = {}
+    argv_base = mrta_argv("-q", "demo", "--application", pkg.name)
+    with ProcessGroup() as group:
+        while (pending or active) and not stop.is_set():
+            while pending and len(active) < jobs:
+                run = pending.pop(0)
+                out = output / f"run{run.index:03d}"
+                if out.exists():
+                    shutil.rmtree(out)
+                out.mkdir(parents=True)
+                env = {}
+                if run.overrides:
+                    pkgs = out / "package"
+                    package_copy(pkg.path, pkgs, run.overrides)
+                    env["MRTA_PACKAGE_PATH"] = str(pkgs)
+                argv = argv_base + ["--duration", str(exp.duration), "--speed", "0",
+                                    "--fail", run.failure, "--seed", str(run.seed),
+                                    "--output", str(out), "--no-live"]
+                child = group.start(argv, name=f"run{run.index}", env=env, merge_stderr=True)
+                active[run.index] = (run, child, time.monotonic(), out)
+            for index, (run, child, t0, out) in list(active.items()):
+                if child.running():
+                    continue
+                del active[index]
+                rc = child.wait(10)
+                error = "" if rc == 0 else (f"exit {rc}: " + " | ".join(
+                    line for line in child.stdout[-5:] if line.strip())[-400:])
+                row = row_for(run, out, time.monotonic() - t0, error)
+                rows.append(row)
+                fields = _write_csv(results, rows, fields)
+                if progress is not None:
+                    progress(len(rows), len(runs), row)
+            stop.wait(0.1)
+        if stop.is_set():
+            group.stop_all()
+    rows.sort(key=lambda r: r["run"])
+    _write_csv(results, rows, [])
+    write_text(output / "summary.md", summary_md(exp, rows))
+    plot_results(rows, output)
+    if stop.is_set():
+        raise Interrupted(f"stopped after {len(rows)} of {len(runs)} runs; {results} has them")
+    return rows
+
+
+def _write_csv(path: Path, rows: list[dict], fields: list[str]) -> list[str]:
+    for r in rows:
+        for k in r:
+            if k not in fields:
+                fields.append(k)
+    tmp = path.with_name(path.name + ".tmp")
+    with tmp.open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=fields)
+        w.writeheader()
+        for r in rows:
+            w.writerow(r)
+    tmp.replace(path)
+    return fields
+
+
+def _fmt(m: float, h: float, unit: str = "") -> str:
+    if math.isnan(m):
+        return "–"
+    return f"{m:.2f}{unit}" + ("" if math.isnan(h) else f" ± {h:.2f}")
+
+
+def summary_md(exp: Experiment, rows: list[dict]) -> str:
+    configs = sorted({r["config"] for r in rows})
+    tasks = sorted({k.split(".")[0] for r in rows for k in r if k.endswith(".exactly_one")})
+    lines = [f"# {exp.application}: {len(rows)} runs of {exp.duration:g} s", "",
+             "Mean ± half-width of the 95 % interval over seeds "
+             f"({', '.join(map(str, exp.seeds))}). Coverage: share of the run with exactly one "
+             "robot on the task.", "",
+             "| configuration | runs (failed) | takeover (s) | "
+             + " | ".join(f"{t} covered" for t in tasks) + " | collisions |",
+             "| --- | --- | --- | " + " | ".join("---" for _ in tasks) + " | --- |"]
+    for c in configs:
+        rs = [r for r in rows if r["config"] == c]
+        ok = [r for r in rs if r["status"] == "ok"]
+        take = mean_ci([float(r["takeover_seconds"]) for r in ok
+                        if r.get("takeover_seconds") not in ("", None)])
+        cov = [mean_ci([float(r[f"{t}.exactly_one"]) for r in ok if f"{t}.exactly_one" in r])
+               for t in tasks]
+        col = mean_ci([float(r["collisions"]) for r in ok if r.get("collisions") != ""])
+        lines.append(f"| {c} | {len(rs)} ({len(rs) - len(ok)}) | {_fmt(*take)} | "
+                     + " | ".join(_fmt(m * 100, h * 100, " %") if not math.isnan(m) else "–"
+                                  for m, h in cov)
+                     + f" | {_fmt(*col)} |")
+    failed = [r for r in rows if r["status"] != "ok"]
+    if failed:
+        lines += ["", "Failed runs:", ""] + [f"- run {r['run']} ({r['config']}, seed "
+                                             f"{r['seed']}): {r['error']}" for r in failed]
+    return "\n".join(lines) + "\n"
+
+
+def plot_results(rows: list[dict], output: Path) -> None:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..files import save_figure
+
+    configs = sorted({r["config"] for r in rows})
+    data = [[float(r["takeover_seconds"]) for r in rows if r["config"] == c
+             and r["status"] == "ok" and r.get("takeover_seconds") not in ("", None)]
+            for c in configs]
+    fig, ax = plt.subplots(figsize=(max(6, 1.6 * len(configs)), 4), dpi=100)
+    try:
+        shown = [(c, d) for c, d in zip(configs, data) if d]
+        if shown:
+            ax.boxplot([d for _, d in shown])
+            ax.set_xticks(range(1, len(shown) + 1), [c for c, _ in shown])
+        ax.set_ylabel("takeover time (s)")
+        ax.set_title("takeover after a failure, per configuration")
+        ax.tick_params(axis="x", labelsize=7, rotation=15)
+        fig.tight_layout()
+        save_figure(fig, output / "takeover.png")
+    finally:
+        plt.close(fig)
+    tasks = sorted({k.split(".")[0] for r in rows for k in r if k.endswith(".exactly_one")})
+    fig, ax = plt.subplots(figsize=(max(6, 1.6 * len(configs)), 4), dpi=100)
+    try:
+        width = 0.8 / max(1, len(tasks))
+        for i, t in enumerate(tasks):
+            means = [mean_ci([float(r[f"{t}.exactly_one"]) for r in rows if r["config"] == c
+                              and r["status"] == "ok" and f"{t}.exactly_one" in r])[0]
+                     for c in configs]
+            ax.bar([j + i * width for j in range(len(configs))],
+                   [0 if math.isnan(m) else m for m in means], width, label=t)
+        ax.set_xticks([j + width * (len(tasks) - 1) / 2 for j in range(len(configs))])
+        ax.set_xticklabels(configs, fontsize=7, rotation=15)
+        ax.set_ylabel("share with exactly one robot")
+        ax.set_ylim(0, 1.05)
+        ax.legend(fontsize=8)
+        fig.tight_layout()
+        save_figure(fig, output / "coverage.png")
+    finally:
+        plt.close(fig)

@@ -1,0 +1,133 @@
+"""`mrta demo`: a thin click verb over mission.run_mission — any registered application under
+any registered architecture (patrol under its own, ALLIANCE, by default) — that shows the
+supervisor while the mission runs and prints the summary."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import click
+from rich.console import Console, Group
+from rich.live import Live
+from rich.text import Text
+
+from mrta_zenoh.cli.common import finite_float
+
+from .mission import MissionOptions, run_mission
+from .summary import Summary
+from .view import render
+
+
+@click.command()
+@click.option("--application", default="patrol", show_default=True,
+              help="The application whose mission to run (mrta app list).")
+@click.option("--architecture", default=None,
+              help="Run it under this architecture (mrta arch list); default: the one the "
+                   "application names. Needs an application package configured for it "
+                   "(patrol under murdoch: patrol_murdoch).")
+@click.option("--duration", type=finite_float(min=0, min_open=True), default=60.0,
+              show_default=True, help="Simulated seconds of mission.")
+@click.option("--speed", type=finite_float(min=0), default=2.0, show_default=True,
+              help="Simulated seconds per wall second (0: as fast as possible).")
+@click.option("--fail", default=None, metavar="ROBOT@SECONDS|none",
+              help="SIGKILL this robot's agent at this simulated time (default: the second "
+                   "robot at half the duration).")
+@click.option("--output", type=click.Path(file_okay=False, path_type=Path),
+              default=Path("demo-output"), show_default=True,
+              help="Folder for the recording, pictures and summary.json.")
+@click.option("--seed", type=int, default=0, show_default=True,
+              help="The run's master seed (each robot derives its own stream).")
+@click.option("--live/--no-live", default=None,
+              help="Show the live supervisor view (default: when the output is a terminal).")
+@click.option("--lockstep/--no-lockstep", default=True, show_default=True,
+              help="The simulator waits for every agent at each step: the same seed gives the "
+                   "same run whatever the machine's load.")
+@click.option("--foxglove", "foxglove_port", type=click.IntRange(0, 65535), is_flag=False,
+              flag_value=8765, default=None, metavar="[PORT]",
+              help="Also serve the run live to Foxglove / Lichtblick (ws://127.0.0.1:8765).")
+def demo(live: bool | None, **kwargs) -> None:
+    """A mission end to end: simulator, agents and supervisor, then a summary."""
+    options = MissionOptions(**kwargs)
+    console = Console()
+    show_live = console.is_terminal if live is None else live
+    view = _LiveView(console, options) if show_live else _Lines(console)
+    if options.foxglove_port is not None:
+        console.print(f"Foxglove / Lichtblick: Open connection → "
+                      f"ws://127.0.0.1:{options.foxglove_port}", highlight=False)
+    try:
+        run, summary = run_mission(options, progress=view)
+    finally:
+        view.close()
+    print_summary(console, summary, run.mission.title, run.arch.title,
+                  run.mission.describe(summary.metrics))
+
+
+class _Lines:
+    """Without a terminal: one line of robot states every 10 simulated seconds."""
+
+    def __init__(self, console: Console):
+        self.console = console
+        self.last = -10.0
+
+    def __call__(self, now: float, sup, failed_at: float | None) -> None:
+        if now - self.last < 10.0:
+            return
+        self.last = now
+        snap = sup.snapshot(now)
+        self.console.print(f"t={now:5.1f}s  " + "  ".join(
+            f"{r['id']}:{r['state']}{'/' + r['task'] if r['task'] else ''}"
+            for r in snap["robots"]), highlight=False)
+
+    def close(self) -> None:
+        pass
+
+
+class _LiveView:
+    """The supervisor's live view under a header line."""
+
+    def __init__(self, console: Console, options: MissionOptions):
+        self.console, self.options = console, options
+        self.live: Live | None = None
+
+    def __call__(self, now: float, sup, failed_at: float | None) -> None:
+        o = self.options
+        fail = "" if not o.fail or o.fail == "none" else (
+            f" · killed at {failed_at:.1f} s" if failed_at is not None else f" · --fail {o.fail}")
+        header = Text(f"mrta demo · {o.application} · simulated {now:5.1f} / {o.duration:.0f} s"
+                      f" · speed {o.speed or 'max'}{fail}", style="bold")
+        body = Group(header, render(sup.snapshot(now), self.console.width))
+        if self.live is None:
+            self.live = Live(body, console=self.console, refresh_per_second=4, transient=False)
+            self.live.start()
+        else:
+            self.live.update(body)
+
+    def close(self) -> None:
+        if self.live is not None:
+            self.live.stop()
+
+
+def print_summary(console: Console, s: Summary, title: str, arch_title: str,
+                  extra: list[str]) -> None:
+    console.print(Text(f"\n{title} ({arch_title}): {s.duration:.0f} s simulated at speed "
+                       f"{s.speed or 'max'} in {s.wall_seconds:.0f} s", style="bold"))
+    for rid, spans in s.who_did_what.items():
+        txt = ", ".join(f"{x.task} {x.start:.1f}–{x.end:.1f} s" for x in spans) or "idle"
+        console.print(f"  {rid}: {txt}", highlight=False)
+    f = s.failure
+    if f:
+        if f.takeover_seconds is not None:
+            ok = "within" if f.takeover_seconds <= f.bound_seconds else "OVER"
+            console.print(f"  {f.robot} killed at {f.killed_at:.1f} s while doing {f.task}; "
+                          f"{f.taken_over_by} took over after {f.takeover_seconds:.2f} s "
+                          f"({ok} the bound {f.bound_formula} = {f.bound_seconds:.2f} s)",
+                          highlight=False)
+        else:
+            console.print(f"  {f.robot} killed at {f.killed_at}; task {f.task} was not taken "
+                          "over before the end", highlight=False)
+    for task, c in s.coverage.items():
+        console.print(f"  {task}: exactly one robot {c.exactly_one:.0%}, none {c.none:.0%}, "
+                      f"more than one {c.more_than_one:.0%}", highlight=False)
+    for line in extra:
+        console.print(f"  {line}", highlight=False)
+    console.print(f"  files in {s.output}: {', '.join(s.files)}", highlight=False)

@@ -1,0 +1,112 @@
+"""`summary.json`: what one mission run did, defined once (msgspec Structs) next to the runner
+that writes it (mission.py) and read back from here by `mrta experiment` and the plots.
+
+Generic over applications and architectures: who did what, coverage, the first full allocation,
+the failure and its takeover beside the architecture's bound, bus traffic. What only an
+application can measure (patrol: collisions, the share of the border visited) is its own
+`metrics` mapping, contributed through the mission hook (mission.Mission.metrics). `schema`
+changes when a field changes meaning.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import msgspec
+
+from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.files import write_text
+
+SCHEMA = 2  # 1: the patrol demo's flat dict (application metrics at the top level)
+
+
+class Span(msgspec.Struct, forbid_unknown_fields=True):
+    """One robot on one task from `start` to `end` (simulated seconds)."""
+
+    task: str
+    start: float = msgspec.field(name="from")
+    end: float = msgspec.field(name="to")
+
+
+class Coverage(msgspec.Struct, forbid_unknown_fields=True):
+    """Shares of the run with exactly one robot on a task, none, more than one."""
+
+    exactly_one: float
+    none: float
+    more_than_one: float
+
+
+class FailureReport(msgspec.Struct, forbid_unknown_fields=True, omit_defaults=True):
+    robot: str
+    killed_at: float | None = None
+    task: str | None = None                # what it was doing
+    taken_over_by: str | None = None
+    takeover_seconds: float | None = None
+    bound_seconds: float | None = None     # the architecture's bound for the robot that took over
+    bound_formula: str | None = None
+
+
+class MessageRates(msgspec.Struct, forbid_unknown_fields=True):
+    """Samples per simulated second on the bus, and the architecture's own share of them."""
+
+    total_per_second: float
+    coordination_per_second: float
+    coordination_namespace: str
+
+
+class Summary(msgspec.Struct, forbid_unknown_fields=True):
+    mission: str                 # the mission (mrta.missions), e.g. patrol
+    application: str             # the rqt_mrta application package that ran, e.g. patrol_murdoch
+    architecture: str            # the architecture (mrta.architectures), e.g. murdoch
+    duration: float              # simulated seconds asked for
+    speed: float                 # simulated seconds per wall second (0: as fast as possible)
+    seed: int
+    wall_seconds: float
+    robots: list[str]
+    who_did_what: dict[str, list[Span]]
+    first_full_allocation: float | None
+    coverage: dict[str, Coverage]
+    messages: MessageRates
+    output: str
+    files: list[str]
+    metrics: dict[str, Any] = {}   # the application's own (its mission hook)
+    failure: FailureReport | None = None
+    schema: int = SCHEMA
+
+
+def write_summary(path: Path, summary: Summary) -> None:
+    """Everything or nothing (files.write_text), as indented JSON people read too."""
+    write_text(path, msgspec.json.format(msgspec.json.encode(summary), indent=2).decode())
+
+
+def read_summary(path: Path) -> Summary:
+    """A run's summary; ConfigError naming the file and the field at fault."""
+    try:
+        return msgspec.json.decode(Path(path).read_bytes(), type=Summary)
+    except OSError as exc:
+        raise ConfigError(f"cannot read the summary: {exc.strerror}", file=str(path)) from None
+    except msgspec.DecodeError as exc:
+        raise ConfigError(f"not a summary of schema {SCHEMA}: {exc}", file=str(path)) from None
+
+
+def flat_metrics(summary: Summary) -> dict[str, Any]:
+    """The summary as one row of scalars (what `mrta experiment` writes per run): failure and
+    takeover, coverage per task, first full allocation, traffic and every scalar the
+    application's hook measured."""
+    row: dict[str, Any] = {}
+    f = summary.failure
+    row["takeover_seconds"] = "" if f is None or f.takeover_seconds is None else f.takeover_seconds
+    row["taken_over_by"] = "" if f is None or f.taken_over_by is None else f.taken_over_by
+    for task, c in summary.coverage.items():
+        row[f"{task}.exactly_one"] = c.exactly_one
+        row[f"{task}.none"] = c.none
+        row[f"{task}.more_than_one"] = c.more_than_one
+    row["first_full_allocation"] = ("" if summary.first_full_allocation is None
+                                    else summary.first_full_allocation)
+    row["messages_per_second"] = summary.messages.total_per_second
+    row["coordination_messages_per_second"] = summary.messages.coordination_per_second
+    for name, value in summary.metrics.items():
+        if isinstance(value, (int, float, str, bool)):
+            row[name] = value
+    return row

@@ -1,0 +1,1 @@
+"""The patrol mission under the test architecture `fixed` (tests only; no code)."""

@@ -1,0 +1,201 @@
+"""The architecture contract (mrta_zenoh.architectures) and the fixed driver that runs every
+architecture's logic (mrta_agent.runtime.loop.Agent).
+
+A third architecture that lives only in tests/data/plugins (`fixed`: fixed assignment with a
+standby, registered by the dist-info beside it) proves the contract is enough: the driver runs
+it on the in-process bus, and `mrta demo --architecture fixed` runs the patrol mission with it.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+
+import numpy as np
+import pytest
+
+from mrta_agent.alliance.architecture import ALLIANCE
+from mrta_agent.alliance.messages import InterRobotCommunication, Motivation
+from mrta_agent.murdoch.architecture import MURDOCH
+from mrta_agent.murdoch.messages import Claim, Release
+from mrta_agent.runtime import loop
+from mrta_agent.runtime.host import AgentOptions
+from mrta_agent.runtime.plugins import load_plugin
+from mrta_supervisor.mission import MissionOptions, resolve
+from mrta_zenoh import architectures
+from mrta_zenoh.architectures import Doing, architecture, architectures as registered
+from mrta_zenoh.bus import InProcBus
+from mrta_zenoh.clock import ManualClock
+from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.messages import Header
+from tests.helpers import ROOT
+
+PLUGINS = ROOT / "tests" / "data" / "plugins"
+PATROL_FIXED = PLUGINS / "patrol_fixed" / "config"
+
+
+@pytest.fixture
+def fixed(monkeypatch):
+    """The test architecture registered for this test only (its dist-info on sys.path)."""
+    monkeypatch.syspath_prepend(str(PLUGINS))
+    monkeypatch.setattr(architectures, "_loaded", {})
+    yield architecture("fixed")
+    monkeypatch.setattr(architectures, "_loaded", {})
+
+
+def test_both_architectures_are_registered_and_unknown_names_are_bad_input():
+    assert {"alliance", "murdoch"} <= set(registered())
+    assert registered()["alliance"] is ALLIANCE and registered()["murdoch"] is MURDOCH
+    with pytest.raises(ConfigError, match="did you mean 'murdoch'"):
+        architecture("murdock")
+
+
+def test_keys_tokens_and_namespace_come_from_the_contract():
+    assert ALLIANCE.agent_token("robot1") == "robot1/alliance/agent"
+    assert ALLIANCE.agent_tokens == "*/alliance/agent"
+    assert ALLIANCE.every("motivation") == "*/alliance/motivation/**"
+    assert MURDOCH.every("claim") == "*/murdoch/claim"
+    assert MURDOCH.is_coordination_key("robot2/murdoch/bid")
+    assert not MURDOCH.is_coordination_key("robot2/alliance/motivation/a")
+    assert ALLIANCE.failure_env([]) == {}
+
+
+def test_who_is_doing_what_is_read_from_each_architectures_own_messages():
+    mot = Motivation(Header("robot1", 12.5, 3), "wander", 1.0, False, False, False, True,
+                     100.0, 100.0, True)
+    assert ALLIANCE.read_doing("robot1/alliance/motivation/wander", mot) == \
+        Doing("robot1", "wander", True, 12.5)
+    # a sample on robot1's key claiming to be robot2 says nothing
+    assert ALLIANCE.read_doing("robot2/alliance/motivation/wander", mot) is None
+    # broadcasts are coordination, not the feed
+    irc = InterRobotCommunication(Header("robot1", 1.0, 1), "wander", 10.0)
+    assert ALLIANCE.read_doing("robot1/alliance/inter_robot_communication", irc) is None
+    claim = Claim(Header("robot3", 4.0, 1), "report", 3.5, 2.0)
+    release = Release(Header("robot3", 9.0, 2), "report", "no progress")
+    assert MURDOCH.read_doing("robot3/murdoch/claim", claim) == Doing("robot3", "report", True, 4.0)
+    assert MURDOCH.read_doing("robot3/murdoch/release", release) == \
+        Doing("robot3", "report", False, 9.0)
+
+
+def test_the_takeover_bounds_are_the_architectures_formulas():
+    patrol = ROOT / "configs" / "applications"
+    assert ALLIANCE.takeover_bound(patrol / "patrol" / "config" / "robot3_alliance_params.yaml",
+                                   "border_protection") == pytest.approx(4.5)
+    assert MURDOCH.takeover_bound(
+        patrol / "patrol_murdoch" / "config" / "robot3_murdoch_params.yaml", "wander") == \
+        pytest.approx(2.8)
+    with pytest.raises(ConfigError, match="no behaviour set for task 'nope'"):
+        ALLIANCE.takeover_bound(patrol / "patrol" / "config" / "robot3_alliance_params.yaml",
+                                "nope")
+
+
+def test_an_application_under_another_architecture_is_its_package_for_that_architecture(fixed):
+    assert resolve(MissionOptions("patrol")).package.name == "patrol"
+    run = resolve(MissionOptions("patrol", "murdoch"))
+    assert (run.package.name, run.arch.name, run.mission.name) == ("patrol_murdoch", "murdoch",
+                                                                   "patrol")
+    run = resolve(MissionOptions("patrol", "fixed"))
+    assert (run.package.name, run.arch, run.mission.name) == ("patrol_fixed", fixed, "patrol")
+    assert run.robot_params("robot3") == PATROL_FIXED / "robot3_fixed_params.yaml"
+    with pytest.raises(ConfigError, match="no architecture 'nope'"):
+        resolve(MissionOptions("patrol", "nope"))
+
+
+def fixed_team(fixed):
+    net = InProcBus()
+    clock = ManualClock(0.0)
+    agents = {}
+    for rid in ("robot2", "robot3"):
+        prepared = fixed.prepare(AgentOptions(rid, PATROL_FIXED / f"{rid}_fixed_params.yaml",
+                                              PATROL_FIXED / "tasks_fixed_params.yaml"))
+        prepared.plugins.layers.clear()  # the patrol layers are not under test here
+        agent = fixed.agent(prepared, net, clock, np.random.default_rng(0))
+        agent.start()
+        agent.declare_alive()
+        agents[rid] = agent
+    return net, clock, agents
+
+
+def test_the_driver_runs_a_third_architecture_and_its_standby_takes_over(fixed):
+    bus, clock, agents = fixed_team(fixed)
+    heard = []
+    bus.subscribe("*/fixed/doing", heard.append)
+    for _ in range(10):
+        for a in agents.values():
+            a.tick_high(clock.now())
+        clock.advance(0.1)
+    assert agents["robot3"].active_task == "report"
+    assert agents["robot3"].team == {"robot2"} and agents["robot2"].team == {"robot3"}
+    # headers carry the sender, its time and a sequence number per key (the driver's job)
+    mine = [s.message.header for s in heard if s.key == "robot2/fixed/doing"]
+    assert [h.seq for h in mine] == list(range(1, len(mine) + 1))
+    assert all(h.frame_id == "robot2" for h in mine)
+    last_word = mine[-1].stamp
+    del agents["robot2"]  # robot2 stops talking
+    took = None
+    while clock.now() < 10.0:
+        agents["robot3"].tick_high(clock.now())
+        if took is None and agents["robot3"].active_task == "border_protection":
+            took = clock.now()
+        clock.advance(0.1)
+    bound = fixed.takeover_bound(PATROL_FIXED / "robot3_fixed_params.yaml", "border_protection")
+    assert took is not None and 2.0 < took - last_word <= bound + 1e-9
+
+
+def test_the_driver_drops_forgers_and_strangers_and_counts_them(fixed):
+    bus, clock, agents = fixed_team(fixed)
+    from fixed_arch import DoingMsg
+    bus.publish("robot2/fixed/doing", DoingMsg(Header("robot9", 0.0, 1), "report"))
+    bus.publish("robot9/fixed/doing", DoingMsg(Header("robot9", 0.0, 1), "border_protection"))
+    agents["robot3"].tick_high(clock.now())
+    assert agents["robot3"].ignored_mismatch == 1 and agents["robot3"].ignored_strangers == 1
+    assert "border_protection" not in agents["robot3"].coordinator.heard
+
+
+def test_decision_history_and_inbox_are_bounded():
+    """A robot runs for days: what the agent keeps for inspection must not grow for ever."""
+    from mrta_agent.alliance.agent import HISTORY
+    prepared = ALLIANCE.prepare(AgentOptions(
+        "robot1", ROOT / "configs/applications/patrol/config/robot1_alliance_params.yaml",
+        ROOT / "configs/applications/patrol/config/tasks_alliance_params.yaml"))
+    coord = ALLIANCE.coordinator(prepared, ManualClock())
+    for i in range(HISTORY + 50):
+        coord.history.append((float(i), None))
+    assert len(coord.history) == HISTORY
+    agent = ALLIANCE.agent(prepared, InProcBus(), ManualClock())
+    for i in range(loop.INBOX + 10):
+        agent._on_token(f"robot{i}/alliance/agent", True)
+    assert len(agent._inbox) == loop.INBOX
+
+
+def test_plugins_registered_under_the_legacy_group_are_still_found(tmp_path, monkeypatch):
+    (tmp_path / "legacy_plugin.py").write_text(
+        "from mrta_agent.runtime.plugins import Layer\nclass Old(Layer):\n    pass\n")
+    dist = tmp_path / "legacy_plugin-0.1.dist-info"
+    dist.mkdir()
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: legacy-plugin\nVersion: 0.1\n")
+    (dist / "entry_points.txt").write_text(
+        "[mrta.alliance.layers]\nlegacy/old = legacy_plugin:Old\n")
+    monkeypatch.syspath_prepend(str(tmp_path))
+    assert load_plugin("layer", "legacy/old").__name__ == "Old"
+    assert load_plugin("layer", "patrol/wander").__name__ == "Wander"  # the current group
+
+
+@pytest.mark.multiprocess
+def test_mrta_demo_runs_the_patrol_mission_under_the_test_architecture(children, tmp_path):
+    """The contract is enough: nothing outside tests/ knows `fixed`."""
+    out = tmp_path / "demo"
+    children.env["PYTHONPATH"] = os.pathsep.join(
+        [str(PLUGINS), *filter(None, [os.environ.get("PYTHONPATH")])])
+    demo = children.mrta("-q", "demo", "--architecture", "fixed", "--duration", "16",
+                         "--speed", "0", "--fail", "robot2@6", "--no-live", "--output", out,
+                         name="demo")
+    assert demo.wait(150) == 0, demo.tail(30)
+    s = json.loads((out / "summary.json").read_text())
+    assert (s["mission"], s["application"], s["architecture"]) == ("patrol", "patrol_fixed",
+                                                                  "fixed")
+    assert [x["task"] for x in s["who_did_what"]["robot1"]] == ["wander"]
+    f = s["failure"]
+    assert f["task"] == "border_protection" and f["taken_over_by"] == "robot3"
+    assert f["takeover_seconds"] <= f["bound_seconds"] == pytest.approx(2.6)
+    assert s["metrics"]["collisions_total"] == 0 and s["messages"]["coordination_namespace"] == "fixed"
