@@ -1,6 +1,6 @@
 """ALLIANCE vs MURDOCH on the same patrol mission: `python benchmarks/compare_architectures.py`.
 
-Runs `mrta experiment` twice — application `patrol` (ALLIANCE) and `patrol_murdoch` (MURDOCH)
+Runs `mrta experiment` twice — application `patrol` under `alliance` and under `murdoch`
 — over the same seeds and failure scenarios, lockstep at full speed (each run's outcome depends
 on its seed only), then prints one JSON line per figure and rewrites the table between the
 markers of docs/comparison.md (the discussion around it is written by hand).
@@ -26,9 +26,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
 
-from mrta_zenoh.tools.experiment import mean_ci, run_experiment  # noqa: E402
+from mrta_supervisor.experiment import mean_ci, run_experiment  # noqa: E402
 
-ARCHITECTURES = {"ALLIANCE": "patrol", "MURDOCH": "patrol_murdoch"}
+ARCHITECTURES = {"ALLIANCE": "alliance", "MURDOCH": "murdoch"}  # title → mrta.architectures name
 TASKS = ("wander", "border_protection", "report")
 BEGIN, END = "<!-- table: begin -->", "<!-- table: end -->"
 
@@ -55,11 +55,11 @@ def main() -> int:
     out = args.output or Path(tempfile.mkdtemp(prefix="mrta-compare-"))
     out.mkdir(parents=True, exist_ok=True)
     results: dict[str, list[dict]] = {}
-    for arch, app in ARCHITECTURES.items():
-        exp = out / f"{app}.yaml"
-        exp.write_text(f"application: {app}\nduration: {args.duration}\n"
+    for arch, name in ARCHITECTURES.items():
+        exp = out / f"patrol_{name}.yaml"
+        exp.write_text(f"application: patrol\narchitecture: {name}\nduration: {args.duration}\n"
                        f"seeds: {json.dumps(args.seeds)}\nfailures: {json.dumps(args.failures)}\n")
-        results[arch] = run_experiment(file=exp, output=out / app, jobs=args.jobs)
+        results[arch] = run_experiment(file=exp, output=out / name, jobs=args.jobs)
     lines = [f"{len(args.seeds)} seeds ({', '.join(map(str, args.seeds))}) × "
              f"{len(args.failures)} failure scenarios, {args.duration:g} simulated s each, "
              "lockstep. Mean ± half-width of the 95 % interval over seeds. Coverage: share of "

@@ -6,6 +6,7 @@ time, k× faster under the simulator, and step by step in a unit test.
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
 import time
@@ -149,10 +150,11 @@ class SimClock(ManualClock):
         return self.started.is_set() and self._wall() - self._last_wall >= wall_seconds
 
 
-def follow_sim_clock(bus, clock: SimClock) -> list:
+def follow_sim_clock(bus, clock: SimClock) -> contextlib.ExitStack:
     """Subscribe `clock` to the bus's `clock` key and watch the clock source's liveliness.
 
-    The one place that makes a process follow the simulator; returns the handles to close."""
+    The one place that makes a process follow the simulator. Returns the subscriptions as one
+    resource: use it in a `with` (or enter it in the caller's ExitStack), or close() it."""
     from .keys import CLOCK, CLOCK_SOURCE_TOKEN
     from .messages import Clock as ClockMsg
 
@@ -160,9 +162,12 @@ def follow_sim_clock(bus, clock: SimClock) -> list:
         if not alive:
             clock.source_lost()
 
-    return [bus.subscribe(CLOCK, lambda s: clock.on_clock(s.message.stamp, s.message.source),
-                          msg_type=ClockMsg),
-            bus.watch_liveliness(CLOCK_SOURCE_TOKEN + "/**", on_token)]
+    with contextlib.ExitStack() as handles:  # a failure half-way closes what was opened
+        handles.enter_context(bus.subscribe(
+            CLOCK, lambda s: clock.on_clock(s.message.stamp, s.message.source),
+            msg_type=ClockMsg))
+        handles.enter_context(bus.watch_liveliness(CLOCK_SOURCE_TOKEN + "/**", on_token))
+        return handles.pop_all()
 
 
 class Rate:

@@ -10,6 +10,7 @@ that says what was wrong, never half-built.
 from __future__ import annotations
 
 import re
+from dataclasses import dataclass
 from typing import Any, Callable
 
 import msgspec
@@ -102,36 +103,71 @@ def encode(msg: Message | GenericMessage) -> bytes:
 
 # ---------------------------------------------------------------- decoding
 
-_PATH = re.compile(r" - at `\$(.*)`$")
-_KEY_PATH = re.compile(r" - at `key` in `\$(.*)`$")
+@dataclass(frozen=True)
+class ValidationFault:
+    """msgspec's ValidationError, taken apart. msgspec gives only a sentence
+    (``Expected `int`, got `str` - at `$.points[0].x` ``); both the wire codec and the parameter
+    files turn it into their own errors, so its format is read here and nowhere else — a change
+    in msgspec's wording then breaks one function and its test, not two copies of a regex."""
+
+    what: str                       # the sentence without its location, backticks kept
+    path: tuple[str | int, ...]     # from the top: field names, list indices, "..." a map value
+    in_key: bool = False            # the fault is in a map key at `path`, not in a value
+    missing: str = ""               # "Object missing required field `x`": x
+    unknown: str = ""               # "Object contains unknown field `x`": x
+    expected: str = ""              # "Expected `int`, got `str`": int …
+    got: str = ""                   # … and str
+    not_finite: bool = False        # a `Finite` float got NaN or ±inf (its ge/le bounds failed)
 
 
-def _path(msgspec_path: str) -> str:
-    """msgspec's `$.points[0].y` → our field path `points/0/y`."""
-    return re.sub(r"\[(\d+)\]", r".\1", msgspec_path).strip(".").replace(".", "/")
+_LOCATION = re.compile(r" - at (`key` in )?`\$([^`]*)`$")
+_STEP = re.compile(r"\.([^.\[]+)|\[(\d+)\]|\[(\.\.\.)\]")
+_EXPECTED = re.compile(r"^Expected `([^`]*)`(?:, got `([^`]*)`)?")
+_MISSING = re.compile(r"^Object missing required field `([^`]*)`")
+_UNKNOWN = re.compile(r"^Object contains unknown field `([^`]*)`")
+
+
+def validation_fault(exc: msgspec.ValidationError) -> ValidationFault:
+    """What msgspec says went wrong, and where (see ValidationFault)."""
+    text = str(exc)
+    m = _LOCATION.search(text)
+    what, path, in_key = text, (), False
+    if m:
+        what, in_key = text[:m.start()], bool(m.group(1))
+        path = tuple(_step(*step) for step in _STEP.findall(m.group(2)))
+    missing, unknown, expected = _MISSING.match(what), _UNKNOWN.match(what), _EXPECTED.match(what)
+    return ValidationFault(
+        what=what, path=path, in_key=in_key,
+        missing=missing.group(1) if missing else "",
+        unknown=unknown.group(1) if unknown else "",
+        expected=expected.group(1) if expected else "",
+        got=(expected.group(2) or "") if expected else "",
+        not_finite=what.startswith(("Expected `float` >=", "Expected `float` <=")))
+
+
+def _step(name: str, index: str, any_key: str) -> str | int:
+    return name or (int(index) if index else any_key)
 
 
 def _translate(exc: Exception, type_name: str) -> DecodeError:
     text = str(exc)
     if isinstance(exc, msgspec.ValidationError):
-        if _KEY_PATH.search(text):
+        fault = validation_fault(exc)
+        if fault.in_key:
             return NotMsgpack("not our wire format: a map key is not a string")
-        m = _PATH.search(text)
-        where = _path(m.group(1)) if m else ""
-        what = text[:m.start()] if m else text
-        if what.startswith("Object missing required field"):
-            return MissingField(f"{what.replace('Object missing required', 'missing')} of "
-                                f"{type_name if not where else 'this message'}"
-                                .replace("`", "'"), _join(where, _field(what)))
-        if what.startswith("Object contains unknown field"):
-            return UnknownField(what.replace("Object contains", "").strip().replace("`", "'")
-                                + f" for {type_name}", where)
-        if what.startswith("Expected `object`"):
+        where = "/".join(map(str, fault.path))
+        if fault.missing:
+            return MissingField(f"missing field '{fault.missing}' of "
+                                f"{type_name if not where else 'this message'}",
+                                f"{where}/{fault.missing}" if where else fault.missing)
+        if fault.unknown:
+            return UnknownField(f"unknown field '{fault.unknown}' for {type_name}", where)
+        if fault.expected == "object":
             return NotAMap(f"expected a map for {type_name if not where else 'this field'}, "
-                           f"got {what.rsplit('`', 2)[-2]}", where)
-        if what.startswith("Expected `float` >=") or what.startswith("Expected `float` <="):
+                           f"got {fault.got}", where)
+        if fault.not_finite:
             return NonFinite("expected a finite number", where)
-        return WrongFieldType(what.replace("`", ""), where)
+        return WrongFieldType(fault.what.replace("`", ""), where)
     if "truncated" in text:
         return TruncatedPayload("payload ends in the middle of a msgpack value")
     if "trailing characters" in text:
@@ -141,15 +177,6 @@ def _translate(exc: Exception, type_name: str) -> DecodeError:
     if "depth" in text or "recursion" in text:
         return NotMsgpack("not msgpack: nesting too deep")
     return NotMsgpack(f"not msgpack: {text}")
-
-
-def _field(what: str) -> str:
-    m = re.search(r"`([^`]*)`", what)
-    return m.group(1) if m else ""
-
-
-def _join(where: str, name: str) -> str:
-    return f"{where}/{name}" if where and name else where or name
 
 
 _decoders: dict[type, Callable[[bytes], Any]] = {}

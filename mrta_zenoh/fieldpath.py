@@ -9,11 +9,12 @@ from __future__ import annotations
 import operator
 from typing import Any
 
+from .errors import ConfigError
 from .messages import GenericMessage, Message, fields_of
 
 
-class FieldPathError(ValueError):
-    pass
+class FieldPathError(ConfigError, ValueError):
+    """A field path that does not parse, or names no field: bad input (exit 2)."""
 
 
 class FieldPath:

@@ -15,11 +15,16 @@ from __future__ import annotations
 
 import re
 
+from .errors import ConfigError
+
 CLOCK = "clock"
 CLOCK_SOURCE_TOKEN = "@mrta/clock_source"       # held by whoever publishes `clock`
 RECORDER_TOKEN = "@mrta/recorder"               # prefix; one token per recorder process
 ROS2_BRIDGE_TOKEN = "@mrta/ros2_bridge"         # prefix; /<robot>, held while it bridges
 ALL_CMD_VEL = "*/cmd_vel"
+# A recording's topic for a liveliness token's changes: `@liveliness/<token key>`. Not a key on
+# the bus — recordings, replay and plots share it, so it is written here once.
+LIVELINESS_PREFIX = "@liveliness/"
 
 # One key chunk: what robot and task ids may be. 64 characters is plenty for a name and keeps a
 # flood of forged ids from costing more than a bounded amount of memory per id.
@@ -28,8 +33,9 @@ _ID = re.compile(rf"^{ID_PATTERN}$")
 _BAD_CHARS = set("#?$ ")
 
 
-class KeyExprError(ValueError):
-    """A key expression, robot id or task id that Zenoh or our conventions would reject."""
+class KeyExprError(ConfigError, ValueError):
+    """A key expression, robot id or task id that Zenoh or our conventions would reject: bad
+    input (exit 2), like every ConfigError."""
 
 
 def is_id(text: str) -> bool:

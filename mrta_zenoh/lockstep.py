@@ -29,6 +29,7 @@ The protocol (docs/architecture.md, "lockstep"):
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import threading
 import time
@@ -86,8 +87,9 @@ class LockstepClock(SimClock):
         self._sleeping_until: float | None = None  # the main loop waits for this time
         self._publish_done: Callable[[float, float], None] | None = None
 
-    def join(self, bus) -> list:
-        """Count traffic, follow steps, and announce the participant; returns the handles."""
+    def join(self, bus) -> contextlib.ExitStack:
+        """Count traffic, follow steps, and announce the participant; returns the handles as
+        one ExitStack (closing it leaves the barrier)."""
         self._bus = bus
         bus.counting = True
         done_key = f"{DONE}/{self.participant}"
@@ -104,7 +106,10 @@ class LockstepClock(SimClock):
         # while steps are pending, every received sample may be the one they wait for
         bus.on_counted = self._release
         handles.append(bus.declare_token(f"{PARTICIPANT}/{self.participant}"))
-        return handles
+        stack = contextlib.ExitStack()
+        for h in handles:
+            stack.callback(h.close)
+        return stack
 
     def _on_barrier(self, key: str, alive: bool) -> None:
         if alive:
@@ -161,7 +166,8 @@ class LockstepClock(SimClock):
 
 
 class Barrier:
-    """The simulator's side: whom to wait for, and waiting."""
+    """The simulator's side: whom to wait for, and waiting. A context manager: leaving it
+    withdraws the barrier's token and subscriptions (close())."""
 
     def __init__(self, bus, run_id: str, timeout: float = 5.0):
         self.bus = bus
@@ -230,7 +236,7 @@ class Barrier:
                 if p in self.unresponsive:
                     continue
                 d = self.done.get(p)
-                if d is None or d.next < 0 or d.next <= stamp + 1e-9:
+                if d is None or d.next < 0 or d.next <= stamp + EPSILON:
                     return True
         return False
 
@@ -272,3 +278,9 @@ class Barrier:
     def close(self) -> None:
         for h in self.handles:
             h.close()
+
+    def __enter__(self) -> "Barrier":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()

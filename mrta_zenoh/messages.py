@@ -52,7 +52,12 @@ class Message(msgspec.Struct, frozen=True, forbid_unknown_fields=True, gc=False)
 
 _REGISTRY: dict[str, type[Message]] = {}
 _lock = threading.Lock()
-_entry_points_loaded = False
+# Loading imports modules whose @message takes `_lock`, and such a module may itself decode
+# while it is imported: hence a separate, re-entrant lock for loading, and `_loading` so that a
+# re-entrant call returns at once instead of loading the group a second time.
+_load_lock = threading.RLock()
+_loading = False
+_entry_points_loaded = False  # set only once every entry point has been imported
 _entry_point_problems: list[str] = []
 
 
@@ -75,11 +80,29 @@ def message(type_name: str):
 
 
 def load_entry_points() -> list[str]:
-    """Import every module listed under `mrta.messages`; returns the problems met (once)."""
-    global _entry_points_loaded
-    if _entry_points_loaded:
+    """Import every module listed under `mrta.messages`; returns the problems met (once).
+
+    Threads that ask while another is loading wait for it: were they told "loaded" early, they
+    would see a partial registry and decode a registered type as GenericMessage for good (the
+    decoder of an encoding is resolved once and cached by its caller)."""
+    global _entry_points_loaded, _loading
+    if _entry_points_loaded:  # the fast path: no lock once loaded
         return _entry_point_problems
-    _entry_points_loaded = True
+    with _load_lock:
+        if _entry_points_loaded or _loading:  # loaded meanwhile, or this thread is loading
+            return _entry_point_problems
+        _loading = True
+        try:
+            _load_group()
+        finally:  # after an unexpected error too: the group is tried once per process
+            _loading = False
+            _entry_points_loaded = True
+    for p in _entry_point_problems:
+        log.warning("%s", p)
+    return _entry_point_problems
+
+
+def _load_group() -> None:
     for ep in entry_points(group=ENTRY_POINT_GROUP):
         module, _, attr = ep.value.partition(":")
         try:
@@ -91,9 +114,6 @@ def load_entry_points() -> list[str]:
             _entry_point_problems.append(
                 f"message entry point {ep.name!r} ({ep.value}) does not name a class registered "
                 f"with @message({ep.name!r})")
-    for p in _entry_point_problems:
-        log.warning("%s", p)
-    return _entry_point_problems
 
 
 def message_class(type_name: str) -> type[Message] | None:

@@ -90,7 +90,7 @@ class McapRecorder:
         self._q.put((t or time.time_ns(), key, encoding, payload))
 
     def liveliness(self, key: str, alive: bool, t: int | None = None) -> None:
-        self._q.put((t or time.time_ns(), f"@liveliness/{key}", "application/json",
+        self._q.put((t or time.time_ns(), keys.LIVELINESS_PREFIX + key, "application/json",
                      json.dumps({"alive": alive}).encode()))
 
     def add(self, topic: str, schema: tuple[str, str, bytes], message_encoding: str,
@@ -115,7 +115,7 @@ class McapRecorder:
             ch = self._w.register_channel(topic=key, message_encoding=msg_enc,
                                           schema_id=self._schema(name, schema_enc, data))
             entry = (ch, None)
-        elif key.startswith("@liveliness/"):
+        elif key.startswith(keys.LIVELINESS_PREFIX):
             sid = self._schema("liveliness", "jsonschema", json.dumps(LIVELINESS_SCHEMA).encode())
             entry = (self._w.register_channel(topic=key, message_encoding="json", schema_id=sid,
                                               metadata={"encoding": encoding, "type": ""}), None)
@@ -164,10 +164,19 @@ class McapRecorder:
                 next_flush = time.monotonic() + self.flush_every
 
     def close(self) -> None:
+        """Write what is queued, finish the file (its summary and index); once."""
+        if self._f.closed:
+            return
         self._q.put(None)
         self._thread.join()
         self._w.finish()
         self._f.close()
+
+    def __enter__(self) -> "McapRecorder":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
 
 class Recovered(list):

@@ -7,9 +7,10 @@ fails. Roles:
 
 * **robot** (CN = robot id): may publish and declare liveliness tokens under `<id>/**`; may
   subscribe to anything (teammates' broadcasts, its sensors, the clock).
-* **simulator** (CN = `simulator`): publishes the clock and every robot's sensor streams
-  (`*/sonar`, `*/odom`, `*/ground_truth`, `*/bumper`), holds the clock-source token, and
-  subscribes to `*/cmd_vel` — the keys its role needs, nothing more.
+* **a registered role** (CN = the role's name): a program that is neither a robot nor an
+  observer — the simulator — declares under the `mrta.secure.roles` entry-point group the keys
+  it publishes on and the tokens it holds, and may do that and nothing more. The program knows
+  its keys; this module only turns them into rules, so it never names another package's topics.
 * **observer** (supervisor, recorder, …): may subscribe and watch liveliness; may not publish
   and may not declare tokens.
 * anything without a certificate signed by the CA cannot even connect.
@@ -22,7 +23,9 @@ from __future__ import annotations
 import datetime
 import ipaddress
 import json
+from collections.abc import Mapping
 from dataclasses import dataclass
+from importlib.metadata import entry_points
 from pathlib import Path
 
 from cryptography import x509
@@ -31,11 +34,14 @@ from cryptography.hazmat.primitives.asymmetric import ec
 from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
 from .errors import ConfigError
-from .keys import CLOCK, CLOCK_SOURCE_TOKEN, is_id, normalize_robot_id
+from .files import write_folder
+from .keys import KeyExprError, is_id, normalize_robot_id, validate_key_expr
 
 DEFAULT_ENDPOINT = "tls/127.0.0.1:7448"
 VALID_DAYS = 365
-SIMULATOR = "simulator"
+SIMULATOR = "simulator"  # the registered role `init(simulator=True)` adds (`--no-simulator`)
+ROLE_GROUP = "mrta.secure.roles"
+EVERYTHING = ("**", "@mrta/**")  # what every role may subscribe to unless it says otherwise
 
 DATA = ["put", "delete"]
 SUBSCRIBE = ["declare_subscriber", "declare_liveliness_subscriber", "liveliness_query", "query"]
@@ -49,7 +55,54 @@ DELIVER = DATA + TOKENS + ["declare_subscriber", "declare_liveliness_subscriber"
 @dataclass(frozen=True)
 class Identity:
     name: str
-    role: str  # robot | simulator | observer
+    role: str  # robot | observer | the name of a registered role
+
+
+@dataclass(frozen=True)
+class Role:
+    """What a registered role may do: publish (put, delete) on `publish`, declare liveliness
+    tokens under `tokens`, subscribe and query on `subscribe`."""
+
+    publish: tuple[str, ...] = ()
+    tokens: tuple[str, ...] = ()
+    subscribe: tuple[str, ...] = EVERYTHING
+
+
+def registered_role(name: str) -> Role:
+    """The role `name` as its package registers it under `mrta.secure.roles`: a mapping, or a
+    function returning one, with `publish`, `tokens` and optionally `subscribe` (lists of key
+    expressions). ConfigError if none is registered or it is malformed: a fleet generated from a
+    guess would either not run or let a process do more than it should."""
+    found = [ep for ep in entry_points(group=ROLE_GROUP) if ep.name == name]
+    if not found:
+        known = sorted({ep.name for ep in entry_points(group=ROLE_GROUP)})
+        raise ConfigError(f"no role {name!r} is registered under the {ROLE_GROUP} entry points "
+                          f"(registered: {', '.join(known) or 'none'}); is its package installed?")
+    ep = found[0]
+    where = f"role {name!r} ({ep.value})"
+    try:
+        spec = ep.load()
+    except (ImportError, AttributeError) as exc:
+        raise ConfigError(f"{where} cannot be loaded: {exc}") from None
+    if callable(spec):
+        spec = spec()
+    if not isinstance(spec, Mapping):
+        raise ConfigError(f"{where} must give a mapping of publish/tokens/subscribe, "
+                          f"got {type(spec).__name__}")
+    unknown = sorted(set(spec) - {"publish", "tokens", "subscribe"})
+    if unknown:
+        raise ConfigError(f"{where}: unknown entry {unknown[0]!r} (expected publish, tokens, "
+                          "subscribe)")
+    lists = {}
+    for what, value in spec.items():
+        if isinstance(value, str) or not isinstance(value, (list, tuple)) \
+                or not all(isinstance(v, str) for v in value):
+            raise ConfigError(f"{where}: {what!r} must be a list of key expressions")
+        try:
+            lists[what] = tuple(validate_key_expr(v) for v in value)
+        except KeyExprError as exc:
+            raise ConfigError(f"{where}: {what!r}: {exc}") from None
+    return Role(**lists)
 
 
 def _name(common_name: str) -> x509.Name:
@@ -93,25 +146,25 @@ def _cert(subject: str, key, issuer_name: x509.Name, issuer_key, ca: bool,
 def rules_for(identity: Identity) -> list[dict]:
     """The router's access-control rules for one identity (see the module docstring)."""
     n = identity.name
+    everything = list(EVERYTHING)
     if identity.role == "robot":
         return [
             {"messages": DATA, "flows": ["ingress"], "key_exprs": [f"{n}/**"]},
             {"messages": TOKENS, "flows": ["ingress"], "key_exprs": [f"{n}/**"]},
-            {"messages": SUBSCRIBE, "flows": ["ingress"], "key_exprs": ["**", "@mrta/**"]},
-            {"messages": DELIVER, "flows": ["egress"], "key_exprs": ["**", "@mrta/**"]},
+            {"messages": SUBSCRIBE, "flows": ["ingress"], "key_exprs": everything},
+            {"messages": DELIVER, "flows": ["egress"], "key_exprs": everything},
         ]
-    if identity.role == "simulator":
-        sensors = [f"*/{t}" for t in ("sonar", "odom", "ground_truth", "bumper")]
+    if identity.role == "observer":
         return [
-            {"messages": DATA, "flows": ["ingress"], "key_exprs": [CLOCK, *sensors]},
-            {"messages": TOKENS, "flows": ["ingress"], "key_exprs": [f"{CLOCK_SOURCE_TOKEN}/**"]},
-            {"messages": SUBSCRIBE, "flows": ["ingress"], "key_exprs": ["**", "@mrta/**"]},
-            {"messages": DELIVER, "flows": ["egress"], "key_exprs": ["**", "@mrta/**"]},
+            {"messages": SUBSCRIBE, "flows": ["ingress"], "key_exprs": everything},
+            {"messages": DELIVER, "flows": ["egress"], "key_exprs": everything},
         ]
-    return [  # observer
-        {"messages": SUBSCRIBE, "flows": ["ingress"], "key_exprs": ["**", "@mrta/**"]},
-        {"messages": DELIVER, "flows": ["egress"], "key_exprs": ["**", "@mrta/**"]},
-    ]
+    role = registered_role(identity.role)
+    rules = [{"messages": DATA, "flows": ["ingress"], "key_exprs": list(role.publish)},
+             {"messages": TOKENS, "flows": ["ingress"], "key_exprs": list(role.tokens)},
+             {"messages": SUBSCRIBE, "flows": ["ingress"], "key_exprs": list(role.subscribe)},
+             {"messages": DELIVER, "flows": ["egress"], "key_exprs": everything}]
+    return [r for r in rules if r["key_exprs"]]  # a rule on no key would not be valid
 
 
 def access_control(identities: list[Identity]) -> dict:
@@ -167,7 +220,8 @@ def init(folder: Path, robots: list[str], observers: list[str], *,
         raise ConfigError(f"router endpoint {endpoint!r}: mutual TLS needs a tls/… endpoint")
     ids = [Identity(normalize_robot_id(r), "robot") for r in robots]
     if simulator:
-        ids.append(Identity(SIMULATOR, "simulator"))
+        registered_role(SIMULATOR)  # a missing or broken registration fails before any key is made
+        ids.append(Identity(SIMULATOR, SIMULATOR))
     for o in observers:
         if not is_id(o):
             raise ConfigError(f"observer name {o!r}: use letters, digits, '_', '-' or '.'")
@@ -199,27 +253,5 @@ def init(folder: Path, robots: list[str], observers: list[str], *,
     for i in ids:
         files[f"{i.name}.json5"] = json.dumps(client_config(target, i.name, endpoint),
                                               indent=2).encode()
-    return _write_all(folder, files)
-
-
-def _write_all(folder: Path, files: dict[str, bytes]) -> list[Path]:
-    """Everything or nothing: written to a sibling temporary folder, then moved in place."""
-    import os
-    import shutil
-    import tempfile
-
-    folder.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=folder.parent))
-    try:
-        for name, data in files.items():
-            p = tmp / name
-            p.write_bytes(data)
-            if name.endswith(".key"):
-                os.chmod(p, 0o600)
-        if folder.exists():
-            shutil.rmtree(folder)
-        tmp.rename(folder)
-    except OSError as exc:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise ConfigError(f"cannot write {folder}: {exc.strerror}") from None
-    return [folder / n for n in files]
+    # everything or nothing, private keys readable by their owner only
+    return write_folder(folder, files, modes={n: 0o600 for n in files if n.endswith(".key")})

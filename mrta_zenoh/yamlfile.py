@@ -7,13 +7,13 @@ parameter files and the config toolchain.
 from __future__ import annotations
 
 import difflib
-import re
 from pathlib import Path
 from typing import Any
 
 import msgspec
 import yaml
 
+from .codec import validation_fault
 from .errors import ConfigError
 
 
@@ -45,19 +45,15 @@ class YamlDoc:
         try:
             return msgspec.convert(data, kind, strict=True)
         except msgspec.ValidationError as exc:
-            text = str(exc)
-            where = re.search(r" - at `\$\.?([^`]*)`$", text)
-            sub = tuple(p for p in re.split(r"[.\[\]]+", where.group(1)) if p) if where else ()
-            what = text[:where.start()] if where else text
-            unknown = re.match(r"Object contains unknown field `([^`]*)`", what)
-            if unknown:
-                key = unknown.group(1)
+            fault = validation_fault(exc)
+            where = path + fault.path
+            if fault.unknown:
+                key = fault.unknown
                 fields = getattr(kind, "__struct_fields__", ())
-                raise self.error(path + sub + (key,), f"unknown key {key!r}"
+                raise self.error(where + (key,), f"unknown key {key!r}"
                                  + did_you_mean(key, fields)) from None
-            if "float` >=" in what or "float` <=" in what:
-                what = "expected a finite number"
-            raise self.error(path + sub, what.replace("`", "")) from None
+            what = "expected a finite number" if fault.not_finite else fault.what.replace("`", "")
+            raise self.error(where, f"a key: {what}" if fault.in_key else what) from None
 
     def warning(self, path: tuple, message: str) -> str:
         """The same `file:line: 'key': message` text as error(), for legal but suspicious values."""

@@ -2,11 +2,13 @@
 
 from __future__ import annotations
 
+import contextlib
 import logging
 import math
 import os
 import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 from mrta_zenoh import keys
@@ -88,68 +90,105 @@ def place_robots(world: World, specs: list[tuple[str, str | Pose | None]]) -> di
     return {rid: poses[rid] for rid in ids}
 
 
-def run_simulator(*, world: str, robots: list[str], bus_options: BusOptions, speed: float = 1.0,
-                  seed: int = 0, duration: float | None = None, snapshot: Path | None = None,
-                  rear_sonars: bool = False, wait_robots: float | None = None,
-                  lockstep: bool = False, lockstep_timeout: float = 5.0,
-                  ros2: list[str] | None = None, ros2_domain: int = 0,
-                  ros2_sonar_type: str = "pointcloud", ros2_distro: str = "jazzy",
+@dataclass(frozen=True)
+class SimOptions:
+    """Everything `mrta sim` is asked to do, checked once when built (bad values are bad input,
+    exit 2, before anything opens): the verb builds one from its options, a Python caller
+    directly. `robots`: `ID`, `ID=START` or `ID=x,y[,theta_degrees]` (parse_robot); `ros2`: the
+    robots served as ROS 2 robots instead of on our keys."""
+
+    world: str
+    robots: tuple[str, ...]
+    speed: float = 1.0
+    seed: int = 0
+    duration: float | None = None
+    snapshot: Path | None = None
+    rear_sonars: bool = False
+    wait_robots: float | None = None
+    lockstep: bool = False
+    lockstep_timeout: float = 5.0
+    ros2: tuple[str, ...] = ()
+    ros2_domain: int = 0
+    ros2_sonar_type: str = "pointcloud"
+    ros2_distro: str = "jazzy"
+
+    def __post_init__(self) -> None:
+        # sequences given as lists stay usable, and the options stay hashable
+        object.__setattr__(self, "robots", tuple(self.robots))
+        object.__setattr__(self, "ros2", tuple(self.ros2))
+        if self.speed < 0 or not math.isfinite(self.speed):
+            raise ConfigError(f"--speed must be a finite number ≥ 0, got {self.speed}")
+        if self.duration is not None and not (math.isfinite(self.duration) and self.duration > 0):
+            raise ConfigError(f"--duration must be a positive finite number, got {self.duration}")
+        if not self.robots:
+            raise ConfigError("give at least one --robot")
+        if self.ros2 and self.lockstep:
+            raise ConfigError("--ros2 and --lockstep exclude each other: a ROS 2 robot's driver "
+                              "and bridge run on their own time, so its runs could not be "
+                              "reproduced")
+        if self.ros2_sonar_type not in SONAR_TYPES:
+            raise ConfigError(f"--ros2-sonar-type {self.ros2_sonar_type!r}: expected one of "
+                              f"{', '.join(SONAR_TYPES)}")
+
+
+def run_simulator(options: SimOptions, bus_options: BusOptions,
                   stop: threading.Event | None = None) -> RunStats:
-    world_spec, robot_specs = world, robots
-    if speed < 0 or not math.isfinite(speed):
-        raise ConfigError(f"--speed must be a finite number ≥ 0, got {speed}")
-    if duration is not None and not (math.isfinite(duration) and duration > 0):
-        raise ConfigError(f"--duration must be a positive finite number, got {duration}")
-    if not robot_specs:
-        raise ConfigError("give at least one --robot")
-    if snapshot is not None and not Path(snapshot).parent.resolve().is_dir():
-        raise ConfigError(f"--snapshot {snapshot}: folder {Path(snapshot).parent} does not exist")
-    world = load_world(resolve_world(world_spec))
-    robots = place_robots(world, [parse_robot(s) for s in robot_specs])
-    ros2_ids = [keys.normalize_robot_id(r) for r in ros2 or []]
+    """Load the world, place the robots and run the simulation on the bus until the duration
+    (simulated) is reached or `stop` is set; the run's statistics."""
+    o = options
+    if o.snapshot is not None and not Path(o.snapshot).parent.resolve().is_dir():
+        raise ConfigError(f"--snapshot {o.snapshot}: folder {Path(o.snapshot).parent} does not "
+                          "exist")
+    world = load_world(resolve_world(o.world))
+    robots = place_robots(world, [parse_robot(s) for s in o.robots])
+    ros2_ids = [keys.normalize_robot_id(r) for r in o.ros2]
     for rid in ros2_ids:
         if rid not in robots:
             raise ConfigError(f"--ros2 {rid}: not one of the simulated robots "
                               f"({', '.join(robots)})")
-    if ros2_ids and lockstep:
-        raise ConfigError("--ros2 and --lockstep exclude each other: a ROS 2 robot's driver and "
-                          "bridge run on their own time, so its runs could not be reproduced")
-    if ros2_sonar_type not in SONAR_TYPES:
-        raise ConfigError(f"--ros2-sonar-type {ros2_sonar_type!r}: expected one of "
-                          f"{', '.join(SONAR_TYPES)}")
     for note in world.notes:
         log.info("%s: %s", world.source, note)
-    sim = Simulation(world, robots, RobotModel(rear_sonars=rear_sonars), seed=seed,
-                     record_trails=snapshot is not None)
+    sim = Simulation(world, robots, RobotModel(rear_sonars=o.rear_sonars), seed=o.seed,
+                     record_trails=o.snapshot is not None)
     run_id = os.urandom(6).hex()  # tells followers a restarted simulator from this run
-    with stop_on_signals(stop) as stop, open_bus(bus_options) as bus:
-        bus.counting = lockstep  # from the start: lockstep counts the commands it receives
-        driver = (lambda command: Ros2Driver(bus, ros2_ids, command, domain=ros2_domain,
-                                             distro=ros2_distro, sonar_type=ros2_sonar_type)
+    with contextlib.ExitStack() as resources:
+        stop = resources.enter_context(stop_on_signals(stop))
+        bus = resources.enter_context(open_bus(bus_options))
+        bus.counting = o.lockstep  # from the start: lockstep counts the commands it receives
+        driver = (lambda command: Ros2Driver(bus, ros2_ids, command, domain=o.ros2_domain,
+                                             distro=o.ros2_distro,
+                                             sonar_type=o.ros2_sonar_type)
                   ) if ros2_ids else None
-        node = SimNode(sim, bus, speed, run_id=run_id, ros2=driver)
-        if wait_robots is not None and not wait_for_robots(bus, list(robots), wait_robots, stop):
+        node = resources.enter_context(SimNode(sim, bus, o.speed, run_id=run_id, ros2=driver))
+        if o.wait_robots is not None and not wait_for_robots(bus, list(robots), o.wait_robots,
+                                                             stop):
             return node.stats
-        barrier = Barrier(bus, run_id, lockstep_timeout) if lockstep else None
-        if barrier is not None:
+        barrier = None
+        if o.lockstep:
+            barrier = resources.enter_context(Barrier(bus, run_id, o.lockstep_timeout))
             barrier.settle()  # the participants already up are heard
-        with bus.declare_token(f"{keys.CLOCK_SOURCE_TOKEN}/{run_id}"):
-            log.info("ready: %d robots in %s (%d walls), speed %s, seed %d%s", len(robots),
-                     world.name, len(world.walls), speed if speed else "max", seed,
-                     f", lockstep with {len(barrier.participants)} participants"
-                     if barrier is not None else "")
-            try:
-                stats = node.run(stop, duration, barrier)
-            finally:
-                node.close()
-                if barrier is not None:
-                    barrier.close()
-                if snapshot is not None:
-                    save_snapshot(sim, snapshot)
-                    log.info("snapshot written to %s", snapshot)
+        if o.snapshot is not None:  # also when the run fails: the picture shows how far it got
+            resources.callback(_snapshot, sim, o.snapshot)
+        resources.enter_context(bus.declare_token(f"{keys.CLOCK_SOURCE_TOKEN}/{run_id}"))
+        log.info("ready: %s in %s (%d walls), speed %s, seed %d%s",
+                 _plural(len(robots), "robot"), world.name, len(world.walls),
+                 o.speed if o.speed else "max", o.seed,
+                 f", lockstep with {_plural(len(barrier.participants), 'participant')}"
+                 if barrier is not None else "")
+        stats = node.run(stop, o.duration, barrier)
     log.info("done: %.1f s simulated in %.1f s (%.1f× real time), %d commands",
              stats.sim_time, stats.wall_time, stats.real_time_factor, stats.commands)
     return stats
+
+
+def _snapshot(sim: Simulation, path: Path) -> None:
+    save_snapshot(sim, path)
+    log.info("snapshot written to %s", path)
+
+
+def _plural(n: int, word: str) -> str:
+    """`1 robot`, `3 robots` in the log (the CLI's helper is out of reach of the library)."""
+    return f"{n} {word if n == 1 else word + 's'}"
 
 
 def wait_for_robots(bus, robot_ids: list[str], timeout: float, stop: threading.Event) -> bool:

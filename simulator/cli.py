@@ -1,4 +1,4 @@
-"""`mrta sim`: a thin click wrapper over simulator.api.run_simulator."""
+"""`mrta sim`: a thin click wrapper over simulator.api.run_simulator (its options: SimOptions)."""
 
 from __future__ import annotations
 
@@ -7,16 +7,16 @@ from pathlib import Path
 import click
 
 from mrta_zenoh.bus import BusOptions
-from mrta_zenoh.cli.common import bus_options, finite_float, user_errors
-
+from mrta_zenoh.cli.common import bus_options, finite_float
 from mrta_zenoh.ros2.types import SONAR_TYPES
 
-from .api import run_simulator
+from .api import SimOptions, run_simulator
 
 
 @click.command()
-@click.option("--world", "world_spec", required=True, metavar="FILE|NAME",
-              help="A YAML world, a MobileSim .map, or or a world a registered package ships (patrol).")
+@click.option("--world", required=True, metavar="FILE|NAME",
+              help="A YAML world, a MobileSim .map, or the name of a world a registered package "
+                   "ships.")
 @click.option("--robot", "robots", multiple=True, required=True, metavar="ID[=x,y,theta]",
               help="A robot and its start: a pose (metres, degrees), a named start, or nothing "
                    "to use the start named like the robot or the next free one. Repeatable.")
@@ -45,15 +45,6 @@ from .api import run_simulator
 @click.option("--ros2-sonar-type", type=click.Choice(sorted(SONAR_TYPES)), default="pointcloud",
               show_default=True, help="How the ROS 2 robots publish their sonar.")
 @bus_options
-def sim(world_spec: str, robots: tuple[str, ...], speed: float, seed: int,
-        duration: float | None, snapshot: Path | None, rear_sonars: bool,
-        wait_robots: float | None, lockstep: bool, lockstep_timeout: float,
-        ros2: tuple[str, ...], ros2_domain: int, ros2_sonar_type: str,
-        bus_options: BusOptions) -> None:
+def sim(bus_options: BusOptions, **options) -> None:
     """Simulate Pioneer 3-DX robots: cmd_vel in; clock, sonar, odom, ground_truth, bumper out."""
-    with user_errors():
-        run_simulator(world=world_spec, robots=list(robots), bus_options=bus_options, speed=speed,
-                      seed=seed, duration=duration, snapshot=snapshot, rear_sonars=rear_sonars,
-                      wait_robots=wait_robots, lockstep=lockstep,
-                      lockstep_timeout=lockstep_timeout, ros2=list(ros2),
-                      ros2_domain=ros2_domain, ros2_sonar_type=ros2_sonar_type)
+    run_simulator(SimOptions(**options), bus_options)  # each option is named as its field

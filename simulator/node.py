@@ -14,6 +14,7 @@ from dataclasses import dataclass
 
 from mrta_zenoh import keys
 from mrta_zenoh.bus import Bus
+from mrta_zenoh.clock import EPSILON
 from mrta_zenoh.lockstep import Barrier
 from mrta_zenoh.messages import Clock, Header, Odometry, Point2D, PointCloud, Pose2D, Twist
 
@@ -125,7 +126,7 @@ class SimNode:
             self.bus.publish(keys.CLOCK, Clock(sim.time, self.run_id), lossy=True)
         wall0, sim0 = self._monotonic(), sim.time
         while not stop.is_set():
-            if duration is not None and sim.time >= duration - 1e-9:
+            if duration is not None and sim.time >= duration - EPSILON:
                 break
             self._apply_commands()
             sim.step()
@@ -177,4 +178,10 @@ class SimNode:
         self._sub.close()
         if self.ros2 is not None:
             self.ros2.close()
+
+    def __enter__(self) -> "SimNode":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 

@@ -1,4 +1,5 @@
-"""A picture of the world: walls, border, robots with heading, sonar beams and trails.
+"""A picture of the world: walls, its border (if it has one), robots with heading, sonar beams
+and trails.
 
 Users would rather look than read: one PNG answers "where did the robots go and what did they see".
 """
@@ -14,6 +15,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.collections import LineCollection  # noqa: E402
 from matplotlib.patches import Circle  # noqa: E402
+from mrta_zenoh.files import save_figure  # noqa: E402
 
 from .engine import Simulation  # noqa: E402
 from .sonar import sonar_origins  # noqa: E402
@@ -35,7 +37,7 @@ def save_snapshot(sim: Simulation, path: Path | str, title: str | None = None,
                                          linewidths=2))
         if sim.world.border is not None:
             b = np.vstack([sim.world.border, sim.world.border[:1]])
-            ax.plot(b[:, 0], b[:, 1], "--", color="tab:orange", lw=1, label="patrol border")
+            ax.plot(b[:, 0], b[:, 1], "--", color="tab:orange", lw=1, label="border")
         colors = plt.cm.tab10(np.arange(len(sim.ids)) % 10)
         if sim.trails is not None and len(sim.trails) > 1:
             trail = np.stack(sim.trails)  # (T, N, 2)
@@ -59,9 +61,7 @@ def save_snapshot(sim: Simulation, path: Path | str, title: str | None = None,
         ax.set_ylabel("y (m)")
         ax.set_title(title or f"{sim.world.name} at t = {sim.time:.1f} s")
         fig.tight_layout()
-        tmp = path.with_name(path.name + ".tmp")
-        fig.savefig(tmp, format="png")
-        tmp.replace(path)  # a half-written PNG never sits at the requested name
+        save_figure(fig, path)  # a half-written PNG never sits at the requested name
     finally:
         plt.close(fig)
     return path

@@ -1,17 +1,21 @@
-"""Worlds: static walls, named start poses and an optional patrol border, in metres.
+"""Worlds: static walls, named start poses and an optional border, in metres.
+
+The border is a closed polygon inside the world that means nothing to the physics: it is there
+for whoever needs an outline of the world (an application's boundary to follow or to protect,
+the snapshot's dashed line); without one, the walls serve (`World.border_segments`).
 
 Two file formats load into the same `World`:
 
 * **YAML** (ours, documented in docs/worlds.md)::
 
-      name: patrol
+      name: arena
       walls:
         - segment: [x1, y1, x2, y2]          # metres
         - polygon: [[x, y], [x, y], ...]     # closed outline
         - polyline: [[x, y], [x, y], ...]    # open chain
       robots:                                 # named start poses: x, y, theta in degrees
         robot1: [-10.0, 0.0, 0]
-      border: [[x, y], ...]                   # optional polygon the patrol protects
+      border: [[x, y], ...]                   # optional closed polygon inside the world
 
 * **MobileSim `.map`** (the original's maps): the `LINES` section (x1 y1 x2 y2 in millimetres) and
   `Cairn: RobotHome x y theta` start poses (named home0, home1, … in file order). Other sections

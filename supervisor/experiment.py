@@ -38,7 +38,7 @@ from typing import Any
 
 from mrta_zenoh.errors import ConfigError, Interrupted
 from mrta_zenoh.failure import parse_failure
-from mrta_zenoh.files import write_text
+from mrta_zenoh.files import write_atomically, write_text
 from mrta_zenoh.keys import LIVELINESS_PREFIX
 from mrta_zenoh.processes import ProcessGroup, mrta_argv
 from mrta_zenoh.recording import read_recording
@@ -281,13 +281,15 @@ def _write_csv(path: Path, rows: list[dict], fields: list[str]) -> list[str]:
         for k in r:
             if k not in fields:
                 fields.append(k)
-    tmp = path.with_name(path.name + ".tmp")
-    with tmp.open("w", newline="") as f:
-        w = csv.DictWriter(f, fieldnames=fields)
-        w.writeheader()
-        for r in rows:
-            w.writerow(r)
-    tmp.replace(path)
+
+    def write(tmp: Path) -> None:
+        with tmp.open("w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=fields)
+            w.writeheader()
+            for r in rows:
+                w.writerow(r)
+
+    write_atomically(path, write)
     return fields
 
 

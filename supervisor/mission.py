@@ -94,7 +94,7 @@ class Mission:
 class MissionOptions:
     """One mission run, as `mrta demo` and `mrta experiment` ask for it."""
 
-    application: str = "patrol"
+    application: str | None = None    # None: the one registered mission (mrta.missions)
     architecture: str | None = None   # None: the one the application package names
     duration: float = 60.0            # simulated seconds
     speed: float = 2.0                # simulated seconds per wall second; 0: as fast as possible
@@ -130,6 +130,17 @@ def missions() -> dict:
     return {ep.name: ep for ep in entry_points(group=MISSIONS_GROUP)}
 
 
+def default_application() -> str:
+    """The application `mrta demo` runs when none is named: the only one that registers a
+    mission (the framework names no application of its own)."""
+    names = sorted(missions())
+    if len(names) != 1:
+        raise ConfigError("name the application to run with --application: "
+                          + (f"the registered missions are {', '.join(names)}" if names
+                             else f"no application registers a mission under {MISSIONS_GROUP}"))
+    return names[0]
+
+
 def _mission_of(reg: Registry, pkg: Package) -> Mission:
     """The mission of an application package: its own, or that of a package it depends on
     (patrol_murdoch depends on patrol)."""
@@ -152,16 +163,17 @@ def resolve(options: MissionOptions, reg: Registry | None = None) -> MissionRun:
     """The application package, mission and architecture a run uses (ConfigError on bad input,
     before anything starts)."""
     reg = reg or Registry()
-    pkg, app = reg.application(options.application)
+    application = options.application or default_application()
+    pkg, app = reg.application(application)
     if options.architecture is not None and options.architecture != app.architecture:
         arch = architecture(options.architecture)  # unknown names: ConfigError listing them
         candidates = [(p, a) for p, a in reg.applications()
-                      if a.architecture == arch.name and options.application in p.depends]
+                      if a.architecture == arch.name and application in p.depends]
         if not candidates:
             raise ConfigError(
-                f"no application package runs {options.application!r} under {arch.name!r}: "
+                f"no application package runs {application!r} under {arch.name!r}: "
                 f"register one whose rqt_mrta.xml names <architecture>{arch.name}</architecture> "
-                f"and whose package.xml depends on {options.application} (`mrta app new`)")
+                f"and whose package.xml depends on {application} (`mrta app new`)")
         pkg, app = sorted(candidates, key=lambda c: c[0].name)[0]
     arch = architecture(app.architecture)
     _, arch_model = reg.architecture(app.architecture)

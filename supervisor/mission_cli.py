@@ -19,12 +19,13 @@ from .view import render
 
 
 @click.command()
-@click.option("--application", default="patrol", show_default=True,
-              help="The application whose mission to run (mrta app list).")
+@click.option("--application", default=None,
+              help="The application whose mission to run (mrta app list); default: the only "
+                   "one that registers a mission.")
 @click.option("--architecture", default=None,
               help="Run it under this architecture (mrta arch list); default: the one the "
-                   "application names. Needs an application package configured for it "
-                   "(patrol under murdoch: patrol_murdoch).")
+                   "application names. Needs an application package configured for it, "
+                   "made with `mrta app new`.")
 @click.option("--duration", type=finite_float(min=0, min_open=True), default=60.0,
               show_default=True, help="Simulated seconds of mission.")
 @click.option("--speed", type=finite_float(min=0), default=2.0, show_default=True,
@@ -93,7 +94,8 @@ class _LiveView:
         o = self.options
         fail = "" if not o.fail or o.fail == "none" else (
             f" · killed at {failed_at:.1f} s" if failed_at is not None else f" · --fail {o.fail}")
-        header = Text(f"mrta demo · {o.application} · simulated {now:5.1f} / {o.duration:.0f} s"
+        app = f" · {o.application}" if o.application else ""
+        header = Text(f"mrta demo{app} · simulated {now:5.1f} / {o.duration:.0f} s"
                       f" · speed {o.speed or 'max'}{fail}", style="bold")
         body = Group(header, render(sup.snapshot(now), self.console.width))
         if self.live is None:

@@ -1,10 +1,13 @@
-"""A team of ALLIANCE high levels on virtual time, with an imperfect network between them.
+"""A team of real ALLIANCE agents on virtual time, with an imperfect network between them.
 
-Each robot ticks at its own rate and phase, as `Agent.run` does: broadcasts received since the
-last tick are applied with their reception times, then `HighLevel.tick`, then a broadcast when
-one is due (broadcasts leave on ticks). The network delays every broadcast by a latency plus
-jitter, loses some, and honours partitions (links cut for a time) and deaths (a robot stops).
-Everything is driven by one seeded random generator, so a failing case replays exactly.
+Each robot is the agent `mrta agent` runs (mrta_agent.runtime.loop.Agent given ALLIANCE's
+logic), driven through `Agent.schedule` — the very loop `Agent.run` sleeps through — on one
+manual clock: the harness pops the earliest wake-up or delivery, sets the clock, and resumes
+that robot's loop or hands it the broadcast. So its rates, catch-up rule, inbox, team and sender
+checks, broadcast schedule and evaluator plugins are the production code's, not a copy. The
+network delays every broadcast by a latency plus jitter, loses some, and honours partitions
+(links cut for a time) and deaths (a robot stops). Everything is driven by one seeded random
+generator, so a failing case replays exactly.
 """
 
 from __future__ import annotations
@@ -14,11 +17,18 @@ import heapq
 import math
 import random
 from dataclasses import dataclass, field
+from typing import Iterator
 
-from mrta_agent.alliance.high_level import HighLevel
-from mrta_agent.alliance.params import BehaviourSetParams, RobotParams
+from mrta_agent.alliance.architecture import ALLIANCE, alliance_plugins
+from mrta_agent.alliance.params import AgentParams, BehaviourSetParams, RobotParams
+from mrta_agent.runtime.architecture import Prepared
+from mrta_agent.runtime.loop import Agent
+from mrta_agent.runtime.params import TaskParams
+from mrta_zenoh.bus import Sample
+from mrta_zenoh.clock import ManualClock
 
 TASK = "t"
+IRC = "inter_robot_communication"
 
 
 @dataclass
@@ -59,25 +69,75 @@ class Network:
         return any(t0 <= t < t1 and ((a in g) != (b in g)) for t0, t1, g in self.cuts)
 
 
+class _Handle:
+    def close(self) -> None:
+        pass
+
+
+class HarnessBus:
+    """What one robot's agent sees of the bus: its broadcasts go to the team's network, every
+    other publication (motivations, feedback: monitoring) is dropped; the team's tokens are all
+    alive from the start (a dead robot goes silent, as a crashed process's token outlives it by
+    a lease)."""
+
+    def __init__(self, team: "Team", name: str):
+        self.team, self.name = team, name
+        self.on_broadcast = None
+
+    def subscribe(self, key_expr, handler, msg_type=None, **kwargs):
+        if key_expr == ALLIANCE.every(IRC):
+            self.on_broadcast = handler
+        return _Handle()
+
+    def watch_liveliness(self, key_expr, handler):
+        for other in self.team.specs:
+            handler(ALLIANCE.agent_token(other), True)
+        return _Handle()
+
+    def declare_token(self, key):
+        return _Handle()
+
+    def publish(self, key, message, lossy=False):
+        if key == ALLIANCE.key(self.name, IRC):
+            self.team._broadcast(self.name, key, message)
+
+
 @dataclass
 class Robot:
     name: str
     spec: Spec
-    hl: HighLevel
-    inbox: list = field(default_factory=list)
-    last_broadcast: float | None = None
+    agent: Agent
+    loop: Iterator[float] | None = None
     dead_at: float = math.inf
+
+    @property
+    def hl(self):
+        return self.agent.coordinator.high
+
+
+def make_agent(name: str, spec: Spec, bus: HarnessBus, clock: ManualClock) -> Agent:
+    params = AgentParams(spec.params(name), {TASK: TaskParams(TASK, TASK, ())})
+    plugins = alliance_plugins(params)  # the behaviour set's evaluator: updated_sensory
+    prepared = Prepared(name, params, plugins, spec.spin, spec.spin, "team harness")
+    agent = ALLIANCE.agent(prepared, bus, clock)
+    agent.start()
+    agent.declare_alive()
+    return agent
 
 
 class Team:
     def __init__(self, specs: dict[str, Spec], network: Network, seed: int = 0):
         self.rng = random.Random(seed)
         self.net = network
-        self.robots = {n: Robot(n, s, HighLevel(n, s.params(n))) for n, s in specs.items()}
+        self.specs = specs
+        self.clock = ManualClock(0.0)
+        self.buses = {n: HarnessBus(self, n) for n in specs}
+        self.robots = {n: Robot(n, s, make_agent(n, s, self.buses[n], self.clock))
+                       for n, s in specs.items()}
         self.events: list = []  # heap of (time, order, kind, data)
         self._order = 0
         for r in self.robots.values():
-            self._push(r.spec.phase, "tick", r.name)
+            self._push(r.spec.phase, "wake", r.name)
         self.now = 0.0
         self.timeline: list[tuple[float, frozenset]] = []   # (time, holders) at every change
         self.activations: dict[str, int] = {n: 0 for n in specs}
@@ -100,51 +160,48 @@ class Team:
         while self.events and self.events[0][0] <= until:
             t, _, kind, data = heapq.heappop(self.events)
             self.now = t
-            if kind == "tick":
-                self._tick(self.robots[data])
+            self.clock.set(t)
+            if kind == "wake":
+                self._wake(self.robots[data])
             else:
-                receiver, sender, hl_args = data
-                r = self.robots[receiver]
-                if r.dead_at > t:
-                    r.inbox.append((sender, *hl_args, t))
+                receiver, sample = data
+                if self.robots[receiver].dead_at > t:
+                    self.buses[receiver].on_broadcast(sample)
             holders = self.holders()
             if not self.timeline or self.timeline[-1][1] != holders:
                 self.timeline.append((t, holders))
         return self
 
-    def _tick(self, r: Robot) -> None:
+    def _wake(self, r: Robot) -> None:
+        """Resume the robot's loop at the current time: it does the work due and says when it
+        next wakes."""
         if r.dead_at <= self.now:
             return
-        for sender, expected, since, arrival in r.inbox:
-            r.hl.on_broadcast(sender, TASK, expected, arrival, since)
-        r.inbox.clear()
-        r.hl.on_feedback(TASK, True, self.now)
-        _, switches = r.hl.tick(self.now)
-        for s in switches:
+        if r.loop is None:  # its process starts at its phase
+            r.loop = r.agent.schedule()
+            self._push(next(r.loop), "wake", r.name)
+            return
+        self._push(next(r.loop), "wake", r.name)
+        history = r.agent.coordinator.history
+        new = [tr for t, tr in history if t == self.now]
+        for s in new:
             if s.kind == "activated":
                 self.activations[r.name] += 1
-                r.last_broadcast = None
             elif s.kind == "reset":
                 self.resets[r.name] += 1
-        if r.hl.active_task is not None:
-            period = 1.0 / r.spec.broadcast
-            if r.last_broadcast is None or self.now - r.last_broadcast >= period - 1e-9:
-                r.last_broadcast = self.now
-                self._broadcast(r)
-        self._push(self.now + r.spec.tick, "tick", r.name)
 
-    def _broadcast(self, r: Robot) -> None:
-        args = (r.spec.expected, r.hl.active_since())
+    def _broadcast(self, sender: str, key: str, message) -> None:
+        sample = Sample(key, "alliance_msgs/InterRobotCommunication", message, b"")
         for other in self.robots:
-            if other == r.name:
+            if other == sender:
                 continue
-            lost = self.net.cut(r.name, other, self.now) or self.rng.random() < self.net.loss
+            lost = self.net.cut(sender, other, self.now) or self.rng.random() < self.net.loss
             if lost:
-                self.losses.setdefault(frozenset((r.name, other)), []).append(self.now)
+                self.losses.setdefault(frozenset((sender, other)), []).append(self.now)
                 continue
             arrival = self.now + self.net.latency + self.rng.uniform(0.0, self.net.jitter)
-            self.arrivals.setdefault((other, r.name), []).append(arrival)
-            self._push(arrival, "deliver", (other, r.name, args))
+            self.arrivals.setdefault((other, sender), []).append(arrival)
+            self._push(arrival, "deliver", (other, sample))
 
     # ---------------------------------------------------------------- what happened
     def intervals(self, end: float) -> list[tuple[float, float, frozenset]]:

@@ -1,6 +1,57 @@
+"""Fixtures, and the tiers' guard: a test that starts a process or opens a Zenoh session must be
+marked `multiprocess` (pyproject.toml), so `pytest -m "not multiprocess"` stays fast and never
+depends on real networking; an unmarked one fails, saying so."""
+
+import subprocess
+
 import pytest
 
-from tests.helpers import REFERENCE, Children
+from tests.helpers import REFERENCE, Children, Tokens
+
+
+class UnmarkedMultiprocess(BaseException):
+    """Raised where an unmarked test starts a process or opens a Zenoh session. A BaseException,
+    so code that turns errors into exit codes (`except Exception`) does not hide it."""
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_runtest_makereport(item, call):
+    outcome = yield
+    report = outcome.get_result()
+    if report.when == "call":
+        item.call_failed = report.failed
+
+
+@pytest.fixture(autouse=True)
+def _multiprocess_only_when_marked(request, monkeypatch):
+    if request.node.get_closest_marker("multiprocess") is not None:
+        yield
+        return
+    import zenoh
+
+    violations: list[str] = []
+
+    def refuse(what):
+        def refused(*args, **kwargs):
+            message = (f"{request.node.nodeid} {what} but is not marked multiprocess "
+                       "(add @pytest.mark.multiprocess, or pytestmark for the whole file)")
+            violations.append(message)
+            raise UnmarkedMultiprocess(message)
+        return refused
+
+    monkeypatch.setattr(subprocess, "Popen", refuse("starts a process"))
+    monkeypatch.setattr(zenoh, "open", refuse("opens a Zenoh session"))
+    yield
+    if violations and not getattr(request.node, "call_failed", False):  # caught on the way
+        pytest.fail(violations[0], pytrace=False)
+
+
+@pytest.fixture(autouse=True)
+def _close_token_watchers():
+    """A Zenoh session left open in the test process would hang it at exit."""
+    yield
+    for watcher in list(Tokens.open_watchers):
+        watcher.close()
 
 
 @pytest.fixture
@@ -13,7 +64,17 @@ def children():
 
 
 @pytest.fixture
+def tokens(children):
+    """Liveliness tokens on the children's bus (tests.helpers.Tokens): readiness, not log lines."""
+    t = Tokens(children.rendezvous)
+    try:
+        yield t
+    finally:
+        t.close()
+
+
+@pytest.fixture
 def reference():
-    if not REFERENCE.is_dir():
-        pytest.skip("../shared/reference is absent")
+    """The original project's files the tests read, vendored under tests/data/reference."""
+    assert REFERENCE.is_dir(), f"{REFERENCE} is missing"
     return REFERENCE

@@ -10,13 +10,17 @@ import os
 import socket
 import struct
 import sys
+import threading
+import time
 from pathlib import Path
 
 from mrta_zenoh import processes
+from mrta_zenoh.errors import MrtaRuntimeError
+from mrta_zenoh.keys import matches
 
 ROOT = Path(__file__).resolve().parent.parent
 PROCS = Path(__file__).resolve().parent / "procs"
-REFERENCE = ROOT.parent / "shared" / "reference"
+REFERENCE = Path(__file__).resolve().parent / "data" / "reference"  # the original project's files
 CONFIGS = ROOT / "configs"
 ALLIANCE_ARCH = ROOT / "robot_agent" / "alliance"
 PATROL = CONFIGS / "applications" / "patrol"
@@ -86,3 +90,102 @@ class Children:
     def stop_all(self) -> None:
         for c in self.all:
             c.stop()
+
+
+class Tokens:
+    """Liveliness tokens on the children's bus, watched from the test process: a child is up once
+    the token it declares is alive (docs/architecture.md, "Keys": agents `robotN/alliance/agent`
+    or `robotN/murdoch/agent`, declared last; the simulator `@mrta/clock_source/<run>`; a
+    recorder `@mrta/recorder/<zid>`), not once it has logged a line or a sleep has passed.
+
+    By default a peer that connects to the children's rendezvous and never binds it, so the
+    rendezvous stays the children's (a test may be about who holds it); it reconnects by retry
+    as they do. `options` joins another way (a client of a router). Closed by its user; any left
+    open when a test ends is closed then (tests/conftest.py): a session still open at exit hangs
+    the interpreter (docs/zenoh.md, "Traps")."""
+
+    open_watchers: set["Tokens"] = set()
+
+    def __init__(self, rendezvous: str | None = None, options=None):
+        from mrta_zenoh.bus import BusOptions
+        from mrta_zenoh.bus.zenoh_bus import ZenohBus
+
+        if options is None:
+            options = BusOptions(connect=[rendezvous], listen=["tcp/127.0.0.1:0"])
+        self._cond = threading.Condition()
+        self.alive: set[str] = set()
+        deadline = time.monotonic() + 15
+        while True:  # a client's router may log that it listens a moment before it accepts
+            try:
+                self.bus = ZenohBus(options)
+                break
+            except MrtaRuntimeError:
+                if time.monotonic() > deadline:
+                    raise
+                time.sleep(0.2)
+        Tokens.open_watchers.add(self)
+        # `**` never matches a chunk starting with `@`: infrastructure is watched on its own
+        self._watches = [self.bus.watch_liveliness(k, self._on_token) for k in ("**", "@mrta/**")]
+
+    def _on_token(self, key: str, up: bool) -> None:
+        with self._cond:
+            (self.alive.add if up else self.alive.discard)(key)
+            self._cond.notify_all()
+
+    def _until(self, found, what: str, timeout: float, procs) -> object:
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while True:
+                result = found()
+                if result:
+                    return result
+                for p in procs:
+                    if p.proc.poll() is not None:
+                        p.wait(2)  # its last lines read
+                        raise processes.ChildExited(p)
+                remaining = deadline - time.monotonic()
+                if remaining <= 0:
+                    tails = "".join(f"\n{p.name}: {p.tail()}" for p in procs)
+                    raise AssertionError(f"{what} within {timeout} s; alive: "
+                                         f"{sorted(self.alive)}{tails}")
+                self._cond.wait(min(remaining, 0.2))
+
+    def wait(self, pattern: str, timeout: float, *procs: Child, exclude=()) -> str:
+        """The key of a live token under key expression `pattern` (not in `exclude`); an
+        AssertionError if none within `timeout`, ChildExited as soon as one of `procs` ends."""
+        def found():
+            return min((k for k in self.alive if matches(pattern, k) and k not in exclude),
+                       default=None)
+        return self._until(found, f"no live token under {pattern}", timeout, procs)
+
+    def wait_all(self, patterns, timeout: float, *procs: Child) -> list[str]:
+        """One live token under each of `patterns` (see wait)."""
+        patterns = list(patterns)
+
+        def found():
+            keys = [min((k for k in self.alive if matches(p, k)), default=None) for p in patterns]
+            return keys if all(keys) else None
+        return self._until(found, f"not every one of {patterns} alive", timeout, procs)
+
+    def subscribed(self, key: str, timeout: float, *procs: Child) -> None:
+        """Until a subscriber somewhere on the bus matches `key`: readiness of a child that
+        declares no token (`mrta echo`), from Zenoh's own matching status."""
+        pub = self.bus.session.declare_publisher(key)
+        try:
+            def found():
+                status = pub.matching_status
+                return getattr(status, "matching", status) is True
+            self._until(found, f"no subscriber matching {key}", timeout, procs)
+        finally:
+            pub.undeclare()
+
+    def wait_gone(self, key: str, timeout: float) -> None:
+        self._until(lambda: key not in self.alive, f"{key} still alive", timeout, ())
+
+    def close(self) -> None:
+        if self not in Tokens.open_watchers:
+            return
+        Tokens.open_watchers.discard(self)
+        for w in self._watches:
+            w.close()
+        self.bus.close()

@@ -8,8 +8,8 @@ from pathlib import Path
 
 import numpy as np
 
-from mrta_agent.murdoch.agent import MurdochAgent
-from mrta_agent.murdoch.params import load_params
+from mrta_agent.murdoch.architecture import MURDOCH
+from mrta_agent.runtime.host import AgentOptions
 from mrta_zenoh import keys
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.bus.inproc import InProcNetwork
@@ -64,8 +64,8 @@ class Team:
         for rid, sk in skills.items():
             rf = write(tmp / f"{rid}.yaml", robot_doc(sk, **timing))
             bus = InProcBus(self.net)
-            agent = MurdochAgent(rid, load_params(rf, tf), bus, self.clock,
-                                 np.random.default_rng(1))
+            agent = MURDOCH.agent(MURDOCH.prepare(AgentOptions(rid, rf, tf)), bus, self.clock,
+                                  np.random.default_rng(1))
             agent.start()
             agent.declare_alive()
             self.agents[rid], self.buses[rid] = agent, bus
@@ -94,7 +94,7 @@ class Team:
         """Who holds `task`, among the robots still ticking (a frozen one believes what it
         believed when it froze)."""
         return sorted(r for r, a in self.agents.items()
-                      if a.core.task == task and r not in self.frozen)
+                      if a.active_task == task and r not in self.frozen)
 
     def until(self, cond, limit: float = 30.0) -> float:
         """Step until cond() holds; the virtual seconds it took (AssertionError past limit)."""

@@ -12,7 +12,8 @@ import os
 import subprocess
 import sys
 
-from tests.helpers import Child, free_port
+from mrta_zenoh.bus import BusOptions
+from tests.helpers import Child, Tokens, free_port
 from tests.test_network_faults import NO_GOSSIP, Fleet
 
 PREFIX = f"mrta{os.getpid() % 100000}"
@@ -34,6 +35,7 @@ class NamespaceFleet(Fleet):
         self.veth = {r: f"{PREFIX}v{i}" for i, r in enumerate(self.names, 1)}
         self.addr = {r: (f"10.213.{i}.1", f"10.213.{i}.2") for i, r in enumerate(self.names, 1)}
         self._made: list[str] = []
+        self.tokens = None
         try:
             for r in self.names:
                 ns, veth, (host, inner) = self.ns[r], self.veth[r], self.addr[r]
@@ -68,8 +70,11 @@ class NamespaceFleet(Fleet):
                                     "*/alliance/inter_robot_communication", "--json",
                                     "--mode", "client", "--connect",
                                     f"tcp/127.0.0.1:{self.central_port}")
-            for a in self.agents.values():
-                a.wait_stderr(lambda line: "ready" in line, 60)
+            # every agent's token, seen through the central router: islands up and joined
+            self.tokens = Tokens(options=BusOptions(
+                mode="client", connect=[f"tcp/127.0.0.1:{self.central_port}"]))
+            self.tokens.wait_all([f"{r}/alliance/agent" for r in self.names], 60,
+                                 *self.agents.values())
         except BaseException:
             self.close()
             raise
@@ -90,6 +95,8 @@ class NamespaceFleet(Fleet):
         sh("ip", "link", "set", self.veth[robot], "up" if up else "down")
 
     def close(self) -> None:
+        if self.tokens is not None:
+            self.tokens.close()
         self.children.stop_all()
         for ns in self._made:
             subprocess.run(["ip", "netns", "del", ns], capture_output=True, timeout=30)

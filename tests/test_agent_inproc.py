@@ -9,8 +9,8 @@ from mrta_zenoh.codec import encoding_for
 
 from mrta_zenoh.messages import Header, Odometry, PointCloud, Pose2D, Twist
 from mrta_agent.alliance.messages import InterRobotCommunication
-from mrta_agent.alliance.agent import Agent
-from mrta_agent.alliance.params import load_agent_params
+from mrta_agent.alliance.architecture import ALLIANCE
+from mrta_agent.runtime.host import AgentOptions
 from mrta_agent.runtime.plugins import Layer
 from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
 
@@ -26,7 +26,8 @@ def make(tmp_path, sets, layers=None):
     rf = write(tmp_path / "r.yaml", robot_yaml(sets, spin=10.0, broadcast=5.0, tau=1.0))
     tf = write(tmp_path / "t.yaml", tasks_yaml([s["task"] for s in sets], layers))
     bus, clock = InProcBus(), ManualClock(100.0)
-    agent = Agent("robot1", load_agent_params(rf, tf), bus, clock, np.random.default_rng(1))
+    agent = ALLIANCE.agent(ALLIANCE.prepare(AgentOptions("robot1", rf, tf)), bus, clock,
+                           np.random.default_rng(1))
     agent.start()
     return agent, bus, clock
 
@@ -53,7 +54,7 @@ def test_activation_broadcasts_and_drives_the_layer(tmp_path):
     bus.subscribe("robot1/cmd_vel", cmds.append)
     bus.subscribe("robot1/alliance/motivation/a", mot.append)
     step(agent, bus, clock, 4)  # θ=100 / 25 → active on the 4th tick
-    assert agent.high.active_task == "a"
+    assert agent.coordinator.high.active_task == "a"
     assert [s.message.motivation for s in mot] == [25.0, 50.0, 75.0, 100.0]
     assert irc and irc[0].message.task_id == "a" and irc[0].message.header.frame_id == "robot1"
     assert cmds[-1].message == Twist(0.3, 0.0)
@@ -68,11 +69,11 @@ def test_stalled_sensor_makes_behaviours_inapplicable_and_stops_the_robot(tmp_pa
     cmds = []
     bus.subscribe("robot1/cmd_vel", cmds.append)
     step(agent, bus, clock, 3)
-    assert agent.high.active_task == "a"
+    assert agent.coordinator.high.active_task == "a"
     step(agent, bus, clock, 15, fresh=False)  # sensor timeout 1 s
-    assert agent.high.active_task is None
+    assert agent.coordinator.high.active_task is None
     assert cmds[-1].message == Twist(0.0, 0.0)
-    assert agent.transitions[-1][1].reason == "inapplicable"
+    assert agent.coordinator.history[-1][1].reason == "inapplicable"
 
 
 def test_ignores_own_broadcasts_mismatched_frame_ids_and_malformed_samples(tmp_path):
@@ -86,8 +87,8 @@ def test_ignores_own_broadcasts_mismatched_frame_ids_and_malformed_samples(tmp_p
     step(agent, bus, clock, 3)
     assert agent.ignored_own == 1 and agent.ignored_mismatch == 1
     assert bus.stats["malformed"] == 1
-    assert agent.high.sets["a"].others == {}
-    assert agent.high.sets["a"].impatience == 1.0  # nobody else is doing it: fast
+    assert agent.coordinator.high.sets["a"].others == {}
+    assert agent.coordinator.high.sets["a"].impatience == 1.0  # nobody else is doing it: fast
 
 
 def test_another_robots_broadcast_slows_impatience(tmp_path):
@@ -98,7 +99,7 @@ def test_another_robots_broadcast_slows_impatience(tmp_path):
                     InterRobotCommunication(Header("/robot2", clock.now(), 0), "a", 100.0))
         step(agent, bus, clock, 1)
     # slow = θ / (expected · ρ) = 100 / (100 · 10) = 0.1 per tick
-    assert agent.high.sets["a"].impatience == 0.1
+    assert agent.coordinator.high.sets["a"].impatience == 0.1
 
 
 def test_broadcasts_from_robots_without_an_agent_token_are_ignored(tmp_path):
@@ -108,8 +109,8 @@ def test_broadcasts_from_robots_without_an_agent_token_are_ignored(tmp_path):
         bus.publish("robot9/alliance/inter_robot_communication",
                     InterRobotCommunication(Header("robot9", clock.now(), 0), "a", 100.0))
         step(agent, bus, clock, 1)
-    assert agent.ignored_strangers == 3 and agent.high.sets["a"].others == {}
-    assert agent.high.sets["a"].impatience == 5.0
+    assert agent.ignored_strangers == 3 and agent.coordinator.high.sets["a"].others == {}
+    assert agent.coordinator.high.sets["a"].impatience == 5.0
 
 
 def test_absurd_expected_durations_are_refused_and_counted(tmp_path):
@@ -118,4 +119,4 @@ def test_absurd_expected_durations_are_refused_and_counted(tmp_path):
     bus.publish("robot2/alliance/inter_robot_communication",
                 InterRobotCommunication(Header("robot2", clock.now(), 0), "a", 1e300))
     step(agent, bus, clock, 2)
-    assert agent.refused == 1 and agent.high.sets["a"].impatience == 5.0
+    assert agent.refused == 1 and agent.coordinator.high.sets["a"].impatience == 5.0

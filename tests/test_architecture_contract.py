@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import json
 import os
+import sys
 
 import numpy as np
 import pytest
@@ -22,7 +23,7 @@ from mrta_agent.runtime import loop
 from mrta_agent.runtime.host import AgentOptions
 from mrta_agent.runtime.plugins import load_plugin
 from mrta_supervisor.mission import MissionOptions, resolve
-from mrta_zenoh import architectures
+from mrta_zenoh import architectures, messages
 from mrta_zenoh.architectures import Doing, architecture, architectures as registered
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.clock import ManualClock
@@ -36,11 +37,14 @@ PATROL_FIXED = PLUGINS / "patrol_fixed" / "config"
 
 @pytest.fixture
 def fixed(monkeypatch):
-    """The test architecture registered for this test only (its dist-info on sys.path)."""
+    """The test architecture registered for this test only (its dist-info on sys.path); its
+    module and message type are forgotten afterwards, so no other test sees them."""
     monkeypatch.syspath_prepend(str(PLUGINS))
     monkeypatch.setattr(architectures, "_loaded", {})
+    monkeypatch.setattr(messages, "_REGISTRY", dict(messages._REGISTRY))
     yield architecture("fixed")
-    monkeypatch.setattr(architectures, "_loaded", {})
+    for name in [m for m in sys.modules if m.split(".")[0] in ("fixed_arch", "patrol_fixed")]:
+        del sys.modules[name]
 
 
 def test_both_architectures_are_registered_and_unknown_names_are_bad_input():

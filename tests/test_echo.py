@@ -14,13 +14,14 @@ KEY = "robot1/alliance/inter_robot_communication"
 
 def run_pair(children, echo_args, items):
     echo = children.mrta("echo", *echo_args, name="echo")
-    time.sleep(0.3)
+    # the publisher sends once Zenoh reports a matching subscriber: echo's
     pub = children.python("publisher.py", KEY, *items, name="publisher")
     rc = echo.wait(30)
     pub.wait(30)
     return echo, rc
 
 
+@pytest.mark.multiprocess
 def test_echo_prints_typed_samples_from_another_process_and_survives_a_malformed_one(children):
     echo, rc = run_pair(children, ["robot1/**", "--count", "3", "--json"],
                         ["irc:robot1:wander", "garbage", "unknown", "missing", "irc:robot1:report"])
@@ -38,6 +39,7 @@ def test_echo_prints_typed_samples_from_another_process_and_survives_a_malformed
     assert "not msgpack" in warnings[0] and "missing field" in warnings[1]
 
 
+@pytest.mark.multiprocess
 def test_echo_field(children):
     echo, rc = run_pair(children, [KEY, "--field", "/header/frame_id", "--count", "2"],
                         ["irc:robot1:wander", "garbage", "irc:robot1:report"])
@@ -45,6 +47,7 @@ def test_echo_field(children):
     assert echo.stdout == [f"{KEY}: robot1", f"{KEY}: robot1"]
 
 
+@pytest.mark.multiprocess
 def test_echo_human_format(children):
     echo, rc = run_pair(children, [KEY, "--count", "1"], ["irc:robot1:wander"])
     assert rc == 0
@@ -52,13 +55,15 @@ def test_echo_human_format(children):
     assert "task_id: wander" in echo.stdout
 
 
-def test_echo_exits_promptly_on_sigterm(children):
+@pytest.mark.multiprocess
+def test_echo_exits_promptly_on_sigterm(children, tokens):
     echo = children.mrta("echo", "nothing/**", name="echo")
-    time.sleep(1.5)
+    tokens.subscribed("nothing/probe", 30, echo)  # running: its subscription is declared
     t0 = time.monotonic()
     echo.signal(signal.SIGTERM)
-    assert echo.wait(5) == 0
-    assert time.monotonic() - t0 < 1.5
+    assert echo.wait(5) == 0, echo.stderr
+    took = time.monotonic() - t0
+    assert took < 1.5, f"{took:.2f} s from SIGTERM to exit"
 
 
 @pytest.mark.parametrize("args,text", [
@@ -83,14 +88,14 @@ def test_invalid_zenoh_config_file_exits_2(tmp_path):
     assert result.exit_code == 2 and str(bad) in result.output
 
 
+@pytest.mark.multiprocess
 def test_router_relays_between_a_client_and_a_peer(children):
     router = children.mrta("router", "--listen", children.rendezvous, name="router")
-    time.sleep(1.0)
-    assert router.proc.poll() is None, router.stderr
+    router.wait_stderr(lambda line: "router listening" in line, 30)  # a router has no token
     # echo as a client of the router; the publisher joins the router (it holds the rendezvous)
+    # and sends once Zenoh reports echo's subscription as matching
     echo = children.mrta("echo", KEY, "--mode", "client", "--connect", children.rendezvous,
                          "--count", "1", "--field", "task_id", name="echo")
-    time.sleep(0.5)
     pub = children.python("publisher.py", KEY, "irc:robot1:wander", name="publisher")
     assert echo.wait(20) == 0, echo.stderr
     pub.wait(20)

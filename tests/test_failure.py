@@ -3,7 +3,7 @@ spec accepted at one hop is never refused at the next."""
 
 import pytest
 
-from mrta_patrol.demo import parse_fail
+from mrta_supervisor.mission import parse_fail
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.failure import Failure, parse_failure
 from mrta_agent.runtime.host import CRASH_ENV, crash_time

@@ -9,10 +9,13 @@ import jsonschema
 import pytest
 from mcap.reader import make_reader
 
+from mrta_zenoh.keys import LIVELINESS_PREFIX
 from mrta_zenoh.recording import read_recording
 from mrta_supervisor.api import resolve_application
 from mrta_supervisor.plots import TimeBase, replay
 from tests.helpers import free_port
+
+pytestmark = pytest.mark.multiprocess
 
 
 @pytest.fixture(scope="module")
@@ -24,7 +27,8 @@ def recorded(tmp_path_factory):
     try:
         demo = children.mrta("demo", "--duration", "30", "--speed", "0", "--fail", "robot2@18",
                              "--no-live", "--output", out, name="demo")
-        assert demo.wait(240) == 0, demo.stderr[-10:]
+        # ≈ 5 s on an idle machine; set up within the first test's 180 s, its body after
+        assert demo.wait(120) == 0, demo.stderr[-10:]
     finally:
         children.stop_all()
     return out
@@ -62,7 +66,7 @@ def test_the_recording_still_replays_the_bus_exactly(recorded):
     records = read_recording(recorded / "run.mcap")
     assert len(records) > 5000
     for key, enc, _, payload in records:
-        if not key.startswith("@liveliness/"):
+        if not key.startswith(LIVELINESS_PREFIX):
             codec.decode(codec.type_from_encoding(enc), payload)
 
 
@@ -104,13 +108,14 @@ def test_replay_feeds_a_live_supervisor_as_the_run_did(recorded, children):
     assert sorted(live_seq) == sorted(file_seq), (live_seq, file_seq)
 
 
-def test_a_websocket_client_sees_the_channels_and_receives_scene_updates(children):
+def test_a_websocket_client_sees_the_channels_and_receives_scene_updates(children, tokens):
     import websockets
 
     port = free_port()
     sim = children.mrta("sim", "--world", "patrol", "--robot", "robot1", "--speed", "2", name="sim")
-    sim.wait_stderr(lambda line: "ready:" in line, 60)
+    tokens.wait("@mrta/clock_source/*", 60, sim)
     view = children.mrta("view", "--port", port, name="view")
+    # the WebSocket server's address, logged once it listens (the view declares no token)
     view.wait_stderr(lambda line: f"ws://127.0.0.1:{port}" in line or "Open connection" in line, 60)
 
     async def client():

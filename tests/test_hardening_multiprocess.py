@@ -6,21 +6,24 @@ import signal
 import time
 
 import msgpack
+import pytest
 
 from mrta_zenoh.recording import read_recording
 from tests.helpers import PATROL
 
+pytestmark = pytest.mark.multiprocess
+
 CONFIG = PATROL / "config"
 
 
-def test_a_stopped_observer_does_not_stall_the_simulator(children):
+def test_a_stopped_observer_does_not_stall_the_simulator(children, tokens):
     """A Ctrl-Z'd `mrta echo '**'` used to hold `mrta sim --speed 0` for seconds: sensor data
     and the clock are lossy streams now, so the simulator never waits for a stopped reader."""
     probe = children.python("clock_gaps.py", name="probe")
-    probe.wait_json(lambda o: o.get("ready"), 30)
+    tokens.wait("@mrta/test/clock_gaps", 30, probe)
     sim = children.mrta("sim", "--world", "patrol", "--robot", "robot1", "--robot", "robot2",
                         "--speed", "0", "--duration", "100000", name="sim")
-    probe.wait_json(lambda o: o["count"] > 100, 60)
+    probe.wait_json(lambda o: o.get("count", 0) > 100, 60)
     echo = children.mrta("echo", "**", "--json", name="observer")
     echo.wait_line(lambda line: True, 60)  # connected and receiving
     echo.signal(signal.SIGSTOP)
@@ -51,9 +54,9 @@ def forged_clock(children, stamp):
     pub.wait_json(lambda o: "done" in o, 30)
 
 
-def test_forged_clock_samples_neither_stop_nor_melt_the_fleet(children):
+def test_forged_clock_samples_neither_stop_nor_melt_the_fleet(children, tokens):
     sim = children.mrta("sim", "--world", "patrol", "--robot", "robot1", "--speed", "2", name="sim")
-    sim.wait_stderr(lambda line: "ready:" in line, 60)
+    tokens.wait("@mrta/clock_source/*", 60, sim)
     agent = patrol_agent(children, "robot1")
     agent.wait_stderr(lambda line: "activated wander" in line, 60)
     sup = children.mrta("supervise", "patrol", "--sim-time", "--json", name="supervise")
@@ -72,10 +75,10 @@ def test_forged_clock_samples_neither_stop_nor_melt_the_fleet(children):
     assert all(s < 1000 for s in stamps), stamps
 
 
-def test_a_restarted_simulator_is_followed_and_a_dead_one_is_reported(children):
+def test_a_restarted_simulator_is_followed_and_a_dead_one_is_reported(children, tokens):
     args = ["sim", "--world", "patrol", "--robot", "robot1", "--speed", "4"]
     sim = children.mrta(*args, name="sim A")
-    sim.wait_stderr(lambda line: "ready:" in line, 60)
+    run_a = tokens.wait("@mrta/clock_source/*", 60, sim)
     agent = patrol_agent(children, "robot1")
     agent.wait_stderr(lambda line: "activated wander" in line, 60)
     sup = children.mrta("supervise", "patrol", "--sim-time", "--json", name="supervise")
@@ -85,7 +88,7 @@ def test_a_restarted_simulator_is_followed_and_a_dead_one_is_reported(children):
     assert next(r for r in stopped["robots"] if r["id"] == "robot1")["state"] == "unknown"
     agent.wait_stderr(lambda line: "clock stopped" in line, 30)
     sim2 = children.mrta(*args, name="sim B")
-    sim2.wait_stderr(lambda line: "ready:" in line, 60)
+    tokens.wait("@mrta/clock_source/*", 60, sim2, exclude=(run_a,))
     back = sup.wait_json(lambda o: not any(a["kind"] == "clock_stopped" for a in o["alarms"])
                          and o["time"] < stopped["time"], 60)
     assert back["time"] < stopped["time"]  # time restarted with the new run
@@ -95,13 +98,13 @@ def test_a_restarted_simulator_is_followed_and_a_dead_one_is_reported(children):
     assert busy["time"] < stopped["time"]
 
 
-def test_a_killed_recorder_leaves_a_file_that_plots(children, tmp_path):
+def test_a_killed_recorder_leaves_a_file_that_plots(children, tokens, tmp_path):
     out = tmp_path / "run.mcap"
     rec = children.mrta("record", "-o", out, name="record")
-    rec.wait_stderr(lambda line: "recording" in line, 30)
+    tokens.wait("@mrta/recorder/*", 30, rec)
     robot = children.python("fake_robot.py", "robot1", "wander", name="robot1")
-    robot.wait_line(lambda line: line == "ready", 30)
-    time.sleep(3.5)
+    tokens.wait("robot1/alliance/agent", 30, robot)
+    time.sleep(3.5)  # a few seconds of the robot's traffic recorded
     rec.signal(signal.SIGKILL)
     rec.wait(10)
     records = read_recording(out)

@@ -91,6 +91,7 @@ def test_reference_launch_files_parse_and_name_what_is_missing(reference, tmp_pa
         check_executables(nodes)
 
 
+@pytest.mark.multiprocess
 def test_running_nodes_a_failure_stops_the_others_and_output_is_prefixed(children, tmp_path):
     f = write(tmp_path, """<launch>
       <node name="sim" pkg="simulator" type="sim" args="--world patrol --robot robot1 --speed 1"/>
@@ -108,12 +109,13 @@ def test_running_nodes_a_failure_stops_the_others_and_output_is_prefixed(childre
     assert any(line.startswith("[sim] exited") for line in out)
 
 
-def test_ctrl_c_stops_every_node(children, tmp_path):
+@pytest.mark.multiprocess
+def test_ctrl_c_stops_every_node(children, tokens, tmp_path):
     f = write(tmp_path, """<launch>
       <node name="sim" pkg="simulator" type="sim" args="--world patrol --robot robot1"/>
     </launch>""")
     launcher = children.mrta("launch", str(f), name="launch")
-    launcher.wait_line(lambda line: "[sim]" in line and "ready" in line, 30)
+    tokens.wait("@mrta/clock_source/*", 30, launcher)  # the node is up
     launcher.signal(signal.SIGINT)
     assert launcher.wait(15) == 0
     assert any("[sim] exited with code 0" in line for line in launcher.stdout)

@@ -5,6 +5,8 @@ import time
 
 import pytest
 
+pytestmark = pytest.mark.multiprocess
+
 NAMES = ["A", "B", "C"]
 
 
@@ -12,12 +14,14 @@ def sees_all(names):
     return lambda o: set(names) <= set(o.get("seen", ()))
 
 
-def start(children, names, gap):
+def start(children, names, tokens=None):
+    """With `tokens`, one after the other: each peer's token alive (its session open, the first
+    holding the rendezvous) before the next starts; without, all at once."""
     procs = {}
     for n in names:
         procs[n] = children.python("peer.py", n, name=n)
-        if gap:
-            procs[n].wait_json(lambda o: "ready" in o, 15)
+        if tokens is not None:
+            tokens.wait(f"test/{n}/alive", 15, procs[n])
     return procs
 
 
@@ -26,14 +30,15 @@ def start(children, names, gap):
     (["C", "A", "B"], True),
     (["B", "C", "A"], False),  # all at once: they race for the rendezvous port
 ])
-def test_three_processes_exchange_typed_messages_in_any_start_order(children, order, gap):
-    procs = start(children, order, gap)
+def test_three_processes_exchange_typed_messages_in_any_start_order(children, tokens, order,
+                                                                    gap):
+    procs = start(children, order, tokens if gap else None)
     for n in NAMES:
         procs[n].wait_json(sees_all(NAMES), 20)
 
 
-def test_rest_keep_talking_when_the_rendezvous_exits_and_a_newcomer_takes_over(children):
-    procs = start(children, ["A", "B", "C"], True)  # A started first: it holds the rendezvous
+def test_rest_keep_talking_when_the_rendezvous_exits_and_a_newcomer_takes_over(children, tokens):
+    procs = start(children, ["A", "B", "C"], tokens)  # A started first: it holds the rendezvous
     for n in NAMES:
         procs[n].wait_json(sees_all(NAMES), 20)
     procs["A"].signal(signal.SIGTERM)
@@ -47,8 +52,8 @@ def test_rest_keep_talking_when_the_rendezvous_exits_and_a_newcomer_takes_over(c
         p.wait_json(sees_all(["B", "C", "D"]), 20)
 
 
-def test_sigkilled_process_is_reported_gone_by_liveliness_within_one_second(children):
-    procs = start(children, ["A", "B", "C"], True)
+def test_sigkilled_process_is_reported_gone_by_liveliness_within_one_second(children, tokens):
+    procs = start(children, ["A", "B", "C"], tokens)
     procs["C"].wait_json(lambda o: o.get("event") == "alive" and o["key"] == "test/B/alive", 15,
                              from_start=True)
     t_kill = time.time()
@@ -56,4 +61,4 @@ def test_sigkilled_process_is_reported_gone_by_liveliness_within_one_second(chil
     gone = procs["C"].wait_json(lambda o: o.get("event") == "gone" and o["key"] == "test/B/alive", 5)
     latency = gone["t"] - t_kill
     print(f"liveliness loss seen {latency * 1000:.1f} ms after SIGKILL")
-    assert latency < 1.0
+    assert 0 <= latency < 1.0  # gone because of the kill, not before it

@@ -78,7 +78,7 @@ def test_a_lease_that_stops_is_auctioned_again_within_its_bound(tmp_path):
     assert team.holders("a") == ["robot2"]
     team.frozen.add("robot2")  # stops renewing, its token still alive: only the lease tells
     taken = team.until(lambda: team.holders("a") == ["robot3"])
-    bound = takeover_bound(team.agents["robot3"].params.robot)  # lease + window + 3 ticks
+    bound = takeover_bound(team.agents["robot3"].coordinator.params.robot)  # lease + window + 3 ticks
     assert bound == pytest.approx(2.0 + 0.5 + 0.3)
     # from robot2's last renewal (up to one renewal period before it froze) to robot3's claim
     assert taken <= bound + 1e-9
@@ -114,9 +114,9 @@ def test_a_dead_auctioneer_is_replaced_at_once(tmp_path):
     team.kill("robot1")
     team.kill("robot2")
     took = team.until(lambda: team.holders("a") == ["robot4"])
-    assert team.agents["robot3"].core.rank() == 0
+    assert team.agents["robot3"].coordinator.core.rank() == 0
     assert team.messages("award")[-1].key == "robot3/murdoch/award"
-    assert took <= takeover_bound(team.agents["robot3"].params.robot) + 1e-9
+    assert took <= takeover_bound(team.agents["robot3"].coordinator.params.robot) + 1e-9
     assert team.holders("b") == ["robot3"]
 
 
@@ -184,8 +184,9 @@ def test_a_skill_for_a_task_the_tasks_file_lacks_is_refused(tmp_path):
 
 
 def test_the_shipped_patrol_parameters_load_and_bound_the_takeover():
-    from mrta_agent.murdoch.api import takeover_bound as bound_of
+    from mrta_zenoh.architectures import architecture
     from tests.helpers import CONFIGS
+    bound_of = architecture("murdoch").takeover_bound
     cfg = CONFIGS / "applications" / "patrol_murdoch" / "config"
     for rid in ("robot1", "robot2", "robot3"):
         p = load_params(cfg / f"{rid}_murdoch_params.yaml", cfg / "tasks_murdoch_params.yaml",

@@ -20,9 +20,12 @@ from dataclasses import dataclass
 
 import pytest
 
+from mrta_zenoh.bus import BusOptions
 from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
 from tests.fault_proxy import FaultProxy
-from tests.helpers import REFERENCE, free_port
+from tests.helpers import REFERENCE, Tokens, free_port
+
+pytestmark = pytest.mark.multiprocess
 
 SPIN, TAU, THETA, PSI = 10.0, 1.0, 100.0, 1.0
 FAST = {"robot1": 25.0, "robot2": 20.0, "robot3": 10.0}   # robot1 first, then robot2, robot3
@@ -60,8 +63,11 @@ class Fleet:
         self.echo = children.mrta("echo", "*/alliance/inter_robot_communication", "--json",
                                   "--mode", "client", "--connect",
                                   f"tcp/127.0.0.1:{self.central_port}", name="observer")
-        for island in self.islands.values():
-            island.agent.wait_stderr(lambda line: "ready" in line, 60)
+        # every agent's token, seen through the central router: the islands are up and joined
+        self.tokens = Tokens(options=BusOptions(
+            mode="client", connect=[f"tcp/127.0.0.1:{self.central_port}"]))
+        self.tokens.wait_all([f"{n}/alliance/agent" for n in self.islands], 60,
+                             *(i.agent for i in self.islands.values()))
 
     def _router(self, name, port, connect):
         args = ["router", "--listen", f"tcp/127.0.0.1:{port}", "--zenoh-config", self.cfg]
@@ -126,6 +132,7 @@ def fleet(children, tmp_path):
     time.sleep(2.0)  # settled: whoever took it keeps it
     f.wait_holders("A", lambda h: len(h) == 1, 10)
     yield f
+    f.tokens.close()
     for island in f.islands.values():
         island.proxy.close()
 
@@ -231,9 +238,10 @@ def test_jitter_on_the_reference_robots_resets_nobody(children, tmp_path, refere
 
     robots, tasks = reference_files()
     fleet = Fleet(children, tmp_path, robots, tasks)
+    fleet.tokens.close()
     for island in fleet.islands.values():
         island.proxy.set_latency(0.010, 0.010)
-    time.sleep(30.0)
+    time.sleep(30.0)  # the scenario: half a minute of jittered links
     lines = [line for i in fleet.islands.values() for line in i.agent.stderr]
     started = Counter(re.search(r"(robot\d): activated (\w+) ", line).groups()
                       for line in lines if " activated " in line)
@@ -258,12 +266,14 @@ def _netns_available() -> bool:
     return True
 
 
-@pytest.mark.skipif(not _netns_available(), reason="needs root and ip netns")
 def test_a_partition_in_network_namespaces(children, tmp_path):
     """The same partition with real separate network stacks: each robot's island (router,
     agent, sensors) in its own namespace, a veth pair to the host where the central router
     listens on the host end's address; the partition takes robot1's link down."""
     from tests.netns import NamespaceFleet
+
+    if not _netns_available():  # probed here, not at collection: no `ip netns add` in -m tiers
+        pytest.skip("needs root and ip netns")
 
     with NamespaceFleet(children, tmp_path, {n: robot_file(tmp_path, n, f)
                                              for n, f in FAST.items()},

@@ -7,7 +7,11 @@ import json
 import math
 import signal
 
+import pytest
+
 from tests.helpers import CONFIGS
+
+pytestmark = pytest.mark.multiprocess
 
 CONFIG = CONFIGS / "applications" / "patrol" / "config"
 ROBOTS = ("robot1", "robot2", "robot3")

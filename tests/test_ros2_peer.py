@@ -11,6 +11,8 @@ import pytest
 
 from tests.ros2_msgs import write_msgs
 
+pytestmark = pytest.mark.multiprocess
+
 ROBOT = "robot1"
 
 
@@ -21,12 +23,12 @@ def msgs(tmp_path_factory):
 
 
 @pytest.fixture
-def network(children):
+def network(children, tokens):
     """A router on the test's rendezvous port (the SDK connects to it) and our bridge."""
     router = children.mrta("router", name="router")
-    router.wait_stderr(lambda line: "router listening" in line, 30)
+    router.wait_stderr(lambda line: "router listening" in line, 30)  # a router has no token
     bridge = children.mrta("ros2", "bridge", "--robot", ROBOT, name="bridge")
-    bridge.wait_stderr(lambda line: "ready: ROS 2 domain 0" in line, 30)
+    tokens.wait(f"@mrta/ros2_bridge/{ROBOT}", 30, bridge)  # declared once it bridges
     return children, bridge
 
 

@@ -7,8 +7,9 @@ import json
 import pytest
 from click.testing import CliRunner
 
+from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.cli.main import cli
-from tests.helpers import PATROL, free_port
+from tests.helpers import PATROL, Tokens, free_port
 
 CONFIG = PATROL / "config"
 
@@ -60,6 +61,7 @@ def client(children, config, verb, arg, name):
     return children.python("secure_client.py", config, verb, arg, name=name)
 
 
+@pytest.mark.multiprocess
 def test_robots_speak_only_for_themselves_and_observers_only_listen(fleet, children):
     folder, _ = fleet
     watch = client(children, folder / "supervisor.json5", "watch", "12", "observer")
@@ -80,6 +82,7 @@ def test_robots_speak_only_for_themselves_and_observers_only_listen(fleet, child
     assert "robot3/cmd_vel/token" not in tokens          # …and observers declare none
 
 
+@pytest.mark.multiprocess
 def test_a_process_without_a_fleet_certificate_cannot_join(fleet, tmp_path, children):
     folder, endpoint = fleet
     other = tmp_path / "other"
@@ -95,17 +98,24 @@ def test_a_process_without_a_fleet_certificate_cannot_join(fleet, tmp_path, chil
         assert any("cannot open a Zenoh session" in line for line in echo.stderr), echo.stderr
 
 
+@pytest.mark.multiprocess
 def test_the_mission_runs_with_the_generated_configs(fleet, children):
     folder, _ = fleet
-    sim = children.mrta("sim", "--world", "patrol", "--robot", "robot1", "--robot", "robot2",
-                        "--robot", "robot3", "--speed", "2", "--wait-robots", "60",
-                        "--zenoh-config", folder / "simulator.json5", name="sim")
-    for i in (1, 2, 3):
-        children.mrta("agent", f"robot{i}", "--robot-params", CONFIG / f"robot{i}_alliance_params.yaml",
-                      "--tasks-params", CONFIG / "tasks_alliance_params.yaml",
-                      "--layers-params", CONFIG / "layers_alliance_params.yaml", "--sim-time",
-                      "--zenoh-config", folder / f"robot{i}.json5", name=f"robot{i}")
-    sim.wait_stderr(lambda line: "ready:" in line, 90)
+    # tokens seen with an observer's certificate
+    watcher = Tokens(options=BusOptions(zenoh_config=folder / "supervisor.json5"))
+    try:
+        sim = children.mrta("sim", "--world", "patrol", "--robot", "robot1", "--robot", "robot2",
+                            "--robot", "robot3", "--speed", "2", "--wait-robots", "60",
+                            "--zenoh-config", folder / "simulator.json5", name="sim")
+        for i in (1, 2, 3):
+            children.mrta("agent", f"robot{i}", "--robot-params",
+                          CONFIG / f"robot{i}_alliance_params.yaml",
+                          "--tasks-params", CONFIG / "tasks_alliance_params.yaml",
+                          "--layers-params", CONFIG / "layers_alliance_params.yaml", "--sim-time",
+                          "--zenoh-config", folder / f"robot{i}.json5", name=f"robot{i}")
+        watcher.wait("@mrta/clock_source/*", 90, sim)  # up, once its robots were
+    finally:
+        watcher.close()
     sup = children.mrta("supervise", "patrol", "--sim-time", "--json",
                         "--zenoh-config", folder / "supervisor.json5", name="supervise")
     snap = sup.wait_json(lambda o: sum(r["state"] == "busy" for r in o["robots"]) == 3, 90)

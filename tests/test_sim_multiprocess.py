@@ -7,16 +7,19 @@ import pytest
 
 from mrta_simulator.robot_model import RobotModel
 
+pytestmark = pytest.mark.multiprocess
+
 M = RobotModel()
 
 
-def test_sim_process_moves_a_robot_on_command_and_its_watchdog_stops_it(children, tmp_path):
+def test_sim_process_moves_a_robot_on_command_and_its_watchdog_stops_it(children, tokens,
+                                                                         tmp_path):
     snap = tmp_path / "world.png"
     sim = children.mrta("sim", "--world", "patrol", "--robot", "robot1=-15,-4,0",
                         "--robot", "robot2", "--speed", "2", "--snapshot", str(snap), name="sim")
-    sim.wait_stderr(lambda line: "ready" in line, 20)
+    tokens.wait("@mrta/clock_source/*", 30, sim)
+    # the commander follows the simulator's clock, drives, then reports
     cmd = children.python("commander.py", "robot1", "0.5", "6", name="commander")
-    cmd.wait_line(lambda line: line == "ready", 20)
     report = json.loads(cmd.wait_line(lambda line: line.startswith("{"), 60))
     (_, x0, y0), (_, x1, y1) = report["start"], report["at_silence"]
     # the robot drove along +x for the commanded time, give or take one network/step latency

@@ -14,13 +14,15 @@ import pytest
 
 from tests.helpers import ROOT
 
+pytestmark = pytest.mark.multiprocess
+
 
 @pytest.fixture(scope="module")
 def ping_site(tmp_path_factory):
     site = tmp_path_factory.mktemp("site")
     subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps",
                     "--target", str(site), str(ROOT / "examples" / "ping_app")],
-                   check=True, capture_output=True, text=True, timeout=300)
+                   check=True, capture_output=True, text=True, timeout=120)  # < the test's 180 s
     assert (site / "ping_app" / "package.xml").is_file()
     return site
 

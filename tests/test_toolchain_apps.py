@@ -153,6 +153,7 @@ def test_registry_on_mrta_package_path_shadows_and_reports(reference):
     assert res.exit_code == 0 and "does not exist" in res.output
 
 
+@pytest.mark.multiprocess
 def test_an_installed_distribution_adds_an_architecture_through_its_entry_point(tmp_path):
     site = tmp_path / "site"
     pkg = site / "thirdparty_arch"

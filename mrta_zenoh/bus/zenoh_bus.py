@@ -274,7 +274,8 @@ class ZenohBus(Bus):
 
 
 class Closable:
-    """A declared Zenoh entity, undeclared once by close()."""
+    """A declared Zenoh entity, undeclared once by close() — or on leaving a `with` block, like
+    every other handle the bus gives out (AttachedPublisher included)."""
 
     def __init__(self, native: Any):
         self._native = native
@@ -283,6 +284,12 @@ class Closable:
         if self._native is not None:
             self._native.undeclare()
             self._native = None
+
+    def __enter__(self) -> "Closable":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
 
 class AttachedPublisher(Closable):

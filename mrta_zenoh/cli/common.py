@@ -1,5 +1,8 @@
-"""What every subcommand shares: the bus options, logging, checked numbers, and the one mapping
-of the library's errors to exit codes (click's style: bad input 2, a runtime failure 1)."""
+"""What every subcommand shares: the bus options, logging, checked numbers and plurals.
+
+The library's errors are mapped to exit codes once, in the root command (mrta_zenoh.cli.main):
+a verb lets them propagate instead of wrapping its body.
+"""
 
 from __future__ import annotations
 
@@ -12,19 +15,7 @@ from typing import Any, Callable
 import click
 
 from ..bus.options import MODES, BusOptions
-from ..errors import ConfigError, Interrupted, MrtaRuntimeError
-from ..fieldpath import FieldPathError
-from ..keys import KeyExprError, validate_key_expr
-
-
-class BadInput(click.ClickException):
-    """Exit 2 with one line: bad usage, file, parameter or value (docs/architecture.md, "exit codes")."""
-
-    exit_code = 2
-
-
-class RuntimeFailure(click.ClickException):
-    exit_code = 1
+from ..keys import validate_key_expr
 
 
 def bus_options(f: Callable | None = None, *, namespace_option: str = "--namespace") -> Callable:
@@ -47,35 +38,16 @@ def bus_options(f: Callable | None = None, *, namespace_option: str = "--namespa
                       help="Prefix for every key, so several teams can share one network.")
         @functools.wraps(f)
         def wrapper(*args: Any, connect, listen, mode, zenoh_config, bus_namespace, **kwargs: Any):
-            with user_errors():
-                opts = BusOptions(mode=mode, connect=list(connect), listen=list(listen),
-                                  zenoh_config=zenoh_config, namespace=bus_namespace)
-                if opts.namespace:
-                    validate_key_expr(opts.namespace)
-                opts.user_config()  # a bad file is bad input: fail before anything starts
+            opts = BusOptions(mode=mode, connect=list(connect), listen=list(listen),
+                              zenoh_config=zenoh_config, namespace=bus_namespace)
+            if opts.namespace:
+                validate_key_expr(opts.namespace)
+            opts.user_config()  # a bad file is bad input: fail before anything starts
             return f(*args, bus_options=opts, **kwargs)
 
         return wrapper
 
     return decorate(f) if f is not None else decorate
-
-
-class user_errors:
-    """Context manager turning library errors into click exceptions with the right exit code."""
-
-    def __enter__(self) -> "user_errors":
-        return self
-
-    def __exit__(self, exc_type, exc, tb) -> bool:
-        if exc is None:
-            return False
-        if isinstance(exc, (ConfigError, FieldPathError, KeyExprError)):
-            raise BadInput(str(exc)) from exc
-        if isinstance(exc, MrtaRuntimeError):
-            raise RuntimeFailure(str(exc)) from exc
-        if isinstance(exc, Interrupted):
-            raise click.Abort() from exc
-        return False
 
 
 class FiniteFloat(click.ParamType):
@@ -108,12 +80,17 @@ def finite_float(min: float | None = None, min_open: bool = False,
     return FiniteFloat(min, min_open, max)
 
 
+def plural(n: int, word: str, many: str | None = None) -> str:
+    """`1 robot`, `2 robots`: counts in messages read as English."""
+    return f"{n} {word if n == 1 else (many or word + 's')}"
+
+
 LOG_FORMAT = "%(levelname)s %(name)s: %(message)s"
 
 
 def setup_logging(verbosity: int = 0) -> None:
     """Once per process: `mrta` loggers at INFO (activations, readiness), -v DEBUG, -q WARNING,
-    -qq ERROR; other libraries at WARNING. The `mrta` group and run_node both call this."""
+    -qq ERROR; other libraries at WARNING. The `mrta` group, launch-file nodes and missions call this."""
     level = {-2: logging.ERROR, -1: logging.WARNING, 0: logging.INFO}.get(
         max(-2, min(verbosity, 1)), logging.DEBUG)
     root = logging.getLogger()

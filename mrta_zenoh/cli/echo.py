@@ -7,7 +7,7 @@ import click
 from ..bus import BusOptions
 from ..fieldpath import FieldPath
 from ..tools.echo import run_echo
-from .common import bus_options, user_errors
+from .common import bus_options
 
 
 @click.command()
@@ -19,8 +19,8 @@ from .common import bus_options, user_errors
 def echo(key_expr: str, field: str | None, count: int | None, as_json: bool,
          bus_options: BusOptions) -> None:
     """Print samples on KEY_EXPR (e.g. '*/alliance/inter_robot_communication') as they arrive."""
-    with user_errors():
-        if field:
-            FieldPath.parse(field)
-        run_echo(bus_options=bus_options, key_expr=key_expr, field=field, count=count,
-                 as_json=as_json)
+    if field:
+        FieldPath.parse(field)  # bad input: before the session opens
+    run_echo(bus_options=bus_options, key_expr=key_expr, field=field, count=count,
+             as_json=as_json, emit=click.echo,
+             warn=lambda text: click.echo(f"warning: {text}", err=True))

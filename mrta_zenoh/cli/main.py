@@ -3,15 +3,70 @@
 The applications (robot_agent, simulator, supervisor) add their subcommands by entry point, so
 the core never imports them, and a pip-installed package can add its own subcommand the same way.
 Subcommands are imported only when used: `mrta echo` does not pay for matplotlib.
+
+This is also the one place where the library's errors become exit codes (docs/architecture.md,
+"exit codes"): `run` is how every program of the project ends — the `mrta` group, a launch
+file's node (mrta_zenoh.cli.run_node) and an experiment's mission (mrta_zenoh.cli.mission) — so
+an error means the same one line and the same exit code whichever way a verb was started, and
+verbs need no wrapper of their own.
 """
 
 from __future__ import annotations
 
+import sys
 from importlib.metadata import entry_points
+from typing import Any, Callable, Sequence
 
 import click
 
+from ..errors import Interrupted, MrtaError
 from .common import setup_logging
+
+
+def report(exc: BaseException) -> int:
+    """Say what went wrong on stderr, in one line where the error is one, and return the exit
+    code for it: an MrtaError's own, click's for its exceptions (usage errors: 2), 130 for
+    Ctrl-C."""
+    if isinstance(exc, Interrupted):
+        click.echo(f"Aborted! {exc}" if str(exc) else "Aborted!", err=True)
+        return exc.exit_code
+    if isinstance(exc, MrtaError):
+        click.echo(f"Error: {exc}", err=True)
+        return exc.exit_code
+    if isinstance(exc, click.ClickException):
+        exc.show()
+        return exc.exit_code
+    if isinstance(exc, click.Abort):  # click's own: Ctrl-C, or end of input at a prompt
+        click.echo("Aborted!", err=True)
+        return Interrupted.exit_code if isinstance(exc.__cause__, KeyboardInterrupt) else 1
+    raise TypeError(f"not an error to report: {exc!r}")
+
+
+def run(command: click.Command, args: Sequence[str] | None = None,
+        prog_name: str | None = None, **extra: Any) -> int:
+    """Run `command` as a program; return its exit code instead of exiting.
+
+    click's standalone mode would exit 1 with a traceback on our errors; here they are reported
+    by `report`. A command may return an int: its exit code (click's `ctx.exit(n)` too)."""
+    try:
+        rv = command.main(args=list(args) if args is not None else None, prog_name=prog_name,
+                          standalone_mode=False, **extra)
+    except (MrtaError, click.ClickException, click.Abort) as exc:
+        return report(exc)
+    return rv if type(rv) is int else 0
+
+
+def run_callable(target: Callable[[list[str]], Any], args: list[str]) -> int:
+    """An executable registered as a plain function of argv (not a click command): the same
+    reporting of our errors."""
+    try:
+        rv = target(args)
+    except MrtaError as exc:
+        return report(exc)
+    except KeyboardInterrupt:
+        return report(Interrupted())
+    return rv if type(rv) is int else 0
+
 
 class EntryPointGroup(click.Group):
     """A click group whose subcommands are the entry points of GROUP, loaded when used."""
@@ -32,7 +87,18 @@ class EntryPointGroup(click.Group):
         return ep.load() if ep is not None else None
 
 
-@click.group(cls=EntryPointGroup, context_settings={"help_option_names": ["-h", "--help"]})
+class RootGroup(EntryPointGroup):
+    """`mrta` itself: in standalone mode (a console script, `python -m`, CliRunner) it exits
+    through `run`, so every verb's errors are translated here and nowhere else."""
+
+    def main(self, args: Sequence[str] | None = None, prog_name: str | None = None,
+             complete_var: str | None = None, standalone_mode: bool = True, **extra: Any) -> Any:
+        if not standalone_mode:
+            return super().main(args, prog_name, complete_var, standalone_mode=False, **extra)
+        sys.exit(run(self, args, prog_name, complete_var=complete_var, **extra))
+
+
+@click.group(cls=RootGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.option("-v", "--verbose", count=True, help="More log output (-v debug).")
 @click.option("-q", "--quiet", count=True, help="Less log output (-q warnings only, -qq errors).")
 @click.version_option(package_name="mrta-zenoh")

@@ -8,7 +8,7 @@ import click
 
 from ..bus import BusOptions
 from ..tools.record import run_record
-from .common import bus_options, finite_float, user_errors
+from .common import bus_options, finite_float
 
 
 @click.command()
@@ -21,6 +21,5 @@ from .common import bus_options, finite_float, user_errors
 def record(output: Path, key_exprs: tuple[str, ...], duration: float | None,
            bus_options: BusOptions) -> None:
     """Record every sample on KEYEXPR… (default: everything) to an MCAP file."""
-    with user_errors():
-        run_record(output=output, key_exprs=list(key_exprs) or ["**"], bus_options=bus_options,
-                   duration=duration)
+    run_record(output=output, key_exprs=list(key_exprs) or ["**"], bus_options=bus_options,
+               duration=duration)

@@ -8,7 +8,7 @@ import click
 
 from ..bus import BusOptions
 from ..tools.replay import run_replay
-from .common import bus_options, finite_float, user_errors
+from .common import bus_options, finite_float
 
 
 @click.command()
@@ -22,6 +22,5 @@ from .common import bus_options, finite_float, user_errors
 def replay(recording: Path, speed: float, key_expr: str, clock: bool,
            bus_options: BusOptions) -> None:
     """Republish RECORDING's bus channels with their original timing (rosbag play)."""
-    with user_errors():
-        run_replay(recording=recording, bus_options=bus_options, speed=speed,
-                   key_expr=key_expr, clock=clock)
+    run_replay(recording=recording, bus_options=bus_options, speed=speed, key_expr=key_expr,
+               clock=clock)

@@ -7,10 +7,11 @@ import json
 import click
 
 from ..bus import BusOptions
+from ..errors import ConfigError
 from ..ros2.bridge import RobotLink, run_bridge
 from ..ros2.graph import read_graph
 from ..ros2.types import DEFAULT_DISTRO, DISTROS, SONAR_TYPES
-from .common import BadInput, bus_options, finite_float, user_errors
+from .common import bus_options, finite_float, plural
 
 DOMAIN = click.IntRange(0, 232)
 
@@ -42,13 +43,11 @@ def bridge(robots: tuple[str, ...], namespace: str | None, domain: int, cmd_vel:
            sonar: str, sonar_type: str, mirror: bool, distro: str,
            bus_options: BusOptions) -> None:
     """Map our robotN/cmd_vel, odom and sonar to a ROS 2 robot's topics over rmw_zenoh."""
-    with user_errors():
-        if namespace is not None and len(robots) > 1:
-            raise BadInput("--namespace names one robot's namespace: give one --robot with it")
-        links = [RobotLink.make(r, namespace, cmd_vel=cmd_vel, odom=odom, sonar=sonar,
-                                sonar_type=sonar_type) for r in robots]
-        run_bridge(links=links, bus_options=bus_options, domain=domain, distro=distro,
-                   mirror=mirror)
+    if namespace is not None and len(robots) > 1:
+        raise ConfigError("--namespace names one robot's namespace: give one --robot with it")
+    links = [RobotLink.make(r, namespace, cmd_vel=cmd_vel, odom=odom, sonar=sonar,
+                            sonar_type=sonar_type) for r in robots]
+    run_bridge(links=links, bus_options=bus_options, domain=domain, distro=distro, mirror=mirror)
 
 
 @ros2.command()
@@ -59,14 +58,15 @@ def bridge(robots: tuple[str, ...], namespace: str | None, domain: int, cmd_vel:
 @bus_options
 def graph(domain: int, wait: float, as_json: bool, bus_options: BusOptions) -> None:
     """List ROS 2 nodes and topics from rmw_zenoh's liveliness tokens."""
-    with user_errors():
-        snap = read_graph(bus_options=bus_options, domain=domain, wait=wait)
+    snap = read_graph(bus_options=bus_options, domain=domain, wait=wait)
     if as_json:
         click.echo(json.dumps(snap))
         return
-    click.echo(f"ROS 2 domain {domain}: {len(snap['nodes'])} nodes, {len(snap['topics'])} topics")
+    click.echo(f"ROS 2 domain {domain}: {plural(len(snap['nodes']), 'node')}, "
+               f"{plural(len(snap['topics']), 'topic')}")
     for node in snap["nodes"]:
         click.echo(f"  {node}")
     for t in snap["topics"]:
-        click.echo(f"  {t['topic']} [{', '.join(t['types'])}] {t['publishers']} publishers, "
-                   f"{t['subscriptions']} subscriptions")
+        click.echo(f"  {t['topic']} [{', '.join(t['types'])}] "
+                   f"{plural(t['publishers'], 'publisher')}, "
+                   f"{plural(t['subscriptions'], 'subscription')}")

@@ -6,7 +6,7 @@ import click
 
 from ..bus.options import BusOptions
 from ..lifecycle import stop_on_signals
-from .common import bus_options, user_errors
+from .common import bus_options
 
 
 @click.command()
@@ -19,12 +19,11 @@ def router(bus_options: BusOptions) -> None:
     """
     from ..bus.zenoh_bus import run_router
 
-    with user_errors():
-        configured = (bus_options.user_config().get("listen") or {}).get("endpoints")
-        opts = BusOptions(mode="router", connect=bus_options.connect,
-                          listen=bus_options.listen or ([] if configured else
-                                                        [bus_options.rendezvous_endpoint]),
-                          zenoh_config=bus_options.zenoh_config)
-    with user_errors(), stop_on_signals() as stop:
+    configured = (bus_options.user_config().get("listen") or {}).get("endpoints")
+    opts = BusOptions(mode="router", connect=bus_options.connect,
+                      listen=bus_options.listen or ([] if configured else
+                                                    [bus_options.rendezvous_endpoint]),
+                      zenoh_config=bus_options.zenoh_config)
+    with stop_on_signals() as stop:
         click.echo(f"router listening on {', '.join(opts.listen or configured)}", err=True)
         run_router(opts, stop)

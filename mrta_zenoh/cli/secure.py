@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from ..secure import DEFAULT_ENDPOINT, init
-from .common import user_errors
+from .common import plural
 
 
 @click.group()
@@ -28,11 +28,10 @@ def secure() -> None:
 def secure_init(folder: Path, robots: tuple[str, ...], observers: tuple[str, ...], endpoint: str,
                 no_simulator: bool, force: bool) -> None:
     """Write a CA, a certificate per process, router.json5 and one NAME.json5 per process."""
-    with user_errors():
-        files = init(folder, list(robots), list(observers), endpoint=endpoint,
-                     simulator=not no_simulator, force=force)
+    files = init(folder, list(robots), list(observers), endpoint=endpoint,
+                 simulator=not no_simulator, force=force)
     names = sorted(p.stem for p in files if p.suffix == ".json5" and p.stem != "router")
-    click.echo(f"wrote {len(files)} files to {folder}")
+    click.echo(f"wrote {plural(len(files), 'file')} to {folder}")
     click.echo(f"  router: mrta router --zenoh-config {folder / 'router.json5'}")
     click.echo(f"  others: mrta … --zenoh-config {folder}/NAME.json5 for NAME in "
                f"{', '.join(names)}")

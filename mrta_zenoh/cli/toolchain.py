@@ -5,19 +5,22 @@ from __future__ import annotations
 import json
 import shlex
 from pathlib import Path
+from typing import Callable, TypeVar
 
 import click
 
-from ..errors import ConfigError
+from ..errors import ConfigError, MrtaRuntimeError
 from ..lifecycle import stop_on_signals
 from ..toolchain.generator import build_application, load_answers, write_package
 from ..toolchain.launchfile import LaunchEvaluator, check_executables
 from ..toolchain.model import Application, Architecture, Array, Param, Params
 from ..toolchain.registry import Registry, matches_taxonomy, taxonomy_value
 from ..toolchain.runner import command_for, run_nodes
-from ..toolchain.wizard import collect, summary
+from ..toolchain.wizard import InvalidAnswer, collect, summary
 from ..toolchain.xmlio import load_rqt_mrta
-from .common import BadInput, user_errors
+from .common import plural
+
+T = TypeVar("T")
 
 
 def _problems(reg: Registry) -> None:
@@ -37,11 +40,10 @@ def arch() -> None:
 @click.option("--json", "as_json", is_flag=True, help="One JSON object per architecture.")
 def arch_list(robots: str | None, tasks: str | None, allocations: str | None, as_json: bool) -> None:
     """List architectures, filtered by the Gerkey–Matarić taxonomy."""
-    with user_errors():
-        f = {k: taxonomy_value(k, v) if v else None
-             for k, v in (("robots", robots), ("tasks", tasks), ("allocations", allocations))}
-        reg = Registry()
-        rows = [(p, a) for p, a in reg.architectures() if matches_taxonomy(a, **f)]
+    f = {k: taxonomy_value(k, v) if v else None
+         for k, v in (("robots", robots), ("tasks", tasks), ("allocations", allocations))}
+    reg = Registry()
+    rows = [(p, a) for p, a in reg.architectures() if matches_taxonomy(a, **f)]
     _problems(reg)
     for p, a in rows:
         if as_json:
@@ -90,8 +92,7 @@ def _describe(model: Architecture | Application) -> list[str]:
 @click.argument("name")
 def arch_show(name: str) -> None:
     """Show an architecture: taxonomy, monitors, config templates, launches."""
-    with user_errors():
-        pkg, a = Registry().architecture(name)
+    pkg, a = Registry().architecture(name)
     click.echo(f"package {pkg.name} {pkg.version} at {pkg.path}")
     click.echo("\n".join(_describe(a)))
 
@@ -100,19 +101,18 @@ def _validate(path: Path, kind: type) -> None:
     """PATH is an rqt_mrta.xml file, a package folder holding one, or a registered package's
     name. An application's architecture must also be registered: a package naming an
     architecture nobody installed would validate, then fail at launch."""
-    with user_errors():
-        if path.is_dir():
-            path = path / "rqt_mrta.xml"
-        elif not path.exists() and len(path.parts) == 1:
-            reg = Registry()
-            if path.name in reg.packages:
-                path = reg.find(path.name).path / "rqt_mrta.xml"
-        model = load_rqt_mrta(path)
-        if not isinstance(model, kind):
-            raise ConfigError(f"this is an {type(model).__name__.lower()} file, not an "
-                              f"{kind.__name__.lower()} file", file=str(path))
-        if isinstance(model, Application):
-            Registry().architecture(model.architecture)
+    if path.is_dir():
+        path = path / "rqt_mrta.xml"
+    elif not path.exists() and len(path.parts) == 1:
+        reg = Registry()
+        if path.name in reg.packages:
+            path = reg.find(path.name).path / "rqt_mrta.xml"
+    model = load_rqt_mrta(path)
+    if not isinstance(model, kind):
+        raise ConfigError(f"this is an {type(model).__name__.lower()} file, not an "
+                          f"{kind.__name__.lower()} file", file=str(path))
+    if isinstance(model, Application):
+        Registry().architecture(model.architecture)
     click.echo(f"{path}: valid {kind.__name__.lower()} {model.name!r}")
 
 
@@ -142,15 +142,14 @@ def app_list(as_json: bool) -> None:
                                    "robots": [r.id for r in a.robots], "path": str(p.path)}))
         else:
             click.echo(f"{p.name:20} {a.name:30} {a.architecture:12} "
-                       f"{len(a.robots)} robots  {p.path}")
+                       f"{plural(len(a.robots), 'robot'):9} {p.path}")
 
 
 @app.command("show")
 @click.argument("name")
 def app_show(name: str) -> None:
     """Show an application: robots and their tasks, configs, launches."""
-    with user_errors():
-        pkg, a = Registry().application(name)
+    pkg, a = Registry().application(name)
     click.echo(f"package {pkg.name} {pkg.version} at {pkg.path}")
     click.echo("\n".join(_describe(a)))
 
@@ -172,24 +171,47 @@ def app_validate(path: Path) -> None:
 @click.option("--yes", is_flag=True, help="Do not ask for confirmation after the summary.")
 def app_new(answers: Path | None, output: Path, force: bool, yes: bool) -> None:
     """Create an application package: general data, architecture, robots, parameters, summary."""
-    with user_errors():
-        reg = Registry()
-        if answers is not None:
-            a, doc = load_answers(answers)
-            arch_pkg, arch_model = reg.architecture(a.architecture)
-        else:
-            a, arch_pkg, arch_model = collect(reg)
-            doc = None
-        _, files = build_application(arch_pkg, arch_model, a, doc)
-        dest = output / a.package
-        if dest.exists() and not force:
-            raise ConfigError(f"{dest} already exists; use --force to replace it")
-        click.echo(click.style("5/5 Summary", bold=True) if answers is None else "Summary")
-        click.echo(summary(a, arch_model, files, dest))
-        if answers is None and not yes and not click.confirm("Write these files?", default=True):
-            raise click.ClickException("nothing written")
-        write_package(files, dest, force)
-    click.echo(f"wrote {len(files)} files to {dest}")
+    reg = Registry()
+    if answers is not None:
+        a, doc = load_answers(answers)
+        arch_pkg, arch_model = reg.architecture(a.architecture)
+    else:
+        a, arch_pkg, arch_model = collect(reg, TerminalPrompter())
+        doc = None
+    _, files = build_application(arch_pkg, arch_model, a, doc)
+    dest = output / a.package
+    if dest.exists() and not force:
+        raise ConfigError(f"{dest} already exists; use --force to replace it")
+    click.echo(click.style("5/5 Summary", bold=True) if answers is None else "Summary")
+    click.echo(summary(a, arch_model, files, dest))
+    if answers is None and not yes and not click.confirm("Write these files?", default=True):
+        raise click.ClickException("nothing written")
+    write_package(files, dest, force)
+    click.echo(f"wrote {plural(len(files), 'file')} to {dest}")
+
+
+class TerminalPrompter:
+    """The wizard's questions on the terminal (mrta_zenoh.toolchain.wizard.Prompter): click's
+    prompts, asking again — with the reason — until an answer is accepted."""
+
+    def step(self, title: str) -> None:
+        click.echo(click.style(title, bold=True))
+
+    def section(self, title: str) -> None:
+        click.echo(click.style(title, underline=True))
+
+    def say(self, text: str) -> None:
+        click.echo(text)
+
+    def ask(self, question: str, check: Callable[[str], T], default: str | None = None,
+            show_default: bool = True) -> T:
+        def proc(value: str) -> T:
+            try:
+                return check(value)
+            except InvalidAnswer as exc:  # click.prompt says it and asks again
+                raise click.UsageError(str(exc)) from None
+        return click.prompt(question, default=default, show_default=show_default,
+                            value_proc=proc)
 
 
 def _split_launch_args(items: tuple[str, ...]) -> dict[str, str]:
@@ -197,7 +219,7 @@ def _split_launch_args(items: tuple[str, ...]) -> dict[str, str]:
     for item in items:
         name, sep, value = item.partition(":=")
         if not sep or not name:
-            raise BadInput(f"launch argument {item!r}: expected name:=value")
+            raise ConfigError(f"launch argument {item!r}: expected name:=value")
         out[name] = value
     return out
 
@@ -213,22 +235,21 @@ def launch(target: str, rest: tuple[str, ...], dry_run: bool) -> None:
     Ctrl-C, or when one of them fails.
     """
     reg = Registry()
-    with user_errors():
-        path = Path(target)
-        if path.suffix == ".launch" and path.is_file():
-            args = rest
-        else:
-            if not rest:
-                raise BadInput(f"{target!r} is not a launch file; give PACKAGE FILE.launch")
-            pkg = reg.find(target)
-            path = pkg.path / "launch" / rest[0]
-            if not path.is_file():
-                found = sorted(p.name for p in (pkg.path / "launch").glob("*.launch"))
-                raise ConfigError(f"package {pkg.name} has no launch/{rest[0]} "
-                                  f"(it has: {', '.join(found) or 'none'})")
-            args = rest[1:]
-        nodes = LaunchEvaluator(lambda name: reg.find(name).path).run(path, _split_launch_args(args))
-        check_executables(nodes)
+    path = Path(target)
+    if path.suffix == ".launch" and path.is_file():
+        args = rest
+    else:
+        if not rest:
+            raise ConfigError(f"{target!r} is not a launch file; give PACKAGE FILE.launch")
+        pkg = reg.find(target)
+        path = pkg.path / "launch" / rest[0]
+        if not path.is_file():
+            found = sorted(p.name for p in (pkg.path / "launch").glob("*.launch"))
+            raise ConfigError(f"package {pkg.name} has no launch/{rest[0]} "
+                              f"(it has: {', '.join(found) or 'none'})")
+        args = rest[1:]
+    nodes = LaunchEvaluator(lambda name: reg.find(name).path).run(path, _split_launch_args(args))
+    check_executables(nodes)
     if dry_run:
         for n in nodes:
             env = "".join(f"{k}={shlex.quote(v)} " for k, v in n.env.items())
@@ -237,7 +258,7 @@ def launch(target: str, rest: tuple[str, ...], dry_run: bool) -> None:
     with stop_on_signals() as stop:
         code = run_nodes(nodes, stop, echo=lambda line: click.echo(line))
     if code:
-        raise click.ClickException("a node failed; the others were stopped")
+        raise MrtaRuntimeError("a node failed; the others were stopped")
 
 
 

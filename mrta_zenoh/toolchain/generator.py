@@ -6,10 +6,7 @@ file (documented in docs/toolchain.md), so both paths share every check below.
 
 from __future__ import annotations
 
-import os
 import re
-import shutil
-import tempfile
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -17,6 +14,7 @@ import yaml
 from lxml import etree
 
 from ..errors import ConfigError
+from ..files import write_folder
 from ..keys import KeyExprError, is_id, normalize_robot_id
 from ..yamlfile import YamlDoc, did_you_mean, load_yaml
 from .model import Application, Architecture, Config, Launch, LaunchArg, LaunchInclude, RobotEntry
@@ -223,30 +221,10 @@ def _package_xml(a: Answers, arch_package: str) -> bytes:
 
 
 def write_package(files: dict[str, bytes], dest: Path, force: bool = False) -> Path:
-    """Write every file or none: build in a sibling temp folder, then rename into place."""
+    """Write every file or none (mrta_zenoh.files.write_folder); an existing package is
+    replaced only with `force`."""
     dest = Path(dest)
     if dest.exists() and not force:
         raise ConfigError(f"{dest} already exists; use --force to replace it")
-    dest.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{dest.name}.", dir=dest.parent))
-    try:
-        for rel, data in files.items():
-            target = tmp / rel
-            target.parent.mkdir(parents=True, exist_ok=True)
-            target.write_bytes(data)
-        old = None
-        if dest.exists():
-            old = dest.with_name(f".{dest.name}.old")
-            if old.exists():
-                shutil.rmtree(old)
-            os.replace(dest, old)
-        os.replace(tmp, dest)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
-    except OSError as exc:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise ConfigError(f"cannot write package to {dest}: {exc}") from None
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+    write_folder(dest, files)
     return dest

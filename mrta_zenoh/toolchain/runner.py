@@ -15,7 +15,7 @@ from .launchfile import NodeSpec
 
 
 def command_for(node: NodeSpec) -> list[str]:
-    return [sys.executable, "-m", "mrta_zenoh.toolchain.run_node", node.executable, *node.args]
+    return [sys.executable, "-m", "mrta_zenoh.cli.run_node", node.executable, *node.args]
 
 
 def env_for(node: NodeSpec) -> dict[str, str]:

@@ -3,14 +3,13 @@
 General data → architecture (with taxonomy filters) → robots and their tasks → every parameter
 (tool_tip as help, defaults offered, mandatory ones insisted on, types checked, arrays sized by the
 user) → a summary of exactly what will be written → confirm. It only *collects* answers; checking
-and writing are the generator's, shared with `--answers`.
+and writing are the generator's, shared with `--answers`. The talking is a Prompter's: the
+terminal's lives in the CLI layer, so this module knows no terminal.
 """
 
 from __future__ import annotations
 
-from typing import Any, Callable
-
-import click
+from typing import Any, Callable, Protocol, TypeVar
 
 from ..errors import ConfigError
 from ..keys import is_id
@@ -19,12 +18,38 @@ from .model import Architecture, Node, Param, Params
 from .registry import Package, Registry, matches_taxonomy, taxonomy_value
 from .templates import ARRAY_SIZE, TASK_PLACEHOLDER, convert
 
+T = TypeVar("T")
+
+
+class InvalidAnswer(ConfigError):
+    """An answer the wizard cannot take; a prompter asks again, saying why (the message).
+    A ConfigError, so answers that cannot be asked again (a script) end as bad input."""
+
+
+class Prompter(Protocol):
+    """How the wizard talks to its user, so that it holds no terminal code: the terminal's
+    prompter is the CLI's (mrta_zenoh.cli.toolchain); a test or a GUI brings its own."""
+
+    def step(self, title: str) -> None:
+        """A new step of the wizard ("1/5 General data")."""
+
+    def section(self, title: str) -> None:
+        """A group of questions within a step (one config file)."""
+
+    def say(self, text: str) -> None:
+        """A line of information (the architectures to choose from)."""
+
+    def ask(self, question: str, check: Callable[[str], T], default: str | None = None,
+            show_default: bool = True) -> T:
+        """The checked answer to `question`: an empty answer means `default` when there is
+        one; `check` turns the text into the value or raises InvalidAnswer."""
+
 
 def _check(pattern, message: str) -> Callable[[str], str]:
     def proc(value: str) -> str:
         value = value.strip()
         if not pattern.match(value):
-            raise click.UsageError(message)
+            raise InvalidAnswer(message)
         return value
     return proc
 
@@ -32,31 +57,47 @@ def _check(pattern, message: str) -> Callable[[str], str]:
 def _nonempty(what: str) -> Callable[[str], str]:
     def proc(value: str) -> str:
         if not value.strip():
-            raise click.UsageError(f"{what} cannot be empty")
+            raise InvalidAnswer(f"{what} cannot be empty")
         return value.strip()
     return proc
+
+
+def _text(value: str) -> str:
+    return value
+
+
+def _count(value: str) -> int:
+    try:
+        n = int(value.strip())
+    except ValueError:
+        raise InvalidAnswer(f"{value!r} is not a valid integer") from None
+    if not 0 <= n <= 1000:
+        raise InvalidAnswer(f"{n} is not in the range 0<=x<=1000")
+    return n
 
 
 def _csv(value: str) -> list[str]:
     return [v.strip() for v in value.split(",") if v.strip()]
 
 
-def collect(registry: Registry, echo: Callable[[str], None] = click.echo) -> tuple[Answers, Package, Architecture]:
-    echo(click.style("1/5 General data", bold=True))
-    package = click.prompt("Package name (lower case, e.g. my_patrol)",
-                           value_proc=_check(PACKAGE_NAME, "use lower-case letters, digits and '_', "
-                                                           "starting with a letter"))
-    name = click.prompt("Application name", value_proc=_nonempty("the name"))
-    version = click.prompt("Version", default="1.0.0",
-                           value_proc=_check(VERSION, "expected MAJOR.MINOR.PATCH, e.g. 1.0.0"))
-    description = click.prompt("Description", default=name)
-    maintainer = click.prompt("Maintainer", value_proc=_nonempty("the maintainer"))
-    email = click.prompt("Maintainer e-mail", value_proc=_check(EMAIL, "not a valid e-mail address"))
-    license_ = click.prompt("Licence", default="Apache-2.0")
-    depends = _csv(click.prompt("Other dependencies (comma-separated)", default="",
-                                show_default=False))
+def collect(registry: Registry, ui: Prompter) -> tuple[Answers, Package, Architecture]:
+    """Ask everything an application package needs, through `ui`; checking and writing are
+    the generator's (shared with `--answers`)."""
+    ui.step("1/5 General data")
+    package = ui.ask("Package name (lower case, e.g. my_mission)",
+                     _check(PACKAGE_NAME, "use lower-case letters, digits and '_', "
+                                          "starting with a letter"))
+    name = ui.ask("Application name", _nonempty("the name"))
+    version = ui.ask("Version", _check(VERSION, "expected MAJOR.MINOR.PATCH, e.g. 1.0.0"),
+                     default="1.0.0")
+    description = ui.ask("Description", _text, default=name)
+    maintainer = ui.ask("Maintainer", _nonempty("the maintainer"))
+    email = ui.ask("Maintainer e-mail", _check(EMAIL, "not a valid e-mail address"))
+    license_ = ui.ask("Licence", _text, default="Apache-2.0")
+    depends = _csv(ui.ask("Other dependencies (comma-separated)", _text, default="",
+                          show_default=False))
 
-    echo(click.style("2/5 Architecture", bold=True))
+    ui.step("2/5 Architecture")
     archs = registry.architectures()
     filters = {}
     for axis, options in (("robots", "ST/MT"), ("tasks", "SR/MR"), ("allocations", "IA/TA")):
@@ -66,15 +107,15 @@ def collect(registry: Registry, echo: Callable[[str], None] = click.echo) -> tup
             try:
                 return taxonomy_value(axis, v)
             except ConfigError as exc:
-                raise click.UsageError(str(exc)) from None
-        filters[axis] = click.prompt(f"Filter by {axis} type ({options}, empty for any)",
-                                     default="", show_default=False, value_proc=proc)
+                raise InvalidAnswer(str(exc)) from None
+        filters[axis] = ui.ask(f"Filter by {axis} type ({options}, empty for any)", proc,
+                               default="", show_default=False)
     shown = [(p, a) for p, a in archs if matches_taxonomy(a, **filters)]
     if not shown:
         raise ConfigError("no registered architecture matches these filters "
                           f"(registered: {', '.join(p.name for p, _ in archs) or 'none'})")
     for i, (p, a) in enumerate(shown, 1):
-        echo(f"  {i}. {p.name}: {a.name} [{a.taxonomy}]")
+        ui.say(f"  {i}. {p.name}: {a.name} [{a.taxonomy}]")
 
     def pick(v: str) -> tuple[Package, Architecture]:
         v = v.strip()
@@ -83,50 +124,50 @@ def collect(registry: Registry, echo: Callable[[str], None] = click.echo) -> tup
         for p, a in shown:
             if v in (p.name, a.name):
                 return p, a
-        raise click.UsageError(f"choose 1-{len(shown)} or a name")
-    arch_pkg, arch = click.prompt("Architecture", default="1", value_proc=pick)
+        raise InvalidAnswer(f"choose 1-{len(shown)} or a name")
+    arch_pkg, arch = ui.ask("Architecture", pick, default="1")
 
-    echo(click.style("3/5 Robots and tasks", bold=True))
+    ui.step("3/5 Robots and tasks")
 
     def ids(v: str) -> list[str]:
         out = _csv(v)
         if not out or not all(is_id(x) for x in out):
-            raise click.UsageError("give one or more ids (letters, digits, '_', '-', '.'), "
-                                   "comma-separated")
+            raise InvalidAnswer("give one or more ids (letters, digits, '_', '-', '.'), "
+                                "comma-separated")
         if len(set(out)) != len(out):
-            raise click.UsageError("ids must be unique")
+            raise InvalidAnswer("ids must be unique")
         return out
-    robot_ids = click.prompt("Robot ids (comma-separated)", value_proc=ids)
-    task_ids = click.prompt("Task ids of the application (comma-separated)", value_proc=ids)
+    robot_ids = ui.ask("Robot ids (comma-separated)", ids)
+    task_ids = ui.ask("Task ids of the application (comma-separated)", ids)
     robots: dict[str, list[str]] = {}
     for rid in robot_ids:
         def subset(v: str) -> list[str]:
             chosen = ids(v)
             bad = [t for t in chosen if t not in task_ids]
             if bad:
-                raise click.UsageError(f"unknown task {bad[0]!r}; tasks are {', '.join(task_ids)}")
+                raise InvalidAnswer(f"unknown task {bad[0]!r}; tasks are {', '.join(task_ids)}")
             return chosen
-        robots[rid] = click.prompt(f"Tasks {rid} can do", default=",".join(task_ids),
-                                   value_proc=subset)
+        robots[rid] = ui.ask(f"Tasks {rid} can do", subset, default=",".join(task_ids))
 
-    echo(click.style("4/5 Parameters", bold=True))
+    ui.step("4/5 Parameters")
     configs: dict[str, Any] = {}
     for c in arch.configs:
         if c.id == arch.config_id:
             configs[c.id] = {}
             for rid, tasks in robots.items():
-                echo(click.style(f"{rid}_{c.id}", underline=True))
-                configs[c.id][rid] = _ask_children(c.children, f"{rid}", tasks)
+                ui.section(f"{rid}_{c.id}")
+                configs[c.id][rid] = _ask_children(ui, c.children, f"{rid}", tasks)
         elif c.children:
-            echo(click.style(c.id, underline=True))
-            configs[c.id] = _ask_children(c.children, c.id, None)
+            ui.section(c.id)
+            configs[c.id] = _ask_children(ui, c.children, c.id, None)
     answers = Answers(package=package, name=name, architecture=arch_pkg.name, robots=robots,
                       configs=configs, version=version, description=description,
                       maintainer=maintainer, email=email, license=license_, depends=depends)
     return answers, arch_pkg, arch
 
 
-def _ask_children(children: list[Node], path: str, tasks: list[str] | None) -> dict:
+def _ask_children(ui: Prompter, children: list[Node], path: str,
+                  tasks: list[str] | None) -> dict:
     out: dict[str, Any] = {}
     for child in children:
         if isinstance(child, Param):
@@ -134,21 +175,21 @@ def _ask_children(children: list[Node], path: str, tasks: list[str] | None) -> d
                 continue  # sized from the array below / filled from the robot's tasks
             if child.value and "@" not in child.value:
                 continue  # fixed by the architecture
-            out[child.name] = _ask_param(child, f"{path}/{child.name}")
+            out[child.name] = _ask_param(ui, child, f"{path}/{child.name}")
         elif isinstance(child, Params):
-            out[child.name] = _ask_children(child.children, f"{path}/{child.name}", tasks)
+            out[child.name] = _ask_children(ui, child.children, f"{path}/{child.name}", tasks)
         else:
             key = child.name.replace("@index@", "")
             if tasks is not None and _has_task_id(child):
                 count = len(tasks)
                 labels = tasks
             else:
-                count = click.prompt(f"{path}: how many {key} entries", type=click.IntRange(0, 1000))
+                count = ui.ask(f"{path}: how many {key} entries", _count)
                 labels = [str(i) for i in range(count)]
             items = []
             for i in range(count):
-                click.echo(f"  {child.name.replace('@index@', str(i))} ({labels[i]})")
-                items.append(_ask_children(child.children, f"{path}/{key}{i}", tasks))
+                ui.say(f"  {child.name.replace('@index@', str(i))} ({labels[i]})")
+                items.append(_ask_children(ui, child.children, f"{path}/{key}{i}", tasks))
             out[key] = items
     return out
 
@@ -159,17 +200,17 @@ def _has_task_id(node: Node) -> bool:
     return any(_has_task_id(c) for c in node.children)
 
 
-def _ask_param(p: Param, path: str) -> Any:
+def _ask_param(ui: Prompter, p: Param, path: str) -> Any:
     def proc(v: str) -> Any:
         if v == "" and not p.default:
-            raise click.UsageError(f"{p.name} is mandatory")
+            raise InvalidAnswer(f"{p.name} is mandatory")
         try:
             return convert(p.type, v if v != "" else p.default, path)
         except ConfigError as exc:
-            raise click.UsageError(str(exc)) from None
+            raise InvalidAnswer(str(exc)) from None
     help_ = f" — {p.tool_tip}" if p.tool_tip else ""
-    return click.prompt(f"{path} [{p.type or 'string'}]{help_}",
-                        default=p.default if p.default else None, value_proc=proc)
+    return ui.ask(f"{path} [{p.type or 'string'}]{help_}", proc,
+                  default=p.default if p.default else None)
 
 
 def summary(answers: Answers, arch: Architecture, files: dict[str, bytes], dest) -> str:

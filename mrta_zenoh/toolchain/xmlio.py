@@ -146,17 +146,18 @@ class _Reader:
         if el is None:
             return []
         out = []
-        elements = self.children(el, (), ("config",))
-        for c in elements:
+        first_line: dict[str, int] = {}
+        for c in self.children(el, (), ("config",)):
             self.children(c, ("id",), ("param", "params", "array"))
-            elements = [k for k in c if isinstance(k.tag, str) and k.tag != "id"]
-            kids = [self.param_node(k) for k in elements]
-            self.no_arrays(elements, kids, f"config {self.text(c, 'id')!r}")
-            out.append(Config(self.text(c, "id"), kids, line=c.sourceline))
-        ids = [c.id for c in out]
-        for c, el_c in zip(out, elements):
-            if ids.count(c.id) > 1:
-                raise self.error(el_c, f"config id {c.id!r} is used twice")
+            config_id = self.text(c, "id")
+            if config_id in first_line:  # robots pick their config by id: two would be ambiguous
+                raise self.error(c, f"config id {config_id!r} is used twice (first on line "
+                                    f"{first_line[config_id]})")
+            first_line[config_id] = c.sourceline
+            members = [k for k in c if isinstance(k.tag, str) and k.tag != "id"]
+            kids = [self.param_node(k) for k in members]
+            self.no_arrays(members, kids, f"config {config_id!r}")
+            out.append(Config(config_id, kids, line=c.sourceline))
         return out
 
     def launches(self, el) -> list[Launch]:

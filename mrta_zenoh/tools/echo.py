@@ -1,11 +1,12 @@
-"""Print samples (or one field of them) as they arrive, like `rostopic echo`: `mrta echo`'s api."""
+"""Samples (or one field of them) as text lines as they arrive, like `rostopic echo`: `mrta echo`'s
+api. The verb prints the lines; this module only formats them."""
 
 from __future__ import annotations
 
 import json
-import sys
+import logging
 import time
-from typing import Any
+from typing import Any, Callable
 
 import yaml
 
@@ -15,6 +16,8 @@ from ..fieldpath import FieldPath, FieldPathError
 from ..keys import validate_key_expr
 from ..lifecycle import stop_on_signals
 from ..messages import is_message
+
+log = logging.getLogger("mrta.echo")
 
 
 def format_sample(key: str, type_name: str, value: Any, as_json: bool, field: FieldPath | None) -> str:
@@ -51,18 +54,19 @@ def _json_default(v: Any) -> Any:
     raise TypeError(f"not JSON serialisable: {type(v).__name__}")
 
 
-def run_echo(*, bus_options: BusOptions, key_expr: str, field: str | None = None,
-             count: int | None = None, as_json: bool = False, out=None, err=None,
+def run_echo(*, bus_options: BusOptions, key_expr: str, emit: Callable[[str], None],
+             warn: Callable[[str], None] = log.warning, field: str | None = None,
+             count: int | None = None, as_json: bool = False,
              timeout: float | None = None) -> int:
-    """Print samples until `count` were printed, a signal arrives or `timeout` elapses."""
-    out = out or sys.stdout
-    err = err or sys.stderr
+    """Hand each sample, formatted, to `emit` until `count` were emitted, a signal arrives or
+    `timeout` elapses; return how many. What to do with the lines (print them, collect them) is
+    the caller's: a library function never prints. `warn` hears of samples it had to skip."""
     validate_key_expr(key_expr)
     path = FieldPath.parse(field) if field else None
     printed = 0
 
     def on_error(key: str, exc: Exception) -> None:
-        print(f"warning: dropped malformed sample on {key}: {exc}", file=err, flush=True)
+        warn(f"dropped malformed sample on {key}: {exc}")
 
     with stop_on_signals() as stop, open_bus(bus_options) as bus:
         sub = bus.subscribe(key_expr, queue_size=1000, on_error=on_error)
@@ -76,11 +80,8 @@ def run_echo(*, bus_options: BusOptions, key_expr: str, field: str | None = None
             try:
                 value = path.resolve(sample.message) if path else sample.message
             except FieldPathError as exc:
-                print(f"warning: {sample.key}: {exc}", file=err, flush=True)
+                warn(f"{sample.key}: {exc}")
                 continue
-            print(format_sample(sample.key, sample.type_name, _plain(value), as_json, path),
-                  file=out, flush=True)
+            emit(format_sample(sample.key, sample.type_name, _plain(value), as_json, path))
             printed += 1
     return printed
-
-

@@ -16,12 +16,11 @@ from pathlib import Path
 
 from ..bus import BusOptions, open_bus
 from ..errors import ConfigError
-from ..keys import CLOCK, matches, validate_key_expr
+from ..keys import CLOCK, LIVELINESS_PREFIX, matches, validate_key_expr
 from ..lifecycle import stop_on_signals
 from ..recording import read_recording
 
 log = logging.getLogger("mrta.replay")
-LIVELINESS = "@liveliness/"
 
 
 def run_replay(*, recording: Path, bus_options: BusOptions, speed: float = 1.0,
@@ -48,8 +47,8 @@ def run_replay(*, recording: Path, bus_options: BusOptions, speed: float = 1.0,
                     ahead = (t - t0) / 1e9 / speed - (time.monotonic() - wall0)
                     if ahead > 0 and stop.wait(ahead):
                         break
-                if key.startswith(LIVELINESS):
-                    token_key = key[len(LIVELINESS):]
+                if key.startswith(LIVELINESS_PREFIX):
+                    token_key = key[len(LIVELINESS_PREFIX):]
                     if not matches(key_expr, token_key):
                         continue
                     alive = json.loads(payload).get("alive")

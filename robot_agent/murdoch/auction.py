@@ -32,10 +32,11 @@ import math
 from dataclasses import dataclass, field
 from typing import NamedTuple, Protocol
 
+from mrta_zenoh.clock import EPSILON
+
 from .messages import Announcement, Award, Bid, Claim, Release
 from .params import MurdochRobot, MurdochTask
 
-EPS = 1e-9
 
 
 class Readings(Protocol):
@@ -115,7 +116,7 @@ class Murdoch:
         auction = self.open.get(msg.auction)
         if msg.auctioneer != self.id or auction is None or auction.task_id != msg.task_id:
             return
-        if t > auction.deadline + EPS:
+        if t > auction.deadline + EPSILON:
             return
         auction.bids[sender] = msg.utility
 
@@ -218,12 +219,12 @@ class Murdoch:
         else:
             if self.stalled_since is None:
                 self.stalled_since = now
-            if now - self.stalled_since >= self.p.give_up_delay - EPS:
+            if now - self.stalled_since >= self.p.give_up_delay - EPSILON:
                 self.cooldown[self.task] = now + self.p.give_up_delay
                 self._release(f"no progress for {now - self.stalled_since:.1f} s", now, out,
                               changes)
                 return
-        if now - self.last_claim >= self.p.renewal_period - EPS:
+        if now - self.last_claim >= self.p.renewal_period - EPSILON:
             self.last_claim = now
             out.append(Out("claim", (self.task, self.since, self.p.lease_timeout)))
 
@@ -232,7 +233,7 @@ class Murdoch:
         if self.task is not None:
             return
         for auctioneer, ann, t in pending:
-            if now > t + ann.bid_window + EPS or not self.capable(ann.task_id, now, readings):
+            if now > t + ann.bid_window + EPSILON or not self.capable(ann.task_id, now, readings):
                 continue
             if not all(readings.fresh(r, now) for r in ann.resources):
                 continue
@@ -241,7 +242,7 @@ class Murdoch:
 
     def _close_auctions(self, now: float, readings: Readings, out: list[Out],
                         changes: list[Change]) -> None:
-        closed = [a for a in self.open.values() if now >= a.deadline - EPS]
+        closed = [a for a in self.open.values() if now >= a.deadline - EPSILON]
         if not closed:
             return
         for a in closed:
@@ -265,7 +266,7 @@ class Murdoch:
                              f"won its own auction #{number} with {-neg_u:.3g}")
 
     def _unheld(self, task: str, now: float) -> bool:
-        return self.task != task and self.held_until.get(task, -math.inf) < now - EPS
+        return self.task != task and self.held_until.get(task, -math.inf) < now - EPSILON
 
     def rank(self) -> int:
         return sorted(self.teammates | {self.id}).index(self.id)
@@ -278,10 +279,10 @@ class Murdoch:
             if task in auctioning or not self._unheld(task, now):
                 continue
             unheld_since = max(self.held_until.get(task, self.start), self.start)
-            if now < unheld_since + wait - EPS:
+            if now < unheld_since + wait - EPSILON:
                 continue
             last = self.last_announced.get(task)
-            if last is not None and last >= unheld_since and now - last < period + wait - EPS:
+            if last is not None and last >= unheld_since and now - last < period + wait - EPSILON:
                 continue
             number, self.next_auction = self.next_auction, self.next_auction + 1
             auction = OpenAuction(number, task, now + self.p.bid_window)

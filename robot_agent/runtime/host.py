@@ -93,8 +93,7 @@ def host(make_agent: Callable[[Bus, Clock, np.random.Generator], HostedAgent],
         # runs it (the participant token goes out before the agent's own: alive means ready)
         if sim_time:
             handles.enter_context(follow_sim_clock(bus, clock))
-            for h in clock.join(bus):
-                handles.callback(h.close)
+            handles.enter_context(clock.join(bus))
         agent.start()
         agent.declare_alive()
         logger.info("%s: ready (%s, %s time)", robot_id, describe,

@@ -28,7 +28,7 @@ import os
 import signal
 import threading
 import time
-from typing import Callable, Iterable, NamedTuple, Protocol
+from typing import Callable, Iterable, Iterator, NamedTuple, Protocol
 
 import numpy as np
 
@@ -261,16 +261,27 @@ class Agent:
 
     # ------------------------------------------------------------ the loop
     def run(self, stop: threading.Event, until: float | None = None) -> None:
+        """Run until stopped, or until the clock passes `until`: sleep on the injected clock
+        until each wake-up `schedule` asks for."""
+        for t in self.schedule(until):
+            if stop.is_set() or not self.clock.sleep_until(t, stop):
+                break
+
+    def schedule(self, until: float | None = None) -> Iterator[float]:
+        """The loop itself, as a generator: yields the next time it must wake at, and does the
+        work due once resumed at that time. `run` sleeps between the two; a virtual-time
+        harness (tests/alliance_team.py) sets a manual clock instead, so tests drive this very
+        loop — its rates, its catch-up rule, fault injection, a restart of time — rather than a
+        copy of it."""
         high_period, ctrl_period = self.high_period, self.ctrl_period
         now = self.clock.now()
         next_high, next_ctrl, last_ctrl = now, now, now
         epoch = getattr(self.clock, "restarts", 0)
-        while not stop.is_set():
+        while True:
             t = min(next_high, next_ctrl)
             if until is not None and t > until:
-                break
-            if not self.clock.sleep_until(t, stop):
-                break
+                return
+            yield t
             now = self.clock.now()
             if self.crash_at is not None and now >= self.crash_at:
                 self.log.warning("%s: crashing at t=%.2f as asked (fault injection)",

@@ -36,8 +36,7 @@ def count(kind):
     return h
 
 
-with open_bus(BusOptions()) as bus:
-    follow_sim_clock(bus, clock)
+with open_bus(BusOptions()) as bus, follow_sim_clock(bus, clock):
     bus.subscribe(keys.ground_truth(robot), on_truth, msg_type=Odometry)
     bus.subscribe(keys.sonar(robot), count("sonar"), msg_type=PointCloud)
     bus.subscribe(keys.odom(robot), count("odom"), msg_type=Odometry)
