@@ -27,7 +27,7 @@ REF = ROOT.parent / "shared" / "reference" / "alliance_test" / "config"
 
 def tick_cost() -> None:
     from mrta_agent.alliance.high_level import HighLevel
-    from robot_agent.params import BehaviourSetParams, RobotParams
+    from mrta_agent.alliance.params import BehaviourSetParams, RobotParams
 
     sets = tuple(BehaviourSetParams(t, 100.0, 150.0, 75.0, 110.0, 5.0, "x", ()) for t in
                  ("wander", "border_protection", "report"))

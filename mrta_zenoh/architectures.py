@@ -58,6 +58,9 @@ class Architecture(ABC):
     bound_formula: ClassVar[str]   # the takeover bound as people write it
     messages: ClassVar[dict[str, type]]  # kind → message type, published on robotN/<ns>/<kind>[/…]
     doing_kinds: ClassVar[tuple[str, ...]]  # the kinds `doing` reads
+    # a robot on a task repeats so at least this often (seconds of its clock): a report not
+    # repeated for longer means it stopped without saying so (it died)
+    doing_stale_after: ClassVar[float] = 2.0
 
     # ------------------------------------------------------------ keys
     def key(self, robot_id: str, kind: str, *rest: str) -> str:

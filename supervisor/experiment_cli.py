@@ -9,6 +9,7 @@ import click
 from rich.progress import BarColumn, MofNCompleteColumn, Progress, TextColumn, TimeElapsedColumn
 
 from mrta_zenoh.cli.common import plural
+from mrta_zenoh.errors import MrtaRuntimeError
 from mrta_zenoh.lifecycle import stop_on_signals
 
 from .experiment import run_experiment
@@ -37,3 +38,6 @@ def experiment(file: Path, output: Path, jobs: int) -> None:
     click.echo(f"{plural(len(rows), 'run')} ({failed} failed): {output / 'results.csv'}, "
                f"{output / 'summary.md'}, {output / 'takeover.png'}, {output / 'coverage.png'}")
     click.echo((output / "summary.md").read_text())
+    if failed:  # a sweep with holes is not a result: say so to scripts and CI (exit 1)
+        raise MrtaRuntimeError(f"{failed} of {plural(len(rows), 'run')} failed: "
+                               f"see {output / 'summary.md'}")

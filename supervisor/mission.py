@@ -9,8 +9,9 @@ itself starts the clock only once every robot is up. It injects the failure the 
 architecture says (`Architecture.failure_env`: exact in lockstep) or SIGKILLs the agent when
 the run is not in lockstep. Afterwards it writes, into the output folder, the recording, the
 allocation timeline, the architecture's own plots, and `summary.json` (summary.py): who did
-what, coverage, takeover beside the bound the architecture states, traffic, and the
-application's own metrics (its `Mission.metrics` hook).
+what, coverage, first full allocation and takeover — all from the robots' own messages in
+simulated time (ground_truth.py), exact to one agent tick — beside the bound the architecture
+states, traffic, and the application's own metrics (its `Mission.metrics` hook).
 
 Framework code: it knows no application and no architecture. An application registers a
 `Mission` under `mrta.missions`; an architecture is reached through `mrta.architectures`. Which
@@ -52,7 +53,8 @@ from mrta_zenoh.toolchain.runner import start_nodes
 from mrta_zenoh.yamlfile import did_you_mean
 
 from .api import Refresh, attach
-from .plots import TimeBase, allocation_intervals, plot_timeline, replay
+from .ground_truth import intervals_from
+from .plots import TimeBase, plot_timeline, replay
 from .state import Supervisor
 from .summary import (Coverage, FailureReport, MessageRates, Span, Summary, write_summary)
 
@@ -345,11 +347,14 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
     sup = replay(records, tb, run.app, run.arch_model)
     t0 = 0.0
     t1 = max((tb(t) for _, _, t, _ in records), default=run.options.duration)
-    intervals = allocation_intervals(sup, t1)
+    # what the robots did, from their own messages in simulated time (ground_truth.py) — not
+    # the supervisor's view, which lags by its monitors' timeouts
+    failures = [(failure.robot, failed_at)] if failure and failed_at is not None else []
+    intervals = intervals_from(records, run.arch, t1, run.arch.doing_stale_after, failures)
     plot_timeline(output / "run.mcap", run.app, run.arch_model, output / "timeline.png",
                   records, sup)
     run.arch.plots(output / "run.mcap", run.robots, run.app.tasks(), output, records)
-    who = {rid: [Span(t, round(a, 1), round(b, 1))
+    who = {rid: [Span(t, round(a, 3), round(b, 3))
                  for t, a, b in sorted(intervals.get(rid, []), key=lambda x: x[1])]
            for rid in run.robots}
     report = None

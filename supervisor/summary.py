@@ -93,7 +93,7 @@ def read_summary(path: Path) -> Summary:
 def flat_metrics(summary: Summary) -> dict[str, Any]:
     """The summary as one row of scalars (what `mrta experiment` writes per run): failure and
     takeover, coverage per task, first full allocation, traffic and every scalar the
-    application's hook measured."""
+    application's hook measured (as `metrics.<name>`)."""
     row: dict[str, Any] = {}
     f = summary.failure
     row["takeover_seconds"] = "" if f is None or f.takeover_seconds is None else f.takeover_seconds
@@ -108,5 +108,5 @@ def flat_metrics(summary: Summary) -> dict[str, Any]:
     row["coordination_messages_per_second"] = summary.messages.coordination_per_second
     for name, value in summary.metrics.items():
         if isinstance(value, (int, float, str, bool)):
-            row[name] = value
+            row[f"metrics.{name}"] = value
     return row

@@ -10,6 +10,7 @@ import numpy as np
 
 from mrta_agent.murdoch.architecture import MURDOCH
 from mrta_agent.runtime.host import AgentOptions
+from mrta_agent.runtime.loop import Agent
 from mrta_zenoh import keys
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.bus.inproc import InProcNetwork
@@ -53,7 +54,7 @@ class Team:
         self.net = InProcNetwork()
         self.clock = ManualClock(start)
         tf = write(tmp / "tasks.yaml", tasks_doc(tasks, locations))
-        self.agents: dict[str, MurdochAgent] = {}
+        self.agents: dict[str, Agent] = {}
         self.buses: dict[str, InProcBus] = {}
         self.frozen: set[str] = set()
         self.blind: set[str] = set()  # robots whose sonar stopped

@@ -1,6 +1,7 @@
 """`mrta experiment`: a tiny matrix end to end, a failed run, parameter overrides, bad files."""
 
 import csv
+from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
@@ -17,8 +18,10 @@ def test_a_tiny_matrix_gives_one_row_per_run_and_records_a_failed_run(children, 
                  "failures: [robot2@18, robot9@5]\n")
     out = tmp_path / "out"
     run = children.mrta("experiment", f, "--output", out, "--jobs", "2", name="experiment")
-    # four 30-s missions at full speed, two at a time: ≈ 15 s on an idle machine
-    assert run.wait(150) == 0, run.stderr[-10:] + run.stdout[-10:]
+    # four 30-s missions at full speed, two at a time: ≈ 15 s on an idle machine; a sweep
+    # with failed runs exits 1 once everything is written
+    assert run.wait(150) == 1, run.stderr[-10:] + run.stdout[-10:]
+    assert any("2 of 4 runs failed" in line for line in run.stderr), run.stderr[-5:]
     rows = list(csv.DictReader((out / "results.csv").open()))
     assert len(rows) == 4
     assert {(r["seed"], r["failure"]) for r in rows} == {
@@ -32,8 +35,23 @@ def test_a_tiny_matrix_gives_one_row_per_run_and_records_a_failed_run(children, 
         assert float(r["wander.exactly_one"]) > 0.8 and int(r["messages"]) > 1000
     summary = (out / "summary.md").read_text()
     assert "fail=robot2@18" in summary and "Failed runs" in summary
+    assert "collisions_total" in summary  # the application's own metrics, named by it
     for name in ("takeover.png", "coverage.png"):
         assert (out / name).stat().st_size > 5_000
+
+
+def test_summary_pairs_configurations_by_seed_and_names_only_the_seeds_that_ran():
+    from mrta_supervisor.experiment import Experiment, paired_difference, summary_md
+    rows = [{"run": i, "config": c, "seed": seed, "status": "ok", "takeover_seconds": t,
+             "wander.exactly_one": 0.9, "metrics.collisions_total": 0}
+            for i, (c, seed, t) in enumerate([("a", 1, 3.0), ("a", 2, 4.0), ("a", 3, 5.0),
+                                              ("b", 1, 3.5), ("b", 2, 4.5)])]
+    m, h, n = paired_difference(rows, "takeover_seconds", "b", "a")
+    assert (m, n) == (0.5, 2) and h == 0.0  # seed 3 has no pair; both differences are 0.5
+    md = summary_md(Experiment(Path("e.yaml"), "patrol", 10.0, [1, 2, 3, 4], ["none"]), rows)
+    assert "over seeds (1, 2, 3)" in md  # seed 4 never ran (a Ctrl-C): not claimed
+    assert "Paired differences against `a`" in md and "0.50 ± 0.00 (n = 2)" in md
+    assert "| collisions_total |" in md
 
 
 def test_overrides_make_one_configuration_per_value(tmp_path):
@@ -83,4 +101,9 @@ def test_malformed_files_exit_2_naming_file_and_line(tmp_path, text, where, what
 
 def test_mean_and_interval():
     m, h = mean_ci([1.0, 2.0, 3.0])
-    assert m == 2.0 and abs(h - 4.30 * 1.0 / 3 ** 0.5) < 1e-9
+    assert m == 2.0 and abs(h - 4.302652729911275 / 3 ** 0.5) < 1e-9  # t(0.975, 2)
+    # 20 runs: t(0.975, 19) = 2.093, not the 2.0 a table once used for 10-29 df
+    xs = [float(i % 5) for i in range(20)]
+    m, h = mean_ci(xs)
+    sd = (sum((x - m) ** 2 for x in xs) / 19) ** 0.5
+    assert abs(h - 2.093024054408263 * sd / 20 ** 0.5) < 1e-9

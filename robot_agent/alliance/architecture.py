@@ -42,6 +42,7 @@ class Alliance(AgentArchitecture):
     messages = {"inter_robot_communication": InterRobotCommunication,
                 "motivation": Motivation, "sensory_feedback": SensoryFeedback}
     doing_kinds = ("motivation",)
+    doing_stale_after = 1.0  # Motivation every tick (spin_rate ≥ 1 Hz in every shipped file)
 
     def has_subkeys(self, kind: str) -> bool:
         return kind == "motivation"

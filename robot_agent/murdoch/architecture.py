@@ -36,6 +36,7 @@ class Murdoch(AgentArchitecture):
     messages = {"announcement": Announcement, "bid": Bid, "award": Award, "claim": Claim,
                 "release": Release}
     doing_kinds = ("claim", "release")
+    doing_stale_after = 2.0  # claims renewed every renewal_period (≤ the lease, 2 s by default)
     logger_name = "mrta.murdoch"
 
     def prepare(self, options: AgentOptions) -> Prepared:

@@ -1,0 +1,110 @@
+"""Who did which task when, from what the robots themselves said, in their (simulated) time.
+
+The supervisor's view is built for operators: a robot counts as busy until its monitor's
+timeout lapses, so it lags the robots by up to that timeout and, across a handover, can show one
+robot on two tasks. Published metrics must equal what the robots did, so the mission runner
+computes them from each architecture's own "who is doing what" feed
+(`Architecture.read_doing`: ALLIANCE's Motivation samples, one per behaviour set per tick;
+MURDOCH's claims and releases), stamped with the sender's clock — simulated time in simulated
+runs, exact to one agent tick whatever the network or the machine's load did.
+
+Rules, per robot: a report that it is active on a task opens (or extends) an interval; a report
+that it is not, or an active report of another task, closes it at that report's stamp; a robot
+that fails closes everything at its failure time; otherwise an interval not confirmed for
+`stale_after` seconds ends at its last confirmation (a robot that died without being told to).
+A robot is on at most one task at any time (single-task robots): opening a task closes the one
+it was on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Iterable
+
+from mrta_zenoh.architectures import Architecture, Doing
+from mrta_zenoh.codec import DecodeError, decode, type_from_encoding
+from mrta_zenoh.keys import matches
+
+Interval = tuple[str, float, float]  # (task, start, end)
+
+
+@dataclass
+class _Open:
+    task: str
+    start: float
+    last: float
+
+
+@dataclass
+class GroundTruth:
+    """Intervals per robot from Doing reports, fed in stamp order per robot."""
+
+    stale_after: float
+    intervals: dict[str, list[Interval]] = field(default_factory=dict)
+    _open: dict[str, _Open] = field(default_factory=dict)
+
+    def feed(self, d: Doing) -> None:
+        cur = self._open.get(d.robot)
+        if cur is not None and d.stamp - cur.last > self.stale_after:
+            self._close(d.robot, cur.last)
+            cur = None
+        if d.active:
+            if cur is not None and cur.task == d.task:
+                cur.last = max(cur.last, d.stamp)
+                return
+            if cur is not None:
+                self._close(d.robot, d.stamp)
+            self._open[d.robot] = _Open(d.task, d.stamp, d.stamp)
+        elif cur is not None and cur.task == d.task:
+            self._close(d.robot, d.stamp)
+
+    def fail(self, robot: str, at: float) -> None:
+        """The robot stopped at `at` (an injected crash, exact in lockstep): what it held ends
+        there — or at its last confirmation, if that is older than `stale_after`."""
+        cur = self._open.get(robot)
+        if cur is not None:
+            self._close(robot, at if at - cur.last <= self.stale_after else cur.last)
+
+    def finish(self, end: float) -> dict[str, list[Interval]]:
+        """Close what is still open at `end` (the run's last simulated time), or at its last
+        confirmation if that is older than `stale_after`."""
+        for robot, cur in list(self._open.items()):
+            self._close(robot, end if end - cur.last <= self.stale_after else cur.last)
+        return self.intervals
+
+    def _close(self, robot: str, at: float) -> None:
+        cur = self._open.pop(robot)
+        if at > cur.start:
+            self.intervals.setdefault(robot, []).append((cur.task, cur.start, at))
+
+
+def reports(records: Iterable, arch: Architecture) -> list[Doing]:
+    """Every Doing in a recording, sorted by stamp (then robot, for a stable order)."""
+    feed = [expr for expr, _ in arch.doing_feed()]
+    out = []
+    for key, enc, _t, payload in records:
+        if key.startswith("@") or not any(matches(expr, key) for expr in feed):
+            continue
+        try:
+            msg = decode(type_from_encoding(enc), payload)
+        except DecodeError:
+            continue
+        d = arch.read_doing(key, msg)
+        if d is not None:
+            out.append(d)
+    out.sort(key=lambda d: (d.stamp, d.robot))
+    return out
+
+
+def intervals_from(records: Iterable, arch: Architecture, end: float, stale_after: float,
+                   failures: Iterable[tuple[str, float]] = ()) -> dict[str, list[Interval]]:
+    """robot → [(task, start, end)] from the recording's Doing reports."""
+    truth = GroundTruth(stale_after)
+    failed = dict(failures)
+    for d in reports(records, arch):
+        if d.robot in failed and d.stamp > failed[d.robot]:
+            continue
+        truth.feed(d)
+    for robot, at in failed.items():
+        truth.fail(robot, at)
+    return truth.finish(end)
