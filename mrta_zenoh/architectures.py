@@ -136,7 +136,7 @@ class Architecture(ABC):
         return f"<architecture {self.name}>"
 
 
-_lock = threading.Lock()
+_lock = threading.RLock()  # re-entrant: an architecture built on another may look it up on import
 _loaded: dict[str, Architecture] = {}
 
 
@@ -163,8 +163,9 @@ def architecture(name: str) -> Architecture:
                               + did_you_mean(name, eps))
         try:
             arch = ep.load()
-        except (ImportError, AttributeError) as exc:
-            raise ConfigError(f"architecture {name!r} ({ep.value}) cannot be loaded: {exc}") from exc
+        except Exception as exc:  # a third party's import-time failure, whatever it is
+            raise ConfigError(f"architecture {name!r} ({ep.value}) cannot be loaded: "
+                              f"{type(exc).__name__}: {exc}") from exc
         if isinstance(arch, type):
             arch = arch()
         if not isinstance(arch, Architecture):

@@ -254,13 +254,13 @@ class Readiness:
 
 
 # ------------------------------------------------------------------ the run
-Progress = Callable[[float, Supervisor, "float | None"], None]
+Progress = Callable[[float, Supervisor, "Failure | None", "float | None"], None]
 
 
 def run_mission(options: MissionOptions, *, stop: threading.Event | None = None,
                 progress: Progress | None = None) -> tuple[MissionRun, Summary]:
-    """Run the mission; `progress(now, supervisor, failed_at)` is called about 4 times a wall
-    second while it runs (the live view). Returns what ran and its summary."""
+    """Run the mission; `progress(now, supervisor, failure, failed_at)` is called about 4 times
+    a wall second while it runs (the live view). Returns what ran and its summary."""
     reg = Registry()
     run = resolve(options, reg)
     failure = failure_of(run)
@@ -334,7 +334,7 @@ def _watch(sim: Child, sup: Supervisor, clock: SimClock, agents: dict[str, Child
             failed_at = now if kill else failure.at
             log.info("killed %s at %.1f s", failure.robot, failed_at)
         if progress is not None:
-            progress(now, sup, failed_at)
+            progress(now, sup, failure, failed_at)
     return failed_at
 
 

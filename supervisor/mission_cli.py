@@ -70,7 +70,7 @@ class _Lines:
         self.console = console
         self.last = -10.0
 
-    def __call__(self, now: float, sup, failed_at: float | None) -> None:
+    def __call__(self, now: float, sup, failure, failed_at: float | None) -> None:
         if now - self.last < 10.0:
             return
         self.last = now
@@ -90,10 +90,11 @@ class _LiveView:
         self.console, self.options = console, options
         self.live: Live | None = None
 
-    def __call__(self, now: float, sup, failed_at: float | None) -> None:
+    def __call__(self, now: float, sup, failure, failed_at: float | None) -> None:
         o = self.options
-        fail = "" if not o.fail or o.fail == "none" else (
-            f" · killed at {failed_at:.1f} s" if failed_at is not None else f" · --fail {o.fail}")
+        fail = "" if failure is None else (
+            f" · {failure.robot} killed at {failed_at:.1f} s" if failed_at is not None
+            else f" · will kill {failure.robot} at {failure.at:g} s")
         app = f" · {o.application}" if o.application else ""
         header = Text(f"mrta demo{app} · simulated {now:5.1f} / {o.duration:.0f} s"
                       f" · speed {o.speed or 'max'}{fail}", style="bold")

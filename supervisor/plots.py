@@ -1,4 +1,5 @@
-"""Plots from an MCAP recording: rqt_alliance's seven motivation panels and an allocation timeline.
+"""Plots from an MCAP recording: the allocation timeline (an architecture draws its own, e.g.
+ALLIANCE's motivation panels in mrta_agent.alliance.plots).
 
 Time axes are simulated seconds when the recording holds the simulator's `clock` (so a run at
 `--speed 10` reads like the mission it simulated), wall seconds from the first message otherwise.

@@ -1,4 +1,5 @@
-"""Test helpers: free ports, child processes tracked by PID, line readers with deadlines.
+"""Test helpers: free ports, child processes tracked by PID, line readers with deadlines, and
+readiness from the liveliness tokens children declare (Tokens).
 
 Children are started with subprocess (never fork: a forked zenoh process hangs), get their own
 rendezvous endpoint on a free port through $MRTA_RENDEZVOUS (never the default rendezvous port), and are ended by PID.

@@ -16,6 +16,7 @@ SPIN, TAU, THETA = 10.0, 1.0, 100.0
 PREFS = {"robot1": (10.0, 4.0), "robot2": (4.0, 10.0), "robot3": (5.0, 5.0)}
 
 
+@pytest.mark.slow
 def test_each_task_gets_one_robot_and_a_killed_robots_task_is_taken_over(children, tokens,
                                                                           tmp_path):
     tf = write(tmp_path / "tasks.yaml", tasks_yaml(["A", "B"]))
@@ -60,7 +61,8 @@ def test_each_task_gets_one_robot_and_a_killed_robots_task_is_taken_over(childre
     assert any("activated A (threshold reached)" in line for line in agents["robot3"].stderr)
 
 
-def test_agent_stops_the_robot_and_exits_within_one_second_on_sigterm(children, tokens, tmp_path):
+def test_agent_stops_the_robot_and_exits_within_one_second_on_sigterm(children, tokens,
+                                                                        tmp_path):
     tf = write(tmp_path / "tasks.yaml", tasks_yaml(["A"]))
     rf = write(tmp_path / "r.yaml", robot_yaml([{"task": "A", "fast": 50.0}]))
     cmd = children.mrta("echo", "robot1/cmd_vel", "--json", name="cmd")

@@ -167,9 +167,32 @@ def test_decision_history_and_inbox_are_bounded():
         coord.history.append((float(i), None))
     assert len(coord.history) == HISTORY
     agent = ALLIANCE.agent(prepared, InProcBus(), ManualClock())
-    for i in range(loop.INBOX + 10):
+    for i in range(loop.MAX_TOKENS + 10):  # invented robots: tracked up to a bound, counted
         agent._on_token(f"robot{i}/alliance/agent", True)
-    assert len(agent._inbox) == loop.INBOX
+    assert len(agent._alive) == loop.MAX_TOKENS and agent.ignored_tokens == 10
+
+
+def test_a_flood_of_strangers_neither_fills_the_inbox_nor_pushes_teammates_out():
+    """Strangers are dropped before they take inbox space, and tokens live apart from the
+    bounded inbox: 20,000 forged broadcasts cannot make a teammate a stranger."""
+    prepared = ALLIANCE.prepare(AgentOptions(
+        "/robot1", ROOT / "configs/applications/patrol/config/robot1_alliance_params.yaml",
+        ROOT / "configs/applications/patrol/config/tasks_alliance_params.yaml"))
+    assert prepared.robot_id == "robot1"  # one spelling of the id, for the logic too
+    bus, clock = InProcBus(), ManualClock(0.0)
+    agent = ALLIANCE.agent(prepared, bus, clock)
+    agent.start()
+    token = bus.declare_token("robot2/alliance/agent")
+    for i in range(20_000):
+        bus.publish("robot9/alliance/inter_robot_communication",
+                    InterRobotCommunication(Header("robot9", 0.0, i), "wander", 10.0))
+    bus.publish("robot2/alliance/inter_robot_communication",
+                InterRobotCommunication(Header("robot2", 0.0, 1), "wander", 10.0, 0.0))
+    assert len(agent._inbox) == 1 and agent.ignored_strangers == 20_000
+    agent.tick_high(clock.now())
+    assert agent.team == {"robot2"} and "robot2" in agent.coordinator.high.sets["wander"].others
+    token.close()
+    agent.shutdown()
 
 
 def test_plugins_registered_under_the_legacy_group_are_still_found(tmp_path, monkeypatch):

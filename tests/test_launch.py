@@ -104,9 +104,7 @@ def test_running_nodes_a_failure_stops_the_others_and_output_is_prefixed(childre
     assert time.monotonic() - t0 < 25
     out = launcher.stdout
     assert any(line.startswith("[broken] ") and "cannot read" in line for line in out), out
-    assert any(line.startswith("[sim] ") and "ready" in line for line in out) or \
-        any(line.startswith("[sim] exited") for line in out), out
-    assert any(line.startswith("[sim] exited") for line in out)
+    assert any(line.startswith("[sim] exited") for line in out), out  # stopped by the failure
 
 
 @pytest.mark.multiprocess

@@ -84,8 +84,7 @@ def test_a_killed_participant_is_no_longer_waited_for_and_its_task_is_taken_over
     agents["robot2"].signal(signal.SIGKILL)
     taken = sup.wait_json(lambda o: next(t for t in o["tasks"] if t["id"] == "border_protection")
                           ["robots"] in (["robot1"], ["robot3"]), 60)
-    later = sup.wait_json(lambda o: o["time"] > taken["time"] + 5.0, 60)  # the world goes on
-    assert later["time"] > taken["time"]
+    sup.wait_json(lambda o: o["time"] > taken["time"] + 5.0, 60)  # the world goes on
     assert not any("no longer waited for" in line for line in sim.stderr)  # death ≠ hang
 
 
@@ -93,13 +92,12 @@ def test_a_hung_participant_is_reported_and_after_the_limit_no_longer_waited_for
     sim, agents = start(children, "robot1", "robot2", timeout="2")
     agents["robot1"].wait_stderr(lambda line: "activated" in line, 60)
     sup = children.mrta("supervise", "patrol", "--sim-time", "--json", name="supervise")
-    before = sup.wait_json(lambda o: o["time"] > 2.0, 60)
+    sup.wait_json(lambda o: o["time"] > 2.0, 60)
     agents["robot2"].signal(signal.SIGSTOP)
     try:
         alarm = sup.wait_json(lambda o: any(a["kind"] == "participant_unresponsive" and
                                             a["subject"] == "robot2" for a in o["alarms"]), 60)
         sim.wait_stderr(lambda line: "robot2 did not finish" in line, 10)
-        after = sup.wait_json(lambda o: o["time"] > alarm["time"] + 3.0, 60)  # it goes on
-        assert after["time"] > before["time"]
+        sup.wait_json(lambda o: o["time"] > alarm["time"] + 3.0, 60)  # it goes on without robot2
     finally:
         agents["robot2"].signal(signal.SIGCONT)

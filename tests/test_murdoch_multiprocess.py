@@ -21,6 +21,7 @@ def agent_args(rid):
             "--layers-params", str(CONFIG / "layers_murdoch_params.yaml"), "--sim-time"]
 
 
+@pytest.mark.slow
 def test_three_agents_allocate_and_a_killed_winner_is_replaced_within_the_lease_bound(children):
     # lockstep: simulated time waits for every agent, so the timing below holds on a busy machine
     children.mrta("sim", "--world", "patrol", *(a for r in ROBOTS for a in ("--robot", r)),
@@ -69,9 +70,7 @@ def test_three_agents_allocate_and_a_killed_winner_is_replaced_within_the_lease_
     # the kill lands up to one supervisor sample (0.1 wall s = 0.2 simulated s at speed 2)
     # after `killed_at`; the supervisor sees the new claim up to one sample late
     assert took <= bound + 2 * 0.2 + 0.1
-    offline = sup.wait_json(lambda s: {r["id"]: r["state"] for r in s["robots"]}[holder]
-                            == "offline", 30)
-    assert offline
+    sup.wait_json(lambda s: {r["id"]: r["state"] for r in s["robots"]}[holder] == "offline", 30)
 
 
 def test_mrta_demo_under_murdoch_writes_the_same_summary_fields_as_alliance(children, tmp_path):

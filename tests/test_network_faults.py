@@ -25,7 +25,7 @@ from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
 from tests.fault_proxy import FaultProxy
 from tests.helpers import REFERENCE, Tokens, free_port
 
-pytestmark = pytest.mark.multiprocess
+pytestmark = [pytest.mark.multiprocess, pytest.mark.slow]  # fleets of a dozen processes
 
 SPIN, TAU, THETA, PSI = 10.0, 1.0, 100.0, 1.0
 FAST = {"robot1": 25.0, "robot2": 20.0, "robot3": 10.0}   # robot1 first, then robot2, robot3

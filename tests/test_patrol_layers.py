@@ -125,9 +125,12 @@ def test_the_ledger_counts_only_teammates_and_finite_distances(ctx):
     from mrta_patrol.layers import ReportLayer
     from mrta_zenoh.codec import encoding_for
     from mrta_zenoh.messages import Odometry, Pose2D, Twist
-    from mrta_agent.alliance.messages import InterRobotCommunication
+    from mrta_agent.alliance.messages import Motivation
+
+    from mrta_zenoh.architectures import architecture
 
     c, bus = ctx
+    c.architecture = architecture("alliance")  # the ledger reads the robot's architecture
     c.sections.update(typed_sections(ReportLayer))
     layer = ReportLayer()
     layer.setup(c)
@@ -145,15 +148,20 @@ def test_the_ledger_counts_only_teammates_and_finite_distances(ctx):
     odom("robot1", 4.0)
     odom("robot9", 0.0)
     odom("robot9", 100.0)  # not a teammate: no token
-    for t in (10.0, 11.0):
-        bus.publish("robot9/alliance/inter_robot_communication",
-                    InterRobotCommunication(Header("robot9", t, 0), "border_protection", 60.0))
-        bus.publish("robot1/alliance/inter_robot_communication",  # claims to be robot2
-                    InterRobotCommunication(Header("robot2", t, 0), "border_protection", 60.0))
+    def doing(key, robot, t):
+        bus.publish(key, Motivation(Header(robot, t, 0), "border_protection", 1.0, False,
+                                    False, False, True, 100.0, 100.0, True))
+
+    for i in range(6):  # 0.5 s of ticks; the ledger's clock moves with them
+        c.clock.set(10.0 + i / 10)
+        doing("robot2/alliance/motivation/border_protection", "robot2", 10.0 + i / 10)
+        doing("robot9/alliance/motivation/border_protection", "robot9", 10.0 + i / 10)
+        doing("robot1/alliance/motivation/border_protection", "robot2", 10.0 + i / 10)  # forged
     report = layer.ledger.report("robot1", 12.0)
     assert report.distance == 4.0 and math.isfinite(report.distance)
-    assert {tt.robot_id for tt in report.task_times} <= {"robot1", "robot2"}
-    assert not any(tt.robot_id == "robot9" for tt in report.task_times)
+    times = {(tt.robot_id, tt.task_id): tt.seconds for tt in report.task_times}
+    assert set(times) == {("robot2", "border_protection")}  # robot9 and the forgery add nothing
+    assert abs(times[("robot2", "border_protection")] - 0.5) < 1e-9
     assert bus.stats["malformed"] == 1
     layer.shutdown()
     for t in tokens:

@@ -85,6 +85,7 @@ def allocations(summary):
 
 
 @pytest.mark.timeout(240)  # two missions, each waited for at most 90 s
+@pytest.mark.slow
 def test_same_seed_same_allocations_at_speed_1_and_10(children, tmp_path):
     slow, _ = run_demo(children, tmp_path / "slow", "--duration", "12", "--speed", "1",
                        "--fail", "none")

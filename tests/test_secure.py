@@ -62,6 +62,7 @@ def client(children, config, verb, arg, name):
 
 
 @pytest.mark.multiprocess
+@pytest.mark.slow
 def test_robots_speak_only_for_themselves_and_observers_only_listen(fleet, children):
     folder, _ = fleet
     watch = client(children, folder / "supervisor.json5", "watch", "12", "observer")

@@ -22,7 +22,7 @@ def ping_site(tmp_path_factory):
     site = tmp_path_factory.mktemp("site")
     subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--no-deps",
                     "--target", str(site), str(ROOT / "examples" / "ping_app")],
-                   check=True, capture_output=True, text=True, timeout=120)  # < the test's 180 s
+                   check=True, capture_output=True, text=True, timeout=90)  # + the test's own waits < 180 s
     assert (site / "ping_app" / "package.xml").is_file()
     return site
 

@@ -150,7 +150,7 @@ def test_registry_on_mrta_package_path_shadows_and_reports(reference):
     assert "/alliance/inter_robot_communication (alliance_msgs" in shown.output
     # alliance_test exports an application file that is not there: said, not crashed
     res = run("app", "list", env=env)
-    assert res.exit_code == 0 and "does not exist" in res.output
+    assert res.exit_code == 0 and "alliance_test/rqt_mrta.xml does not exist" in res.output
 
 
 @pytest.mark.multiprocess

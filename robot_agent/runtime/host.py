@@ -47,6 +47,11 @@ class AgentOptions:
     duration: float | None = None
     crash_at: float | None = None
 
+    def __post_init__(self) -> None:
+        # one spelling of the id everywhere: the logic compares ids (ALLIANCE's tie-break,
+        # MURDOCH's awards), so `/robot1` must be `robot1` before anything is built
+        object.__setattr__(self, "robot_id", normalize_robot_id(self.robot_id))
+
 
 def crash_time(robot_id: str, crash_at: float | None) -> float | None:
     """When this robot's agent is to crash: --crash-at, or its entry in $MRTA_CRASH."""

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import collections
 import logging
-import math
 import os
 import signal
 import threading
@@ -44,6 +43,7 @@ from .plugins import AgentContext, Layer, Plugins
 log = logging.getLogger("mrta.agent")
 
 INBOX = 10_000  # queued messages at most: a flood drops the oldest, never grows the process
+MAX_TOKENS = 1_000  # robots whose tokens are tracked: invented ids beyond are ignored, counted
 DROP_LOG_PERIOD = 10.0  # wall seconds between two log lines about the same kind of drop
 
 
@@ -95,7 +95,7 @@ class Agent:
         self.log = logger
         self.ctx = AgentContext(self.robot_id, bus, clock,
                                 rng if rng is not None else robot_rng(0, self.robot_id),
-                                log=logger)
+                                log=logger, architecture=architecture)
         self.plugins = plugins
         self.high_period = 1.0 / spin_rate
         self.ctrl_period = 1.0 / control_rate
@@ -110,6 +110,14 @@ class Agent:
         self._seq: dict[str, int] = collections.defaultdict(int)
         # (time heard, what, *args): filled by network callbacks, drained by the loop thread only
         self._inbox: collections.deque = collections.deque(maxlen=INBOX)
+        # tokens are kept apart from the bounded inbox, so a flood of messages can never push
+        # a teammate out of the team: callbacks record the latest state per robot (`_alive` is
+        # their view, for dropping strangers before they take inbox space), the loop applies
+        # the changes at its next tick
+        self._token_lock = threading.Lock()
+        self._alive: set[str] = set()
+        self._token_changes: dict[str, bool] = {}
+        self.ignored_tokens = 0
         self._handles: list = []
         self._token = None
         self._layers_task: str | None = None
@@ -130,8 +138,14 @@ class Agent:
         self._token = self.bus.declare_token(self.architecture.agent_token(self.robot_id))
 
     def _on_token(self, key: str, alive: bool) -> None:
-        """Queued like the messages and always due: the loop thread owns the team too."""
-        self._inbox.append((-math.inf, None, first_chunk(key), alive))
+        """A teammate's token came or went: recorded for the loop thread, which owns the team."""
+        robot = first_chunk(key)
+        with self._token_lock:
+            if alive and robot not in self._alive and len(self._alive) >= MAX_TOKENS:
+                self.ignored_tokens += 1
+                return
+            (self._alive.add if alive else self._alive.discard)(robot)
+            self._token_changes[robot] = alive
 
     def _on_message(self, kind: str, sample: Sample) -> None:
         sender = first_chunk(sample.key)
@@ -142,6 +156,10 @@ class Agent:
         if msg.header.frame_id.strip("/") != sender:
             self._drop("ignored_mismatch", "ignoring %s on %s with frame_id %r",
                        type(msg).__name__, sample.key, msg.header.frame_id)
+            return
+        if sender not in self._alive:  # before it takes inbox space (checked again at the tick)
+            self._drop("ignored_strangers", "ignoring %s from %s, which holds no agent token",
+                       type(msg).__name__, sender)
             return
         self._inbox.append((self.heard_at(msg.header.stamp), kind, sender, msg))
 
@@ -180,12 +198,13 @@ class Agent:
 
     # ------------------------------------------------------------ one decision step
     def tick_high(self, now: float) -> None:
+        with self._token_lock:
+            changes, self._token_changes = self._token_changes, {}
+        for robot, alive in changes.items():
+            if robot != self.robot_id and (robot in self.team) != alive:
+                (self.team.add if alive else self.team.discard)(robot)
+                self.coordinator.teammate(robot, alive)
         for t, kind, sender, what in self.take_due(now):
-            if kind is None:  # a token came or went
-                if sender != self.robot_id:
-                    (self.team.add if what else self.team.discard)(sender)
-                    self.coordinator.teammate(sender, what)
-                continue
             if sender not in self.team:
                 self._drop("ignored_strangers", "ignoring %s from %s, which holds no agent token",
                            type(what).__name__, sender)
@@ -241,8 +260,7 @@ class Agent:
         self._layers_task = None
         for sensor in self.plugins.sensors.values():
             sensor.forget()
-        self._inbox = collections.deque(
-            (item for item in self._inbox if item[1] is None), maxlen=INBOX)
+        self._inbox.clear()
         self.coordinator = self._make_coordinator()
         for robot in sorted(self.team):
             self.coordinator.teammate(robot, True)

@@ -40,6 +40,7 @@ import msgspec
 import numpy as np
 
 from mrta_zenoh import keys
+from mrta_zenoh.architectures import Architecture
 from mrta_zenoh.bus import Bus, Subscription
 from mrta_zenoh.clock import Clock
 from mrta_zenoh.errors import ConfigError
@@ -91,6 +92,9 @@ class AgentContext:
     sensors: dict[str, "Sensor"] = field(default_factory=dict)  # by topic_name
     sections: dict[tuple[str, type], Any] = field(default_factory=dict)
     log: logging.Logger = field(default_factory=lambda: logging.getLogger("mrta.agent"))
+    # the architecture the robot runs (mrta_zenoh.architectures): what a plugin may ask of it
+    # (its "who is doing what" feed, its agent tokens) without naming it
+    architecture: Architecture | None = None
 
     def publish_cmd(self, linear: float, angular: float) -> None:
         self.bus.publish(keys.cmd_vel(self.robot_id), Twist(float(linear), float(angular)))

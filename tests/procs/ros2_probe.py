@@ -13,6 +13,8 @@ import sys
 import threading
 import time
 
+import zenoh
+
 from mrta_zenoh.bus import BusOptions, open_bus
 from mrta_zenoh.keys import ROS2_BRIDGE_TOKEN
 from mrta_zenoh.messages import Header, Odometry, Pose2D, Twist
@@ -47,12 +49,20 @@ def main(mode: str, *args: str) -> None:
             cdr = types.serialize(types.odometry_to_ros(
                 Odometry(Header("x", 1.0, 0), Pose2D(9.0, 9.0, 0.0), Twist(0.0, 0.0))),
                 "nav_msgs/msg/Odometry")
-            time.sleep(1.0)
+            # sent once Zenoh reports the bridge's subscription as matching, not after a pause
+            pub = bus.session.declare_publisher(
+                key, congestion_control=zenoh.CongestionControl.BLOCK)
+            deadline = time.monotonic() + 30
+            while getattr(pub.matching_status, "matching", pub.matching_status) is not True:
+                if time.monotonic() > deadline:
+                    raise SystemExit(f"no subscriber on {key}")
+                time.sleep(0.02)
             for i in range(n):
-                bus.session.put(key, cdr)
+                pub.put(cdr)
             for i in range(n):
-                bus.session.put(key, cdr, attachment=b"\x00" * 77)
+                pub.put(cdr, attachment=b"\x00" * 77)
             time.sleep(0.5)
+            pub.undeclare()
             print(json.dumps({"sent": 2 * n}), flush=True)
         else:
             raise SystemExit(f"unknown mode {mode!r}")

@@ -275,9 +275,9 @@ class ReportLayer(_SonarLayer):
 
 # The reference application (alliance_test) named these plugins; its files load unchanged.
 ALIASES = {
-    "alliance_test/odometry": "alliance/odometry",
-    "alliance_test/point_cloud": "alliance/point_cloud",
-    "alliance_test/updated_sensory": "alliance/updated_sensory",
+    "alliance_test/odometry": "mrta/odometry",
+    "alliance_test/point_cloud": "mrta/point_cloud",
+    "alliance_test/updated_sensory": "mrta/updated_sensory",
     "alliance_test/wall_in_range": "patrol/wall_in_range",
     "alliance_test/report_due": "patrol/report_due",
     "alliance_test/wander": "patrol/wander",

@@ -4,8 +4,9 @@ Made from what the team publishes on the bus, like a patrol leader's log. Only *
 count: robots whose agent holds its liveliness token, heard on their own keys with a matching
 `header/frame_id` — a forged `robot9` or a sample on robot1's key claiming to be robot2 adds
 nothing. Who does what is read through the architecture contract (mrta_zenoh.architectures):
-every registered architecture's agent token and "who is doing what" feed, so the ledger works
-unchanged under ALLIANCE, MURDOCH or a third party's architecture and names none of them.
+the agent token and "who is doing what" feed of the architecture the robot runs
+(`ctx.architecture`), so the ledger works unchanged under ALLIANCE, MURDOCH or a third party's
+architecture and names none of them.
 Odometry is finite by construction (the message type rejects NaN and ±inf), so one bad sample
 cannot turn every later report's distance into NaN.
 """
@@ -17,13 +18,12 @@ import threading
 
 from mrta_zenoh.keys import first_chunk
 from mrta_zenoh.messages import Header, Odometry
-from mrta_zenoh.architectures import Architecture, architectures
+from mrta_zenoh.architectures import Architecture
 from mrta_agent.runtime.plugins import Plugin
 
 from .messages import Report, TaskTime
 
 MAX_TEAMMATES = 64
-GAP = 5.0  # seconds: two reports of one task further apart than this do not add up
 
 
 def rectangle_cells(x0: float, y0: float, x1: float, y1: float,
@@ -54,7 +54,9 @@ class PatrolLedger:
         self.distance: dict[str, float] = {}
         self.cells = rectangle_cells(*border, self.CELL) if border is not None else []
         self.visited = [False] * len(self.cells)
-        for arch in architectures().values():
+        arch = owner.ctx.architecture
+        self.gap = arch.doing_stale_after if arch is not None else 0.0
+        if arch is not None:
             for key_expr, kind in arch.doing_feed():
                 owner.subscribe(key_expr, lambda s, a=arch: self._on_doing(a, s), msg_type=kind)
             owner._subscriptions.append(owner.ctx.bus.watch_liveliness(arch.agent_tokens,
@@ -67,8 +69,9 @@ class PatrolLedger:
                 self.teammates.add(first_chunk(key))
 
     def _on_doing(self, arch: Architecture, sample) -> None:
-        """Time on a task accrues between two reports of it from the same robot (at most GAP
-        apart); a report that the robot is no longer on it ends the stretch."""
+        """Time on a task accrues between two reports of it from the same robot (at most the
+        architecture's `doing_stale_after` apart: it repeats them at least that often); a
+        report that the robot is no longer on it ends the stretch."""
         doing = arch.read_doing(sample.key, sample.message)
         if doing is None:
             return
@@ -81,7 +84,7 @@ class PatrolLedger:
                 if last is not None and last[0] == doing.task:
                     del self._last_bc[rid]
                 return
-            if last is not None and last[0] == doing.task and now - last[1] < GAP:
+            if last is not None and last[0] == doing.task and now - last[1] <= self.gap:
                 k = (rid, doing.task)
                 self.task_time[k] = self.task_time.get(k, 0.0) + (now - last[1])
             self._last_bc[rid] = (doing.task, now)

@@ -93,7 +93,7 @@ class Fixed(AgentArchitecture):
         mine = [t for t in (task, standby) if t is not None]
         for t in mine:
             require_task(t, tasks, options.robot_params, "task")
-        evaluators = [EvaluatorSpec(t, "alliance/updated_sensory",
+        evaluators = [EvaluatorSpec(t, "mrta/updated_sensory",
                                     tuple(s.topic_name for s in sensors)) for t in mine]
         plugins = Plugins(sensors, evaluators, tasks, load_layers_params(options.layers_params))
         params = (task, standby, period, timeout)
