@@ -1,4 +1,4 @@
-"""Clean shutdown on SIGINT / SIGTERM.
+"""Clean shutdown on SIGINT / SIGTERM, and children that do not outlive their parent.
 
 A signal only sets an event; the tool's main loop sees it and leaves its `with` blocks, which
 undeclare everything and close the Zenoh session. Closing from inside a signal handler, or not
@@ -8,9 +8,15 @@ closing at all, is how a Zenoh process hangs at exit (docs/zenoh.md, "exit hang"
 from __future__ import annotations
 
 import contextlib
+import logging
+import os
 import signal
 import threading
+import time
 from typing import Iterator
+
+log = logging.getLogger("mrta.lifecycle")
+PARENT_ENV = "MRTA_PARENT_PID"  # set by mrta_zenoh.processes for every child it starts
 
 
 @contextlib.contextmanager
@@ -29,3 +35,37 @@ def stop_on_signals(stop: threading.Event | None = None) -> Iterator[threading.E
     finally:
         for s, h in previous.items():
             signal.signal(s, h)
+
+
+def die_with_parent(poll: float = 0.5, grace: float = 10.0) -> threading.Thread | None:
+    """If this process was started by mrta_zenoh.processes (whose pid is in $MRTA_PARENT_PID),
+    stop it once that parent is gone — even after a `kill -9` of the parent, which leaves it no
+    chance to stop its children: an orphaned simulator, agent or recorder would run for good.
+
+    A daemon thread polls getppid() (a reparented process has another parent): when the parent
+    is gone it sends this process SIGTERM, so the usual clean shutdown runs (a recorder finishes
+    its file), and SIGKILL after `grace` seconds if that did not end it. Linux's
+    PR_SET_PDEATHSIG would need a fork-time hook (forbidden once Zenoh is loaded) and fires when
+    the parent *thread* ends, not the process. The variable is removed from this process's
+    environment, so a process it starts by other means does not take this process for its
+    parent."""
+    value = os.environ.pop(PARENT_ENV, None)
+    if value is None:
+        return None
+    try:
+        parent = int(value)
+    except ValueError:
+        log.warning("ignoring $%s=%r: not a process id", PARENT_ENV, value)
+        return None
+
+    def watch() -> None:
+        while os.getppid() == parent:
+            time.sleep(poll)
+        log.warning("parent process %d is gone: stopping", parent)
+        os.kill(os.getpid(), signal.SIGTERM)
+        time.sleep(grace)
+        os.kill(os.getpid(), signal.SIGKILL)
+
+    thread = threading.Thread(target=watch, name="die-with-parent", daemon=True)
+    thread.start()
+    return thread

@@ -17,6 +17,8 @@ import threading
 import time
 from typing import Callable, Iterable
 
+from .lifecycle import PARENT_ENV
+
 LineSink = Callable[[str, str], None]  # (child name, line)
 
 
@@ -28,6 +30,10 @@ class Child:
                  echo: LineSink | None = None):
         self.name = name
         self.argv = argv
+        # the child stops itself once this process is gone (lifecycle.die_with_parent), even
+        # after a kill -9 of this one
+        env = dict(os.environ if env is None else env)
+        env[PARENT_ENV] = str(os.getpid())
         self.proc = subprocess.Popen(
             argv, env=env, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
             stderr=subprocess.STDOUT if merge_stderr else subprocess.PIPE, text=True)

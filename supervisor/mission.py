@@ -268,6 +268,43 @@ def run_mission(options: MissionOptions, *, stop: threading.Event | None = None,
         raise ConfigError(f"mission {run.mission.name!r} names no launch file")
     output = options.output
     output.mkdir(parents=True, exist_ok=True)
+    with output_lock(output):
+        return _run_in(output, run, failure, options, reg, stop, progress)
+
+
+LOCK_FILE = ".mrta-run.lock"
+
+
+@contextlib.contextmanager
+def output_lock(output: Path):
+    """Hold `output` for this run: a second run writing into the same folder would interleave
+    two recordings into one corrupt run.mcap and two summaries into one, and both would exit 0.
+    An advisory lock (flock) on a hidden file: released by the kernel when this process ends,
+    however it ends, so a killed run never leaves the folder locked."""
+    import fcntl
+    path = output / LOCK_FILE
+    f = path.open("a+")
+    try:
+        try:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError:
+            f.seek(0)
+            holder = f.read().strip() or "?"
+            raise ConfigError(f"{output} is in use by another run (pid {holder}): choose "
+                              "another --output") from None
+        f.seek(0)
+        f.truncate()
+        f.write(str(os.getpid()))
+        f.flush()
+        yield
+    finally:
+        f.close()
+
+
+def _run_in(output: Path, run: MissionRun, failure: Failure | None, options: MissionOptions,
+            reg: Registry, stop: threading.Event | None, progress: Progress | None
+            ) -> tuple[MissionRun, Summary]:
+    t_start = time.time()
     launch_args = {"speed": str(options.speed), "seed": str(options.seed),
                    "sim_args": f"--duration {options.duration} --snapshot {output / 'world.png'}"
                                + (" --lockstep" if options.lockstep else "")}
@@ -316,7 +353,7 @@ def run_mission(options: MissionOptions, *, stop: threading.Event | None = None,
             raise MrtaRuntimeError("; ".join(f"{c.name} exited with code {c.returncode}"
                                              for c in crashed) + ":\n"
                                    + "\n".join(f"[{c.name}]\n{c.tail(10)}" for c in crashed))
-    summary = analyse(run, failure, failed_at, time.monotonic() - t_wall0)
+    summary = analyse(run, failure, failed_at, time.monotonic() - t_wall0, t_start)
     return run, summary
 
 
@@ -340,7 +377,7 @@ def _watch(sim: Child, sup: Supervisor, clock: SimClock, agents: dict[str, Child
 
 # ------------------------------------------------------------------ the summary
 def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
-            wall: float) -> Summary:
+            wall: float, started: float = 0.0) -> Summary:
     output = run.options.output
     records = read_recording(output / "run.mcap")
     tb = TimeBase(records)
@@ -381,7 +418,9 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
         messages=message_rates(records, run.arch, max(t1 - t0, 1e-9)),
         metrics=run.mission.metrics(run, records), failure=report,
         output=str(output), files=[])
-    summary.files = sorted({p.name for p in output.iterdir()} | {"summary.json"})
+    # what this run wrote (an earlier run's files in the same folder are not this run's)
+    summary.files = sorted({p.name for p in output.iterdir() if not p.name.startswith(".")
+                            and p.stat().st_mtime >= started - 1.0} | {"summary.json"})
     write_summary(output / "summary.json", summary)
     return summary
 

@@ -20,6 +20,7 @@ from typing import Any, Callable, Sequence
 import click
 
 from ..errors import Interrupted, MrtaError
+from ..lifecycle import die_with_parent
 from .common import setup_logging
 
 
@@ -48,6 +49,7 @@ def run(command: click.Command, args: Sequence[str] | None = None,
 
     click's standalone mode would exit 1 with a traceback on our errors; here they are reported
     by `report`. A command may return an int: its exit code (click's `ctx.exit(n)` too)."""
+    die_with_parent()
     try:
         rv = command.main(args=list(args) if args is not None else None, prog_name=prog_name,
                           standalone_mode=False, **extra)
@@ -59,6 +61,7 @@ def run(command: click.Command, args: Sequence[str] | None = None,
 def run_callable(target: Callable[[list[str]], Any], args: list[str]) -> int:
     """An executable registered as a plain function of argv (not a click command): the same
     reporting of our errors."""
+    die_with_parent()
     try:
         rv = target(args)
     except MrtaError as exc:

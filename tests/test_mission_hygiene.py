@@ -1,0 +1,101 @@
+"""A mission's processes as an operator meets them: children that never outlive `mrta demo`
+(even after a kill -9), an output folder one run at a time, a default failure that fits the
+run's duration."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import time
+from pathlib import Path
+
+import pytest
+
+from mrta_supervisor.mission import MissionOptions, failure_of, output_lock, resolve
+from mrta_zenoh.errors import ConfigError
+
+
+def children_of(pid: int) -> set[int]:
+    """Live processes whose parent is `pid` (from /proc: no psutil needed)."""
+    out = set()
+    for entry in Path("/proc").iterdir():
+        if not entry.name.isdigit():
+            continue
+        try:
+            stat = (entry / "stat").read_text()
+        except OSError:
+            continue
+        fields = stat.rsplit(")", 1)[1].split()
+        if int(fields[1]) == pid and fields[0] != "Z":
+            out.add(int(entry.name))
+    return out
+
+
+def alive(pid: int) -> bool:
+    try:
+        state = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != "Z"
+
+
+def test_the_default_failure_fits_the_duration():
+    """`mrta demo --duration 20` used to exit 2: the default failure was at 30 s."""
+    for duration, spec in ((20.0, "robot2@10"), (60.0, "robot2@30"), (7.0, "robot2@3.5")):
+        f = failure_of(resolve(MissionOptions(duration=duration)))
+        assert (f.robot, f.at, f.spec) == ("robot2", float(spec.split("@")[1]), spec)
+    with pytest.raises(ConfigError, match="not before the end"):
+        failure_of(resolve(MissionOptions(duration=10.0, fail="robot2@10")))
+
+
+def test_an_output_folder_in_use_is_refused_and_freed_when_its_run_ends(tmp_path):
+    with output_lock(tmp_path):
+        with pytest.raises(ConfigError, match=f"in use by another run \\(pid {os.getpid()}\\)"):
+            with output_lock(tmp_path):
+                pass
+    with output_lock(tmp_path):  # released: the next run may write there
+        pass
+
+
+@pytest.mark.multiprocess
+@pytest.mark.timeout(150)
+def test_a_second_demo_in_the_same_folder_is_refused(children, tmp_path):
+    out = tmp_path / "out"
+    first = children.mrta("-q", "demo", "--duration", "12", "--speed", "1", "--fail", "none",
+                          "--no-live", "--output", out, name="first")
+    deadline = time.monotonic() + 60
+    while not (out / ".mrta-run.lock").exists() or not children_of(first.proc.pid):
+        assert time.monotonic() < deadline and first.proc.poll() is None, first.tail()
+        time.sleep(0.1)
+    second = children.mrta("-q", "demo", "--duration", "12", "--speed", "0", "--no-live",
+                           "--output", out, name="second")
+    assert second.wait(60) == 2
+    assert any("in use by another run" in line for line in second.stderr), second.stderr
+    assert first.wait(100) == 0, first.tail(20)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["duration"] == 12.0 and summary["speed"] == 1.0  # the first run's, whole
+
+
+@pytest.mark.multiprocess
+@pytest.mark.timeout(120)
+def test_kill_9_of_the_demo_leaves_no_process_behind(children, tmp_path):
+    """The simulator, the agents and the recorder notice their parent is gone and stop."""
+    demo = children.mrta("-q", "demo", "--duration", "600", "--speed", "1", "--no-live",
+                         "--output", tmp_path / "out", name="demo")
+    deadline = time.monotonic() + 60
+    kids: set[int] = set()
+    while len(kids) < 5:  # the recorder, the simulator and three agents
+        assert time.monotonic() < deadline and demo.proc.poll() is None, demo.tail()
+        time.sleep(0.2)
+        kids = children_of(demo.proc.pid)
+    time.sleep(2.0)  # let them get going: not readiness, part of the scenario
+    os.kill(demo.proc.pid, signal.SIGKILL)
+    demo.wait(10)
+    deadline = time.monotonic() + 30  # the watcher polls every 0.5 s; a clean stop takes a few s
+    while any(alive(p) for p in kids) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    left = [p for p in kids if alive(p)]
+    for p in left:  # ours to end, by PID, so nothing outlives the test even if it fails
+        os.kill(p, signal.SIGKILL)
+    assert not left, f"{len(left)} of {len(kids)} children outlived a kill -9 of the demo"
