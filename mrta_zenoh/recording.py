@@ -5,6 +5,13 @@ metadata carrying the full Zenoh encoding and the type name, so standard MCAP to
 filter the recording and anyone with msgpack can decode it. Liveliness changes are recorded too,
 on topics `@liveliness/<key>` as JSON `{"alive": true|false}`.
 
+Log time: wall time (ns since the epoch) by default; in a simulated-time recording
+(`SimLogTime`: `mrta view --sim-time`, the mission runner's recorder, `run_record(sim_time=True)`)
+the simulated time of the run as the recorder's `SimClock` follows it, so Foxglove plays a run at
+mission speed whatever `--speed` it ran at. Either way a channel's log times never decrease (MCAP
+readers expect it). The file's `mrta` metadata record says which (`log_time`: `wall` or
+`simulated`).
+
 Crash safety: the writer closes its chunk and flushes at least once a second, so a recorder
 killed with SIGKILL leaves a file whose complete chunks a streaming read recovers; the readers
 here fall back to that and say how much they recovered.
@@ -19,18 +26,19 @@ import queue
 import threading
 import time
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from mcap.reader import make_reader
-from mcap.records import Channel, Message as McapMessage
+from mcap.records import Channel, Message as McapMessage, Metadata
 from mcap.stream_reader import StreamReader
 from mcap.writer import Writer
 import msgspec
 
 from . import codec, keys
+from .clock import SimClock
 from .codec import DecodeError, type_from_encoding
 from .errors import ConfigError
-from .messages import message_class
+from .messages import Clock, message_class
 
 _json = msgspec.json  # lossless for our values: shortest round-trip floats
 
@@ -41,6 +49,66 @@ Record = tuple[str, str, int, bytes]  # (key, encoding, log time ns, payload)
 
 LIVELINESS_SCHEMA = {"title": "liveliness", "type": "object",
                      "properties": {"alive": {"type": "boolean"}}, "required": ["alive"]}
+NS = 1_000_000_000
+RESTART_GAP_NS = NS  # a restarted simulation's log times start this long after the last run's
+HOLD_MAX = 10_000  # samples held for the first clock sample; beyond, written at log time 0
+
+
+class SimLogTime:
+    """Log times in simulated time: nanoseconds of `clock` (a SimClock the recorder follows).
+
+    * Before the first clock sample there is no simulated time: the call returns None and the
+      recorder holds the sample until the first stamped one, then writes it at that sample's
+      log time (the run's first instant). Nothing is stamped with a time it never had, and a
+      recorder that joins a run late does not start its file at 0 with a gap up to the present.
+    * A restarted simulation (the clock adopted a new run, `SimClock.restarts`) starts again
+      from its own stamps; its log times are offset so that they continue RESTART_GAP_NS after
+      the last log time handed out. One file, log times increasing throughout, the runs one
+      after the other, as readers expect; the `clock` channel still holds each run's own
+      stamps, which is what TimeBase maps log times back to.
+    * Log times handed out never decrease (a late or concurrent caller gets the latest one).
+
+    `observe` is to be called with every raw sample before stamping it: a `clock` sample moves
+    the clock first, so it is logged at its own stamp whichever subscription Zenoh served first.
+    """
+
+    def __init__(self, clock: SimClock):
+        self.clock = clock
+        self._lock = threading.Lock()
+        self._restarts = clock.restarts
+        self._offset = 0
+        self._last = 0
+        self._decode = None
+
+    def observe(self, key: str, encoding: str, payload: bytes) -> None:
+        if key != keys.CLOCK:
+            return
+        try:
+            if self._decode is None or self._decode[0] != encoding:
+                self._decode = (encoding, codec.decoder_for(encoding)[1])
+            msg = self._decode[1](payload)
+        except DecodeError:
+            return  # counted by the clock's typed subscriber; it moves nothing here
+        if isinstance(msg, Clock):
+            self.clock.on_clock(msg.stamp, msg.source)
+
+    def __call__(self) -> int | None:
+        clock = self.clock
+        if not clock.started.is_set():
+            return None
+        while True:  # a consistent (restarts, now) pair: a restart changes both
+            restarts = clock.restarts
+            now = clock.now()
+            if clock.restarts == restarts:
+                break
+        t = round(now * NS)
+        with self._lock:
+            if restarts != self._restarts:
+                self._restarts = restarts
+                self._offset = self._last + RESTART_GAP_NS - t
+            out = max(self._last, self._offset + t)
+            self._last = out
+            return out
 
 
 def json_channel(encoding: str) -> tuple[tuple[str, str, bytes], Any] | None:
@@ -66,37 +134,52 @@ class McapRecorder:
     values, so a recording still replays the bus exactly (read_recording turns it back into the
     wire's msgpack). A sample that is not in our wire format, or malformed, is kept as it came
     (message encoding `msgpack` or the raw one): preserved, though no viewer decodes it.
-    Derived channels (a scene, a supervisor's state) are added with `add`. Log time: the wall
-    time the sample was received, for every channel alike.
+    Derived channels (a scene, a supervisor's state) are added with `add`.
+
+    Log time: `log_time()` when the sample is handed over (its arrival, taken in the caller's
+    thread, not when the writer gets to it), for every channel alike: the wall time by default,
+    the simulated time with a SimLogTime. A `log_time` returning None means "no time yet": the
+    sample is held (up to HOLD_MAX) and written at the first log time that follows. Log times
+    are clamped so that a channel's never decrease (arrivals on two threads can swap by a few
+    microseconds). Publish time equals log time: the bus carries no send time (a message's own
+    header stamp is in its payload).
     """
 
-    def __init__(self, path: Path, flush_every: float = 1.0):
+    def __init__(self, path: Path, flush_every: float = 1.0,
+                 log_time: Callable[[], int | None] | None = None):
         self.path = path
         self.flush_every = flush_every
+        self.log_time = log_time or time.time_ns
+        self.simulated = isinstance(log_time, SimLogTime)
         try:
             self._f = open(path, "wb")
         except OSError as exc:
             raise ConfigError(f"cannot write the recording: {exc.strerror}", file=str(path)) from None
         self._w = Writer(self._f)
         self._w.start(profile="", library="mrta-zenoh")
+        self._w.add_metadata("mrta", {"log_time": "simulated" if self.simulated else "wall"})
         self._channels: dict[tuple[str, str], tuple[int, Any]] = {}
         self._schemas: dict[tuple[str, str], int] = {}
+        self._last: dict[int, int] = {}  # channel id → its last log time
+        self._held: list[tuple] = []  # samples that came before the first log time
         self._q: queue.SimpleQueue = queue.SimpleQueue()
         self.count = 0
         self._thread = threading.Thread(target=self._run, name="mcap-writer", daemon=True)
         self._thread.start()
 
     def sample(self, key: str, encoding: str, payload: bytes, t: int | None = None) -> None:
-        self._q.put((t or time.time_ns(), key, encoding, payload))
+        """A bus sample; `t` (ns) defaults to `log_time()` now."""
+        self._q.put((self.log_time() if t is None else t, key, encoding, payload))
 
     def liveliness(self, key: str, alive: bool, t: int | None = None) -> None:
-        self._q.put((t or time.time_ns(), keys.LIVELINESS_PREFIX + key, "application/json",
-                     json.dumps({"alive": alive}).encode()))
+        self._q.put((self.log_time() if t is None else t, keys.LIVELINESS_PREFIX + key,
+                     "application/json", json.dumps({"alive": alive}).encode()))
 
     def add(self, topic: str, schema: tuple[str, str, bytes], message_encoding: str,
             data: bytes, t: int | None = None) -> None:
         """A derived channel's message: schema = (name, encoding, data)."""
-        self._q.put((t or time.time_ns(), topic, ("derived", schema, message_encoding), data))
+        self._q.put((self.log_time() if t is None else t, topic,
+                     ("derived", schema, message_encoding), data))
 
     def _schema(self, name: str, encoding: str, data: bytes) -> int:
         sid = self._schemas.get((name, encoding))
@@ -135,13 +218,24 @@ class McapRecorder:
         self._channels[ident] = entry
         return entry
 
-    def _write(self, t: int, key: str, enc, payload: bytes) -> None:
+    def _write(self, t: int | None, key: str, enc, payload: bytes) -> None:
+        if t is None:  # no log time yet (simulated time not started): held for the next one
+            if len(self._held) < HOLD_MAX:
+                self._held.append((key, enc, payload))
+                return
+            t = 0  # a bus with no simulator for long: memory stays bounded
+        elif self._held:
+            held, self._held = self._held, []
+            for item in held:
+                self._write(t, *item)
         ch, convert = self._channel(key, enc)
         if convert is not None:
             try:
                 payload = convert(payload)
             except DecodeError:  # malformed: kept as it came, on a channel of its own
                 ch, _ = self._channel(key + "/@malformed", "application/octet-stream")
+        t = max(t, self._last.get(ch, 0))
+        self._last[ch] = t
         self._w.add_message(channel_id=ch, log_time=t, publish_time=t, data=payload,
                             sequence=self.count)
         self.count += 1
@@ -164,11 +258,15 @@ class McapRecorder:
                 next_flush = time.monotonic() + self.flush_every
 
     def close(self) -> None:
-        """Write what is queued, finish the file (its summary and index); once."""
+        """Write what is queued, finish the file (its summary and index); once. Samples still
+        held (simulated time never started) are written at log time 0."""
         if self._f.closed:
             return
         self._q.put(None)
         self._thread.join()
+        held, self._held = self._held, []
+        for item in held:
+            self._write(0, *item)
         self._w.finish()
         self._f.close()
 
@@ -180,10 +278,12 @@ class McapRecorder:
 
 
 class Recovered(list):
-    """Records read from a file; `complete` is False when its end was missing."""
+    """Records read from a file; `complete` is False when its end was missing. `log_time`:
+    "simulated" or "wall" as the file's `mrta` metadata says ("" for a file without it)."""
 
     complete = True
     note = ""
+    log_time = ""
 
 
 def read_recording(path: Path) -> Recovered:
@@ -203,6 +303,8 @@ def read_recording(path: Path) -> Recovered:
                 row = _row(channel, message)
                 if row is not None:
                     out.append(row)
+            out.log_time = next((m.metadata.get("log_time", "") for m in reader.iter_metadata()
+                                 if m.name == "mrta"), "")
             return out
         except Exception:  # noqa: BLE001 - the mcap library raises many types for a bad end
             pass
@@ -213,6 +315,8 @@ def read_recording(path: Path) -> Recovered:
             for rec in StreamReader(f).records:
                 if isinstance(rec, Channel):
                     channels[rec.id] = rec
+                elif isinstance(rec, Metadata) and rec.name == "mrta":
+                    out.log_time = rec.metadata.get("log_time", "")
                 elif isinstance(rec, McapMessage) and rec.channel_id in channels:
                     row = _row(channels[rec.channel_id], rec)
                     if row is not None:

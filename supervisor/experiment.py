@@ -19,6 +19,11 @@ application's metrics) and `run.mcap`; this module gathers them into `results.cs
 so a Ctrl-C keeps the finished rows), `summary.md` (per configuration: mean and 95 % interval)
 and plots (takeover time per configuration, coverage). A run that fails is a row with its error;
 the others go on.
+
+Where the runs go: on this machine, `jobs` at once (the default), or with `scheduler` as tasks
+on a Dask cluster (experiment_dask.py, the optional `dask` extra). Both run the same argv
+(`demo_args`) and turn what a run left into a row the same way (`row_for`, `error_of`), so the
+same seeds give the same rows whichever ran them.
 """
 
 from __future__ import annotations
@@ -215,6 +220,20 @@ def paired_difference(rows: list[dict], key: str, config: str, baseline: str
     return m, h, len(diffs)
 
 
+def demo_args(package: str, duration: float, run: Run, out: Path) -> list[str]:
+    """`mrta ARGS…` for one run, whichever backend starts it (here, or a Dask worker): one
+    spelling, so both run exactly the same mission."""
+    return ["-q", "demo", "--application", package, "--duration", str(duration), "--speed",
+            "0", "--fail", run.failure, "--seed", str(run.seed), "--output", str(out),
+            "--no-live"]
+
+
+def error_of(returncode: int, lines: list[str]) -> str:
+    """The `error` cell of a run that did not exit 0: its code and the end of its output."""
+    return f"exit {returncode}: " + " | ".join(line for line in lines[-5:]
+                                               if line.strip())[-400:]
+
+
 def row_for(run: Run, out: Path, wall: float, error: str = "") -> dict:
     row: dict[str, Any] = {"run": run.index, "config": run.config, "seed": run.seed,
                            "failure": run.failure, "status": "failed" if error else "ok",
@@ -232,7 +251,18 @@ def row_for(run: Run, out: Path, wall: float, error: str = "") -> dict:
 
 
 def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
-                   stop: threading.Event | None = None, progress=None) -> list[dict]:
+                   stop: threading.Event | None = None, progress=None,
+                   scheduler: str | None = None) -> list[dict]:
+    """Every run of FILE's matrix, `jobs` at once here or, with `scheduler` (a Dask scheduler's
+    address), as tasks on that cluster; returns the rows (also in OUTPUT/results.csv)."""
+    if scheduler is not None:
+        from . import experiment_dask  # stdlib and mrta only: `distributed` is imported lazily
+
+        if jobs is not None:
+            raise ConfigError("--jobs is for runs on this machine; with --scheduler the "
+                              "workers' `runs` resources say how many run at once")
+        experiment_dask.check_address(scheduler)
+        experiment_dask.require_distributed()  # before anything is written
     exp = load_experiment(file)
     reg = Registry()
     resolved = resolve(MissionOptions(application=exp.application,
@@ -243,14 +273,52 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
                           f"(its launch file starts them); got {exp.robots}", file=str(file))
     runs = exp.runs()
     output.mkdir(parents=True, exist_ok=True)
-    jobs = max(1, jobs or os.cpu_count() or 1)
     stop = stop or threading.Event()
-    rows: list[dict] = []
-    fields: list[str] = []
-    results = output / "results.csv"
+    results = Results(output / "results.csv", len(runs), progress)
+    if scheduler is not None:
+        experiment_dask.run_on_cluster(scheduler, package=pkg, duration=exp.duration, runs=runs,
+                                       output=output, stop=stop, results=results)
+    else:
+        _run_here(pkg, exp.duration, runs, output, max(1, jobs or os.cpu_count() or 1), stop,
+                  results)
+    rows = results.finish()
+    write_text(output / "summary.md", summary_md(exp, rows))
+    plot_results(rows, output)
+    if stop.is_set():
+        raise Interrupted(f"stopped after {len(rows)} of {len(runs)} runs; {results.path} has "
+                          "them")
+    return rows
+
+
+class Results:
+    """The rows of the runs that ended, in results.csv as soon as each ends (a Ctrl-C or a
+    crash keeps them), the progress callback told."""
+
+    def __init__(self, path: Path, total: int, progress=None):
+        self.path, self.total, self.progress = path, total, progress
+        self.rows: list[dict] = []
+        self.fields: list[str] = []
+
+    def add(self, run: Run, out: Path, wall: float, error: str = "") -> dict:
+        row = row_for(run, out, wall, error)
+        self.rows.append(row)
+        self.fields = _write_csv(self.path, self.rows, self.fields)
+        if self.progress is not None:
+            self.progress(len(self.rows), self.total, row)
+        return row
+
+    def finish(self) -> list[dict]:
+        """The rows in run order, results.csv rewritten in that order."""
+        self.rows.sort(key=lambda r: r["run"])
+        _write_csv(self.path, self.rows, [])
+        return self.rows
+
+
+def _run_here(pkg, duration: float, runs: list[Run], output: Path, jobs: int,
+              stop: threading.Event, results: Results) -> None:
+    """The runs as child processes of this one, `jobs` at once."""
     pending = list(runs)
     active: dict[int, tuple[Run, Any, float, Path]] = {}
-    argv_base = mrta_argv("-q", "demo", "--application", pkg.name)
     with ProcessGroup() as group:
         while (pending or active) and not stop.is_set():
             while pending and len(active) < jobs:
@@ -264,30 +332,19 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
                     pkgs = out / "package"
                     package_copy(pkg.path, pkgs, run.overrides)
                     env["MRTA_PACKAGE_PATH"] = str(pkgs)
-                argv = argv_base + ["--duration", str(exp.duration), "--speed", "0",
-                                    "--fail", run.failure, "--seed", str(run.seed),
-                                    "--output", str(out), "--no-live"]
+                argv = mrta_argv(*demo_args(pkg.name, duration, run, out))
                 child = group.start(argv, name=f"run{run.index}", env=env, merge_stderr=True)
                 active[run.index] = (run, child, time.monotonic(), out)
-            fields = _collect(active, rows, results, fields, progress, len(runs))
+            _collect(active, results)
             stop.wait(0.1)
         if stop.is_set():
             # a run that ended cleanly before the stop is a finished run: keep its row; the
             # others are stopped and left out, so the files describe exactly what finished
-            fields = _collect(active, rows, results, fields, progress, len(runs),
-                              only_clean=True)
+            _collect(active, results, only_clean=True)
             group.stop_all()
-    rows.sort(key=lambda r: r["run"])
-    _write_csv(results, rows, [])
-    write_text(output / "summary.md", summary_md(exp, rows))
-    plot_results(rows, output)
-    if stop.is_set():
-        raise Interrupted(f"stopped after {len(rows)} of {len(runs)} runs; {results} has them")
-    return rows
 
 
-def _collect(active: dict, rows: list[dict], results: Path, fields: list[str], progress,
-             total: int, only_clean: bool = False) -> list[str]:
+def _collect(active: dict, results: Results, only_clean: bool = False) -> None:
     """Rows for the runs of `active` whose process has ended (with `only_clean`: ended with
     exit 0), written to results.csv at once."""
     for index, (run, child, t0, out) in list(active.items()):
@@ -295,14 +352,7 @@ def _collect(active: dict, rows: list[dict], results: Path, fields: list[str], p
             continue
         del active[index]
         rc = child.wait(10)
-        error = "" if rc == 0 else (f"exit {rc}: " + " | ".join(
-            line for line in child.stdout[-5:] if line.strip())[-400:])
-        row = row_for(run, out, time.monotonic() - t0, error)
-        rows.append(row)
-        fields = _write_csv(results, rows, fields)
-        if progress is not None:
-            progress(len(rows), total, row)
-    return fields
+        results.add(run, out, time.monotonic() - t0, "" if rc == 0 else error_of(rc, child.stdout))
 
 
 def _write_csv(path: Path, rows: list[dict], fields: list[str]) -> list[str]:

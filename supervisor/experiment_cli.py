@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import click
@@ -20,9 +19,13 @@ from .experiment import run_experiment
 @click.option("--output", type=click.Path(file_okay=False, path_type=Path),
               default=Path("experiment-output"), show_default=True,
               help="Folder for results.csv, summary.md, plots and one folder per run.")
-@click.option("--jobs", type=click.IntRange(min=1), default=os.cpu_count() or 1,
-              show_default=True, help="Runs at once (each on its own private rendezvous).")
-def experiment(file: Path, output: Path, jobs: int) -> None:
+@click.option("--jobs", type=click.IntRange(min=1), default=None,
+              show_default="one per CPU",
+              help="Runs at once on this machine (each on its own private rendezvous).")
+@click.option("--scheduler", metavar="tcp://HOST:PORT", default=None,
+              help="Run every run as a task on this Dask cluster instead (workers started with "
+                   "--resources runs=1; needs pip install 'mrta-zenoh[dask]').")
+def experiment(file: Path, output: Path, jobs: int | None, scheduler: str | None) -> None:
     """Run the matrix of FILE (seeds × failures × parameter overrides) and summarise it."""
     with stop_on_signals() as stop, Progress(
             TextColumn("[bold]runs"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
@@ -33,7 +36,8 @@ def experiment(file: Path, output: Path, jobs: int) -> None:
             bar.update(task, completed=done, total=total,
                        description=f"last: run {row['run']} {row['status']}")
 
-        rows = run_experiment(file=file, output=output, jobs=jobs, stop=stop, progress=progress)
+        rows = run_experiment(file=file, output=output, jobs=jobs, stop=stop, progress=progress,
+                              scheduler=scheduler)
     failed = sum(r["status"] != "ok" for r in rows)
     click.echo(f"{plural(len(rows), 'run')} ({failed} failed): {output / 'results.csv'}, "
                f"{output / 'summary.md'}, {output / 'takeover.png'}, {output / 'coverage.png'}")

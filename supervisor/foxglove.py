@@ -12,6 +12,11 @@ Channels, for a recording (McapRecorder) and for the live WebSocket server alike
 * `/supervisor/state` (JSON: the supervisor snapshot) and `/supervisor/alarms`
   (`foxglove.Log`: each alarm raised or cleared, for the Log panel).
 
+The scene and poses are one frame (`scene_frame`), the supervisor's channels another
+(`supervisor_frame`): the caller samples each at its own rate (supervisor/viewer.py: per
+simulated period on simulated time). Every JSON channel has a real JSON Schema (ROBOT_TASK,
+SUPERVISOR_SNAPSHOT below), so Foxglove's panels offer their fields.
+
 The scene is built from bus data only (the simulator's `world`, `*/ground_truth`, `*/sonar`), so
 it needs no world file and knows no application. The well-known schemas and their protobuf
 encoding come from the official `foxglove-sdk` package.
@@ -38,7 +43,56 @@ from .api import to_json
 
 Emit = Callable[[str, tuple[str, str, bytes], str, bytes, int], None]  # topic, schema, enc, data, t
 
-JSON_OBJECT = json.dumps({"type": "object"}).encode()
+_NUMBER = {"type": ["number", "null"]}  # null: a non-finite value (api.to_json)
+_STRING = {"type": "string"}
+_STRINGS = {"type": "array", "items": _STRING}
+
+
+def _object(required: dict, **optional) -> dict:
+    return {"type": "object", "properties": {**required, **optional}, "required": list(required)}
+
+
+ROBOT_TASK = {
+    "title": "mrta.RobotTask",
+    "description": "A robot's state and the task it is on, for the State Transitions panel.",
+    **_object({"state": {**_STRING, "description": "busy, idle, offline or unknown"},
+               "task": {**_STRING, "description": "the task it is allocated, '-' for none"}}),
+}
+# the snapshot of docs/architecture.md ("The supervisor snapshot"); extra fields are allowed so
+# that a newer supervisor's snapshot still validates
+SUPERVISOR_SNAPSHOT = {
+    "title": "mrta.SupervisorSnapshot",
+    "description": "The supervisor's view: robots, tasks, alarms, recent transitions, counts.",
+    **_object({
+        "time": {**_NUMBER, "description": "the supervisor's time (simulated seconds on sim time)"},
+        "application": _STRING,
+        "architecture": _STRING,
+        "robots": {"type": "array", "items": _object({
+            "id": _STRING, "state": {**_STRING, "description": "busy, idle, offline or unknown"},
+            "task": {"type": ["string", "null"]}, "online": {"type": "boolean"},
+            "since": _NUMBER})},
+        "tasks": {"type": "array", "items": _object({
+            "id": _STRING,
+            "state": {**_STRING, "description": "allocated, incoming or unallocated"},
+            "robots": _STRINGS, "since": _NUMBER})},
+        "alarms": {"type": "array", "items": _object({
+            "kind": _STRING, "subject": _STRING, "since": _NUMBER})},
+        "transitions": {"type": "array", "items": _object({
+            "time": _NUMBER,
+            "kind": {**_STRING, "description": "robot, task, allocation or alarm"},
+            "subject": _STRING, "from": _STRING, "to": _STRING})},
+        "counts": {"type": "object", "additionalProperties": {"type": "integer"}},
+    }, ros2={**_object({"domain": {"type": "integer"}, "nodes": _STRINGS,
+                        "topics": {"type": "array", "items": _object({
+                            "topic": _STRING, "types": _STRINGS,
+                            "publishers": {"type": "integer"},
+                            "subscriptions": {"type": "integer"}})},
+                        "invalid_tokens": {"type": "integer"}}),
+             "description": "the ROS 2 graph (docs/ros2.md)"}),
+}
+ROBOT_TASK_SCHEMA = ("mrta.RobotTask", "jsonschema", json.dumps(ROBOT_TASK).encode())
+SUPERVISOR_SNAPSHOT_SCHEMA = ("mrta.SupervisorSnapshot", "jsonschema",
+                              json.dumps(SUPERVISOR_SNAPSHOT).encode())
 TRAIL = 300  # poses kept per robot
 GREY, BLUE, ORANGE, WHITE = (Color(r=.6, g=.6, b=.6, a=1), Color(r=.2, g=.5, b=1, a=1),
                              Color(r=1, g=.6, b=.1, a=.8), Color(r=1, g=1, b=1, a=1))
@@ -129,18 +183,26 @@ class FoxgloveOutputs:
 
     def frame(self, t_ns: int, snapshot: dict | None) -> None:
         """One refresh: the scene and poses; with a snapshot, the supervisor's channels."""
+        self.scene_frame(t_ns)
+        if snapshot is not None:
+            self.supervisor_frame(t_ns, snapshot)
+
+    def scene_frame(self, t_ns: int) -> None:
+        """`/world` and every robot's pose, as the bus has them now, at log time `t_ns`."""
         self.emit("/world", _schema(SceneUpdate), "protobuf", self.scene.update().encode(), t_ns)
         for robot, (x, y, th) in self.scene.poses_now().items():
             msg = PoseInFrame(timestamp=_stamp(t_ns), frame_id="world", pose=_pose(x, y, th))
             self.emit(f"/robots/{robot}/pose", _schema(PoseInFrame), "protobuf", msg.encode(),
                       t_ns)
-        if snapshot is None:
-            return
-        self.emit("/supervisor/state", ("mrta.SupervisorSnapshot", "jsonschema", JSON_OBJECT),
-                  "json", to_json(snapshot).encode(), t_ns)
+
+    def supervisor_frame(self, t_ns: int, snapshot: dict) -> None:
+        """`/supervisor/state`, every robot's `/robots/<id>/task`, and `/supervisor/alarms`
+        for the alarms raised or cleared since the last frame."""
+        self.emit("/supervisor/state", SUPERVISOR_SNAPSHOT_SCHEMA, "json",
+                  to_json(snapshot).encode(), t_ns)
         for r in snapshot["robots"]:
-            self.emit(f"/robots/{r['id']}/task", ("mrta.RobotTask", "jsonschema", JSON_OBJECT),
-                      "json", json.dumps({"state": r["state"], "task": r["task"] or "-"}).encode(),
+            self.emit(f"/robots/{r['id']}/task", ROBOT_TASK_SCHEMA, "json",
+                      json.dumps({"state": r["state"], "task": r["task"] or "-"}).encode(),
                       t_ns)
         alarms = {(a["kind"], a["subject"]) for a in snapshot["alarms"]}
         for kind, subject in sorted(alarms - self._alarms):

@@ -1,24 +1,45 @@
 """`mrta view`: the bus, the scene and the supervisor, served live to Foxglove / Lichtblick over
 the Foxglove WebSocket protocol (foxglove-sdk's server, loopback by default) and/or written to
-an MCAP file with the same channels (supervisor/foxglove.py lists them)."""
+an MCAP file with the same channels (supervisor/foxglove.py lists them).
+
+Time. On the wall clock, log times are wall time and the derived channels (scene, poses,
+supervisor) are refreshed `rate` times a wall second. On simulated time (`--sim-time`: the
+mission runner's recorder) everything is in the simulator's time, as this process's SimClock
+follows it, whatever `--speed` the run had — so a recording plays at mission speed:
+
+* every message's log time is the simulated time it arrived at (mrta_zenoh.recording.SimLogTime:
+  samples before the first clock sample are held and logged at the run's first instant; a
+  restarted simulator's run is laid 1 s after the previous one's end, in the same file);
+* the derived channels are sampled per simulated period — `/world` and `/robots/<id>/pose` at
+  SCENE_HZ, `/supervisor/state`, `/robots/<id>/task` and `/supervisor/alarms` at SUPERVISOR_HZ
+  per simulated second — driven by the clock samples as they arrive (SimPacer), not by a
+  wall-time timer, so a run at `--speed 0` gets as many frames per simulated second as one at
+  `--speed 1`. The recorder is no lockstep participant: the simulator never waits for it, the
+  receive path only compares a number and sets an event, and a frame loop that falls behind
+  skips the frames whose time has passed (one frame for the latest time, never a backlog).
+  Nothing is derived before the first clock sample (there is no simulated time yet); while the
+  clock stands still (a stopped or hung simulator) the supervisor's channels are still
+  refreshed once a wall second, at the last simulated time, so `clock_stopped` shows.
+"""
 
 from __future__ import annotations
 
 import contextlib
 import logging
+import math
 import threading
 import time
 from pathlib import Path
 
 import foxglove
 
-from mrta_zenoh.bus import BusOptions, open_bus
-from mrta_zenoh.clock import SimClock, WallClock, follow_sim_clock
+from mrta_zenoh.bus import Bus, BusOptions, open_bus
+from mrta_zenoh.clock import EPSILON, SimClock, WallClock, follow_sim_clock
 from mrta_zenoh.codec import DecodeError
 from mrta_zenoh.errors import ConfigError
-from mrta_zenoh.keys import RECORDER_TOKEN
+from mrta_zenoh.keys import CLOCK, RECORDER_TOKEN
 from mrta_zenoh.lifecycle import stop_on_signals
-from mrta_zenoh.recording import McapRecorder, json_channel
+from mrta_zenoh.recording import McapRecorder, SimLogTime, json_channel
 
 from .api import Refresh, attach, resolve_application
 from .foxglove import FoxgloveOutputs
@@ -26,6 +47,42 @@ from .state import Supervisor
 
 log = logging.getLogger("mrta.view")
 SCENE_KEYS = ("world", "*/ground_truth", "*/sonar")
+SCENE_HZ = 5.0  # /world and poses, per simulated second (on simulated time)
+SUPERVISOR_HZ = 2.0  # /supervisor/state, /robots/<id>/task, /supervisor/alarms, likewise
+STALL_EVERY = 1.0  # wall seconds between supervisor frames while simulated time stands still
+POLL = 0.1  # wall seconds the frame loop waits for a clock sample before looking at `stop`
+
+
+class SimPacer:
+    """Wakes the frame loop when simulated time reaches the next frame's time (`due`).
+
+    `poke()` runs on the bus's receive path after each clock sample: a comparison, and an Event
+    set only when a frame is due (or time restarted). The frame loop sets `due`; a wake-up lost
+    between its wait and its clear is repeated by the next clock sample, 20 simulated ms later.
+    """
+
+    def __init__(self, clock: SimClock):
+        self.clock = clock
+        self.due = 0.0
+        self.restarts = clock.restarts
+        self._event = threading.Event()
+
+    def poke(self) -> None:
+        c = self.clock
+        if c.started.is_set() and (c.now() >= self.due - EPSILON or c.restarts != self.restarts):
+            self._event.set()
+
+    def wait(self, timeout: float) -> bool:
+        """Block until poked or `timeout` wall seconds; True if poked."""
+        woke = self._event.wait(timeout)
+        self._event.clear()
+        return woke
+
+
+def next_tick(now: float, period: float) -> float:
+    """The first multiple of `period` after `now`: frames on a fixed simulated grid, however
+    late the loop woke (the skipped ones are not made up)."""
+    return (math.floor(now / period + EPSILON) + 1) * period
 
 
 class LiveChannels:
@@ -67,18 +124,30 @@ class LiveChannels:
 def run_view(*, app: str | None, bus_options: BusOptions, port: int | None = 8765,
              host: str = "127.0.0.1", output: Path | None = None, sim_time: bool = False,
              rate: float = 4.0, duration: float | None = None,
-             stop: threading.Event | None = None, on_ready=None) -> int:
+             stop: threading.Event | None = None, on_ready=None,
+             scene_hz: float = SCENE_HZ, supervisor_hz: float = SUPERVISOR_HZ,
+             bus: Bus | None = None) -> int:
+    """Serve and/or record until `stop` (or `duration` wall seconds). `rate`: derived frames a
+    wall second on the wall clock; `scene_hz`, `supervisor_hz`: per simulated second on
+    simulated time (module docstring). `bus`: an open bus to use instead of opening one from
+    `bus_options` (tests: the in-process bus); it is left open."""
     if port is None and output is None:
         raise ConfigError("nothing to do: give a --port to serve, an --output to record, or both")
     if output is not None and not Path(output).resolve().parent.is_dir():
         raise ConfigError(f"folder {Path(output).parent} does not exist", file=str(output))
+    if min(rate, scene_hz, supervisor_hz) <= 0:
+        raise ConfigError("frame rates must be positive")
     application = resolve_application(app) if app else None
     clock = SimClock() if sim_time else WallClock()
-    with stop_on_signals(stop) as stop, open_bus(bus_options) as bus, \
+    stamper = SimLogTime(clock) if sim_time else None
+    log_time = stamper or time.time_ns
+    pacer = SimPacer(clock) if sim_time else None
+    with stop_on_signals(stop) as stop, \
+            (contextlib.nullcontext(bus) if bus is not None else open_bus(bus_options)) as bus, \
             contextlib.ExitStack() as handles:
         # closed in reverse order: subscriptions and tokens, then the recording and the server
         live = handles.enter_context(LiveChannels(host, port)) if port is not None else None
-        recorder = handles.enter_context(McapRecorder(Path(output))) \
+        recorder = handles.enter_context(McapRecorder(Path(output), log_time=stamper)) \
             if output is not None else None
         sinks = [s for s in (live.emit if live else None, recorder.add if recorder else None)
                  if s is not None]
@@ -91,7 +160,9 @@ def run_view(*, app: str | None, bus_options: BusOptions, port: int | None = 876
         converters: dict[str, object] = {}
 
         def on_raw(sample) -> None:
-            t = time.time_ns()
+            if stamper is not None:
+                stamper.observe(sample.key, sample.encoding, sample.payload)
+            t = log_time()
             if recorder is not None:
                 recorder.sample(sample.key, sample.encoding, sample.payload, t)
             if live is not None:
@@ -100,10 +171,12 @@ def run_view(*, app: str | None, bus_options: BusOptions, port: int | None = 876
                     conv = converters[sample.encoding] = json_channel(sample.encoding) or False
                 if conv:
                     schema, convert = conv
-                    try:
-                        live.emit(sample.key, schema, "json", convert(sample.payload), t)
+                    try:  # before simulated time starts: log time 0 (live, nothing to hold)
+                        live.emit(sample.key, schema, "json", convert(sample.payload), t or 0)
                     except DecodeError:
                         pass  # counted by the bus's typed subscribers; nothing to show
+            if pacer is not None and sample.key == CLOCK:
+                pacer.poke()
 
         if sim_time:
             handles.enter_context(follow_sim_clock(bus, clock))
@@ -127,8 +200,47 @@ def run_view(*, app: str | None, bus_options: BusOptions, port: int | None = 876
         if on_ready is not None:
             on_ready(live.url if live is not None else None)
         start = time.monotonic()
-        while not stop.wait(1.0 / rate):
-            outputs.frame(time.time_ns(), sup.snapshot(refresh()) if sup is not None else None)
-            if duration is not None and time.monotonic() - start >= duration:
-                break
+
+        def over() -> bool:
+            return duration is not None and time.monotonic() - start >= duration
+
+        if pacer is None:
+            while not stop.wait(1.0 / rate):
+                outputs.frame(time.time_ns(), sup.snapshot(refresh()) if sup is not None else None)
+                if over():
+                    break
+        else:
+            _sim_frames(clock, stamper, pacer, outputs, sup, refresh, stop, over,
+                        1.0 / scene_hz, 1.0 / supervisor_hz)
     return 0
+
+
+def _sim_frames(clock: SimClock, stamper: SimLogTime, pacer: SimPacer,
+                outputs: FoxgloveOutputs, sup, refresh, stop: threading.Event, over,
+                scene_period: float, supervisor_period: float) -> None:
+    """The derived channels on simulated time (module docstring): a scene frame each
+    `scene_period` simulated seconds, a supervisor frame each `supervisor_period`, at the
+    simulated time the loop gets to them; once a wall second while the clock stands still."""
+    scene_due = supervisor_due = 0.0
+    restarts = clock.restarts
+    last_supervisor = time.monotonic()
+    while not stop.is_set() and not over():
+        pacer.wait(POLL)
+        if stop.is_set() or not clock.started.is_set():
+            continue
+        now = clock.now()
+        if clock.restarts != restarts:  # a new run: its own time from its first instant
+            restarts = pacer.restarts = clock.restarts
+            scene_due = supervisor_due = now
+        t_ns = stamper()
+        if now >= scene_due - EPSILON:
+            outputs.scene_frame(t_ns)
+            scene_due = next_tick(now, scene_period)
+        if sup is not None:
+            wall = time.monotonic()
+            if now >= supervisor_due - EPSILON or (
+                    clock.stalled(STALL_EVERY) and wall - last_supervisor >= STALL_EVERY):
+                outputs.supervisor_frame(t_ns, sup.snapshot(refresh()))
+                supervisor_due = next_tick(now, supervisor_period)
+                last_supervisor = wall
+        pacer.due = min(scene_due, supervisor_due) if sup is not None else scene_due

@@ -107,3 +107,82 @@ def test_mean_and_interval():
     m, h = mean_ci(xs)
     sd = (sum((x - m) ** 2 for x in xs) / 19) ** 0.5
     assert abs(h - 2.093024054408263 * sd / 20 ** 0.5) < 1e-9
+
+
+# ------------------------------------------------------------------ --scheduler (Dask), fast
+def _exp_file(tmp_path: Path) -> Path:
+    f = tmp_path / "exp.yaml"
+    f.write_text("application: patrol\nduration: 10\nseeds: [1]\n")
+    return f
+
+
+def test_scheduler_without_the_dask_extra_exits_2_naming_the_pip_command(tmp_path, monkeypatch):
+    import sys
+    monkeypatch.setitem(sys.modules, "distributed", None)  # `import distributed` fails
+    result = CliRunner().invoke(cli, ["experiment", str(_exp_file(tmp_path)), "--output",
+                                      str(tmp_path / "o"), "--scheduler", "tcp://127.0.0.1:1"])
+    assert result.exit_code == 2, result.output
+    assert "pip install 'mrta-zenoh[dask]'" in result.output
+    assert not (tmp_path / "o").exists()  # refused before anything is written
+
+
+@pytest.mark.parametrize("args,what", [
+    (["--scheduler", "tcp://127.0.0.1:1", "--jobs", "2"], "--jobs is for runs on this machine"),
+    (["--scheduler", "127.0.0.1"], "expected a Dask scheduler address"),
+    (["--scheduler", "tcp://host:port"], "expected a Dask scheduler address"),
+])
+def test_scheduler_usage_errors_exit_2(tmp_path, args, what):
+    result = CliRunner().invoke(cli, ["experiment", str(_exp_file(tmp_path)), "--output",
+                                      str(tmp_path / "o"), *args])
+    assert result.exit_code == 2 and what in result.output, result.output
+
+
+def test_a_cluster_without_the_runs_resource_is_refused_and_an_empty_one_waited_for():
+    from mrta_zenoh.errors import ConfigError
+    from mrta_supervisor.experiment_dask import check_workers
+
+    class Client:
+        def __init__(self, workers):
+            self.workers = workers
+
+        def scheduler_info(self, n_workers=5):
+            return {"workers": self.workers}
+
+    with pytest.raises(ConfigError, match="--resources runs=1"):
+        check_workers(Client({"tcp://a:1": {"resources": {}}}), "tcp://s:8786")
+    check_workers(Client({"tcp://a:1": {"resources": {"runs": 2}}}), "tcp://s:8786")
+    check_workers(Client({}), "tcp://s:8786")  # none yet: a batch system may be starting them
+
+
+def test_a_run_folder_from_a_worker_stays_inside_its_folder(tmp_path):
+    from mrta_zenoh.errors import MrtaRuntimeError
+    from mrta_supervisor.experiment_dask import read_folder, write_folder
+
+    src = tmp_path / "src"
+    (src / "package" / "config").mkdir(parents=True)
+    (src / "run.mcap").write_bytes(b"\x89MCAP")
+    (src / "package" / "config" / "r.yaml").write_text("a: 1\n")
+    (src / ".mrta-run.lock").write_text("123")
+    files = read_folder(src)
+    assert set(files) == {"run.mcap", "package/config/r.yaml"}  # the lock is the worker's
+    write_folder(tmp_path / "run000", files)
+    assert read_folder(tmp_path / "run000") == files
+    with pytest.raises(MrtaRuntimeError, match="outside its run folder"):
+        write_folder(tmp_path / "run001", {"../evil": b""})
+    assert not (tmp_path / "evil").exists() and not (tmp_path / "run001").exists()
+
+
+def test_an_unreachable_scheduler_is_a_runtime_error(tmp_path):
+    import threading
+
+    from mrta_zenoh.errors import MrtaRuntimeError
+    from mrta_supervisor.experiment import Results
+    from mrta_supervisor.experiment_dask import run_on_cluster
+    from tests.helpers import free_port
+
+    pytest.importorskip("distributed")
+    address = f"tcp://127.0.0.1:{free_port()}"  # nothing listens there
+    with pytest.raises(MrtaRuntimeError, match=f"cannot reach the Dask scheduler at {address}"):
+        run_on_cluster(address, package=None, duration=1.0, runs=[], output=tmp_path,
+                       stop=threading.Event(), results=Results(tmp_path / "r.csv", 0),
+                       connect_timeout=1.0)

@@ -1,9 +1,13 @@
 """What Foxglove / Lichtblick get: a recording whose every channel has a schema they decode,
-the scene and supervisor channels, a live WebSocket stream, and a replay of the bus."""
+the scene and supervisor channels, in simulated time whatever the run's speed, a live WebSocket
+stream, and a replay of the bus."""
 
 import asyncio
 import json
+import statistics
 import struct
+import time
+from collections import defaultdict
 
 import jsonschema
 import pytest
@@ -60,6 +64,37 @@ def test_every_channel_has_a_schema_foxglove_decodes_and_every_json_message_fits
     assert tasks[-1]["state"] == "offline"
 
 
+def test_a_speed_0_recording_is_in_simulated_time_with_frames_per_simulated_second(recorded):
+    """The 30 s mission ran in a few wall seconds; its file spans the 30 simulated seconds, so
+    Foxglove plays it at mission speed; every channel's log times are in order; /world and the
+    poses at 5 Hz, the supervisor at 2 Hz of simulated time; no schema-less JSON channel."""
+    times, schemas = defaultdict(list), {}
+    with open(recorded / "run.mcap", "rb") as f:
+        reader = make_reader(f)
+        for schema, channel, message in reader.iter_messages(log_time_order=False):
+            times[channel.topic].append(message.log_time)
+            schemas[channel.topic] = schema
+        meta = {m.name: m.metadata for m in reader.iter_metadata()}
+    assert meta["mrta"] == {"log_time": "simulated"}
+    every = [t for ts in times.values() for t in ts]
+    span = (max(every) - min(every)) / 1e9
+    assert abs(span - 30.0) <= 1.0, span
+    for topic, ts in times.items():
+        assert ts == sorted(ts), f"{topic}: log times go back"
+        s = schemas[topic]
+        if s.encoding == "jsonschema":
+            assert set(json.loads(s.data)) - {"title", "type"}, f"{topic}: no real schema"
+    # at least one frame per simulated second; mostly every 0.2 s (a recorder starved of CPU
+    # skips frames rather than queue them, so the longest gap is not asserted)
+    counts = {k: len(times[k]) for k in ("/world", "/robots/robot1/pose", "/supervisor/state",
+                                          "/robots/robot1/task")}
+    assert min(counts.values()) >= 30, counts
+    for topic, period in (("/world", 0.2), ("/supervisor/state", 0.5)):
+        ts = [t / 1e9 for t in times[topic]]
+        gap = statistics.median(b - a for a, b in zip(ts, ts[1:]))
+        assert gap <= period + 0.01, (topic, gap, counts)
+
+
 def test_the_recording_still_replays_the_bus_exactly(recorded):
     """JSON in the file, the wire's msgpack out: typed decoding of every bus record works."""
     from mrta_zenoh import codec
@@ -79,9 +114,10 @@ def test_replay_feeds_a_live_supervisor_as_the_run_did(recorded, children):
     offline = replay(records, TimeBase(records), app, arch)
     sup = children.mrta("supervise", "patrol", "--sim-time", "--json", "--rate", "4",
                         name="supervise")
-    player = children.mrta("replay", recorded / "run.mcap", "--speed", "0.3", "--clock",
+    started = time.monotonic()
+    player = children.mrta("replay", recorded / "run.mcap", "--speed", "2", "--clock",
                            name="replay")
-    # the run was recorded at full speed (≈ 3 s of wall time): replayed at 0.3× it lasts ≈ 10 s
+    # the run took ≈ 3 wall seconds, but its log times are simulated: 30 s at 2× lasts ≈ 15 s
     live = sup.wait_json(lambda o: o["time"] >= 27.0, 60)  # near the end, the player still on
     got = {r["id"]: (r["state"], r["task"]) for r in live["robots"]}
     assert got == {"robot1": ("busy", "wander"), "robot2": ("offline", None),
@@ -89,6 +125,7 @@ def test_replay_feeds_a_live_supervisor_as_the_run_did(recorded, children):
     assert summary["failure"]["taken_over_by"] == "robot3"
     assert ("communication_lost", "robot2") in {(a["kind"], a["subject"]) for a in live["alarms"]}
     assert player.wait(60) == 0, player.stderr
+    assert time.monotonic() - started >= 30 / 2 - 0.5  # paced by the simulated log times
     allocated = {t.subject for t in offline.history.all() if t.kind == "allocation" and t.new}
     assert {"wander->robot1", "border_protection->robot2", "border_protection->robot3"} <= allocated
     # the sequence of changes: robots' states and allocations, as the live supervisor saw them

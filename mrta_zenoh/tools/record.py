@@ -6,34 +6,49 @@ import contextlib
 import threading
 from pathlib import Path
 
-from ..bus import BusOptions, open_bus
+from ..bus import Bus, BusOptions, open_bus
+from ..clock import SimClock, follow_sim_clock
 from ..errors import ConfigError
 from ..keys import RECORDER_TOKEN, validate_key_expr
 from ..lifecycle import stop_on_signals
-from ..recording import McapRecorder, log
+from ..recording import McapRecorder, SimLogTime, log
 
 
 def run_record(*, output: Path, key_exprs: list[str], bus_options: BusOptions,
-               duration: float | None = None, stop: threading.Event | None = None) -> int:
+               duration: float | None = None, stop: threading.Event | None = None,
+               sim_time: bool = False, bus: Bus | None = None) -> int:
     """Write every sample on `key_exprs` (and every liveliness change) to `output` until
-    `duration` wall seconds pass or `stop` is set; announce the recorder while it runs."""
+    `duration` wall seconds pass or `stop` is set; announce the recorder while it runs.
+
+    Log times are wall time; with `sim_time`, the simulator's time as this recorder follows it
+    (mrta_zenoh.recording.SimLogTime: what `mrta view --sim-time` records too), so the file
+    plays at mission speed whatever speed the run had. `bus`: an open bus to use instead of
+    opening one from `bus_options` (tests: the in-process bus); it is left open."""
     for k in key_exprs:
         validate_key_expr(k)
     folder = Path(output).resolve().parent
     if not folder.is_dir():
         raise ConfigError(f"folder {folder} does not exist", file=str(output))
-    with stop_on_signals(stop) as stop, open_bus(bus_options) as bus, \
+    stamper = SimLogTime(SimClock()) if sim_time else None
+    with stop_on_signals(stop) as stop, \
+            (contextlib.nullcontext(bus) if bus is not None else open_bus(bus_options)) as bus, \
             contextlib.ExitStack() as handles:
         # closed in reverse: the token (no longer a recorder), the subscriptions, then the file
-        rec = handles.enter_context(McapRecorder(output))
+        rec = handles.enter_context(McapRecorder(output, log_time=stamper))
+        if stamper is not None:
+            handles.enter_context(follow_sim_clock(bus, stamper.clock))
+
+            def on_raw(s) -> None:
+                stamper.observe(s.key, s.encoding, s.payload)  # a clock sample: its own stamp
+                rec.sample(s.key, s.encoding, s.payload)
+        else:
+            def on_raw(s) -> None:
+                rec.sample(s.key, s.encoding, s.payload)
         for k in key_exprs:
-            handles.enter_context(bus.subscribe_raw(
-                k, lambda s: rec.sample(s.key, s.encoding, s.payload)))
+            handles.enter_context(bus.subscribe_raw(k, on_raw))
         handles.enter_context(bus.watch_liveliness("**", rec.liveliness))
         handles.enter_context(bus.declare_token(f"{RECORDER_TOKEN}/{bus.zid}"))
         log.info("recording %s to %s", " ".join(key_exprs), output)
         stop.wait(duration)
     log.info("wrote %d messages to %s", rec.count, output)
     return 0
-
-

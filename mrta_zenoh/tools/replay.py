@@ -4,6 +4,11 @@ Bus channels go out on their keys with their Zenoh encodings, liveliness changes
 declared and undeclared again, so `mrta supervise`, `mrta echo` and `mrta view` work on a past
 run exactly as on a live one. The simulated clock is left out unless asked (`clock=True`): a
 replay then runs on the wall clock of whoever watches, or on its own recorded time.
+
+Timing follows the recording's log times (mrta_zenoh.recording): a wall-time recording (`mrta
+record`) replays at the pace it was recorded; a simulated-time one (the mission runner's, `mrta
+view --sim-time`) at the simulated pace — a 60 s mission recorded at `--speed 0` in 2 s replays
+in 60 s at `--speed 1`, in 6 s at `--speed 10` — its simulator restarts 1 s apart.
 """
 
 from __future__ import annotations
@@ -34,6 +39,9 @@ def run_replay(*, recording: Path, bus_options: BusOptions, speed: float = 1.0,
     records = read_recording(recording)
     if not records:
         raise ConfigError("the recording holds no bus channel", file=str(recording))
+    if records.log_time == "simulated":
+        log.info("%s is in simulated time: replaying %.1f simulated s at %s× the simulated pace",
+                 recording, (records[-1][2] - records[0][2]) / 1e9, speed or "∞")
     sent = 0
     with stop_on_signals(stop) as stop, open_bus(bus_options) as bus:
         tokens = {}
