@@ -16,10 +16,13 @@ from .common import bus_options, finite_float
               help="The MCAP file to write.")
 @click.argument("key_exprs", nargs=-1)
 @click.option("--duration", type=finite_float(min=0, min_open=True),
-              help="Stop after this many seconds.")
+              help="Stop after this many (wall) seconds.")
+@click.option("--sim-time", is_flag=True,
+              help="Log times are the simulator's time, so the file plays at mission speed "
+                   "whatever the run's --speed.")
 @bus_options
-def record(output: Path, key_exprs: tuple[str, ...], duration: float | None,
+def record(output: Path, key_exprs: tuple[str, ...], duration: float | None, sim_time: bool,
            bus_options: BusOptions) -> None:
     """Record every sample on KEYEXPR… (default: everything) to an MCAP file."""
     run_record(output=output, key_exprs=list(key_exprs) or ["**"], bus_options=bus_options,
-               duration=duration)
+               duration=duration, sim_time=sim_time)

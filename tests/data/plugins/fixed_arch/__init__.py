@@ -21,7 +21,7 @@ from mrta_agent.runtime.architecture import AgentArchitecture, Prepared
 from mrta_agent.runtime.cli import agent_command
 from mrta_agent.runtime.host import AgentOptions
 from mrta_agent.runtime.loop import Say
-from mrta_agent.runtime.params import (StrictMapping, load_layers_params, load_tasks_params,
+from mrta_agent.runtime.params import (load_layers_params, load_tasks_params,
                                        open_robot_file, require_task, task_id_of)
 from mrta_agent.runtime.plugins import EvaluatorSpec, Plugins
 
