@@ -229,9 +229,11 @@ def demo_args(package: str, duration: float, run: Run, out: Path) -> list[str]:
 
 
 def error_of(returncode: int, lines: list[str]) -> str:
-    """The `error` cell of a run that did not exit 0: its code and the end of its output."""
-    return f"exit {returncode}: " + " | ".join(line for line in lines[-5:]
-                                               if line.strip())[-400:]
+    """The `error` cell of a run that did not exit 0: its code, the mission's own error line
+    (which names the process that failed and its exit code) and the end of its output."""
+    said = next((line for line in reversed(lines) if line.startswith("Error:")), "")
+    tail = " | ".join(line for line in lines[-5:] if line.strip() and line != said)
+    return (f"exit {returncode}: " + " | ".join(filter(None, [said, tail])))[-600:]
 
 
 def row_for(run: Run, out: Path, wall: float, error: str = "") -> dict:

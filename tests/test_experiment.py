@@ -40,6 +40,38 @@ def test_a_tiny_matrix_gives_one_row_per_run_and_records_a_failed_run(children, 
         assert (out / name).stat().st_size > 5_000
 
 
+def test_a_failed_runs_error_names_the_process_and_its_exit_code_even_under_a_long_tail():
+    from mrta_supervisor.experiment import error_of
+    lines = ["Error: record exited with code 1:", "[record]"] + [f"line {i}" for i in range(12)]
+    cell = error_of(1, lines)
+    assert cell.startswith("exit 1: Error: record exited with code 1:") and "line 11" in cell
+
+
+@pytest.mark.multiprocess
+@pytest.mark.timeout(150)
+def test_ctrl_c_keeps_exactly_the_finished_runs(children, tmp_path):
+    """After a Ctrl-C, results.csv and summary.md describe the runs that finished — no more
+    (the stopped ones), no less (one that ended just before) — and the exit status is 130."""
+    import signal
+    import time
+    f = tmp_path / "exp.yaml"
+    f.write_text("application: patrol\nduration: 8\nseeds: [1, 2, 3, 4, 5, 6]\n"
+                 "failures: [none]\n")
+    out = tmp_path / "out"
+    run = children.mrta("experiment", f, "--output", out, "--jobs", "1", name="experiment")
+    deadline = time.monotonic() + 100
+    while not (out / "results.csv").exists() or \
+            len((out / "results.csv").read_text().splitlines()) < 2:
+        assert time.monotonic() < deadline and run.proc.poll() is None, run.tail()
+        time.sleep(0.2)
+    run.signal(signal.SIGINT)
+    assert run.wait(60) == 130, run.tail(10)
+    rows = list(csv.DictReader((out / "results.csv").open()))
+    assert 1 <= len(rows) < 6 and all(r["status"] == "ok" for r in rows)
+    seeds = ", ".join(r["seed"] for r in rows)
+    assert f"over seeds ({seeds})" in (out / "summary.md").read_text()
+
+
 def test_summary_pairs_configurations_by_seed_and_names_only_the_seeds_that_ran():
     from mrta_supervisor.experiment import Experiment, paired_difference, summary_md
     rows = [{"run": i, "config": c, "seed": seed, "status": "ok", "takeover_seconds": t,
