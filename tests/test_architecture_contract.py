@@ -226,3 +226,28 @@ def test_mrta_demo_runs_the_patrol_mission_under_the_test_architecture(children,
     assert f["task"] == "border_protection" and f["taken_over_by"] == "robot3"
     assert f["takeover_seconds"] <= f["bound_seconds"] == pytest.approx(2.6)
     assert s["metrics"]["collisions_total"] == 0 and s["messages"]["coordination_namespace"] == "fixed"
+
+
+def test_the_motivation_sample_where_a_robot_starts_or_stops_a_task_is_not_lossy(tmp_path):
+    """Motivations are monitoring (lossy: a stopped observer must not stall a robot), but the
+    ground truth reads who does what from them: the sample where `active` changes must reach
+    the recorder even when it falls behind, or a takeover is measured a tick late."""
+    from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
+    from tests.test_agent_inproc import feed
+    rf = write(tmp_path / "r.yaml", robot_yaml([{"task": "a", "fast": 50.0}], spin=10.0,
+                                                broadcast=5.0, tau=1.0))
+    tf = write(tmp_path / "t.yaml", tasks_yaml(["a"]))
+    bus, clock = InProcBus(), ManualClock(0.0)
+    agent = ALLIANCE.agent(ALLIANCE.prepare(AgentOptions("robot1", rf, tf)), bus, clock)
+    sent = []
+    publish = bus.publish
+    bus.publish = lambda key, msg, lossy=False: (sent.append((key, msg, lossy)),
+                                                 publish(key, msg, lossy=lossy))
+    agent.start()
+    for _ in range(5):  # θ = 100 at 50 per tick: active on the second tick
+        feed(bus, clock)  # fresh sensors: the task is applicable
+        agent.tick_high(clock.now())
+        clock.advance(0.1)
+    mot = [(m.active, lossy) for key, m, lossy in sent if "/motivation/" in key]
+    assert mot == [(False, False), (True, False), (True, True), (True, True), (True, True)]
+    agent.shutdown()

@@ -62,7 +62,7 @@ def test_an_output_folder_in_use_is_refused_and_freed_when_its_run_ends(tmp_path
 @pytest.mark.timeout(150)
 def test_a_second_demo_in_the_same_folder_is_refused(children, tmp_path):
     out = tmp_path / "out"
-    first = children.mrta("-q", "demo", "--duration", "12", "--speed", "1", "--fail", "none",
+    first = children.mrta("-q", "demo", "--duration", "8", "--speed", "1", "--fail", "none",
                           "--no-live", "--output", out, name="first")
     deadline = time.monotonic() + 60
     while not (out / ".mrta-run.lock").exists() or not children_of(first.proc.pid):
@@ -74,7 +74,7 @@ def test_a_second_demo_in_the_same_folder_is_refused(children, tmp_path):
     assert any("in use by another run" in line for line in second.stderr), second.stderr
     assert first.wait(100) == 0, first.tail(20)
     summary = json.loads((out / "summary.json").read_text())
-    assert summary["duration"] == 12.0 and summary["speed"] == 1.0  # the first run's, whole
+    assert summary["duration"] == 8.0 and summary["speed"] == 1.0  # the first run's, whole
 
 
 @pytest.mark.multiprocess

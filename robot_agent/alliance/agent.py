@@ -36,6 +36,7 @@ class AllianceCoordinator:
         self.history: collections.deque[tuple[float, TaskSwitch]] = \
             collections.deque(maxlen=HISTORY)
         self._last_broadcast: float | None = None
+        self._was_active: dict[str, bool] = {}
 
     @property
     def active_task(self) -> str | None:
@@ -57,10 +58,14 @@ class AllianceCoordinator:
         before = self.high.active_task
         states, transitions = self.high.tick(now)
         for st in states:
+            # monitoring, so lossy — except the sample where `active` changes, which says who
+            # does what (the mission's ground truth, ground_truth.py): that one must arrive
+            changed = self._was_active.get(st.task_id) != st.active
+            self._was_active[st.task_id] = st.active
             out.append(Say("motivation", (st.task_id, st.impatience, st.acquiescent,
                                           st.suppressed, st.resetted, st.applicable,
                                           st.motivation, st.threshold, st.active),
-                           subkey=task_chunk(st.task_id), lossy=True))
+                           subkey=task_chunk(st.task_id), lossy=not changed))
         for tr in transitions:
             self.history.append((now, tr))
             if tr.kind == "reset":
