@@ -19,7 +19,7 @@ from mrta_zenoh.errors import ConfigError  # noqa: E402
 from mrta_zenoh.files import save_figure  # noqa: E402
 from mrta_zenoh.recording import TimeBase, read_recording  # noqa: E402
 
-from . import keys  # noqa: E402
+from .architecture import ALLIANCE  # noqa: E402
 from .messages import Motivation  # noqa: E402
 
 
@@ -27,7 +27,7 @@ def plot_motivation(recording: Path, robot: str, task: str, output: Path,
                     records: list | None = None) -> Path:
     records = list(read_recording(recording)) if records is None else records
     tb = TimeBase(records)
-    key = keys.motivation(robot, task)
+    key = ALLIANCE.key(robot, "motivation", task)
     rows = []
     for k, enc, t, payload in records:
         if k != key:
@@ -39,7 +39,8 @@ def plot_motivation(recording: Path, robot: str, task: str, output: Path,
         if isinstance(msg, Motivation):
             rows.append((tb(t), msg))
     if not rows:
-        found = sorted({k.rsplit("/", 1)[-1] for k, *_ in records if k.startswith(f"{robot}/alliance/motivation/")})
+        prefix = ALLIANCE.key(robot, "motivation") + "/"
+        found = sorted({k.rsplit("/", 1)[-1] for k, *_ in records if k.startswith(prefix)})
         raise ConfigError(f"no motivation samples for {robot} / {task} in the recording"
                           + (f" (tasks recorded for {robot}: {', '.join(found)})" if found else ""),
                           file=str(recording))

@@ -7,7 +7,7 @@ Every 2 s it also sends a wrong-type sample and a malformed payload on the broad
 import sys
 import time
 
-from mrta_agent.alliance import keys
+from mrta_agent.alliance.architecture import ALLIANCE
 from mrta_zenoh.bus import BusOptions, open_bus
 from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.messages import Header, Twist
@@ -16,8 +16,8 @@ from mrta_agent.alliance.messages import InterRobotCommunication, Motivation
 robot = sys.argv[1]
 task = sys.argv[2] if len(sys.argv) > 2 else None
 with stop_on_signals() as stop, open_bus(BusOptions()) as bus:
-    bus.declare_token(keys.agent_token(robot))
-    key = keys.inter_robot_communication(robot)
+    bus.declare_token(ALLIANCE.agent_token(robot))
+    key = ALLIANCE.key(robot, "inter_robot_communication")
     print("ready", flush=True)
     k = 0
     while not stop.is_set():
@@ -28,7 +28,7 @@ with stop_on_signals() as stop, open_bus(BusOptions()) as bus:
                             b"\xc1")  # malformed payload
         if task:
             bus.publish(key, InterRobotCommunication(Header(robot, now, k), task, 60.0))
-            bus.publish(keys.motivation(robot, task), Motivation(
+            bus.publish(ALLIANCE.key(robot, "motivation", task), Motivation(
                 Header(robot, now, k), task, 1.0, k % 10 > 5, False, k % 7 == 0, True,
                 float(k % 20), 15.0, True))
         k += 1
