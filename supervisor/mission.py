@@ -266,10 +266,9 @@ def run_mission(options: MissionOptions, *, stop: threading.Event | None = None,
     failure = failure_of(run)
     if not run.mission.launch:
         raise ConfigError(f"mission {run.mission.name!r} names no launch file")
-    output = options.output
-    output.mkdir(parents=True, exist_ok=True)
-    with output_lock(output):
-        return _run_in(output, run, failure, options, reg, stop, progress)
+    options.output.mkdir(parents=True, exist_ok=True)
+    with output_lock(options.output):
+        return _run_in(run, failure, reg, stop, progress)
 
 
 LOCK_FILE = ".mrta-run.lock"
@@ -301,9 +300,10 @@ def output_lock(output: Path):
         f.close()
 
 
-def _run_in(output: Path, run: MissionRun, failure: Failure | None, options: MissionOptions,
-            reg: Registry, stop: threading.Event | None, progress: Progress | None
+def _run_in(run: MissionRun, failure: Failure | None, reg: Registry,
+            stop: threading.Event | None, progress: Progress | None
             ) -> tuple[MissionRun, Summary]:
+    options, output = run.options, run.options.output
     t_start = time.time()
     launch_args = {"speed": str(options.speed), "seed": str(options.seed),
                    "sim_args": f"--duration {options.duration} --snapshot {output / 'world.png'}"

@@ -118,8 +118,7 @@ class Agent:
         self._alive: set[str] = set()
         self._token_changes: dict[str, bool] = {}
         self.ignored_tokens = 0
-        self._handles: list = []
-        self._token = None
+        self._handles: list = []  # subscriptions and the agent's token, closed at shutdown
         self._layers_task: str | None = None
 
     # ------------------------------------------------------------ set-up (py_trees' setup)
@@ -135,7 +134,7 @@ class Agent:
 
     def declare_alive(self) -> None:
         """Last step of start-up: alive means ready (docs/zenoh.md, the start-up race)."""
-        self._token = self.bus.declare_token(self.architecture.agent_token(self.robot_id))
+        self._handles.append(self.bus.declare_token(self.architecture.agent_token(self.robot_id)))
 
     def _on_token(self, key: str, alive: bool) -> None:
         """A teammate's token came or went: recorded for the loop thread, which owns the team."""
@@ -232,18 +231,17 @@ class Agent:
     def layers_of(self, task: str | None) -> list[Layer]:
         return self.plugins.layers.get(task, []) if task is not None else []
 
-    def switch_layers(self, task: str | None, now: float) -> bool:
+    def switch_layers(self, task: str | None, now: float) -> None:
         """Make `task`'s layers the running ones: terminate the old task's layers, initialise
         the new ones (py_trees' terminate / initialise). The driver, not the logic, remembers
         which task's layers run, so a logic active from its first tick starts them too."""
         if task == self._layers_task:
-            return False
+            return
         for layer in self.layers_of(self._layers_task):
             layer.on_deactivate(now)
         self._layers_task = task
         for layer in self.layers_of(task):
             layer.on_activate(now)
-        return True
 
     def step_layers(self, now: float, dt: float) -> None:
         for layer in self.layers_of(self.active_task):
