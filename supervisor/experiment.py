@@ -228,6 +228,18 @@ def demo_args(package: str, duration: float, run: Run, out: Path) -> list[str]:
             "--no-live"]
 
 
+def start_run(group: ProcessGroup, package, duration: float, run: Run, out: Path):
+    """One run's mission as a child of `group`, writing into `out` (which exists): with its own
+    copy of the application package when the run overrides parameters. The one way both
+    backends start a run (here, and on a Dask worker)."""
+    env = {}
+    if run.overrides:
+        package_copy(package.path, out / "package", run.overrides)
+        env["MRTA_PACKAGE_PATH"] = str(out / "package")
+    return group.start(mrta_argv(*demo_args(package.name, duration, run, out)),
+                       name=f"run{run.index:03d}", env=env, merge_stderr=True)
+
+
 def error_of(returncode: int, lines: list[str]) -> str:
     """The `error` cell of a run that did not exit 0: its code, the mission's own error line
     (which names the process that failed and its exit code) and the end of its output."""
@@ -329,13 +341,7 @@ def _run_here(pkg, duration: float, runs: list[Run], output: Path, jobs: int,
                 if out.exists():
                     shutil.rmtree(out)
                 out.mkdir(parents=True)
-                env = {}
-                if run.overrides:
-                    pkgs = out / "package"
-                    package_copy(pkg.path, pkgs, run.overrides)
-                    env["MRTA_PACKAGE_PATH"] = str(pkgs)
-                argv = mrta_argv(*demo_args(pkg.name, duration, run, out))
-                child = group.start(argv, name=f"run{run.index}", env=env, merge_stderr=True)
+                child = start_run(group, pkg, duration, run, out)
                 active[run.index] = (run, child, time.monotonic(), out)
             _collect(active, results)
             stop.wait(0.1)

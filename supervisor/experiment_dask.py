@@ -39,10 +39,11 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from mrta_zenoh.errors import ConfigError, MrtaRuntimeError
-from mrta_zenoh.files import write_atomically
-from mrta_zenoh.processes import ProcessGroup, mrta_argv
+from mrta_zenoh.files import write_folder as files_write_folder
+from mrta_zenoh.processes import ProcessGroup
+from mrta_zenoh.toolchain.registry import Registry
 
-from .experiment import Run, demo_args, error_of, package_copy
+from .experiment import Run, error_of, package_copy, start_run
 
 if TYPE_CHECKING:
     from .experiment import Results
@@ -118,19 +119,11 @@ def run_task(task: RunTask) -> RunResult:
     with tempfile.TemporaryDirectory(prefix=f"mrta-{name}-", dir=scratch) as tmp:
         out = Path(tmp) / name
         out.mkdir()
-        env = {}
-        if task.run.overrides:
-            from mrta_zenoh.toolchain.registry import Registry
-
-            package_copy(Registry().find(task.package).path, out / "package",
-                         task.run.overrides)
-            env["MRTA_PACKAGE_PATH"] = str(out / "package")
         t0 = time.monotonic()
         stopped = False
         with ProcessGroup() as group:
-            child = group.start(mrta_argv(*demo_args(task.package, task.duration, task.run,
-                                                     out)),
-                                name=name, env=env, merge_stderr=True)
+            child = start_run(group, Registry().find(task.package), task.duration, task.run,
+                              out)
             while child.running():
                 if stop.wait(POLL):
                     stopped = True
@@ -155,18 +148,14 @@ def read_folder(folder: Path) -> dict[str, bytes]:
 
 # ------------------------------------------------------------------ on the client
 def write_folder(folder: Path, files: dict[str, bytes]) -> None:
-    """A run folder from a worker's files, whole or not at all (a Ctrl-C while writing leaves
-    no half folder); a path that would leave the folder is refused."""
-    def write(tmp: Path) -> None:
-        for rel, data in files.items():
-            parts = Path(rel).parts
-            if Path(rel).is_absolute() or ".." in parts or not parts:
-                raise MrtaRuntimeError(f"a worker sent a file outside its run folder: {rel!r}")
-            target = tmp.joinpath(*parts)
-            target.parent.mkdir(parents=True, exist_ok=True)
-            target.write_bytes(data)
-
-    write_atomically(folder, write, folder=True)
+    """A run folder from a worker's files, whole or not at all (files.write_folder: a Ctrl-C
+    while writing leaves no half folder); a path that would leave the folder is refused first
+    (what a worker sends is not trusted to stay inside it)."""
+    for rel in files:
+        parts = Path(rel).parts
+        if Path(rel).is_absolute() or ".." in parts or not parts:
+            raise MrtaRuntimeError(f"a worker sent a file outside its run folder: {rel!r}")
+    files_write_folder(folder, files)
 
 
 def _summary_here(out: Path) -> None:
