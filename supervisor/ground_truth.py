@@ -81,9 +81,10 @@ class GroundTruth:
 def reports(records: Iterable, arch: Architecture) -> list[Doing]:
     """Every Doing in a recording, sorted by stamp (then robot, for a stable order)."""
     feed = [expr for expr, _ in arch.doing_feed()]
+    marker = f"/{arch.namespace}/"  # a cheap test first: most of a recording is sensor data
     out = []
     for key, enc, _t, payload in records:
-        if key.startswith("@") or not any(matches(expr, key) for expr in feed):
+        if marker not in key or not any(matches(expr, key) for expr in feed):
             continue
         try:
             msg = decode(type_from_encoding(enc), payload)
