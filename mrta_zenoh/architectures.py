@@ -84,11 +84,6 @@ class Architecture(ABC):
         """Every robot's agent token: `*/alliance/agent`."""
         return f"*/{self.namespace}/agent"
 
-    @property
-    def coordination_keys(self) -> str:
-        """Everything the architecture's agents say: `*/alliance/**`."""
-        return f"*/{self.namespace}/**"
-
     def is_coordination_key(self, key: str) -> bool:
         chunks = key.split("/")
         return len(chunks) > 2 and chunks[1] == self.namespace and chunks[2] in self.messages
