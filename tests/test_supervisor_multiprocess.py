@@ -37,7 +37,9 @@ def test_supervise_json_busy_idle_offline_then_sigkill_is_offline_fast(children,
     # the fake robots' wrong-type and malformed samples are counted, not crashing anything
     snap = snapshots(sup, lambda s: s["counts"]["wrong_type"] >= 1, 10)
     assert robots_of(snap)["robot1"] == ("busy", "wander")
-    time.sleep(1.0)  # a stretch of motivation to plot
+    # a stretch of motivation to plot, and more than 20 samples to record: counted by the
+    # supervisor, which hears what the recorder hears (a sleep made this depend on the speed)
+    snapshots(sup, lambda s: s["counts"]["samples"] >= 25, 20)
     t_kill = time.time()
     r1.signal(signal.SIGKILL)
     snap = snapshots(sup, lambda s: robots_of(s).get("robot1", ("",))[0] == "offline", 10)
