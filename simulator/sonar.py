@@ -7,13 +7,23 @@ minimum over (shape ∩ cone) is the unconstrained nearest point when it lies in
 lies on a cone edge or a segment end. A single centre ray would miss a robot 2 m ahead between
 beams, which no real sonar does. Ranges beyond `max_range` come back as `inf` (no echo); noise
 and clipping are the caller's job so this stays a pure geometry function tests check exactly.
+
+Why it scales (issue #27): the exact cone test is the expensive part, so it runs only on
+(transducer, shape) pairs that a cheap, conservative test cannot rule out. Walls are culled per
+robot (a wall farther than the sonar's reach from a robot's transducers cannot echo), robots
+by a k-d tree of neighbours within reach (scipy's cKDTree) and then per transducer by bearing
+(a disc outside the cone's angular window, widened by the transducer's offset from the robot's
+centre, cannot be inside it). Culling never changes a reading: every pair it keeps is computed
+exactly as before, and every pair it drops has no point inside the cone within range
+(tests/test_sonar.py checks both against brute force).
 """
 
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
-_CHUNK = 1_000_000  # rays × shapes per numpy block: bounds memory for big worlds
+_CHUNK = 1_000_000  # pairs per numpy block: bounds memory for big worlds
 
 
 def sonar_origins(poses: np.ndarray, sonars: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -28,13 +38,12 @@ def sonar_origins(poses: np.ndarray, sonars: np.ndarray) -> tuple[np.ndarray, np
     return origins, dirs
 
 
-def _rotate(d: np.ndarray, angle: float) -> np.ndarray:
-    c, s = np.cos(angle), np.sin(angle)
-    return np.stack([c * d[..., 0] - s * d[..., 1], s * d[..., 0] + c * d[..., 1]], axis=-1)
-
-
-def _in_cone(v: np.ndarray, dist: np.ndarray, d: np.ndarray, cos_half: float) -> np.ndarray:
-    return (v[..., 0] * d[..., 0] + v[..., 1] * d[..., 1]) >= dist * cos_half - 1e-12
+def _groups(origins: np.ndarray, per_robot: int) -> tuple[np.ndarray, np.ndarray]:
+    """Each robot's transducers as one circle: the centre of its origins and their spread."""
+    g = origins.reshape(-1, per_robot, 2)
+    centre = g.mean(axis=1)
+    spread = np.sqrt(((g - centre[:, None, :]) ** 2).sum(axis=2)).max(axis=1)
+    return centre, spread
 
 
 def _ray_segment(fx, fy, dx, dy, ex, ey) -> np.ndarray:
@@ -48,94 +57,134 @@ def _ray_segment(fx, fy, dx, dy, ex, ey) -> np.ndarray:
     return np.where(hit, t, np.inf)
 
 
+def _cone_segments(fx, fy, dx, dy, ex, ey, half_angle: float) -> np.ndarray:
+    """Nearest point of segments A + s·e (f = A − O) inside cones of axis (dx, dy), element-wise."""
+    if half_angle <= 0.0:
+        return _ray_segment(fx, fy, dx, dy, ex, ey)
+    c, s = np.cos(half_angle), np.sin(half_angle)
+    # the axis ray's hit is never nearer than these candidates, so it is not needed
+    best = np.minimum(_ray_segment(fx, fy, c * dx + s * dy, -s * dx + c * dy, ex, ey),
+                      _ray_segment(fx, fy, c * dx - s * dy, s * dx + c * dy, ex, ey))
+    e2 = np.maximum(ex * ex + ey * ey, 1e-18)
+    sp = np.clip(-(fx * ex + fy * ey) / e2, 0.0, 1.0)  # nearest point of the segment
+    for vx, vy in ((fx + sp * ex, fy + sp * ey), (fx, fy), (fx + ex, fy + ey)):
+        dist = np.sqrt(vx * vx + vy * vy)
+        inside = vx * dx + vy * dy >= dist * c - 1e-12
+        np.minimum(best, np.where(inside, dist, np.inf), out=best)
+    return best
+
+
+def _segment_distance(px, py, walls: np.ndarray) -> np.ndarray:
+    """Distance from points (P, 1) to every wall (1, W): the (P, W) matrix."""
+    ax, ay = walls[None, :, 0], walls[None, :, 1]
+    ex, ey = walls[None, :, 2] - ax, walls[None, :, 3] - ay
+    e2 = np.maximum(ex * ex + ey * ey, 1e-18)
+    s = np.clip(((px - ax) * ex + (py - ay) * ey) / e2, 0.0, 1.0)
+    qx, qy = ax + s * ex - px, ay + s * ey - py
+    return np.sqrt(qx * qx + qy * qy)
+
+
 def ray_walls(origins: np.ndarray, dirs: np.ndarray, walls: np.ndarray, max_range: float,
-              half_angle: float = 0.0) -> np.ndarray:
+              half_angle: float = 0.0, per_robot: int = 1) -> np.ndarray:
     """Distance to the nearest wall point inside each cone, `inf` if none within max_range.
 
-    Written component by component on (rays, walls) arrays: at 10 robots this function is most
-    of a sensor update, and every temporary counts.
+    `per_robot`: consecutive origins that belong to one robot (its transducers). Walls are
+    culled per robot, then the exact cone test runs on the (transducer, wall) pairs left.
     """
     out = np.full(len(origins), np.inf)
     if len(walls) == 0 or len(origins) == 0:
         return out
-    ax, ay = walls[None, :, 0], walls[None, :, 1]
-    ex, ey = walls[None, :, 2] - ax, walls[None, :, 3] - ay
-    e2 = np.maximum(ex * ex + ey * ey, 1e-18)
-    cos_half, c, s = np.cos(half_angle), np.cos(half_angle), np.sin(half_angle)
-    step = max(1, _CHUNK // len(walls))
-    for lo in range(0, len(origins), step):
-        ox, oy = origins[lo:lo + step, 0:1], origins[lo:lo + step, 1:2]
-        dx, dy = dirs[lo:lo + step, 0:1], dirs[lo:lo + step, 1:2]
-        fx, fy = ax - ox, ay - oy  # A − O, (R, W)
-        if half_angle <= 0.0:
-            best = _ray_segment(fx, fy, dx, dy, ex, ey)
-        else:
-            # the axis ray's hit is never nearer than these candidates, so it is not needed
-            best = np.minimum(_ray_segment(fx, fy, c * dx + s * dy, -s * dx + c * dy, ex, ey),
-                              _ray_segment(fx, fy, c * dx - s * dy, s * dx + c * dy, ex, ey))
-            sp = np.clip(-(fx * ex + fy * ey) / e2, 0.0, 1.0)  # nearest point of the segment
-            for vx, vy in ((fx + sp * ex, fy + sp * ey), (fx, fy), (fx + ex, fy + ey)):
-                dist = np.sqrt(vx * vx + vy * vy)
-                inside = vx * dx + vy * dy >= dist * cos_half - 1e-12
-                np.minimum(best, np.where(inside, dist, np.inf), out=best)
-        row = best.min(axis=1)
-        out[lo:lo + step] = np.where(row <= max_range, row, np.inf)
+    if len(origins) % per_robot:
+        raise ValueError(f"{len(origins)} origins are not whole groups of {per_robot}")
+    centre, spread = _groups(origins, per_robot)
+    step = max(1, _CHUNK // (len(walls) * per_robot))
+    for lo in range(0, len(centre), step):
+        c = centre[lo:lo + step]
+        near = _segment_distance(c[:, 0:1], c[:, 1:2], walls) <= \
+            max_range + spread[lo:lo + step, None] + 1e-9
+        g, w = np.nonzero(near)
+        if len(g) == 0:
+            continue
+        k = np.arange(per_robot)
+        rays = ((g + lo)[:, None] * per_robot + k[None, :]).ravel()
+        w = np.repeat(w, per_robot)
+        wl = walls[w]
+        fx, fy = wl[:, 0] - origins[rays, 0], wl[:, 1] - origins[rays, 1]
+        t = _cone_segments(fx, fy, dirs[rays, 0], dirs[rays, 1], wl[:, 2] - wl[:, 0],
+                           wl[:, 3] - wl[:, 1], half_angle)
+        np.minimum.at(out, rays, t)
+    out[out > max_range] = np.inf
     return out
 
 
-def _ray_circle(oc: np.ndarray, d: np.ndarray, radius: float) -> np.ndarray:
-    b = np.einsum("ij,ij->i", oc, d)
-    c = np.einsum("ij,ij->i", oc, oc) - radius * radius
+def _ray_circle(ocx, ocy, dx, dy, radius: float) -> np.ndarray:
+    """Distance along rays (dx, dy) from O to a circle of `radius` around C, oc = O − C."""
+    b = ocx * dx + ocy * dy
+    c = ocx * ocx + ocy * ocy - radius * radius
     disc = b * b - c
     with np.errstate(invalid="ignore"):
         t = -b - np.sqrt(disc)
     return np.where((disc >= 0.0) & (t >= 0.0), t, np.inf)
 
 
-def _pairs_within(centres: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
-    """All ordered pairs (i, j), i ≠ j, closer than `reach`: a sweep along x, not N² distances."""
-    n = len(centres)
-    order = np.argsort(centres[:, 0], kind="stable")
-    xs = centres[order, 0]
-    lo = np.searchsorted(xs, xs - reach, side="left")
-    hi = np.searchsorted(xs, xs + reach, side="right")
-    counts = hi - lo
-    a = np.repeat(np.arange(n), counts)
-    starts = np.repeat(lo - np.concatenate(([0], np.cumsum(counts)[:-1])), counts)
-    b = np.arange(counts.sum()) + starts
-    i, j = order[a], order[b]
-    diff = centres[i] - centres[j]
-    keep = (i != j) & ((diff * diff).sum(axis=1) < reach * reach)
-    return i[keep], j[keep]
+def neighbour_pairs(centres: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """All ordered pairs (i, j), i ≠ j, closer than `reach` (a k-d tree: ~N·neighbours work)."""
+    pairs = cKDTree(centres).query_pairs(reach, output_type="ndarray")
+    if len(pairs) == 0:
+        empty = np.empty(0, dtype=np.intp)
+        return empty, empty
+    i = np.concatenate([pairs[:, 0], pairs[:, 1]])
+    j = np.concatenate([pairs[:, 1], pairs[:, 0]])
+    return i, j
 
 
 def ray_robots(origins: np.ndarray, dirs: np.ndarray, centres: np.ndarray, radius: float,
                per_robot: int, max_range: float, half_angle: float = 0.0) -> np.ndarray:
     """Distance to the nearest point of another robot's disc inside each cone, `inf` if none.
 
-    Only pairs of robots closer than max_range + 2·radius are tested, so the cost grows with
-    neighbours rather than with N² cone tests.
+    Only pairs of robots within reach are tested, and of those only the transducers whose
+    cone can contain the other disc: the cost grows with neighbours, not with N².
     """
     n = len(centres)
     out = np.full(len(origins), np.inf)
     if n < 2:
         return out
-    pi, pj = _pairs_within(centres, max_range + 2.0 * radius)
+    off = origins.reshape(n, per_robot, 2) - centres[:, None, :]
+    rho = float(np.sqrt((off * off).sum(axis=2)).max())  # transducers' reach from the centre
+    pi, pj = neighbour_pairs(centres, max_range + radius + rho + 1e-9)
     if len(pi) == 0:
         return out
+    # Bearing window: the disc seen from a transducer within rho of i's centre lies within
+    # half_angle + asin(r / (D − rho)) + asin(rho / D) of the direction i → j (D = |c_j − c_i|).
+    vx, vy = centres[pj, 0] - centres[pi, 0], centres[pj, 1] - centres[pi, 1]
+    dist = np.hypot(vx, vy)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        window = half_angle + np.arcsin(np.minimum(1.0, radius / np.maximum(dist - rho, 1e-12))) \
+            + np.arcsin(np.minimum(1.0, rho / np.maximum(dist, 1e-12)))
+        ux, uy = vx / dist, vy / dist
+    wide = (dist <= radius + rho) | (window >= np.pi)  # overlapping or very close: test all
+    cos_window = np.cos(np.minimum(window, np.pi))
     k = np.arange(per_robot)
-    rays = (pi[:, None] * per_robot + k[None, :]).ravel()  # (P*K,)
-    other = np.repeat(pj, per_robot)
-    co = centres[other] - origins[rays]  # origin → centre
-    d = dirs[rays]
-    dist_c = np.hypot(co[:, 0], co[:, 1])
+    rays = pi[:, None] * per_robot + k[None, :]            # (P, K)
+    cos_bearing = dirs[rays, 0] * ux[:, None] + dirs[rays, 1] * uy[:, None]
+    keep = wide[:, None] | (cos_bearing >= cos_window[:, None] - 1e-12)
+    rays = rays[keep]
+    other = np.broadcast_to(pj[:, None], keep.shape)[keep]
+    if len(rays) == 0:
+        return out
+    cox = centres[other, 0] - origins[rays, 0]  # origin → centre
+    coy = centres[other, 1] - origins[rays, 1]
+    dx, dy = dirs[rays, 0], dirs[rays, 1]
+    dist_c = np.hypot(cox, coy)
     if half_angle > 0.0:
         # nearest point of the disc, if its direction lies in the cone; else a cone edge
-        near = np.where(_in_cone(co, dist_c, d, np.cos(half_angle)), dist_c - radius, np.inf)
-        t = np.minimum(near, np.minimum(_ray_circle(-co, _rotate(d, half_angle), radius),
-                                        _ray_circle(-co, _rotate(d, -half_angle), radius)))
+        c, s = np.cos(half_angle), np.sin(half_angle)
+        inside = cox * dx + coy * dy >= dist_c * c - 1e-12
+        t = np.where(inside, dist_c - radius, np.inf)
+        np.minimum(t, _ray_circle(-cox, -coy, c * dx - s * dy, s * dx + c * dy, radius), out=t)
+        np.minimum(t, _ray_circle(-cox, -coy, c * dx + s * dy, -s * dx + c * dy, radius), out=t)
     else:
-        t = _ray_circle(-co, d, radius)
+        t = _ray_circle(-cox, -coy, dx, dy, radius)
     t = np.where(dist_c <= radius, 0.0, t)  # origin inside another body (overlap): touching
     hit = np.isfinite(t) & (t <= max_range)
     np.minimum.at(out, rays[hit], np.maximum(t[hit], 0.0))
