@@ -66,6 +66,21 @@ def proc_stat(pid: int) -> tuple[float, int]:
     return ticks / os.sysconf("SC_CLK_TCK"), rss * 1024
 
 
+def numpy_loaded(proc: subprocess.Popen) -> bool:
+    """Is numpy's extension mapped into the process (it is loaded only when a plugin draws)?"""
+    with open(f"/proc/{proc.pid}/maps") as f:
+        return any("_multiarray_umath" in line for line in f)
+
+
+BARE_SESSION = """
+import time
+from mrta_zenoh.bus import BusOptions
+from mrta_zenoh.bus.zenoh_bus import open_session
+with open_session(BusOptions()):
+    time.sleep(3600)
+"""
+
+
 def agents(n: int, seconds: float) -> None:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
@@ -86,6 +101,9 @@ def agents(n: int, seconds: float) -> None:
         procs.append(subprocess.Popen(
             [sys.executable, "-m", "mrta_zenoh.cli.main", "agent", r, "--robot-params", str(rf),
              "--tasks-params", str(tf)], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+    # the same-run baseline: a bare zenoh-python session on the same rendezvous, doing nothing
+    bare = subprocess.Popen([sys.executable, "-c", BARE_SESSION], env=env,
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     try:
         time.sleep(5.0)  # start-up (imports, session) is not steady state
         start = [proc_stat(p.pid) for p in procs]
@@ -95,15 +113,18 @@ def agents(n: int, seconds: float) -> None:
         end = [proc_stat(p.pid) for p in procs]
         cpu = [(e[0] - s[0]) / dt * 100 for s, e in zip(start, end)]
         rss = [e[1] / 2**20 for e in end]
+        bare_rss = proc_stat(bare.pid)[1] / 2**20
         print(json.dumps({"figure": "agent_process", "agents": n, "seconds": round(dt, 1),
                           "cpu_percent_of_a_core_mean": round(sum(cpu) / n, 2),
                           "cpu_percent_of_a_core_max": round(max(cpu), 2),
                           "rss_mb_mean": round(sum(rss) / n, 1), "rss_mb_max": round(max(rss), 1),
-                          "target_cpu_percent": 1.0, "target_rss_mb": 60}), flush=True)
+                          "baseline_bare_zenoh_session_rss_mb": round(bare_rss, 1),
+                          "agents_with_numpy_loaded": sum(map(numpy_loaded, procs)),
+                          "target_cpu_percent": 1.0, "target_rss_mb": 40}), flush=True)
     finally:
-        for p in procs + [feeder]:
+        for p in procs + [feeder, bare]:
             p.terminate()
-        for p in procs + [feeder]:
+        for p in procs + [feeder, bare]:
             p.wait(10)
 
 

@@ -31,6 +31,10 @@ from .yamlfile import did_you_mean
 
 GROUP = "mrta.architectures"
 CRASH_ENV = "MRTA_CRASH"  # ROBOT@SECONDS[,ROBOT@SECONDS…]: crash-stop fault injection
+# ROBOT,ROBOT,…: an agent's `--team` (robot_agent/runtime/cli.py). Every robot launch file sets
+# it to the application's robots (toolchain/generator.py), so an agent counts only them,
+# whatever architecture it runs (a verb that knows no team ignores it).
+TEAM_ENV = "MRTA_TEAM"
 
 
 @dataclass(frozen=True)

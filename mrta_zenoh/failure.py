@@ -13,6 +13,7 @@ import re
 from typing import NamedTuple
 
 from .keys import ID_PATTERN
+from .yamlfile import did_you_mean
 
 _SPEC = re.compile(rf"^({ID_PATTERN})@(\d+(?:\.\d+)?)$")
 USAGE = "ROBOT@SECONDS, e.g. robot2@30"
@@ -22,6 +23,20 @@ class Failure(NamedTuple):
     robot: str
     at: float
     spec: str  # as written: what is passed on, so the next hop reads exactly the same value
+
+
+def failure_problem(failure: Failure, robots, duration: float) -> str | None:
+    """Why `failure` cannot happen in a run of `robots` lasting `duration` simulated seconds
+    (a robot the application does not have, a time at or after the end), or None. One check
+    for every hop: an experiment's `failures` (at load, naming the line: before, every run
+    failed the same way), the mission's `--fail`."""
+    robots = list(robots)
+    if failure.robot not in robots:
+        return (f"{failure.spec}: {failure.robot} is not one of the application's robots "
+                f"({', '.join(robots) or 'none'})" + did_you_mean(failure.robot, robots))
+    if failure.at >= duration:
+        return f"{failure.spec}: {failure.at:g} s is not before the end of the run ({duration:g} s)"
+    return None
 
 
 def parse_failure(text: str) -> Failure:

@@ -1,16 +1,23 @@
-"""Field paths in variant_topic_tools syntax: `header/frame_id`, `points/0/x`, leading `/` ignored.
+"""Field paths: variant_topic_tools' syntax `header/frame_id`, `points/0/x` (a leading `/`
+ignored), and the dotted one ROS 2 users type, `header.frame_id`, `points[0].x` or `points.0.x`.
 
-A path is parsed and checked once (when a monitor or `mrta echo --field` is set up) and then
+A field name never holds a `.` or a `/`, so both spellings (even mixed) read the same path. A
+path is parsed and checked once (when a monitor or `mrta echo --field` is set up) and then
 resolved per sample with a flat loop: no string handling, never `eval`.
 """
 
 from __future__ import annotations
 
 import operator
+import re
 from typing import Any
 
 from .errors import ConfigError
 from .messages import GenericMessage, Message, fields_of
+
+
+_INDEX = re.compile(r"\[(\d+)\]")  # points[0] → points/0
+_SEPARATOR = re.compile(r"[/.]")
 
 
 class FieldPathError(ConfigError, ValueError):
@@ -44,9 +51,10 @@ class FieldPath:
         if body == "":
             return cls(stripped, ())
         steps: list[str | int] = []
-        for part in body.split("/"):
+        for part in _SEPARATOR.split(_INDEX.sub(r"/\1", body)):
             if part == "":
-                raise FieldPathError(f"field path {text!r} has an empty part ('//' or a trailing '/')")
+                raise FieldPathError(f"field path {text!r} has an empty part (two separators "
+                                     "in a row, or one at the end)")
             if part.isdigit():
                 steps.append(int(part))
             elif part.isidentifier():
@@ -126,6 +134,6 @@ def _describe(at: Any) -> str:
     if isinstance(at, dict):
         return f"fields there: {', '.join(map(str, at)) or '(none)'}"
     if at == "list" or isinstance(at, (list, tuple)):
-        n = "" if at == "list" else f" of {len(at)} items"
+        n = "" if at == "list" else f" of {len(at)} item{'' if len(at) == 1 else 's'}"
         return f"it is a list{n}: use an index"
     return f"it is a plain value ({'scalar' if at == 'scalar' else type(at).__name__}) with no fields"

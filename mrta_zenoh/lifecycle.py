@@ -17,6 +17,20 @@ from typing import Iterator
 
 log = logging.getLogger("mrta.lifecycle")
 PARENT_ENV = "MRTA_PARENT_PID"  # set by mrta_zenoh.processes for every child it starts
+_received: list[int] = []  # the signals stop_on_signals handled in this process, in order
+
+
+def interrupted_by_user() -> bool:
+    """Whether a SIGINT (Ctrl-C, or a parent stopping us) ended a run in this process: the
+    program then exits 130, as Unix tools do (mrta_zenoh.cli.main.run), even though the run
+    itself shut down cleanly. SIGTERM — a service manager's "please stop" — is a clean stop
+    and leaves the exit code alone."""
+    return signal.SIGINT in _received
+
+
+def forget_signals() -> None:
+    """A new program starts in this process (in-process test runs): no signal yet."""
+    _received.clear()
 
 
 @contextlib.contextmanager
@@ -27,6 +41,7 @@ def stop_on_signals(stop: threading.Event | None = None) -> Iterator[threading.E
         return
 
     def handler(signum, frame):  # noqa: ARG001 - signal handler signature
+        _received.append(signum)
         stop.set()
 
     previous = {s: signal.signal(s, handler) for s in (signal.SIGINT, signal.SIGTERM)}

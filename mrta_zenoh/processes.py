@@ -39,6 +39,7 @@ class Child:
             stderr=subprocess.STDOUT if merge_stderr else subprocess.PIPE, text=True)
         self.stdout: list[str] = []
         self.stderr: list[str] = []
+        self.signalled: set[int] = set()  # the signals this process sent it (stop, kill)
         self.lines: "queue.Queue[str]" = queue.Queue()  # stdout lines not yet consumed
         self._echo = echo
         self._threads = [threading.Thread(target=self._pump, args=(self.proc.stdout, self.stdout, True),
@@ -71,7 +72,32 @@ class Child:
 
     def signal(self, sig: int) -> None:
         if self.proc.poll() is None:
+            self.signalled.add(sig)
             os.kill(self.proc.pid, sig)
+
+    def stopped_by_us(self) -> bool:
+        """Ended the way a child we signalled ends: by the signal itself, cleanly (0), or with
+        130 (Ctrl-C: mrta_zenoh.cli.main) after our SIGINT. Such an end is no failure, nor a
+        child that ended by SIGINT after `interrupted()` (a Ctrl-C on the terminal reaches the
+        whole process group, children included, before we signal them)."""
+        rc = self.proc.poll()
+        if rc is None or not self.signalled:
+            return False
+        return rc in (0, 128 + signal.SIGINT) or -rc in self.signalled
+
+    def failed(self) -> bool:
+        """Ended with an error: non-zero, or killed by a signal we did not send."""
+        rc = self.proc.poll()
+        return rc is not None and rc != 0 and not self.stopped_by_us()
+
+    def describe_exit(self) -> str:
+        """How it ended, for people: `exited with code 3`, `killed by SIGKILL`, `stopped`."""
+        rc = self.proc.poll()
+        if rc is None:
+            return "running"
+        if self.stopped_by_us():
+            return "stopped"
+        return describe_returncode(rc)
 
     def wait(self, timeout: float | None = None) -> int:
         rc = self.proc.wait(timeout=timeout)
@@ -149,6 +175,19 @@ class Child:
         return "\n".join((self.stderr + self.stdout)[-n:])
 
 
+def describe_returncode(rc: int) -> str:
+    """`exited normally`, `exited with code 2`, `killed by SIGKILL` (subprocess gives -N for
+    a child ended by signal N)."""
+    if rc == 0:
+        return "exited normally"
+    if rc > 0:
+        return f"exited with code {rc}"
+    try:
+        return f"killed by {signal.Signals(-rc).name}"
+    except ValueError:
+        return f"killed by signal {-rc}"
+
+
 class ChildExited(AssertionError):
     """A child ended before producing what was waited for."""
 
@@ -182,10 +221,16 @@ class ProcessGroup:
         return child
 
     def failed(self, ignore: Iterable[str] = ()) -> list[Child]:
-        """Children that ended with an error (not by our SIGINT or SIGKILL), except `ignore`."""
+        """Children that ended with an error — a non-zero exit, or a signal this process did
+        not send (a `kill -9` from outside is a failure) — except those named in `ignore`."""
         skip = set(ignore)
-        return [c for c in self.children if c.name not in skip
-                and c.returncode not in (None, 0, -signal.SIGINT, -signal.SIGKILL)]
+        return [c for c in self.children if c.name not in skip and c.failed()]
+
+    def interrupted(self) -> None:
+        """The user pressed Ctrl-C: the terminal sent SIGINT to every child as well, so a child
+        that ends by it (or with 130) ended as asked, like one we stop ourselves."""
+        for c in self.children:
+            c.signalled.add(signal.SIGINT)
 
     def stop_all(self, grace: float = 5.0) -> None:
         for c in reversed(self.children):

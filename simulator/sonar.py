@@ -24,6 +24,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 _CHUNK = 1_000_000  # pairs per numpy block: bounds memory for big worlds
+_SLACK = 1e-6  # metres added to culling distances: rounding never drops a pair at the edge
 
 
 def sonar_origins(poses: np.ndarray, sonars: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -101,7 +102,7 @@ def ray_walls(origins: np.ndarray, dirs: np.ndarray, walls: np.ndarray, max_rang
     for lo in range(0, len(centre), step):
         c = centre[lo:lo + step]
         near = _segment_distance(c[:, 0:1], c[:, 1:2], walls) <= \
-            max_range + spread[lo:lo + step, None] + 1e-9
+            max_range + spread[lo:lo + step, None] + _SLACK
         g, w = np.nonzero(near)
         if len(g) == 0:
             continue
@@ -151,7 +152,7 @@ def ray_robots(origins: np.ndarray, dirs: np.ndarray, centres: np.ndarray, radiu
         return out
     off = origins.reshape(n, per_robot, 2) - centres[:, None, :]
     rho = float(np.sqrt((off * off).sum(axis=2)).max())  # transducers' reach from the centre
-    pi, pj = neighbour_pairs(centres, max_range + radius + rho + 1e-9)
+    pi, pj = neighbour_pairs(centres, max_range + radius + rho + _SLACK)
     if len(pi) == 0:
         return out
     # Bearing window: the disc seen from a transducer within rho of i's centre lies within

@@ -22,7 +22,9 @@ Two file formats load into the same `World`:
   (points, goals, forbidden areas, `DATA`) are skipped and listed in `World.notes`.
 
 A malformed file raises ConfigError naming file and line — a user's first map is usually hand
-written, and "line 14" is the whole diagnosis.
+written, and "line 14" is the whole diagnosis. Coordinates must lie within
+mrta_zenoh.limits.COORDINATE (10 km of the origin): a finite wall at 1e308 m overflows the ray
+caster and the physics, and no robot drives that far.
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from pathlib import Path
 import numpy as np
 
 from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.limits import COORDINATE
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, load_yaml
 
 
@@ -124,6 +127,7 @@ def load_mobilesim_map(path: Path) -> World:
             except ValueError:
                 raise ConfigError(f"a LINES entry must be finite numbers, got {line!r}",
                                   file=str(path), line=n) from None
+            _in_world((x1, y1, x2, y2), path, n, "a LINES entry (mm / 1000)")
             walls.append((x1, y1, x2, y2))
             continue
         if section != "header":
@@ -138,6 +142,7 @@ def load_mobilesim_map(path: Path) -> World:
                 except ValueError:
                     raise ConfigError(f"Cairn RobotHome needs x y theta numbers: {line!r}",
                                       file=str(path), line=n) from None
+                _in_world((x / 1000.0, y / 1000.0), path, n, "Cairn RobotHome (mm / 1000)")
                 starts[f"home{len(starts)}"] = Pose.from_degrees(x / 1000.0, y / 1000.0, th)
             else:
                 notes.append(f"Cairn {fields[0] if fields else '?'} (line {n}) skipped")
@@ -160,6 +165,14 @@ def _finite(text: str) -> float:
     if not math.isfinite(x):
         raise ValueError(f"{text!r} is not finite")
     return x
+
+
+def _in_world(coords, path: Path, line: int, what: str) -> None:
+    """Coordinates (metres) inside COORDINATE, or a ConfigError naming file, line and range."""
+    for c in coords:
+        problem = COORDINATE.problem(c)
+        if problem:
+            raise ConfigError(f"{what}: a coordinate {problem}", file=str(path), line=line)
 
 
 def _number(text: str, path: Path, line: int) -> float:
@@ -209,7 +222,7 @@ def load_yaml_world(path: Path) -> World:
     if not isinstance(robots, dict):
         raise doc.error(("robots",), "'robots' maps a name to [x, y, theta_degrees]")
     for name, value in robots.items():
-        x, y, th = _numbers(doc, ("robots", name), value, 3)
+        x, y, th = _numbers(doc, ("robots", name), value, 3, coordinates=2)
         starts[str(name)] = Pose.from_degrees(x, y, th)
     border = None
     if doc.data.get("border") is not None:
@@ -218,12 +231,19 @@ def load_yaml_world(path: Path) -> World:
                  starts=starts, border=border, source=str(path))
 
 
-def _numbers(doc: YamlDoc, where: tuple, value, n: int) -> list[float]:
+def _numbers(doc: YamlDoc, where: tuple, value, n: int, coordinates: int | None = None
+             ) -> list[float]:
+    """`n` finite numbers; the first `coordinates` of them (all by default) within
+    COORDINATE (a pose's angle is not a coordinate)."""
     if not isinstance(value, list) or len(value) != n or not all(
             isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
         raise doc.error(where, f"expected a list of {n} numbers, got {value!r:.80}")
     if not all(math.isfinite(v) for v in value):
         raise doc.error(where, f"expected {n} finite numbers, got {value!r:.80}")
+    for v in value[:n if coordinates is None else coordinates]:
+        problem = COORDINATE.problem(v)
+        if problem:
+            raise doc.error(where, f"a coordinate {problem}")
     return [float(v) for v in value]
 
 

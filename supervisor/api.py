@@ -16,6 +16,7 @@ from mrta_zenoh import jsonsafe
 from mrta_zenoh.bus import Bus, BusOptions, open_bus
 from mrta_zenoh.clock import SimClock, WallClock, follow_sim_clock
 from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.keys import ROS2_BRIDGE_TOKEN
 from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.lockstep import STATUS, LockstepStatus
 from mrta_zenoh.toolchain.model import Application, Architecture
@@ -75,9 +76,12 @@ def attach(sup: Supervisor, bus: Bus, clock) -> list:
         handles.append(bus.subscribe(key_expr, sup.handler_for(monitors, clock.now)))
     handles.append(bus.watch_liveliness("**", lambda k, alive: sup.on_liveliness(k, alive,
                                                                                 clock.now())))
-    # the ROS 2 graph (rmw_zenoh's tokens): an `@` chunk is matched only literally
+    # the ROS 2 graph (rmw_zenoh's tokens): an `@` chunk is matched only literally; and the
+    # bridges, which say which robots are driven through ROS 2
     handles.append(bus.watch_absolute(sup.ros2.key_expr, lambda k, alive: sup.on_ros2_token(
         k, alive, clock.now())))
+    handles.append(bus.watch_liveliness(f"{ROS2_BRIDGE_TOKEN}/*", lambda k, alive:
+                                        sup.on_bridge_token(k, alive, clock.now())))
     handles.append(bus.subscribe(STATUS, lambda s: sup.on_lockstep(s.message.unresponsive,
                                                                    clock.now()),
                                  msg_type=LockstepStatus))

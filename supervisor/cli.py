@@ -1,9 +1,17 @@
 """`mrta supervise APP` and `mrta view`: thin click wrappers over supervisor.api.run_supervise
 and supervisor.viewer.run_view. Showing the snapshots (JSON lines, a live table) is done here:
-the supervisor itself never prints."""
+the supervisor itself never prints.
+
+Times people read are relative: simulated seconds with `--sim-time`, otherwise seconds since
+`mrta supervise` started (the supervisor's own clock is then the Unix epoch, 1795480671.6,
+which nobody reads at a glance). A `--json` line keeps the supervisor's clock in `time` and
+every `since` (so they compare with each other), and adds `wall_time` (Unix epoch seconds when
+the snapshot was taken) and `sim_time` (simulated seconds, or null without `--sim-time`).
+Into a pipe (no terminal) the live table becomes one line per change, written at once."""
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import click
@@ -12,6 +20,8 @@ from rich.live import Live
 
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.cli.common import bus_options, finite_float
+from mrta_zenoh.cli.common import console as make_console
+from mrta_zenoh.untrusted import visible
 
 from .api import SuperviseOptions, run_supervise, to_json
 from .view import render
@@ -37,15 +47,67 @@ def supervise(as_json: bool, bus_options: BusOptions, **options) -> None:
     """Supervise APP (a registered application or its rqt_mrta.xml): robots, tasks, alarms,
     and the ROS 2 graph (a robot whose ROS 2 driver node is gone is offline)."""
     opts = SuperviseOptions(**options)  # each option is named as its field
-    if as_json:
-        run_supervise(opts, bus_options, lambda snap: click.echo(to_json(snap)))
+    if as_json:  # click.echo flushes: a pipe gets each line as it is made
+        run_supervise(opts, bus_options,
+                      lambda snap: click.echo(to_json(with_clocks(snap, opts.sim_time))))
         return
-    console = Console()
+    console = make_console()
+    origin = 0.0 if opts.sim_time else time.time()
     if opts.once:
-        run_supervise(opts, bus_options, lambda snap: console.print(render(snap, console.width)))
+        run_supervise(opts, bus_options, lambda snap: console.print(
+            render(relative(snap, origin), console.width)))
+        return
+    if not console.is_terminal:
+        run_supervise(opts, bus_options, ChangeLines(console, origin))
         return
     with LiveTable(console, opts.rate) as table:
-        run_supervise(opts, bus_options, table.show)
+        run_supervise(opts, bus_options, lambda snap: table.show(relative(snap, origin)))
+
+
+def with_clocks(snap: dict, sim_time: bool) -> dict:
+    """The snapshot with `wall_time` and `sim_time` beside `time` (the supervisor's clock)."""
+    return {"time": snap["time"], "wall_time": round(time.time(), 3),
+            "sim_time": snap["time"] if sim_time else None,
+            **{k: v for k, v in snap.items() if k != "time"}}
+
+
+def relative(snap: dict, origin: float) -> dict:
+    """The snapshot with every time counted from `origin` (the start of supervision)."""
+    if not origin:
+        return snap
+
+    def shift(t):
+        return None if t is None else t - origin
+
+    out = dict(snap, time=shift(snap["time"]))
+    out["robots"] = [dict(r, since=shift(r["since"])) for r in snap["robots"]]
+    out["tasks"] = [dict(t, since=shift(t["since"])) for t in snap["tasks"]]
+    out["alarms"] = [dict(a, since=shift(a["since"])) for a in snap["alarms"]]
+    out["transitions"] = [dict(tr, time=shift(tr["time"])) for tr in snap["transitions"]]
+    return out
+
+
+def state_line(snap: dict) -> str:
+    """Robots, tasks held and alarms in one line, for logs and pipes (ids escaped)."""
+    robots = "  ".join(f"{r['id']}:{r['state']}" + (f"/{r['task']}" if r["task"] else "")
+                       for r in snap["robots"])
+    alarms = ", ".join(f"{a['kind']} {a['subject']}" for a in snap["alarms"])
+    return visible(robots + (f"  alarms: {alarms}" if alarms else ""))
+
+
+class ChangeLines:
+    """Without a terminal: a `t=…` line whenever the robots' states, their tasks or the alarms
+    change (a redrawn table means nothing in a file)."""
+
+    def __init__(self, console: Console, origin: float):
+        self.console, self.origin, self.last = console, origin, None
+
+    def __call__(self, snap: dict) -> None:
+        line = state_line(snap)
+        if line != self.last:
+            self.last = line
+            self.console.print(f"t={snap['time'] - self.origin:7.1f}s  {line}", markup=False,
+                               highlight=False)
 
 
 class LiveTable:

@@ -42,9 +42,10 @@ from pathlib import Path
 from typing import Any
 
 from mrta_zenoh.errors import ConfigError, Interrupted
-from mrta_zenoh.failure import parse_failure
+from mrta_zenoh.failure import failure_problem, parse_failure
 from mrta_zenoh.files import write_atomically, write_text
-from mrta_zenoh.keys import LIVELINESS_PREFIX
+from mrta_zenoh.keys import LIVELINESS_PREFIX, normalize_robot_id
+from mrta_zenoh.limits import MAX_RUNS, RUN_DURATION, SEED
 from mrta_zenoh.processes import ProcessGroup, mrta_argv
 from mrta_zenoh.recording import read_recording
 from mrta_zenoh.toolchain.registry import Registry
@@ -81,6 +82,37 @@ class Experiment:
     failures: list[str]
     overrides: dict[str, list[Any]] = field(default_factory=dict)
     architecture: str | None = None
+    doc: YamlDoc | None = field(default=None, compare=False, repr=False)  # for lines in errors
+
+    def count(self) -> int:
+        """How many runs `runs()` would make, without making them."""
+        return len(self.failures) * math.prod(len(v) for v in self.overrides.values()) \
+            * len(self.seeds)
+
+    def check_runs(self, max_runs: int = MAX_RUNS) -> None:
+        """Refuse a matrix of more than `max_runs` runs before anything starts: a list of a
+        million seeds, or overrides whose product is a million, used to be accepted and
+        started (issue #23)."""
+        n = self.count()
+        if n > max_runs:
+            combos = math.prod(len(v) for v in self.overrides.values())
+            raise ConfigError(
+                f"this experiment makes {n:,} runs ({len(self.failures)} failures × {combos:,} "
+                f"override combinations × {len(self.seeds):,} seeds), more than --max-runs "
+                f"{max_runs:,}: pass --max-runs {n} to start them all", file=str(self.file))
+
+    def check_against(self, robots: list[str]) -> None:
+        """Every failure names one of the application's `robots` and happens before the end
+        of a run; a ConfigError naming the line otherwise (before, a failure of an unknown
+        robot was accepted and then failed every run the same way)."""
+        for i, spec in enumerate(self.failures):
+            if spec == "none":
+                continue
+            problem = failure_problem(parse_failure(spec), robots, self.duration)
+            if problem:
+                if self.doc is not None:
+                    raise self.doc.error(("failures", i), f"failures[{i}]: {problem}")
+                raise ConfigError(f"failures[{i}]: {problem}", file=str(self.file))
 
     def runs(self) -> list[Run]:
         keys = sorted(self.overrides)
@@ -130,11 +162,10 @@ def load_experiment(path: Path) -> Experiment:
     if not isinstance(app, str) or not app:
         raise doc.error(("application",), "application must be a name")
     duration = doc.data["duration"]
-    if type(duration) is bool or not isinstance(duration, (int, float)) or \
-            not math.isfinite(duration) or duration <= 0:
-        raise doc.error(("duration",), f"duration must be a positive number of seconds, "
-                                       f"got {duration!r:.40}")
-    seeds = _list(doc, "seeds", int, lambda s: None if s >= 0 else "a seed is ≥ 0")
+    if RUN_DURATION.problem(duration):  # 1e308 is finite, and never ended
+        raise doc.error(("duration",), f"duration (simulated seconds) "
+                                       f"{RUN_DURATION.problem(duration)}")
+    seeds = _list(doc, "seeds", int, SEED.problem)
     failures = [str(f) for f in _list(doc, "failures", str,
                                       _failure_problem)] \
         if "failures" in doc.data else ["none"]
@@ -152,7 +183,7 @@ def load_experiment(path: Path) -> Experiment:
     arch = doc.data.get("architecture")
     if arch is not None and (not isinstance(arch, str) or not arch):
         raise doc.error(("architecture",), "architecture must be a name (mrta arch list)")
-    exp = Experiment(path, app, float(duration), seeds, failures, overrides, arch)
+    exp = Experiment(path, app, float(duration), seeds, failures, overrides, arch, doc)
     if "robots" in doc.data:
         _list(doc, "robots", int)
         exp.robots = doc.data["robots"]  # checked against the application in prepare()
@@ -264,11 +295,24 @@ def row_for(run: Run, out: Path, wall: float, error: str = "") -> dict:
     return row
 
 
+def prepare_output(output: Path) -> None:
+    """The output folder, made (with its parents) before any run starts, or a ConfigError
+    naming it: `--output /proc/self/x` was a traceback."""
+    try:
+        output.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"--output: cannot make the folder: {exc.strerror}",
+                          file=str(output)) from None
+    if not os.access(output, os.W_OK | os.X_OK):
+        raise ConfigError("--output: the folder is not writable", file=str(output))
+
+
 def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
                    stop: threading.Event | None = None, progress=None,
-                   scheduler: str | None = None) -> list[dict]:
+                   scheduler: str | None = None, max_runs: int = MAX_RUNS) -> list[dict]:
     """Every run of FILE's matrix, `jobs` at once here or, with `scheduler` (a Dask scheduler's
-    address), as tasks on that cluster; returns the rows (also in OUTPUT/results.csv)."""
+    address), as tasks on that cluster; returns the rows (also in OUTPUT/results.csv).
+    A matrix of more than `max_runs` runs is refused before anything starts."""
     if scheduler is not None:
         from . import experiment_dask  # stdlib and mrta only: `distributed` is imported lazily
 
@@ -278,6 +322,7 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
         experiment_dask.check_address(scheduler)
         experiment_dask.require_distributed()  # before anything is written
     exp = load_experiment(file)
+    exp.check_runs(max_runs)
     reg = Registry()
     resolved = resolve(MissionOptions(application=exp.application,
                                       architecture=exp.architecture), reg)
@@ -285,8 +330,9 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
     if getattr(exp, "robots", None) and exp.robots != [len(app.robots)]:
         raise ConfigError(f"robots: the application {app.name!r} has {len(app.robots)} robots "
                           f"(its launch file starts them); got {exp.robots}", file=str(file))
+    exp.check_against([normalize_robot_id(r.id) for r in app.robots])
     runs = exp.runs()
-    output.mkdir(parents=True, exist_ok=True)
+    prepare_output(output)
     stop = stop or threading.Event()
     results = Results(output / "results.csv", len(runs), progress)
     if scheduler is not None:

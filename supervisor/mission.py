@@ -75,6 +75,7 @@ class Mission:
     name: str = ""
     title: str = ""
     launch: str = ""
+    default: bool = False  # the mission `mrta demo` runs when several are registered
 
     def default_failure(self, robots: list[str], duration: float) -> str | None:
         """The failure `mrta demo` injects when none is given: the second robot at half time
@@ -90,6 +91,11 @@ class Mission:
     def describe(self, metrics: dict[str, Any]) -> list[str]:
         """Lines for the printed summary."""
         return []
+
+    def sections(self, run: "MissionRun", records: list) -> dict[str, Any]:
+        """Top-level sections of summary.json only this application has (SECTIONS: e.g. a
+        point-task mission's `instance` and `allocation`, docs/delivery.md)."""
+        return {}
 
 
 @dataclass(frozen=True)
@@ -135,12 +141,25 @@ def missions() -> dict:
 def default_application() -> str:
     """The application `mrta demo` runs when none is named: the only one that registers a
     mission (the framework names no application of its own)."""
-    names = sorted(missions())
-    if len(names) != 1:
+    eps = missions()
+    names = sorted(eps)
+    if len(names) == 1:
+        return names[0]
+    marked = [n for n in names if getattr(_load_mission(n, eps[n]), "default", False)]
+    if len(marked) != 1:
         raise ConfigError("name the application to run with --application: "
                           + (f"the registered missions are {', '.join(names)}" if names
                              else f"no application registers a mission under {MISSIONS_GROUP}"))
-    return names[0]
+    return marked[0]
+
+
+def _load_mission(name: str, ep) -> Mission:
+    mission = ep.load()
+    mission = mission() if isinstance(mission, type) else mission
+    if not isinstance(mission, Mission):
+        raise ConfigError(f"mission {name!r} ({ep.value}) is not a "
+                          "mrta_supervisor.mission.Mission")
+    return mission
 
 
 def _mission_of(reg: Registry, pkg: Package) -> Mission:
@@ -150,12 +169,7 @@ def _mission_of(reg: Registry, pkg: Package) -> Mission:
     for name in [pkg.name, *pkg.depends]:
         ep = eps.get(name)
         if ep is not None:
-            mission = ep.load()
-            mission = mission() if isinstance(mission, type) else mission
-            if not isinstance(mission, Mission):
-                raise ConfigError(f"mission {name!r} ({ep.value}) is not a "
-                                  "mrta_supervisor.mission.Mission")
-            return mission
+            return _load_mission(name, ep)
     raise ConfigError(f"application {pkg.name!r} has no mission registered under "
                       f"{MISSIONS_GROUP} (nor does any package it depends on); known: "
                       f"{', '.join(sorted(eps)) or 'none'}" + did_you_mean(pkg.name, eps))
@@ -233,12 +247,13 @@ class Readiness:
              stop: threading.Event) -> None:
         deadline = time.monotonic() + READY_TIMEOUT
         while not what():
+            if stop.is_set():  # first: after a Ctrl-C, children ended by it did not fail
+                group.interrupted()
+                raise Interrupted()
             failed = group.failed()
             if failed:
-                raise MrtaRuntimeError(f"{failed[0].name} failed while starting (exit "
-                                       f"{failed[0].returncode}):\n{failed[0].tail()}")
-            if stop.is_set():
-                raise Interrupted()
+                raise MrtaRuntimeError(f"{failed[0].name} failed while starting (it "
+                                       f"{failed[0].describe_exit()}):\n{failed[0].tail()}")
             if time.monotonic() > deadline:
                 raise MrtaRuntimeError(f"{label} did not come up within {READY_TIMEOUT:.0f} s")
             stop.wait(0.05)
@@ -268,7 +283,7 @@ def run_mission(options: MissionOptions, *, stop: threading.Event | None = None,
         raise ConfigError(f"mission {run.mission.name!r} names no launch file")
     options.output.mkdir(parents=True, exist_ok=True)
     with output_lock(options.output):
-        return _run_in(run, failure, reg, stop, progress)
+        return _run_in(run, failure, reg, stop, progress, folder_state(options.output))
 
 
 LOCK_FILE = ".mrta-run.lock"
@@ -300,11 +315,22 @@ def output_lock(output: Path):
         f.close()
 
 
+def folder_state(folder: Path) -> dict[str, tuple[int, int, int]]:
+    """What is in `folder` now (name → inode, size, mtime in ns): after the run, the files that
+    are new or changed are exactly those this run wrote — a file an earlier run left there is
+    neither (the run holds the folder's lock, so nobody else wrote into it meanwhile)."""
+    out = {}
+    for p in folder.iterdir():
+        if p.is_file() and not p.name.startswith("."):
+            st = p.stat()
+            out[p.name] = (st.st_ino, st.st_size, st.st_mtime_ns)
+    return out
+
+
 def _run_in(run: MissionRun, failure: Failure | None, reg: Registry,
-            stop: threading.Event | None, progress: Progress | None
-            ) -> tuple[MissionRun, Summary]:
+            stop: threading.Event | None, progress: Progress | None,
+            before: dict[str, tuple[int, int, int]]) -> tuple[MissionRun, Summary]:
     options, output = run.options, run.options.output
-    t_start = time.time()
     launch_args = {"speed": str(options.speed), "seed": str(options.seed),
                    "sim_args": f"--duration {options.duration} --snapshot {output / 'world.png'}"
                                + (" --lockstep" if options.lockstep else "")}
@@ -343,17 +369,20 @@ def _run_in(run: MissionRun, failure: Failure | None, reg: Registry,
         failed_at = _watch(sim, sup, clock, agents, failure, stop, progress,
                            kill=not options.lockstep)
         live.close()
-        if stop.is_set() and sim.running():
+        if stop.is_set() or sim.wait(30) in (-signal.SIGINT, 128 + signal.SIGINT):
+            # Ctrl-C: the terminal sends SIGINT to the children as well, and the simulator may
+            # end by it before this process sees its own. Their ends are no failures.
+            group.interrupted()
             raise Interrupted()
         if sim.wait(30) != 0:
-            raise MrtaRuntimeError(f"the simulator failed (exit {sim.returncode}):\n" + sim.tail())
+            raise MrtaRuntimeError(f"the simulator {sim.describe_exit()}:\n" + sim.tail())
         group.stop_all()
         crashed = group.failed(ignore=[agents[failure.robot].name] if failure else [])
         if crashed:
-            raise MrtaRuntimeError("; ".join(f"{c.name} exited with code {c.returncode}"
+            raise MrtaRuntimeError("; ".join(f"{c.name} {c.describe_exit()}"
                                              for c in crashed) + ":\n"
                                    + "\n".join(f"[{c.name}]\n{c.tail(10)}" for c in crashed))
-    summary = analyse(run, failure, failed_at, time.monotonic() - t_wall0, t_start)
+    summary = analyse(run, failure, failed_at, time.monotonic() - t_wall0, before)
     return run, summary
 
 
@@ -376,8 +405,22 @@ def _watch(sim: Child, sup: Supervisor, clock: SimClock, agents: dict[str, Child
 
 
 # ------------------------------------------------------------------ the summary
+def mission_sections(run: MissionRun, records: list) -> dict[str, Any]:
+    """The mission hook's own top-level sections of summary.json, checked by name (a typo in
+    an application's hook is a ConfigError, not a silently dropped section)."""
+    extra = run.mission.sections(run, records)
+    unknown = sorted(set(extra) - set(SECTIONS))
+    if unknown:
+        raise ConfigError(f"mission {run.mission.name!r} returned unknown summary sections "
+                          f"{', '.join(unknown)}; known: {', '.join(SECTIONS)}"
+                          + did_you_mean(unknown[0], SECTIONS))
+    return extra
+
+
 def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
-            wall: float, started: float = 0.0) -> Summary:
+            wall: float, before: dict[str, tuple[int, int, int]] | None = None) -> Summary:
+    """The summary of a recorded run, written to summary.json; `before` is the output
+    folder's state before the run (folder_state), so `files` lists what this run wrote."""
     output = run.options.output
     records = read_recording(output / "run.mcap")
     tb = TimeBase(records)
@@ -417,10 +460,12 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
         coverage=coverage(intervals, run.app.tasks(), t0, t1),
         messages=message_rates(records, run.arch, max(t1 - t0, 1e-9)),
         metrics=run.mission.metrics(run, records), failure=report,
-        output=str(output), files=[])
-    # what this run wrote (an earlier run's files in the same folder are not this run's)
-    summary.files = sorted({p.name for p in output.iterdir() if not p.name.startswith(".")
-                            and p.stat().st_mtime >= started - 1.0} | {"summary.json"})
+        output=str(output), files=[], **mission_sections(run, records))
+    # what this run wrote: new or changed files (an earlier run's are neither), and the
+    # summary itself, written next
+    before = before or {}
+    summary.files = sorted({name for name, state in folder_state(output).items()
+                            if before.get(name) != state} | {"summary.json"})
     write_summary(output / "summary.json", summary)
     return summary
 

@@ -1,9 +1,15 @@
 """`mrta demo`: a thin click verb over mission.run_mission — any registered application under
 any registered architecture (patrol under its own, ALLIANCE, by default) — that shows the
-supervisor while the mission runs and prints the summary."""
+supervisor while the mission runs and prints the summary.
+
+Output follows the Unix habits: the live view only on a terminal (a `t=` line every 10
+simulated seconds otherwise); `mrta -q demo` prints no progress (nor the supervisor's alarm
+lines), only the summary (the result) and errors; `-qq` errors only (summary.json is written
+either way). Into a pipe nothing is wrapped (cli.common.console); Ctrl-C exits 130."""
 
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import click
@@ -11,7 +17,8 @@ from rich.console import Console, Group
 from rich.live import Live
 from rich.text import Text
 
-from mrta_zenoh.cli.common import finite_float
+from mrta_zenoh.cli.common import console as make_console
+from mrta_zenoh.cli.common import finite_float, verbosity
 
 from .mission import MissionOptions, run_mission
 from .summary import Summary
@@ -49,18 +56,33 @@ from .view import render
 def demo(live: bool | None, **kwargs) -> None:
     """A mission end to end: simulator, agents and supervisor, then a summary."""
     options = MissionOptions(**kwargs)
-    console = Console()
+    console = make_console()
+    quiet = verbosity()
     show_live = console.is_terminal if live is None else live
-    view = _LiveView(console, options) if show_live else _Lines(console)
-    if options.foxglove_port is not None:
+    view = (_Silent() if quiet < 0 else _LiveView(console, options) if show_live
+            else _Lines(console))
+    if quiet < 0:  # the supervisor's alarm lines are progress too (the recording keeps them)
+        logging.getLogger("mrta.supervisor").setLevel(logging.ERROR)
+    if options.foxglove_port is not None and quiet > -2:
         console.print(f"Foxglove / Lichtblick: Open connection → "
                       f"ws://127.0.0.1:{options.foxglove_port}", highlight=False)
     try:
         run, summary = run_mission(options, progress=view)
     finally:
         view.close()
-    print_summary(console, summary, run.mission.title, run.arch.title,
-                  run.mission.describe(summary.metrics))
+    if quiet > -2:
+        print_summary(console, summary, run.mission.title, run.arch.title,
+                      run.mission.describe(summary.metrics))
+
+
+class _Silent:
+    """`-q`: no progress output."""
+
+    def __call__(self, now: float, sup, failure, failed_at: float | None) -> None:
+        pass
+
+    def close(self) -> None:
+        pass
 
 
 class _Lines:

@@ -21,8 +21,21 @@ What the bus cannot be trusted with (docs/architecture.md):
   dropped and counted (`key_mismatch`) — robot1 cannot make robot2 look busy;
 * robots and tasks that are not in the application never join the picture: they raise an
   `unknown_robot` / `unknown_task` alarm, kept for at most MAX_UNKNOWN ids (the rest counted
-  as `unknown_overflow`) and cleared `unknown_expiry` seconds after the id was last seen, so a
-  flood of invented ids costs bounded memory;
+  as `unknown_overflow`) and cleared `unknown_expiry` seconds after the id was last seen (or
+  after its last liveliness token went), so a flood of invented ids costs bounded memory. The
+  robot is recognised before anything else is read: a sample on `robot9/…` from a robot
+  outside the application raises `unknown_robot` whatever its fields hold, and so does a
+  liveliness token under `robot9/**` (a robot outside the team holding an agent token);
+* every name that reaches an alarm, a log line or a table goes through
+  mrta_zenoh.untrusted.visible (control characters shown as `\x1b`); a sample key whose first
+  chunk is no id is counted (`bad_keys`);
+* the ROS 2 graph (mrta_zenoh.ros2.graph) is bounded and linear; a token that does not parse
+  raises `ros2_invalid_token`, a full graph `ros2_graph_full`, while they last;
+* a robot is driven through ROS 2 while a bridge holds `@mrta/ros2_bridge/<robot>`: from the
+  first ROS 2 node seen in its namespace on, it is online only while such a node lives
+  (`driver_lost` otherwise). The rule goes with the bridge: a node declared in the namespace
+  of a robot nobody bridges (a forgery, a stray tool) changes nothing, and when the bridge
+  goes its `driver_lost` goes with it;
 * while the simulation clock is stopped (`clock_stopped` alarm) robots are shown `unknown`:
   their held states are stale, not busy;
 * a lockstep simulator's report of participants it no longer waits for raises
@@ -41,6 +54,7 @@ from mrta_zenoh import keys
 from mrta_zenoh.fieldpath import FieldPath, FieldPathError
 from mrta_zenoh.messages import GenericMessage
 from mrta_zenoh.ros2.graph import Ros2Graph
+from mrta_zenoh.untrusted import visible
 from mrta_zenoh.toolchain.model import Application, Architecture, Topic
 
 from .holders import History, SampleHolder, StateChange
@@ -100,8 +114,9 @@ class RobotInfo:
     idle: SampleHolder
     tokens: set[str] = field(default_factory=set)
     ever_token: bool = False
-    ros2_nodes: tuple[str, ...] = ()  # ROS 2 nodes in the robot's namespace (its driver)
-    ever_ros2: bool = False
+    bridges: set[str] = field(default_factory=set)  # `@mrta/ros2_bridge/<id>` tokens alive
+    ros2_driver: bool = False   # a ROS 2 node lives in the robot's namespace
+    ever_ros2: bool = False     # … and one did since a bridge took the robot
     state: str = "offline"
     since: float = 0.0
 
@@ -118,6 +133,8 @@ class TaskInfo:
 
 class Supervisor:
     MAX_UNKNOWN = 100  # unknown robot / task ids remembered (and alarmed) at once
+    MAX_STRANGER_TOKENS = 16  # live tokens remembered per robot outside the application
+    MAX_NAME = 100  # characters of a name from the network shown in an alarm or a log line
 
     def __init__(self, arch: Architecture, app: Application, now: float = 0.0,
                  unattended_after: float = 30.0, duplicate_after: float = 5.0,
@@ -132,7 +149,9 @@ class Supervisor:
         self.history = History()
         self.alarms: dict[tuple[str, str], float] = {}
         self.counts = {"samples": 0, "wrong_type": 0, "field_errors": 0, "key_mismatch": 0,
-                       "unknown": 0, "unknown_overflow": 0}
+                       "unknown": 0, "unknown_overflow": 0, "bad_keys": 0,
+                       "stranger_tokens": 0}
+        self._stranger_tokens: dict[str, set[str]] = {}  # unknown robot → its live tokens
         self._warned: set[tuple[str, str]] = set()
         self._lock = threading.Lock()
         self.robots: dict[str, RobotInfo] = {}
@@ -236,14 +255,23 @@ class Supervisor:
     def _on_sample(self, monitors: list[Monitor], key: str, type_name: str, message: Any,
                    now: float, vals) -> None:
         self.counts["samples"] += 1
+        if monitors[0].by_sender:  # who sent it comes first: a stranger is a stranger
+            sender_id = self._id(keys.first_chunk(key))
+            if sender_id is None:
+                self.counts["bad_keys"] += 1
+                return
+            if sender_id not in self.robots:
+                self._unknown("robot", sender_id, now)
+                return
         values: dict[str, str] = {}
         for m in monitors:
             if type_name != m.topic.type:
                 self.counts["wrong_type"] += 1
-                if (m.key_expr, type_name) not in self._warned and len(self._warned) < 1000:
-                    self._warned.add((m.key_expr, type_name))
+                shown = visible(type_name, self.MAX_NAME)
+                if (m.key_expr, shown) not in self._warned and len(self._warned) < 1000:
+                    self._warned.add((m.key_expr, shown))
                     self._log.warning("%s: ignoring samples of type %s (the architecture says %s)",
-                                      m.key_expr, type_name, m.topic.type)
+                                      m.key_expr, shown, m.topic.type)
                 return
             try:
                 value = m.path.get(message)
@@ -327,7 +355,7 @@ class Supervisor:
     def on_lockstep(self, unresponsive: tuple[str, ...], now: float) -> None:
         """The lockstep simulator's report: participants it stopped waiting for."""
         with self._lock:
-            names = set(unresponsive[:self.MAX_UNKNOWN])
+            names = {visible(n, self.MAX_NAME) for n in unresponsive[:self.MAX_UNKNOWN]}
             for kind, subject in list(self.alarms):
                 if kind == "participant_unresponsive" and subject not in names:
                     self._clear(kind, subject, now)
@@ -355,7 +383,8 @@ class Supervisor:
     def on_liveliness(self, key: str, alive: bool, now: float) -> None:
         with self._lock:
             r = self.robots.get(keys.first_chunk(key))
-            if r is None:  # not a robot of this application (a tool, another team, a forgery)
+            if r is None:  # not a robot of this application (another team, a forgery)
+                self._stranger_token(key, alive, now)
                 return
             rid = r.id
             if alive:
@@ -373,26 +402,69 @@ class Supervisor:
                         self._reassess_task(self.tasks[tid], now)
             self._reassess_robot(r, now)
 
+    def _stranger_token(self, key: str, alive: bool, now: float) -> None:
+        """A token under `<id>/**` of a robot outside the application: `unknown_robot` while
+        it lives (and `unknown_expiry` after), like a sample from it. Bounded: MAX_UNKNOWN
+        robots (through `_unknown`), MAX_STRANGER_TOKENS keys each."""
+        chunk = keys.first_chunk(key)
+        rid = self._id(chunk)
+        if rid is None:  # not even an id: shown escaped, counted
+            self.counts["bad_keys"] += 1
+            rid = visible(chunk, self.MAX_NAME)
+        held = self._stranger_tokens.get(rid)
+        if not alive:
+            if held is not None:
+                held.discard(key)
+                if not held:
+                    del self._stranger_tokens[rid]
+            return
+        self.counts["stranger_tokens"] += 1
+        self._unknown("robot", rid, now)
+        if ("robot", rid) not in self.unknown:  # over MAX_UNKNOWN: counted only
+            return
+        if held is None:
+            held = self._stranger_tokens[rid] = set()
+        if len(held) < self.MAX_STRANGER_TOKENS:
+            held.add(key)
+
     def on_ros2_token(self, key: str, alive: bool, now: float) -> None:
-        """A token of the ROS 2 graph (`@ros2_lv/<domain>/…`). A robot with a ROS 2 node in its
-        namespace (`/robot2/pioneer_driver`) is driven through ROS 2: once its driver has been
-        seen, the robot is online only while a node of it lives — an agent still running
-        cannot move a robot whose driver is gone."""
-        self.ros2.on_token(key, alive)
-        nodes = self.ros2.robot_nodes()
+        """A token of the ROS 2 graph (`@ros2_lv/<domain>/…`): the graph takes it in O(1)
+        (mrta_zenoh.ros2.graph: bounded, never fatal), then only the robot whose nodes changed
+        is looked at again."""
+        change = self.ros2.on_token(key, alive)
         with self._lock:
-            for r in self.robots.values():
-                now_nodes = tuple(nodes.get(r.id, ()))
-                if now_nodes == r.ros2_nodes:
-                    continue
-                r.ros2_nodes = now_nodes
-                r.ever_ros2 = r.ever_ros2 or bool(now_nodes)
-                if r.ever_ros2:
-                    if now_nodes:
-                        self._clear("driver_lost", r.id, now)
-                    else:
-                        self._raise("driver_lost", r.id, now)
-                self._reassess_robot(r, now)
+            g = self.ros2
+            for kind, bad in (("ros2_invalid_token", g.invalid_live > 0),
+                              ("ros2_graph_full", g.refused_live > 0)):
+                if bad:
+                    self._raise(kind, g.key_expr, now)
+                else:
+                    self._clear(kind, g.key_expr, now)
+            r = self.robots.get(change.robot) if change.robot is not None else None
+            if r is not None:
+                self._ros2_reassess(r, now)
+
+    def on_bridge_token(self, key: str, alive: bool, now: float) -> None:
+        """`@mrta/ros2_bridge/<robot>`: a bridge drives that robot through ROS 2 (or stopped)."""
+        with self._lock:
+            r = self.robots.get(key.rsplit("/", 1)[-1])
+            if r is None:  # a robot outside the application: nothing of ours to drive
+                return
+            (r.bridges.add if alive else r.bridges.discard)(key)
+            self._ros2_reassess(r, now)
+
+    def _ros2_reassess(self, r: RobotInfo, now: float) -> None:
+        r.ros2_driver = self.ros2.has_nodes(r.id)
+        if not r.bridges:  # nobody bridges it: ROS 2 nodes in its namespace say nothing
+            r.ever_ros2 = False
+            self._clear("driver_lost", r.id, now)
+        else:
+            r.ever_ros2 = r.ever_ros2 or r.ros2_driver
+            if r.ever_ros2 and not r.ros2_driver:
+                self._raise("driver_lost", r.id, now)
+            else:
+                self._clear("driver_lost", r.id, now)
+        self._reassess_robot(r, now)
 
     def update(self, now: float) -> None:
         """Falling edges and time-based alarms; call a few times a second."""
@@ -420,14 +492,16 @@ class Supervisor:
             for t in self.tasks.values():
                 self._task_alarms(t, now)
             for (kind, ident), seen in list(self.unknown.items()):
-                if now - seen >= self.unknown_expiry:
+                if kind == "robot" and ident in self._stranger_tokens:
+                    self.unknown[(kind, ident)] = now  # its token still lives
+                elif now - seen >= self.unknown_expiry:
                     del self.unknown[(kind, ident)]
                     self._clear(f"unknown_{kind}", ident, now)
 
     # ----------------------------------------------------------------------------- derivation
 
     def _online(self, r: RobotInfo) -> bool:
-        if r.ever_ros2 and not r.ros2_nodes:
+        if r.ever_ros2 and not r.ros2_driver:
             return False
         if r.tokens:
             return True
@@ -493,6 +567,8 @@ class Supervisor:
             self._clear("task_duplicated", t.id, now)
 
     def _raise(self, kind: str, subject: str, now: float, since: float | None = None) -> None:
+        """`subject` is shown as given: an id checked by keys.is_id, or a name made visible
+        where it came in (on_lockstep, _stranger_token)."""
         if (kind, subject) not in self.alarms:
             self.alarms[(kind, subject)] = now if since is None else since
             self.history.add(StateChange(now, "alarm", f"{kind}:{subject}", "", "raised"))

@@ -19,6 +19,7 @@ from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.files import write_text
 
 SCHEMA = 2  # 1: the patrol demo's flat dict (application metrics at the top level)
+SECTIONS = ("instance", "allocation")  # what a Mission hook may add at the top level
 
 
 class Span(msgspec.Struct, forbid_unknown_fields=True):
@@ -72,6 +73,9 @@ class Summary(msgspec.Struct, forbid_unknown_fields=True):
     files: list[str]
     metrics: dict[str, Any] = {}   # the application's own (its mission hook)
     failure: FailureReport | None = None
+    # a point-task mission's instance and allocation log (Mission.sections; docs/delivery.md)
+    instance: dict[str, Any] | None = None
+    allocation: list[dict[str, Any]] | None = None
     schema: int = SCHEMA
 
 

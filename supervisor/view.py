@@ -14,6 +14,8 @@ from rich.console import Group
 from rich.table import Table
 from rich.text import Text
 
+from mrta_zenoh.untrusted import visible
+
 WIDE = 110  # columns from which the two tables stand side by side
 
 STATE_STYLE = {"busy": "bold green", "idle": "yellow", "offline": "bold red", "unknown": "magenta",
@@ -21,11 +23,9 @@ STATE_STYLE = {"busy": "bold green", "idle": "yellow", "offline": "bold red", "u
 
 
 def plain(value: object) -> Text:
-    """Untrusted text as a Text: no markup parsed, control characters shown as \\xNN."""
-    s = str(value)
-    if not s.isprintable():
-        s = "".join(c if c.isprintable() else f"\\x{ord(c):02x}" for c in s)
-    return Text(s)
+    """Untrusted text as a Text: no markup parsed, control characters shown as \\xNN
+    (mrta_zenoh.untrusted.visible)."""
+    return Text(visible(value))
 
 
 def render(snap: dict, width: int = 120) -> Group:

@@ -40,6 +40,7 @@ from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.keys import CLOCK, RECORDER_TOKEN
 from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.recording import McapRecorder, SimLogTime, json_channel
+from mrta_zenoh.untrusted import visible
 
 from .api import Refresh, attach, resolve_application
 from .foxglove import FoxgloveOutputs
@@ -51,6 +52,9 @@ SCENE_HZ = 5.0  # /world and poses, per simulated second (on simulated time)
 SUPERVISOR_HZ = 2.0  # /supervisor/state, /robots/<id>/task, /supervisor/alarms, likewise
 STALL_EVERY = 1.0  # wall seconds between supervisor frames while simulated time stands still
 POLL = 0.1  # wall seconds the frame loop waits for a clock sample before looking at `stop`
+# Live channels at most: one per key, and keys come from the network (an invented key a sample
+# would otherwise cost a channel for good). Beyond, samples on new keys are counted, not served.
+MAX_LIVE_CHANNELS = 4096
 
 
 class SimPacer:
@@ -94,6 +98,7 @@ class LiveChannels:
                                             context=self.context)
         self.host = host
         self.channels: dict[str, foxglove.Channel] = {}
+        self.refused = 0  # samples on keys beyond MAX_LIVE_CHANNELS
         self._lock = threading.Lock()
 
     @property
@@ -110,6 +115,17 @@ class LiveChannels:
                     topic, schema=foxglove.Schema(name=name, encoding=schema_enc, data=schema_data),
                     message_encoding=encoding, context=self.context)
         ch.log(data, log_time=t_ns)
+
+    def emit_bus(self, key: str, schema: tuple[str, str, bytes], data: bytes, t_ns: int) -> None:
+        """A bus sample on its key's channel, as JSON; a new key only while there are fewer
+        than MAX_LIVE_CHANNELS channels (the derived channels are never refused)."""
+        if key not in self.channels and len(self.channels) >= MAX_LIVE_CHANNELS:
+            self.refused += 1
+            if self.refused == 1:
+                log.warning("more than %d keys: samples on new keys are not served live "
+                            "(first: %s)", MAX_LIVE_CHANNELS, visible(key, 200))
+            return
+        self.emit(key, schema, "json", data, t_ns)
 
     def close(self) -> None:
         self.server.stop()
@@ -172,7 +188,7 @@ def run_view(*, app: str | None, bus_options: BusOptions, port: int | None = 876
                 if conv:
                     schema, convert = conv
                     try:  # before simulated time starts: log time 0 (live, nothing to hold)
-                        live.emit(sample.key, schema, "json", convert(sample.payload), t or 0)
+                        live.emit_bus(sample.key, schema, convert(sample.payload), t or 0)
                     except DecodeError:
                         pass  # counted by the bus's typed subscribers; nothing to show
             if pacer is not None and sample.key == CLOCK:

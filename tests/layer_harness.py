@@ -29,7 +29,8 @@ def typed_sections(*classes, layers_file=LAYERS_FILE) -> dict:
 
 
 class LayerRun:
-    def __init__(self, sim: Simulation, robot: str, layer_cls, seed: int = 0):
+    def __init__(self, sim: Simulation, robot: str, layer_cls, seed: int = 0,
+                 task_id: str | None = None):
         self.sim, self.robot = sim, robot
         self.clock = ManualClock(0.0)
         self.net = InProcNetwork()
@@ -40,6 +41,7 @@ class LayerRun:
                                 {"sonar": self.sonar, "odom": self.odom}, typed_sections(layer_cls))
         self.bus.subscribe(keys.cmd_vel(robot), self._on_cmd, msg_type=Twist)
         self.layer = layer_cls()
+        self.layer.task_id = task_id  # as the agent's loader does
         self.layer.setup(self.ctx)
         self.i = sim.index[robot]
 

@@ -41,6 +41,7 @@ VERB_MODULES = {
     "supervisor/plot_cli.py",           # mrta plot, mrta plot timeline
     "supervisor/mission_cli.py",        # mrta demo
     "supervisor/experiment_cli.py",     # mrta experiment
+    "configs/applications/delivery/generate_cli.py",  # python -m mrta_delivery.generate_cli
 }
 # Programs still below the CLI layer while their owner moves them (issue 21); each entry goes
 # when its file does.

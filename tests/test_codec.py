@@ -9,11 +9,13 @@ from mrta_zenoh.messages import Clock, GenericMessage, Header, Odometry, Point2D
 from mrta_agent.alliance.messages import InterRobotCommunication, Motivation, SensoryFeedback
 from mrta_simulator.messages import Bumper, Segment, World
 from mrta_patrol.messages import Report, TaskTime
+from mrta_delivery.messages import TaskEvent
 from mrta_zenoh.lockstep import LockstepStatus, Step, StepDone
 from mrta_agent.murdoch.messages import Announcement, Award, Bid, Claim, Release
 
 EXAMPLES = [
     Header("robot1", 12.5, 7),
+    TaskEvent(Header("robot1", 1.0, 1), "t1", "done"),
     Clock(3.25),
     Pose2D(1.0, -2.0, math.pi / 3),
     Twist(0.4, -0.2),

@@ -68,6 +68,12 @@ ROBOT = [
     ("spin_rate 1e-9", {"spin_rate": 1e-9}, "spin_rate", "between"),
     ("τ shorter than a tick", {"spin_rate": 1.0, "timeout_duration": 0.4}, "timeout_duration",
      "tick period"),
+    # finite but absurd (issue #23): each is refused with the line and the range
+    ("timeout 1e308", {"timeout_duration": 1e308}, "timeout_duration",
+     "must be between 0.001 and 86400 s (a millisecond to a day), got 1e+308"),
+    ("buffer_horizon 1e308", {"buffer_horizon": 1e308}, "buffer_horizon", "and 86400 s"),
+    ("max_expected_duration 1e308", {"max_expected_duration": 1e308}, "max_expected_duration",
+     "and 86400 s"),
 ]
 
 
@@ -82,6 +88,36 @@ def test_infinite_thresholds_and_rates(tmp_path, field, value):
     mb = doc["behaviour_sets"]["behaviour_set0"]["motivational_behaviour"]
     (mb["impatience"] if field == "fast_rate" else mb)[field] = value
     assert_bad_input(run(*agent_files(tmp_path, robot=doc)), "robot.yaml:", field, "finite")
+
+
+ABSURD_SET = [
+    ("task_expected_duration", 1e308, "and 86400 s"),
+    ("threshold", 1e-300, "threshold must be between 0.001 and 1000000 (motivation units)"),
+    ("threshold", 1e308, "got 1e+308"),
+    ("fast_rate", 1e308, "fast_rate must be between 1e-06 and 1000000 per tick"),
+    ("yielding_delay", 1e308, "and 86400 s"),
+    ("giving_up_delay", 1e308, "and 86400 s"),
+]
+
+
+@pytest.mark.parametrize("field,value,what", ABSURD_SET, ids=[f"{c[0]} {c[1]:g}" for c in ABSURD_SET])
+def test_finite_but_absurd_behaviour_set_values(tmp_path, field, value, what):
+    doc = robot_yaml([{"task": "wander", "fast": 10.0}])
+    bs = doc["behaviour_sets"]["behaviour_set0"]
+    mb = bs["motivational_behaviour"]
+    target = {"task_expected_duration": bs, "threshold": mb, "fast_rate": mb["impatience"],
+              "yielding_delay": mb["acquiescence"], "giving_up_delay": mb["acquiescence"]}[field]
+    target[field] = value
+    if field == "yielding_delay":  # keep it below giving_up_delay's own check
+        mb["acquiescence"]["giving_up_delay"] = 80_000.0
+    assert_bad_input(run(*agent_files(tmp_path, robot=doc)), "robot.yaml:", field, what)
+
+
+def test_the_documented_ranges_are_the_ones_enforced():
+    from mrta_zenoh.limits import ranges_table
+    from tests.helpers import ROOT
+
+    assert ranges_table() in (ROOT / "docs" / "toolchain.md").read_text()
 
 
 @pytest.mark.parametrize("task", ["border protection", "wan*der", "x" * 65])
@@ -106,6 +142,16 @@ WORLDS = [
      "  robot1: [.inf, 0, 0]\n", "w.yaml:5", "finite"),
     ("map NaN", "w.map", "2D-Map\nLINES\n0 0 nan 100\n", "w.map:3", "finite"),
     ("map inf home", "w.map", "2D-Map\nCairn: RobotHome inf 0 0\n", "w.map:2", "RobotHome"),
+    # finite but absurd (issue #23): a wall at 1e308 m overflowed the ray caster
+    ("yaml wall 1e308", "w.yaml", "name: w\nwalls:\n  - segment: [0, 0, 1.0e+308, 1]\n",
+     "w.yaml:3", "a coordinate must be between -10000 and 10000 m"),
+    ("yaml border far", "w.yaml", "name: w\nwalls:\n  - segment: [0, 0, 1, 1]\n"
+     "border: [[0, 0], [0, 1], [20000, 0]]\n", "w.yaml:4", "got 20000"),
+    ("yaml start far", "w.yaml", "name: w\nwalls:\n  - segment: [0, 0, 1, 1]\nrobots:\n"
+     "  robot1: [-1.0e+200, 0, 0]\n", "w.yaml:5", "a coordinate must be between"),
+    ("map wall 1e308", "w.map", "2D-Map\nLINES\n0 0 1e308 100\n", "w.map:3",
+     "a coordinate must be between -10000 and 10000 m"),
+    ("map home far", "w.map", "2D-Map\nCairn: RobotHome 1e12 0 0\n", "w.map:2", "got 1000000000"),
 ]
 
 

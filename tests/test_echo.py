@@ -48,6 +48,15 @@ def test_echo_field(children):
 
 
 @pytest.mark.multiprocess
+def test_echo_takes_a_ros_topic_name_and_a_dotted_field(children):
+    """As a ROS 2 user types them: both were refused (exit 2)."""
+    echo, rc = run_pair(children, [f"/{KEY}", "--field", "header.frame_id", "--count", "1"],
+                        ["irc:robot1:wander"])
+    assert rc == 0, echo.stderr
+    assert echo.stdout == [f"{KEY}: robot1"]
+
+
+@pytest.mark.multiprocess
 def test_echo_human_format(children):
     echo, rc = run_pair(children, [KEY, "--count", "1"], ["irc:robot1:wander"])
     assert rc == 0

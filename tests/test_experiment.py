@@ -14,21 +14,24 @@ from mrta_supervisor.experiment import load_experiment, mean_ci
 @pytest.mark.slow
 def test_a_tiny_matrix_gives_one_row_per_run_and_records_a_failed_run(children, tmp_path):
     f = tmp_path / "exp.yaml"
-    f.write_text("application: patrol\nduration: 30\nseeds: [1, 2]\n"
-                 "failures: [robot2@18, robot9@5]\n")
+    # a failure of an unknown robot is refused at load now: the failed run is one whose
+    # robot2 refuses its (overridden) parameters at start
+    f.write_text("application: patrol\nduration: 30\nseeds: [1, 2]\nfailures: [robot2@18]\n"
+                 "overrides:\n  robot2.spin_rate: [10, 5000]\n")
     out = tmp_path / "out"
     run = children.mrta("experiment", f, "--output", out, "--jobs", "2", name="experiment")
     # four 30-s missions at full speed, two at a time: ≈ 15 s on an idle machine; a sweep
     # with failed runs exits 1 once everything is written
     assert run.wait(150) == 1, run.stderr[-10:] + run.stdout[-10:]
     assert any("2 of 4 runs failed" in line for line in run.stderr), run.stderr[-5:]
+    assert sum(line.startswith("run ") for line in run.stderr) == 4  # progress, on stderr
     rows = list(csv.DictReader((out / "results.csv").open()))
     assert len(rows) == 4
-    assert {(r["seed"], r["failure"]) for r in rows} == {
-        ("1", "robot2@18"), ("2", "robot2@18"), ("1", "robot9@5"), ("2", "robot9@5")}
+    assert {(r["seed"], r["robot2.spin_rate"]) for r in rows} == {
+        ("1", "10"), ("2", "10"), ("1", "5000"), ("2", "5000")}
     failed = [r for r in rows if r["status"] == "failed"]
-    assert {r["failure"] for r in failed} == {"robot9@5"} and all("robot9" in r["error"]
-                                                                  for r in failed)
+    assert {r["robot2.spin_rate"] for r in failed} == {"5000"} and all(
+        "robot2" in r["error"] for r in failed), failed
     ok = [r for r in rows if r["status"] == "ok"]
     for r in ok:  # the killed robot's border protection was taken over
         assert r["taken_over_by"] in ("robot1", "robot3") and 0 < float(r["takeover_seconds"]) < 10
@@ -110,7 +113,20 @@ def test_an_override_changes_the_files_of_that_run_only(tmp_path):
 
 @pytest.mark.parametrize("text,where,what", [
     ("application: patrol\nduration: 10\nseeds: [1]\nfailure: [none]\n", ":4", "did you mean 'failures'"),
-    ("application: patrol\nduration: -1\nseeds: [1]\n", ":2", "positive"),
+    ("application: patrol\nduration: -1\nseeds: [1]\n", ":2", "between 0.001 and 604800 s"),
+    # finite but absurd: the run never ended (issue #23)
+    ("application: patrol\nduration: 1.0e+308\nseeds: [1]\n", ":2",
+     "must be between 0.001 and 604800 s (a millisecond to a week), got 1e+308"),
+    ("application: patrol\nduration: 10\nseeds: [1, -3]\n", ":3", "seeds[1]: must be between 0"),
+    # a failure of a robot the application does not have: every run used to fail the same way
+    ("application: patrol\nduration: 10\nseeds: [1]\nfailures: [none, robot9@5]\n", ":4",
+     "robot9 is not one of the application's robots (robot1, robot2, robot3)"),
+    ("application: patrol\nduration: 10\nseeds: [1]\nfailures: [robot2@50]\n", ":4",
+     "50 s is not before the end of the run (10 s)"),
+    # a million runs: refused before anything starts, the counts named
+    ("application: patrol\nduration: 10\nseeds: [1]\noverrides:\n"
+     + "".join(f"  robot*.k{i}: [{', '.join(map(str, range(100)))}]\n" for i in range(3)),
+     "exp.yaml", "makes 1,000,000 runs (1 failures × 1,000,000 override combinations × 1 seeds)"),
     ("application: patrol\nduration: 10\nseeds: [1, x]\n", ":3", "seeds[1]"),
     ("application: patrol\nduration: 10\nseeds: [1]\nfailures: [robot2 at 5]\n", ":4",
      "ROBOT@SECONDS"),
@@ -129,6 +145,57 @@ def test_malformed_files_exit_2_naming_file_and_line(tmp_path, text, where, what
     line = result.output.strip().splitlines()[-1]
     assert where in line and what in line, line
     assert not (tmp_path / "o" / "results.csv").exists()
+
+
+def test_more_seeds_than_max_runs_are_refused_unless_raised(tmp_path):
+    f = tmp_path / "exp.yaml"
+    f.write_text("application: patrol\nduration: 10\nseeds: [" + ", ".join(map(str, range(10_001)))
+                 + "]\n")
+    result = CliRunner().invoke(cli, ["experiment", str(f), "--output", str(tmp_path / "o")])
+    assert result.exit_code == 2 and "more than --max-runs 10,000" in result.output, result.output
+    assert "--max-runs 10001" in result.output  # says how to ask for them
+    assert not (tmp_path / "o").exists()
+    exp = load_experiment(f)
+    assert exp.count() == 10_001
+    exp.check_runs(20_000)  # raised: accepted
+
+
+def test_an_output_folder_that_cannot_be_made_is_bad_input_not_a_traceback(tmp_path):
+    f = tmp_path / "exp.yaml"
+    f.write_text("application: patrol\nduration: 10\nseeds: [1]\n")
+    result = CliRunner().invoke(cli, ["experiment", str(f), "--output", "/proc/self/x"])
+    assert result.exit_code == 2, result.output
+    assert "/proc/self/x: --output: cannot make the folder" in result.output
+    assert result.exception is None or isinstance(result.exception, SystemExit)
+
+
+def fake_runs(monkeypatch, n: int):
+    """run_experiment replaced by one that reports `n` finished runs, as the real one does."""
+    from mrta_supervisor import experiment_cli
+
+    def fake(*, file, output, progress=None, **_):
+        rows = [{"run": i, "status": "ok", "wall_seconds": 1.5 + i} for i in range(n)]
+        for i, row in enumerate(rows):
+            if progress is not None:
+                progress(i + 1, n, row)
+        output.mkdir(parents=True, exist_ok=True)
+        (output / "summary.md").write_text("# summary\n")
+        return rows
+    monkeypatch.setattr(experiment_cli, "run_experiment", fake)
+
+
+def test_progress_goes_to_stderr_one_line_per_run_and_stdout_holds_the_result(tmp_path,
+                                                                               monkeypatch):
+    fake_runs(monkeypatch, 3)
+    f = tmp_path / "exp.yaml"
+    f.write_text("application: patrol\nduration: 10\nseeds: [1, 2, 3]\n")
+    result = CliRunner().invoke(cli, ["experiment", str(f), "--output", str(tmp_path / "o")])
+    assert result.exit_code == 0, result.output
+    assert [line for line in result.stderr.splitlines() if line.startswith("run ")] == [
+        "run 1/3: run 0 ok, 1.5 s", "run 2/3: run 1 ok, 2.5 s", "run 3/3: run 2 ok, 3.5 s"]
+    assert "run 1/3" not in result.stdout and "# summary" in result.stdout
+    quiet = CliRunner().invoke(cli, ["-q", "experiment", str(f), "--output", str(tmp_path / "o")])
+    assert quiet.exit_code == 0 and "run 1/3" not in quiet.stderr and "# summary" in quiet.stdout
 
 
 def test_mean_and_interval():

@@ -1,5 +1,6 @@
 """`mrta launch`: the roslaunch subset, its errors, and running nodes as child processes."""
 
+import os
 import signal
 import time
 
@@ -9,6 +10,7 @@ from click.testing import CliRunner
 from mrta_zenoh.cli.main import cli
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.toolchain.launchfile import LaunchEvaluator, check_executables
+from mrta_zenoh.keys import matches
 from tests.helpers import REFERENCE
 
 
@@ -91,29 +93,104 @@ def test_reference_launch_files_parse_and_name_what_is_missing(reference, tmp_pa
         check_executables(nodes)
 
 
+AGENT = ('<node name="agent" pkg="robot_agent" type="agent" ns="robot1" args="robot1 '
+         '--robot-params {c}/robot1_alliance_params.yaml --tasks-params '
+         '{c}/tasks_alliance_params.yaml --layers-params {c}/layers_alliance_params.yaml"/>')
+
+
+def agent_node() -> str:
+    from tests.helpers import PATROL
+    return AGENT.format(c=PATROL / "config")
+
+
+def node_pid(launcher, word: str, timeout: float = 30) -> int:
+    """The pid of the launcher's child whose command line holds `word` (from /proc)."""
+    from tests.test_mission_hygiene import children_of
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        for pid in children_of(launcher.proc.pid):
+            try:
+                if word in open(f"/proc/{pid}/cmdline").read():
+                    return pid
+            except OSError:
+                continue
+        assert launcher.running(), launcher.tail(20)
+        time.sleep(0.1)
+    raise AssertionError(f"no child running {word}")
+
+
 @pytest.mark.multiprocess
-def test_running_nodes_a_failure_stops_the_others_and_output_is_prefixed(children, tmp_path):
+def test_running_nodes_a_failure_is_reported_and_output_is_prefixed(children, tmp_path):
+    """The broken agent is not required: it is reported and the launch goes on; the
+    simulator, required, ends at its --duration and brings the launch down; exit 1."""
     f = write(tmp_path, """<launch>
-      <node name="sim" pkg="simulator" type="sim" args="--world patrol --robot robot1 --speed 1"/>
+      <node name="sim" pkg="simulator" type="sim" required="true"
+            args="--world patrol --robot robot1 --speed 1 --duration 3"/>
       <node name="broken" pkg="robot_agent" type="agent"
             args="robot1 --robot-params /nonexistent.yaml --tasks-params /nonexistent.yaml"/>
     </launch>""")
     t0 = time.monotonic()
     launcher = children.mrta("launch", str(f), name="launch")
-    assert launcher.wait(30) == 1
-    assert time.monotonic() - t0 < 25
+    assert launcher.wait(60) == 1
+    assert time.monotonic() - t0 < 55
     out = launcher.stdout
     assert any(line.startswith("[broken] ") and "cannot read" in line for line in out), out
-    assert any(line.startswith("[sim] exited") for line in out), out  # stopped by the failure
+    err = launcher.stderr
+    assert "[broken] exited with code 2" in err, err
+    assert any(line.startswith("[sim] exited normally — a required node") for line in err), err
+    assert err[-1] == "Error: 1 node failed: broken exited with code 2", err
+
+
+@pytest.mark.multiprocess
+@pytest.mark.timeout(120)
+def test_a_required_node_killed_with_sigkill_is_reported_and_stops_the_launch(children, tokens,
+                                                                               tmp_path):
+    """kill -9 of the simulator used to go unnoticed: nothing said, nothing stopped."""
+    f = write(tmp_path, f"""<launch>
+      <node name="sim" pkg="simulator" type="sim" required="true"
+            args="--world patrol --robot robot1"/>
+      {agent_node()}
+    </launch>""")
+    launcher = children.mrta("launch", str(f), name="launch")
+    tokens.wait_all(["@mrta/clock_source/*", "robot1/alliance/agent"], 60, launcher)
+    os.kill(node_pid(launcher, "simulator/sim"), signal.SIGKILL)
+    assert launcher.wait(30) == 1, launcher.tail(20)
+    err = launcher.stderr
+    assert "[sim] killed by SIGKILL — a required node: stopping every node" in err, err
+    assert "[robot1/agent] stopped" in err, err
+    assert err[-1] == "Error: 1 node failed: sim killed by SIGKILL", err
+
+
+@pytest.mark.multiprocess
+@pytest.mark.timeout(120)
+def test_a_node_killed_with_sigkill_is_reported_and_the_others_keep_running(children, tokens,
+                                                                            tmp_path):
+    f = write(tmp_path, f"""<launch>
+      <node name="sim" pkg="simulator" type="sim" args="--world patrol --robot robot1"/>
+      {agent_node()}
+    </launch>""")
+    launcher = children.mrta("launch", str(f), name="launch")
+    tokens.wait_all(["@mrta/clock_source/*", "robot1/alliance/agent"], 60, launcher)
+    os.kill(node_pid(launcher, "robot_agent/agent"), signal.SIGKILL)
+    launcher.wait_stderr(lambda line: line == "[robot1/agent] killed by SIGKILL", 15)
+    assert launcher.running()
+    assert any(matches("@mrta/clock_source/*", k) for k in tokens.alive)  # the sim goes on
+    launcher.signal(signal.SIGINT)
+    assert launcher.wait(20) == 130, launcher.tail(20)
+    assert "[sim] stopped" in launcher.stderr, launcher.stderr
 
 
 @pytest.mark.multiprocess
 def test_ctrl_c_stops_every_node(children, tokens, tmp_path):
+    """As a terminal does: SIGINT to the node and to the launch at once. The node's end is
+    `stopped`, not `exited with code -2`, and the launch exits 130."""
     f = write(tmp_path, """<launch>
       <node name="sim" pkg="simulator" type="sim" args="--world patrol --robot robot1"/>
     </launch>""")
     launcher = children.mrta("launch", str(f), name="launch")
     tokens.wait("@mrta/clock_source/*", 30, launcher)  # the node is up
+    os.kill(node_pid(launcher, "simulator/sim"), signal.SIGINT)
     launcher.signal(signal.SIGINT)
-    assert launcher.wait(15) == 0
-    assert any("[sim] exited with code 0" in line for line in launcher.stdout)
+    assert launcher.wait(15) == 130
+    assert "[sim] stopped" in launcher.stderr, launcher.stderr
+    assert not any("code" in line for line in launcher.stderr), launcher.stderr

@@ -23,8 +23,11 @@ PACKAGES = {
     "mrta_supervisor": ROOT / "supervisor",
     "mrta_patrol": ROOT / "configs" / "applications" / "patrol",
     "mrta_patrol_murdoch": ROOT / "configs" / "applications" / "patrol_murdoch",
+    "mrta_delivery": ROOT / "configs" / "applications" / "delivery",
+    "mrta_delivery_murdoch": ROOT / "configs" / "applications" / "delivery_murdoch",
 }
-APPS = {"mrta_patrol", "mrta_patrol_murdoch", "ping_app"}
+APPS = {"mrta_patrol", "mrta_patrol_murdoch", "mrta_delivery", "mrta_delivery_murdoch",
+        "ping_app"}
 FORBIDDEN = {
     "mrta_zenoh": {"mrta_agent", "mrta_simulator", "mrta_supervisor"} | APPS,
     "mrta_agent.runtime": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_simulator",
@@ -37,10 +40,14 @@ FORBIDDEN = {
     "mrta_patrol": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_patrol_murdoch"},
     "mrta_patrol_murdoch": {"mrta_zenoh", "mrta_agent", "mrta_simulator", "mrta_supervisor",
                             "mrta_patrol"},  # holds no code at all
+    "mrta_delivery": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_delivery_murdoch",
+                      "mrta_patrol"},
+    "mrta_delivery_murdoch": {"mrta_zenoh", "mrta_agent", "mrta_simulator", "mrta_supervisor",
+                              "mrta_delivery"},  # holds no code at all
 }
 # the top-level import names the wheel installs: none may be another PyPI project's
 TOP_LEVEL = {"mrta_zenoh", "mrta_agent", "mrta_simulator", "mrta_supervisor", "mrta_patrol",
-             "mrta_patrol_murdoch"}
+             "mrta_patrol_murdoch", "mrta_delivery", "mrta_delivery_murdoch"}
 
 
 def module_of(path: Path, package: str) -> str:

@@ -62,6 +62,10 @@ def test_an_output_folder_in_use_is_refused_and_freed_when_its_run_ends(tmp_path
 @pytest.mark.timeout(150)
 def test_a_second_demo_in_the_same_folder_is_refused(children, tmp_path):
     out = tmp_path / "out"
+    out.mkdir()
+    stale = out / "motivation_robot9_wander.png"  # an earlier run's, from a clock ahead of ours
+    stale.write_bytes(b"old")
+    os.utime(stale, (time.time() + 3600, time.time() + 3600))
     first = children.mrta("-q", "demo", "--duration", "8", "--speed", "1", "--fail", "none",
                           "--no-live", "--output", out, name="first")
     deadline = time.monotonic() + 60
@@ -75,6 +79,15 @@ def test_a_second_demo_in_the_same_folder_is_refused(children, tmp_path):
     assert first.wait(100) == 0, first.tail(20)
     summary = json.loads((out / "summary.json").read_text())
     assert summary["duration"] == 8.0 and summary["speed"] == 1.0  # the first run's, whole
+    # exactly the files this run wrote, summary.json included, on one line even in a pipe
+    assert stale.name not in summary["files"] and "summary.json" in summary["files"]
+    assert {"run.mcap", "world.png", "timeline.png"} <= set(summary["files"])
+    (files,) = [line for line in first.stdout if line.startswith("  files in ")]
+    assert files == f"  files in {out}: {', '.join(summary['files'])}", first.stdout
+    # -q: no progress lines, only the summary
+    assert not any(line.startswith("t=") for line in first.stdout), first.stdout
+    assert first.stderr == [], first.stderr  # nor warnings: a quiet success says nothing there
+    assert first.stdout[1].startswith("Patrol mission (ALLIANCE): 8 s simulated"), first.stdout
 
 
 @pytest.mark.multiprocess

@@ -43,6 +43,7 @@ def test_a_robot_is_offline_once_its_ros2_driver_node_is_gone():
     sup.on_liveliness("robot2/alliance/agent", True, 1.0)
     sup.on_liveliness("robot1/alliance/agent", True, 1.0)
     assert {r["id"]: r["state"] for r in sup.snapshot(1.0)["robots"]}["robot2"] == "idle"
+    sup.on_bridge_token("@mrta/ros2_bridge/robot2", True, 1.5)  # robot2 is driven via ROS 2
     sup.on_ros2_token(DRIVER, True, 2.0)
     sup.on_ros2_token(BRIDGE, True, 2.0)  # our bridge is not robot2's driver
     snap = sup.snapshot(2.0)

@@ -76,7 +76,25 @@ MALFORMED = [
                               "</param_0>"), 12, "expected an int"),
     (ARCH.format(robots="<busy_robots><topic><name>k</name><type>t</type><field>f</field>"
                         "<timeout>-1</timeout></topic></busy_robots>", param=OK_PARAM), 5,
-     "positive number of seconds"),
+     "<timeout> must be between 0.001 and 86400 s"),
+    # finite but absurd: `mrta supervise --once` never returned (issue #23)
+    (ARCH.format(robots="<busy_robots><topic><name>k</name><type>t</type><field>f</field>"
+                        "<timeout>1e308</timeout></topic></busy_robots>", param=OK_PARAM), 5,
+     "(a millisecond to a day), got 1e+308"),
+    (ARCH.format(robots="<busy_robots><topic><name>k</name><type>t</type><field>f</field>"
+                        "<queue_size>1000000000</queue_size></topic></busy_robots>",
+                 param=OK_PARAM), 5, "<queue_size> must be between 1 and 100000 samples"),
+    # what the supervisor refuses when it subscribes, refused at load with its line
+    (ARCH.format(robots="<busy_robots><topic><name>a//b</name><type>t</type><field>f</field>"
+                        "</topic></busy_robots>", param=OK_PARAM), 5, "has an empty chunk"),
+    (ARCH.format(robots="<busy_robots><topic><name>a/b*/c</name><type>t</type><field>f</field>"
+                        "</topic></busy_robots>", param=OK_PARAM), 5, "'*' must be a whole chunk"),
+    (ARCH.format(robots="<busy_robots><topic><name>k</name><type>t</type>"
+                        "<field>header//frame_id</field></topic></busy_robots>", param=OK_PARAM),
+     5, "has an empty part"),
+    (ARCH.format(robots="<busy_robots><topic><name>k</name><type>t</type>"
+                        "<field>header/frame-id</field></topic></busy_robots>", param=OK_PARAM),
+     5, "neither a field name nor an index"),
     (ARCH.format(robots="<config_id>nope</config_id>", param=OK_PARAM), 5, "no config has id"),
     (ARCH.format(robots="", param="<parm_0><name>p</name></parm_0>"), 12, "did you mean"),
     (ARCH.format(robots="", param="<param_0><type>int</type></param_0>"), 12, "needs a <name>"),
@@ -106,3 +124,55 @@ def test_validate_accepts_good_files_and_refuses_the_wrong_kind(reference):
     assert r.invoke(cli, ["app", "validate", app]).exit_code == 0
     res = r.invoke(cli, ["arch", "validate", app])
     assert res.exit_code == 2 and "not an architecture file" in res.output
+
+
+APP = """<?xml version="1.0"?>
+<rqt_mrta>
+  <application>
+    <architecture>alliance</architecture>
+    <name>A</name>
+    <robots>
+      <robot_0><id>robot1</id><tasks><task_0><id>wander</id></task_0></tasks></robot_0>
+      <robot_1><id>{second}</id><tasks><task_0><id>{task}</id></task_0></tasks></robot_1>
+    </robots>
+  </application>
+</rqt_mrta>
+"""
+
+BAD_APPS = [
+    (APP.format(second="robot1", task="wander"), 8, "robot 'robot1' appears twice (first on line 7)"),
+    (APP.format(second="/robot1", task="wander"), 8, "robot 'robot1' appears twice"),
+    (APP.format(second="robot 2", task="wander"), 8, "invalid robot id 'robot 2'"),
+    (APP.format(second="robot2/x", task="wander"), 8, "invalid robot id"),
+    (APP.format(second="robot2", task="wan*der"), 8, "invalid task id 'wan*der'"),
+]
+
+
+@pytest.mark.parametrize("text,line,message", BAD_APPS, ids=[m[2][:30] for m in BAD_APPS])
+def test_app_validate_refuses_what_the_runtime_refuses_with_its_line(tmp_path, text, line,
+                                                                       message):
+    f = tmp_path / "rqt_mrta.xml"
+    f.write_text(text)
+    res = CliRunner().invoke(cli, ["app", "validate", str(f)])
+    assert res.exit_code == 2 and f"{f}:{line}" in res.output and message in res.output, res.output
+    # and the runtime refuses it the same way, for it reads the file through the same reader
+    from supervisor.api import resolve_application
+
+    with pytest.raises(ConfigError) as err:
+        resolve_application(str(f))
+    assert err.value.line == line and message in str(err.value)
+
+
+def test_a_good_application_still_validates(tmp_path):
+    f = tmp_path / "rqt_mrta.xml"
+    f.write_text(APP.format(second="/robot2", task="wander"))
+    res = CliRunner().invoke(cli, ["app", "validate", str(f)])
+    assert res.exit_code == 0, res.output
+
+
+def test_the_monitor_key_expression_is_the_one_the_supervisor_subscribes_to():
+    from mrta_zenoh.toolchain.model import Topic
+    from supervisor.state import key_expr_for
+
+    for name in ("*/alliance/inter_robot_communication", "/robot1/alliance/x", "a/**"):
+        assert Topic(name, "t", "f").key_expr == key_expr_for(name)

@@ -16,6 +16,7 @@ import click
 
 from ..bus.options import MODES, BusOptions
 from ..keys import validate_key_expr
+from ..untrusted import visible
 
 
 def bus_options(f: Callable | None = None, *, namespace_option: str = "--namespace") -> Callable:
@@ -85,15 +86,55 @@ def plural(n: int, word: str, many: str | None = None) -> str:
     return f"{n} {word if n == 1 else (many or word + 's')}"
 
 
+def console(stderr: bool = False) -> "rich.console.Console":
+    """A rich Console for a verb's output. On a terminal it draws as usual; into a pipe or a
+    file it never wraps (rich would hard-wrap at 80 columns, cutting a line a script greps in
+    two) and writes no colour codes."""
+    from rich.console import Console
+
+    c = Console(stderr=stderr, highlight=False)
+    if not c.is_terminal:
+        c.soft_wrap = True
+    return c
+
+
+VERBOSITY_KEY = "mrta.verbosity"
+
+
+def verbosity() -> int:
+    """`-v` minus `-q` on the `mrta` command line (0 outside a click context): -1 (`-q`) means
+    no progress output, only the result and errors; -2 (`-qq`) errors only."""
+    ctx = click.get_current_context(silent=True)
+    return ctx.meta.get(VERBOSITY_KEY, 0) if ctx is not None else 0
+
+
 LOG_FORMAT = "%(levelname)s %(name)s: %(message)s"
+class SafeFormatter(logging.Formatter):
+    """Log lines with every unprintable character escaped (`\\x1b`: untrusted.visible, the
+    one escape the supervisor's views use too), newlines included: text from the bus (a key, a
+    type name, a participant's name) must not reach a terminal raw, where an escape sequence
+    could rewrite the screen, and one record is one line, so none can forge another. Only a
+    traceback keeps its line breaks (each of its lines is escaped on its own)."""
+
+    def formatMessage(self, record: logging.LogRecord) -> str:
+        return visible(super().formatMessage(record))
+
+    def formatException(self, ei) -> str:
+        return "\n".join(map(visible, super().formatException(ei).split("\n")))
+
+    def formatStack(self, stack_info: str) -> str:
+        return "\n".join(map(visible, super().formatStack(stack_info).split("\n")))
 
 
 def setup_logging(verbosity: int = 0) -> None:
     """Once per process: `mrta` loggers at INFO (activations, readiness), -v DEBUG, -q WARNING,
-    -qq ERROR; other libraries at WARNING. The `mrta` group, launch-file nodes and missions call this."""
+    -qq ERROR; other libraries at WARNING; every line through SafeFormatter. The `mrta` group,
+    launch-file nodes and missions call this."""
     level = {-2: logging.ERROR, -1: logging.WARNING, 0: logging.INFO}.get(
         max(-2, min(verbosity, 1)), logging.DEBUG)
     root = logging.getLogger()
     if not root.handlers:
         logging.basicConfig(format=LOG_FORMAT, level=logging.WARNING)
+        for handler in root.handlers:
+            handler.setFormatter(SafeFormatter(LOG_FORMAT))
     logging.getLogger("mrta").setLevel(level)

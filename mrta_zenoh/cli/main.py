@@ -20,8 +20,8 @@ from typing import Any, Callable, Sequence
 import click
 
 from ..errors import Interrupted, MrtaError
-from ..lifecycle import die_with_parent
-from .common import setup_logging
+from ..lifecycle import die_with_parent, forget_signals, interrupted_by_user
+from .common import VERBOSITY_KEY, setup_logging
 
 
 def report(exc: BaseException) -> int:
@@ -50,25 +50,35 @@ def run(command: click.Command, args: Sequence[str] | None = None,
     click's standalone mode would exit 1 with a traceback on our errors; here they are reported
     by `report`. A command may return an int: its exit code (click's `ctx.exit(n)` too)."""
     die_with_parent()
+    forget_signals()
     try:
         rv = command.main(args=list(args) if args is not None else None, prog_name=prog_name,
                           standalone_mode=False, **extra)
     except (MrtaError, click.ClickException, click.Abort) as exc:
         return report(exc)
-    return rv if type(rv) is int else 0
+    return _exit_code(rv)
+
+
+def _exit_code(rv: Any) -> int:
+    """A command's return value as an exit code; a run that a SIGINT (Ctrl-C) ended — however
+    cleanly it then shut down — exits 130, as Unix tools do, so a script or a parent can tell
+    an interrupted run from a finished one (lifecycle.interrupted_by_user)."""
+    code = rv if type(rv) is int else 0
+    return Interrupted.exit_code if code == 0 and interrupted_by_user() else code
 
 
 def run_callable(target: Callable[[list[str]], Any], args: list[str]) -> int:
     """An executable registered as a plain function of argv (not a click command): the same
     reporting of our errors."""
     die_with_parent()
+    forget_signals()
     try:
         rv = target(args)
     except MrtaError as exc:
         return report(exc)
     except KeyboardInterrupt:
         return report(Interrupted())
-    return rv if type(rv) is int else 0
+    return _exit_code(rv)
 
 
 class EntryPointGroup(click.Group):
@@ -89,6 +99,15 @@ class EntryPointGroup(click.Group):
         ep = self._entry_points().get(name)
         return ep.load() if ep is not None else None
 
+    def resolve_command(self, ctx: click.Context, args: list[str]) -> tuple:
+        """click's, with "Did you mean 'demo'?" for a mistyped command: click suggests from the
+        commands it holds, and ours are entry points it does not hold."""
+        try:
+            return super().resolve_command(ctx, args)
+        except click.exceptions.NoSuchCommand as exc:
+            raise click.exceptions.NoSuchCommand(
+                exc.command_name, possibilities=self.list_commands(ctx), ctx=ctx) from None
+
 
 class RootGroup(EntryPointGroup):
     """`mrta` itself: in standalone mode (a console script, `python -m`, CliRunner) it exits
@@ -103,10 +122,13 @@ class RootGroup(EntryPointGroup):
 
 @click.group(cls=RootGroup, context_settings={"help_option_names": ["-h", "--help"]})
 @click.option("-v", "--verbose", count=True, help="More log output (-v debug).")
-@click.option("-q", "--quiet", count=True, help="Less log output (-q warnings only, -qq errors).")
+@click.option("-q", "--quiet", count=True,
+              help="Quieter: -q no progress output and warnings only, -qq errors only.")
 @click.version_option(package_name="mrta-zenoh")
-def cli(verbose: int, quiet: int) -> None:
+@click.pass_context
+def cli(ctx: click.Context, verbose: int, quiet: int) -> None:
     """Multi-robot task allocation on Zenoh: agents, simulator, supervisor and config tools."""
+    ctx.meta[VERBOSITY_KEY] = verbose - quiet
     setup_logging(verbose - quiet)
 
 

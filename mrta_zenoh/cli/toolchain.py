@@ -9,8 +9,8 @@ from typing import Callable, TypeVar
 
 import click
 
-from ..errors import ConfigError, MrtaRuntimeError
-from ..lifecycle import stop_on_signals
+from ..errors import ConfigError, Interrupted, MrtaRuntimeError
+from ..lifecycle import interrupted_by_user, stop_on_signals
 from ..toolchain.generator import build_application, load_answers, write_package
 from ..toolchain.launchfile import LaunchEvaluator, check_executables
 from ..toolchain.model import Application, Architecture, Array, Param, Params
@@ -231,8 +231,10 @@ def _split_launch_args(items: tuple[str, ...]) -> dict[str, str]:
 def launch(target: str, rest: tuple[str, ...], dry_run: bool) -> None:
     """Run a launch file: `mrta launch PACKAGE FILE.launch [name:=value …]` or a path.
 
-    Every node starts as a child process with its output prefixed by the node's name; all stop on
-    Ctrl-C, or when one of them fails.
+    Every node starts as a child process with its output prefixed by the node's name. As in
+    roslaunch, a node that ends is reported at once (exit code, or the signal that killed it);
+    a required="true" node that ends stops them all, as does Ctrl-C. Exit 1 if a node failed,
+    130 on Ctrl-C.
     """
     reg = Registry()
     path = Path(target)
@@ -256,9 +258,13 @@ def launch(target: str, rest: tuple[str, ...], dry_run: bool) -> None:
             click.echo(f"[{n.name}] {env}{shlex.join(command_for(n))}")
         return
     with stop_on_signals() as stop:
-        code = run_nodes(nodes, stop, echo=lambda line: click.echo(line))
-    if code:
-        raise MrtaRuntimeError("a node failed; the others were stopped")
+        result = run_nodes(nodes, stop, echo=lambda line: click.echo(line),
+                           notify=lambda line: click.echo(line, err=True))
+    if result.interrupted and interrupted_by_user():  # Ctrl-C: 130; SIGTERM: a clean stop
+        raise Interrupted()
+    if result.failed:
+        raise MrtaRuntimeError(f"{plural(len(result.failed), 'node')} failed: "
+                               + "; ".join(result.failed))
 
 
 

@@ -28,6 +28,10 @@ KEEP_LAST, KEEP_ALL = 1, 2
 _TYPE = re.compile(r"^([A-Za-z][A-Za-z0-9_]*)/(msg|srv)/([A-Za-z][A-Za-z0-9_]*)$")
 _DDS = re.compile(r"^([A-Za-z][A-Za-z0-9_]*)::(msg|srv)::dds_::([A-Za-z][A-Za-z0-9_]*)_$")
 _NAME = re.compile(r"^(/[A-Za-z_][A-Za-z0-9_]*)*/?$")
+_NODE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
+# A token longer than this is refused before it is split: rmw_zenoh's are a few hundred
+# characters; the cap keeps one forged key from costing more than a bounded amount of work.
+MAX_TOKEN_LENGTH = 2048
 
 
 class Ros2NameError(ConfigError):
@@ -156,7 +160,15 @@ def endpoint_token(domain: int, zid: str, nid: int, eid: int, kind: str, namespa
 
 
 def parse_token(key: str) -> Entity:
-    """A liveliness key as an Entity; Ros2NameError naming what is wrong otherwise."""
+    """A liveliness key as an Entity; Ros2NameError naming what is wrong otherwise.
+
+    Everything a tool later shows or resolves is checked here, once: the namespace, the node's
+    name and the topic must be ROS names, the type a ROS type. A token is forged as easily as
+    it is declared (any peer may declare `@ros2_lv/…`), so a name that passed here must never
+    raise later — `Entity.node_name` on a namespace `/a-b` made `mrta supervise` exit 2."""
+    if len(key) > MAX_TOKEN_LENGTH:
+        raise Ros2NameError(f"a liveliness token of {len(key)} characters (at most "
+                            f"{MAX_TOKEN_LENGTH}): {key[:120]!r}")
     parts = key.split("/")
     if len(parts) < 9 or parts[0] != ADMIN_SPACE:
         raise Ros2NameError(f"not a ROS 2 liveliness token: {key[:120]!r}")
@@ -168,9 +180,14 @@ def parse_token(key: str) -> Entity:
     except ValueError:
         raise Ros2NameError(f"domain {parts[1]!r} is not a number in {key[:120]!r}") from None
     ns = demangle(parts[7])
+    ns = ns if ns.startswith("/") else "/" + ns
+    node = demangle(parts[8])
+    if not _NAME.match(ns):
+        raise Ros2NameError(f"namespace {ns!r} is not a ROS name in {key[:120]!r}")
+    if not _NODE.match(node):
+        raise Ros2NameError(f"node name {node!r} is not a ROS name in {key[:120]!r}")
     common = dict(domain=domain, zid=parts[2], nid=parts[3], eid=parts[4], kind=kind,
-                  enclave=demangle(parts[6]), namespace=ns if ns.startswith("/") else "/" + ns,
-                  node=demangle(parts[8]))
+                  enclave=demangle(parts[6]), namespace=ns, node=node)
     if kind == "NN":
         if len(parts) != 9:
             raise Ros2NameError(f"a node token has 9 chunks, this has {len(parts)}: {key[:120]!r}")
@@ -178,5 +195,8 @@ def parse_token(key: str) -> Entity:
     if len(parts) != 13:
         raise Ros2NameError(f"an endpoint token has 13 chunks, this has {len(parts)}: {key[:120]!r}")
     topic = demangle(parts[9])
-    return Entity(**common, topic=topic if topic.startswith("/") else "/" + topic,
+    topic = topic if topic.startswith("/") else "/" + topic
+    if not _NAME.match(topic) or topic.endswith("/"):
+        raise Ros2NameError(f"topic {topic!r} is not a ROS name in {key[:120]!r}")
+    return Entity(**common, topic=topic,
                   type=ros_type(parts[10]), type_hash=parts[11], qos=Qos.decode(parts[12]))

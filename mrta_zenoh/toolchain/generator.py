@@ -13,6 +13,7 @@ from pathlib import Path
 import yaml
 from lxml import etree
 
+from ..architectures import TEAM_ENV
 from ..errors import ConfigError
 from ..files import write_folder
 from ..keys import KeyExprError, is_id, normalize_robot_id
@@ -158,7 +159,7 @@ def build_application(arch_pkg: Package, arch: Architecture, a: Answers,
                                          _subst(arg.default, rid, a.package)) for arg in inc.args])
                 for inc in template.includes])
             launches.append(la)
-            files[f"launch/{la.id}.launch"] = _launch_xml(la)
+            files[f"launch/{la.id}.launch"] = _launch_xml(la, list(a.robots))
         files[f"launch/{a.package}.launch"] = _launch_all(a.package, launches)
     app = Application(arch_pkg.name, a.name, [RobotEntry(r, list(t)) for r, t in a.robots.items()],
                       configs, launches)
@@ -185,8 +186,10 @@ def _yaml(cfg: Config, a: Answers, arch: Architecture) -> bytes:
     return (head + yaml.safe_dump(to_data(cfg), sort_keys=False, allow_unicode=True)).encode()
 
 
-def _launch_xml(la: Launch) -> bytes:
+def _launch_xml(la: Launch, team: list[str]) -> bytes:
     root = etree.Element("launch")
+    root.append(etree.Comment(" the application's robots: the only teammates its agents count "))
+    etree.SubElement(root, "env", name=TEAM_ENV, value=",".join(team))
     for inc in la.includes:
         ie = etree.SubElement(root, "include", file=inc.file)
         for arg in inc.args:

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from ..keys import validate_key_expr
+
 PARAM_TYPES = ("bool", "int", "double", "string")
 ROBOT_TYPES = ("ST", "MT")       # single-task / multi-task robots
 TASK_TYPES = ("SR", "MR")        # single-robot / multi-robot tasks
@@ -83,6 +85,18 @@ class Topic:
     queue_size: int = 10
     timeout: float = 1.0
     line: int | None = field(default=None, compare=False, repr=False)
+
+    @property
+    def key_expr(self) -> str:
+        """The Zenoh key expression the monitor subscribes to; KeyExprError if `name` is none.
+
+        A ROS-style absolute name (`/robot1/alliance/…`, as the original files write topics)
+        is matched under any prefix (`**/robot1/alliance/…`). One definition for the file
+        reader (so `mrta arch validate` refuses what the supervisor would) and the supervisor."""
+        name = self.name.strip()
+        if name.startswith("/"):
+            return "**/" + validate_key_expr(name.strip("/"))
+        return validate_key_expr(name)
 
 
 @dataclass

@@ -2,7 +2,11 @@
 
 Strict: every element must be one the format allows where it stands; anything else is a
 ConfigError naming file, line (lxml `sourceline`) and element, saying what was expected and
-suggesting the nearest allowed tag. Indexed tags (`param_0`, `params_5`, `array_1`, `robot_2`)
+suggesting the nearest allowed tag. Values are checked here with the very functions the runtime
+uses (a monitor's key expression `Topic.key_expr`, its field path `FieldPath.parse`, robot ids
+`keys.normalize_robot_id`, task ids `keys.task_chunk`, timeouts and queue sizes against
+mrta_zenoh.limits), so what `mrta arch validate` / `mrta app validate` pass, the supervisor and
+the mission runner accept, and what they would refuse is refused at load with its line. Indexed tags (`param_0`, `params_5`, `array_1`, `robot_2`)
 are read in document order and written back with their position as index.
 """
 
@@ -15,6 +19,9 @@ from pathlib import Path
 from lxml import etree
 
 from ..errors import ConfigError
+from ..fieldpath import FieldPath
+from ..keys import normalize_robot_id, task_chunk
+from ..limits import DURATION, QUEUE_SIZE
 from ..yamlfile import did_you_mean
 from .model import (
     ALLOCATION_TYPES, PARAM_TYPES, ROBOT_TYPES, TASK_TYPES, Application, Architecture, Array,
@@ -85,22 +92,33 @@ class _Reader:
         to = self.text(t, "timeout", required=False)
         try:
             queue_size = int(q) if q else 10
-            if queue_size < 1:
-                raise ValueError
         except ValueError:
             raise self.error(self.one(t, "queue_size"),
-                             f"<queue_size> must be a positive integer, got {q!r}") from None
+                             f"<queue_size> must be an integer {QUEUE_SIZE.text()}, "
+                             f"got {q!r:.40}") from None
+        if QUEUE_SIZE.problem(queue_size):
+            raise self.error(self.one(t, "queue_size"),
+                             f"<queue_size> {QUEUE_SIZE.problem(queue_size)}")
         try:
             timeout = float(to) if to else 1.0
-            if not (timeout > 0 and math.isfinite(timeout)):
-                raise ValueError
         except ValueError:
-            raise self.error(self.one(t, "timeout"),
-                             f"<timeout> must be a positive number of seconds, got {to!r}") from None
+            raise self.error(self.one(t, "timeout"), f"<timeout> must be a number of seconds "
+                             f"{DURATION.text()}, got {to!r:.40}") from None
+        if DURATION.problem(timeout):  # 1e308 s: a `supervise --once` that never returned
+            raise self.error(self.one(t, "timeout"), f"<timeout> {DURATION.problem(timeout)}")
         name, type_, fld = self.text(t, "name"), self.text(t, "type"), self.text(t, "field")
         if not name or not type_:
             raise self.error(t, "<topic> needs a non-empty <name> and <type>")
-        return Topic(name, type_, fld or "", queue_size, timeout, line=t.sourceline)
+        topic = Topic(name, type_, fld or "", queue_size, timeout, line=t.sourceline)
+        try:
+            topic.key_expr  # noqa: B018 - checked as the supervisor will subscribe to it
+        except ConfigError as exc:
+            raise self.error(self.one(t, "name"), str(exc)) from None
+        try:
+            FieldPath.parse(topic.field)
+        except ConfigError as exc:
+            raise self.error(self.one(t, "field"), str(exc)) from None
+        return topic
 
     def param_node(self, el) -> Node:
         base = _INDEXED.match(el.tag).group(1)
@@ -275,17 +293,34 @@ def _architecture(r: _Reader, el, configs, launches, widgets, path) -> Architect
 def _application(r: _Reader, el, configs, launches, path) -> Application:
     r.children(el, ("architecture", "name", "robots"))
     robots = []
+    first_line: dict[str, int] = {}
     robots_el = r.one(el, "robots", False)
     if robots_el is not None:
         for rb in r.children(robots_el, (), ("robot",)):
             r.children(rb, ("id", "tasks"))
-            tasks = []
+            tasks: list[str] = []
             t_el = r.one(rb, "tasks", False)
             if t_el is not None:
                 for t in r.children(t_el, (), ("task",)):
                     r.children(t, ("id",))
-                    tasks.append(r.text(t, "id"))
-            robots.append(RobotEntry(r.text(rb, "id"), tasks))
+                    task = r.text(t, "id")
+                    try:
+                        task_chunk(task)
+                    except ConfigError as exc:
+                        raise r.error(r.one(t, "id"), str(exc)) from None
+                    if task in tasks:
+                        raise r.error(t, f"task {task!r} is listed twice for this robot")
+                    tasks.append(task)
+            raw = r.text(rb, "id")
+            try:
+                rid = normalize_robot_id(raw)  # `/robot1` is robot1, as the supervisor reads it
+            except ConfigError as exc:
+                raise r.error(r.one(rb, "id"), str(exc)) from None
+            if rid in first_line:  # one process, one token, one row per robot id
+                raise r.error(rb, f"robot {rid!r} appears twice (first on line "
+                                  f"{first_line[rid]})")
+            first_line[rid] = rb.sourceline
+            robots.append(RobotEntry(raw, tasks))
     return Application(r.text(el, "architecture"), r.text(el, "name"), robots, configs, launches,
                        source=str(path))
 

@@ -9,6 +9,17 @@ Timing follows the recording's log times (mrta_zenoh.recording): a wall-time rec
 record`) replays at the pace it was recorded; a simulated-time one (the mission runner's, `mrta
 view --sim-time`) at the simulated pace — a 60 s mission recorded at `--speed 0` in 2 s replays
 in 60 s at `--speed 1`, in 6 s at `--speed 10` — its simulator restarts 1 s apart.
+
+A recording is input like any other, and may be crafted (issue #23: a topic `a//b`, a
+liveliness payload `[1]`, log times 0 and 2⁶⁴−1 made tracebacks or a 31-year wait). So the
+plan (`plan_replay`) is made before any session opens, and:
+
+* a record whose topic is not a concrete key Zenoh accepts (an empty chunk, a wildcard, a
+  character keys may not hold), or a liveliness record whose payload is not `{"alive": bool}`,
+  is skipped and counted, with one warning naming how many and the first of them;
+* a silence between two records longer than `max_gap` seconds (default MAX_GAP, a minute of
+  the recording's time) is shortened to `max_gap`, and the replay says how many it shortened:
+  nothing a recorder writes has such gaps but a run left idle, which plays the same shortened.
 """
 
 from __future__ import annotations
@@ -17,60 +28,168 @@ import json
 import logging
 import threading
 import time
+from collections import Counter
+from dataclasses import dataclass, field
 from pathlib import Path
 
-from ..bus import BusOptions, open_bus
+from ..bus import Bus, BusOptions, open_bus
 from ..errors import ConfigError
 from ..keys import CLOCK, LIVELINESS_PREFIX, matches, validate_key_expr
 from ..lifecycle import stop_on_signals
-from ..recording import read_recording
+from ..limits import RUN_DURATION
+from ..recording import Record, read_recording
+from .record import wait_for_stop
 
 log = logging.getLogger("mrta.replay")
 
+MAX_GAP = 60.0  # seconds of the recording: the longest silence replayed as it was
+NS = 1_000_000_000
+
+
+@dataclass(frozen=True)
+class Step:
+    """One thing to do `at` seconds (recording time, gaps shortened) after the first record:
+    publish a sample, or declare (`alive` True) / undeclare a token."""
+
+    at: float
+    key: str
+    encoding: str = ""
+    payload: bytes = b""
+    alive: bool | None = None  # None: a sample; True/False: a token up / down
+
+
+@dataclass
+class Plan:
+    steps: list[Step] = field(default_factory=list)
+    skipped: Counter = field(default_factory=Counter)  # reason → records skipped
+    first_skipped: dict[str, str] = field(default_factory=dict)  # reason → the first topic
+    shortened: int = 0  # gaps longer than max_gap
+    span: float = 0.0  # seconds the plan takes at speed 1
+
+
+def concrete_key_problem(key: str) -> str | None:
+    """Why `key` cannot be published on (or held as a token) as it is, or None: it must be a
+    valid key expression (keys.validate_key_expr, as the bus checks every key) with no wildcard
+    (`*`, `**`, `$*`): a crafted `**` would reach every subscriber at once."""
+    try:
+        validate_key_expr(key)
+    except ConfigError as exc:
+        return exc.detail
+    if any(c in ("*", "**") or "$*" in c for c in key.split("/")):
+        return f"key {key!r:.80} is a wildcard expression, not a key"
+    return None
+
+
+def _alive(payload: bytes) -> bool | None:
+    """The `alive` flag of a recorded liveliness change, or None if the payload is not
+    `{"alive": true|false}`."""
+    try:
+        value = json.loads(payload)
+    except (ValueError, UnicodeDecodeError):  # JSONDecodeError is a ValueError
+        return None
+    alive = value.get("alive") if isinstance(value, dict) else None
+    return alive if isinstance(alive, bool) else None
+
+
+def plan_replay(records: list[Record], key_expr: str = "**", clock: bool = False,
+                max_gap: float = MAX_GAP) -> Plan:
+    """What replaying `records` (in log-time order) does and when; pure, so hostile files are
+    tested without a bus or a clock."""
+    plan = Plan()
+    problems: dict[str, str | None] = {}  # memo: keys repeat
+
+    def skip(reason: str, key: str) -> None:
+        plan.skipped[reason] += 1
+        plan.first_skipped.setdefault(reason, key)
+
+    at, last_t = 0.0, None
+    for key, encoding, t, payload in records:
+        if last_t is not None:
+            gap = max(0, t - last_t) / NS
+            if gap > max_gap:
+                gap = max_gap
+                plan.shortened += 1
+            at += gap
+        last_t = t
+        token = key.startswith(LIVELINESS_PREFIX)
+        target = key[len(LIVELINESS_PREFIX):] if token else key
+        if target not in problems:
+            problems[target] = concrete_key_problem(target)
+        if problems[target] is not None:
+            skip("not a concrete key", key)
+            continue
+        if not matches(key_expr, target) or (not token and key == CLOCK and not clock):
+            continue
+        if token:
+            alive = _alive(payload)
+            if alive is None:
+                skip('liveliness payload is not {"alive": true|false}', key)
+                continue
+            plan.steps.append(Step(at, target, alive=alive))
+        else:
+            plan.steps.append(Step(at, target, encoding, payload))
+    plan.span = at
+    return plan
+
+
+def execute(plan: Plan, bus: Bus, speed: float, stop: threading.Event) -> int:
+    """Carry out `plan` on `bus` at `speed` (0: as fast as possible) until done or `stop`;
+    returns how many samples went out. Tokens declared here are closed before returning."""
+    sent = 0
+    tokens = {}
+    wall0 = time.monotonic()
+    try:
+        for step in plan.steps:
+            if stop.is_set():
+                break
+            if speed > 0:
+                ahead = step.at / speed - (time.monotonic() - wall0)
+                if ahead > 0 and wait_for_stop(stop, ahead):
+                    break
+            if step.alive is None:
+                bus.publish_raw(step.key, step.encoding, step.payload)
+                sent += 1
+            elif step.alive and step.key not in tokens:
+                tokens[step.key] = bus.declare_token(step.key)
+            elif not step.alive and step.key in tokens:
+                tokens.pop(step.key).close()
+    finally:
+        for tok in tokens.values():
+            tok.close()
+    return sent
+
 
 def run_replay(*, recording: Path, bus_options: BusOptions, speed: float = 1.0,
-               key_expr: str = "**", clock: bool = False,
-               stop: threading.Event | None = None) -> int:
+               key_expr: str = "**", clock: bool = False, max_gap: float = MAX_GAP,
+               stop: threading.Event | None = None, bus: Bus | None = None) -> int:
     """Publish every recorded sample (matching `key_expr`) at its recorded pace × `speed`
-    (0: as fast as possible); returns how many samples went out."""
+    (0: as fast as possible), silences longer than `max_gap` s shortened to it; returns how
+    many samples went out. Everything is checked and planned before a session opens. `bus`:
+    an open bus to use instead of opening one (tests: the in-process bus); it is left open."""
     validate_key_expr(key_expr)
     if speed < 0:
         raise ConfigError(f"--speed must be ≥ 0, got {speed}")
+    if RUN_DURATION.problem(max_gap):
+        raise ConfigError(f"--max-gap {RUN_DURATION.problem(max_gap)}")
     records = read_recording(recording)
     if not records:
         raise ConfigError("the recording holds no bus channel", file=str(recording))
+    plan = plan_replay(records, key_expr, clock, max_gap)
+    for reason, n in plan.skipped.items():
+        log.warning("%s: skipped %d records: %s (first: %r)", recording, n, reason,
+                    plan.first_skipped[reason][:120])
+    if plan.shortened:
+        log.warning("%s: shortened %d silences longer than %g s to %g s", recording,
+                    plan.shortened, max_gap, max_gap)
     if records.log_time == "simulated":
         log.info("%s is in simulated time: replaying %.1f simulated s at %s× the simulated pace",
-                 recording, (records[-1][2] - records[0][2]) / 1e9, speed or "∞")
-    sent = 0
-    with stop_on_signals(stop) as stop, open_bus(bus_options) as bus:
-        tokens = {}
-        time.sleep(0.5)  # subscribers already running are reached (discovery)
-        t0, wall0 = records[0][2], time.monotonic()
-        try:
-            for key, encoding, t, payload in records:
-                if stop.is_set():
-                    break
-                if speed > 0:
-                    ahead = (t - t0) / 1e9 / speed - (time.monotonic() - wall0)
-                    if ahead > 0 and stop.wait(ahead):
-                        break
-                if key.startswith(LIVELINESS_PREFIX):
-                    token_key = key[len(LIVELINESS_PREFIX):]
-                    if not matches(key_expr, token_key):
-                        continue
-                    alive = json.loads(payload).get("alive")
-                    if alive and token_key not in tokens:
-                        tokens[token_key] = bus.declare_token(token_key)
-                    elif not alive and token_key in tokens:
-                        tokens.pop(token_key).close()
-                    continue
-                if (key == CLOCK and not clock) or not matches(key_expr, key):
-                    continue
-                bus.publish_raw(key, encoding, payload)
-                sent += 1
-        finally:
-            for tok in tokens.values():
-                tok.close()
+                 recording, plan.span, speed or "∞")
+    with stop_on_signals(stop) as stop:
+        if bus is not None:
+            sent = execute(plan, bus, speed, stop)
+        else:
+            with open_bus(bus_options) as own:
+                wait_for_stop(stop, 0.5)  # subscribers already running are reached (discovery)
+                sent = execute(plan, own, speed, stop)
     log.info("replayed %d samples from %s", sent, recording)
     return sent

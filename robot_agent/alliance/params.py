@@ -1,7 +1,9 @@
 """ALLIANCE parameters in the dissertation's YAML layout (the reference files load unchanged).
 
-Strict: a missing mandatory key, a non-positive rate or τ, or an unknown key in the robot or tasks
-file is a ConfigError naming file, line and key (with "did you mean"). The layers file belongs to
+Strict: a missing mandatory key, a non-positive rate or τ, a value outside its sane range
+(mrta_zenoh.limits: durations a millisecond to a day, rates 0.01–1000 Hz, θ and δ_fast in
+motivation units), or an unknown key in the robot or tasks file is a ConfigError naming file,
+line, key and range (with "did you mean"). The layers file belongs to
 the layer plugins, so it is only required to be a mapping. Legal but suspicious values are
 returned as warnings naming file and key.
 """
@@ -12,6 +14,7 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from mrta_zenoh.limits import IMPATIENCE, THRESHOLD
 from mrta_zenoh.yamlfile import YamlDoc, sized_array
 
 from ..runtime.params import (SensorParams, StrictMapping, TaskParams, load_layers_params,
@@ -77,11 +80,11 @@ def load_robot_params(path: Path | str) -> tuple[RobotParams, list[str]]:
         seen_tasks.add(task_id)
         bs = BehaviourSetParams(
             task_id=task_id,
-            expected_duration=b.get("task_expected_duration", float, positive=True),
-            threshold=m.get("threshold", float, positive=True),
-            yielding_delay=a.get("yielding_delay", float, positive=True),
-            giving_up_delay=a.get("giving_up_delay", float, positive=True),
-            fast_rate=i.get("fast_rate", float, positive=True),
+            expected_duration=b.duration("task_expected_duration"),
+            threshold=m.get("threshold", float, positive=True, within=THRESHOLD),
+            yielding_delay=a.duration("yielding_delay"),
+            giving_up_delay=a.duration("giving_up_delay"),
+            fast_rate=i.get("fast_rate", float, positive=True, within=IMPATIENCE),
             evaluator_plugin=f.get("plugin_name", str),
             evaluator_topics=ftopics,
             where=f.where("plugin_name"),
@@ -96,11 +99,11 @@ def load_robot_params(path: Path | str) -> tuple[RobotParams, list[str]]:
         name=top.get("name", str, ""),
         spin_rate=top.rate("spin_rate"),
         broadcast_rate=top.rate("broadcast_rate"),
-        timeout_duration=top.get("timeout_duration", float, positive=True),
-        buffer_horizon=top.get("buffer_horizon", float, 10.0, positive=True),
+        timeout_duration=top.duration("timeout_duration"),
+        buffer_horizon=top.duration("buffer_horizon", 10.0),
         sensors=sensors, behaviour_sets=tuple(sets),
         control_rate=top.rate("control_rate", 10.0),
-        max_expected_duration=top.get("max_expected_duration", float, 3600.0, positive=True),
+        max_expected_duration=top.duration("max_expected_duration", 3600.0),
     )
     tick = 1.0 / robot.spin_rate
     if robot.timeout_duration <= tick:

@@ -1,5 +1,6 @@
 """MURDOCH parameters, in the same YAML layout as ALLIANCE's (sized arrays, `sensors` as in the
-ALLIANCE robot file), checked as strictly: a missing key, a non-positive period, an unknown key,
+ALLIANCE robot file), checked as strictly: a missing key, a non-positive period, a value outside
+its sane range (mrta_zenoh.limits), an unknown key,
 a sensor topic the robot lacks or a task the tasks file lacks is a ConfigError naming file, line
 and key (with "did you mean"); legal but suspicious timing is a warning naming file and key.
 
@@ -15,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from mrta_zenoh.limits import COORDINATE, LEVEL, WEIGHT
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, sized_array
 from mrta_agent.runtime.params import SensorParams, StrictMapping, TaskParams, iter_tasks, load_layers_params, load_sensor_topics, open_robot_file, require_task, task_id_of
 from mrta_agent.runtime.plugins import EvaluatorSpec
@@ -89,9 +91,7 @@ def load_robot(path: Path | str) -> tuple[MurdochRobot, list[str]]:
             raise doc.error(spath + ("task_id",), f"task {task_id!r} has two skills")
         p = StrictMapping(doc, spath + ("progress",), {"plugin_name", "sensors"})
         ptopics = load_sensor_topics(doc, spath + ("progress", "sensors"), topics)
-        level = s.get("level", float)
-        if level < 0:
-            raise doc.error(spath + ("level",), f"level must be >= 0, got {level:g}")
+        level = s.get("level", float, within=LEVEL)
         skills.append(Skill(task_id, level, EvaluatorSpec(
             task_id, p.get("plugin_name", str), ptopics, p.where("plugin_name"))))
     pose_topic = top.get("pose_topic", str, None)
@@ -102,13 +102,13 @@ def load_robot(path: Path | str) -> tuple[MurdochRobot, list[str]]:
         name=top.get("name", str, ""),
         spin_rate=top.rate("spin_rate", 10.0),
         control_rate=top.rate("control_rate", 10.0),
-        bid_window=top.get("bid_window", float, positive=True),
-        renewal_period=top.get("renewal_period", float, positive=True),
-        lease_timeout=top.get("lease_timeout", float, positive=True),
-        reannounce_period=top.get("reannounce_period", float, positive=True),
-        give_up_delay=top.get("give_up_delay", float, positive=True),
-        skill_weight=u.get("skill_weight", float, 1.0) if u else 1.0,
-        distance_weight=u.get("distance_weight", float, 0.0) if u else 0.0,
+        bid_window=top.duration("bid_window"),
+        renewal_period=top.duration("renewal_period"),
+        lease_timeout=top.duration("lease_timeout"),
+        reannounce_period=top.duration("reannounce_period"),
+        give_up_delay=top.duration("give_up_delay"),
+        skill_weight=u.get("skill_weight", float, 1.0, within=WEIGHT) if u else 1.0,
+        distance_weight=u.get("distance_weight", float, 0.0, within=WEIGHT) if u else 0.0,
         pose_topic=pose_topic, sensors=sensors, skills=tuple(skills))
     tick = 1.0 / robot.spin_rate
     for key in ("bid_window", "renewal_period"):
@@ -144,7 +144,8 @@ def load_tasks(path: Path | str) -> dict[str, MurdochTask]:
         if "locations" in r.data:
             for lp, _ in sized_array(doc, tpath + ("locations",), "location"):
                 m = StrictMapping(doc, lp, {"x", "y"})
-                locations.append((m.get("x", float), m.get("y", float)))
+                locations.append((m.get("x", float, within=COORDINATE),
+                                  m.get("y", float, within=COORDINATE)))
         tasks[layers.id] = MurdochTask(layers.id, layers.name, tuple(resources),
                                        tuple(locations), layers)
     return tasks

@@ -14,9 +14,7 @@ import logging
 import threading
 from abc import abstractmethod
 from dataclasses import dataclass, field
-from typing import Any
-
-import numpy as np
+from typing import TYPE_CHECKING, Any
 
 from mrta_zenoh.architectures import Architecture
 from mrta_zenoh.bus import Bus
@@ -25,6 +23,9 @@ from mrta_zenoh.clock import Clock
 from .host import AgentOptions, host
 from .loop import Agent, Coordinator
 from .plugins import Plugins
+
+if TYPE_CHECKING:
+    import numpy as np  # annotations only: numpy loads when a plugin draws (mrta_zenoh.seeds)
 
 
 @dataclass

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 from mrta_zenoh.messages import Odometry, PointCloud
 
-from .plugins import Sensor, SensoryEvaluator
+from .plugins import AgentContext, Sensor, SensoryEvaluator
 
 
 ALIASES = {"alliance/odometry": "mrta/odometry", "alliance/point_cloud": "mrta/point_cloud",
@@ -16,6 +16,17 @@ ALIASES = {"alliance/odometry": "mrta/odometry", "alliance/point_cloud": "mrta/p
 
 class OdometrySensor(Sensor):
     message_type = Odometry
+
+
+def odometry_pose(ctx: AgentContext, now: float, topic: str = "odom"
+                  ) -> tuple[float, float, float] | None:
+    """The robot's pose (x, y, θ) from its odometry sensor `topic`, or None while that sensor
+    is missing, stale or has heard no Odometry: what a layer steering by odometry reads."""
+    s = ctx.sensors.get(topic)
+    if s is None or not s.is_up_to_date(now) or not isinstance(s.latest, Odometry):
+        return None
+    p = s.latest.pose
+    return p.x, p.y, p.theta
 
 
 class PointCloudSensor(Sensor):

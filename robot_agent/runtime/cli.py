@@ -8,16 +8,28 @@ from pathlib import Path
 
 import click
 
+from mrta_zenoh.architectures import TEAM_ENV
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.cli.common import bus_options, finite_float
+from mrta_zenoh.keys import KeyExprError, normalize_robot_id
 
 from .architecture import AgentArchitecture
 from .host import AgentOptions
 
 
+def _team(ctx: click.Context, param: click.Parameter, value: str | None) -> tuple[str, ...] | None:
+    """`robot1,robot2,…` → ids; empty or absent → None (the open team)."""
+    if value is None or not value.strip():
+        return None
+    try:
+        return tuple(normalize_robot_id(r) for r in value.split(",") if r.strip())
+    except KeyExprError as exc:
+        raise click.BadParameter(str(exc), ctx=ctx, param=param) from None
+
+
 def agent_command(arch: AgentArchitecture, help: str) -> click.Command:
     """`mrta <arch.command> ROBOT_ID --robot-params … --tasks-params … [--layers-params …]
-    [--sim-time] [--seed] [--duration] [--crash-at] [bus options]`."""
+    [--sim-time] [--seed] [--duration] [--crash-at] [--team] [bus options]`."""
     stem = arch.param_stem
 
     def command(bus_options: BusOptions, **kwargs) -> None:
@@ -40,6 +52,10 @@ def agent_command(arch: AgentArchitecture, help: str) -> click.Command:
                           "and its id."),
         click.option("--duration", type=finite_float(min=0, min_open=True),
                      help="Stop after this many seconds (of the agent's clock)."),
+        click.option("--team", metavar="ROBOT,ROBOT,…", envvar=TEAM_ENV, callback=_team,
+                     help="The only robots counted as teammates (the application's robots; "
+                          f"launch files set ${TEAM_ENV}). Others holding an agent token are "
+                          "ignored and counted. Not given or empty: anyone holding one."),
         click.option("--crash-at", type=finite_float(min=0), metavar="SECONDS",
                      help="Fault injection: SIGKILL itself when its clock reaches SECONDS "
                           "(also $MRTA_CRASH=ROBOT@SECONDS,…). Exact in lockstep: "

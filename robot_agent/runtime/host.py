@@ -10,9 +10,7 @@ import os
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Callable, Protocol
-
-import numpy as np
+from typing import TYPE_CHECKING, Callable, Protocol
 
 from mrta_zenoh.bus import Bus, BusOptions, open_bus
 from mrta_zenoh.clock import Clock, SimClock, WallClock, follow_sim_clock
@@ -23,6 +21,9 @@ from mrta_zenoh.keys import normalize_robot_id
 from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.lockstep import LockstepClock
 from mrta_zenoh.seeds import robot_rng
+
+if TYPE_CHECKING:
+    import numpy as np  # annotations only: numpy loads when a plugin draws (mrta_zenoh.seeds)
 
 log = logging.getLogger("mrta.agent")
 
@@ -46,11 +47,18 @@ class AgentOptions:
     seed: int = 0
     duration: float | None = None
     crash_at: float | None = None
+    team: tuple[str, ...] | None = None  # --team: the only robots it counts (None: any)
 
     def __post_init__(self) -> None:
         # one spelling of the id everywhere: the logic compares ids (ALLIANCE's tie-break,
         # MURDOCH's awards), so `/robot1` must be `robot1` before anything is built
         object.__setattr__(self, "robot_id", normalize_robot_id(self.robot_id))
+        if self.team is not None:
+            team = tuple(dict.fromkeys(normalize_robot_id(r) for r in self.team))
+            if self.robot_id not in team:
+                raise ConfigError(f"--team {','.join(team)}: {self.robot_id} is not on its own "
+                                  "team")
+            object.__setattr__(self, "team", team)
 
 
 def crash_time(robot_id: str, crash_at: float | None) -> float | None:
@@ -73,6 +81,7 @@ class HostedAgent(Protocol):
     crash_at: float | None
     ctx: object
 
+    def limit_team(self, team) -> None: ...
     def start(self) -> None: ...
     def declare_alive(self) -> None: ...
     def run(self, stop: threading.Event, until: float | None = None) -> None: ...
@@ -94,6 +103,7 @@ def host(make_agent: Callable[[Bus, Clock, np.random.Generator], HostedAgent],
     with stop_on_signals(stop) as stop, open_bus(options.bus_options) as bus, \
             contextlib.ExitStack() as handles:
         agent = make_agent(bus, clock, robot_rng(options.seed, robot_id))
+        agent.limit_team(options.team)  # before it listens: outsiders never join
         # on simulation time, follow the clock, and take part in lockstep when the simulator
         # runs it (the participant token goes out before the agent's own: alive means ready)
         if sim_time:

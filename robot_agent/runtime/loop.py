@@ -9,7 +9,13 @@ what every architecture needs and none should write twice:
 * the inbox: network callbacks only enqueue; the loop thread drains, so the decision logic is
   never touched by two threads;
 * the team: robots whose agent of this architecture holds its liveliness token
-  (`robotN/<namespace>/agent`); a message from anyone else is ignored and counted;
+  (`robotN/<namespace>/agent`); a message from anyone else is ignored and counted. With a
+  roster (`--team robot1,robot2,…`, set by launch files from the application's robots) only
+  the robots on it can join: a token or a message from a robot outside it is ignored and
+  counted (`ignored_outsiders`), so robots of another application — or forged ones claiming
+  every task — cannot hold the team back. Without a roster (None) anyone holding a token
+  joins: the open behaviour, right on a bus only the team uses (a secured fleet's ACL sees
+  to that), wrong on one shared with strangers;
 * sender checks: a message's key names its sender, and its header must agree;
 * publishing: every message the logic says goes out on `robotN/<namespace>/<kind>` with a header
   carrying the robot, the time and a per-key sequence number;
@@ -27,9 +33,7 @@ import os
 import signal
 import threading
 import time
-from typing import Callable, Iterable, Iterator, NamedTuple, Protocol
-
-import numpy as np
+from typing import TYPE_CHECKING, Callable, Iterable, Iterator, NamedTuple, Protocol
 
 from mrta_zenoh.architectures import Architecture
 from mrta_zenoh.bus import Bus, Sample
@@ -37,8 +41,12 @@ from mrta_zenoh.clock import EPSILON, Clock
 from mrta_zenoh.keys import first_chunk, normalize_robot_id
 from mrta_zenoh.messages import Header
 from mrta_zenoh.seeds import robot_rng
+from mrta_zenoh.untrusted import visible
 
 from .plugins import AgentContext, Layer, Plugins
+
+if TYPE_CHECKING:
+    import numpy as np  # annotations only: numpy loads when a plugin draws (mrta_zenoh.seeds)
 
 log = logging.getLogger("mrta.agent")
 
@@ -83,6 +91,7 @@ class Agent:
     and layers."""
 
     crash_at: float | None = None  # fault injection: SIGKILL itself at this time
+    roster: frozenset[str] | None = None  # the only robots that may join the team (limit_team)
 
     def __init__(self, robot_id: str, architecture: Architecture,
                  make_coordinator: Callable[[], Coordinator], bus: Bus, clock: Clock,
@@ -105,6 +114,7 @@ class Agent:
         self.ignored_own = 0
         self.ignored_mismatch = 0
         self.ignored_strangers = 0
+        self.ignored_outsiders = 0  # tokens and messages of robots off the roster
         self.refused = 0
         self._last_drop_log: dict[str, float] = {}
         self._seq: dict[str, int] = collections.defaultdict(int)
@@ -122,6 +132,12 @@ class Agent:
         self._layers_task: str | None = None
 
     # ------------------------------------------------------------ set-up (py_trees' setup)
+    def limit_team(self, team: Iterable[str] | None) -> None:
+        """Only these robots (ids, `/robot1` accepted) may join the team; None: anyone holding
+        the architecture's agent token (module docstring). Before `start`."""
+        self.roster = None if team is None else frozenset(
+            [normalize_robot_id(r) for r in team] + [self.robot_id])
+
     def start(self) -> None:
         """Plugins subscribe, then the agent listens to its teammates and their tokens."""
         self.plugins.setup(self.ctx)
@@ -139,6 +155,11 @@ class Agent:
     def _on_token(self, key: str, alive: bool) -> None:
         """A teammate's token came or went: recorded for the loop thread, which owns the team."""
         robot = first_chunk(key)
+        if self.roster is not None and robot not in self.roster:
+            if alive:
+                self._drop("ignored_outsiders", "ignoring %s: %s is not on the team (--team)",
+                           key, robot)
+            return
         with self._token_lock:
             if alive and robot not in self._alive and len(self._alive) >= MAX_TOKENS:
                 self.ignored_tokens += 1
@@ -153,8 +174,12 @@ class Agent:
             self.ignored_own += 1
             return
         if msg.header.frame_id.strip("/") != sender:
-            self._drop("ignored_mismatch", "ignoring %s on %s with frame_id %r",
+            self._drop("ignored_mismatch", "ignoring %s on %s with frame_id '%s'",
                        type(msg).__name__, sample.key, msg.header.frame_id)
+            return
+        if self.roster is not None and sender not in self.roster:
+            self._drop("ignored_outsiders", "ignoring %s from %s, which is not on the team "
+                       "(--team)", type(msg).__name__, sender)
             return
         if sender not in self._alive:  # before it takes inbox space (checked again at the tick)
             self._drop("ignored_strangers", "ignoring %s from %s, which holds no agent token",
@@ -186,14 +211,15 @@ class Agent:
     def _drop(self, counter: str, reason: str, *args) -> None:
         """Count a dropped message in `counter`; log at most one line per DROP_LOG_PERIOD wall
         seconds per counter, so a flood (a forger, a misconfigured teammate) cannot flood the
-        log."""
+        log. Names from the network are shown escaped (mrta_zenoh.untrusted)."""
         n = getattr(self, counter) + 1
         setattr(self, counter, n)
         wall = time.monotonic()
         last = self._last_drop_log.get(counter)
         if last is None or wall - last >= DROP_LOG_PERIOD:
             self._last_drop_log[counter] = wall
-            self.log.warning("%s: " + reason + " (%d so far)", self.robot_id, *args, n)
+            self.log.warning("%s: " + reason + " (%d so far)", self.robot_id,
+                             *(visible(a, 200) if isinstance(a, str) else a for a in args), n)
 
     # ------------------------------------------------------------ one decision step
     def tick_high(self, now: float) -> None:

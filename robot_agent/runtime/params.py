@@ -14,11 +14,12 @@ from typing import Any, Iterator
 
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.keys import is_id
+from mrta_zenoh.limits import DURATION, RATE, Range
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, get_path, load_yaml, sized_array
 
 
 NUMBER = (int, float)
-MIN_RATE, MAX_RATE = 0.01, 1000.0  # Hz: below, a tick a minute and a half; above, a busy loop
+MIN_RATE, MAX_RATE = RATE.low, RATE.high  # Hz: below, a tick every 100 s; above, a busy loop
 
 
 @dataclass(frozen=True)
@@ -52,7 +53,10 @@ class StrictMapping:
             k = unknown[0]
             raise doc.error(path + (k,), f"unknown key {k!r}" + did_you_mean(k, allowed))
 
-    def get(self, key: str, kind, default: Any = ..., positive: bool = False) -> Any:
+    def get(self, key: str, kind, default: Any = ..., positive: bool = False,
+            within: Range | None = None) -> Any:
+        """The value of `key` as `kind`; a number is finite, > 0 with `positive`, and inside
+        `within` (mrta_zenoh.limits): the error names file, line, key and the range."""
         if key not in self.data:
             if default is ...:
                 raise self.doc.error(self.path + (key,), f"missing mandatory key {key!r}")
@@ -66,6 +70,8 @@ class StrictMapping:
                 raise self.doc.error(self.path + (key,), f"{key} must be a finite number, got {value}")
             if positive and value <= 0:
                 raise self.doc.error(self.path + (key,), f"{key} must be > 0, got {value:g}")
+            if within is not None and within.problem(value):
+                raise self.doc.error(self.path + (key,), f"{key} {within.problem(value)}")
         elif kind is str:
             if not isinstance(value, str) or not value.strip():
                 raise self.doc.error(self.path + (key,), f"{key} must be a non-empty string, got {value!r:.40}")
@@ -73,11 +79,11 @@ class StrictMapping:
 
     def rate(self, key: str, default: Any = ...) -> float:
         """A frequency in Hz: positive, finite, and within what a process can honour."""
-        value = self.get(key, float, default, positive=True)
-        if not MIN_RATE <= value <= MAX_RATE:
-            raise self.doc.error(self.path + (key,), f"{key} must be between {MIN_RATE:g} and "
-                                 f"{MAX_RATE:g} Hz, got {value:g}")
-        return value
+        return self.get(key, float, default, positive=True, within=RATE)
+
+    def duration(self, key: str, default: Any = ...) -> float:
+        """A duration, delay or timeout in seconds: positive, finite, at most a day."""
+        return self.get(key, float, default, positive=True, within=DURATION)
 
     def where(self, key: str) -> str:
         line = self.doc.line(self.path + (key,))
@@ -91,8 +97,8 @@ def load_sensors(doc: YamlDoc) -> tuple[SensorParams, ...]:
         r = StrictMapping(doc, spath, {"plugin_name", "topic_name", "timeout_duration", "buffer_horizon"})
         sensors.append(SensorParams(
             plugin_name=r.get("plugin_name", str), topic_name=r.get("topic_name", str),
-            timeout_duration=r.get("timeout_duration", float, 5.0, positive=True),
-            buffer_horizon=r.get("buffer_horizon", float, 5.0, positive=True),
+            timeout_duration=r.duration("timeout_duration", 5.0),
+            buffer_horizon=r.duration("buffer_horizon", 5.0),
             where=r.where("plugin_name")))
     return tuple(sensors)
 

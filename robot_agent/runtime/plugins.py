@@ -34,10 +34,9 @@ import logging
 import threading
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
-from typing import Any, ClassVar, NamedTuple, Sequence
+from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple, Sequence
 
 import msgspec
-import numpy as np
 
 from mrta_zenoh import keys
 from mrta_zenoh.architectures import Architecture
@@ -48,6 +47,9 @@ from mrta_zenoh.messages import Message, Twist
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean
 
 from .params import SensorParams, TaskParams
+
+if TYPE_CHECKING:
+    import numpy as np  # annotations only: numpy loads when a plugin draws (mrta_zenoh.seeds)
 
 GROUPS = {
     "sensor": "mrta.plugins.sensors",
@@ -184,7 +186,9 @@ class SensoryEvaluator(Plugin):
 
 
 class Layer(Plugin):
-    """A task's behaviour. `params` is the typed section `params_section` (Params)."""
+    """A task's behaviour. `params` is the typed section `params_section` (Params); `task_id`
+    is the task it serves (set by the loader: a layer serving a point task — delivery — must
+    know which one, while one class serves every task)."""
 
     params_section: ClassVar[str] = ""
     Params: ClassVar[type] = NoParams
@@ -192,6 +196,7 @@ class Layer(Plugin):
     def __init__(self) -> None:
         super().__init__()
         self.params: Any = None
+        self.task_id: str | None = None
 
     def setup(self, ctx: AgentContext) -> None:
         super().setup(ctx)
@@ -285,6 +290,8 @@ class Plugins:
             task = tasks[ev.task_id]
             self.layers[ev.task_id] = [self._load("layer", name, where)()
                                        for name, where in zip(task.layers, task.where)]
+            for layer in self.layers[ev.task_id]:
+                layer.task_id = ev.task_id
         read = {name for name, _ in self.sections}
         self.unread_sections = [n for n in (self._doc.data if self._doc else {}) if n not in read]
 

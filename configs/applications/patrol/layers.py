@@ -24,7 +24,8 @@ from typing import Literal
 
 import msgspec
 
-from mrta_zenoh.messages import Finite, Odometry, PointCloud
+from mrta_zenoh.messages import Finite, PointCloud
+from mrta_agent.runtime.builtin import odometry_pose
 from mrta_agent.runtime.plugins import AgentContext, Layer
 
 from .keys import report_key
@@ -99,11 +100,7 @@ class _SonarLayer(Layer):
         return SonarView(s.latest)
 
     def pose(self, now: float) -> tuple[float, float, float] | None:
-        s = self.ctx.sensors.get("odom")
-        if s is None or not s.is_up_to_date(now) or not isinstance(s.latest, Odometry):
-            return None
-        p = s.latest.pose
-        return p.x, p.y, p.theta
+        return odometry_pose(self.ctx, now)
 
 
 def avoid(view: SonarView, speed: float, safe: float, turn: float, state: dict,

@@ -1,0 +1,37 @@
+"""`delivery/task_open`: the sensory feedback (ALLIANCE) and progress evaluator (MURDOCH) of a
+delivery task. Applicable while the robot's sensors are fresh, the task has arrived, nobody has
+completed it, the robot can serve it (capability) and the robot has completed no delivery
+(instantaneous assignment: each robot serves at most one task). A teammate's `done` makes it
+inapplicable at once: ALLIANCE drops the behaviour set, MURDOCH's holder gives the task back and
+nobody bids for it again.
+
+Sensors: a sensor that has reported and then went silent makes the task inapplicable; one that
+has not reported yet does not. Whether the first odometry sample arrives before or after a
+robot's first tick is a race at start-up; counting it would shift ALLIANCE's activations by a
+tick from run to run, and the same seed must give the same allocation. (MURDOCH bids only with
+fresh resources, its tasks file's `resources`.)"""
+
+from __future__ import annotations
+
+from mrta_zenoh.clock import EPSILON
+from mrta_agent.runtime.plugins import AgentContext, SensoryEvaluator
+
+from .board import Board
+from .instance import DeliveryParams
+
+
+class TaskOpen(SensoryEvaluator):
+    sections = {"Delivery": DeliveryParams}
+
+    def setup(self, ctx: AgentContext) -> None:
+        super().setup(ctx)
+        params = ctx.section("Delivery", DeliveryParams)
+        self.arrival = params.task(self.task_id).arrival
+        self.capable = params.capable(ctx.robot_id, self.task_id)
+        self.board = Board.of(self)
+
+    def is_applicable(self, now: float) -> bool:
+        return (self.capable and now >= self.arrival - EPSILON
+                and all(s.latest_time is None or s.is_up_to_date(now) for s in self.sensors)
+                and not self.board.is_done(self.task_id)
+                and not self.board.delivered_by(self.ctx.robot_id))

@@ -1,0 +1,231 @@
+"""Write both delivery application packages from one instance: `python -m mrta_delivery.generate_cli
+[--instance FILE] [--output DIR] [--arrivals poisson --rate R --seed S]`.
+
+The rqt_mrta files (package.xml, rqt_mrta.xml, the robots' parameter files, the tasks file, the
+per-robot launch files) come from the toolchain's own generator (`mrta app new`'s
+`build_application`), fed with answers computed from the instance; the layers file (the
+instance as its `Delivery` section) and `launch/delivery_sim.launch` (the simulator with the
+instance's starts, and the agents) are written beside them. The Python modules of
+`mrta_delivery` are not touched. tests/test_delivery_config.py checks that the shipped packages
+are exactly what this writes.
+
+How the instance becomes each architecture's parameters (docs/delivery.md):
+
+* ALLIANCE: one behaviour set per task the robot can serve, with impatience
+  fast_rate = θ / (ρ · α · cost) per tick — the robot's motivation for a task reaches θ after
+  α · cost seconds, so the cheapest (robot, task) pair activates first, its broadcast resets
+  the others' motivation for that task, and the next cheapest pair follows: greedy assignment
+  in order of cost, as L-ALLIANCE's learnt impatience would make it. expected_duration (the
+  patience φ teammates grant) is twice the cost and service, plus 10 s.
+* MURDOCH: one skill per task the robot can serve (level 1) and utility
+  1 − w · distance / speed (distance_weight = w / speed): bids are 1 − w · cost, so the
+  auctioneer's greedy award is again the lowest cost first.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from pathlib import Path
+
+import msgspec
+import yaml
+
+from mrta_zenoh.architectures import TEAM_ENV
+from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.files import write_text
+from mrta_zenoh.toolchain.generator import Answers, build_application
+from mrta_zenoh.toolchain.registry import Registry
+from mrta_zenoh.yamlfile import load_yaml
+
+from .instance import DeliveryParams
+
+HERE = Path(__file__).resolve().parent
+INSTANCE = HERE / "instance.yaml"
+THETA = 10.0          # ALLIANCE threshold
+SPIN = 10.0           # Hz, both architectures' decision rate
+ALPHA = 0.2           # s of ALLIANCE activation delay per s of travel cost
+UTILITY_WEIGHT = 0.01  # MURDOCH: utility lost per s of travel cost
+SENSORS = [{"plugin_name": "mrta/odometry", "topic_name": "odom",
+            "timeout_duration": 2.0, "buffer_horizon": 2.0}]
+EVALUATOR = "delivery/task_open"
+COMMON = dict(version="1.0.0", maintainer="mrta-zenoh maintainers",
+              email="maintainers@mrta-zenoh.dev", license="Apache-2.0")
+
+
+def load_instance(path: Path = INSTANCE) -> DeliveryParams:
+    doc = load_yaml(path)
+    params = doc.convert((), DeliveryParams)
+    params.check()
+    return params
+
+
+def with_poisson_arrivals(params: DeliveryParams, rate: float, seed: int) -> DeliveryParams:
+    """The same robots and tasks with Poisson arrivals (rate tasks/s) drawn from `seed`, in task
+    order (numpy only here: the agents read the times from the file, never draw them)."""
+    import numpy as np
+    from mrta_supervisor.allocation import poisson_arrivals
+    times = poisson_arrivals(np.random.default_rng(seed), rate, len(params.tasks))
+    tasks = {tid: msgspec.structs.replace(t, arrival=at)
+             for (tid, t), at in zip(params.tasks.items(), times)}
+    return msgspec.structs.replace(params, tasks=tasks)
+
+
+def _cost(params: DeliveryParams, rid: str, tid: str) -> float:
+    r, t = params.robot(rid), params.task(tid)
+    return math.hypot(t.position[0] - r.start[0], t.position[1] - r.start[1]) / r.speed
+
+
+def _sig(x: float) -> float:
+    return float(f"{x:.4g}")
+
+
+def _robot_tasks(params: DeliveryParams) -> dict[str, list[str]]:
+    out = {rid: [tid for tid in params.tasks if params.capable(rid, tid)]
+           for rid in params.robots}
+    idle = [rid for rid, tasks in out.items() if not tasks]
+    if idle:
+        raise ConfigError(f"robots {', '.join(idle)} can serve no task of the instance "
+                          "(an rqt_mrta robot needs at least one task)")
+    return out
+
+
+def _tasks_list(params: DeliveryParams, murdoch: bool) -> list[dict]:
+    out = []
+    for tid, t in params.tasks.items():
+        task = {"id": tid, "name": f"Delivery {tid}"}
+        if murdoch:
+            task["resources"] = [{"topic_name": "odom"}]
+            task["locations"] = [{"x": float(t.position[0]), "y": float(t.position[1])}]
+        task["layers"] = [{"plugin_name": "delivery/deliver"}]
+        out.append(task)
+    return out
+
+
+def alliance_answers(params: DeliveryParams, package: str = "delivery") -> Answers:
+    robots = _robot_tasks(params)
+    per_robot = {}
+    for k, (rid, tasks) in enumerate(robots.items()):
+        sets = []
+        for tid in tasks:
+            cost = _cost(params, rid, tid)
+            expected = round(2.0 * (cost + params.task(tid).service) + 10.0, 1)
+            sets.append({
+                "task_expected_duration": expected,
+                "motivational_behaviour": {
+                    "threshold": THETA,
+                    "acquiescence": {"yielding_delay": 3.0,
+                                     "giving_up_delay": round(3.0 * expected, 1)},
+                    "impatience": {"fast_rate": _sig(THETA / (SPIN * ALPHA * max(cost, 0.05)))},
+                    "sensory_feedback": {"plugin_name": EVALUATOR,
+                                         "sensors": [{"topic_name": "odom"}]}}})
+        per_robot[rid] = {"name": f"Robot {k + 1}", "spin_rate": SPIN, "broadcast_rate": 2.0,
+                          "timeout_duration": 2.0, "sensors": SENSORS, "behaviour_sets": sets}
+    return Answers(package=package, name="Delivery", architecture="alliance", robots=robots,
+                   configs={"alliance_params": per_robot,
+                            "tasks_alliance_params": {"tasks": _tasks_list(params, False)}},
+                   description="Point-task delivery (ST-SR-IA) with ALLIANCE: robots of "
+                               "different speeds and capabilities, an optimal baseline.",
+                   depends=["simulator", "supervisor"]
+                   + (["delivery"] if package != "delivery" else []), **COMMON)
+
+
+def murdoch_answers(params: DeliveryParams, package: str = "delivery_murdoch") -> Answers:
+    robots = _robot_tasks(params)
+    per_robot = {}
+    for k, (rid, tasks) in enumerate(robots.items()):
+        speed = params.robot(rid).speed
+        per_robot[rid] = {
+            "name": f"Robot {k + 1}", "spin_rate": SPIN, "bid_window": 0.5,
+            "renewal_period": 0.5, "lease_timeout": 2.0, "reannounce_period": 2.0,
+            "give_up_delay": 3.0, "pose_topic": "odom",
+            "utility": {"skill_weight": 1.0, "distance_weight": _sig(UTILITY_WEIGHT / speed)},
+            "sensors": SENSORS,
+            "skills": [{"level": 1.0, "progress": {"plugin_name": EVALUATOR,
+                                                   "sensors": [{"topic_name": "odom"}]}}
+                       for _ in tasks]}
+    return Answers(package=package, name="Delivery (MURDOCH)", architecture="murdoch",
+                   robots=robots,
+                   configs={"murdoch_params": per_robot,
+                            "tasks_murdoch_params": {"tasks": _tasks_list(params, True)}},
+                   description="Point-task delivery (ST-SR-IA) with MURDOCH auctions: robots "
+                               "of different speeds and capabilities, an optimal baseline.",
+                   depends=["simulator", "supervisor", "delivery"], **COMMON)
+
+
+def layers_yaml(params: DeliveryParams, stem: str) -> bytes:
+    body = msgspec.to_builtins(params)
+    for r in body["robots"].values():
+        r["start"] = list(r["start"])
+        r["capabilities"] = list(r["capabilities"])
+    for t in body["tasks"].values():
+        t["position"] = list(t["position"])
+    head = (f"# layers_{stem}_params: the delivery instance (written by `python -m "
+            "mrta_delivery.generate_cli` from instance.yaml; docs/delivery.md)\n")
+    return (head + yaml.safe_dump({"Delivery": body}, sort_keys=False, default_flow_style=None,
+                                  width=100)).encode()
+
+
+def sim_launch(params: DeliveryParams, package: str, arch_pkg: str, stem: str) -> bytes:
+    starts = " ".join(f"--robot {rid}={r.start[0]:g},{r.start[1]:g},{r.heading:g}"
+                      for rid, r in params.robots.items())
+    lines = [
+        '<?xml version="1.0"?>',
+        f"<!-- The delivery mission under {arch_pkg}: the world, the instance's robots at their",
+        "     starts, one agent each on simulation time (written by `python -m",
+        f"     mrta_delivery.generate_cli`). mrta launch {package} delivery_sim.launch -->",
+        "<launch>",
+        '  <arg name="speed" default="1"/>',
+        '  <arg name="seed" default="0"/>',
+        '  <arg name="sim_args" default="" doc="extra options for mrta sim, e.g. --duration 60"/>',
+        "  <!-- the application's robots: the only teammates its agents count (their team "
+        "option) -->",
+        f'  <env name="{TEAM_ENV}" value="{",".join(params.robots)}"/>',
+        "  <!-- the simulator is required: the launch ends when it does -->",
+        '  <node name="sim" pkg="simulator" type="sim" required="true"',
+        f'        args="--world delivery {starts} --speed $(arg speed) --seed $(arg seed) '
+        '--wait-robots 60 $(arg sim_args)"/>']
+    for rid in params.robots:
+        lines += [
+            f'  <include file="$(find {arch_pkg})/launch/{arch_pkg}.launch">',
+            f'    <arg name="robot_id" value="{rid}"/>',
+            f'    <arg name="robot_params" value="$(find {package})/config/{rid}_{stem}_params.yaml"/>',
+            f'    <arg name="tasks_params" value="$(find {package})/config/tasks_{stem}_params.yaml"/>',
+            f'    <arg name="layers_params" value="$(find {package})/config/layers_{stem}_params.yaml"/>',
+            '    <arg name="agent_args" value="--sim-time --seed $(arg seed)"/>',
+            "  </include>"]
+    lines.append("</launch>")
+    return ("\n".join(lines) + "\n").encode()
+
+
+def package_files(params: DeliveryParams, answers: Answers, registry: Registry | None = None
+                  ) -> dict[str, bytes]:
+    """Every generated file of one package (relative path → bytes)."""
+    reg = registry or Registry()
+    arch_pkg, arch = reg.architecture(answers.architecture)
+    stem = answers.architecture
+    # the architecture's layers template (ALLIANCE's carries the patrol layers' sections) is
+    # not this application's: its layers file is the instance, written below
+    arch = dataclasses.replace(arch, configs=[c for c in arch.configs
+                                              if c.id != f"layers_{stem}_params"])
+    _, files = build_application(arch_pkg, arch, answers)
+    files[f"config/layers_{stem}_params.yaml"] = layers_yaml(params, stem)
+    files["launch/delivery_sim.launch"] = sim_launch(params, answers.package, arch_pkg.name, stem)
+    return files
+
+
+def generate(params: DeliveryParams, alliance_dir: Path, murdoch_dir: Path) -> list[Path]:
+    """Write both packages' generated files. Everything is built before the first file is
+    written, so a bad instance writes nothing; each file is replaced atomically (the package
+    folders also hold this application's Python modules, so they are not replaced whole)."""
+    built = [(folder, package_files(params, answers)) for answers, folder in
+             ((alliance_answers(params, alliance_dir.name), alliance_dir),
+              (murdoch_answers(params, murdoch_dir.name), murdoch_dir))]
+    written = []
+    for folder, files in built:
+        for rel, data in sorted(files.items()):
+            path = folder / rel
+            path.parent.mkdir(parents=True, exist_ok=True)
+            write_text(path, data.decode())
+            written.append(path)
+    return written

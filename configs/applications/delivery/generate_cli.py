@@ -1,0 +1,42 @@
+"""`python -m mrta_delivery.generate_cli`: a thin click program over generate.py (the toolchain's
+error translation and exit codes, like every mrta verb)."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+import click
+
+from mrta_zenoh.cli.main import run
+
+from .generate import HERE, INSTANCE, generate, load_instance, with_poisson_arrivals
+
+
+@click.command()
+@click.option("--instance", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              default=INSTANCE, show_default=True)
+@click.option("--output", type=click.Path(file_okay=False, path_type=Path), default=HERE.parent,
+              help="Folder receiving NAME/ and NAME_murdoch/ (default: beside this package, "
+                   "i.e. regenerate the shipped ones).")
+@click.option("--name", default="delivery", show_default=True,
+              help="Package names: NAME (ALLIANCE) and NAME_murdoch; another name than "
+                   "delivery makes them depend on delivery, whose mission they run.")
+@click.option("--arrivals", type=click.Choice(["static", "poisson"]), default="static",
+              show_default=True)
+@click.option("--rate", type=float, default=0.1, show_default=True,
+              help="Poisson arrivals: tasks per second.")
+@click.option("--seed", type=int, default=0, show_default=True,
+              help="Poisson arrivals: their seed.")
+def main(instance: Path, output: Path, name: str, arrivals: str, rate: float,
+         seed: int) -> None:
+    """Write both delivery application packages from one instance."""
+    params = load_instance(instance)
+    if arrivals == "poisson":
+        params = with_poisson_arrivals(params, rate, seed)
+    written = generate(params, output / name, output / f"{name}_murdoch")
+    click.echo(f"wrote {len(written)} files under {output}")
+
+
+if __name__ == "__main__":
+    sys.exit(run(main, prog_name="python -m mrta_delivery.generate_cli"))

@@ -1,0 +1,70 @@
+"""The delivery mission as `mrta demo --application delivery` and `mrta experiment` run it:
+registered under `mrta.missions` as `delivery`. The framework's runner launches, records,
+supervises and writes the summary; this hook adds what only a delivery run can measure — the
+allocation log and the metrics against the optimal assignment (metrics.py) — from the
+recording. Both packages (delivery, delivery_murdoch) hold `launch/delivery_sim.launch` and a
+layers file whose `Delivery` section is the instance.
+
+`metrics` lands in summary.json's `metrics` (scalars: also `mrta experiment`'s columns);
+`sections` is the instance and the allocation log, for the top-level `instance` and
+`allocation` sections of summary.json (the runner merges what it returns, once it calls it).
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from mrta_agent.runtime.params import load_layers_params
+from mrta_supervisor.mission import Mission, MissionRun
+
+from .instance import DeliveryParams
+from .metrics import RunAnalysis, analyse, instance_json
+
+
+def run_instance(run: MissionRun) -> DeliveryParams:
+    doc = load_layers_params(run.layers_params)
+    if doc is None:
+        return DeliveryParams()
+    params = doc.convert(("Delivery",), DeliveryParams)
+    params.check()
+    return params
+
+
+class Delivery(Mission):
+    name = "delivery"
+    title = "Delivery mission"
+    launch = "delivery_sim.launch"
+
+    def __init__(self) -> None:
+        self._last: tuple[int, RunAnalysis] | None = None
+
+    def default_failure(self, robots: list[str], duration: float) -> str | None:
+        """None: the delivery baseline is measured without faults (ask with --fail)."""
+        return None
+
+    def analysis(self, run: MissionRun, records: list) -> RunAnalysis:
+        """Computed once per recording (metrics and sections both read it)."""
+        if self._last is not None and self._last[0] == id(records):
+            return self._last[1]
+        # what is still held at the end of the run ends there (simulated seconds)
+        result = analyse(records, run.arch, run_instance(run).instance(), run.options.duration)
+        self._last = (id(records), result)
+        return result
+
+    def metrics(self, run: MissionRun, records: list) -> dict[str, Any]:
+        return self.analysis(run, records).metrics
+
+    def sections(self, run: MissionRun, records: list) -> dict[str, Any]:
+        a = self.analysis(run, records)
+        return {"instance": instance_json(a.instance),
+                "allocation": [e.to_json() for e in a.log]}
+
+    def describe(self, metrics: dict[str, Any]) -> list[str]:
+        opt = metrics.get("optimality")
+        return [f"delivered {metrics['completed']}/{metrics['tasks']}; makespan "
+                f"{metrics['makespan'] if metrics['makespan'] is not None else '—'} s; cost "
+                f"{metrics['achieved_cost']} vs optimal {metrics['optimal_cost']} "
+                f"(optimality {opt if opt is not None else '—'})"]
+
+
+DELIVERY = Delivery()

@@ -1,0 +1,79 @@
+"""The command line's conventions checked on real processes (issue 24): Ctrl-C exits 130 (the
+agent, the demo), `mrta supervise` into a pipe writes as it goes, with times from its start
+and JSON that names its clocks."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import time
+
+import pytest
+
+from tests.helpers import PATROL
+from tests.test_mission_hygiene import children_of
+
+pytestmark = pytest.mark.multiprocess
+
+CONFIG = PATROL / "config"
+
+
+def agent_args(robot: str = "robot1") -> list:
+    return ["agent", robot, "--robot-params", CONFIG / f"{robot}_alliance_params.yaml",
+            "--tasks-params", CONFIG / "tasks_alliance_params.yaml",
+            "--layers-params", CONFIG / "layers_alliance_params.yaml"]
+
+
+def test_ctrl_c_of_an_agent_exits_130(children, tokens):
+    """It used to exit 0: a script could not tell an interrupted agent from one that ended."""
+    agent = children.mrta(*agent_args(), name="agent")
+    tokens.wait("robot1/alliance/agent", 60, agent)
+    agent.signal(signal.SIGINT)
+    assert agent.wait(20) == 130, agent.tail(10)
+
+
+def test_sigterm_of_an_agent_is_a_clean_stop(children, tokens):
+    agent = children.mrta(*agent_args(), name="agent")
+    tokens.wait("robot1/alliance/agent", 60, agent)
+    agent.signal(signal.SIGTERM)
+    assert agent.wait(20) == 0, agent.tail(10)
+
+
+@pytest.mark.timeout(150)
+def test_ctrl_c_of_the_demo_exits_130_whatever_its_children_did(children, tmp_path):
+    """A terminal's Ctrl-C reaches the demo's children too, and the simulator may end by it
+    before the demo handles its own SIGINT: that used to be "the simulator failed" (exit 1),
+    or a finished run (exit 0). It is the mission's interruption: 130."""
+    demo = children.mrta("demo", "--duration", "600", "--speed", "1", "--no-live",
+                         "--output", tmp_path / "out", name="demo")
+    demo.wait_line(lambda line: line.startswith("t="), 90)  # the mission runs
+    kids = children_of(demo.proc.pid)
+    assert len(kids) >= 5, kids  # recorder, simulator, three agents
+    for pid in kids:
+        os.kill(pid, signal.SIGINT)
+    assert demo.wait(60) == 130, demo.tail(20)
+    assert demo.stderr[-1] == "Aborted!", demo.stderr
+
+
+def test_supervise_into_a_pipe_writes_each_change_at_once_with_times_from_its_start(children):
+    """Into a pipe rich's live table wrote nothing until the end; times were epoch seconds."""
+    sup = children.mrta("supervise", "patrol", name="supervise")
+    line = sup.wait_line(lambda x: x.startswith("t="), 30)
+    t = float(line.split("s", 1)[0][2:])
+    assert 0 <= t < 60, line  # seconds since it started, not 1795480671.6
+    assert "robot1:" in line and "robot3:" in line
+    assert sup.running()
+    sup.signal(signal.SIGTERM)
+    assert sup.wait(15) == 0
+
+
+def test_supervise_json_names_its_clocks(children):
+    sup = children.mrta("supervise", "patrol", "--json", name="supervise")
+    snap = sup.wait_json(lambda s: "robots" in s, 30)
+    assert snap["sim_time"] is None and abs(snap["wall_time"] - time.time()) < 30
+    assert snap["time"] == pytest.approx(snap["wall_time"], abs=5)  # wall clock: the same
+    sup.signal(signal.SIGTERM)
+    assert sup.wait(15) == 0
+    for line in sup.stdout:
+        json.loads(line)

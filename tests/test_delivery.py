@@ -1,0 +1,154 @@
+"""The delivery application's plugins on virtual time (in-process bus, manual clock, the
+simulator stepped in-process) and its generated packages."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from mrta_agent.runtime.builtin import OdometrySensor
+from mrta_agent.runtime.params import SensorParams
+from mrta_agent.runtime.plugins import AgentContext
+from mrta_delivery.evaluators import TaskOpen
+from mrta_delivery.generate import INSTANCE, alliance_answers, load_instance, murdoch_answers, \
+    package_files
+from mrta_delivery.instance import DeliveryParams
+from mrta_delivery.keys import ALL_DONE, event_key
+from mrta_delivery.layers import Deliver
+from mrta_delivery.messages import TaskEvent
+from mrta_delivery.metrics import Entry, measure
+from mrta_simulator.engine import Simulation
+from mrta_simulator.world import Pose, load_world
+from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
+from mrta_zenoh.clock import ManualClock
+from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.messages import Header, Odometry, Pose2D, Twist
+from tests.helpers import CONFIGS
+from tests.layer_harness import LayerRun
+
+PKG = CONFIGS / "applications" / "delivery"
+PARAMS = load_instance()
+
+
+def context(robot: str, net: InProcNetwork, clock: ManualClock, odom: OdometrySensor):
+    return AgentContext(robot, InProcBus(net), clock, np.random.default_rng(0), {"odom": odom},
+                        {("Delivery", DeliveryParams): PARAMS})
+
+
+def evaluator(task: str, robot: str, net, clock):
+    odom = OdometrySensor(SensorParams("mrta/odometry", "odom", 2.0, 2.0))
+    ev = TaskOpen(task, [odom])
+    ev.setup(context(robot, net, clock, odom))
+    return ev, odom
+
+
+def done(bus, robot, task, frame=None, t=1.0):
+    bus.publish(event_key(robot, "done"), TaskEvent(Header(frame or robot, t, 1), task, "done"))
+
+
+def test_task_open_follows_arrival_capability_completion_and_sensors():
+    net, clock = InProcNetwork(), ManualClock(0.0)
+    params = load_instance()
+    params.tasks["t2"].arrival = 5.0  # an online task
+    ev, odom = evaluator("t2", "robot2", net, clock)
+    ev.ctx.sections[("Delivery", DeliveryParams)] = params
+    ev.setup(ev.ctx)
+    assert not ev.is_applicable(0.0)          # not arrived yet
+    clock.set(5.0)
+    assert ev.is_applicable(5.0)              # arrived; odometry not reported yet: no veto
+    odom.on_message(Odometry(Header("robot2", 5.0, 1), Pose2D(0, 0, 0), Twist(0, 0)), 5.0)
+    assert ev.is_applicable(6.0)
+    assert not ev.is_applicable(7.5)          # odometry reported, then went silent
+    odom.on_message(Odometry(Header("robot2", 7.5, 2), Pose2D(0, 0, 0), Twist(0, 0)), 7.5)
+    other = InProcBus(net)
+    done(other, "robot4", "t2", frame="robot3")  # on robot4's key claiming robot3: dropped
+    assert ev.is_applicable(7.5) and ev.board.rejected == 1
+    done(other, "robot4", "t2")
+    assert not ev.is_applicable(7.5)          # a teammate delivered it
+    # capabilities: robot2 has no lift, so t1 is never applicable to it
+    ev1, _ = evaluator("t1", "robot2", net, clock)
+    assert not ev1.is_applicable(1.0)
+
+
+def test_a_robot_that_delivered_serves_no_other_task():
+    net, clock = InProcNetwork(), ManualClock(1.0)
+    ev, _ = evaluator("t4", "robot1", net, clock)
+    assert ev.is_applicable(1.0)
+    done(InProcBus(net), "robot1", "t1")
+    assert not ev.is_applicable(1.0)
+
+
+def test_deliver_drives_to_its_task_serves_it_and_tells_the_team(monkeypatch):
+    import tests.layer_harness as harness
+    monkeypatch.setattr(harness, "typed_sections",
+                        lambda *classes: {("Delivery", DeliveryParams): PARAMS})
+    world = load_world(PKG / "worlds" / "delivery.yaml")
+    sim = Simulation(world, {"robot2": Pose(-5.0, -1.5, 0.0)}, seed=1)
+    run = LayerRun(sim, "robot2", Deliver, task_id="t4")
+    heard = []
+    InProcBus(run.net).subscribe("*/delivery/*", lambda s: heard.append(
+        (s.key, s.message.event, round(s.message.header.stamp, 2))), msg_type=TaskEvent)
+    run.run(20.0)
+    keys = [h[0] for h in heard]
+    assert keys == [event_key("robot2", "started"), event_key("robot2", "done")]
+    started, finished = heard[0][2], heard[1][2]
+    cost = math.hypot(5.0, 1.0) / 0.7          # the cost model: straight line / speed
+    assert cost < started < cost + 3.0         # + acceleration, the initial turn, braking
+    assert finished == pytest.approx(started + PARAMS.task("t4").service, abs=0.11)
+    x, y = sim.pose[0][0], sim.pose[0][1]
+    assert math.hypot(x - 0.0, y + 0.5) < 0.6
+    assert run.layer.board.is_done("t4")
+    run.close()
+
+
+def test_the_loader_tells_each_layer_its_task_and_a_layer_without_one_is_refused():
+    net, clock = InProcNetwork(), ManualClock(0.0)
+    odom = OdometrySensor(SensorParams("mrta/odometry", "odom", 2.0, 2.0))
+    with pytest.raises(ConfigError, match="does not know its task"):
+        Deliver().setup(context("robot1", net, clock, odom))
+    stray = Deliver()
+    stray.task_id = "t9"
+    with pytest.raises(ConfigError, match="no task 't9'"):
+        stray.setup(context("robot1", net, clock, odom))
+
+
+def test_metrics_count_the_first_assignment_and_handovers():
+    inst = PARAMS.instance()
+    log = [Entry("t1", "robot3", 1.0, 5.0), Entry("t1", "robot1", 6.0, 20.0, 15.0, 19.0),
+           Entry("t2", "robot2", 1.0, 12.0, 10.0, 13.0), Entry("t3", "robot4", 1.0, 14.0, 9.0, 14.0),
+           Entry("t4", "robot5", 1.0, 15.0, 12.0, 15.0)]
+    m = measure(inst, log, {"robot1": 3.0, "robot2": 4.0})
+    cost = inst.cost_matrix()
+    achieved = cost[2, 0] + cost[1, 1] + cost[3, 2] + cost[4, 3]  # t1's first holder: robot3
+    assert m["achieved_cost"] == pytest.approx(achieved, abs=1e-3)
+    assert m["optimality"] == pytest.approx(m["optimal_cost"] / achieved, abs=1e-4)
+    assert 0 < m["optimality"] <= 1
+    assert (m["completed"], m["handovers"], m["makespan"], m["total_distance"]) == (4, 1, 19.0, 7.0)
+    assert m["mean_waiting_time"] == pytest.approx((15 + 10 + 9 + 12) / 4)
+    partial = measure(inst, log[:2], {})
+    assert partial["optimality"] is None and partial["makespan"] is None
+
+
+@pytest.mark.parametrize("package, answers", [("delivery", alliance_answers),
+                                              ("delivery_murdoch", murdoch_answers)])
+def test_the_shipped_packages_are_what_the_generator_writes(package, answers):
+    params = load_instance(INSTANCE)
+    for rel, data in package_files(params, answers(params, package)).items():
+        assert (CONFIGS / "applications" / package / rel).read_bytes() == data, rel
+
+
+def test_the_agent_loader_gives_each_delivery_layer_its_task():
+    """One registered class (`delivery/deliver`) serves every task: the runtime's loader sets
+    `task_id` on the layers it builds for each task, as it gives evaluators theirs."""
+    from mrta_agent.alliance.architecture import ALLIANCE
+    from mrta_agent.runtime.host import AgentOptions
+    config = PKG / "config"
+    prepared = ALLIANCE.prepare(AgentOptions("robot1", config / "robot1_alliance_params.yaml",
+                                             config / "tasks_alliance_params.yaml",
+                                             config / "layers_alliance_params.yaml"))
+    layers = prepared.plugins.layers
+    assert layers and all(type(layer) is Deliver and layer.task_id == task
+                          for task, ls in layers.items() for layer in ls)
+    assert sorted(layers) == ["t1", "t2", "t4"]  # robot1 lacks t3's capability

@@ -1,0 +1,111 @@
+"""The delivery mission end to end under both architectures: `mrta demo --application delivery
+[--architecture murdoch]` in lockstep, every task delivered, optimality in (0, 1] and equal to
+what the recorded allocation gives, and the same seed giving the same allocation.
+
+The `delivery` mission is registered for these tests by a dist-info on PYTHONPATH (as a third
+party's package would be): registering it in pyproject.toml waits for `mrta demo` to choose a
+default among several missions (see docs/delivery.md)."""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import pytest
+
+pytestmark = [pytest.mark.multiprocess, pytest.mark.slow]
+
+DURATION = "40"  # simulated s: the default instance's makespan is ≈ 26 s (ALLIANCE), 23 s (MURDOCH)
+
+
+@pytest.fixture
+def mission_path(tmp_path) -> str:
+    """A dist-info registering the delivery mission under `mrta.missions`, only if the project
+    does not register it already."""
+    from importlib.metadata import entry_points
+    if any(ep.name == "delivery" for ep in entry_points(group="mrta.missions")):
+        return ""
+    site = tmp_path / "site"
+    dist = site / "mrta_delivery_mission-0.1.dist-info"
+    dist.mkdir(parents=True)
+    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: mrta-delivery-mission\n"
+                                   "Version: 0.1\n")
+    (dist / "entry_points.txt").write_text(
+        "[mrta.missions]\ndelivery = mrta_delivery.mission:DELIVERY\n")
+    return str(site)
+
+
+def run_demo(children, mission_path: str, out: Path, *args: str) -> dict:
+    children.env["PYTHONPATH"] = os.pathsep.join(
+        filter(None, [mission_path, os.environ.get("PYTHONPATH")]))
+    demo = children.mrta("-q", "demo", "--application", "delivery", "--duration", DURATION,
+                         "--speed", "0", "--no-live", "--output", str(out), *args, name="demo")
+    assert demo.wait(150) == 0, demo.tail(30)
+    return json.loads((out / "summary.json").read_text())
+
+
+def recorded_analysis(summary: dict, out: Path):
+    """The allocation and metrics recomputed here from the recording and the package's
+    instance (the hook's own functions, but from the files the run left)."""
+    from mrta_agent.runtime.params import load_layers_params
+    from mrta_delivery.instance import DeliveryParams
+    from mrta_delivery.metrics import analyse
+    from mrta_zenoh.architectures import architecture
+    from mrta_zenoh.recording import read_recording
+    from mrta_zenoh.toolchain.registry import Registry
+    arch = architecture(summary["architecture"])
+    layers = (Registry().find(summary["application"]).path / "config"
+              / f"layers_{arch.param_stem}_params.yaml")
+    instance = load_layers_params(layers).convert(("Delivery",), DeliveryParams).instance()
+    return analyse(read_recording(out / "run.mcap"), arch, instance, summary["duration"])
+
+
+@pytest.mark.timeout(420)
+@pytest.mark.parametrize("architecture", ["alliance", "murdoch"])
+def test_every_task_is_delivered_and_optimality_comes_from_the_recorded_allocation(
+        children, tmp_path, mission_path, architecture):
+    out = tmp_path / "a"
+    s = run_demo(children, mission_path, out, "--architecture", architecture)
+    assert (s["mission"], s["architecture"]) == ("delivery", architecture)
+    m = s["metrics"]
+    print(architecture, json.dumps(m))
+    assert m["completed"] == m["tasks"] == 4
+    assert 0 < m["optimality"] <= 1
+    again = recorded_analysis(s, out)
+    first = {}
+    for e in again.log:
+        first.setdefault(e.task, e)
+        assert e.assigned_at <= e.started_at <= e.done_at
+    assert set(first) == {"t1", "t2", "t3", "t4"}
+    cost = again.instance.cost_matrix()
+    rows = {r.id: i for i, r in enumerate(again.instance.robots)}
+    cols = {t.id: j for j, t in enumerate(again.instance.tasks)}
+    achieved = sum(cost[rows[e.robot], cols[t]] for t, e in first.items())
+    assert m["achieved_cost"] == pytest.approx(achieved, abs=1e-3)
+    assert m["optimality"] == pytest.approx(m["optimal_cost"] / achieved, abs=1e-4)
+    assert again.metrics == m
+    # robots serve only what they can (capabilities): t1 needs lift, t3 cold
+    assert first["t1"].robot in ("robot1", "robot3") and first["t3"].robot in ("robot3", "robot4")
+    if "allocation" in s:  # once the runner merges the hook's sections (docs/delivery.md)
+        assert s["allocation"] == [e.to_json() for e in again.log]
+        assert len(s["instance"]["cost"]) == 5
+
+
+@pytest.mark.timeout(420)
+def test_the_same_seed_gives_the_same_allocation(children, tmp_path, mission_path):
+    a = run_demo(children, mission_path, tmp_path / "a", "--seed", "3")
+    b = run_demo(children, mission_path, tmp_path / "b", "--seed", "3")
+    la = recorded_analysis(a, tmp_path / "a").log
+    lb = recorded_analysis(b, tmp_path / "b").log
+    assert [(e.task, e.robot) for e in la] == [(e.task, e.robot) for e in lb]
+    assert len(la) >= 4
+    # Times agree within one agent tick (0.1 s), not exactly: an agent's first tick falls at
+    # t = 0 or t = 0.1 depending on a start-up race in the agent runtime (measured: robot1's
+    # first Motivation stamped 0.0 in one run, 0.1 in the other), which shifts its ALLIANCE
+    # activations by a tick. Exact equality is for when that race is gone.
+    for x, y in zip(la, lb):
+        for f in ("assigned_at", "started_at", "done_at"):
+            assert abs(getattr(x, f) - getattr(y, f)) <= 0.1 + 1e-6, (x, y)
+    for k in ("completed", "achieved_cost", "optimal_cost", "optimality"):
+        assert a["metrics"][k] == b["metrics"][k]
