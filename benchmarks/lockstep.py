@@ -56,7 +56,8 @@ def patrol(env: dict, lockstep: bool, seconds: float = 300.0) -> float:
 
 
 def child_participants(first: int, count: int) -> None:
-    """Fake participants: answer every step at once, asking to be woken at the next one."""
+    """Fake participants: answer every step at once, asking to be woken at the next one (for
+    the step's run: the barrier drops an answer for another run)."""
     from mrta_zenoh.bus import BusOptions, open_bus
     from mrta_zenoh.lifecycle import stop_on_signals
     from mrta_zenoh.lockstep import DONE, PARTICIPANT, STEP, Step, StepDone
@@ -67,7 +68,8 @@ def child_participants(first: int, count: int) -> None:
         def on_step(sample):
             s = sample.message
             for n in names:
-                bus.publish(f"{DONE}/{n}", StepDone(n, s.stamp, {}, s.stamp + 0.015))
+                bus.publish(f"{DONE}/{n}", StepDone(n, s.stamp, {}, s.stamp + 0.015,
+                                                           s.run))
 
         bus.subscribe(STEP, on_step, msg_type=Step)
         tokens = [bus.declare_token(f"{PARTICIPANT}/{n}") for n in names]

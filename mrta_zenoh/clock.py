@@ -8,12 +8,21 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import math
+import os
 import threading
 import time
 from typing import Protocol
 
 log = logging.getLogger("mrta.clock")
 EPSILON = 1e-9  # simulated times this close are the same instant (sums of 0.02 s steps drift)
+# The creep bound (SimClock): simulated seconds per wall second a run may advance, at most its
+# announced speed × RATE_MARGIN (a simulator that fell behind its schedule catches up in bursts),
+# and CEILING for a run at speed 0 ("as fast as possible") or one that announces no speed. The
+# simulator never runs faster than CEILING (simulator/node.py), so no follower lags behind it.
+RATE_MARGIN = 1.5
+CEILING = 1000.0
+MAX_RIVALS = 64  # a flood of forged source tokens costs a bounded amount of memory
 
 
 class Clock(Protocol):
@@ -71,16 +80,29 @@ class SimClock(ManualClock):
     Before the first clock sample arrives, now() is 0 and `started` is unset; sleepers wait for the
     simulator (a paused simulator pauses every agent, which is what simulation time means).
 
-    Which samples move time (docs/architecture.md, "the clock"):
-      * the first source heard is adopted; samples carry the publishing run's `source` id;
-      * from the adopted source, time moves forward by at most `max_jump` simulated seconds per
-        sample (a simulator publishes every 20 ms step); a late duplicate is ignored, a larger
-        jump (a forged 1e9) is rejected and counted;
-      * a sample from another source is adopted as a new run (a restarted simulator) — with a
-        log line, time restarting from its stamp — once the adopted source has been silent for
-        `silence` wall seconds or its liveliness token is gone; before that it is rejected and
-        counted (a second simulator, or a forgery);
-      * non-finite stamps never get here: the Clock message rejects them when decoding.
+    Which samples move time (docs/architecture.md, "the clock"; docs/security.md for the threat
+    model). Exact checks (hold against anybody who cannot declare tokens, i.e. on a secured fleet,
+    and against blind forgers on an open one):
+      * once the clock follows the sources' liveliness (`follow_sim_clock`), a run that holds
+        `@mrta/clock_source/<run>` is preferred to any run that does not: a sample naming a run
+        without a live token moves time only while no run holds one (ROS-style publishers and
+        `mrta replay --clock` declare none);
+      * the adopted run keeps the clock while its token lives and it speaks; another run with a
+        token is a second claimant: its samples are rejected and counted, and it is reported once
+        (`rivals`, a log line) — one source per run;
+      * non-finite stamps never get here: the Clock message rejects them when decoding;
+      * a late duplicate (a stamp behind now) is ignored.
+    Heuristic (an attacker on an open bus who copies the run id and declares its token):
+      * creep is bounded by wall time: a run that announces its speed in its id (`run_id`, as
+        the simulator's do) moves time at most `rate` simulated seconds per wall second (its
+        speed × RATE_MARGIN, `CEILING` at speed 0 — the simulator never runs faster), plus a
+        burst of `max_jump` seconds; a sample beyond that budget is rejected and counted. After
+        a long wall gap (this process was stopped) the budget is what the gap allows, so a
+        resumed follower catches up at once. A run that announces no speed, or (when tokens are
+        followed) holds no token — a replay keeps the recorded run ids at its own speed —
+        moves time by at most `max_jump` per sample.
+    A new run is adopted (a restarted simulator) — with a log line, time restarting from its
+    stamp — once the adopted run has been silent for `silence` wall seconds or its token is gone.
     `stalled(wall_seconds)` tells a follower that time stopped (the simulator died or hangs).
     """
 
@@ -92,34 +114,42 @@ class SimClock(ManualClock):
         self.source: str | None = None
         self.rejected = 0
         self.restarts = 0
+        self.rivals: set[str] = set()
         self._wall = wall
         self._last_wall = wall()
         self._source_alive = True
+        self._tracking = False          # follow_sim_clock reports the sources' tokens
+        self._live: set[str] = set()    # runs whose @mrta/clock_source/<run> token lives
+        self._rate: float | None = None
+        self._budget = max_jump
+        self._budget_wall = self._last_wall
 
     def on_clock(self, stamp: float, source: str = "") -> bool:
         """Offer a clock sample; True if it moved (or restarted) time."""
         with self._cond:
             now_wall = self._wall()
-            if self.source is None:
-                self.source = source
-            elif source != self.source:
-                silent = now_wall - self._last_wall >= self.silence or not self._source_alive
-                if not silent:
+            if source != self.source:
+                if not self._may_adopt(source, now_wall):
                     self.rejected += 1
                     return False
-                log.warning("clock: new simulation run %r adopted at t=%.3f (was %r at t=%.3f)",
-                            source, stamp, self.source, self._now)
+                if self.source is not None:
+                    log.warning("clock: new simulation run %r adopted at t=%.3f (was %r at "
+                                "t=%.3f)", source, stamp, self.source, self._now)
+                    self.restarts += 1
+                    self._now = stamp
+                first = self.source is None
                 self.source = source
-                self.restarts += 1
                 self._source_alive = True
-                self._now = stamp
-                self._last_wall = now_wall
-                self._cond.notify_all()
-                self.started.set()
-                return True
-            if stamp < self._now:  # a late duplicate must not move time backwards
+                self._rate = run_rate(source)
+                self._budget, self._budget_wall = self.max_jump, now_wall
+                if not first:
+                    self._last_wall = now_wall
+                    self._cond.notify_all()
+                    self.started.set()
+                    return True
+            elif stamp < self._now:  # a late duplicate must not move time backwards
                 return False
-            if self.started.is_set() and stamp - self._now > self.max_jump:
+            if self.started.is_set() and not self._spend(stamp - self._now, now_wall):
                 self.rejected += 1
                 return False
             self._now = stamp
@@ -127,6 +157,57 @@ class SimClock(ManualClock):
             self._cond.notify_all()
         self.started.set()
         return True
+
+    def _may_adopt(self, source: str, now_wall: float) -> bool:
+        """May `source` replace the adopted run (or be the first)? Under self._cond."""
+        if self._tracking and source not in self._live and self._live:
+            return False  # a run holds a token: a run without one never moves time
+        if self.source is None:
+            return True
+        held = self._tracking and self.source in self._live
+        silent = now_wall - self._last_wall >= self.silence or not self._source_alive
+        if self._tracking and source in self._live and self.source in self._live and not silent:
+            self._rival(source)
+        if self._tracking and source in self._live and not held:
+            return True   # a token holder takes over from a run that has none (or lost it)
+        return silent
+
+    def _spend(self, jump: float, now_wall: float) -> bool:
+        """The creep bound (a token bucket in simulated seconds, refilled with wall time). A
+        wall gap refills more than the burst: a follower that was stopped catches up at once."""
+        rate = self._rate
+        if self._tracking and self.source not in self._live:
+            rate = None  # a run without a token (`mrta replay --clock` keeps the recorded ids)
+        if rate is None:
+            return jump <= self.max_jump
+        refill = rate * max(0.0, now_wall - self._budget_wall)
+        self._budget_wall = now_wall
+        self._budget = min(self._budget + refill, max(self.max_jump, refill))
+        if jump > self._budget + EPSILON:
+            return False  # what was earned stays; the sample does not spend it
+        self._budget -= jump
+        return True
+
+    def _rival(self, source: str) -> None:
+        if source not in self.rivals and len(self.rivals) < MAX_RIVALS:
+            self.rivals.add(source)
+            log.warning("clock: a second clock source %r holds a token while %r runs: two "
+                        "simulators (or a forger) on one bus; %r is ignored",
+                        _printable(source), _printable(self.source or ""), _printable(source))
+
+    def on_source(self, run: str, alive: bool) -> None:
+        """A clock source's token appeared or vanished (follow_sim_clock)."""
+        with self._cond:
+            self._tracking = True
+            if alive:
+                if len(self._live) < MAX_RIVALS:
+                    self._live.add(run)
+                if self.source is not None and run != self.source and self.source in self._live:
+                    self._rival(run)
+            else:
+                self._live.discard(run)
+                if run == self.source:
+                    self._source_alive = False
 
     def sleep_until(self, t: float, stop: threading.Event | None = None) -> bool:
         """Like ManualClock's, but also returns when time restarts (a new simulation run moved
@@ -140,8 +221,12 @@ class SimClock(ManualClock):
                 self._cond.wait(0.05)
         return True
 
-    def source_lost(self) -> None:
-        """The adopted source's liveliness token is gone: the next run may be adopted at once."""
+    def source_lost(self, run: str | None = None) -> None:
+        """The adopted source's liveliness token is gone: the next run may be adopted at once.
+        With `run`, only if that is the adopted one (follow_sim_clock names it)."""
+        if run is not None:
+            self.on_source(run, False)
+            return
         with self._cond:
             self._source_alive = False
 
@@ -159,8 +244,7 @@ def follow_sim_clock(bus, clock: SimClock) -> contextlib.ExitStack:
     from .messages import Clock as ClockMsg
 
     def on_token(key: str, alive: bool) -> None:
-        if not alive:
-            clock.source_lost()
+        clock.on_source(key[len(CLOCK_SOURCE_TOKEN) + 1:], alive)
 
     with contextlib.ExitStack() as handles:  # a failure half-way closes what was opened
         handles.enter_context(bus.subscribe(
@@ -168,6 +252,39 @@ def follow_sim_clock(bus, clock: SimClock) -> contextlib.ExitStack:
             msg_type=ClockMsg))
         handles.enter_context(bus.watch_liveliness(CLOCK_SOURCE_TOKEN + "/**", on_token))
         return handles.pop_all()
+
+
+def run_id(speed: float) -> str:
+    """A new run's id: random, and the speed it runs at (`<12 hex>-x<speed>`), which followers
+    read to bound how fast its time may move (SimClock). One key chunk."""
+    return f"{os.urandom(6).hex()}-x{speed:g}"
+
+
+def run_speed(run: str) -> float | None:
+    """The speed a run id announces (0: as fast as possible); None when it announces none."""
+    head, sep, tail = run.rpartition("-x")
+    if not sep or not head:
+        return None
+    try:
+        speed = float(tail)
+    except ValueError:
+        return None
+    return speed if math.isfinite(speed) and speed >= 0 else None
+
+
+def run_rate(run: str) -> float | None:
+    """The most simulated seconds per wall second a run's time may move (the creep bound); None
+    for a run that announces no speed (a ROS-style publisher, a hand-fed clock): only the
+    per-sample `max_jump` holds it."""
+    speed = run_speed(run)
+    if speed is None:
+        return None
+    return CEILING if speed == 0 else min(CEILING, speed * RATE_MARGIN)
+
+
+def _printable(text: str) -> str:
+    """A name from the bus, safe for a log line (no control characters reach a terminal)."""
+    return "".join(c if c.isprintable() else f"\\x{ord(c):02x}" for c in text[:80])
 
 
 class Rate:

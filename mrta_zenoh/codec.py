@@ -10,6 +10,7 @@ that says what was wrong, never half-built.
 from __future__ import annotations
 
 import re
+import sys
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -127,6 +128,9 @@ _MISSING = re.compile(r"^Object missing required field `([^`]*)`")
 _UNKNOWN = re.compile(r"^Object contains unknown field `([^`]*)`")
 
 
+_FMAX_TEXT = repr(sys.float_info.max)  # "1.7976931348623157e+308", as msgspec writes it
+
+
 def validation_fault(exc: msgspec.ValidationError) -> ValidationFault:
     """What msgspec says went wrong, and where (see ValidationFault)."""
     text = str(exc)
@@ -142,7 +146,10 @@ def validation_fault(exc: msgspec.ValidationError) -> ValidationFault:
         unknown=unknown.group(1) if unknown else "",
         expected=expected.group(1) if expected else "",
         got=(expected.group(2) or "") if expected else "",
-        not_finite=what.startswith(("Expected `float` >=", "Expected `float` <=")))
+        # Finite's bounds are ±float max: only those say "not finite"; a type's own range
+        # (msgspec.Meta(le=10.0)) keeps msgspec's words, which name the bound
+        not_finite=what.startswith(("Expected `float` >=", "Expected `float` <="))
+        and what.rstrip().endswith(_FMAX_TEXT))
 
 
 def _step(name: str, index: str, any_key: str) -> str | int:

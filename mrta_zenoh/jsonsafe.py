@@ -24,6 +24,12 @@ def tidy(x: float) -> float:
     return float(f"{x:.{DIGITS}g}")
 
 
+def tidy_all(value: Any) -> Any:
+    """`value` with every finite float in it tidied (non-finite ones kept): for YAML and plain
+    text, which should not show float noise either."""
+    return _finite(value, lambda v: v)
+
+
 def dumps(value: Any, nonfinite: Callable[[float], Any], default: Callable | None = None) -> str:
     return json.dumps(_finite(value, nonfinite), default=default, allow_nan=False)
 

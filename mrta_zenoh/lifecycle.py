@@ -84,3 +84,25 @@ def die_with_parent(poll: float = 0.5, grace: float = 10.0) -> threading.Thread 
     thread = threading.Thread(target=watch, name="die-with-parent", daemon=True)
     thread.start()
     return thread
+
+
+POLL = 0.2  # seconds: how late a signal taken by another thread is seen at worst
+
+
+def wait_for_stop(stop: threading.Event, timeout: float | None = None) -> bool:
+    """`stop.wait(timeout)` in slices of POLL seconds; True once `stop` is set.
+
+    Why not one wait: a process-directed SIGINT/SIGTERM may be delivered to any thread that
+    does not block it — after SIGSTOP/SIGCONT (the signal pending while the process was
+    stopped) it usually lands on one of Zenoh's threads. Python then only flags it, and runs
+    the handler (which sets `stop`) when the main thread next executes bytecode: a main thread
+    blocked in a wait without a timeout never does, so `mrta record` ignored Ctrl-C for good
+    and its file was never finished (issue #23: 5 of 6 hung). Waking every POLL seconds lets
+    the handler run."""
+    deadline = None if timeout is None else time.monotonic() + timeout
+    while True:
+        remaining = POLL if deadline is None else min(POLL, deadline - time.monotonic())
+        if remaining <= 0:
+            return stop.is_set()
+        if stop.wait(remaining):
+            return True

@@ -22,9 +22,34 @@ The protocol (docs/architecture.md, "lockstep"):
   participant has something due (an agent at 10 Hz: every fifth 20 ms step), so lockstep costs
   one round trip per participant tick, not per physics step.
 * The simulator steps again once every participant is done and it has taken their commands
-  of that step into account (counted as for the participants). A participant alive but silent for `timeout` wall seconds is reported (a log line
-  and `lockstep/status`, which the supervisor shows as an alarm) and no longer waited for,
-  until it answers again.
+  of that step into account (counted as for the participants). A participant alive but silent
+  for `timeout` wall seconds (2.5 s by default: below the 3 s Zenoh lease, so a stopped process
+  is reported before its token expires) is reported (a log line and `lockstep/status`, which the
+  supervisor shows as an alarm) and no longer waited for, until it answers again.
+
+Trust (docs/security.md, "Lockstep and the clock"). Exact checks — they hold against anybody
+who cannot declare our tokens (a secured fleet) and against blind forgers on an open bus:
+* a Step counts only if its `run` holds `@mrta/lockstep/barrier/<run>`; a participant follows
+  one run at a time, and another run is taken only once the first one's token is gone (a second
+  lockstep simulator is reported, not followed);
+* step numbers only grow within a run; a step behind the participant's time is rejected;
+* a StepDone counts only from a name that holds its participant token, under its own key, for
+  this run, for a step already published (never "done" in advance); its `next` is clamped to
+  `NEXT_HORIZON` seconds ahead, so no claim can excuse a participant for long;
+* a run that ends (its barrier token is gone) restarts the participant's counts, sent and
+  received, and a new run its time.
+Heuristics — plausibility against an attacker on an open bus who copies run ids and names:
+* a step stops at or before a participant's own `next` plus one physics step (`STEP_SLACK`):
+  a later one is taken only as far as wall time allows since the participant was last heard
+  (a `StepBudget` at the run's announced speed, mrta_zenoh.clock.run_rate) — that is how a
+  participant that was stopped, and given up, rejoins the current step;
+* counts: a claim more than `MAX_IN_FLIGHT` samples beyond what arrived is dropped at once; a
+  smaller one that is not met within `count_wait(timeout)` is forgiven (`Books`: the samples were
+  lost, e.g. while a stopped peer's link was down) — counted and logged, never waited for again;
+  a later, lower claim for the same key withdraws a forgiveness (legitimate counts only grow
+  within a run, so the forgiven one was forged).
+The barrier also re-publishes the step it waits on when a participant (re)appears, so a
+resumed or late participant answers at once instead of after the timeout.
 """
 
 from __future__ import annotations
@@ -35,7 +60,8 @@ import threading
 import time
 from typing import Callable
 
-from .clock import EPSILON, SimClock
+from .clock import CEILING, EPSILON, SimClock, _printable, run_rate
+from .keys import CLOCK_SOURCE_TOKEN
 from .messages import Finite, Message, message
 
 log = logging.getLogger("mrta.lockstep")
@@ -46,12 +72,29 @@ PARTICIPANT = "@mrta/lockstep/participant"  # /<participant>: liveliness
 BARRIER = "@mrta/lockstep/barrier"      # /<run>: liveliness of a lockstep simulator
 STATUS = "lockstep/status"
 
+DEFAULT_TIMEOUT = 2.5   # wall s; below the 3 s Zenoh lease (mrta_zenoh/bus/options.py)
+STEP_SLACK = 0.05       # simulated s past a participant's `next` a step may stop (one 20 ms step)
+STEP_BURST = 1.0        # simulated s a step may jump beyond that without wall time to show for it
+NEXT_HORIZON = 10.0     # simulated s: the longest `next` a StepDone may announce
+MAX_IN_FLIGHT = 10_000  # samples a claim may be ahead of what arrived and still be waited for
+MAX_KEYS = 4096         # keys a Step or StepDone may count
+MAX_NAMES = 1024        # participants and runs remembered (a flood of tokens costs bounded memory)
+LOG_FIRST = 5           # rejected samples logged one by one; then one line per LOG_EVERY
+
+
+def count_wait(timeout: float) -> float:
+    """How long counts that do not arrive are waited for before they are forgiven: half the
+    barrier's timeout (so a participant still answers in time), at most 1.25 s."""
+    return min(1.25, max(0.05, timeout / 2))
+
 
 @message("mrta_msgs/Step")
 class Step(Message):
     stamp: Finite
     step: int
     sent: dict[str, int]
+    run: str = ""                     # the simulator's run id (its barrier and clock tokens)
+    timeout: Finite = DEFAULT_TIMEOUT  # the barrier's, wall seconds: participants' count_wait
 
 
 @message("mrta_msgs/StepDone")
@@ -63,26 +106,146 @@ class StepDone(Message):
     stamp: Finite
     sent: dict[str, int]
     next: Finite = -1.0
+    run: str = ""  # the run whose step this acknowledges
 
 
 @message("mrta_msgs/LockstepStatus")
 class LockstepStatus(Message):
-    """Participants the simulator stopped waiting for (alive, but silent past the timeout)."""
+    """Participants the simulator stopped waiting for (alive, but silent past the timeout);
+    `dropped`: StepDones and claims it refused (non-participants, implausible counts);
+    `rivals`: other clock sources or lockstep runs on the bus (one source per run)."""
 
     stamp: Finite
     unresponsive: tuple[str, ...]
+    dropped: int = 0
+    rivals: tuple[str, ...] = ()
+
+
+class _Rejections:
+    """Counted, and logged without flooding: the first few one by one, then one in LOG_EVERY."""
+
+    LOG_EVERY = 1000
+
+    def __init__(self, what: str) -> None:
+        self.what = what
+        self.count = 0
+
+    def __call__(self, why: str) -> None:
+        self.count += 1
+        if self.count <= LOG_FIRST or self.count % self.LOG_EVERY == 0:
+            log.warning("lockstep: %s rejected (%d so far): %s", self.what, self.count, why)
+
+
+class Books:
+    """What this process received of what the others say they sent, less what is known lost.
+
+    Counts are cumulative per key. A sample that will never arrive (its link was down; a forged
+    claim) would hold every later step for ever: `forgive` records it as an offset, so only the
+    one step waits (at most count_wait), and the next ones count from there."""
+
+    def __init__(self, bus) -> None:
+        self.bus = bus
+        self.offsets: dict[str, int] = {}
+        self._forgiven: dict[str, tuple[int, int]] = {}  # key → (claim forgiven, offset before)
+        self.lost = 0
+
+    def received(self, key: str) -> int | None:
+        """Samples on `key` every subscription of this bus matching it has taken into account
+        (None: no subscription matches, nothing to wait for)."""
+        return self.bus.received_count(key)
+
+    def missing(self, required: dict[str, int]) -> dict[str, int]:
+        """Key → samples claimed that have not arrived (keys this bus publishes itself, or does
+        not subscribe to, are never waited for)."""
+        own = self.bus.sent_counts
+        out = {}
+        for key, n in required.items():
+            if key in own:
+                continue
+            got = self.received(key)
+            if got is None:
+                continue
+            gap = n - got - self.offsets.get(key, 0)
+            if gap > 0:
+                out[key] = gap
+        return out
+
+    def forgive(self, missing: dict[str, int], required: dict[str, int]) -> None:
+        for key, gap in missing.items():
+            before = self.offsets.get(key, 0)
+            self._forgiven[key] = (required[key], before)
+            self.offsets[key] = before + gap
+            self.lost += gap
+
+    def review(self, required: dict[str, int]) -> list[str]:
+        """Withdraw forgiveness a later, lower claim shows to have been forged (legitimate counts
+        only grow within a run); the keys it was withdrawn for."""
+        withdrawn = []
+        for key, (claim, before) in list(self._forgiven.items()):
+            if key in required and required[key] < claim:
+                self.offsets[key] = before
+                del self._forgiven[key]
+                withdrawn.append(key)
+        return withdrawn
+
+    def reset(self) -> None:
+        """A new run: counts start again from zero, sent and received."""
+        self.bus.reset_counts()
+        self.offsets.clear()
+        self._forgiven.clear()
+
+
+def _matches(expr: str, key: str) -> bool:
+    from .keys import matches
+    return matches(expr, key)
+
+
+class StepBudget:
+    """How far beyond its own `next` a participant's time may be moved: `rate` simulated seconds
+    per wall second (the run's speed), a burst of STEP_BURST — or, after a wall gap (this process
+    was stopped while the simulator went on), what the gap allows."""
+
+    def __init__(self, rate: float, wall: Callable[[], float]) -> None:
+        self.rate = rate
+        self._wall = wall
+        self._at = wall()
+        self._budget = STEP_BURST
+
+    def refill(self) -> float:
+        now = self._wall()
+        earned = self.rate * max(0.0, now - self._at)
+        self._at = now
+        self._budget = min(self._budget + earned, max(STEP_BURST, earned))
+        return self._budget
+
+    def spend(self, amount: float) -> bool:
+        if amount > self._budget + EPSILON:
+            return False
+        self._budget = max(0.0, self._budget - amount)
+        return True
 
 
 class LockstepClock(SimClock):
     """A participant's clock: simulation time that also moves in lockstep when the simulator
     runs it (and follows the plain `clock` key otherwise)."""
 
-    def __init__(self, participant: str) -> None:
-        super().__init__()
+    def __init__(self, participant: str, wall=time.monotonic) -> None:
+        super().__init__(wall=wall)
         self.participant = participant
         self.lockstep = threading.Event()
+        self.run: str | None = None           # the lockstep run whose steps move time
+        self.rejected_steps = _Rejections(f"step for {_printable(participant)}")
+        self.step_rivals: set[str] = set()
         self._bus = None
+        self._books: Books | None = None
+        self._barriers: set[str] = set()      # runs whose barrier token lives
+        self._step_no = 0
+        self._step_budget = StepBudget(CEILING, wall)
         self._pending: Step | None = None
+        self._pending_wall = 0.0
+        self._new_run = False                 # the pending step opens a new run
+        self._refused: Step | None = None     # a new run's step refused while the old one lives
+        self._timer: threading.Timer | None = None  # looks at a pending step's counts again
         self._acked = True
         self._sleeping_until: float | None = None  # the main loop waits for this time
         self._publish_done: Callable[[float, float], None] | None = None
@@ -91,18 +254,17 @@ class LockstepClock(SimClock):
         """Count traffic, follow steps, and announce the participant; returns the handles as
         one ExitStack (closing it leaves the barrier)."""
         self._bus = bus
+        self._books = Books(bus)
         bus.counting = True
         done_key = f"{DONE}/{self.participant}"
 
         def publish_done(stamp: float, next_due: float) -> None:
             bus.publish(done_key, StepDone(self.participant, stamp, dict(bus.sent_counts),
-                                           next_due))
+                                           next_due, self.run or ""))
 
         self._publish_done = publish_done
-        handles = [bus.subscribe(STEP, self._on_step, msg_type=Step),
-                   # a lockstep simulator announces itself before its first clock sample: from
-                   # then on only steps move time (the clock would run ahead of the sensors)
-                   bus.watch_liveliness(f"{BARRIER}/*", self._on_barrier)]
+        handles = [bus.watch_liveliness(f"{BARRIER}/*", self._on_barrier),
+                   bus.subscribe(STEP, self._on_step, msg_type=Step)]
         # while steps are pending, every received sample may be the one they wait for
         bus.on_counted = self._release
         handles.append(bus.declare_token(f"{PARTICIPANT}/{self.participant}"))
@@ -112,8 +274,25 @@ class LockstepClock(SimClock):
         return stack
 
     def _on_barrier(self, key: str, alive: bool) -> None:
-        if alive:
-            self.lockstep.set()
+        run = key.rsplit("/", 1)[-1]
+        retry = None
+        with self._cond:
+            if alive:
+                if len(self._barriers) < MAX_NAMES:
+                    self._barriers.add(run)
+            else:
+                self._barriers.discard(run)
+                if run == self.run:  # its simulator is gone: the clock decides again
+                    self.lockstep.clear()
+                    self._source_alive = False
+                    retry, self._refused = self._refused, None
+                    # counts restart with the next run: a new simulator counts from zero, so
+                    # the counts of this one would be claims it can never meet. Not when the
+                    # new run's first step comes: its sensor data, counted just before, would
+                    # be lost from the books.
+                    self._books.reset()
+        if retry is not None:
+            self._offer(retry)
 
     def on_clock(self, stamp: float, source: str = "") -> bool:
         if self.lockstep.is_set():
@@ -121,23 +300,92 @@ class LockstepClock(SimClock):
         return super().on_clock(stamp, source)
 
     def _on_step(self, sample) -> None:
+        self._offer(sample.message)
+
+    def _offer(self, step: Step) -> None:
         with self._cond:
+            why = self._judge(step)
+            if why == "":
+                return  # the step again (re-published for a newcomer): nothing new
+            if why is not None:
+                self.rejected_steps(why)
+                return
             self.lockstep.set()
-            self._pending = sample.message
+            self._pending = step
+            self._pending_wall = self._wall()
         self._release()
 
+    def _judge(self, step: Step) -> str | None:
+        """None: take it; "": a duplicate; otherwise why it is refused. Under self._cond."""
+        if len(step.sent) > MAX_KEYS:
+            return f"it counts {len(step.sent)} keys (at most {MAX_KEYS})"
+        if step.run != self.run:
+            if step.run not in self._barriers:
+                return f"run {_printable(step.run)!r} holds no barrier token"
+            if self.run is not None and self.run in self._barriers:
+                if step.run not in self.step_rivals and len(self.step_rivals) < MAX_NAMES:
+                    self.step_rivals.add(step.run)
+                    log.warning("lockstep: a second lockstep run %r while %r runs: ignored",
+                                _printable(step.run), _printable(self.run))
+                self._refused = step
+                return f"run {_printable(step.run)!r} while {_printable(self.run)!r} runs"
+            self.run, self._step_no, self._new_run = step.run, step.step, True
+            self._step_budget = StepBudget(run_rate(step.run) or CEILING, self._wall)
+            return None
+        pending = self._pending
+        if step.step <= self._step_no:
+            if step.step == self._step_no and (pending is None or pending.step == step.step):
+                return ""
+            return f"step {step.step} after step {self._step_no}"
+        if step.stamp < self._now - EPSILON:
+            return f"t={step.stamp:.3f} is behind this participant's t={self._now:.3f}"
+        self._step_budget.refill()
+        due = self._sleeping_until if self._sleeping_until is not None else self._now
+        beyond = step.stamp - (max(due, self._now) + STEP_SLACK)
+        if beyond > EPSILON and not self._step_budget.spend(beyond):
+            return (f"t={step.stamp:.3f} is beyond this participant's next (t={due:.3f}) by "
+                    f"more than wall time allows")
+        self._step_no = step.step
+        return None
+
     def _release(self) -> None:
-        """Move time to the pending step once everything it requires has arrived. If the main
-        loop is already waiting for a later time, it has nothing to do now: done at once."""
+        """Move time to the pending step once everything it requires has arrived (or is
+        forgiven). If the main loop is already waiting for a later time, it has nothing to do
+        now: done at once. A new run restarts time: the main loop wakes and reschedules."""
         with self._cond:
             step = self._pending
-            if step is None or not self._bus.received_all(step.sent):
+            if step is None:
                 return
+            books = self._books
+            books.review(step.sent)
+            missing = books.missing(step.sent)
+            if missing:
+                huge = any(gap > MAX_IN_FLIGHT for gap in missing.values())
+                left = count_wait(step.timeout) - (self._wall() - self._pending_wall)
+                if not huge and left > 0:
+                    if self._timer is None:  # look again then, even if nothing arrives
+                        self._timer = threading.Timer(left + 0.01, self._recheck)
+                        self._timer.daemon = True
+                        self._timer.start()
+                    return
+                books.forgive(missing, step.sent)
+                log.warning("lockstep: %s: %d samples on %s never arrived by t=%.2f: forgiven",
+                            _printable(self.participant), sum(missing.values()),
+                            ", ".join(_printable(k) for k in sorted(missing)[:3]), step.stamp)
             self._pending = None
-            if step.stamp < self._now:  # a new run (time restarted): adopt it
-                self.restarts += 1
+            restarted = False
+            if self._new_run:
+                self._new_run = False
+                if self.source is not None and self.source != step.run:
+                    restarted = True
+                    self.restarts += 1
+                    log.warning("lockstep: new simulation run %r adopted at t=%.3f (was %r at "
+                                "t=%.3f)", _printable(step.run), step.stamp,
+                                _printable(self.source), self._now)
+                self.source, self._source_alive = step.run, True
+                self._rate = run_rate(step.run)
             self._now = step.stamp
-            idle = self._sleeping_until is not None and \
+            idle = not restarted and self._sleeping_until is not None and \
                 self._sleeping_until > step.stamp + EPSILON
             self._acked = idle
             self._last_wall = self._wall()
@@ -146,9 +394,15 @@ class LockstepClock(SimClock):
         if idle:
             self._publish_done(step.stamp, self._sleeping_until)
 
+    def _recheck(self) -> None:
+        with self._cond:
+            self._timer = None
+        self._release()
+
     def sleep_until(self, t: float, stop: threading.Event | None = None) -> bool:
         """Before waiting for a later time, tell the simulator this participant is done with
-        the current one (its commands were published before, on the same link)."""
+        the current one (its commands were published before, on the same link). While waiting,
+        a pending step whose counts do not arrive is looked at again (to forgive them)."""
         with self._cond:
             if t > self._now + EPSILON and not self._acked and self._publish_done is not None:
                 self._acked = True
@@ -156,10 +410,20 @@ class LockstepClock(SimClock):
             else:
                 stamp = None
             self._sleeping_until = t
+            epoch = self.restarts
         if stamp is not None:
             self._publish_done(stamp, t)
         try:
-            return super().sleep_until(t, stop)
+            while True:
+                with self._cond:
+                    if self._now >= t - EPSILON or self.restarts != epoch:
+                        return True
+                    if stop is not None and stop.is_set():
+                        return False
+                    self._cond.wait(0.05)
+                    pending = self._pending is not None
+                if pending:
+                    self._release()
         finally:
             with self._cond:
                 self._sleeping_until = None
@@ -169,19 +433,30 @@ class Barrier:
     """The simulator's side: whom to wait for, and waiting. A context manager: leaving it
     withdraws the barrier's token and subscriptions (close())."""
 
-    def __init__(self, bus, run_id: str, timeout: float = 5.0):
+    def __init__(self, bus, run_id: str, timeout: float = DEFAULT_TIMEOUT,
+                 wall=time.monotonic):
         self.bus = bus
+        self.run = run_id
         self.timeout = timeout
         self.participants: set[str] = set()
         self.done: dict[str, StepDone] = {}
         self.unresponsive: set[str] = set()
+        self.rivals: set[str] = set()
+        self.books = Books(bus)
+        self.dropped = _Rejections("StepDone")
+        self._wall = wall
         self._cond = threading.Condition()
-        self._changed, self._changed_at = 0, time.monotonic()
+        self._changed, self._changed_at = 0, wall()
+        self._last: Step | None = None  # the step published last (re-published for newcomers)
+        self._republish = False
+        self._back: set[str] = set()  # given up, and answering again
         bus.counting = True  # set before the commands' subscription (SimNode) exists
         bus.on_counted = self._poke
         self.handles = [
             bus.watch_liveliness(f"{PARTICIPANT}/*", self._on_participant),
             bus.subscribe(f"{DONE}/*", self._on_done, msg_type=StepDone),
+            bus.watch_liveliness(f"{CLOCK_SOURCE_TOKEN}/*", self._on_source),
+            bus.watch_liveliness(f"{BARRIER}/*", self._on_source),
             bus.declare_token(f"{BARRIER}/{run_id}"),
         ]
         self.step = 0
@@ -189,28 +464,76 @@ class Barrier:
     def settle(self, quiet: float = 0.5, limit: float = 3.0) -> None:
         """Give participants that are already up the time to be heard: until the set has not
         changed for `quiet` seconds (a new session first has to reach every peer)."""
-        deadline = time.monotonic() + limit
+        deadline = self._wall() + limit
         with self._cond:
-            while time.monotonic() < deadline:
+            while self._wall() < deadline:
                 changed = self._changed
-                self._cond.wait(min(quiet, max(0.0, deadline - time.monotonic())))
-                if self._changed == changed and time.monotonic() - self._changed_at >= quiet:
+                self._cond.wait(min(quiet, max(0.0, deadline - self._wall())))
+                if self._changed == changed and self._wall() - self._changed_at >= quiet:
                     return
 
     def _on_participant(self, key: str, alive: bool) -> None:
         name = key.rsplit("/", 1)[-1]
         with self._cond:
             self._changed += 1
-            self._changed_at = time.monotonic()
-            (self.participants.add if alive else self.participants.discard)(name)
-            if not alive:
+            self._changed_at = self._wall()
+            if alive:
+                if len(self.participants) < MAX_NAMES:
+                    self.participants.add(name)
+                    self._republish = True  # a newcomer (or a resumed one) gets the step at once
+            else:
+                self.participants.discard(name)
                 self.done.pop(name, None)
                 self.unresponsive.discard(name)
             self._cond.notify_all()
 
-    def _on_done(self, sample) -> None:
+    def _on_source(self, key: str, alive: bool) -> None:
+        """Another clock source or lockstep run on this bus: one source per run, so an alarm."""
+        run = key.rsplit("/", 1)[-1]
+        if not alive or run == self.run:
+            return
         with self._cond:
-            self.done[sample.message.participant] = sample.message
+            if run in self.rivals or len(self.rivals) >= MAX_NAMES:
+                return
+            self.rivals.add(run)
+            stamp = self._last.stamp if self._last is not None else 0.0
+        log.warning("lockstep: another clock source %r is on the bus beside this run %r: two "
+                    "simulators (or a forger); participants follow only this one",
+                    _printable(run), _printable(self.run))
+        self._status(stamp)
+
+    def _on_done(self, sample) -> None:
+        d: StepDone = sample.message
+        name = sample.key.rsplit("/", 1)[-1]
+        with self._cond:
+            published = self._last.stamp if self._last is not None else None
+            if d.participant != name:
+                why = f"{_printable(name)!r} sent a StepDone naming {_printable(d.participant)!r}"
+            elif name not in self.participants:
+                why = f"{_printable(name)!r} holds no participant token"
+            elif d.run != self.run:
+                why = f"{_printable(name)!r} acknowledges run {_printable(d.run)!r}"
+            elif published is None or d.stamp > published + EPSILON:
+                why = f"{_printable(name)!r} acknowledges t={d.stamp:.3f}, not yet published"
+            elif len(d.sent) > MAX_KEYS:
+                why = f"{_printable(name)!r} counts {len(d.sent)} keys"
+            else:
+                why = None
+            if why is not None:
+                self.dropped(why)
+                return
+            if d.next < 0 or d.next > d.stamp + NEXT_HORIZON:
+                # unknown or far: the barrier stops for it again at least every NEXT_HORIZON s
+                d = StepDone(d.participant, d.stamp, d.sent, d.stamp + NEXT_HORIZON
+                             if d.next >= 0 else d.next, d.run)
+            prev = self.done.get(name)
+            if prev is not None and d.stamp < prev.stamp - EPSILON:
+                return  # an older answer overtaken by a newer one
+            self.done[name] = d
+            if name in self.unresponsive and d.stamp >= published - EPSILON:
+                # answers the current step again: waited for (and stopped for) from now on
+                self.unresponsive.discard(name)
+                self._back.add(name)
             self._cond.notify_all()
 
     def sent(self) -> dict[str, int]:
@@ -242,38 +565,71 @@ class Barrier:
 
     def publish(self, stamp: float) -> None:
         self.step += 1
-        self.bus.publish(STEP, Step(stamp, self.step, self.sent()))
+        step = Step(stamp, self.step, self.sent(), self.run, self.timeout)
+        with self._cond:
+            self._last, self._republish = step, False
+        self.bus.publish(STEP, step)
 
     def wait(self, stamp: float, stop: threading.Event) -> None:
         """Until every participant is done with `stamp` and its commands of that step have been
         taken into account here (the counts in its StepDone; Zenoh may run two subscriptions'
         callbacks out of order) — or the participant is given up for this time; it rejoins
-        when it answers again."""
-        deadline = time.monotonic() + self.timeout
-        with self._cond:
-            while not stop.is_set():
+        when it answers again. Claims that cannot be met are forgiven (Books), never waited
+        for beyond count_wait."""
+        start = self._wall()
+        deadline = start + self.timeout
+        answered_at: float | None = None  # when the last participant answered
+        report = False  # a change for lockstep/status
+        while not stop.is_set():
+            with self._cond:
+                step, republish = self._last, self._republish
+                self._republish = False
+            if republish and step is not None:
+                self.bus.publish(STEP, step)
+            with self._cond:
+                now = self._wall()
                 waiting = {p for p in self.participants
                            if p not in self.unresponsive and
-                           (p not in self.done or self.done[p].stamp < stamp)}
-                back = {p for p in self.unresponsive
-                        if p in self.done and self.done[p].stamp >= stamp}
+                           (p not in self.done or self.done[p].stamp < stamp - EPSILON)}
+                back, self._back = self._back, set()
                 if back:
-                    self.unresponsive -= back
-                    log.warning("lockstep: %s answers again", ", ".join(sorted(back)))
-                    self._status(stamp)
-                if not waiting and self.bus.received_all(self.sent()):
-                    return
-                remaining = deadline - time.monotonic()
-                if remaining <= 0:
+                    report = True
+                    log.warning("lockstep: %s answers again",
+                                ", ".join(_printable(p) for p in sorted(back)))
+                required = self.sent()
+                self.books.review(required)
+                missing = self.books.missing(required)
+                if not waiting and answered_at is None:
+                    answered_at = now
+                if not waiting and not missing:
+                    break
+                huge = {k: n for k, n in missing.items() if n > MAX_IN_FLIGHT}
+                late = answered_at is not None and \
+                    now - answered_at >= count_wait(self.timeout)
+                if huge or (missing and (late or now >= deadline)):
+                    forgive = missing if late or now >= deadline else huge
+                    self.books.forgive(forgive, required)
+                    self.dropped(f"claims of {sum(forgive.values())} samples on "
+                                 f"{', '.join(_printable(k) for k in sorted(forgive)[:3])} that "
+                                 f"did not arrive by t={stamp:.2f}: forgiven")
+                    report = True
+                    continue
+                if now >= deadline:
                     self.unresponsive |= waiting
                     log.warning("lockstep: %s did not finish t=%.2f within %.1f s: no longer "
-                                "waited for", ", ".join(sorted(waiting)), stamp, self.timeout)
-                    self._status(stamp)
-                    return
-                self._cond.wait(min(remaining, 0.05))
+                                "waited for", ", ".join(_printable(p) for p in sorted(waiting)),
+                                stamp, self.timeout)
+                    report = True
+                    break
+                self._cond.wait(min(deadline - now, 0.05))
+        if report:
+            self._status(stamp)
 
     def _status(self, stamp: float) -> None:
-        self.bus.publish(STATUS, LockstepStatus(stamp, tuple(sorted(self.unresponsive))))
+        with self._cond:
+            status = LockstepStatus(stamp, tuple(sorted(self.unresponsive)), self.dropped.count,
+                                    tuple(sorted(self.rivals)))
+        self.bus.publish(STATUS, status)
 
     def close(self) -> None:
         for h in self.handles:

@@ -7,6 +7,7 @@ parameter files and the config toolchain.
 from __future__ import annotations
 
 import difflib
+import math
 from pathlib import Path
 from typing import Any
 
@@ -52,7 +53,10 @@ class YamlDoc:
                 fields = getattr(kind, "__struct_fields__", ())
                 raise self.error(where + (key,), f"unknown key {key!r}"
                                  + did_you_mean(key, fields)) from None
-            what = "expected a finite number" if fault.not_finite else fault.what.replace("`", "")
+            value = get_path(self.data, where) if not fault.in_key else None
+            non_finite = isinstance(value, float) and not math.isfinite(value)
+            what = "expected a finite number" if fault.not_finite or non_finite \
+                else fault.what.replace("`", "")
             raise self.error(where, f"a key: {what}" if fault.in_key else what) from None
 
     def warning(self, path: tuple, message: str) -> str:
@@ -146,6 +150,11 @@ def _walk(node: yaml.Node, path: tuple, lines: dict, seen: set) -> None:
     elif isinstance(node, yaml.SequenceNode):
         for i, v in enumerate(node.value):
             _walk(v, path + (i,), lines, seen)
+
+
+def plural(n: int, word: str, many: str | None = None) -> str:
+    """`1 robot`, `2 robots`: counts in messages read as English (library and CLI alike)."""
+    return f"{n} {word if n == 1 else (many or word + 's')}"
 
 
 def did_you_mean(word: str, options) -> str:

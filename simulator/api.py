@@ -5,7 +5,6 @@ from __future__ import annotations
 import contextlib
 import logging
 import math
-import os
 import threading
 import time
 from dataclasses import dataclass
@@ -13,18 +12,22 @@ from pathlib import Path
 
 from mrta_zenoh import keys
 from mrta_zenoh.bus import BusOptions, open_bus
-from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.clock import run_id as new_run_id
+from mrta_zenoh.errors import ConfigError, MrtaRuntimeError
+from mrta_zenoh.identity import check_identity
 from mrta_zenoh.lifecycle import stop_on_signals
+from mrta_zenoh.limits import COORDINATE
+from mrta_zenoh.lockstep import DEFAULT_TIMEOUT, PARTICIPANT, Barrier
 from mrta_zenoh.presence import RobotPresence
 from mrta_zenoh.ros2.types import SONAR_TYPES
 from mrta_zenoh.toolchain.registry import Registry
-
-from mrta_zenoh.lockstep import Barrier
+from mrta_zenoh.yamlfile import plural
 
 from .engine import Simulation
 from .node import RunStats, SimNode
 from .ros2 import Ros2Driver
 from .robot_model import RobotModel
+from .secure_role import SIMULATOR_ROLE
 from .snapshot import save_snapshot
 from .world import Pose, World, load_world
 
@@ -56,6 +59,10 @@ def parse_robot(spec: str) -> tuple[str, str | Pose | None]:
         raise ConfigError(f"--robot {spec!r}: x, y and theta must be numbers") from None
     if not all(math.isfinite(v) for v in vals):
         raise ConfigError(f"--robot {spec!r}: x, y and theta must be finite")
+    for axis, v in zip("xy", vals):
+        problem = COORDINATE.problem(v)
+        if problem is not None:
+            raise ConfigError(f"--robot {spec!r}: {axis} {problem}")
     return rid, Pose.from_degrees(*vals)
 
 
@@ -106,7 +113,7 @@ class SimOptions:
     rear_sonars: bool = False
     wait_robots: float | None = None
     lockstep: bool = False
-    lockstep_timeout: float = 5.0
+    lockstep_timeout: float = DEFAULT_TIMEOUT
     ros2: tuple[str, ...] = ()
     ros2_domain: int = 0
     ros2_sonar_type: str = "pointcloud"
@@ -150,7 +157,9 @@ def run_simulator(options: SimOptions, bus_options: BusOptions,
         log.info("%s: %s", world.source, note)
     sim = Simulation(world, robots, RobotModel(rear_sonars=o.rear_sonars), seed=o.seed,
                      record_trails=o.snapshot is not None)
-    run_id = os.urandom(6).hex()  # tells followers a restarted simulator from this run
+    # tells followers a restarted simulator from this run, and the speed that bounds its time
+    run_id = new_run_id(o.speed)
+    check_identity(bus_options, SIMULATOR_ROLE)  # a certificate not the simulator's: refused
     with contextlib.ExitStack() as resources:
         stop = resources.enter_context(stop_on_signals(stop))
         bus = resources.enter_context(open_bus(bus_options))
@@ -167,13 +176,20 @@ def run_simulator(options: SimOptions, bus_options: BusOptions,
         if o.lockstep:
             barrier = resources.enter_context(Barrier(bus, run_id, o.lockstep_timeout))
             barrier.settle()  # the participants already up are heard
+            if o.wait_robots is not None and not barrier.participants:
+                raise MrtaRuntimeError(
+                    f"lockstep: no participant after {o.wait_robots:g} s although "
+                    f"{plural(len(robots), 'robot')} were expected (--wait-robots): the agents "
+                    "run without --sim-time, or are not up, or an access-control configuration "
+                    f"denies their {PARTICIPANT}/<robot> tokens to this simulator (docs/"
+                    "security.md); running without them would not be lockstep")
         if o.snapshot is not None:  # also when the run fails: the picture shows how far it got
             resources.callback(_snapshot, sim, o.snapshot)
         resources.enter_context(bus.declare_token(f"{keys.CLOCK_SOURCE_TOKEN}/{run_id}"))
         log.info("ready: %s in %s (%d walls), speed %s, seed %d%s",
-                 _plural(len(robots), "robot"), world.name, len(world.walls),
+                 plural(len(robots), "robot"), world.name, len(world.walls),
                  o.speed if o.speed else "max", o.seed,
-                 f", lockstep with {_plural(len(barrier.participants), 'participant')}"
+                 f", lockstep with {plural(len(barrier.participants), 'participant')}"
                  if barrier is not None else "")
         stats = node.run(stop, o.duration, barrier)
     log.info("done: %.1f s simulated in %.1f s (%.1f× real time), %d commands",
@@ -184,11 +200,6 @@ def run_simulator(options: SimOptions, bus_options: BusOptions,
 def _snapshot(sim: Simulation, path: Path) -> None:
     save_snapshot(sim, path)
     log.info("snapshot written to %s", path)
-
-
-def _plural(n: int, word: str) -> str:
-    """`1 robot`, `3 robots` in the log (the CLI's helper is out of reach of the library)."""
-    return f"{n} {word if n == 1 else word + 's'}"
 
 
 def wait_for_robots(bus, robot_ids: list[str], timeout: float, stop: threading.Event) -> bool:

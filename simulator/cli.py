@@ -8,6 +8,7 @@ import click
 
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.cli.common import bus_options, finite_float
+from mrta_zenoh.lockstep import DEFAULT_TIMEOUT
 from mrta_zenoh.ros2.types import SONAR_TYPES
 
 from .api import SimOptions, run_simulator
@@ -31,9 +32,11 @@ from .api import SimOptions, run_simulator
 @click.option("--lockstep", is_flag=True,
               help="Advance only when every agent following simulation time is done with the "
                    "current step: runs reproducible whatever the machine's load.")
-@click.option("--lockstep-timeout", type=finite_float(min=0, min_open=True), default=5.0,
-              show_default=True, metavar="SECONDS",
-              help="Stop waiting for a participant silent this long (wall time); it is reported.")
+@click.option("--lockstep-timeout", type=finite_float(min=0, min_open=True),
+              default=DEFAULT_TIMEOUT, show_default=True, metavar="SECONDS",
+              help="Stop waiting for a participant silent this long (wall time); it is reported. "
+                   "Keep it below the Zenoh lease (3 s), so a stopped agent is reported before "
+                   "its token expires.")
 @click.option("--wait-robots", type=finite_float(min=0), metavar="SECONDS",
               help="Start the clock only once every robot has a process up (a liveliness token "
                    "under robotN/**), waiting at most this long.")

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 from mrta_zenoh import keys
 from mrta_zenoh.bus import Bus
-from mrta_zenoh.clock import EPSILON
+from mrta_zenoh.clock import CEILING, EPSILON
 from mrta_zenoh.lockstep import Barrier
 from mrta_zenoh.messages import Clock, Header, Odometry, Point2D, PointCloud, Pose2D, Twist
 
@@ -48,7 +48,8 @@ class RunStats:
 
 
 class SimNode:
-    """Runs a Simulation against a bus. `speed`: 1 real time, k faster, 0 as fast as possible."""
+    """Runs a Simulation against a bus. `speed`: 1 real time, k faster, 0 as fast as possible
+    (at most CEILING× real time: what followers accept, mrta_zenoh.clock)."""
 
     def __init__(self, sim: Simulation, bus: Bus, speed: float = 1.0,
                  publish_sensors: bool = True, monotonic=time.monotonic, run_id: str = "",
@@ -138,10 +139,11 @@ class SimNode:
             if barrier is not None and barrier.due(sim.time):
                 barrier.publish(sim.time)
                 barrier.wait(sim.time, stop)
-            if self.speed > 0:
-                ahead = (sim.time - sim0) / self.speed - (self._monotonic() - wall0)
-                if ahead > 0 and stop.wait(ahead):
-                    break
+            # speed 0 ("as fast as possible") still stays under the followers' creep bound
+            # (mrta_zenoh.clock.CEILING), so a follower never rejects the real clock
+            ahead = (sim.time - sim0) / (self.speed or CEILING) - (self._monotonic() - wall0)
+            if ahead > 0 and stop.wait(ahead):
+                break
         self.stats.sim_time = sim.time - sim0
         self.stats.wall_time = self._monotonic() - wall0
         self.stats.steps = sim.steps

@@ -14,6 +14,7 @@ from typing import Callable
 
 from mrta_zenoh import jsonsafe
 from mrta_zenoh.bus import Bus, BusOptions, open_bus
+from mrta_zenoh.identity import OBSERVER, check_identity
 from mrta_zenoh.clock import SimClock, WallClock, follow_sim_clock
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.keys import ROS2_BRIDGE_TOKEN
@@ -82,9 +83,9 @@ def attach(sup: Supervisor, bus: Bus, clock) -> list:
         k, alive, clock.now())))
     handles.append(bus.watch_liveliness(f"{ROS2_BRIDGE_TOKEN}/*", lambda k, alive:
                                         sup.on_bridge_token(k, alive, clock.now())))
-    handles.append(bus.subscribe(STATUS, lambda s: sup.on_lockstep(s.message.unresponsive,
-                                                                   clock.now()),
-                                 msg_type=LockstepStatus))
+    handles.append(bus.subscribe(STATUS, lambda s: sup.on_lockstep(
+        s.message.unresponsive, clock.now(), s.message.rivals, s.message.dropped),
+        msg_type=LockstepStatus))
     return handles
 
 
@@ -133,6 +134,7 @@ def run_supervise(options: SuperviseOptions, bus_options: BusOptions,
     monitors' timeouts. The supervisor never prints: the verb shows the snapshots."""
     o = options
     app, arch = resolve_application(o.app)
+    check_identity(bus_options, OBSERVER)
     clock = SimClock() if o.sim_time else WallClock()
     with stop_on_signals(stop) as stop, open_bus(bus_options) as bus, \
             contextlib.ExitStack() as handles:

@@ -49,7 +49,7 @@ from mrta_zenoh.limits import MAX_RUNS, RUN_DURATION, SEED
 from mrta_zenoh.processes import ProcessGroup, mrta_argv
 from mrta_zenoh.recording import read_recording
 from mrta_zenoh.toolchain.registry import Registry
-from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, load_yaml
+from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, load_yaml, plural
 
 from .mission import MissionOptions, resolve
 from .summary import flat_metrics, read_summary
@@ -345,7 +345,7 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
     write_text(output / "summary.md", summary_md(exp, rows))
     plot_results(rows, output)
     if stop.is_set():
-        raise Interrupted(f"stopped after {len(rows)} of {len(runs)} runs; {results.path} has "
+        raise Interrupted(f"stopped after {len(rows)} of {plural(len(runs), 'run')}; {results.path} has "
                           "them")
     return rows
 
@@ -443,7 +443,7 @@ def summary_md(exp: Experiment, rows: list[dict]) -> str:
                       and isinstance(v, (int, float)) and not isinstance(v, bool)})
     seeds = sorted({r["seed"] for r in rows})
     arch = f" under {exp.architecture}" if exp.architecture else ""
-    lines = [f"# {exp.application}{arch}: {len(rows)} runs of {exp.duration:g} s", "",
+    lines = [f"# {exp.application}{arch}: {plural(len(rows), 'run')} of {exp.duration:g} s", "",
              "Mean ± half-width of the 95 % interval (Student's t) over seeds "
              f"({', '.join(map(str, seeds))}). Coverage: share of the run with exactly one "
              "robot on the task.", "",

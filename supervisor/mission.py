@@ -56,7 +56,8 @@ from .api import Refresh, attach
 from .ground_truth import intervals_from
 from .plots import TimeBase, plot_timeline, replay
 from .state import Supervisor
-from .summary import (Coverage, FailureReport, MessageRates, Span, Summary, write_summary)
+from .summary import (SECTIONS, Coverage, FailureReport, MessageRates, Span, Summary,
+                      write_summary)
 
 log = logging.getLogger("mrta.mission")
 MISSIONS_GROUP = "mrta.missions"
@@ -456,6 +457,7 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
         mission=run.mission.name, application=run.package.name, architecture=run.arch.name,
         duration=run.options.duration, speed=run.options.speed, seed=run.options.seed,
         wall_seconds=round(wall, 1), robots=run.robots, who_did_what=who,
+        lockstep=run.options.lockstep,
         first_full_allocation=first_full_allocation(intervals, run.app.tasks()),
         coverage=coverage(intervals, run.app.tasks(), t0, t1),
         messages=message_rates(records, run.arch, max(t1 - t0, 1e-9)),

@@ -145,8 +145,9 @@ def print_summary(console: Console, s: Summary, title: str, arch_title: str,
             ok = "within" if f.takeover_seconds <= f.bound_seconds else "OVER"
             console.print(f"  {f.robot} killed at {f.killed_at:.1f} s while doing {f.task}; "
                           f"{f.taken_over_by} took over after {f.takeover_seconds:.2f} s "
-                          f"({ok} the bound {f.bound_formula} = {f.bound_seconds:.2f} s)",
-                          highlight=False)
+                          f"({ok} the bound {f.bound_formula} = {f.bound_seconds:.2f} s"
+                          + ("" if s.lockstep else " after its last broadcast was received")
+                          + ")", highlight=False)
         else:
             console.print(f"  {f.robot} killed at {f.killed_at}; task {f.task} was not taken "
                           "over before the end", highlight=False)

@@ -64,13 +64,6 @@ log = logging.getLogger("mrta.supervisor")
 ROLES = ("busy_robots", "idle_robots", "incoming_tasks", "allocated_tasks")
 
 
-def key_expr_for(topic_name: str) -> str:
-    name = topic_name.strip()
-    if name.startswith("/"):
-        return "**/" + name.strip("/")
-    return keys.validate_key_expr(name)
-
-
 @dataclass
 class Monitor:
     role: str
@@ -102,7 +95,7 @@ def monitors_of(arch: Architecture) -> list[Monitor]:
     for role in ROLES:
         t = getattr(arch, role)
         if t is not None:
-            out.append(Monitor(role, t, key_expr_for(t.name), FieldPath.parse(t.field)))
+            out.append(Monitor(role, t, t.key_expr, FieldPath.parse(t.field)))
     return out
 
 
@@ -164,6 +157,7 @@ class Supervisor:
         if quiet:
             self._log.setLevel(logging.ERROR)  # a replay re-lives old alarms; do not re-announce
         self._dup_since: dict[str, float] = {}
+        self._lockstep_dropped = 0  # the simulator's refused StepDones, as last reported
         self._robot_alloc: dict[str, set[str]] = {}  # robot → tasks whose holder is high
         self._task_alloc: dict[str, set[str]] = {}   # task → robots whose holder is high
         self._ids: dict[str, str | None] = {}        # raw id text → normalised id (None: invalid)
@@ -352,15 +346,27 @@ class Supervisor:
             for r in self.robots.values():
                 self._reassess_robot(r, now)
 
-    def on_lockstep(self, unresponsive: tuple[str, ...], now: float) -> None:
-        """The lockstep simulator's report: participants it stopped waiting for."""
+    def on_lockstep(self, unresponsive: tuple[str, ...], now: float,
+                    rivals: tuple[str, ...] = (), dropped: int = 0) -> None:
+        """The lockstep simulator's report (mrta_zenoh.lockstep.LockstepStatus): participants
+        it stopped waiting for (`participant_unresponsive`), other clock sources or lockstep
+        runs on the bus (`clock_rival`: one source per run, so a second is a misconfiguration
+        or a forgery), and StepDones it refused (`lockstep_refused`, raised while the count
+        grows from one report to the next)."""
         with self._lock:
-            names = {visible(n, self.MAX_NAME) for n in unresponsive[:self.MAX_UNKNOWN]}
-            for kind, subject in list(self.alarms):
-                if kind == "participant_unresponsive" and subject not in names:
-                    self._clear(kind, subject, now)
-            for name in sorted(names):
-                self._raise("participant_unresponsive", name, now)
+            for kind, subjects in (("participant_unresponsive", unresponsive),
+                                   ("clock_rival", rivals)):
+                names = {visible(n, self.MAX_NAME) for n in subjects[:self.MAX_UNKNOWN]}
+                for k, subject in list(self.alarms):
+                    if k == kind and subject not in names:
+                        self._clear(k, subject, now)
+                for name in sorted(names):
+                    self._raise(kind, name, now)
+            if dropped > self._lockstep_dropped:
+                self._raise("lockstep_refused", "simulator", now)
+            else:
+                self._clear("lockstep_refused", "simulator", now)
+            self._lockstep_dropped = max(self._lockstep_dropped, dropped)
 
     def restart(self, now: float) -> None:
         """Time restarted (a new simulation run): everything held belongs to the old run."""

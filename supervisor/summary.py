@@ -73,6 +73,9 @@ class Summary(msgspec.Struct, forbid_unknown_fields=True):
     files: list[str]
     metrics: dict[str, Any] = {}   # the application's own (its mission hook)
     failure: FailureReport | None = None
+    # in lockstep a broadcast is heard the step it is sent: the takeover bound, which counts
+    # from the last broadcast received, then counts from the death itself
+    lockstep: bool = True
     # a point-task mission's instance and allocation log (Mission.sections; docs/delivery.md)
     instance: dict[str, Any] | None = None
     allocation: list[dict[str, Any]] | None = None

@@ -15,6 +15,7 @@ from rich.table import Table
 from rich.text import Text
 
 from mrta_zenoh.untrusted import visible
+from mrta_zenoh.yamlfile import plural
 
 WIDE = 110  # columns from which the two tables stand side by side
 
@@ -65,7 +66,7 @@ def render(snap: dict, width: int = 120) -> Group:
     if ros2["nodes"]:
         line = Text(f"ROS 2 (domain {ros2['domain']}): ", style="bold")
         line.append(plain(", ".join(ros2["nodes"])))
-        line.append(Text(f" · {len(ros2['topics'])} topics", style="dim"))
+        line.append(Text(f" · {plural(len(ros2['topics']), 'topic')}", style="dim"))
         parts.append(line)
     c = snap["counts"]
     parts.append(Text(f"t={t:.1f}s  samples {c['samples']}  wrong type {c['wrong_type']}  "

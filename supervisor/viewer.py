@@ -34,6 +34,7 @@ from pathlib import Path
 import foxglove
 
 from mrta_zenoh.bus import Bus, BusOptions, open_bus
+from mrta_zenoh.identity import OBSERVER, check_identity
 from mrta_zenoh.clock import EPSILON, SimClock, WallClock, follow_sim_clock
 from mrta_zenoh.codec import DecodeError
 from mrta_zenoh.errors import ConfigError
@@ -154,6 +155,8 @@ def run_view(*, app: str | None, bus_options: BusOptions, port: int | None = 876
     if min(rate, scene_hz, supervisor_hz) <= 0:
         raise ConfigError("frame rates must be positive")
     application = resolve_application(app) if app else None
+    if bus is None:
+        check_identity(bus_options, OBSERVER)
     clock = SimClock() if sim_time else WallClock()
     stamper = SimLogTime(clock) if sim_time else None
     log_time = stamper or time.time_ns

@@ -17,7 +17,8 @@ import heapq
 import math
 import random
 from dataclasses import dataclass, field
-from typing import Iterator
+from fractions import Fraction
+from typing import Callable, Iterator
 
 from mrta_agent.alliance.architecture import ALLIANCE, alliance_plugins
 from mrta_agent.alliance.params import AgentParams, BehaviourSetParams, RobotParams
@@ -53,8 +54,11 @@ class Spec:
         return 1.0 / self.spin
 
     def takeover_bound(self) -> float:
-        """τ + ⌈θ/δ_fast⌉/ρ + one tick (mrta_agent.alliance.api.takeover_bound)."""
-        return self.tau + (math.ceil(self.theta / self.fast - 1e-9) + 1) / self.spin
+        """τ + ⌈θ/δ_fast⌉/ρ + one tick (ALLIANCE.takeover_bound), counted from the dead
+        robot's last broadcast as received. θ and δ_fast as the decimals they are (the
+        strategies draw θ / ticks, which the agent adds up exactly)."""
+        ticks = math.ceil(Fraction(repr(self.theta)) / Fraction(repr(self.fast)))
+        return self.tau + (ticks + 1) / self.spin
 
 
 @dataclass
@@ -63,6 +67,10 @@ class Network:
     jitter: float = 0.0     # uniform extra delay in [0, jitter]
     loss: float = 0.0
     cuts: list[tuple[float, float, frozenset]] = field(default_factory=list)  # (from, to, robots)
+    deaf: set[tuple[str, str]] = field(default_factory=set)  # (receiver, sender): one-way links
+    # delivery delay of one broadcast (sender, receiver, send time) → seconds; replaces
+    # latency + jitter when given (an adversary choosing each delay)
+    delay: Callable[[str, str, float], float] | None = None
 
     def cut(self, a: str, b: str, t: float) -> bool:
         """Is the link a–b down at time t (one side inside a cut group, the other outside)?"""
@@ -195,11 +203,16 @@ class Team:
         for other in self.robots:
             if other == sender:
                 continue
+            if (other, sender) in self.net.deaf:
+                continue  # a one-way link: never heard (not a loss: no bound is skipped for it)
             lost = self.net.cut(sender, other, self.now) or self.rng.random() < self.net.loss
             if lost:
                 self.losses.setdefault(frozenset((sender, other)), []).append(self.now)
                 continue
-            arrival = self.now + self.net.latency + self.rng.uniform(0.0, self.net.jitter)
+            if self.net.delay is not None:
+                arrival = self.now + self.net.delay(sender, other, self.now)
+            else:
+                arrival = self.now + self.net.latency + self.rng.uniform(0.0, self.net.jitter)
             self.arrivals.setdefault((other, sender), []).append(arrival)
             self._push(arrival, "deliver", (other, sample))
 

@@ -15,7 +15,7 @@ from mrta_delivery.evaluators import TaskOpen
 from mrta_delivery.generate import INSTANCE, alliance_answers, load_instance, murdoch_answers, \
     package_files
 from mrta_delivery.instance import DeliveryParams
-from mrta_delivery.keys import ALL_DONE, event_key
+from mrta_delivery.keys import event_key
 from mrta_delivery.layers import Deliver
 from mrta_delivery.messages import TaskEvent
 from mrta_delivery.metrics import Entry, measure
@@ -152,3 +152,9 @@ def test_the_agent_loader_gives_each_delivery_layer_its_task():
     assert layers and all(type(layer) is Deliver and layer.task_id == task
                           for task, ls in layers.items() for layer in ls)
     assert sorted(layers) == ["t1", "t2", "t4"]  # robot1 lacks t3's capability
+
+
+def test_a_bare_demo_runs_the_default_mission_among_several():
+    from mrta_supervisor.mission import default_application, missions
+    assert {"patrol", "delivery"} <= set(missions())
+    assert default_application() == "patrol"  # Patrol.default; delivery is asked for by name

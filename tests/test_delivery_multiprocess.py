@@ -1,15 +1,10 @@
 """The delivery mission end to end under both architectures: `mrta demo --application delivery
 [--architecture murdoch]` in lockstep, every task delivered, optimality in (0, 1] and equal to
-what the recorded allocation gives, and the same seed giving the same allocation.
-
-The `delivery` mission is registered for these tests by a dist-info on PYTHONPATH (as a third
-party's package would be): registering it in pyproject.toml waits for `mrta demo` to choose a
-default among several missions (see docs/delivery.md)."""
+what the recorded allocation gives, and the same seed giving the same allocation."""
 
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 
 import pytest
@@ -19,26 +14,7 @@ pytestmark = [pytest.mark.multiprocess, pytest.mark.slow]
 DURATION = "40"  # simulated s: the default instance's makespan is ≈ 26 s (ALLIANCE), 23 s (MURDOCH)
 
 
-@pytest.fixture
-def mission_path(tmp_path) -> str:
-    """A dist-info registering the delivery mission under `mrta.missions`, only if the project
-    does not register it already."""
-    from importlib.metadata import entry_points
-    if any(ep.name == "delivery" for ep in entry_points(group="mrta.missions")):
-        return ""
-    site = tmp_path / "site"
-    dist = site / "mrta_delivery_mission-0.1.dist-info"
-    dist.mkdir(parents=True)
-    (dist / "METADATA").write_text("Metadata-Version: 2.1\nName: mrta-delivery-mission\n"
-                                   "Version: 0.1\n")
-    (dist / "entry_points.txt").write_text(
-        "[mrta.missions]\ndelivery = mrta_delivery.mission:DELIVERY\n")
-    return str(site)
-
-
-def run_demo(children, mission_path: str, out: Path, *args: str) -> dict:
-    children.env["PYTHONPATH"] = os.pathsep.join(
-        filter(None, [mission_path, os.environ.get("PYTHONPATH")]))
+def run_demo(children, out: Path, *args: str) -> dict:
     demo = children.mrta("-q", "demo", "--application", "delivery", "--duration", DURATION,
                          "--speed", "0", "--no-live", "--output", str(out), *args, name="demo")
     assert demo.wait(150) == 0, demo.tail(30)
@@ -64,9 +40,9 @@ def recorded_analysis(summary: dict, out: Path):
 @pytest.mark.timeout(420)
 @pytest.mark.parametrize("architecture", ["alliance", "murdoch"])
 def test_every_task_is_delivered_and_optimality_comes_from_the_recorded_allocation(
-        children, tmp_path, mission_path, architecture):
+        children, tmp_path, architecture):
     out = tmp_path / "a"
-    s = run_demo(children, mission_path, out, "--architecture", architecture)
+    s = run_demo(children, out, "--architecture", architecture)
     assert (s["mission"], s["architecture"]) == ("delivery", architecture)
     m = s["metrics"]
     print(architecture, json.dumps(m))
@@ -93,9 +69,9 @@ def test_every_task_is_delivered_and_optimality_comes_from_the_recorded_allocati
 
 
 @pytest.mark.timeout(420)
-def test_the_same_seed_gives_the_same_allocation(children, tmp_path, mission_path):
-    a = run_demo(children, mission_path, tmp_path / "a", "--seed", "3")
-    b = run_demo(children, mission_path, tmp_path / "b", "--seed", "3")
+def test_the_same_seed_gives_the_same_allocation(children, tmp_path):
+    a = run_demo(children, tmp_path / "a", "--seed", "3")
+    b = run_demo(children, tmp_path / "b", "--seed", "3")
     la = recorded_analysis(a, tmp_path / "a").log
     lb = recorded_analysis(b, tmp_path / "b").log
     assert [(e.task, e.robot) for e in la] == [(e.task, e.robot) for e in lb]

@@ -120,3 +120,14 @@ def test_json_output_is_always_valid_json():
     line = format_sample("robot1/battery", "vendor_msgs/Battery",
                          {"level": float("nan"), "cells": [1.0, float("inf")]}, True, None)
     assert json.loads(line)["message"] == {"level": "nan", "cells": [1.0, "inf"]}
+
+
+def test_yaml_and_field_output_carry_no_float_noise():
+    """What a person reads shows 51.62, not 51.620000000000005 (JSON already did)."""
+    from mrta_zenoh.fieldpath import FieldPath
+    from mrta_zenoh.tools.echo import format_sample
+    body = format_sample("robot1/odom", "T", {"x": 51.620000000000005, "y": [0.1 + 0.2]}, False,
+                         None)
+    assert "x: 51.62\n" in body and "y: [0.3]" in body
+    assert format_sample("robot1/odom", "T", 0.1 + 0.2, False, FieldPath.parse("x")) == \
+        "robot1/odom: 0.3"

@@ -399,3 +399,14 @@ def test_invented_keys_cannot_grow_the_live_view_without_bound(monkeypatch):
         live.emit("/supervisor/state", schema, "json", b"{}", 3)
         assert sorted(live.channels) == ["/supervisor/state", "robot0/x", "robot1/x", "robot2/x"]
         assert live.refused == 2
+
+
+def test_lockstep_rivals_and_refused_stepdones_are_alarms(sup):
+    """The simulator reports other clock sources on the bus and StepDones it refused
+    (mrta_zenoh.lockstep.LockstepStatus): the supervisor shows both, escaped, and clears them."""
+    sup.on_lockstep((), 1.0, rivals=("ab12-x2" + ESC,), dropped=3)
+    raised = alarms(sup, 1.0)
+    assert ("lockstep_refused", "simulator") in raised
+    assert ("clock_rival", visible("ab12-x2" + ESC)) in raised
+    sup.on_lockstep((), 2.0, rivals=(), dropped=3)  # no new refusal, the rival is gone
+    assert not {k for k, _ in alarms(sup, 2.0)} & {"clock_rival", "lockstep_refused"}

@@ -166,3 +166,23 @@ def test_the_ledger_counts_only_teammates_and_finite_distances(ctx):
     layer.shutdown()
     for t in tokens:
         t.close()
+
+
+@pytest.mark.parametrize("section,key,value,text", [
+    ("Wander", "speed", "1.0e+308", "<= 10.0"),
+    ("Wander", "turn_rate", "0.0", "> 0.0"),
+    ("BorderProtection", "x_max", "1.0e+300", "<= 10000.0"),
+    ("Report", "period", "1.0e-300", ">= 0.001"),
+    ("Report", "speed", ".inf", "finite"),
+])
+def test_absurd_layer_parameters_are_refused_with_their_line(tmp_path, section, key, value, text):
+    """Finite but absurd values (issue #23) get the file, the line and the bound."""
+    from mrta_agent.runtime.params import load_layers_params
+    from mrta_patrol.layers import BorderParams, WanderParams
+    from mrta_zenoh.errors import ConfigError
+    kinds = {"Wander": WanderParams, "BorderProtection": BorderParams, "Report": ReportParams}
+    f = tmp_path / "layers.yaml"
+    f.write_text(f"# a comment\n{section}:\n  {key}: {value}\n")
+    with pytest.raises(ConfigError) as err:
+        load_layers_params(f).convert((section,), kinds[section])
+    assert f"layers.yaml:3: '{section}/{key}'" in str(err.value) and text in str(err.value)

@@ -156,33 +156,6 @@ def test_a_file_named_like_a_temporary_is_left_alone(tmp_path):
         "plot.png", "plot.png.tmp", "summary.json", "summary.json.tmp"]  # nothing left over
 
 
-def test_a_fleet_that_cannot_be_moved_into_place_keeps_the_old_one(tmp_path, monkeypatch):
-    """`mrta secure init --force` over an existing fleet: if the new folder cannot be renamed
-    into place, the old certificates are still there (the old writer deleted them first)."""
-    import os
-
-    folder = tmp_path / "fleet"
-    secure.init(folder, ["robot1"], [], simulator=False)
-    before = {p.name: p.read_bytes() for p in folder.iterdir()}
-    real_replace, real_rename = os.replace, os.rename
-
-    def refuse_the_new_folder(real):
-        def move(src, dst, *args, **kwargs):
-            src_name = Path(src).name
-            if Path(dst) == folder and src_name.startswith(".fleet.") \
-                    and not src_name.startswith(".fleet.old."):
-                raise OSError(28, "No space left on device")
-            return real(src, dst, *args, **kwargs)
-        return move
-
-    monkeypatch.setattr(os, "replace", refuse_the_new_folder(real_replace))
-    monkeypatch.setattr(os, "rename", refuse_the_new_folder(real_rename))
-    with pytest.raises(ConfigError, match="No space left on device"):
-        secure.init(folder, ["robot1", "robot2"], [], simulator=False, force=True)
-    assert {p.name: p.read_bytes() for p in folder.iterdir()} == before
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["fleet"]  # no temporary left
-
-
 def test_write_folder_writes_everything_or_nothing(tmp_path):
     from mrta_zenoh.files import write_atomically, write_folder
 
@@ -369,6 +342,6 @@ def test_the_simulator_registers_its_own_keys(tmp_path):
     rules = [r for r in router["access_control"]["rules"] if r["id"].startswith("simulator:")]
     data = next(r for r in rules if "put" in r["messages"])
     assert data["key_exprs"] == ["clock", "*/sonar", "*/odom", "*/ground_truth", "*/bumper",
-                                 "world"]
+                                 "world", "@mrta/lockstep/step", "lockstep/status"]
     tokens = next(r for r in rules if r["messages"] == secure.TOKENS)
-    assert tokens["key_exprs"] == ["@mrta/clock_source/**"]
+    assert tokens["key_exprs"] == ["@mrta/clock_source/**", "@mrta/lockstep/barrier/**"]

@@ -78,4 +78,4 @@ def test_the_live_view_has_a_ros2_line_once_there_are_nodes():
     assert "ROS 2" not in shown()
     for key in (DRIVER, ODOM, BRIDGE):
         sup.on_ros2_token(key, True, 1.0)
-    assert "ROS 2 (domain 0): /mrta_bridge_robot2, /robot2/pioneer_driver · 1 topics" in shown()
+    assert "ROS 2 (domain 0): /mrta_bridge_robot2, /robot2/pioneer_driver · 1 topic" in shown()

@@ -14,7 +14,8 @@ from mrta_zenoh.toolchain.model import Application, RobotEntry
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
 from mrta_supervisor.api import CLOCK_STALL, Refresh, attach, resolve_application
 from mrta_supervisor.holders import SampleHolder
-from mrta_supervisor.state import Supervisor, key_expr_for
+from mrta_supervisor.state import Supervisor
+from mrta_zenoh.toolchain.model import Topic
 
 IRC = "alliance_msgs/InterRobotCommunication"
 
@@ -249,8 +250,9 @@ def test_a_different_architecture_drives_the_same_supervisor_over_a_bus(tmp_path
 
 
 def test_ros_style_names_become_key_expressions():
-    assert key_expr_for("/alliance/inter_robot_communication") == "**/alliance/inter_robot_communication"
-    assert key_expr_for("*/alliance/x") == "*/alliance/x"
+    assert Topic("/alliance/inter_robot_communication", "t", "f").key_expr == \
+        "**/alliance/inter_robot_communication"
+    assert Topic("*/alliance/x", "t", "f").key_expr == "*/alliance/x"
 
 
 def test_our_architecture_file_is_what_the_supervisor_reads():

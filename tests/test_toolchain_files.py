@@ -168,11 +168,3 @@ def test_a_good_application_still_validates(tmp_path):
     f.write_text(APP.format(second="/robot2", task="wander"))
     res = CliRunner().invoke(cli, ["app", "validate", str(f)])
     assert res.exit_code == 0, res.output
-
-
-def test_the_monitor_key_expression_is_the_one_the_supervisor_subscribes_to():
-    from mrta_zenoh.toolchain.model import Topic
-    from supervisor.state import key_expr_for
-
-    for name in ("*/alliance/inter_robot_communication", "/robot1/alliance/x", "a/**"):
-        assert Topic(name, "t", "f").key_expr == key_expr_for(name)

@@ -420,6 +420,19 @@ class Bus:
                     return False
         return True
 
+    def received_count(self, key: str) -> int | None:
+        """Samples on `key` that every counting subscription matching it has taken into account
+        (the least of them); None when no subscription matches (nothing to wait for)."""
+        counts = [sub.counts[key] for sub in list(self._subs)
+                  if not sub.raw and matches(sub.key_expr, key)]
+        return min(counts) if counts else None
+
+    def reset_counts(self) -> None:
+        """Start counting sent and received samples from zero (lockstep: a new run)."""
+        self.sent_counts.clear()
+        for sub in list(self._subs):
+            sub.counts.clear()
+
     # ---- for implementations
     def _count_sent(self, key: str, lossy: bool) -> None:
         if not key.startswith("@"):  # lockstep's own traffic is not counted

@@ -18,6 +18,7 @@ import zenoh
 
 from .. import codec
 from ..errors import ConfigError, MrtaRuntimeError
+from ..lifecycle import wait_for_stop
 from .base import Bus, LivelinessWatch, Sample, Subscription, Token
 from .options import BusOptions, session_configs
 from ..messages import GenericMessage, Message
@@ -307,7 +308,7 @@ def run_router(options: BusOptions, stop: threading.Event) -> str:
     session = open_session(options)
     zid = str(session.zid())
     try:
-        stop.wait()
+        wait_for_stop(stop)  # in slices: a signal taken by a Zenoh thread is still seen
     finally:
         session.close()
     return zid

@@ -17,6 +17,7 @@ import click
 from ..bus.options import MODES, BusOptions
 from ..keys import validate_key_expr
 from ..untrusted import visible
+from ..yamlfile import plural  # noqa: F401 - the verbs import it from here
 
 
 def bus_options(f: Callable | None = None, *, namespace_option: str = "--namespace") -> Callable:
@@ -79,11 +80,6 @@ class FiniteFloat(click.ParamType):
 def finite_float(min: float | None = None, min_open: bool = False,
                  max: float | None = None) -> FiniteFloat:
     return FiniteFloat(min, min_open, max)
-
-
-def plural(n: int, word: str, many: str | None = None) -> str:
-    """`1 robot`, `2 robots`: counts in messages read as English."""
-    return f"{n} {word if n == 1 else (many or word + 's')}"
 
 
 def console(stderr: bool = False) -> "rich.console.Console":

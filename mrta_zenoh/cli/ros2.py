@@ -8,7 +8,7 @@ import click
 
 from ..bus import BusOptions
 from ..errors import ConfigError
-from ..ros2.bridge import RobotLink, run_bridge
+from ..ros2.bridge import SONAR_MAX_BYTES, RobotLink, run_bridge
 from ..ros2.graph import read_graph
 from ..ros2.types import DEFAULT_DISTRO, DISTROS, SONAR_TYPES
 from .common import bus_options, finite_float, plural
@@ -38,16 +38,20 @@ def ros2() -> None:
                    "InterRobotCommunication and Motivation) as ROS 2 topics.")
 @click.option("--distro", type=click.Choice(sorted(DISTROS)), default=DEFAULT_DISTRO,
               show_default=True, help="The robot's ROS 2 distro (message definitions, hashes).")
+@click.option("--max-sonar-bytes", type=click.IntRange(1, 64 * 1024 * 1024),
+              default=SONAR_MAX_BYTES, show_default=True, metavar="BYTES",
+              help="A larger sonar sample is dropped before it is decoded (counted).")
 @bus_options(namespace_option="--bus-namespace")
 def bridge(robots: tuple[str, ...], namespace: str | None, domain: int, cmd_vel: str, odom: str,
-           sonar: str, sonar_type: str, mirror: bool, distro: str,
+           sonar: str, sonar_type: str, mirror: bool, distro: str, max_sonar_bytes: int,
            bus_options: BusOptions) -> None:
     """Map our robotN/cmd_vel, odom and sonar to a ROS 2 robot's topics over rmw_zenoh."""
     if namespace is not None and len(robots) > 1:
         raise ConfigError("--namespace names one robot's namespace: give one --robot with it")
     links = [RobotLink.make(r, namespace, cmd_vel=cmd_vel, odom=odom, sonar=sonar,
                             sonar_type=sonar_type) for r in robots]
-    run_bridge(links=links, bus_options=bus_options, domain=domain, distro=distro, mirror=mirror)
+    run_bridge(links=links, bus_options=bus_options, domain=domain, distro=distro, mirror=mirror,
+               max_sonar_bytes=max_sonar_bytes)
 
 
 @ros2.command()

@@ -4,7 +4,10 @@ subscription its own token, its data key and — for publishers — an attachmen
 QoS as ROS expects it: a reliable publisher uses Zenoh's BLOCK congestion control, a
 best-effort one DROP (a stalled subscriber never holds a sensor stream up). Subscriptions are
 strict like rmw_zenoh's: a sample without a valid 33-byte attachment, or whose CDR does not
-decode, is counted and dropped, never passed on.
+decode, is counted and dropped, never passed on. A subscription may cap the payload size: a
+larger sample is counted (`oversized`) and dropped before it is decoded — decoding is what
+costs (a 1M-point cloud twice a second held a core at 100 % and grew the bridge by 350 MB),
+and it runs on Zenoh's thread, where it would delay every other topic (ZENOH_NOTES.md, trap 3).
 """
 
 from __future__ import annotations
@@ -54,17 +57,23 @@ class Ros2Publisher:
 
 class Ros2Subscription:
     def __init__(self, node: "Ros2Node", topic: str, ros_type: str, qos: Qos,
-                 callback: Callable[[Any, Attachment], None]):
+                 callback: Callable[[Any, Attachment], None], max_payload: int | None = None):
         self.topic, self.ros_type, self.qos = topic, ros_type, qos
         self.type_hash = node.types.hash(ros_type)
         self.key = names.topic_key(node.domain, topic, ros_type, self.type_hash)
         self.eid = next(_ids)
-        self.counts = {"received": 0, "no_attachment": 0, "bad_attachment": 0, "malformed": 0}
+        self.max_payload = max_payload
+        self.counts = {"received": 0, "no_attachment": 0, "bad_attachment": 0, "malformed": 0,
+                       "oversized": 0}
         self._warned: set[str] = set()
         self._lock = threading.Lock()
         types = node.types
 
         def on_sample(key: str, payload: bytes, attachment: bytes | None) -> None:
+            if max_payload is not None and len(payload) > max_payload:
+                self._drop("oversized", key, ValueError(
+                    f"{len(payload):,} bytes, more than the {max_payload:,} allowed"))
+                return
             try:
                 att = Attachment.unpack(attachment)
             except AttachmentError as exc:
@@ -122,10 +131,18 @@ class Ros2Node:
         return pub
 
     def subscription(self, name: str, ros_type: str, qos: Qos,
-                     callback: Callable[[Any, Attachment], None]) -> Ros2Subscription:
-        sub = Ros2Subscription(self, self.topic(name), ros_type, qos, callback)
+                     callback: Callable[[Any, Attachment], None],
+                     max_payload: int | None = None) -> Ros2Subscription:
+        """`max_payload`: bytes; a larger sample is dropped undecoded (counted `oversized`)."""
+        sub = Ros2Subscription(self, self.topic(name), ros_type, qos, callback, max_payload)
         self._entities.append(sub)
         return sub
+
+    def remove(self, entity: Ros2Publisher | Ros2Subscription) -> None:
+        """Undeclare one publisher or subscription (its token goes with it)."""
+        if entity in self._entities:
+            self._entities.remove(entity)
+            entity.close()
 
     def subscriptions(self) -> list[Ros2Subscription]:
         return [e for e in self._entities if isinstance(e, Ros2Subscription)]

@@ -12,7 +12,6 @@ are read in document order and written back with their position as index.
 
 from __future__ import annotations
 
-import math
 import re
 from pathlib import Path
 

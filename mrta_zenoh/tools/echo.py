@@ -27,6 +27,7 @@ def format_sample(key: str, type_name: str, value: Any, as_json: bool, field: Fi
         # JSON has no NaN or Infinity: such a number (only a foreign client can send one, in a
         # type we do not know) is written as its string, so the line stays valid JSON
         return jsonsafe.dumps(out, nonfinite=str, default=_json_default)
+    value = jsonsafe.tidy_all(value)  # 51.62, not 51.620000000000005
     if field is not None:
         return f"{key}: {_scalar(value)}"
     body = yaml.safe_dump(value, sort_keys=False, default_flow_style=None).rstrip()

@@ -4,37 +4,16 @@ from __future__ import annotations
 
 import contextlib
 import threading
-import time
 from pathlib import Path
 
 from ..bus import Bus, BusOptions, open_bus
 from ..clock import SimClock, follow_sim_clock
 from ..errors import ConfigError
+from ..identity import OBSERVER, check_identity
+from ..yamlfile import plural
 from ..keys import RECORDER_TOKEN, validate_key_expr
-from ..lifecycle import stop_on_signals
+from ..lifecycle import stop_on_signals, wait_for_stop
 from ..recording import McapRecorder, SimLogTime, log
-
-
-POLL = 0.2  # seconds: how late a signal taken by another thread is seen at worst
-
-
-def wait_for_stop(stop: threading.Event, timeout: float | None = None) -> bool:
-    """`stop.wait(timeout)` in slices of POLL seconds; True once `stop` is set.
-
-    Why not one wait: a process-directed SIGINT/SIGTERM may be delivered to any thread that
-    does not block it — after SIGSTOP/SIGCONT (the signal pending while the process was
-    stopped) it usually lands on one of Zenoh's threads. Python then only flags it, and runs
-    the handler (which sets `stop`) when the main thread next executes bytecode: a main thread
-    blocked in a wait without a timeout never does, so `mrta record` ignored Ctrl-C for good
-    and its file was never finished (issue #23: 5 of 6 hung). Waking every POLL seconds lets
-    the handler run."""
-    deadline = None if timeout is None else time.monotonic() + timeout
-    while True:
-        remaining = POLL if deadline is None else min(POLL, deadline - time.monotonic())
-        if remaining <= 0:
-            return stop.is_set()
-        if stop.wait(remaining):
-            return True
 
 
 def run_record(*, output: Path, key_exprs: list[str], bus_options: BusOptions,
@@ -52,6 +31,8 @@ def run_record(*, output: Path, key_exprs: list[str], bus_options: BusOptions,
     folder = Path(output).resolve().parent
     if not folder.is_dir():
         raise ConfigError(f"folder {folder} does not exist", file=str(output))
+    if bus is None:
+        check_identity(bus_options, OBSERVER)  # before the file and the session
     stamper = SimLogTime(SimClock()) if sim_time else None
     # the file first: an output that cannot be written is refused before a session opens;
     # closed last (ExitStack order reversed): the token (no longer a recorder), the
@@ -75,5 +56,5 @@ def run_record(*, output: Path, key_exprs: list[str], bus_options: BusOptions,
         handles.enter_context(bus.declare_token(f"{RECORDER_TOKEN}/{bus.zid}"))
         log.info("recording %s to %s", " ".join(key_exprs), output)
         wait_for_stop(stop, duration)
-    log.info("wrote %d messages to %s", rec.count, output)
+    log.info("wrote %s to %s", plural(rec.count, "message"), output)
     return 0

@@ -34,11 +34,12 @@ from pathlib import Path
 
 from ..bus import Bus, BusOptions, open_bus
 from ..errors import ConfigError
+from ..yamlfile import plural
 from ..keys import CLOCK, LIVELINESS_PREFIX, matches, validate_key_expr
 from ..lifecycle import stop_on_signals
 from ..limits import RUN_DURATION
 from ..recording import Record, read_recording
-from .record import wait_for_stop
+from ..lifecycle import wait_for_stop
 
 log = logging.getLogger("mrta.replay")
 
@@ -191,5 +192,5 @@ def run_replay(*, recording: Path, bus_options: BusOptions, speed: float = 1.0,
             with open_bus(bus_options) as own:
                 wait_for_stop(stop, 0.5)  # subscribers already running are reached (discovery)
                 sent = execute(plan, own, speed, stop)
-    log.info("replayed %d samples from %s", sent, recording)
+    log.info("replayed %s from %s", plural(sent, "sample"), recording)
     return sent

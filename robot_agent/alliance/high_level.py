@@ -10,6 +10,11 @@ Per behaviour set j (task h), every tick, with ρ = spin_rate, τ = timeout_dura
 
 Deliberate choices, where appendix E or the original C++ (reference/) leave room or go wrong:
   * Rates are per tick, as in E.8/E.10 (time to activate ≈ (θ − m)/(impatience · ρ)).
+  * Motivation is exact: θ, fast_rate, ρ and announced expected_durations are taken as the
+    decimals they were written as (`exact`: 0.1 is 1/10, not 0.1000000000000000055…) and
+    motivation and impatience are sums of rationals, so a set activates exactly on tick
+    ⌈θ/δ_fast⌉ as a hand computation says (θ=1, δ_fast=0.1: tick 10; ten float additions of
+    0.1 make 0.9999999999999999 and tick 11). Published Motivation samples carry floats.
   * Slow rate (E.7's δ_slow): chosen so that motivation reaches θ in the announcing robot's
     `expected_duration` at *this* robot's tick rate: θ / (expected_duration · ρ). The C++ used
     θ / expected_duration regardless of ρ. If that would exceed fast_rate, fast_rate is used and
@@ -25,7 +30,9 @@ Deliberate choices, where appendix E or the original C++ (reference/) leave room
     θ on the same tick, the one furthest past its threshold (θ-normalised) wins; the C++ used
     "last toggle wins".
   * Acquiescence (E.5/E.6, lines 2566–2576): "more than" — yielding when active for *more
-    than* ψ, giving up when active for more than λ.
+    than* ψ, giving up when active for more than λ. A robot that yields gives the robot it
+    yielded to a whole φ again (its impatience is slow for that robot's expected_duration
+    from the yield), as E.4's reset gives a newcomer: it does not take the task straight back.
   * Who yields (E.5 and E.4 together): broadcasts carry `active_since`, the time on the
     sender's clock at which its current activation began (an addition to alliance_msgs; a
     client that does not send it is handled as described below). Two robots doing the same
@@ -38,19 +45,52 @@ Deliberate choices, where appendix E or the original C++ (reference/) leave room
     (after a partition heals nobody did the task for 3 s, and robots ticking in phase
     livelocked). Bound: once two holders hear each other, the earlier yields within ψ + one
     tick (ψ + τ + one tick counting a lost broadcast) — identical robots started in phase
-    included; the later one never yields to it, so there is no gap.
+    included; the later one does not yield to it meanwhile, so there is no gap.
+  * One-way links (the later holder hears the earlier one, which never hears it — a dead
+    subscriber, an asymmetric radio link). Parker's E.6 covers this case, as every listener
+    yields (after ψ) to any robot it hears on its task; the ordering above alone would leave
+    both holding until λ (a reference replay: duplicated 89 % of the time). So a later holder
+    also yields to an *earlier* holder that cannot be hearing it: one it has heard on every
+    tick while active for more than ψ + 2τ + two of that robot's broadcast intervals (ψ and τ
+    its own), whose φ (announced expected_duration) has run out since it was first heard, and
+    which is still broadcasting (heard within 1.5 of its intervals). Had the earlier one heard
+    us, it would have yielded by its activation + its ψ, or a tick after first hearing us,
+    and its broadcasts would have lapsed here a delivery delay + τ after its last one. Then the
+    later one gives the earlier a whole φ (above) before its impatience is fast again:
+    under a permanent one-way link duplication falls to about
+    (ψ + 2τ + 2/broadcast_rate) / (that + φ + ⌈θ/δ_fast⌉/ρ) of the time (measured on the
+    team harness: 32–38 % where the rule-less version held 49–78 %).
+    Limits — the no-gap guarantee for two-way links now rests on delivery delays under τ
+    and, for each pair, either the earlier robot's ψ not longer than the later's, or its ψ +
+    τ + a tick + the largest delay shorter than the expected_duration it announces (then its
+    φ running out proves it would have yielded). Outside these, both may stop at once and
+    the task is uncovered for at most the takeover bound. The reverse one-way link (only the earlier holder hears) needs no new
+    rule: it yields after ψ as above. Detecting a one-way link exactly would need broadcasts
+    to say whom their sender hears (a wire change).
   * Reset (E.4, line 2559) applies to a set that is *not active*: its motivation returns to 0 when
     another robot newly starts the task — newly meaning a new `active_since`, not a new run of
-    receptions. Late, lost or jittered broadcasts therefore never reset anybody, a robot heard
-    again after a partition is not "new", and an active robot is never reset (the ordering
-    above decides between active robots). The C++ latched the reset once per process; our
-    previous version reset on every lapse of freshness, which 10 ms of jitter triggered.
+    receptions: an activation is identified by (robot, active_since). Late, lost or jittered
+    broadcasts therefore never reset anybody, a robot heard again after a partition or any
+    silence, however long, is not "new", and an active robot is never reset (the ordering
+    above decides between active robots). The last activation heard from each robot is kept
+    for as long as this robot runs (one record per robot and task; the agent only passes on
+    broadcasts from its team, whose size it bounds). The C++ latched the reset once per
+    process; an earlier version of ours forgot a robot silent for 10τ, so the same activation
+    heard again reset everybody's impatience a second time.
     For a sender without `active_since`, a new start is a lapse of freshness longer than
     max(τ, 1.5 × its observed broadcast interval (τ until one is observed)), and its start is
     taken as when this robot first heard the run.
   * A robot that was frozen (SIGSTOP, a stalled process) keeps its old `active_since`, so the
     robot that took over while it was away is the later one and keeps the task: a resumed robot
-    does not evict its replacement.
+    does not evict its replacement — *with synchronised clocks* (simulated time, NTP/PTP). The
+    two `active_since` are read on two clocks: if the replacement's clock runs behind the
+    resumed robot's by more than the time between their activations, the replacement looks
+    earlier and is the one that yields. Both still agree on who yields (they compare the same
+    two numbers), so there is neither a gap nor a lasting duplicate, only the wrong robot kept.
+  * The takeover bound (architecture.py) counts from the dead robot's last broadcast as
+    *received* (`on_broadcast`'s `now`): its freshness lasts τ from there. Measured from its
+    death, add the largest delivery delay (in lockstep a broadcast counts as heard at its own
+    stamp, so none).
   * τ must be longer than a tick (the parameter loader rejects τ ≤ 1/ρ: a teammate heard
     between two ticks would never be seen) and should be at least twice the effective broadcast
     period (broadcasts leave on ticks: the loader warns).
@@ -58,15 +98,31 @@ Deliberate choices, where appendix E or the original C++ (reference/) leave room
 
 from __future__ import annotations
 
+import functools
 import logging
 import math
 from dataclasses import dataclass, field
+from fractions import Fraction
 
 from .params import BehaviourSetParams, RobotParams
 
 log = logging.getLogger("mrta.alliance")
 
 UNKNOWN = -1.0  # active_since of a sender that does not report it
+ZERO = Fraction(0)
+
+
+def exact(x: float) -> Fraction:
+    """A parameter as the decimal it was written as (YAML gives floats; their shortest repr is
+    what the user typed): 0.1 → 1/10. Finite input only."""
+    return Fraction(repr(float(x)))
+
+
+@functools.lru_cache(maxsize=256)
+def slow_rate(theta: Fraction, expected_duration: float, rho: Fraction) -> Fraction:
+    """δ_slow per tick: θ over the other robot's expected duration at our tick rate (cached:
+    a teammate announces the same duration on every broadcast)."""
+    return theta / (exact(expected_duration) * rho)
 
 
 @dataclass
@@ -79,6 +135,12 @@ class OtherRobot:
     active_since: float   # on the sender's clock; UNKNOWN if it does not say
     interval: float = 0.0  # last interval between two of its broadcasts (for UNKNOWN senders)
     new: bool = True      # a new activation not yet seen by a tick
+    phi_from: float = math.nan  # φ (E.7) runs from here: first heard, or when we yielded to it
+    overlap_since: float | None = None  # first tick both active, it earlier, heard every tick
+
+    def __post_init__(self) -> None:
+        if math.isnan(self.phi_from):
+            self.phi_from = self.first_heard
 
     def started(self) -> float:
         """The start used to order this robot against others (its own report if it has one)."""
@@ -88,8 +150,10 @@ class OtherRobot:
 @dataclass
 class SetState:
     params: BehaviourSetParams
-    motivation: float = 0.0
-    impatience: float = 0.0
+    theta: Fraction = ZERO     # exact(params.threshold)
+    fast: Fraction = ZERO      # exact(params.fast_rate)
+    exact_motivation: Fraction = ZERO
+    exact_impatience: Fraction = ZERO
     applicable: bool = False
     suppressed: bool = False
     resetted: bool = False
@@ -100,6 +164,17 @@ class SetState:
     feedback_stamp: float | None = None
     others: dict[str, OtherRobot] = field(default_factory=dict)
     warned_slow: bool = False
+
+    def __post_init__(self) -> None:
+        self.theta, self.fast = exact(self.params.threshold), exact(self.params.fast_rate)
+
+    @property
+    def motivation(self) -> float:
+        return float(self.exact_motivation)
+
+    @property
+    def impatience(self) -> float:
+        return float(self.exact_impatience)
 
 
 @dataclass(frozen=True)
@@ -137,6 +212,7 @@ class HighLevel:
         self.robot_id = robot_id
         self.params = params
         self.rho = params.spin_rate
+        self.exact_rho = exact(params.spin_rate)
         self.tau = params.timeout_duration
         self.tick_period = 1.0 / params.spin_rate
         self.max_expected = params.max_expected_duration
@@ -204,30 +280,35 @@ class HighLevel:
             s.applicable = s.feedback and s.feedback_stamp is not None and \
                 now - s.feedback_stamp <= self.feedback_timeout
             s.suppressed = any(t != task for t in was_active)
-            for k in [k for k, r in s.others.items() if now - r.last_heard > 10 * self.tau]:
-                del s.others[k]  # long gone: forget it (heard again, it is a new start)
             fresh = {k: r for k, r in s.others.items() if now - r.last_heard <= self.tau}
             started = [k for k, r in fresh.items() if r.new]
             for r in s.others.values():
                 r.new = False
             # E.4, for a set that is not active: another robot newly started the task
             s.resetted = bool(started) and not s.active
-            if s.resetted and s.motivation > 0.0:
+            if s.resetted and s.exact_motivation > 0:
                 transitions.append(TaskSwitch(task, False, f"{', '.join(sorted(started))} "
                                                            "started the task", "reset"))
             active_for = now - s.activated_at if s.active and s.activated_at is not None else -1.0
             later = self._later_holders(s, fresh) if s.active else []
+            unheeded = self._unheeding_earlier(s, fresh, now)
             yielded = bool(later) and active_for > p.yielding_delay
             gave_up = active_for > p.giving_up_delay
-            s.acquiescent = s.active and (yielded or gave_up)
-            s.impatience = self._impatience(s, fresh, now)
+            s.acquiescent = s.active and (yielded or bool(unheeded) or gave_up)
+            if s.active and (yielded or unheeded):
+                for k in later if yielded else unheeded:  # a whole φ again for it
+                    s.others[k].phi_from = now
+            s.exact_impatience = self._impatience(s, fresh, now)
             keep = s.applicable and not s.suppressed and not s.resetted and not s.acquiescent
             if keep:
-                s.motivation = s.motivation + s.impatience
+                s.exact_motivation = s.exact_motivation + s.exact_impatience
             else:
                 if s.active:
                     if yielded:
                         reason = f"yielded to {later[0]} (it took the task over later)"
+                    elif unheeded:
+                        reason = (f"yielded to {unheeded[0]} (active before it and still "
+                                  f"broadcasting after ψ + 2τ: it does not hear this robot)")
                     elif s.acquiescent:
                         reason = f"gave up after {active_for:.1f} s (giving_up_delay {p.giving_up_delay:g} s)"
                     elif not s.applicable:
@@ -235,13 +316,13 @@ class HighLevel:
                     else:
                         reason = "suppressed"
                     transitions.append(TaskSwitch(task, False, reason))
-                s.motivation = 0.0
+                s.exact_motivation = ZERO
                 s.active = False
                 s.activated_at = None
             if s.active:
-                s.motivation = min(s.motivation, p.threshold)
-            elif s.motivation >= p.threshold:
-                candidates.append((s.motivation / p.threshold, task))
+                s.exact_motivation = min(s.exact_motivation, s.theta)
+            elif s.exact_motivation >= s.theta:
+                candidates.append((s.exact_motivation / s.theta, task))
         # A set beside one that was active when the tick began is suppressed (motivation 0),
         # so candidates only exist when none was; only one activates.
         if candidates:
@@ -249,13 +330,13 @@ class HighLevel:
             _, winner = candidates[0]
             for _, task in candidates[1:]:
                 s = self.sets[task]
-                s.suppressed, s.motivation = True, 0.0
+                s.suppressed, s.exact_motivation = True, ZERO
             s = self.sets[winner]
             s.active, s.activated_at = True, now
-            s.motivation = s.params.threshold
+            s.exact_motivation = s.theta
             transitions.append(TaskSwitch(winner, True, "threshold reached"))
         states = [MotivationState(t, s.impatience, s.acquiescent, s.suppressed, s.resetted,
-                                  s.applicable, s.motivation, s.params.threshold, s.active)
+                                  s.applicable, s.motivation, float(s.theta), s.active)
                   for t, s in self.sets.items()]
         return states, transitions
 
@@ -264,21 +345,47 @@ class HighLevel:
         mine = (s.activated_at, self.robot_id)
         return sorted(k for k, r in fresh.items() if (r.started(), k) > mine)
 
-    def _impatience(self, s: SetState, fresh: dict[str, OtherRobot], now: float) -> float:
+    def _unheeding_earlier(self, s: SetState, fresh: dict[str, OtherRobot],
+                           now: float) -> list[str]:
+        """Holders of this task whose activation comes before ours and that cannot be hearing
+        us (header: one-way links): heard on every tick while we were active for more than
+        ψ + 2τ + two of its broadcast intervals, past its φ since we first heard it, and
+        still broadcasting now."""
+        limit = s.params.yielding_delay + 2 * self.tau
+        mine = (s.activated_at, self.robot_id)
+        out = []
+        for k, r in s.others.items():
+            if s.active and k in fresh and (r.started(), k) < mine:
+                if r.overlap_since is None:
+                    r.overlap_since = now
+                elif (now - r.overlap_since > limit + 2 * r.interval
+                      and now - r.first_heard > r.expected_duration and self._recent(r, now)):
+                    out.append(k)
+            else:
+                r.overlap_since = None
+        return sorted(out)
+
+    def _recent(self, r: OtherRobot, now: float) -> bool:
+        """Heard within 1.5 of its own broadcast intervals (τ before one is observed): still
+        broadcasting now, not merely fresh — a holder that stopped (yielding to us) shows
+        within about one broadcast period instead of τ."""
+        return now - r.last_heard <= 1.5 * (r.interval or self.tau)
+
+    def _impatience(self, s: SetState, fresh: dict[str, OtherRobot], now: float) -> Fraction:
         p = s.params
         slow_rates = []
         for r in fresh.values():
-            if now - r.first_heard < r.expected_duration:  # within φ: let it work
-                slow_rates.append(p.threshold / (r.expected_duration * self.rho))
+            if now - r.phi_from < r.expected_duration:  # within φ: let it work
+                slow_rates.append(slow_rate(s.theta, r.expected_duration, self.exact_rho))
         if not slow_rates:
-            return p.fast_rate
+            return s.fast
         slow = min(slow_rates)
-        if slow > p.fast_rate:
+        if slow > s.fast:
             if not s.warned_slow:
                 log.warning(
                     "%s/%s: slow impatience %.3g per tick (θ=%g over another robot's expected "
                     "duration at %g Hz) exceeds fast_rate %g; using fast_rate",
-                    self.robot_id, p.task_id, slow, p.threshold, self.rho, p.fast_rate)
+                    self.robot_id, p.task_id, float(slow), p.threshold, self.rho, p.fast_rate)
                 s.warned_slow = True
-            return p.fast_rate
+            return s.fast
         return slow

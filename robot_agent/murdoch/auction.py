@@ -10,7 +10,10 @@ The protocol (Gerkey & Matarić 2002; docs/murdoch.md):
   nearest of the task's locations (if it has any and the robot knows its pose). When the window
   closes the auctioneer awards greedily over every auction it closes at that tick — highest
   utility first, ties to the lower robot id, each robot and task at most once — a single-round,
-  first-price auction. No bids, no award.
+  first-price auction. No bids, no award. A robot awarded a task (by this auctioneer or
+  another) is busy from the award until its claim or release is heard, or for a lease: its
+  claim takes a tick and a delivery to arrive, and an auction closing meanwhile must not
+  award it a second task, which it would only release.
 * **Leases.** The winner publishes a Claim at once and every renewal_period. A task none of
   whose claims was heard for lease_timeout is unheld again and is auctioned anew. A winner
   whose progress evaluator (or resources) stays false for give_up_delay releases the task and
@@ -89,6 +92,7 @@ class Murdoch:
         self.teammates: set[str] = set()
         self.leases: dict[str, dict[str, Lease]] = {t: {} for t in tasks}
         self.held_until: dict[str, float] = {}     # task → when its last claim/award lapses
+        self.awarded: dict[str, tuple[str, float]] = {}  # winner → (task, until): not yet claimed
         self.last_announced: dict[str, float] = {}
         self.open: dict[int, OpenAuction] = {}
         self.next_auction = 1
@@ -126,7 +130,9 @@ class Murdoch:
         # the winner claims at its next tick: until then (and for a lease) the task is taken
         self.held_until[msg.task_id] = max(self.held_until.get(msg.task_id, t),
                                            t + self.p.lease_timeout)
-        if msg.winner == self.id:
+        if msg.winner != self.id:
+            self.awarded[msg.winner] = (msg.task_id, t + self.p.lease_timeout)
+        else:
             self._awards.append((sender, msg, t))
 
     def on_claim(self, sender: str, msg: Claim, t: float) -> None:
@@ -134,12 +140,15 @@ class Murdoch:
             return
         lease = Lease(msg.since, t, min(msg.lease, 10 * self.p.lease_timeout))
         self.leases[msg.task_id][sender] = lease
+        self.awarded.pop(sender, None)  # its lease says it is busy from now on
         self.held_until[msg.task_id] = max(self.held_until.get(msg.task_id, t), lease.expiry())
 
     def on_release(self, sender: str, msg: Release, t: float) -> None:
         if msg.task_id not in self.tasks:
             return
         self.leases[msg.task_id].pop(sender, None)
+        if self.awarded.get(sender, (None,))[0] == msg.task_id:
+            del self.awarded[sender]  # it turned the award down (or gave the task back)
         others = [lease.expiry() for lease in self.leases[msg.task_id].values()
                   if lease.expiry() >= t]
         self.held_until[msg.task_id] = max(others, default=t)
@@ -159,6 +168,8 @@ class Murdoch:
         return out, changes
 
     def _expire(self, now: float) -> None:
+        for robot in [r for r, (_, until) in self.awarded.items() if until < now]:
+            del self.awarded[robot]
         for leases in self.leases.values():
             for robot in [r for r, lease in leases.items() if lease.expiry() < now]:
                 del leases[robot]
@@ -247,7 +258,7 @@ class Murdoch:
             return
         for a in closed:
             del self.open[a.number]
-        busy = {r for leases in self.leases.values() for r in leases}
+        busy = {r for leases in self.leases.values() for r in leases} | set(self.awarded)
         if self.task is not None:
             busy.add(self.id)
         candidates = sorted((-u, robot, a.task_id, a.number) for a in closed
@@ -260,6 +271,8 @@ class Murdoch:
             done_tasks.add(task)
             busy.add(robot)
             out.append(Out("award", (number, task, robot, -neg_u)))
+            if robot != self.id:
+                self.awarded[robot] = (task, now + self.p.lease_timeout)
             self.held_until[task] = max(self.held_until.get(task, now), now + self.p.lease_timeout)
             if robot == self.id:
                 self._become(task, now, out, changes,

@@ -17,6 +17,7 @@ from mrta_zenoh.clock import Clock, SimClock, WallClock, follow_sim_clock
 from mrta_zenoh.architectures import CRASH_ENV
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.failure import parse_failure
+from mrta_zenoh.identity import ROBOT, check_identity
 from mrta_zenoh.keys import normalize_robot_id
 from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.lockstep import LockstepClock
@@ -99,6 +100,8 @@ def host(make_agent: Callable[[Bus, Clock, np.random.Generator], HostedAgent],
     crash = crash_time(robot_id, options.crash_at)  # a bad $MRTA_CRASH is bad input: before the bus
     for w in warnings:
         logger.warning("%s", w)
+    # a fleet certificate that is not this robot's is refused before the bus opens
+    check_identity(options.bus_options, ROBOT, robot_id)
     clock = LockstepClock(robot_id) if sim_time else WallClock()
     with stop_on_signals(stop) as stop, open_bus(options.bus_options) as bus, \
             contextlib.ExitStack() as handles:

@@ -20,11 +20,11 @@ it loads, so `speed: fast` is an error naming file and line before anything runs
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Annotated, Literal
 
 import msgspec
 
-from mrta_zenoh.messages import Finite, PointCloud
+from mrta_zenoh.messages import PointCloud
 from mrta_agent.runtime.builtin import odometry_pose
 from mrta_agent.runtime.plugins import AgentContext, Layer
 
@@ -34,25 +34,35 @@ from .ledger import PatrolLedger
 NO_ECHO = 4.85  # m from the robot centre: beyond this a point is the sensor's "no echo"
 
 
+# Sane ranges for the layers' parameters (issue #23: a finite but absurd value — a speed of
+# 1e308 — used to be accepted); a value outside is refused with its file, line and range.
+Speed = Annotated[float, msgspec.Meta(gt=0.0, le=10.0, description="m/s")]
+Distance = Annotated[float, msgspec.Meta(gt=0.0, le=100.0, description="m")]
+TurnRate = Annotated[float, msgspec.Meta(gt=0.0, le=20.0, description="rad/s")]
+Gain = Annotated[float, msgspec.Meta(ge=0.0, le=1000.0)]
+Coordinate = Annotated[float, msgspec.Meta(ge=-10_000.0, le=10_000.0, description="m")]
+Period = Annotated[float, msgspec.Meta(ge=0.001, le=86_400.0, description="s")]
+
+
 class WanderParams(msgspec.Struct, forbid_unknown_fields=True):
-    speed: Finite = 0.5
-    safe_distance: Finite = 0.8
-    turn_rate: Finite = 0.8
+    speed: Speed = 0.5
+    safe_distance: Distance = 0.8
+    turn_rate: TurnRate = 0.8
 
 
 class BorderParams(msgspec.Struct, forbid_unknown_fields=True):
     """BorderProtection: the wall follower's gains, and the border rectangle (world metres)."""
 
-    distance: Finite = 1.0
-    speed: Finite = 0.4
+    distance: Distance = 1.0
+    speed: Speed = 0.4
     side: Literal["right", "left"] = "right"
-    kp: Finite = 1.5
-    kd: Finite = 2.0
-    wall_range: Finite = 4.0
-    x_min: Finite | None = None
-    y_min: Finite | None = None
-    x_max: Finite | None = None
-    y_max: Finite | None = None
+    kp: Gain = 1.5
+    kd: Gain = 2.0
+    wall_range: Distance = 4.0
+    x_min: Coordinate | None = None
+    y_min: Coordinate | None = None
+    x_max: Coordinate | None = None
+    y_max: Coordinate | None = None
 
     def border(self) -> tuple[float, float, float, float] | None:
         corners = (self.x_min, self.y_min, self.x_max, self.y_max)
@@ -60,11 +70,10 @@ class BorderParams(msgspec.Struct, forbid_unknown_fields=True):
 
 
 class ReportParams(msgspec.Struct, forbid_unknown_fields=True):
-    x: Finite = 0.0
-    y: Finite = 0.0
-    speed: Finite = 0.5
-    period: Finite = 60.0
-
+    x: Coordinate = 0.0
+    y: Coordinate = 0.0
+    speed: Speed = 0.5
+    period: Period = 60.0
 
 
 class SonarView:

@@ -26,6 +26,7 @@ class Patrol(Mission):
     name = "patrol"
     title = "Patrol mission"
     launch = "patrol_sim.launch"
+    default = True  # the dissertation's mission: what a bare `mrta demo` runs
 
     def metrics(self, run: MissionRun, records: list) -> dict[str, Any]:
         layers = load_layers_params(run.layers_params)

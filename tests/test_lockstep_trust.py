@@ -1,0 +1,308 @@
+"""Lockstep and the clock trust only their source (issue 23, item 1): the pure logic on the
+in-process bus, with a hand-moved wall clock. Each test is one attack or fault an independent
+probe measured on a real fleet; tests/test_lockstep_attacks.py replays them with processes."""
+
+import threading
+import time
+
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
+from mrta_zenoh.clock import CEILING, RATE_MARGIN, SimClock, run_id, run_rate, run_speed
+from mrta_zenoh.keys import CLOCK_SOURCE_TOKEN
+from mrta_zenoh.lockstep import (DONE, NEXT_HORIZON, STEP, Barrier, LockstepClock, Step,
+                                 StepDone, count_wait)
+from mrta_zenoh.messages import Twist
+
+
+class Wall:
+    def __init__(self):
+        self.t = 100.0
+
+    def __call__(self):
+        return self.t
+
+
+def wait_for(cond, timeout=5.0):
+    deadline = time.monotonic() + timeout
+    while not cond():
+        assert time.monotonic() < deadline, "condition not met"
+        time.sleep(0.002)
+
+
+class Fleet:
+    """A lockstep simulator's barrier and one participant whose main loop ticks at 10 Hz and
+    publishes a command per tick, on one in-process network; a forger's bus beside them."""
+
+    def __init__(self, speed=2.0, timeout=2.5):
+        self.net = InProcNetwork()
+        self.wall = Wall()
+        self.sim_bus = InProcBus(self.net)
+        self.run = run_id(speed)
+        self.sim_bus.subscribe("*/cmd_vel", lambda s: None, msg_type=Twist)
+        self.barrier = Barrier(self.sim_bus, self.run, timeout, wall=self.wall)
+        self.source = self.sim_bus.declare_token(f"{CLOCK_SOURCE_TOKEN}/{self.run}")
+        self.agent_bus = InProcBus(self.net)
+        self.clock = LockstepClock("robot1", wall=self.wall)
+        self.stack = self.clock.join(self.agent_bus)
+        self.forger = InProcBus(self.net)
+        self.stop = threading.Event()
+        self.ticks = []
+        self.thread = threading.Thread(target=self._loop, daemon=True)
+        self.thread.start()
+        self.sim_time = 0.0
+        self.barrier.publish(0.0)
+        self.barrier.wait(0.0, self.stop)
+
+    def _loop(self):
+        while not self.stop.is_set() and not self.clock.started.wait(0.01):
+            pass
+        epoch = self.clock.restarts
+        t = self.clock.now()
+        while not self.stop.is_set():
+            if self.clock.restarts != epoch:
+                epoch, t = self.clock.restarts, self.clock.now()
+            self.ticks.append(self.clock.now())
+            self.agent_bus.publish("robot1/cmd_vel", Twist(0.1, 0.0))
+            t += 0.1
+            if t <= self.clock.now() + 1e-9:  # fell behind (it was stopped): skip, no burst
+                t = self.clock.now() + 0.1
+            if not self.clock.sleep_until(round(t, 6), self.stop):
+                return
+
+    def advance(self, until):
+        """The simulator's loop: 20 ms steps, stopping where the participant is due."""
+        while self.sim_time < until - 1e-9:
+            self.sim_time = round(self.sim_time + 0.02, 6)
+            if self.barrier.due(self.sim_time):
+                self.barrier.publish(self.sim_time)
+                self.barrier.wait(self.sim_time, self.stop)
+
+    def close(self):
+        self.stop.set()
+        self.thread.join(2)
+        self.stack.close()
+        self.barrier.close()
+
+
+def forged_step(fleet, stamp, step=10**6, run=None, sent=None):
+    fleet.forger.publish(STEP, Step(stamp, step, sent or {}, run or fleet.run))
+
+
+def test_a_run_id_names_its_speed_and_bounds_its_rate():
+    assert run_speed(run_id(2)) == 2.0 and run_speed(run_id(0)) == 0.0
+    assert run_speed("run-a") is None and run_speed("x-xnan") is None
+    assert run_rate(run_id(2)) == 2 * RATE_MARGIN and run_rate(run_id(0)) == CEILING
+    assert run_rate("tokenless") is None
+
+
+def test_one_forged_step_far_ahead_does_not_move_time():
+    f = Fleet()
+    try:
+        f.advance(1.0)
+        wait_for(lambda: f.clock.now() == 1.0)
+        forged_step(f, 1e9)                       # the probe's forged step, with the real run id
+        forged_step(f, 1e9, run="forger-x2")      # and from a run holding no barrier token
+        assert f.clock.now() == 1.0 and f.clock.rejected_steps.count == 2
+        f.advance(2.0)                            # the fleet goes on, in step
+        wait_for(lambda: f.clock.now() == 2.0)
+        assert max(f.ticks) < 3
+    finally:
+        f.close()
+
+
+def test_a_step_number_that_goes_back_is_refused():
+    f = Fleet()
+    try:
+        f.advance(0.5)
+        wait_for(lambda: f.clock.now() == 0.5)
+        forged_step(f, 0.6, step=1)               # plausible time, stale number
+        assert f.clock.rejected_steps.count == 1 and f.clock.now() == 0.5
+    finally:
+        f.close()
+
+
+def test_a_ghost_stepdone_claiming_a_billion_samples_is_dropped():
+    f = Fleet()
+    try:
+        f.advance(0.5)
+        f.forger.publish(f"{DONE}/ghost", StepDone("ghost", 0.5, {"robot1/cmd_vel": 10**9},
+                                                   1.0, f.run))
+        assert "ghost" not in f.barrier.done and f.barrier.dropped.count == 1
+        assert f.barrier.sent().get("robot1/cmd_vel", 0) < 1000
+        t0 = time.monotonic()
+        f.advance(1.5)                            # no stall: nothing waits for the ghost
+        wait_for(lambda: f.clock.now() == 1.5)
+        assert time.monotonic() - t0 < 2.0
+    finally:
+        f.close()
+
+
+def test_a_forged_claim_under_a_real_name_is_forgiven_at_once_then_withdrawn():
+    f = Fleet()
+    try:
+        f.advance(0.5)
+        wait_for(lambda: f.clock._acked and f.clock.now() == 0.5)
+        real = f.barrier.done["robot1"]
+        forged = StepDone("robot1", 0.5, {"robot1/cmd_vel": 10**9}, real.next, f.run)
+        f.forger.publish(f"{DONE}/robot1", forged)  # a forger naming robot1, under its key
+        t0 = time.monotonic()
+        f.advance(1.0)
+        assert time.monotonic() - t0 < 2.0        # not waited for: beyond MAX_IN_FLIGHT
+        assert f.barrier.books.offsets.get("robot1/cmd_vel", 0) == 0  # withdrawn: later claims
+        f.advance(1.5)                            # are lower, so the big one was forged
+        wait_for(lambda: f.clock.now() == 1.5)
+    finally:
+        f.close()
+
+
+def test_stepdone_checks_are_exact():
+    f = Fleet()
+    try:
+        f.advance(0.3)
+        before = f.barrier.dropped.count
+        f.forger.publish(f"{DONE}/robot1", StepDone("robot2", 0.3, {}, 0.4, f.run))  # wrong key
+        f.forger.publish(f"{DONE}/robot1", StepDone("robot1", 0.3, {}, 0.4, "other-x1"))
+        f.forger.publish(f"{DONE}/robot1", StepDone("robot1", 99.0, {}, 100.0, f.run))  # future
+        assert f.barrier.dropped.count == before + 3
+        f.forger.publish(f"{DONE}/robot1", StepDone("robot1", 0.3, {}, 1e9, f.run))
+        assert f.barrier.done["robot1"].next == 0.3 + NEXT_HORIZON  # clamped, not for ever
+    finally:
+        f.close()
+
+
+def test_a_participant_restarts_its_counts_and_time_with_a_new_run():
+    f = Fleet(speed=2)
+    try:
+        f.advance(3.0)
+        wait_for(lambda: f.clock.now() == 3.0 and f.clock._acked)
+        assert f.agent_bus.sent_counts["robot1/cmd_vel"] >= 30
+        f.barrier.close()                         # the simulator dies; another one starts
+        f.source.close()
+        run2 = run_id(2)
+        b2 = Barrier(f.sim_bus, run2, 2.5, wall=f.wall)
+        f.barrier, f.run, f.sim_time = b2, run2, 0.0
+        b2.publish(0.0)
+        b2.wait(0.0, f.stop)
+        assert "robot1" not in b2.unresponsive
+        wait_for(lambda: f.clock.restarts == 1 and f.clock.now() == 0.0)
+        wait_for(lambda: "robot1" in b2.done)
+        done = b2.done["robot1"]
+        assert done.run == run2 and done.next < 1.0      # due soon, not at its old time
+        assert done.sent.get("robot1/cmd_vel", 0) < 5    # counts restarted with the run
+        t0 = time.monotonic()
+        f.advance(2.0)                             # full speed: no step waits a timeout
+        assert time.monotonic() - t0 < 2.0 and not b2.unresponsive
+    finally:
+        f.close()
+
+
+def test_a_resumed_participant_rejoins_the_current_step():
+    f = Fleet(speed=2)
+    try:
+        f.advance(1.0)
+        wait_for(lambda: f.clock._acked and f.clock.now() == 1.0)
+        # the participant was stopped: the simulator gave it up and went on to t=9 meanwhile
+        f.barrier.unresponsive.add("robot1")
+        forged_step(f, 9.0, step=f.barrier.step + 50)  # without wall time to show for it:
+        assert f.clock.now() == 1.0                     # refused (8 s beyond its next)
+        f.wall.t += 6.0                                 # 6 s stopped: 6 × 3 = 18 s allowed
+        f.barrier.step += 100
+        f.sim_time = 9.0
+        f.barrier.publish(9.0)
+        f.barrier.wait(9.0, f.stop)
+        wait_for(lambda: f.clock.now() == 9.0 and f.clock._acked)  # rejoined the current step
+        f.advance(10.0)
+        wait_for(lambda: f.clock.now() == 10.0)
+        assert "robot1" not in f.barrier.unresponsive   # it answered: back in step
+    finally:
+        f.close()
+
+
+def test_counts_that_never_arrive_are_forgiven_once_after_count_wait():
+    f = Fleet()
+    try:
+        f.advance(0.5)
+        wait_for(lambda: f.clock._acked and f.clock.now() == 0.5)
+        f.agent_bus.subscribe("robot2/report", lambda s: None, msg_type=Twist)
+        # a step requiring 40 samples of robot2 that were lost on a link that went down
+        f.forger.publish(STEP, Step(0.6, f.barrier.step + 1, {"robot2/report": 40}, f.run,
+                                    2.5))
+        time.sleep(0.1)
+        assert f.clock.now() == 0.5               # waited for...
+        f.wall.t += count_wait(2.5) + 0.01
+        wait_for(lambda: f.clock.now() == 0.6)    # ...then forgiven
+        assert f.clock._books.lost == 40 and f.clock._books.offsets["robot2/report"] == 40
+    finally:
+        f.close()
+
+
+def test_the_clock_ignores_a_run_without_a_token_and_reports_a_second_claimant():
+    wall = Wall()
+    c = SimClock(wall=wall)
+    real, rival = run_id(2), run_id(2)
+    c.on_source(real, True)
+    assert not c.on_clock(5.0, "forger")          # no token while a run holds one
+    assert c.on_clock(0.02, real) and c.source == real
+    c.on_source(rival, True)
+    wall.t += 0.1
+    assert not c.on_clock(300.0, rival) and rival in c.rivals
+    assert c.on_clock(0.04, real) and c.now() == 0.04
+
+
+def test_clock_creep_is_bounded_by_wall_time():
+    wall = Wall()
+    c = SimClock(wall=wall)
+    run = run_id(2)
+    c.on_source(run, True)
+    for k in range(50):                           # the real run, at speed 2
+        wall.t += 0.01
+        assert c.on_clock(k * 0.02, run)
+    start, t0 = c.now(), wall.t
+    for k in range(300):                          # the probe: 9.9 s ahead each, 300 in 1.5 s
+        wall.t += 0.005
+        c.on_clock(c.now() + 9.9, run)
+    allowed = c.max_jump + 2 * RATE_MARGIN * (wall.t - t0)
+    assert c.now() - start <= allowed + 1e-6 and c.now() - start < 15
+    assert c.rejected > 250
+
+
+def test_a_stopped_follower_catches_up_at_once():
+    wall = Wall()
+    c = SimClock(wall=wall)
+    run = run_id(2)
+    c.on_clock(1.0, run)
+    c.on_clock(1.02, run)
+    wall.t += 30.0                                # stopped for 30 s: the run went on 60 s
+    assert c.on_clock(61.0, run) and c.now() == 61.0
+
+
+def test_speed_zero_is_bounded_by_the_ceiling():
+    wall = Wall()
+    c = SimClock(wall=wall)
+    run = run_id(0)
+    c.on_clock(0.0, run)
+    c.on_clock(0.02, run)
+    for _ in range(1000):
+        wall.t += 0.001
+        c.on_clock(c.now() + 9.0, run)
+    assert c.now() <= 0.02 + c.max_jump + CEILING * 1.0 + 1e-6
+
+
+@settings(max_examples=200, derandomize=True, deadline=None)
+@given(st.lists(st.tuples(st.floats(0, 0.5), st.floats(-50, 1e6)), max_size=60),
+       st.sampled_from([0.5, 1.0, 2.0, 10.0, 0.0]))
+def test_no_sequence_of_samples_with_the_real_run_id_outruns_wall_time(samples, speed):
+    """Property: whatever samples a forger sends with the real run id, at whatever wall times,
+    time never gets further ahead than the burst plus the run's rate × wall time elapsed."""
+    wall = Wall()
+    c = SimClock(wall=wall)
+    run = run_id(speed)
+    c.on_source(run, True)
+    c.on_clock(0.0, run)
+    t0 = wall.t
+    for dt, stamp in samples:
+        wall.t += dt
+        c.on_clock(stamp, run)
+        assert c.now() <= c.max_jump + run_rate(run) * (wall.t - t0) + 1e-6
