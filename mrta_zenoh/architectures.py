@@ -117,6 +117,13 @@ class Architecture(ABC):
         """The longest a robot with these parameters takes to pick up `task` after the robot
         doing it stops (seconds of its clock)."""
 
+    # ------------------------------------------------------------ checking files
+    def check_files(self, robot_id: str, robot_params: Path, tasks_params: Path,
+                    layers_params: Path | None = None) -> None:
+        """Read and check one robot's parameter files as its agent would at start (ConfigError
+        naming file, line and key), without starting anything: what `mrta experiment` runs on
+        every overridden value before the first run. Default: nothing to check."""
+
     # ------------------------------------------------------------ faults
     def failure_env(self, failures: Iterable[Failure]) -> dict[str, str]:
         """Environment for the agents that injects crash-stop failures: every agent reads

@@ -13,6 +13,7 @@ import re
 from typing import NamedTuple
 
 from .keys import ID_PATTERN
+from .limits import RUN_DURATION
 from .yamlfile import did_you_mean
 
 _SPEC = re.compile(rf"^({ID_PATTERN})@(\d+(?:\.\d+)?)$")
@@ -44,4 +45,7 @@ def parse_failure(text: str) -> Failure:
     m = _SPEC.match(text)
     if m is None or float(m[2]) <= 0:
         raise ValueError(f"{text!r:.80}: expected {USAGE} (seconds > 0)")
+    problem = RUN_DURATION.problem(float(m[2]))  # 1e308 is > 0 too, but no run lasts that long
+    if problem is not None:
+        raise ValueError(f"{text!r:.80}: the time {problem}")
     return Failure(m[1], float(m[2]), text)

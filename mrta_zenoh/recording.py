@@ -37,7 +37,7 @@ import msgspec
 from . import codec, keys
 from .clock import SimClock
 from .codec import DecodeError, type_from_encoding
-from .errors import ConfigError
+from .errors import ConfigError, MrtaRuntimeError
 from .messages import Clock, message_class
 
 _json = msgspec.json  # lossless for our values: shortest round-trip floats
@@ -164,6 +164,8 @@ class McapRecorder:
         self._held: list[tuple] = []  # samples that came before the first log time
         self._q: queue.SimpleQueue = queue.SimpleQueue()
         self.count = 0
+        self.lost = 0  # samples not written because the file could not be (a full disk)
+        self._error: OSError | None = None
         self._thread = threading.Thread(target=self._run, name="mcap-writer", daemon=True)
         self._thread.start()
 
@@ -251,11 +253,19 @@ class McapRecorder:
                 item = ()
             if item is None:
                 return
-            if item:
-                self._write(*item)
-            if time.monotonic() >= next_flush:
-                self._w.flush()
-                next_flush = time.monotonic() + self.flush_every
+            if self._error is not None:  # the file cannot be written: count, keep draining
+                self.lost += bool(item)
+                continue
+            try:
+                if item:
+                    self._write(*item)
+                if time.monotonic() >= next_flush:
+                    self._w.flush()
+                    next_flush = time.monotonic() + self.flush_every
+            except OSError as exc:  # a full disk, a vanished mount: reported once, at close
+                self._error = exc
+                self.lost += bool(item)
+                log.error("cannot write %s: %s; recording stops", self.path, exc.strerror)
 
     def close(self) -> None:
         """Write what is queued, finish the file (its summary and index); once. Samples still
@@ -265,10 +275,22 @@ class McapRecorder:
         self._q.put(None)
         self._thread.join()
         held, self._held = self._held, []
-        for item in held:
-            self._write(0, *item)
-        self._w.finish()
-        self._f.close()
+        try:
+            if self._error is None:
+                for item in held:
+                    self._write(0, *item)
+                self._w.finish()
+        except OSError as exc:
+            self._error = exc
+        finally:
+            try:
+                self._f.close()
+            except OSError as exc:  # the last buffered bytes did not fit either
+                self._error = self._error or exc
+        if self._error is not None:
+            raise MrtaRuntimeError(f"cannot write the recording {self.path}: "
+                                   f"{self._error.strerror or self._error} "
+                                   f"({self.count} samples written, {self.lost} lost)")
 
     def __enter__(self) -> "McapRecorder":
         return self

@@ -310,6 +310,9 @@ def _identities(robots: list[str], observers: list[str], bridges: list[str],
     return ids
 
 
+MANIFEST = "fleet-files.txt"  # the fleet's files, one per line: what --force may remove
+
+
 def init(folder: Path, robots: list[str], observers: list[str], *,
          bridges: list[str] = (), endpoint: str = DEFAULT_ENDPOINT, simulator: bool = True,
          force: bool = False, root: str | None = None, ros2_domain: int = 0) -> list[Path]:
@@ -358,6 +361,11 @@ def init(folder: Path, robots: list[str], observers: list[str], *,
         files[f"{i.name}.json5"] = json.dumps(client_config(root, i.name, endpoint),
                                               indent=2).encode()
     modes = {n: 0o600 for n in files if n.endswith(".key")}  # private keys: the owner only
+    # what this fleet is made of: a later --force removes the files of this fleet it does not
+    # write again (robot1's certificate, signed by a CA that no longer exists, left beside the
+    # new fleet's looked valid and was not)
+    files[MANIFEST] = ("# written by mrta secure init: the files of this fleet\n"
+                       + "".join(f"{n}\n" for n in sorted(files))).encode()
     if not folder.exists():
         return write_folder(folder, files, modes=modes)
     present = sorted(n for n in files if (folder / n).exists() or (folder / n).is_symlink())
@@ -366,7 +374,29 @@ def init(folder: Path, robots: list[str], observers: list[str], *,
                           f"{' …' if len(present) > 4 else ''}; use --force to replace the "
                           "files secure init writes (nothing else in the folder is touched)",
                           file=str(folder))
-    return _write_into(folder, files, modes)
+    stale = sorted(_manifest(folder) - set(files))
+    written = _write_into(folder, files, modes)
+    left = []
+    for name in stale:
+        try:
+            (folder / name).unlink(missing_ok=True)
+        except OSError:
+            left.append(name)
+    if left:
+        raise ConfigError(f"the new fleet is written, but {', '.join(left)} of the previous one "
+                          "could not be removed: remove them by hand", file=str(folder))
+    return written
+
+
+def _manifest(folder: Path) -> set[str]:
+    """The files an earlier `secure init` wrote into `folder` (its manifest; plain names only:
+    a manifest is never trusted to reach outside the folder)."""
+    try:
+        text = (folder / MANIFEST).read_text()
+    except (OSError, UnicodeDecodeError):
+        return set()
+    return {n for n in (line.strip() for line in text.splitlines())
+            if n and not n.startswith("#") and "/" not in n and n not in (".", "..")}
 
 
 def _write_into(folder: Path, files: dict[str, bytes], modes: dict[str, int]) -> list[Path]:

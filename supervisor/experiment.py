@@ -35,6 +35,7 @@ import math
 import os
 import shutil
 import statistics
+import tempfile
 import threading
 import time
 from dataclasses import dataclass, field
@@ -97,8 +98,9 @@ class Experiment:
         if n > max_runs:
             combos = math.prod(len(v) for v in self.overrides.values())
             raise ConfigError(
-                f"this experiment makes {n:,} runs ({len(self.failures)} failures × {combos:,} "
-                f"override combinations × {len(self.seeds):,} seeds), more than --max-runs "
+                f"this experiment makes {n:,} runs ({plural(len(self.failures), 'failure')} × "
+                f"{combos:,} override combinations × {len(self.seeds):,} "
+                f"{'seed' if len(self.seeds) == 1 else 'seeds'}), more than --max-runs "
                 f"{max_runs:,}: pass --max-runs {n} to start them all", file=str(self.file))
 
     def check_against(self, robots: list[str]) -> None:
@@ -307,6 +309,32 @@ def prepare_output(output: Path) -> None:
         raise ConfigError("--output: the folder is not writable", file=str(output))
 
 
+def check_overrides(exp: Experiment, pkg_path: Path, arch, robots: list[str]) -> None:
+    """Every overridden value, alone, through the architecture's own check of a robot's files
+    (Architecture.check_files: what its agent reads at start): an absurd value is refused with
+    the experiment file's line before the first run starts — not by every run that uses it,
+    in a generated copy of the package."""
+    if not exp.overrides:
+        return
+    stem = arch.param_stem
+    with tempfile.TemporaryDirectory(prefix="mrta-overrides-") as tmp:
+        for n, (key, value) in enumerate((k, v) for k in sorted(exp.overrides)
+                                         for v in exp.overrides[k]):
+            try:
+                cfg = package_copy(pkg_path, Path(tmp) / str(n), ((key, value),)) / "config"
+                layers = cfg / f"layers_{stem}_params.yaml"
+                for rid in robots:
+                    arch.check_files(rid, cfg / f"{rid}_{stem}_params.yaml",
+                                     cfg / f"tasks_{stem}_params.yaml",
+                                     layers if layers.is_file() else None)
+            except ConfigError as exc:
+                what = f"{exc.element}: {exc.detail}" if exc.element else exc.detail
+                message = f"override {key} = {value!r}: {what}"
+                if exp.doc is not None:
+                    raise exp.doc.error(("overrides", key), message) from None
+                raise ConfigError(message, file=str(exp.file)) from None
+
+
 def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
                    stop: threading.Event | None = None, progress=None,
                    scheduler: str | None = None, max_runs: int = MAX_RUNS) -> list[dict]:
@@ -330,7 +358,9 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
     if getattr(exp, "robots", None) and exp.robots != [len(app.robots)]:
         raise ConfigError(f"robots: the application {app.name!r} has {len(app.robots)} robots "
                           f"(its launch file starts them); got {exp.robots}", file=str(file))
-    exp.check_against([normalize_robot_id(r.id) for r in app.robots])
+    robots = [normalize_robot_id(r.id) for r in app.robots]
+    exp.check_against(robots)
+    check_overrides(exp, pkg.path, resolved.arch, robots)
     runs = exp.runs()
     prepare_output(output)
     stop = stop or threading.Event()

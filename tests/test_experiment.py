@@ -126,7 +126,7 @@ def test_an_override_changes_the_files_of_that_run_only(tmp_path):
     # a million runs: refused before anything starts, the counts named
     ("application: patrol\nduration: 10\nseeds: [1]\noverrides:\n"
      + "".join(f"  robot*.k{i}: [{', '.join(map(str, range(100)))}]\n" for i in range(3)),
-     "exp.yaml", "makes 1,000,000 runs (1 failures × 1,000,000 override combinations × 1 seeds)"),
+     "exp.yaml", "makes 1,000,000 runs (1 failure × 1,000,000 override combinations × 1 seed)"),
     ("application: patrol\nduration: 10\nseeds: [1, x]\n", ":3", "seeds[1]"),
     ("application: patrol\nduration: 10\nseeds: [1]\nfailures: [robot2 at 5]\n", ":4",
      "ROBOT@SECONDS"),
@@ -136,6 +136,13 @@ def test_an_override_changes_the_files_of_that_run_only(tmp_path):
     ("application: patrol\nduration: 10\n", "exp.yaml", "missing mandatory key 'seeds'"),
     ("application: patrol\nduration: 10\nseeds: [1]\noverrides: {timeout: [1]}\n", ":4",
      "FILE_GLOB.KEY.PATH"),
+    # an absurd overridden value: refused at its line before any run, not by every run using it
+    ("application: patrol\nduration: 10\nseeds: [1]\noverrides:\n"
+     "  robot*.timeout_duration: [5, 1.0e+308]\n", ":5",
+     "override robot*.timeout_duration = 1e+308: 'timeout_duration': timeout_duration must be "
+     "between 0.001 and 86400 s"),
+    ("application: patrol\nduration: 10\nseeds: [1]\noverrides:\n  robot*.no_such_key: [5]\n",
+     ":5", "no key 'no_such_key'"),
 ])
 def test_malformed_files_exit_2_naming_file_and_line(tmp_path, text, where, what):
     f = tmp_path / "exp.yaml"

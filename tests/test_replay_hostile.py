@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import threading
+from pathlib import Path
 
 import msgpack
 import pytest
@@ -148,3 +149,19 @@ def test_record_refuses_an_unwritable_output_before_opening_a_session(target, mo
     written (the unmarked test would fail if one were)."""
     res = CliRunner().invoke(cli, ["record", "-o", target])
     assert res.exit_code == 2 and target in res.output, res.output
+
+
+def test_a_recording_that_cannot_be_written_is_one_error_not_a_traceback():
+    """A full disk (/dev/full) fails the writer thread: the recorder stops writing, keeps
+    draining, and close() raises one MrtaRuntimeError saying so (the CLI prints one line)."""
+    import os
+
+    from mrta_zenoh.errors import MrtaRuntimeError
+    from mrta_zenoh.recording import McapRecorder
+    if not os.path.exists("/dev/full"):
+        pytest.skip("no /dev/full here")
+    rec = McapRecorder(Path("/dev/full"), flush_every=0.0)
+    for i in range(200):
+        rec.sample("robot1/odom", "application/octet-stream", bytes(1000), t=i)
+    with pytest.raises(MrtaRuntimeError, match="No space left on device"):
+        rec.close()

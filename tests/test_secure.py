@@ -420,3 +420,16 @@ def test_every_process_refuses_a_certificate_that_is_not_its_own(tmp_path, comma
     assert result.exit_code == 2, result.output
     assert f"{config}.json5" in result.output and "not for" in result.output
     assert not (tmp_path / "x.mcap").exists()
+
+
+def test_force_removes_the_previous_fleets_files_and_nothing_else(tmp_path):
+    """robot1's certificate from an earlier fleet, signed by a CA that no longer exists, used to
+    stay beside the new fleet; files secure init never wrote stay whatever happens."""
+    folder = tmp_path / "f"
+    secure.init(folder, ["robot1"], ["sup"])
+    (folder / "mine.txt").write_text("keep me")
+    secure.init(folder, ["robot2"], [], force=True)
+    names = {p.name for p in folder.iterdir()}
+    assert not names & {"robot1.pem", "robot1.key", "robot1.json5", "sup.pem", "sup.json5"}
+    assert {"robot2.pem", "robot2.json5", "mine.txt", "ca.pem"} <= names
+    assert (folder / "mine.txt").read_text() == "keep me"

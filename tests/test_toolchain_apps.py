@@ -23,10 +23,10 @@ WIZARD_KEYS = [
     "single-task", "", "", "",                      # filters (robots: ST only), then arch 1
     "robot1,robot2", "wander,report", "wander", "",  # robot1 does wander, robot2 both
     # robot1_alliance_params
-    "Robot 1", "", "", "", "", "1", "patrol/odometry", "odom", "", "",
+    "Robot 1", "", "", "", "", "1", "mrta/odometry", "odom", "", "",
     "abc", "60", "20", "30", "60", "2", "", "1", "odom",   # 'abc' is refused: double expected
     # robot2_alliance_params
-    "Robot 2", "", "", "", "", "1", "patrol/point_cloud", "sonar", "", "",
+    "Robot 2", "", "", "", "", "1", "mrta/point_cloud", "sonar", "", "",
     "60", "20", "30", "60", "2", "", "1", "sonar",
     "90", "25", "40", "80", "1", "", "1", "sonar",
     # tasks_alliance_params

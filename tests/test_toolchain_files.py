@@ -5,7 +5,7 @@ from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
 from mrta_zenoh.errors import ConfigError
-from tests.helpers import ALLIANCE_ARCH
+from tests.helpers import ALLIANCE_ARCH, ROOT
 from mrta_zenoh.toolchain.model import Application, Architecture, Array, Param, Params
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta, to_xml
 from tests.helpers import REFERENCE
@@ -168,3 +168,23 @@ def test_a_good_application_still_validates(tmp_path):
     f.write_text(APP.format(second="/robot2", task="wander"))
     res = CliRunner().invoke(cli, ["app", "validate", str(f)])
     assert res.exit_code == 0, res.output
+
+
+def test_app_validate_reads_every_robots_files_as_its_agent_would(tmp_path):
+    """An application used to validate and then have every agent refuse its files at launch:
+    `mrta app validate` now runs the architecture's own check (Architecture.check_files)."""
+    import shutil
+
+    from click.testing import CliRunner
+
+    from mrta_zenoh.cli.main import cli
+    pkg = tmp_path / "patrol"
+    shutil.copytree(ROOT / "configs" / "applications" / "patrol", pkg,
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    good = CliRunner().invoke(cli, ["app", "validate", str(pkg)])
+    assert good.exit_code == 0 and "the parameter files of 3 robots checked" in good.output
+    f = pkg / "config" / "robot2_alliance_params.yaml"
+    f.write_text(f.read_text().replace("timeout_duration: 3.0", "timeout_duration: 1.0e+308", 1))
+    bad = CliRunner().invoke(cli, ["app", "validate", str(pkg)])
+    assert bad.exit_code == 2
+    assert "robot2_alliance_params.yaml:" in bad.output and "between 0.001 and 86400 s" in bad.output

@@ -11,6 +11,7 @@ import click
 
 from ..errors import ConfigError, Interrupted, MrtaRuntimeError
 from ..lifecycle import interrupted_by_user, stop_on_signals
+from ..toolchain.checks import check_robot_files
 from ..toolchain.generator import build_application, load_answers, write_package
 from ..toolchain.launchfile import LaunchEvaluator, check_executables
 from ..toolchain.model import Application, Architecture, Array, Param, Params
@@ -111,9 +112,13 @@ def _validate(path: Path, kind: type) -> None:
     if not isinstance(model, kind):
         raise ConfigError(f"this is an {type(model).__name__.lower()} file, not an "
                           f"{kind.__name__.lower()} file", file=str(path))
+    checked = []
     if isinstance(model, Application):
         Registry().architecture(model.architecture)
-    click.echo(f"{path}: valid {kind.__name__.lower()} {model.name!r}")
+        checked = check_robot_files(path.parent, model)
+    click.echo(f"{path}: valid {kind.__name__.lower()} {model.name!r}"
+               + (f" (the parameter files of {plural(len(checked), 'robot')} checked)"
+                  if checked else ""))
 
 
 @arch.command("validate")

@@ -14,6 +14,7 @@ import logging
 import threading
 from abc import abstractmethod
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from mrta_zenoh.architectures import Architecture
@@ -51,6 +52,11 @@ class AgentArchitecture(Architecture):
     @abstractmethod
     def prepare(self, options: AgentOptions) -> Prepared:
         """Read and check the robot's parameter files (ConfigError naming file, line, key)."""
+
+    def check_files(self, robot_id: str, robot_params: Path, tasks_params: Path,
+                    layers_params: Path | None = None) -> None:
+        """The contract's file check: exactly what the agent's start reads (prepare)."""
+        self.prepare(AgentOptions(robot_id, robot_params, tasks_params, layers_params))
 
     @abstractmethod
     def coordinator(self, prepared: Prepared, agent_clock: Clock) -> Coordinator:
