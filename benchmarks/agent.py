@@ -1,8 +1,9 @@
 """Agent benchmark: high-level tick cost vs robots heard, and CPU / RSS of real agent processes.
 
 Prints one JSON line per figure:
-  tick_us          HighLevel.tick() for 10 / 100 / 1,000 other robots heard × 3 behaviour sets,
-                   with the baseline of the same tick with nobody heard
+  tick_us          HighLevel.tick() for 10 / 100 / 1,000 other robots heard × 3 behaviour sets
+                   (all at 0.5 Hz; and 1,000 heard of which 10 broadcast between two ticks),
+                   with the baseline of the same tick with nobody heard; on_broadcast() apart
   agent_process    CPU share and RSS of N `mrta agent` processes at the reference rates
                    (reference robot1 parameters; sensors fed at 10 Hz), for N = 1 and 20
 
@@ -26,6 +27,8 @@ REF = ROOT.parent / "shared" / "reference" / "alliance_test" / "config"
 
 
 def tick_cost() -> None:
+    """tick() alone (what it costs follows the teammates heard since the last tick, issue #27)
+    and on_broadcast() per message, timed apart; the baseline is the same tick, nobody heard."""
     from mrta_agent.alliance.high_level import HighLevel
     from mrta_agent.alliance.params import BehaviourSetParams, RobotParams
 
@@ -33,28 +36,40 @@ def tick_cost() -> None:
                  ("wander", "border_protection", "report"))
     params = RobotParams("R", 2.0, 0.5, 10.0, 10.0, (), sets)
     baseline = None
-    for n in (0, 10, 100, 1000):
+    # (heard, broadcasting): all heard at 0.5 Hz (a quarter of them per 2 Hz tick, as before),
+    # or only `broadcasting` of them heard between two ticks (the others unchanged)
+    for n, talking in ((0, 0), (10, None), (100, None), (1000, None), (1000, 10)):
         hl = HighLevel("me", params)
         now = 0.0
         for i in range(n):
             hl.on_broadcast(f"r{i}", sets[i % 3].task_id, 100.0, now)
         reps = 2000 if n <= 100 else 300
-        t0 = time.perf_counter()
+        tick_s = heard_s = 0.0
+        messages = 0
         for k in range(reps):
             now += 0.5
             for task in hl.sets:
                 hl.on_feedback(task, True, now)
-            for i in range(n):
-                if k % 4 == 0:  # each robot broadcasts at 0.5 Hz, we tick at 2 Hz
-                    hl.on_broadcast(f"r{i}", sets[i % 3].task_id, 100.0, now)
+            who = (range(n) if k % 4 == 0 else ()) if talking is None else \
+                [(k * talking + j) % n for j in range(talking)]
+            t0 = time.perf_counter()
+            for i in who:  # each robot broadcasts at 0.5 Hz, we tick at 2 Hz
+                hl.on_broadcast(f"r{i}", sets[i % 3].task_id, 100.0, now - 0.1)
+            t1 = time.perf_counter()
             hl.tick(now)
-        us = (time.perf_counter() - t0) / reps * 1e6
+            tick_s += time.perf_counter() - t1
+            heard_s += t1 - t0
+            messages += len(who)
+        us = tick_s / reps * 1e6
         if n == 0:
             baseline = us
             continue
         print(json.dumps({"figure": "tick_us", "robots_heard": n, "behaviour_sets": 3,
+                          "heard_between_ticks": round(messages / reps, 1),
                           "tick_us": round(us, 1), "baseline_nobody_heard_us": round(baseline, 1),
-                          "ticks_per_s_of_one_core": round(1e6 / us)}), flush=True)
+                          "on_broadcast_us": round(heard_s / max(messages, 1) * 1e6, 2),
+                          "ticks_per_s_of_one_core_with_broadcasts":
+                              round(reps / (tick_s + heard_s))}), flush=True)
 
 
 def proc_stat(pid: int) -> tuple[float, int]:

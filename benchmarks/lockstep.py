@@ -6,7 +6,10 @@ Prints one JSON line per figure:
                         following the clock as fast as they can) in the same run
   lockstep_step_cost    wall time per physics step with N participants that answer every step
                         (10 and 100, hosted by 2 processes), against the same simulator with no
-                        participant in the same run
+                        participant in the same run, and against the bare bus round trip: one
+                        Step published, the N StepDones received and decoded, nothing else (no
+                        simulator, no barrier) — what the transport alone costs; the barrier's
+                        own cost is the difference
   experiment_20_runs    20 patrol runs (60 s each) through `mrta experiment --jobs 2`, against
                         20 × the wall time of one run measured in the same run
 
@@ -99,6 +102,48 @@ def step_cost(env: dict, participants: int, seconds: float) -> float:
         return wall / (simulated / 0.02)
 
 
+BARE = """
+import sys, threading, time
+from mrta_zenoh.bus import BusOptions, open_bus
+from mrta_zenoh.lockstep import DONE, STEP, Step, StepDone
+n, steps = int(sys.argv[1]), int(sys.argv[2])
+cond, got = threading.Condition(), [0]
+def on_done(sample):
+    with cond:
+        got[0] += 1
+        if got[0] >= n:
+            cond.notify_all()
+with open_bus(BusOptions()) as bus:
+    bus.subscribe(f"{DONE}/*", on_done, msg_type=StepDone)
+    time.sleep(2.0)  # the participants' sessions reach this one
+    for k in range(steps + steps // 10):
+        if k == steps // 10:  # the first tenth warms up
+            t0 = time.perf_counter()
+        with cond:
+            got[0] = 0
+        bus.publish(STEP, Step(0.02 * k, k + 1, {}, "bare-x0", 2.5))
+        with cond:
+            while got[0] < n:
+                if not cond.wait(10.0):
+                    raise SystemExit(f"only {got[0]} of {n} answers")
+    print((time.perf_counter() - t0) / steps, flush=True)
+"""
+
+
+def bare_round_trip(env: dict, participants: int, steps: int = 2000) -> float:
+    """Wall seconds per Step published → `participants` StepDones received, on the bus alone."""
+    with ProcessGroup(env) as group:
+        per = participants // 2
+        for k in range(2):
+            c = group.start([sys.executable, HERE, "--child", str(k * per), str(per)],
+                            name=f"participants{k}")
+            c.wait_line(lambda line: line == "ready", 60)
+        bare = group.start([sys.executable, "-c", BARE, str(participants), str(steps)],
+                           name="bare")
+        bare.wait(900)
+        return float(bare.stdout[-1])
+
+
 def experiment(env: dict) -> dict:
     with tempfile.TemporaryDirectory() as tmp:
         one = Path(tmp) / "one"
@@ -138,11 +183,16 @@ def main() -> None:
         base = step_cost(env, 0, 200.0)
         for n in (10, 100):
             cost = step_cost(env, n, 40.0 if n == 100 else 100.0)
+            bare = bare_round_trip(env, n)
             print(json.dumps({"figure": "lockstep_step_cost", "participants": n,
                               "ms_per_step": round(cost * 1e3, 3),
                               "ms_per_step_without_lockstep": round(base * 1e3, 3),
                               "lockstep_ms_per_step": round((cost - base) * 1e3, 3),
-                              "target_ms_with_10": 1.0}), flush=True)
+                              "bare_round_trip_ms": round(bare * 1e3, 3),
+                              "barrier_ms_beyond_round_trip": round((cost - base - bare) * 1e3,
+                                                                    3),
+                              "target_ms_with_10": 1.0, "target_barrier_ms_with_100": 0.5}),
+                  flush=True)
     if args.only in (None, "experiment"):
         print(json.dumps(experiment(env)), flush=True)
 

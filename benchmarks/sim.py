@@ -6,7 +6,7 @@ pymunk bodies for control, one `segment_query_first` per sonar beam), so the num
 numpy batching buys. "with bus" publishes clock, sonar, odom, ground truth and bumper over real
 Zenoh while a separate subscriber process receives everything (spawned, never forked).
 
-Run: python benchmarks/sim.py [--robots 3 10 100 1000] [--seconds 10]
+Run: python benchmarks/sim.py [--robots 3 10 100 300 1000] [--seconds 10] [--plot PNG]
 """
 
 from __future__ import annotations
@@ -148,11 +148,38 @@ def run_with_bus(n: int, seconds: float) -> tuple[float, int]:
     return stats.real_time_factor, received
 
 
+def plot(curve: list[tuple[int, float, float, float]], path: str) -> None:
+    """Real-time factor against robots, log-log: ours without and with the bus, and the naive
+    loop measured in the same run."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    n = [c[0] for c in curve]
+    fig, ax = plt.subplots(figsize=(6, 4), dpi=100)
+    for i, (label, style) in enumerate((("ours, no bus", "o-"), ("ours, with the bus", "s-"),
+                                        ("naive pymunk loop (baseline)", "x--")), start=1):
+        ax.plot(n, [c[i] for c in curve], style, label=label)
+    ax.axhline(1.0, color="grey", lw=0.8)
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("robots")
+    ax.set_ylabel("real-time factor (simulated s per wall s)")
+    ax.legend()
+    ax.grid(True, which="both", alpha=0.3)
+    fig.tight_layout()
+    fig.savefig(path)
+    plt.close(fig)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--robots", type=int, nargs="+", default=[3, 10, 100, 1000])
+    ap.add_argument("--robots", type=int, nargs="+", default=[3, 10, 100, 300, 1000])
     ap.add_argument("--seconds", type=float, default=10.0)
+    ap.add_argument("--plot", metavar="PNG", help="also draw the curve of real-time factor "
+                    "against robots (e.g. benchmarks/img/rtf.png)")
     args = ap.parse_args()
+    curve = []
     for n in args.robots:
         secs = args.seconds if n < 1000 else max(2.0, args.seconds / 5)
         ours = run_ours(n, secs)
@@ -165,6 +192,9 @@ def main() -> None:
                           "ours": round(bus_rtf, 1), "samples_received": received,
                           "samples_expected": int(round(secs * 50 + 1 + (secs * 10 + 1) * 4 * n)),
                           "ours_no_bus": round(ours, 1)}), flush=True)
+        curve.append((n, ours, bus_rtf, naive))
+    if args.plot:
+        plot(curve, args.plot)
 
 
 if __name__ == "__main__":

@@ -25,12 +25,15 @@ from pathlib import Path
 from typing import ClassVar, Iterable
 
 from .errors import ConfigError
-from .failure import Failure
+from .failure import Failure, Faults
 from .keys import first_chunk
 from .yamlfile import did_you_mean
 
 GROUP = "mrta.architectures"
 CRASH_ENV = "MRTA_CRASH"  # ROBOT@SECONDS[,ROBOT@SECONDS…]: crash-stop fault injection
+# the other faults (stall:, partition:, loss:, latency:; mrta_zenoh/failure.py), which the agent's
+# driver injects (robot_agent/runtime/loop.py)
+FAULTS_ENV = "MRTA_FAULTS"
 # ROBOT,ROBOT,…: an agent's `--team` (robot_agent/runtime/cli.py). Every robot launch file sets
 # it to the application's robots (toolchain/generator.py), so an agent counts only them,
 # whatever architecture it runs (a verb that knows no team ignores it).
@@ -125,11 +128,22 @@ class Architecture(ABC):
         every overridden value before the first run. Default: nothing to check."""
 
     # ------------------------------------------------------------ faults
-    def failure_env(self, failures: Iterable[Failure]) -> dict[str, str]:
-        """Environment for the agents that injects crash-stop failures: every agent reads
-        $MRTA_CRASH and SIGKILLs itself at its time (exact in lockstep)."""
-        specs = [f.spec for f in failures]
-        return {CRASH_ENV: ",".join(specs)} if specs else {}
+    def failure_env(self, failures: Iterable[Failure] | Faults) -> dict[str, str]:
+        """Environment for the agents that injects the faults (mrta_zenoh/failure.py): every
+        agent reads $MRTA_CRASH and SIGKILLs itself at its time, and $MRTA_FAULTS for the
+        others (stall, partition, loss, latency), which its driver injects — exact in
+        lockstep, and the same for every architecture built on mrta_agent's runtime."""
+        if isinstance(failures, Faults):
+            crashes = [f.spec for f in failures.failures if f.kind == "crash"]
+            others = [s for s in failures.items() if s not in crashes]
+        else:
+            failures = list(failures)
+            crashes = [f.spec for f in failures if f.kind == "crash"]
+            others = [f.spec for f in failures if f.kind != "crash"]
+        env = {CRASH_ENV: ",".join(crashes)} if crashes else {}
+        if others:
+            env[FAULTS_ENV] = ",".join(others)
+        return env
 
     # ------------------------------------------------------------ optional extras
     def plots(self, recording: Path, robots: list[str], tasks: list[str], output: Path,

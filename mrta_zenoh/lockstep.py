@@ -431,7 +431,12 @@ class LockstepClock(SimClock):
 
 class Barrier:
     """The simulator's side: whom to wait for, and waiting. A context manager: leaving it
-    withdraws the barrier's token and subscriptions (close())."""
+    withdraws the barrier's token and subscriptions (close()).
+
+    Cost per step (issue #27: 100 participants answering every step): an answer updates who
+    is still waited for, the per-key claims and the due cache in O(its own keys); only the
+    last answer (then the counts it waits for) wakes wait(). Before, every answer and every
+    counted sample woke it and each wake rescanned every participant's StepDone."""
 
     def __init__(self, bus, run_id: str, timeout: float = DEFAULT_TIMEOUT,
                  wall=time.monotonic):
@@ -450,6 +455,12 @@ class Barrier:
         self._last: Step | None = None  # the step published last (re-published for newcomers)
         self._republish = False
         self._back: set[str] = set()  # given up, and answering again
+        # Kept up to date as StepDones arrive, so a step costs one look per answer, not a scan
+        # of every participant per answer (issue #27: 100 participants answering every step)
+        self._stamp: float | None = None  # the step wait() is waiting on
+        self._waiting: set[str] = set()   # participants it still waits for
+        self._claims: dict[str, int] = {}  # key → the largest count in `done`
+        self._due_at: float | None = None  # due() before this stamp is False (None: unknown)
         bus.counting = True  # set before the commands' subscription (SimNode) exists
         bus.on_counted = self._poke
         self.handles = [
@@ -477,13 +488,20 @@ class Barrier:
         with self._cond:
             self._changed += 1
             self._changed_at = self._wall()
+            self._due_at = None
             if alive:
                 if len(self.participants) < MAX_NAMES:
                     self.participants.add(name)
                     self._republish = True  # a newcomer (or a resumed one) gets the step at once
+                    if self._stamp is not None and name not in self.unresponsive and \
+                            not self._answered(name, self._stamp):
+                        self._waiting.add(name)
             else:
                 self.participants.discard(name)
-                self.done.pop(name, None)
+                self._waiting.discard(name)
+                gone = self.done.pop(name, None)
+                if gone is not None:
+                    self._recount(k for k, n in gone.sent.items() if self._claims.get(k) == n)
                 self.unresponsive.discard(name)
             self._cond.notify_all()
 
@@ -530,11 +548,46 @@ class Barrier:
             if prev is not None and d.stamp < prev.stamp - EPSILON:
                 return  # an older answer overtaken by a newer one
             self.done[name] = d
+            self._claim(prev, d)
+            self._due_at = None
             if name in self.unresponsive and d.stamp >= published - EPSILON:
                 # answers the current step again: waited for (and stopped for) from now on
                 self.unresponsive.discard(name)
                 self._back.add(name)
-            self._cond.notify_all()
+                self._cond.notify_all()
+            elif name in self._waiting and d.stamp >= self._stamp - EPSILON:
+                self._waiting.discard(name)
+                if not self._waiting:  # the last answer: wait() looks at the counts
+                    self._cond.notify_all()
+
+    def _answered(self, name: str, stamp: float) -> bool:
+        d = self.done.get(name)
+        return d is not None and d.stamp >= stamp - EPSILON
+
+    def _claim(self, prev: StepDone | None, d: StepDone) -> None:
+        """Keep `_claims` the per-key maximum over `done` after `prev` became `d` (counts only
+        grow in an honest run; a lower one may take the maximum down: those keys are counted
+        again over every participant)."""
+        claims, lowered = self._claims, []
+        old = prev.sent if prev is not None else {}
+        for k, n in d.sent.items():
+            top = claims.get(k)
+            if top is None or n > top:
+                claims[k] = n
+            elif n < top and old.get(k) == top:
+                lowered.append(k)
+        if old:
+            lowered.extend(k for k in old.keys() - d.sent.keys() if claims.get(k) == old[k])
+        if lowered:
+            self._recount(lowered)
+
+    def _recount(self, keys) -> None:
+        for k in list(keys):
+            counts = [d.sent[k] for d in self.done.values() if k in d.sent]
+            if counts:
+                self._claims[k] = max(counts)
+            else:
+                self._claims.pop(k, None)
 
     def sent(self) -> dict[str, int]:
         """What the next step requires: the simulator's own samples (sensor data: on the same
@@ -542,26 +595,34 @@ class Barrier:
         and every participant's, cumulative counts per key."""
         out: dict[str, int] = dict(self.bus.sent_counts)
         with self._cond:
-            for d in self.done.values():
-                for k, n in d.sent.items():
-                    out[k] = max(out.get(k, 0), n)
+            for k, n in self._claims.items():
+                if n > out.get(k, 0) or k not in out:
+                    out[k] = n
         return out
 
     def _poke(self) -> None:
+        """A sample was counted: what wait() is after once every participant has answered
+        (before that, an answer wakes it)."""
         with self._cond:
-            self._cond.notify_all()
+            if self._stamp is not None and not self._waiting:
+                self._cond.notify_all()
 
     def due(self, stamp: float) -> bool:
         """Must the simulator stop at `stamp`? Yes if a participant has something to do by
         then (or has not said); the steps in between run without a round trip."""
         with self._cond:
-            for p in self.participants:
-                if p in self.unresponsive:
-                    continue
-                d = self.done.get(p)
-                if d is None or d.next < 0 or d.next <= stamp + EPSILON:
-                    return True
-        return False
+            if self._due_at is None:  # recomputed only after answers or the set changed
+                due_at = float("inf")
+                for p in self.participants:
+                    if p in self.unresponsive:
+                        continue
+                    d = self.done.get(p)
+                    if d is None or d.next < 0:
+                        due_at = float("-inf")
+                        break
+                    due_at = min(due_at, d.next)
+                self._due_at = due_at
+            return self._due_at <= stamp + EPSILON
 
     def publish(self, stamp: float) -> None:
         self.step += 1
@@ -580,6 +641,20 @@ class Barrier:
         deadline = start + self.timeout
         answered_at: float | None = None  # when the last participant answered
         report = False  # a change for lockstep/status
+        with self._cond:
+            self._stamp = stamp
+            self._waiting = {p for p in self.participants
+                             if p not in self.unresponsive and not self._answered(p, stamp)}
+        try:
+            report = self._wait(stamp, stop, deadline, answered_at, report)
+        finally:
+            with self._cond:
+                self._stamp, self._waiting = None, set()
+        if report:
+            self._status(stamp)
+
+    def _wait(self, stamp: float, stop: threading.Event, deadline: float,
+              answered_at: float | None, report: bool) -> bool:
         while not stop.is_set():
             with self._cond:
                 step, republish = self._last, self._republish
@@ -588,9 +663,7 @@ class Barrier:
                 self.bus.publish(STEP, step)
             with self._cond:
                 now = self._wall()
-                waiting = {p for p in self.participants
-                           if p not in self.unresponsive and
-                           (p not in self.done or self.done[p].stamp < stamp - EPSILON)}
+                waiting = self._waiting  # (kept up to date by _on_done, under this lock)
                 back, self._back = self._back, set()
                 if back:
                     report = True
@@ -615,15 +688,16 @@ class Barrier:
                     report = True
                     continue
                 if now >= deadline:
+                    waiting, self._waiting = set(waiting), set()
                     self.unresponsive |= waiting
+                    self._due_at = None
                     log.warning("lockstep: %s did not finish t=%.2f within %.1f s: no longer "
                                 "waited for", ", ".join(_printable(p) for p in sorted(waiting)),
                                 stamp, self.timeout)
                     report = True
                     break
                 self._cond.wait(min(deadline - now, 0.05))
-        if report:
-            self._status(stamp)
+        return report
 
     def _status(self, stamp: float) -> None:
         with self._cond:

@@ -176,6 +176,22 @@ def run_simulator(options: SimOptions, bus_options: BusOptions,
         if o.lockstep:
             barrier = resources.enter_context(Barrier(bus, run_id, o.lockstep_timeout))
             barrier.settle()  # the participants already up are heard
+            if o.wait_robots is not None:
+                # every robot's agent in step from step 0: one that joins later starts its
+                # first tick at whatever time the others had reached, and the same seed gave
+                # two different runs (the first tick at 0.0 or 0.1, depending on load)
+                expected = set(robots) - set(ros2_ids)
+                deadline = time.monotonic() + o.wait_robots
+                while not expected <= barrier.participants and not stop.is_set() \
+                        and time.monotonic() < deadline:
+                    stop.wait(0.05)
+                missing = sorted(expected - barrier.participants)
+                if barrier.participants and missing:
+                    raise MrtaRuntimeError(
+                        f"lockstep: {', '.join(missing)} did not join within {o.wait_robots:g} s "
+                        "(--wait-robots): its agent runs without --sim-time, or an "
+                        f"access-control configuration denies its {PARTICIPANT}/<robot> token; "
+                        "a run without it would not be reproducible")
             if o.wait_robots is not None and not barrier.participants:
                 raise MrtaRuntimeError(
                     f"lockstep: no participant after {o.wait_robots:g} s although "

@@ -6,7 +6,8 @@ An experiment file (YAML, checked strictly: file, line and key on any error):
     architecture: murdoch  # optional: the application under another architecture
     duration: 120          # simulated seconds per run
     seeds: [1, 2, 3, 4, 5]
-    failures: [none, robot2@40, robot1@40]
+    failures: [none, robot2@40, stall:robot2@40, "partition:robot2@40+10,loss:0.1"]
+                           # each one fault spec (docs/delivery.md, "Fault grammar")
     overrides:             # optional sweeps: <parameter file glob>.<key path>: [values]
       robot*.timeout_duration: [2.0, 4.0]
 
@@ -43,7 +44,7 @@ from pathlib import Path
 from typing import Any
 
 from mrta_zenoh.errors import ConfigError, Interrupted
-from mrta_zenoh.failure import failure_problem, parse_failure
+from mrta_zenoh.failure import faults_problem, parse_faults
 from mrta_zenoh.files import write_atomically, write_text
 from mrta_zenoh.keys import LIVELINESS_PREFIX, normalize_robot_id
 from mrta_zenoh.limits import MAX_RUNS, RUN_DURATION, SEED
@@ -110,7 +111,7 @@ class Experiment:
         for i, spec in enumerate(self.failures):
             if spec == "none":
                 continue
-            problem = failure_problem(parse_failure(spec), robots, self.duration)
+            problem = faults_problem(parse_faults(spec), robots, self.duration)
             if problem:
                 if self.doc is not None:
                     raise self.doc.error(("failures", i), f"failures[{i}]: {problem}")
@@ -144,7 +145,7 @@ def _failure_problem(spec: str) -> str | None:
     if spec == "none":
         return None
     try:
-        parse_failure(spec)
+        parse_faults(spec)
     except ValueError as exc:
         return f"{exc}, or none"
     return None

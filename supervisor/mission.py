@@ -5,10 +5,10 @@ It runs the application package's mission launch file (the simulator and one age
 through the runner `mrta launch` uses, plus a recorder, all as separate processes on a private
 loopback rendezvous; this process is the supervisor. Readiness is read from liveliness tokens
 (each robot's token, the recorder's, the clock source's), never from log lines; the simulator
-itself starts the clock only once every robot is up. It injects the failure the way the
-architecture says (`Architecture.failure_env`: exact in lockstep) or SIGKILLs the agent when
-the run is not in lockstep. Afterwards it writes, into the output folder, the recording, the
-allocation timeline, the architecture's own plots, and `summary.json` (summary.py): who did
+itself starts the clock only once every robot is up. It injects the faults (mrta_zenoh/failure.py:
+crash, stall, partition, loss, latency) the way the architecture says (`Architecture.failure_env`:
+exact in lockstep), or SIGKILLs a crashing agent itself when the run is not in lockstep.
+Afterwards it writes, into the output folder, the recording, the allocation timeline, the architecture's own plots, and `summary.json` (summary.py): who did
 what, coverage, first full allocation and takeover — all from the robots' own messages in
 simulated time (ground_truth.py), exact to one agent tick — beside the bound the architecture
 states, traffic, and the application's own metrics (its `Mission.metrics` hook).
@@ -36,12 +36,12 @@ from pathlib import Path
 from typing import Any, Callable
 
 from mrta_zenoh import keys
-from mrta_zenoh.architectures import Architecture, architecture
+from mrta_zenoh.architectures import CRASH_ENV, Architecture, architecture
 from mrta_zenoh.bus import BusOptions, open_bus
 from mrta_zenoh.bus.options import private_rendezvous
 from mrta_zenoh.clock import SimClock, follow_sim_clock
 from mrta_zenoh.errors import ConfigError, Interrupted, MrtaRuntimeError
-from mrta_zenoh.failure import USAGE, Failure, parse_failure
+from mrta_zenoh.failure import Failure, Faults, parse_faults
 from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.presence import RobotPresence
 from mrta_zenoh.processes import Child, ProcessGroup, mrta_argv
@@ -107,7 +107,7 @@ class MissionOptions:
     architecture: str | None = None   # None: the one the application package names
     duration: float = 60.0            # simulated seconds
     speed: float = 2.0                # simulated seconds per wall second; 0: as fast as possible
-    fail: str | None = None           # ROBOT@SECONDS, "none", or None: the mission's default
+    fail: str | None = None           # a fault spec (failure.py), "none", or None: the default
     output: Path = Path("demo-output")
     seed: int = 0
     lockstep: bool = True
@@ -198,32 +198,38 @@ def resolve(options: MissionOptions, reg: Registry | None = None) -> MissionRun:
     return MissionRun(mission, pkg, app, arch, arch_model, [r.id for r in app.robots], options)
 
 
-def parse_fail(spec: str | None) -> Failure | None:
-    """A mission's --fail: ROBOT@SECONDS, or none (None: none either)."""
+def parse_fail(spec: str | None) -> Faults | None:
+    """A mission's --fail: a fault spec (mrta_zenoh/failure.py), or none (None: none either)."""
     if spec is None or spec.lower() == "none":
         return None
     try:
-        return parse_failure(spec)
-    except ValueError:
-        raise ConfigError(f"--fail {spec!r}: expected {USAGE}, or none") from None
+        return parse_faults(spec)
+    except ValueError as exc:
+        raise ConfigError(f"--fail {exc}; or none") from None
 
 
-def failure_of(run: MissionRun) -> Failure | None:
-    """The run's failure — asked for, or the mission's default — checked against its robots
+def faults_of(run: MissionRun) -> Faults:
+    """The run's faults — asked for, or the mission's default — checked against its robots
     and its duration before anything starts."""
     spec = run.options.fail
     if spec is None:
         spec = run.mission.default_failure(run.robots, run.options.duration)
-    failure = parse_fail(spec)
-    if failure is None:
-        return None
-    if failure.robot not in run.robots:
-        raise ConfigError(f"--fail {spec}: {failure.robot} is not one of {', '.join(run.robots)}")
-    if failure.at >= run.options.duration:
-        raise ConfigError(f"--fail at {failure.at:g} s is not before the end "
-                          f"({run.options.duration:g} s): pick an earlier time or a longer "
-                          "--duration")
-    return failure
+    faults = parse_fail(spec)
+    if faults is None:
+        return Faults()
+    for f in faults.failures:
+        if f.robot not in run.robots:
+            raise ConfigError(f"--fail {spec}: {f.robot} is not one of {', '.join(run.robots)}")
+        if f.at >= run.options.duration:
+            raise ConfigError(f"--fail {f.spec}: {f.at:g} s is not before the end "
+                              f"({run.options.duration:g} s): pick an earlier time or a longer "
+                              "--duration")
+    return faults
+
+
+def failure_of(run: MissionRun) -> Failure | None:
+    """The robot fault the run's failure report is about: the first one of its spec."""
+    return faults_of(run).primary
 
 
 # ------------------------------------------------------------------ readiness
@@ -279,12 +285,12 @@ def run_mission(options: MissionOptions, *, stop: threading.Event | None = None,
     a wall second while it runs (the live view). Returns what ran and its summary."""
     reg = Registry()
     run = resolve(options, reg)
-    failure = failure_of(run)
+    faults = faults_of(run)
     if not run.mission.launch:
         raise ConfigError(f"mission {run.mission.name!r} names no launch file")
     options.output.mkdir(parents=True, exist_ok=True)
     with output_lock(options.output):
-        return _run_in(run, failure, reg, stop, progress, folder_state(options.output))
+        return _run_in(run, faults, reg, stop, progress, folder_state(options.output))
 
 
 LOCK_FILE = ".mrta-run.lock"
@@ -328,7 +334,7 @@ def folder_state(folder: Path) -> dict[str, tuple[int, int, int]]:
     return out
 
 
-def _run_in(run: MissionRun, failure: Failure | None, reg: Registry,
+def _run_in(run: MissionRun, faults: Faults, reg: Registry,
             stop: threading.Event | None, progress: Progress | None,
             before: dict[str, tuple[int, int, int]]) -> tuple[MissionRun, Summary]:
     options, output = run.options, run.options.output
@@ -340,9 +346,15 @@ def _run_in(run: MissionRun, failure: Failure | None, reg: Registry,
     check_executables(nodes)
     rendezvous = private_rendezvous()
     env = dict(os.environ, MRTA_RENDEZVOUS=rendezvous, PYTHONUNBUFFERED="1")
-    if options.lockstep and failure:
-        # the agent crashes itself at that simulated time: exact, so a run replays exactly
-        env.update(run.arch.failure_env([failure]))
+    failure = faults.primary
+    crashes = [f for f in faults.failures if f.kind == "crash"]
+    # the agents inject the faults themselves at their simulated times: exact in lockstep, so
+    # a run replays exactly; out of lockstep, this process SIGKILLs the crashing ones (_watch)
+    kill = [] if options.lockstep else crashes
+    if faults:
+        env.update(run.arch.failure_env(faults))
+        if not options.lockstep:
+            env.pop(CRASH_ENV, None)
     failed_at: float | None = None
     t_wall0 = time.monotonic()
     with stop_on_signals(stop) as stop, ProcessGroup(env) as group, \
@@ -367,8 +379,7 @@ def _run_in(run: MissionRun, failure: Failure | None, reg: Registry,
         sim = next(c for c in children if c not in agents.values())
         ready.wait(ready.robots_up, "the robots' agents", group, stop)
         ready.wait(ready.clock.is_set, "the simulator", group, stop)
-        failed_at = _watch(sim, sup, clock, agents, failure, stop, progress,
-                           kill=not options.lockstep)
+        failed_at = _watch(sim, sup, clock, agents, failure, stop, progress, kill)
         live.close()
         if stop.is_set() or sim.wait(30) in (-signal.SIGINT, 128 + signal.SIGINT):
             # Ctrl-C: the terminal sends SIGINT to the children as well, and the simulator may
@@ -378,7 +389,7 @@ def _run_in(run: MissionRun, failure: Failure | None, reg: Registry,
         if sim.wait(30) != 0:
             raise MrtaRuntimeError(f"the simulator {sim.describe_exit()}:\n" + sim.tail())
         group.stop_all()
-        crashed = group.failed(ignore=[agents[failure.robot].name] if failure else [])
+        crashed = group.failed(ignore=[agents[f.robot].name for f in crashes])
         if crashed:
             raise MrtaRuntimeError("; ".join(f"{c.name} {c.describe_exit()}"
                                              for c in crashed) + ":\n"
@@ -389,17 +400,22 @@ def _run_in(run: MissionRun, failure: Failure | None, reg: Registry,
 
 def _watch(sim: Child, sup: Supervisor, clock: SimClock, agents: dict[str, Child],
            failure: Failure | None, stop: threading.Event, progress: Progress | None,
-           kill: bool) -> float | None:
+           kill: list[Failure]) -> float | None:
+    """Follow the run; SIGKILL the agents in `kill` at their times (out of lockstep: in it
+    they crash themselves, exactly); return when `failure` struck."""
     failed_at = None
+    killed: dict[str, float] = {}
     refresh = Refresh(sup, clock, sim_time=True)
     while sim.running() and not stop.is_set():
         stop.wait(0.25)
         now = refresh()
+        for f in kill:
+            if f.robot not in killed and now >= f.at:
+                agents[f.robot].signal(signal.SIGKILL)
+                killed[f.robot] = now
+                log.info("killed %s at %.1f s", f.robot, now)
         if failure and failed_at is None and now >= failure.at:
-            if kill:  # otherwise the agent crashed itself at exactly failure.at
-                agents[failure.robot].signal(signal.SIGKILL)
-            failed_at = now if kill else failure.at
-            log.info("killed %s at %.1f s", failure.robot, failed_at)
+            failed_at = killed.get(failure.robot, failure.at)
         if progress is not None:
             progress(now, sup, failure, failed_at)
     return failed_at
@@ -430,7 +446,10 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
     t1 = max((tb(t) for _, _, t, _ in records), default=run.options.duration)
     # what the robots did, from their own messages in simulated time (ground_truth.py) — not
     # the supervisor's view, which lags by its monitors' timeouts
-    failures = [(failure.robot, failed_at)] if failure and failed_at is not None else []
+    # a crashed robot's reports end at its crash; a stalled or partitioned one's claims are kept
+    # (it may well still say it is on its task: what matters is who took it over, and when)
+    failures = [(failure.robot, failed_at)] if failure and failure.kind == "crash" \
+        and failed_at is not None else []
     intervals = intervals_from(records, run.arch, t1, run.arch.doing_stale_after, failures)
     plot_timeline(output / "run.mcap", run.app, run.arch_model, output / "timeline.png",
                   records, sup)
@@ -440,7 +459,7 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
            for rid in run.robots}
     report = None
     if failure:
-        report = FailureReport(failure.robot, failed_at)
+        report = FailureReport(failure.robot, failed_at, fault=failure.kind)
         if failed_at is not None:
             task = next((t for t, a, b in intervals.get(failure.robot, [])
                          if a <= failed_at <= b + 0.5), None)
@@ -451,8 +470,13 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
                 t_take, by = taken[0]
                 report.taken_over_by = by
                 report.takeover_seconds = round(t_take - failed_at, 2)
-                report.bound_seconds = round(run.arch.takeover_bound(run.robot_params(by), task), 2)
-                report.bound_formula = run.arch.bound_formula
+                if failure.kind != "stall":
+                    # the bound is for silence (a crash, a partition); a stalled robot keeps
+                    # talking, so what detects it is the architecture's own progress check
+                    # (ALLIANCE's φ, the expected_duration it announces) — no bound here
+                    report.bound_seconds = round(run.arch.takeover_bound(run.robot_params(by),
+                                                                         task), 2)
+                    report.bound_formula = run.arch.bound_formula
     summary = Summary(
         mission=run.mission.name, application=run.package.name, architecture=run.arch.name,
         duration=run.options.duration, speed=run.options.speed, seed=run.options.seed,

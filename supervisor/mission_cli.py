@@ -37,9 +37,11 @@ from .view import render
               show_default=True, help="Simulated seconds of mission.")
 @click.option("--speed", type=finite_float(min=0), default=2.0, show_default=True,
               help="Simulated seconds per wall second (0: as fast as possible).")
-@click.option("--fail", default=None, metavar="ROBOT@SECONDS|none",
-              help="SIGKILL this robot's agent at this simulated time (default: the second "
-                   "robot at half the duration).")
+@click.option("--fail", default=None, metavar="FAULTS|none",
+              help="Faults to inject, comma-separated: ROBOT@T (crash: SIGKILL its agent at "
+                   "this simulated time), stall:ROBOT@T, partition:ROBOT@T+D, loss:P, "
+                   "latency:MEAN±JITTER (docs/delivery.md, Fault grammar). Default: the "
+                   "second robot crashes at half the duration.")
 @click.option("--output", type=click.Path(file_okay=False, path_type=Path),
               default=Path("demo-output"), show_default=True,
               help="Folder for the recording, pictures and summary.json.")
@@ -114,9 +116,11 @@ class _LiveView:
 
     def __call__(self, now: float, sup, failure, failed_at: float | None) -> None:
         o = self.options
+        what = {"stall": "stalled", "partition": "cut off"}.get(failure.kind, "killed") \
+            if failure is not None else ""
         fail = "" if failure is None else (
-            f" · {failure.robot} killed at {failed_at:.1f} s" if failed_at is not None
-            else f" · will kill {failure.robot} at {failure.at:g} s")
+            f" · {failure.robot} {what} at {failed_at:.1f} s" if failed_at is not None
+            else f" · {failure.spec} at {failure.at:g} s")
         app = f" · {o.application}" if o.application else ""
         header = Text(f"mrta demo{app} · simulated {now:5.1f} / {o.duration:.0f} s"
                       f" · speed {o.speed or 'max'}{fail}", style="bold")
@@ -132,6 +136,9 @@ class _LiveView:
             self.live.stop()
 
 
+_FAULT_WORDS = {"crash": "killed", "stall": "stalled", "partition": "cut off"}
+
+
 def print_summary(console: Console, s: Summary, title: str, arch_title: str,
                   extra: list[str]) -> None:
     console.print(Text(f"\n{title} ({arch_title}): {s.duration:.0f} s simulated at speed "
@@ -141,15 +148,20 @@ def print_summary(console: Console, s: Summary, title: str, arch_title: str,
         console.print(f"  {rid}: {txt}", highlight=False)
     f = s.failure
     if f:
-        if f.takeover_seconds is not None:
+        what = _FAULT_WORDS.get(f.fault, "killed")
+        if f.takeover_seconds is not None and f.bound_seconds is None:
+            console.print(f"  {f.robot} {what} at {f.killed_at:.1f} s while doing {f.task}; "
+                          f"{f.taken_over_by} took over after {f.takeover_seconds:.2f} s",
+                          highlight=False)
+        elif f.takeover_seconds is not None:
             ok = "within" if f.takeover_seconds <= f.bound_seconds else "OVER"
-            console.print(f"  {f.robot} killed at {f.killed_at:.1f} s while doing {f.task}; "
+            console.print(f"  {f.robot} {what} at {f.killed_at:.1f} s while doing {f.task}; "
                           f"{f.taken_over_by} took over after {f.takeover_seconds:.2f} s "
                           f"({ok} the bound {f.bound_formula} = {f.bound_seconds:.2f} s"
                           + ("" if s.lockstep else " after its last broadcast was received")
                           + ")", highlight=False)
         else:
-            console.print(f"  {f.robot} killed at {f.killed_at}; task {f.task} was not taken "
+            console.print(f"  {f.robot} {what} at {f.killed_at}; task {f.task} was not taken "
                           "over before the end", highlight=False)
     for task, c in s.coverage.items():
         console.print(f"  {task}: exactly one robot {c.exactly_one:.0%}, none {c.none:.0%}, "

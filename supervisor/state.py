@@ -35,7 +35,9 @@ What the bus cannot be trusted with (docs/architecture.md):
   first ROS 2 node seen in its namespace on, it is online only while such a node lives
   (`driver_lost` otherwise). The rule goes with the bridge: a node declared in the namespace
   of a robot nobody bridges (a forgery, a stray tool) changes nothing, and when the bridge
-  goes its `driver_lost` goes with it;
+  goes its `driver_lost` goes with it. A robot so driven whose bridge goes while its driver
+  lives is offline with `bridge_lost` (its agent's commands reach nothing) until a bridge
+  comes back or its ROS 2 nodes go too;
 * while the simulation clock is stopped (`clock_stopped` alarm) robots are shown `unknown`:
   their held states are stale, not busy;
 * a lockstep simulator's report of participants it no longer waits for raises
@@ -461,10 +463,15 @@ class Supervisor:
 
     def _ros2_reassess(self, r: RobotInfo, now: float) -> None:
         r.ros2_driver = self.ros2.has_nodes(r.id)
-        if not r.bridges:  # nobody bridges it: ROS 2 nodes in its namespace say nothing
-            r.ever_ros2 = False
+        if not r.bridges:  # nobody bridges it: ROS 2 nodes in its namespace say nothing…
             self._clear("driver_lost", r.id, now)
+            if r.ever_ros2 and r.ros2_driver:  # …unless a bridge drove them and died
+                self._raise("bridge_lost", r.id, now)
+            else:
+                r.ever_ros2 = False
+                self._clear("bridge_lost", r.id, now)
         else:
+            self._clear("bridge_lost", r.id, now)
             r.ever_ros2 = r.ever_ros2 or r.ros2_driver
             if r.ever_ros2 and not r.ros2_driver:
                 self._raise("driver_lost", r.id, now)
@@ -507,7 +514,7 @@ class Supervisor:
     # ----------------------------------------------------------------------------- derivation
 
     def _online(self, r: RobotInfo) -> bool:
-        if r.ever_ros2 and not r.ros2_driver:
+        if r.ever_ros2 and not (r.ros2_driver and r.bridges):
             return False
         if r.tokens:
             return True

@@ -40,7 +40,8 @@ class Coverage(msgspec.Struct, forbid_unknown_fields=True):
 
 class FailureReport(msgspec.Struct, forbid_unknown_fields=True, omit_defaults=True):
     robot: str
-    killed_at: float | None = None
+    killed_at: float | None = None         # when the fault began (a crash, a stall, a cut)
+    fault: str = "crash"                   # crash, stall or partition (mrta_zenoh.failure)
     task: str | None = None                # what it was doing
     taken_over_by: str | None = None
     takeover_seconds: float | None = None

@@ -35,6 +35,42 @@ def png_size(path: Path) -> tuple[int, int]:
     return struct.unpack(">II", data[16:24])
 
 
+def descendants(pid: int) -> list[int]:
+    """Every process below `pid` (ours: started by a process this test started), from /proc."""
+    out, todo = [], [pid]
+    while todo:
+        p = todo.pop()
+        try:
+            tasks = os.listdir(f"/proc/{p}/task")
+        except OSError:
+            continue
+        for t in tasks:
+            try:
+                with open(f"/proc/{p}/task/{t}/children") as f:
+                    kids = [int(x) for x in f.read().split()]
+            except OSError:
+                continue
+            out += kids
+            todo += kids
+    return out
+
+
+def kill_descendant(pid: int, *needles: str) -> int | None:
+    """SIGKILL the first process below `pid` whose command line holds every one of `needles`;
+    its PID, or None if there is none (yet)."""
+    import signal
+    for d in descendants(pid):
+        try:
+            with open(f"/proc/{d}/cmdline", "rb") as f:
+                argv = f.read().decode(errors="replace").split("\0")
+        except OSError:
+            continue
+        if all(any(n in a for a in argv) for n in needles):
+            os.kill(d, signal.SIGKILL)
+            return d
+    return None
+
+
 def free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))

@@ -23,10 +23,7 @@ distributed = pytest.importorskip("distributed")
 
 pytestmark = [pytest.mark.multiprocess, pytest.mark.slow]
 
-# robot2 refuses an absurd (overridden) spin rate at start: two runs fail, exit 1 (a failure of
-# an unknown robot is refused when the file is read, so it cannot make a run fail any more)
-MATRIX = ("application: patrol\nduration: 20\nseeds: [1, 2]\nfailures: [robot2@10]\n"
-          "overrides:\n  robot2.spin_rate: [10, 5000]\n")
+MATRIX = "application: patrol\nduration: 20\nseeds: [1, 2]\nfailures: [robot2@10]\n"  # 2 runs
 # what lockstep makes identical between two runs of one seed (not wall time, not traffic)
 SAME = ("run", "config", "seed", "failure", "status", "takeover_seconds", "taken_over_by",
         "first_full_allocation")
@@ -161,33 +158,28 @@ def test_the_cluster_gives_the_rows_of_the_local_backend(cluster, children, tmp_
     t0 = time.monotonic()
     remote = children.mrta("experiment", f, "--output", tmp_path / "remote", "--scheduler",
                            cluster.address, name="remote")
-    assert remote.wait(60) == 1, remote.tail(20) + cluster.log("scheduler")
+    assert remote.wait(60) == 0, remote.tail(20) + cluster.log("scheduler")
     t1 = time.monotonic()
     local = children.mrta("experiment", f, "--output", tmp_path / "local", "--jobs", "2",
                           name="local")
-    assert local.wait(60) == 1, local.tail(20)
+    assert local.wait(60) == 0, local.tail(20)
     print(f"cluster {t1 - t0:.1f} s, local {time.monotonic() - t1:.1f} s")
     a, b = rows_of(tmp_path / "remote" / "results.csv"), rows_of(tmp_path / "local" / "results.csv")
-    assert len(a) == len(b) == 4 and list(a[0]) == list(b[0])  # the same columns, in order
+    assert len(a) == len(b) == 2 and list(a[0]) == list(b[0])  # the same columns, in order
     coverage = [k for k in a[0] if k.endswith((".exactly_one", ".none", ".more_than_one"))
                 or k.startswith("metrics.")]
     assert coverage
     for ra, rb in zip(a, b):
         assert {k: ra[k] for k in SAME + tuple(coverage)} == \
             {k: rb[k] for k in SAME + tuple(coverage)}, (ra, rb)
-        if ra["status"] == "ok":
-            assert ra["taken_over_by"] in ("robot1", "robot3"), ra  # a takeover to compare
-            assert who_did_what(tmp_path / "remote", ra) == who_did_what(tmp_path / "local", rb)
-            folder = tmp_path / "remote" / f"run{int(ra['run']):03d}"
-            assert {p.name for p in folder.iterdir()} >= {"run.mcap", "summary.json",
-                                                          "timeline.png"}
-            summary = json.loads((folder / "summary.json").read_text())
-            assert summary["output"] == str(folder)  # here, not the worker's scratch folder
-        else:
-            # the same error, but for the run folder (the worker's scratch, or here)
-            assert "spin_rate" in ra["error"] and \
-                ra["error"].split("config/")[-1] == rb["error"].split("config/")[-1]
-    assert any("2 of 4 runs failed" in line for line in remote.stderr)
+        assert ra["status"] == "ok", ra  # (a failed run's row: tests/test_experiment.py)
+        assert ra["taken_over_by"] in ("robot1", "robot3"), ra  # a takeover to compare
+        assert who_did_what(tmp_path / "remote", ra) == who_did_what(tmp_path / "local", rb)
+        folder = tmp_path / "remote" / f"run{int(ra['run']):03d}"
+        assert {p.name for p in folder.iterdir()} >= {"run.mcap", "summary.json",
+                                                      "timeline.png"}
+        summary = json.loads((folder / "summary.json").read_text())
+        assert summary["output"] == str(folder)  # here, not the worker's scratch folder
     assert (tmp_path / "remote" / "summary.md").read_text().count("fail=robot2@10") >= 1
     assert (tmp_path / "remote" / "takeover.png").stat().st_size > 5_000
 

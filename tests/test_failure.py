@@ -16,7 +16,7 @@ BAD = ["robot2@0", "robot2@0.0", "robot2@-1", "robot2@inf", "robot2@1e3", "robot
                                            ("robot_1.a-b@0.25", "robot_1.a-b", 0.25)])
 def test_good_specs_read_the_same_everywhere(spec, robot, at, monkeypatch):
     assert parse_failure(spec) == Failure(robot, at, spec)
-    assert parse_fail(spec) == (robot, at, spec)
+    assert parse_fail(spec).failures == (Failure(robot, at, spec),)
     monkeypatch.setenv(CRASH_ENV, f"other@9,{spec}")
     assert crash_time(robot, None) == at and crash_time("robot9", None) is None
 

@@ -138,3 +138,23 @@ def test_a_robot_whose_ros2_driver_node_disappears_is_shown_offline(network, msg
     assert "/robot1/sdk_driver" not in down["ros2"]["nodes"]
     assert {"kind": "driver_lost", "subject": "robot1"} in [
         {k: a[k] for k in ("kind", "subject")} for a in down["alarms"]]
+
+
+def test_a_robot_whose_bridge_dies_is_shown_offline_with_bridge_lost(network, msgs):
+    """The driver lives on, the bridge is killed: the agent's commands now reach nothing, so
+    robot1 is offline with `bridge_lost` (it used to stay online, idle, with no alarm)."""
+    children, bridge = network
+    children.python("fake_robot.py", "robot1", "wander", name="agent1")
+    sdk(children, msgs, "driver", "/robot1")
+    sup = children.mrta("supervise", "patrol", "--json", "--rate", "10", name="supervise")
+
+    def robot1(snap):
+        return {r["id"]: r for r in snap["robots"]}["robot1"]
+
+    sup.wait_json(lambda s: "/robot1/sdk_driver" in s["ros2"]["nodes"]
+                  and robot1(s)["state"] == "busy", 60)
+    bridge.signal(signal.SIGKILL)
+    down = sup.wait_json(lambda s: robot1(s)["state"] == "offline", 60)
+    assert "/robot1/sdk_driver" in down["ros2"]["nodes"]  # the driver still runs
+    assert {"kind": "bridge_lost", "subject": "robot1"} in [
+        {k: a[k] for k in ("kind", "subject")} for a in down["alarms"]]

@@ -149,9 +149,9 @@ def test_bad_attachments_are_refused_with_the_reason(data, message):
 
 
 @pytest.mark.parametrize("args, message", [
-    (["ros2", "bridge", "--robot", "robot1", "--robot", "robot2", "--namespace", "/r"],
+    (["ros2", "bridge", "--robot", "robot1", "--robot", "robot2", "--ros-namespace", "/r"],
      "one --robot"),
-    (["ros2", "bridge", "--robot", "robot1", "--namespace", "bad name"], "namespace"),
+    (["ros2", "bridge", "--robot", "robot1", "--ros-namespace", "bad name"], "namespace"),
     (["ros2", "bridge", "--robot", "robot1", "--cmd-vel", "cmd vel"], "cmd vel"),
     (["sim", "--world", "patrol", "--robot", "robot1", "--ros2", "robot9"], "robot9"),
     (["sim", "--world", "patrol", "--robot", "robot1", "--ros2", "robot1", "--lockstep"],

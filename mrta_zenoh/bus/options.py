@@ -4,13 +4,23 @@ Zero configuration (no --connect, --listen or config file) means: peer mode on l
 multicast scouting off; bind the rendezvous endpoint if it is free, otherwise join whoever holds
 it. When the holder exits, the next process to start takes the rendezvous over and the older
 peers reconnect to it by retry, so any start order works and nobody is special for long.
+
+The default rendezvous, 7447, is also Zenoh's and rmw_zenohd's port: on a ROS 2 robot it is
+held by the robot's router. Whoever holds our rendezvous also holds an abstract socket named
+after it (`_MARKER`, Linux; released by the kernel when the process ends), so a process can tell
+our holder from someone else's: when the default port is held by something that is not ours, the
+rendezvous moves to the next port that is free or ours (7448, …) — every one of our processes
+makes the same choice — and says so in a warning, instead of mixing our bus into the robot's.
+An explicit rendezvous (`$MRTA_RENDEZVOUS`, `rendezvous=`) is used as given.
 """
 
 from __future__ import annotations
 
+import logging
 import os
 import re
 import socket
+import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -19,6 +29,11 @@ from ..errors import ConfigError
 
 DEFAULT_RENDEZVOUS = "tcp/127.0.0.1:7447"
 RENDEZVOUS_ENV = "MRTA_RENDEZVOUS"
+RENDEZVOUS_TRIES = 16  # ports after the default looked at before giving up on moving
+_MARKER = "mrta-rendezvous-{}"  # abstract socket held by the holder of our rendezvous (port)
+_markers: dict[int, socket.socket] = {}  # markers this process holds, for its whole life
+_warned: set[int] = set()
+log = logging.getLogger("mrta.bus")
 MODES = ("peer", "client", "router")
 
 _ENDPOINT = re.compile(r"^(tcp|udp|tls|quic|ws|unixsock-stream|unixpipe)/(.+)$")
@@ -72,7 +87,7 @@ class BusOptions:
         if self.rendezvous:
             return self.rendezvous
         env = os.environ.get(RENDEZVOUS_ENV, "").strip()
-        return check_endpoint(env, f"${RENDEZVOUS_ENV}") if env else DEFAULT_RENDEZVOUS
+        return check_endpoint(env, f"${RENDEZVOUS_ENV}") if env else default_rendezvous()
 
     @property
     def zero_config(self) -> bool:
@@ -96,6 +111,68 @@ class BusOptions:
         if not isinstance(data, dict):
             raise ConfigError(f"{path}: a Zenoh config must be a JSON5 object, got {type(data).__name__}")
         return data
+
+
+def _port_of(endpoint: str) -> int | None:
+    m = re.match(r"^tcp/127\.0\.0\.1:(\d+)$", endpoint)
+    return int(m.group(1)) if m else None
+
+
+def _port_free(port: int) -> bool:
+    """Whether nobody listens on the loopback port. SO_REUSEADDR, as Zenoh binds: connections of
+    a holder that has just exited (TIME_WAIT) must not make its port look held by a stranger."""
+    with socket.socket() as s:
+        s.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+        try:
+            s.bind(("127.0.0.1", port))
+        except OSError:
+            return False
+    return True
+
+
+def _hold_marker(port: int) -> bool:
+    """Take the marker of our rendezvous on `port`; False if another process holds it."""
+    if port in _markers:
+        return True
+    s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    try:
+        s.bind("\0" + _MARKER.format(port))
+    except OSError:
+        s.close()
+        return False
+    _markers[port] = s
+    return True
+
+
+def _marked_by_other(port: int) -> bool:
+    if port in _markers:
+        return False
+    s = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    try:
+        s.bind("\0" + _MARKER.format(port))
+    except OSError:
+        return True
+    finally:
+        s.close()
+    return False
+
+
+def default_rendezvous() -> str:
+    """DEFAULT_RENDEZVOUS, unless its port is held by something that is not ours (no marker):
+    then the next port that is free or ours, with a warning (the module's docstring says why)."""
+    first = _port_of(DEFAULT_RENDEZVOUS)
+    if first is None or not sys.platform.startswith("linux"):
+        return DEFAULT_RENDEZVOUS
+    for port in range(first, min(first + RENDEZVOUS_TRIES, 65536)):
+        if port in _markers or _port_free(port) or _marked_by_other(port):
+            chosen = f"tcp/127.0.0.1:{port}"
+            if port != first and port not in _warned:
+                _warned.add(port)
+                log.warning("%s is held by something that is not ours (rmw_zenohd or another "
+                            "Zenoh router?): our rendezvous is %s (set $%s to choose)",
+                            DEFAULT_RENDEZVOUS, chosen, RENDEZVOUS_ENV)
+            return chosen
+    return DEFAULT_RENDEZVOUS
 
 
 def base_config(mode: str) -> dict[str, Any]:
@@ -150,8 +227,19 @@ def session_configs(opts: BusOptions) -> list[dict[str, Any]]:
     if opts.connect:
         cfg["connect"]["endpoints"] = list(opts.connect)
     if not opts.zero_config:
+        _mark_rendezvous(cfg["listen"].get("endpoints", []))
         return [cfg]
     rv = opts.rendezvous_endpoint
+    _mark_rendezvous([rv])  # we try to bind it first: if we get it, it is marked ours
     bind = merge(cfg, {"listen": {"endpoints": [rv, "tcp/127.0.0.1:0"]}})
     join = merge(cfg, {"connect": {"endpoints": [rv]}})
     return [bind, join]
+
+
+def _mark_rendezvous(endpoints: list) -> None:
+    """Hold the marker of each loopback port we are about to listen on (a `mrta router` on the
+    rendezvous is ours too), if it is free."""
+    for e in endpoints:
+        port = _port_of(str(e))
+        if port and _port_free(port):
+            _hold_marker(port)

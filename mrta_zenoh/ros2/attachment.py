@@ -1,4 +1,5 @@
-"""The attachment rmw_zenoh requires on every sample (rmw_zenoh_cpp 0.14): 33 bytes,
+"""The attachment rmw_zenoh requires on every sample (rmw_zenoh_cpp Jazzy ≥ 0.2.4, Humble ≥ 0.1.2,
+Kilted, Rolling ≥ 0.6.0 — docs/ros2.md): 33 bytes,
 little-endian —
 
     i64 sequence number (per publisher, from 1)
@@ -38,7 +39,9 @@ class Attachment(NamedTuple):
         if data is None:
             raise AttachmentError("no attachment (rmw_zenoh drops such samples)")
         if len(data) != SIZE:
-            hint = " (the early-Jazzy key/value layout)" if len(data) == 77 else ""
+            hint = (" (the early-Jazzy key/value layout of rmw_zenoh before Jazzy 0.2.4, Humble "
+                    "0.1.2, Rolling 0.6.0: upgrade the robot's rmw_zenoh)"
+                    if len(data) == 77 else "")
             raise AttachmentError(f"attachment of {len(data)} bytes, expected {SIZE}{hint}")
         seq, ts, n, gid = _LAYOUT.unpack(data)
         if n != GID_SIZE:
@@ -47,7 +50,8 @@ class Attachment(NamedTuple):
 
 
 class Stamper:
-    """One publisher's attachments: a GID drawn once, sequence numbers from 1."""
+    """One publisher's attachments: its GID (the one rmw_zenoh derives from the publisher's
+    token, names.gid_of; drawn at random if none is given), sequence numbers from 1."""
 
     def __init__(self, gid: bytes | None = None):
         self.gid = gid if gid is not None else os.urandom(GID_SIZE)

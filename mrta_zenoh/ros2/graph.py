@@ -1,6 +1,8 @@
-"""The ROS 2 graph as rmw_zenoh's graph cache sees it: every node, publisher and subscription,
-from the liveliness tokens under `@ros2_lv/<domain>/**` (what `ros2 node list` and `ros2 topic
-list` read). An `@` chunk is matched only literally, so it is watched explicitly.
+"""The ROS 2 graph as rmw_zenoh's graph cache sees it: every node, publisher, subscription,
+service server and client, from the liveliness tokens under `@ros2_lv/<domain>/**` (what `ros2
+node list`, `ros2 topic list` and `ros2 service list` read; an action shows as its
+`/<name>/_action/…` topics and services). An `@` chunk is matched only literally, so it is
+watched explicitly.
 
 Fed by `on_token(key, alive)` — from a Zenoh liveliness watch (`watch`), or directly in tests —
 so the same code serves `mrta ros2 graph` and the supervisor's ROS 2 section.
@@ -32,6 +34,8 @@ MAX_INVALID = 100  # live invalid token keys remembered (the count goes on beyon
 
 
 class _Topic:
+    """A topic (publishers, subscriptions) or a service (servers, clients: the same counters)."""
+
     __slots__ = ("types", "publishers", "subscriptions")
 
     def __init__(self) -> None:
@@ -65,6 +69,7 @@ class Ros2Graph:
         self._nodes: Counter[str] = Counter()            # node name → NN tokens
         self._robots: dict[str, Counter[str]] = {}       # robot → node name → NN tokens
         self._topics: dict[str, _Topic] = {}
+        self._services: dict[str, _Topic] = {}
         self._invalid_live: set[str] = set()
         self.invalid = 0        # tokens that did not parse, ever
         self.overflow = 0       # tokens refused because the graph was full, ever
@@ -124,17 +129,17 @@ class Ros2Graph:
             if not nodes:
                 del self._robots[robot]
             return Change(robot)
-        if e.kind in ("MP", "MS"):
-            t = self._topics.get(e.topic)
-            if t is None:
-                t = self._topics[e.topic] = _Topic()
-            self._bump(t.types, e.type, d)
-            if e.kind == "MP":
-                t.publishers += d
-            else:
-                t.subscriptions += d
-            if not t.types:
-                del self._topics[e.topic]
+        table = self._topics if e.kind in ("MP", "MS") else self._services
+        t = table.get(e.topic)
+        if t is None:
+            t = table[e.topic] = _Topic()
+        self._bump(t.types, e.type, d)
+        if e.kind in ("MP", "SS"):
+            t.publishers += d
+        else:
+            t.subscriptions += d
+        if not t.types:
+            del table[e.topic]
         return NO_CHANGE
 
     @staticmethod
@@ -178,8 +183,17 @@ class Ros2Graph:
                      "subscriptions": t.subscriptions}
                     for name, t in sorted(self._topics.items())]
 
+    def services(self) -> list[dict]:
+        """Every service with its types and counts of servers and clients (as `ros2 service
+        list -t`), sorted by name."""
+        with self._lock:
+            return [{"service": name, "types": sorted(t.types), "servers": t.publishers,
+                     "clients": t.subscriptions}
+                    for name, t in sorted(self._services.items())]
+
     def snapshot(self) -> dict:
         return {"domain": self.domain, "nodes": self.nodes(), "topics": self.topics(),
+                "services": self.services(),
                 "tokens": self.size, "max_tokens": self.max_tokens,
                 "invalid_tokens": self.invalid, "overflow": self.overflow}
 

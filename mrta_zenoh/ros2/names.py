@@ -1,4 +1,5 @@
-"""rmw_zenoh's names, as strings (rmw_zenoh_cpp 0.14, `liveliness_utils.cpp`, `docs/design.md`).
+"""rmw_zenoh's names, as strings (rmw_zenoh_cpp of Jazzy ≥ 0.2.4, Humble ≥ 0.1.2, Kilted, Rolling
+≥ 0.6.0: `liveliness_utils.cpp`, `qos.cpp`, `docs/design.md`).
 
 * Topic key: `<domain>/<topic without outer slashes>/<pkg>::msg::dds_::<Name>_/RIHS01_<hex>`.
 * Liveliness token of a node:
@@ -7,9 +8,16 @@
   `/<topic>/<dds type>/<type hash>/<qos>`. Inside a chunk `/` is written `%`, an empty field `%`.
 * QoS: `rel:dur:hist,depth:deadline:lifespan:liveliness` (deadline and lifespan `sec,nsec`,
   liveliness `kind,sec,nsec`), a field equal to rmw_zenoh's default left empty — reliable,
-  volatile, keep-last — while the depth is always written: reliable depth 10 is `::,10:,:,:,,`.
+  volatile, keep-last, depth 42 (`RMW_ZENOH_DEFAULT_HISTORY_DEPTH`) — both ways: reliable depth
+  10 is `::,10:,:,:,,`, depth 42 is `::,:,:,:,,`, and an empty depth reads as 42, not 0.
+* Types: `msg`, `srv` and `action` (an action's topics and services carry types such as
+  `pkg::action::dds_::Fibonacci_FeedbackMessage_`; they used to be refused as invalid).
+* GID: rmw_zenoh derives an entity's GID from its token — XXH3-128 of the whole key, low 64
+  bits then high 64 bits, little-endian (`Entity::Entity`) — and sends it in every attachment;
+  `ros2 topic info -v` shows it. We compute it the same way (`gid_of`), not at random.
 
-Everything here is pure and has fixed test vectors (tests/test_ros2_names.py): a wrong chunk
+Everything here is pure and has fixed test vectors (tests/test_ros2_wire.py,
+tests/test_ros2_conventions.py): a wrong chunk
 means silence on the ROS side, never an error (rmw_zenoh #479, #569).
 """
 
@@ -25,8 +33,9 @@ KINDS = {"NN": "node", "MP": "publisher", "MS": "subscription", "SS": "service",
 RELIABLE, BEST_EFFORT = 1, 2
 TRANSIENT_LOCAL, VOLATILE = 1, 2
 KEEP_LAST, KEEP_ALL = 1, 2
-_TYPE = re.compile(r"^([A-Za-z][A-Za-z0-9_]*)/(msg|srv)/([A-Za-z][A-Za-z0-9_]*)$")
-_DDS = re.compile(r"^([A-Za-z][A-Za-z0-9_]*)::(msg|srv)::dds_::([A-Za-z][A-Za-z0-9_]*)_$")
+_TYPE = re.compile(r"^([A-Za-z][A-Za-z0-9_]*)/(msg|srv|action)/([A-Za-z][A-Za-z0-9_]*)$")
+_DDS = re.compile(r"^([A-Za-z][A-Za-z0-9_]*)::(msg|srv|action)::dds_::([A-Za-z][A-Za-z0-9_]*)_$")
+DEFAULT_DEPTH = 42  # rmw_zenoh's default history depth, omitted from tokens
 _NAME = re.compile(r"^(/[A-Za-z_][A-Za-z0-9_]*)*/?$")
 _NODE = re.compile(r"^[A-Za-z_][A-Za-z0-9_]*$")
 # A token longer than this is refused before it is split: rmw_zenoh's are a few hundred
@@ -42,7 +51,7 @@ def dds_type(ros_type: str) -> str:
     """`geometry_msgs/msg/Twist` → `geometry_msgs::msg::dds_::Twist_`."""
     m = _TYPE.match(ros_type)
     if m is None:
-        raise Ros2NameError(f"ROS 2 type {ros_type!r}: expected package/msg/Name")
+        raise Ros2NameError(f"ROS 2 type {ros_type!r}: expected package/msg/Name (or srv, action)")
     return f"{m.group(1)}::{m.group(2)}::dds_::{m.group(3)}_"
 
 
@@ -97,10 +106,12 @@ class Qos:
     depth: int = 10
 
     def encode(self) -> str:
+        """As rmw_zenoh's qos_to_keyexpr: every field equal to its default left empty (the
+        depth too: it is written whatever the history, unless it is 42)."""
         rel = "" if self.reliability == RELIABLE else str(self.reliability)
         dur = "" if self.durability == VOLATILE else str(self.durability)
         hist = "" if self.history == KEEP_LAST else str(self.history)
-        depth = str(self.depth) if self.history == KEEP_LAST else ""
+        depth = "" if self.depth == DEFAULT_DEPTH else str(self.depth)
         return f"{rel}:{dur}:{hist},{depth}:,:,:,,"
 
     @classmethod
@@ -111,7 +122,7 @@ class Qos:
         hist, _, depth = parts[2].partition(",")
         try:
             return cls(int(parts[0] or RELIABLE), int(parts[1] or VOLATILE), int(hist or KEEP_LAST),
-                       int(depth) if depth else 0)
+                       int(depth) if depth else DEFAULT_DEPTH)
         except ValueError:
             raise Ros2NameError(f"QoS {text!r}: a field is not a number") from None
 
@@ -141,6 +152,15 @@ class Entity:
     def node_name(self) -> str:
         """Fully qualified: `/robot1/pioneer_driver`."""
         return resolve(self.namespace or "/", self.node)
+
+
+def gid_of(token: str) -> bytes:
+    """The 16-byte GID rmw_zenoh gives the entity of this liveliness key: XXH3-128 of the key,
+    its low 64 bits then its high 64 bits, each little-endian — i.e. the canonical (big-endian)
+    digest reversed."""
+    import xxhash
+
+    return xxhash.xxh3_128_digest(token.encode())[::-1]
 
 
 def node_token(domain: int, zid: str, nid: int, namespace: str, node: str,

@@ -1,8 +1,23 @@
 """A ROS 2 node on a ZenohBus, as rmw_zenoh would make it: a node token, and per publisher or
 subscription its own token, its data key and — for publishers — an attachment on every sample.
 
-QoS as ROS expects it: a reliable publisher uses Zenoh's BLOCK congestion control, a
-best-effort one DROP (a stalled subscriber never holds a sensor stream up). Subscriptions are
+QoS as rmw_zenoh's `rmw_publisher_data.cpp` sets it: Zenoh's BLOCK congestion control only for
+RELIABLE + KEEP_ALL, DROP for everything else — reliable KEEP_LAST too (it used to BLOCK, so a
+stalled robot link could hold the bridge up). The GID in every attachment is the one rmw_zenoh
+derives from the publisher's liveliness token (names.gid_of), so `ros2 topic info -v` and the
+samples agree.
+
+Durability and recovery as rmw_zenoh does them, through zenoh-ext's AdvancedPublisher and
+AdvancedSubscriber (`rmw_publisher_data.cpp`, `rmw_subscription_data.cpp`, rmw_zenoh ≥ 0.2.2):
+
+* a TRANSIENT_LOCAL publisher keeps its last `depth` samples in a cache, announces itself
+  (publisher detection) and sends a heartbeat every 0.5 s, so a late ROS 2 subscriber gets the
+  last sample(s) and a lost last sample is recovered;
+* a TRANSIENT_LOCAL subscription asks for that history (at most `depth` samples) and detects
+  late publishers; a RELIABLE one recovers missed samples from heartbeats.
+
+Entities needing none of this (volatile publishers, best-effort volatile subscriptions: all of
+the bridge's own) stay plain Zenoh ones, as before — same wire, same cost. Subscriptions are
 strict like rmw_zenoh's: a sample without a valid 33-byte attachment, or whose CDR does not
 decode, is counted and dropped, never passed on. A subscription may cap the payload size: a
 larger sample is counted (`oversized`) and dropped before it is decoded — decoding is what
@@ -18,14 +33,65 @@ import threading
 import time
 from typing import Any, Callable
 
-from ..bus.zenoh_bus import ZenohBus
+from ..bus.zenoh_bus import AttachedPublisher, Closable, ZenohBus
 from . import names
 from .attachment import Attachment, AttachmentError, Stamper
-from .names import BEST_EFFORT, Qos
+from .names import KEEP_ALL, RELIABLE, TRANSIENT_LOCAL, Qos
 from .types import Ros2Types
 
 log = logging.getLogger("mrta.ros2")
 _ids = itertools.count(1)  # node and entity ids, unique in this process (as rmw_zenoh's)
+
+
+HEARTBEAT = 0.5  # seconds: rmw_zenoh's heartbeat period for TRANSIENT_LOCAL publishers
+
+
+def _advanced_publisher(bus: ZenohBus, key: str, qos: Qos) -> AttachedPublisher:
+    """An AdvancedPublisher with a cache of `depth` samples, publisher detection and a periodic
+    heartbeat; undeclared with the bus like the plain one."""
+    from zenoh import CongestionControl, ext
+
+    native = ext.declare_advanced_publisher(
+        bus.session, key,
+        congestion_control=CongestionControl.BLOCK if blocks(qos) else CongestionControl.DROP,
+        cache=ext.CacheConfig(max(1, qos.depth)), publisher_detection=True,
+        sample_miss_detection=ext.MissDetectionConfig(heartbeat=HEARTBEAT))
+    pub = AttachedPublisher(native, bus._encoding("application/cdr"))
+    bus._attached.append(pub)  # closed before the session, like every attached entity
+    return pub
+
+
+def _advanced_subscription(bus: ZenohBus, key: str, qos: Qos,
+                           handler: Callable[[str, bytes, bytes | None], None]) -> Closable:
+    """An AdvancedSubscriber: history with late-publisher detection for TRANSIENT_LOCAL,
+    recovery by heartbeat for RELIABLE. Errors in `handler` are counted as the bus counts them
+    for plain subscriptions (`handler_errors`), never raised on Zenoh's thread."""
+    from zenoh import ext
+
+    stats = bus.stats
+
+    def on_sample(s) -> None:
+        att = s.attachment
+        try:
+            handler(str(s.key_expr), s.payload.to_bytes(),
+                    att.to_bytes() if att is not None else None)
+        except Exception:
+            stats.add("handler_errors")
+            log.exception("handler for %s raised", key)
+
+    history = (ext.HistoryConfig(detect_late_publishers=True, max_samples=max(1, qos.depth))
+               if qos.durability == TRANSIENT_LOCAL else None)
+    recovery = (ext.RecoveryConfig(periodic_queries=None, heartbeat=True)
+                if qos.reliability == RELIABLE else None)
+    sub = Closable(ext.declare_advanced_subscriber(bus.session, key, on_sample, history=history,
+                                                   recovery=recovery, subscriber_detection=True))
+    bus._attached.append(sub)
+    return sub
+
+
+def blocks(qos: Qos) -> bool:
+    """Whether a publisher with this QoS uses BLOCK (rmw_zenoh: RELIABLE + KEEP_ALL only)."""
+    return qos.reliability == RELIABLE and qos.history == KEEP_ALL
 
 
 class Ros2Publisher:
@@ -35,12 +101,17 @@ class Ros2Publisher:
         self.type_hash = types.hash(ros_type)
         self.key = names.topic_key(node.domain, topic, ros_type, self.type_hash)
         self.eid = next(_ids)
-        self.stamper = Stamper()
-        self._types = types
-        self._pub = node.bus.declare_attached_publisher(self.key, lossy=qos.reliability == BEST_EFFORT)
-        self._token = node.bus.declare_absolute_token(names.endpoint_token(
+        token = names.endpoint_token(
             node.domain, node.zid, node.nid, self.eid, "MP", node.namespace, node.name, topic,
-            ros_type, self.type_hash, qos, node.enclave))
+            ros_type, self.type_hash, qos, node.enclave)
+        self.gid = names.gid_of(token)
+        self.stamper = Stamper(self.gid)
+        self._types = types
+        if qos.durability == TRANSIENT_LOCAL:
+            self._pub = _advanced_publisher(node.bus, self.key, qos)
+        else:
+            self._pub = node.bus.declare_attached_publisher(self.key, lossy=not blocks(qos))
+        self._token = node.bus.declare_absolute_token(token)
         self.published = 0
 
     def publish(self, msg: Any) -> None:
@@ -88,7 +159,10 @@ class Ros2Subscription:
                 self.counts["received"] += 1
             callback(msg, att)
 
-        self._sub = node.bus.subscribe_attached(self.key, on_sample)
+        if qos.durability == TRANSIENT_LOCAL or qos.reliability == RELIABLE:
+            self._sub = _advanced_subscription(node.bus, self.key, qos, on_sample)
+        else:
+            self._sub = node.bus.subscribe_attached(self.key, on_sample)
         self._token = node.bus.declare_absolute_token(names.endpoint_token(
             node.domain, node.zid, node.nid, self.eid, "MS", node.namespace, node.name, topic,
             ros_type, self.type_hash, qos, node.enclave))

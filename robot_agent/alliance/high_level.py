@@ -91,6 +91,12 @@ Deliberate choices, where appendix E or the original C++ (reference/) leave room
     *received* (`on_broadcast`'s `now`): its freshness lasts τ from there. Measured from its
     death, add the largest delivery delay (in lockstep a broadcast counts as heard at its own
     stamp, so none).
+  * Cost (issue #27): a tick looks only at the teammates heard since the last tick and those
+    whose status changes with time by then (freshness, φ, the one-way-link delays: a heap of
+    wake-up times), plus every record of a set whose activation changed; per-task aggregates
+    (fresh, later holders, the longest φ among the fresh — the smallest slow rate) stand for
+    the rest. Decisions are the exact comparisons a rescan of every record makes
+    (tests/test_tick_scaling.py replays random histories against that rescan).
   * τ must be longer than a tick (the parameter loader rejects τ ≤ 1/ρ: a teammate heard
     between two ticks would never be seen) and should be at least twice the effective broadcast
     period (broadcasts leave on ticks: the loader warns).
@@ -99,6 +105,7 @@ Deliberate choices, where appendix E or the original C++ (reference/) leave room
 from __future__ import annotations
 
 import functools
+import heapq
 import logging
 import math
 from dataclasses import dataclass, field
@@ -137,6 +144,11 @@ class OtherRobot:
     new: bool = True      # a new activation not yet seen by a tick
     phi_from: float = math.nan  # φ (E.7) runs from here: first heard, or when we yielded to it
     overlap_since: float | None = None  # first tick both active, it earlier, heard every tick
+    # what the set's aggregates count this record as (HighLevel._visit keeps them in step)
+    fresh: bool = False
+    phi_ed: float | None = None  # its expected_duration while fresh and within φ
+    later: bool = False          # fresh, and after our activation in (start, id) order
+    gen: int = 0                 # its entry in the set's wake-up heap (older entries are stale)
 
     def __post_init__(self) -> None:
         if math.isnan(self.phi_from):
@@ -164,6 +176,14 @@ class SetState:
     feedback_stamp: float | None = None
     others: dict[str, OtherRobot] = field(default_factory=dict)
     warned_slow: bool = False
+    # Aggregates over `others`, updated only for the records that changed (see HighLevel.tick)
+    fresh: set[str] = field(default_factory=set)
+    later: set[str] = field(default_factory=set)
+    dirty: set[str] = field(default_factory=set)   # heard since the last tick
+    newly: set[str] = field(default_factory=set)   # a new activation since the last tick
+    wakes: list = field(default_factory=list)      # heap of (time, seq, robot, gen)
+    phi_count: dict[float, int] = field(default_factory=dict)  # expected_duration → records
+    phi_heap: list[float] = field(default_factory=list)        # −expected_duration (lazy)
 
     def __post_init__(self) -> None:
         self.theta, self.fast = exact(self.params.threshold), exact(self.params.fast_rate)
@@ -175,6 +195,23 @@ class SetState:
     @property
     def impatience(self) -> float:
         return float(self.exact_impatience)
+
+    def count_phi(self, ed: float, delta: int) -> None:
+        n = self.phi_count.get(ed, 0) + delta
+        if n:
+            self.phi_count[ed] = n
+            if n == 1 and delta > 0:
+                heapq.heappush(self.phi_heap, -ed)
+        else:
+            del self.phi_count[ed]
+
+    def longest_phi(self) -> float | None:
+        """The longest expected_duration among the fresh robots still within their φ (the one
+        whose slow rate is the smallest), None if there is none."""
+        heap = self.phi_heap
+        while heap and -heap[0] not in self.phi_count:
+            heapq.heappop(heap)
+        return -heap[0] if heap else None
 
 
 @dataclass(frozen=True)
@@ -220,6 +257,7 @@ class HighLevel:
         self.feedback_timeout = feedback_timeout if feedback_timeout is not None else max(
             3.0 / params.spin_rate, 1.0)
         self.sets = {bs.task_id: SetState(bs) for bs in params.behaviour_sets}
+        self.visits = 0  # records a tick looked at (the tests check it follows the changes)
 
     # ------------------------------------------------------------ inputs
     def on_feedback(self, task_id: str, applicable: bool, now: float) -> None:
@@ -245,10 +283,15 @@ class HighLevel:
             return False
         rec = s.others.get(robot_id)
         if rec is None or self._new_activation(rec, active_since, now):
-            s.others[robot_id] = OtherRobot(now, now, expected_duration, active_since)
+            new = s.others[robot_id] = OtherRobot(now, now, expected_duration, active_since)
+            if rec is not None:  # what the aggregates count it as, until the tick visits it
+                new.fresh, new.phi_ed, new.later, new.gen = rec.fresh, rec.phi_ed, rec.later, \
+                    rec.gen + 1
+            s.newly.add(robot_id)
         else:
             rec.interval = now - rec.last_heard
             rec.last_heard, rec.expected_duration = now, expected_duration
+        s.dirty.add(robot_id)
         return True
 
     def _new_activation(self, rec: OtherRobot, active_since: float, now: float) -> bool:
@@ -280,25 +323,25 @@ class HighLevel:
             s.applicable = s.feedback and s.feedback_stamp is not None and \
                 now - s.feedback_stamp <= self.feedback_timeout
             s.suppressed = any(t != task for t in was_active)
-            fresh = {k: r for k, r in s.others.items() if now - r.last_heard <= self.tau}
-            started = [k for k, r in fresh.items() if r.new]
-            for r in s.others.values():
-                r.new = False
+            unheeded = self._update(s, now)
+            started = [k for k in s.newly if k in s.fresh]
+            s.newly.clear()
             # E.4, for a set that is not active: another robot newly started the task
             s.resetted = bool(started) and not s.active
             if s.resetted and s.exact_motivation > 0:
                 transitions.append(TaskSwitch(task, False, f"{', '.join(sorted(started))} "
                                                            "started the task", "reset"))
             active_for = now - s.activated_at if s.active and s.activated_at is not None else -1.0
-            later = self._later_holders(s, fresh) if s.active else []
-            unheeded = self._unheeding_earlier(s, fresh, now)
-            yielded = bool(later) and active_for > p.yielding_delay
+            yielded = s.active and bool(s.later) and active_for > p.yielding_delay
+            later = sorted(s.later) if yielded else []
             gave_up = active_for > p.giving_up_delay
             s.acquiescent = s.active and (yielded or bool(unheeded) or gave_up)
             if s.active and (yielded or unheeded):
                 for k in later if yielded else unheeded:  # a whole φ again for it
-                    s.others[k].phi_from = now
-            s.exact_impatience = self._impatience(s, fresh, now)
+                    r = s.others[k]
+                    r.phi_from = now
+                    self._count_phi(s, r, r.expected_duration)  # fresh, so within φ again
+            s.exact_impatience = self._impatience(s)
             keep = s.applicable and not s.suppressed and not s.resetted and not s.acquiescent
             if keep:
                 s.exact_motivation = s.exact_motivation + s.exact_impatience
@@ -317,6 +360,8 @@ class HighLevel:
                         reason = "suppressed"
                     transitions.append(TaskSwitch(task, False, reason))
                 s.exact_motivation = ZERO
+                if s.active:  # every record's order against our activation changes
+                    s.dirty.update(s.others)
                 s.active = False
                 s.activated_at = None
             if s.active:
@@ -333,6 +378,7 @@ class HighLevel:
                 s.suppressed, s.exact_motivation = True, ZERO
             s = self.sets[winner]
             s.active, s.activated_at = True, now
+            s.dirty.update(s.others)
             s.exact_motivation = s.theta
             transitions.append(TaskSwitch(winner, True, "threshold reached"))
         states = [MotivationState(t, s.impatience, s.acquiescent, s.suppressed, s.resetted,
@@ -340,30 +386,80 @@ class HighLevel:
                   for t, s in self.sets.items()]
         return states, transitions
 
-    def _later_holders(self, s: SetState, fresh: dict[str, OtherRobot]) -> list[str]:
-        """Robots doing this task whose activation comes after ours in (start, id) order."""
-        mine = (s.activated_at, self.robot_id)
-        return sorted(k for k, r in fresh.items() if (r.started(), k) > mine)
+    # ------------------------------------------------------------ incremental bookkeeping
+    # A tick looks only at the records heard since the last tick (`dirty`), those whose status
+    # changes with time by now (`wakes`: freshness, φ, the one-way-link delays running out),
+    # and all of a set's records when its activation changes; the others are summed up in the
+    # set's aggregates (`fresh`, `later`, the φ counts). Wake-up times are conservative (a
+    # little early); the status itself is always decided by the exact comparisons below, the
+    # same as a scan of every record would make, so a record due a little early is looked at
+    # again on the next tick.
+    def _update(self, s: SetState, now: float) -> list[str]:
+        """Bring the set's aggregates up to `now`; the holders this robot does not hear from
+        (see _visit), sorted."""
+        due, s.dirty = s.dirty, set()
+        wakes = s.wakes
+        while wakes and wakes[0][0] <= now:
+            _, _, k, gen = heapq.heappop(wakes)
+            if s.others[k].gen == gen:
+                due.add(k)
+        mine = (s.activated_at, self.robot_id) if s.active else None
+        unheeded = [k for k in due if self._visit(s, k, s.others[k], now, mine)]
+        if len(wakes) > 2 * len(s.others) + 64:  # stale entries: drop them (amortised O(1))
+            s.wakes = [w for w in wakes if s.others[w[2]].gen == w[3]]
+            heapq.heapify(s.wakes)
+        return sorted(unheeded)
 
-    def _unheeding_earlier(self, s: SetState, fresh: dict[str, OtherRobot],
-                           now: float) -> list[str]:
-        """Holders of this task whose activation comes before ours and that cannot be hearing
-        us (header: one-way links): heard on every tick while we were active for more than
-        ψ + 2τ + two of its broadcast intervals, past its φ since we first heard it, and
-        still broadcasting now."""
-        limit = s.params.yielding_delay + 2 * self.tau
-        mine = (s.activated_at, self.robot_id)
-        out = []
-        for k, r in s.others.items():
-            if s.active and k in fresh and (r.started(), k) < mine:
-                if r.overlap_since is None:
-                    r.overlap_since = now
-                elif (now - r.overlap_since > limit + 2 * r.interval
-                      and now - r.first_heard > r.expected_duration and self._recent(r, now)):
-                    out.append(k)
+    def _visit(self, s: SetState, k: str, r: OtherRobot, now: float,
+               mine: tuple[float | None, str] | None) -> bool:
+        """Re-evaluate one record at `now` (exact comparisons) and schedule its next change;
+        True if it is an earlier holder that cannot be hearing us (header: one-way links) —
+        heard on every tick while we were active for more than ψ + 2τ + two of its broadcast
+        intervals, past its φ since we first heard it, and still broadcasting now."""
+        self.visits += 1
+        fresh = now - r.last_heard <= self.tau
+        if fresh != r.fresh:
+            r.fresh = fresh
+            (s.fresh.add if fresh else s.fresh.discard)(k)
+        self._count_phi(s, r, r.expected_duration if fresh and now - r.phi_from <
+                        r.expected_duration else None)
+        later = earlier = False
+        if mine is not None and fresh:
+            order = (r.started(), k)
+            later, earlier = order > mine, order < mine
+        if later != r.later:
+            r.later = later
+            (s.later.add if later else s.later.discard)(k)
+        wake = r.last_heard + self.tau if fresh else math.inf
+        if r.phi_ed is not None:
+            wake = min(wake, r.phi_from + r.expected_duration)
+        unheeding = False
+        if earlier:
+            limit = s.params.yielding_delay + 2 * self.tau + 2 * r.interval
+            if r.overlap_since is None:
+                r.overlap_since = now
+                ripe = False
             else:
-                r.overlap_since = None
-        return sorted(out)
+                ripe = now - r.overlap_since > limit and now - r.first_heard > r.expected_duration
+                unheeding = ripe and self._recent(r, now)
+            if not ripe:  # (once ripe it changes only when heard again: then it is dirty)
+                wake = min(wake, max(r.overlap_since + limit, r.first_heard + r.expected_duration))
+        else:
+            r.overlap_since = None
+        r.gen += 1
+        if wake != math.inf:
+            wake = max(wake - 1e-9 * (1.0 + abs(wake)), now)
+            heapq.heappush(s.wakes, (wake, self.visits, k, r.gen))
+        return unheeding
+
+    @staticmethod
+    def _count_phi(s: SetState, r: OtherRobot, ed: float | None) -> None:
+        if ed != r.phi_ed:
+            if r.phi_ed is not None:
+                s.count_phi(r.phi_ed, -1)
+            if ed is not None:
+                s.count_phi(ed, 1)
+            r.phi_ed = ed
 
     def _recent(self, r: OtherRobot, now: float) -> bool:
         """Heard within 1.5 of its own broadcast intervals (τ before one is observed): still
@@ -371,15 +467,14 @@ class HighLevel:
         within about one broadcast period instead of τ."""
         return now - r.last_heard <= 1.5 * (r.interval or self.tau)
 
-    def _impatience(self, s: SetState, fresh: dict[str, OtherRobot], now: float) -> Fraction:
+    def _impatience(self, s: SetState) -> Fraction:
+        """δ_fast, or δ_slow while a fresh robot doing the task is within its φ: the smallest
+        slow rate, that of the longest expected_duration announced."""
         p = s.params
-        slow_rates = []
-        for r in fresh.values():
-            if now - r.phi_from < r.expected_duration:  # within φ: let it work
-                slow_rates.append(slow_rate(s.theta, r.expected_duration, self.exact_rho))
-        if not slow_rates:
+        longest = s.longest_phi()
+        if longest is None:
             return s.fast
-        slow = min(slow_rates)
+        slow = slow_rate(s.theta, longest, self.exact_rho)
         if slow > s.fast:
             if not s.warned_slow:
                 log.warning(

@@ -59,7 +59,8 @@ def agent_command(arch: AgentArchitecture, help: str) -> click.Command:
         click.option("--crash-at", type=finite_float(min=0), metavar="SECONDS",
                      help="Fault injection: SIGKILL itself when its clock reaches SECONDS "
                           "(also $MRTA_CRASH=ROBOT@SECONDS,…). Exact in lockstep: "
-                          "experiments replay it."),
+                          "experiments replay it. Other faults (stall, partition, loss, "
+                          "latency) come from $MRTA_FAULTS (docs/delivery.md, Fault grammar)."),
         bus_options,
     ]):
         command = option(command)

@@ -1,6 +1,7 @@
 """Hosting one robot agent process, whatever its architecture: parameter warnings, the bus, the
 run's random stream, simulation time and lockstep, the clock watchdog, fault injection
-($MRTA_CRASH, --crash-at) and signals. `mrta agent` and `mrta murdoch` both end here."""
+($MRTA_CRASH, --crash-at, $MRTA_FAULTS) and signals. `mrta agent` and `mrta murdoch` both end
+here."""
 
 from __future__ import annotations
 
@@ -14,9 +15,9 @@ from typing import TYPE_CHECKING, Callable, Protocol
 
 from mrta_zenoh.bus import Bus, BusOptions, open_bus
 from mrta_zenoh.clock import Clock, SimClock, WallClock, follow_sim_clock
-from mrta_zenoh.architectures import CRASH_ENV
+from mrta_zenoh.architectures import CRASH_ENV, FAULTS_ENV
 from mrta_zenoh.errors import ConfigError
-from mrta_zenoh.failure import parse_failure
+from mrta_zenoh.failure import FaultPlan, Faults, parse_failure, parse_faults, plan_for
 from mrta_zenoh.identity import ROBOT, check_identity
 from mrta_zenoh.keys import normalize_robot_id
 from mrta_zenoh.lifecycle import stop_on_signals
@@ -62,10 +63,31 @@ class AgentOptions:
             object.__setattr__(self, "team", team)
 
 
+def env_faults() -> Faults:
+    """$MRTA_FAULTS parsed (empty if unset); a bad one is a ConfigError, before the bus."""
+    text = os.environ.get(FAULTS_ENV, "")
+    if not text:
+        return Faults()
+    try:
+        return parse_faults(text)
+    except ValueError as exc:
+        raise ConfigError(f"${FAULTS_ENV}: {exc}") from None
+
+
+def fault_plan(robot_id: str, seed: int) -> FaultPlan | None:
+    """This robot's stall, partitions, loss and latency from $MRTA_FAULTS (the run's seed
+    draws which messages are lost or late), or None."""
+    return plan_for(env_faults(), robot_id, seed)
+
+
 def crash_time(robot_id: str, crash_at: float | None) -> float | None:
-    """When this robot's agent is to crash: --crash-at, or its entry in $MRTA_CRASH."""
+    """When this robot's agent is to crash: --crash-at, or its entry in $MRTA_CRASH (or a
+    crash item in $MRTA_FAULTS: honoured, not ignored)."""
     if crash_at is not None:
         return crash_at
+    for f in env_faults().failures:
+        if f.kind == "crash" and f.robot == robot_id:
+            return f.at
     for item in filter(None, os.environ.get(CRASH_ENV, "").split(",")):
         try:
             failure = parse_failure(item.strip())
@@ -80,6 +102,7 @@ class HostedAgent(Protocol):
     robot_id: str
     log: logging.Logger
     crash_at: float | None
+    faults: FaultPlan | None
     ctx: object
 
     def limit_team(self, team) -> None: ...
@@ -98,6 +121,7 @@ def host(make_agent: Callable[[Bus, Clock, np.random.Generator], HostedAgent],
     or its $MRTA_CRASH entry — then shut it down."""
     robot_id, sim_time = normalize_robot_id(options.robot_id), options.sim_time
     crash = crash_time(robot_id, options.crash_at)  # a bad $MRTA_CRASH is bad input: before the bus
+    faults = fault_plan(robot_id, options.seed)
     for w in warnings:
         logger.warning("%s", w)
     # a fleet certificate that is not this robot's is refused before the bus opens
@@ -118,6 +142,9 @@ def host(make_agent: Callable[[Bus, Clock, np.random.Generator], HostedAgent],
                     "simulation" if sim_time else "wall")
         if crash is not None:
             agent.crash_at = crash
+        if faults is not None:
+            agent.faults = faults
+            logger.info("%s: faults to inject: %s", robot_id, faults)
         watchdog = None
         if sim_time:
             watchdog = threading.Thread(target=_clock_watchdog, args=(agent, clock, stop),

@@ -19,7 +19,11 @@ what every architecture needs and none should write twice:
 * sender checks: a message's key names its sender, and its header must agree;
 * publishing: every message the logic says goes out on `robotN/<namespace>/<kind>` with a header
   carrying the robot, the time and a per-key sequence number;
-* the low level: plugins' set-up and shutdown, the active task's layers, a restart of time.
+* the low level: plugins' set-up and shutdown, the active task's layers, a restart of time;
+* fault injection (mrta_zenoh/failure.py), here because this is the one place every
+  architecture's messages go out and come in, and its layers run: a crash (SIGKILL), a stall
+  (the layers stop, the decision logic and its messages go on), a partition (nothing sent,
+  nothing heard for a while), loss and latency of received coordination messages.
 
 An architecture supplies a `Coordinator` (its decision logic for one robot) through
 `mrta_agent.runtime.architecture.AgentArchitecture`.
@@ -38,6 +42,7 @@ from typing import TYPE_CHECKING, Callable, Iterable, Iterator, NamedTuple, Prot
 from mrta_zenoh.architectures import Architecture
 from mrta_zenoh.bus import Bus, Sample
 from mrta_zenoh.clock import EPSILON, Clock
+from mrta_zenoh.failure import FaultPlan
 from mrta_zenoh.keys import first_chunk, normalize_robot_id
 from mrta_zenoh.messages import Header
 from mrta_zenoh.seeds import robot_rng
@@ -91,6 +96,8 @@ class Agent:
     and layers."""
 
     crash_at: float | None = None  # fault injection: SIGKILL itself at this time
+    faults: FaultPlan | None = None  # fault injection: stall, partition, loss, latency
+    stalled = False  # the stall fault struck: the layers no longer run
     roster: frozenset[str] | None = None  # the only robots that may join the team (limit_team)
 
     def __init__(self, robot_id: str, architecture: Architecture,
@@ -116,6 +123,7 @@ class Agent:
         self.ignored_strangers = 0
         self.ignored_outsiders = 0  # tokens and messages of robots off the roster
         self.refused = 0
+        self.dropped_by_fault = 0  # coordination messages lost, or not sent, by injected faults
         self._last_drop_log: dict[str, float] = {}
         self._seq: dict[str, int] = collections.defaultdict(int)
         # (time heard, what, *args): filled by network callbacks, drained by the loop thread only
@@ -185,7 +193,17 @@ class Agent:
             self._drop("ignored_strangers", "ignoring %s from %s, which holds no agent token",
                        type(msg).__name__, sender)
             return
-        self._inbox.append((self.heard_at(msg.header.stamp), kind, sender, msg))
+        heard = self.heard_at(msg.header.stamp)
+        plan = self.faults
+        if plan is not None and plan.channel:
+            if plan.lost(sample.key, msg.header.seq):
+                self.dropped_by_fault += 1
+                return
+            heard += plan.delay(sample.key, msg.header.seq)
+            if plan.cut_off(heard):
+                self.dropped_by_fault += 1
+                return
+        self._inbox.append((heard, kind, sender, msg))
 
     # ------------------------------------------------------------ the inbox
     def in_lockstep(self) -> bool:
@@ -194,18 +212,25 @@ class Agent:
 
     def heard_at(self, stamp: float) -> float:
         """When a message stamped `stamp` counts as heard: in lockstep every robot shares one
-        simulated time, so its own stamp, exact whatever the network did; otherwise now."""
+        simulated time, so its own stamp, exact whatever the network did; otherwise now.
+        An injected latency comes on top (`_on_message`)."""
         return stamp if self.in_lockstep() else self.clock.now()
 
     def take_due(self, now: float) -> list[tuple]:
         """Every queued item due at `now`. In lockstep, one stamped at this very time waits for
-        the next tick: the sender handled this step too, and what it said belongs after it."""
+        the next tick: the sender handled this step too, and what it said belongs after it.
+        One delayed by an injected latency waits until its time (and they come in time order:
+        jitter reorders messages, as a network does)."""
         lockstep = self.in_lockstep()
+        delayed = self.faults is not None and self.faults.latency is not None
         due, later = [], []
         while self._inbox:
             item = self._inbox.popleft()
-            (later if lockstep and item[0] >= now else due).append(item)
+            (later if (lockstep and item[0] >= now) or (delayed and item[0] > now + EPSILON)
+             else due).append(item)
         self._inbox.extendleft(reversed(later))
+        if delayed:
+            due.sort(key=lambda item: item[0])
         return due
 
     def _drop(self, counter: str, reason: str, *args) -> None:
@@ -241,6 +266,9 @@ class Agent:
         self.switch_layers(self.coordinator.active_task, now)
 
     def send(self, say: Say, now: float) -> None:
+        if self.faults is not None and self.faults.cut_off(now):
+            self.dropped_by_fault += 1  # partitioned: nobody hears it
+            return
         key = self.architecture.key(self.robot_id, say.kind,
                                     *((say.subkey,) if say.subkey is not None else ()))
         self._seq[key] += 1
@@ -255,7 +283,20 @@ class Agent:
 
     # ------------------------------------------------------------ the active task's layers
     def layers_of(self, task: str | None) -> list[Layer]:
-        return self.plugins.layers.get(task, []) if task is not None else []
+        if task is None or self.stalled:
+            return []
+        return self.plugins.layers.get(task, [])
+
+    def stall(self, now: float) -> None:
+        """The stall fault: the running layers stop and the robot stands still, for good; the
+        decision logic goes on (its token, its broadcasts or lease renewals), so only what
+        watches progress — ALLIANCE's φ and ψ — can tell."""
+        self.log.warning("%s: stalling at t=%.2f as asked (fault injection): alive, stuck",
+                         self.robot_id, now)
+        for layer in self.layers_of(self.active_task):
+            layer.on_deactivate(now)
+        self.stalled = True
+        self.ctx.publish_cmd(0.0, 0.0)
 
     def switch_layers(self, task: str | None, now: float) -> None:
         """Make `task`'s layers the running ones: terminate the old task's layers, initialise
@@ -282,6 +323,7 @@ class Agent:
         for layer in self.layers_of(self.active_task):
             layer.on_deactivate(now)
         self._layers_task = None
+        self.stalled = False  # a new run: the stall strikes again at its time
         for sensor in self.plugins.sensors.values():
             sensor.forget()
         self._inbox.clear()
@@ -330,6 +372,8 @@ class Agent:
                                  self.robot_id, now)
                 logging.shutdown()
                 os.kill(os.getpid(), signal.SIGKILL)  # no shutdown, no goodbye: a real crash
+            if self.faults is not None and not self.stalled and self.faults.stalled(now):
+                self.stall(now)
             if getattr(self.clock, "restarts", 0) != epoch:
                 epoch = self.clock.restarts
                 self.restart(now)

@@ -6,9 +6,12 @@
     ros2_probe.py attachments KEYEXPR      print every sample's attachment on a ROS 2 key
     ros2_probe.py unattached KEY N         put N CDR Odometry samples on KEY with no attachment,
                                            then N with a 77-byte one (the early-Jazzy layout)
+
+With $PROBE_CONNECT set, it is a client of that endpoint (a robot's router) instead.
 """
 
 import json
+import os
 import sys
 import threading
 import time
@@ -22,7 +25,8 @@ from mrta_zenoh.ros2.types import Ros2Types
 
 
 def main(mode: str, *args: str) -> None:
-    with open_bus(BusOptions()) as bus:
+    connect = os.environ.get("PROBE_CONNECT")
+    with open_bus(BusOptions(mode="client", connect=[connect]) if connect else BusOptions()) as bus:
         if mode == "cmd":
             robot, n = args[0], int(args[1])
             up = threading.Event()
