@@ -149,7 +149,10 @@ def measure(args, env) -> None:
         sonar_bridge, sonar_relay = Probe(), Probe()
         bus.subscribe(f"{ROBOT}/sonar", sonar_bridge)
         bus.subscribe_attached("relay_out/sonar", sonar_relay)
-        sonar_pub = node.publisher("sonar", SONAR_TYPES["pointcloud"], names.COMMANDS)
+        # KEEP_ALL: rmw_zenoh's publishers DROP under load unless RELIABLE + KEEP_ALL, and this
+        # measures the bridge, not that rule
+        sonar_pub = node.publisher("sonar", SONAR_TYPES["pointcloud"],
+                                   names.Qos(names.RELIABLE, names.VOLATILE, names.KEEP_ALL, 10))
         relay_sonar = bus.declare_attached_publisher("relay/sonar", lossy=False)
         relay_att = b"\x01" + b"\x00" * 32
         time.sleep(2.0)  # declarations travel

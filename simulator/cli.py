@@ -44,6 +44,7 @@ from .api import SimOptions, run_simulator
               help="Serve this robot as a ROS 2 robot over rmw_zenoh (Twist in; Odometry and "
                    "sonar out), reachable only through `mrta ros2 bridge`. Repeatable.")
 @click.option("--ros2-domain", type=click.IntRange(0, 232), default=0, show_default=True,
+              envvar="ROS_DOMAIN_ID", show_envvar=True,
               help="ROS_DOMAIN_ID of the ROS 2 robots.")
 @click.option("--ros2-sonar-type", type=click.Choice(sorted(SONAR_TYPES)), default="pointcloud",
               show_default=True, help="How the ROS 2 robots publish their sonar.")

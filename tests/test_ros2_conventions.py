@@ -238,3 +238,20 @@ def test_a_node_in_an_unbridged_namespace_raises_no_bridge_lost():
     snap = sup.snapshot(2.0)
     assert {r["id"]: r["state"] for r in snap["robots"]}["robot2"] == "idle"
     assert snap["alarms"] == []
+
+
+def test_ros_domain_id_is_every_ros2_options_default(tmp_path, monkeypatch):
+    """`ROS_DOMAIN_ID` is what a ROS 2 user sets once: the simulator's stand-in and the
+    secured fleet's rules follow it too, not only the bridge and the graph."""
+    import json
+
+    from click.testing import CliRunner
+
+    from mrta_zenoh.cli.main import cli
+    monkeypatch.setenv("ROS_DOMAIN_ID", "5")
+    result = CliRunner().invoke(cli, ["secure", "init", str(tmp_path / "f"), "--robot", "robot1"])
+    assert result.exit_code == 0, result.output
+    router = json.loads((tmp_path / "f" / "router.json5").read_text())
+    keys = {k for r in router["access_control"]["rules"] for k in r["key_exprs"]}
+    assert "5/robot1/**" in keys and "0/robot1/**" not in keys
+    assert "ROS_DOMAIN_ID" in CliRunner().invoke(cli, ["sim", "--help"]).output

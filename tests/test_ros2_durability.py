@@ -8,7 +8,7 @@ import time
 import pytest
 
 from mrta_zenoh.bus import BusOptions, open_bus
-from mrta_zenoh.ros2.names import RELIABLE, TRANSIENT_LOCAL, KEEP_LAST, VOLATILE, Qos
+from mrta_zenoh.ros2.names import KEEP_LAST, RELIABLE, TRANSIENT_LOCAL, Qos
 from mrta_zenoh.ros2.node import Ros2Node
 from mrta_zenoh.ros2.types import Ros2Types
 from tests.helpers import free_port

@@ -20,11 +20,10 @@ from ..untrusted import visible
 from ..yamlfile import plural  # noqa: F401 - the verbs import it from here
 
 
-def bus_options(f: Callable | None = None, *, namespace_option: str = "--namespace") -> Callable:
+def bus_options(f: Callable | None = None) -> Callable:
     """Add --connect/--listen/--mode/--zenoh-config/--namespace and pass `bus_options=BusOptions`.
-
-    `namespace_option` renames --namespace for a command that needs the name for something else
-    (`mrta ros2 bridge --namespace` is the robot's ROS 2 namespace)."""
+    `--namespace` is the bus prefix in every command (the bridge's ROS 2 namespace is its own
+    `--ros-namespace`)."""
 
     def decorate(f: Callable) -> Callable:
         @click.option("--connect", "connect", multiple=True, metavar="ENDPOINT",
@@ -36,7 +35,7 @@ def bus_options(f: Callable | None = None, *, namespace_option: str = "--namespa
         @click.option("--zenoh-config", type=click.Path(dir_okay=False, path_type=Path),
                       metavar="FILE.json5",
                       help="Zenoh configuration file (merged over our loopback defaults).")
-        @click.option(namespace_option, "bus_namespace", default="", metavar="NS",
+        @click.option("--namespace", "bus_namespace", default="", metavar="NS",
                       help="Prefix for every key, so several teams can share one network.")
         @functools.wraps(f)
         def wrapper(*args: Any, connect, listen, mode, zenoh_config, bus_namespace, **kwargs: Any):

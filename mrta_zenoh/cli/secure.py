@@ -31,6 +31,7 @@ def secure() -> None:
               help="The folder's absolute path on the machines that use it (the configs name "
                    "the certificates there). Default: FOLDER's absolute path here.")
 @click.option("--ros2-domain", type=click.IntRange(0, 232), default=0, show_default=True,
+              envvar="ROS_DOMAIN_ID", show_envvar=True,
               help="The ROS_DOMAIN_ID of robots' and bridges' ROS 2 topics.")
 @click.option("--no-simulator", is_flag=True, help="No certificate for a simulator.")
 @click.option("--force", is_flag=True,

@@ -190,11 +190,13 @@ class SetState:
 
     @property
     def motivation(self) -> float:
-        return float(self.exact_motivation)
+        m = self.exact_motivation  # float(m), without numbers.Rational's indirection
+        return m.numerator / m.denominator
 
     @property
     def impatience(self) -> float:
-        return float(self.exact_impatience)
+        i = self.exact_impatience
+        return i.numerator / i.denominator
 
     def count_phi(self, ed: float, delta: int) -> None:
         n = self.phi_count.get(ed, 0) + delta
@@ -382,7 +384,7 @@ class HighLevel:
             s.exact_motivation = s.theta
             transitions.append(TaskSwitch(winner, True, "threshold reached"))
         states = [MotivationState(t, s.impatience, s.acquiescent, s.suppressed, s.resetted,
-                                  s.applicable, s.motivation, float(s.theta), s.active)
+                                  s.applicable, s.motivation, s.params.threshold, s.active)
                   for t, s in self.sets.items()]
         return states, transitions
 
