@@ -82,13 +82,18 @@ def child_participants(first: int, count: int) -> None:
             t.close()
 
 
+def start_participants(group: ProcessGroup, participants: int) -> None:
+    """The fake participants, in two processes, each ready (its tokens declared)."""
+    per = participants // 2
+    for k in range(2):
+        c = group.start([sys.executable, HERE, "--child", str(k * per), str(per)],
+                        name=f"participants{k}")
+        c.wait_line(lambda line: line == "ready", 60)
+
+
 def step_cost(env: dict, participants: int, seconds: float) -> float:
     with ProcessGroup(env) as group:
-        per = participants // 2
-        for k in range(2):
-            c = group.start([sys.executable, HERE, "--child", str(k * per), str(per)],
-                            name=f"participants{k}")
-            c.wait_line(lambda line: line == "ready", 60)
+        start_participants(group, participants)
         args = ["sim", "--world", "patrol", "--robot", "robot1", "--speed", "0", "--duration",
                 str(seconds)]
         if participants:
@@ -133,11 +138,7 @@ with open_bus(BusOptions()) as bus:
 def bare_round_trip(env: dict, participants: int, steps: int = 2000) -> float:
     """Wall seconds per Step published → `participants` StepDones received, on the bus alone."""
     with ProcessGroup(env) as group:
-        per = participants // 2
-        for k in range(2):
-            c = group.start([sys.executable, HERE, "--child", str(k * per), str(per)],
-                            name=f"participants{k}")
-            c.wait_line(lambda line: line == "ready", 60)
+        start_participants(group, participants)
         bare = group.start([sys.executable, "-c", BARE, str(participants), str(steps)],
                            name="bare")
         bare.wait(900)

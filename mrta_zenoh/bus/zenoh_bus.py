@@ -223,9 +223,13 @@ class ZenohBus(Bus):
         return pub
 
     def subscribe_attached(self, key_expr: str,
-                           handler: Callable[[str, bytes, bytes | None], None]) -> "Closable":
+                           handler: Callable[[str, bytes, bytes | None], None],
+                           declare: Callable[[str, Callable], Any] | None = None
+                           ) -> "Closable":
         """handler(key, payload, attachment or None), on Zenoh's thread; an exception it raises
-        is counted (`handler_errors`) and logged, never kills the network thread."""
+        is counted (`handler_errors`) and logged, never kills the network thread. `declare(key,
+        callback)` makes the subscriber (default: a plain one; ROS 2 topics use zenoh-ext's
+        AdvancedSubscriber, mrta_zenoh/ros2/node.py)."""
         stats = self.stats
 
         def on_sample(s: "zenoh.Sample") -> None:
@@ -237,7 +241,8 @@ class ZenohBus(Bus):
                 stats.add("handler_errors")
                 log.exception("handler for %s raised", key_expr)
 
-        sub = Closable(self.session.declare_subscriber(key_expr, on_sample))
+        declare = declare or self.session.declare_subscriber
+        sub = Closable(declare(key_expr, on_sample))
         self._attached.append(sub)
         return sub
 

@@ -22,7 +22,7 @@ strict like rmw_zenoh's: a sample without a valid 33-byte attachment, or whose C
 decode, is counted and dropped, never passed on. A subscription may cap the payload size: a
 larger sample is counted (`oversized`) and dropped before it is decoded — decoding is what
 costs (a 1M-point cloud twice a second held a core at 100 % and grew the bridge by 350 MB),
-and it runs on Zenoh's thread, where it would delay every other topic (ZENOH_NOTES.md, trap 3).
+and it runs on Zenoh's thread, where it would delay every other topic (docs/zenoh.md, trap 3).
 """
 
 from __future__ import annotations
@@ -68,25 +68,13 @@ def _advanced_subscription(bus: ZenohBus, key: str, qos: Qos,
     for plain subscriptions (`handler_errors`), never raised on Zenoh's thread."""
     from zenoh import ext
 
-    stats = bus.stats
-
-    def on_sample(s) -> None:
-        att = s.attachment
-        try:
-            handler(str(s.key_expr), s.payload.to_bytes(),
-                    att.to_bytes() if att is not None else None)
-        except Exception:
-            stats.add("handler_errors")
-            log.exception("handler for %s raised", key)
-
     history = (ext.HistoryConfig(detect_late_publishers=True, max_samples=max(1, qos.depth))
                if qos.durability == TRANSIENT_LOCAL else None)
     recovery = (ext.RecoveryConfig(periodic_queries=None, heartbeat=True)
                 if qos.reliability == RELIABLE else None)
-    sub = Closable(ext.declare_advanced_subscriber(bus.session, key, on_sample, history=history,
-                                                   recovery=recovery, subscriber_detection=True))
-    bus._attached.append(sub)
-    return sub
+    return bus.subscribe_attached(key, handler, declare=lambda k, on_sample: (
+        ext.declare_advanced_subscriber(bus.session, k, on_sample, history=history,
+                                        recovery=recovery, subscriber_detection=True)))
 
 
 def blocks(qos: Qos) -> bool:
