@@ -5,9 +5,18 @@ Prints one JSON line per figure:
                    (all at 0.5 Hz; and 1,000 heard of which 10 broadcast between two ticks),
                    with the baseline of the same tick with nobody heard; on_broadcast() apart
   agent_process    CPU share and RSS of N `mrta agent` processes at the reference rates
-                   (reference robot1 parameters; sensors fed at 10 Hz), for N = 1 and 20
+                   (reference robot1 parameters; sensors fed at 10 Hz), for N = 1 and 20,
+                   beside a bare Zenoh session process's RSS (same rendezvous, same flags)
+  agent_imports    `python -X importtime` of one `mrta agent` process at the reference
+                   parameters: the total, the 10 modules of largest cumulative time, and which
+                   of the libraries an agent must not load (numpy, matplotlib, rich, foxglove,
+                   rosbags, cryptography) it imported — none (tests/test_agent_imports.py
+                   checks the same in the suite)
 
-Run: python benchmarks/agent.py [--seconds 20]
+The reference parameters are the repository's copy (tests/data/reference/alliance_test), so a
+clone runs this as it is.
+
+Run: python benchmarks/agent.py [--seconds 20] [--only tick|imports|processes]
 """
 
 from __future__ import annotations
@@ -22,8 +31,11 @@ import tempfile
 import time
 from pathlib import Path
 
+from procstat import private_mb, proc_stat  # benchmarks/procstat.py, beside this script
+
 ROOT = Path(__file__).resolve().parent.parent
-REF = ROOT.parent / "shared" / "reference" / "alliance_test" / "config"
+REF = ROOT / "tests" / "data" / "reference" / "alliance_test" / "config"
+HEAVY = ("numpy", "matplotlib", "rich", "foxglove", "rosbags", "cryptography")
 
 
 def tick_cost() -> None:
@@ -72,15 +84,6 @@ def tick_cost() -> None:
                               round(reps / (tick_s + heard_s))}), flush=True)
 
 
-def proc_stat(pid: int) -> tuple[float, int]:
-    with open(f"/proc/{pid}/stat") as f:
-        parts = f.read().rsplit(")", 1)[1].split()
-    ticks = int(parts[11]) + int(parts[12])  # utime + stime
-    with open(f"/proc/{pid}/status") as f:
-        rss = next(int(line.split()[1]) for line in f if line.startswith("VmRSS:"))
-    return ticks / os.sysconf("SC_CLK_TCK"), rss * 1024
-
-
 def numpy_loaded(proc: subprocess.Popen) -> bool:
     """Is numpy's extension mapped into the process (it is loaded only when a plugin draws)?"""
     with open(f"/proc/{proc.pid}/maps") as f:
@@ -96,26 +99,70 @@ with open_session(BusOptions()):
 """
 
 
-def agents(n: int, seconds: float) -> None:
+def reference_tasks(tmp: Path) -> Path:
+    """The reference tasks need the patrol layers; the same tasks, no layers."""
+    tf = tmp / "tasks.yaml"
+    tf.write_text("tasks:\n  size: 3\n" + "".join(
+        f"  task{i}:\n    id: '{t}'\n    name: '{t}'\n    layers:\n      size: 0\n"
+        for i, t in enumerate(("wander", "border_protection", "report"))))
+    return tf
+
+
+def private_env() -> dict:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    env = dict(os.environ, MRTA_RENDEZVOUS=f"tcp/127.0.0.1:{port}", RUST_LOG="error")
+    return dict(os.environ, MRTA_RENDEZVOUS=f"tcp/127.0.0.1:{port}", RUST_LOG="error")
+
+
+def agent_argv(robot: str, tasks: Path, python_flags: tuple[str, ...] = ()) -> list[str]:
+    rf = REF / f"robot{(int(robot[5:]) - 1) % 5 + 1}_alliance_params.yaml"
+    return [sys.executable, *python_flags, "-m", "mrta_zenoh.cli.main", "agent", robot,
+            "--robot-params", str(rf), "--tasks-params", str(tasks)]
+
+
+def import_time(seconds: float = 4.0) -> None:
+    """One agent started under `python -X importtime`, run `seconds` (its plugins load and
+    its first ticks run: a lazy import that happens then counts too), then ended by PID."""
+    env = private_env()
+    with tempfile.TemporaryDirectory() as tmp:
+        proc = subprocess.Popen(agent_argv("robot1", reference_tasks(Path(tmp)),
+                                           ("-X", "importtime")), env=env,
+                                stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+        try:
+            time.sleep(seconds)
+        finally:
+            proc.terminate()
+            _, err = proc.communicate(timeout=30)
+    rows = []  # (cumulative µs, self µs, module)
+    for line in err.splitlines():
+        if not line.startswith("import time:") or "imported package" in line:
+            continue
+        own, cumulative, name = line[len("import time:"):].split("|")
+        rows.append((int(cumulative), int(own), name.strip()))
+    loaded = {r[2].split(".")[0] for r in rows}
+    top = sorted(rows, reverse=True)[:10]
+    print(json.dumps({"figure": "agent_imports", "modules": len(rows),
+                      "total_ms": round(sum(r[1] for r in rows) / 1e3, 1),
+                      "top10_cumulative_ms": {r[2]: round(r[0] / 1e3, 1) for r in top},
+                      "forbidden_imported": sorted(loaded & set(HEAVY)),
+                      "forbidden": list(HEAVY)}), flush=True)
+    if loaded & set(HEAVY):
+        raise SystemExit(f"the agent imported {sorted(loaded & set(HEAVY))}")
+
+
+def agents(n: int, seconds: float) -> None:
+    env = private_env()
     tmp = Path(tempfile.mkdtemp())
+    tf = reference_tasks(tmp)
     robots = [f"robot{i + 1}" for i in range(n)]
     feeder = subprocess.Popen([sys.executable, str(ROOT / "tests" / "procs" / "sensor_feeder.py"), *robots],
                               env=env, stdout=subprocess.PIPE, text=True)
     feeder.stdout.readline()
     procs = []
     for r in robots:
-        rf = REF / f"robot{(int(r[5:]) - 1) % 5 + 1}_alliance_params.yaml"
-        tf = tmp / "tasks.yaml"  # the reference tasks need the patrol layers; same tasks, no layers
-        tf.write_text("tasks:\n  size: 3\n" + "".join(
-            f"  task{i}:\n    id: '{t}'\n    name: '{t}'\n    layers:\n      size: 0\n"
-            for i, t in enumerate(("wander", "border_protection", "report"))))
-        procs.append(subprocess.Popen(
-            [sys.executable, "-m", "mrta_zenoh.cli.main", "agent", r, "--robot-params", str(rf),
-             "--tasks-params", str(tf)], env=env, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        procs.append(subprocess.Popen(agent_argv(r, tf), env=env, stdout=subprocess.DEVNULL,
+                                      stderr=subprocess.DEVNULL))
     # the same-run baseline: a bare zenoh-python session on the same rendezvous, doing nothing
     bare = subprocess.Popen([sys.executable, "-c", BARE_SESSION], env=env,
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
@@ -128,13 +175,18 @@ def agents(n: int, seconds: float) -> None:
         end = [proc_stat(p.pid) for p in procs]
         cpu = [(e[0] - s[0]) / dt * 100 for s, e in zip(start, end)]
         rss = [e[1] / 2**20 for e in end]
+        uss = [private_mb(p.pid) for p in procs]
         bare_rss = proc_stat(bare.pid)[1] / 2**20
+        bare_uss = private_mb(bare.pid)
         print(json.dumps({"figure": "agent_process", "agents": n, "seconds": round(dt, 1),
                           "cpu_percent_of_a_core_mean": round(sum(cpu) / n, 2),
                           "cpu_percent_of_a_core_max": round(max(cpu), 2),
                           "rss_mb_mean": round(sum(rss) / n, 1), "rss_mb_max": round(max(rss), 1),
                           "baseline_bare_zenoh_session_rss_mb": round(bare_rss, 1),
+                          "uss_mb_mean": round(sum(uss) / n, 1),
+                          "baseline_bare_zenoh_session_uss_mb": round(bare_uss, 1),
                           "agents_with_numpy_loaded": sum(map(numpy_loaded, procs)),
+                          "load_average": [round(x, 2) for x in os.getloadavg()],
                           "target_cpu_percent": 1.0, "target_rss_mb": 40}), flush=True)
     finally:
         for p in procs + [feeder, bare]:
@@ -146,10 +198,15 @@ def agents(n: int, seconds: float) -> None:
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--seconds", type=float, default=20.0)
+    ap.add_argument("--only", choices=("tick", "imports", "processes"))
     args = ap.parse_args()
-    tick_cost()
-    agents(1, args.seconds)
-    agents(20, args.seconds)
+    if args.only in (None, "tick"):
+        tick_cost()
+    if args.only in (None, "imports"):
+        import_time()
+    if args.only in (None, "processes"):
+        agents(1, args.seconds)
+        agents(20, args.seconds)
 
 
 if __name__ == "__main__":

@@ -4,7 +4,11 @@ Prints one JSON line per figure. Each line carries the figure for our batched si
 baseline measured in the same run: the same world simulated the obvious way (a Python loop over
 pymunk bodies for control, one `segment_query_first` per sonar beam), so the numbers say what
 numpy batching buys. "with bus" publishes clock, sonar, odom, ground truth and bumper over real
-Zenoh while a separate subscriber process receives everything (spawned, never forked).
+Zenoh while a separate subscriber process receives it (spawned, never forked; sensor data are
+best effort, so a subscriber that falls behind loses samples: `samples_received` against
+`samples_expected`). Beside it: the seconds per simulated second our sensor publishing costs
+(encoding and puts, the sonar sweep excluded) and what raw zenoh-python puts of as many samples
+cost in the same run.
 
 Run: python benchmarks/sim.py [--robots 3 10 100 300 1000] [--seconds 10] [--plot PNG]
 """
@@ -139,6 +143,10 @@ def run_with_bus(n: int, seconds: float) -> tuple[float, int]:
             # warm-up, not timed: the first sensor period declares every key's publisher
             # (≈ 30 µs each, once per key for the whole run)
             node.run(threading.Event(), duration=0.2)
+            # time spent publishing sensor data (encoding + puts, the sonar sweep excluded)
+            spent = {"publish": 0.0, "sonar": 0.0}
+            node.publish_all = timed(node.publish_all, spent, "publish")
+            sim.sonar = timed(sim.sonar, spent, "sonar")
             stats = node.run(threading.Event(), duration=0.2 + seconds)
             node.close()
             raw_us = raw_put_us(bus.session, n)
@@ -149,7 +157,19 @@ def run_with_bus(n: int, seconds: float) -> tuple[float, int]:
         finally:
             sub.wait(10)
             watch.close()
-    return stats.real_time_factor, received, raw_us
+    publish_s = (spent["publish"] - spent["sonar"]) / stats.sim_time
+    return stats.real_time_factor, received, raw_us, publish_s
+
+
+def timed(fn, spent: dict, name: str):
+    """fn, adding its wall time to spent[name]."""
+    def wrapper(*args):
+        t0 = time.perf_counter()
+        try:
+            return fn(*args)
+        finally:
+            spent[name] += time.perf_counter() - t0
+    return wrapper
 
 
 def raw_put_us(session, n: int, rounds: int = 10) -> float:
@@ -209,13 +229,14 @@ def main() -> None:
         print(json.dumps({"figure": "real_time_factor_no_bus", "robots": n, "ours": round(ours, 1),
                           "baseline_naive_pymunk": round(naive, 1),
                           "ratio": round(ours / naive, 2)}), flush=True)
-        bus_rtf, received, raw_us = run_with_bus(n, secs)
+        bus_rtf, received, raw_us, publish_s = run_with_bus(n, secs)
         puts = secs * 50 + secs * 10 * 4 * n  # clock at 50 Hz, four sensor samples at 10 Hz
         print(json.dumps({"figure": "real_time_factor_with_bus", "robots": n,
                           "ours": round(bus_rtf, 1), "samples_received": received,
                           "baseline_raw_zenoh_put_us": round(raw_us, 2),
                           "raw_put_seconds_per_simulated_second": round(
                               raw_us * 1e-6 * puts / secs, 3),
+                          "ours_sensor_publish_seconds_per_simulated_second": round(publish_s, 3),
                           "samples_expected": int(round((secs + 0.2) * 50 + 2 + ((secs + 0.2) * 10 + 2) * 4 * n + 10 * n)),
                           "ours_no_bus": round(ours, 1)}), flush=True)
         curve.append((n, ours, bus_rtf, naive))

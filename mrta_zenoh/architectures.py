@@ -65,6 +65,11 @@ class Architecture(ABC):
     bound_formula: ClassVar[str]   # the takeover bound as people write it
     messages: ClassVar[dict[str, type]]  # kind → message type, published on robotN/<ns>/<kind>[/…]
     doing_kinds: ClassVar[tuple[str, ...]]  # the kinds `doing` reads
+    # The kinds robots tell each other — coordination proper, what a study counts as its cost
+    # (issue #25) — a subset of `messages`; None: every kind. What an architecture publishes
+    # for people and tools to watch (ALLIANCE's Motivation and SensoryFeedback panels) is bus
+    # traffic, not coordination: counting it made ALLIANCE look 40 times as chatty as it is.
+    coordination_kinds: ClassVar[tuple[str, ...] | None] = None
     # a robot on a task repeats so at least this often (seconds of its clock): a report not
     # repeated for longer means it stopped without saying so (it died)
     doing_stale_after: ClassVar[float] = 2.0
@@ -91,7 +96,22 @@ class Architecture(ABC):
         """Every robot's agent token: `*/alliance/agent`."""
         return f"*/{self.namespace}/agent"
 
+    @property
+    def coordination(self) -> tuple[str, ...]:
+        """The kinds that are coordination: `coordination_kinds`, or every kind of `messages`."""
+        if self.coordination_kinds is None:
+            return tuple(self.messages)
+        return tuple(self.coordination_kinds)
+
     def is_coordination_key(self, key: str) -> bool:
+        """Whether a sample on `key` is one robot telling the others something:
+        `robot1/<namespace>/<kind>[/sub-key…]` with `kind` among `coordination`
+        (`robot1/murdoch/announcement/t1` is; ALLIANCE's `robot1/alliance/motivation/t1` is not)."""
+        chunks = key.split("/")
+        return len(chunks) > 2 and chunks[1] == self.namespace and chunks[2] in self.coordination
+
+    def is_namespace_key(self, key: str) -> bool:
+        """Whether `key` is one of the architecture's messages, coordination or monitoring."""
         chunks = key.split("/")
         return len(chunks) > 2 and chunks[1] == self.namespace and chunks[2] in self.messages
 
@@ -194,6 +214,11 @@ def architecture(name: str) -> Architecture:
         if arch.name != name:
             raise ConfigError(f"architecture registered as {name!r} ({ep.value}) calls itself "
                               f"{arch.name!r}")
+        unknown = sorted(set(arch.coordination) - set(arch.messages))
+        if unknown:
+            raise ConfigError(f"architecture {name!r} ({ep.value}): coordination_kinds "
+                              f"{', '.join(unknown)} are not among its messages "
+                              f"({', '.join(sorted(arch.messages))})")
         _loaded[name] = arch
         return arch
 

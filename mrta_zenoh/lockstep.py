@@ -22,10 +22,13 @@ The protocol (docs/architecture.md, "lockstep"):
   participant has something due (an agent at 10 Hz: every fifth 20 ms step), so lockstep costs
   one round trip per participant tick, not per physics step.
 * The simulator steps again once every participant is done and it has taken their commands
-  of that step into account (counted as for the participants). A participant alive but silent
-  for `timeout` wall seconds (2.5 s by default: below the 3 s Zenoh lease, so a stopped process
-  is reported before its token expires) is reported (a log line and `lockstep/status`, which the
-  supervisor shows as an alarm) and no longer waited for, until it answers again.
+  of that step into account (counted as for the participants). A participant silent for
+  `REPORT_AFTER` (2.5 s: below the 3 s Zenoh lease, so a stopped process is reported before its
+  token expires) is reported in the log and still waited for while it holds its participant
+  token — a slow participant on a busy machine must not change what the run does. One silent
+  for `timeout` wall seconds (30 s by default) with its token alive is given up (a log line
+  and `lockstep/status`, which the supervisor shows as an alarm) until it answers again; the
+  status counts give-ups and forgiven claims, and a mission's summary calls such a run inexact.
 
 Trust (docs/security.md, "Lockstep and the clock"). Exact checks — they hold against anybody
 who cannot declare our tokens (a secured fleet) and against blind forgers on an open bus:
@@ -72,7 +75,13 @@ PARTICIPANT = "@mrta/lockstep/participant"  # /<participant>: liveliness
 BARRIER = "@mrta/lockstep/barrier"      # /<run>: liveliness of a lockstep simulator
 STATUS = "lockstep/status"
 
-DEFAULT_TIMEOUT = 2.5   # wall s; below the 3 s Zenoh lease (mrta_zenoh/bus/options.py)
+# A participant silent this long (wall s) is given up — but only a live one reaches it: a dead or
+# stopped process loses its participant token with its session (at once, or after the 3 s Zenoh
+# lease, mrta_zenoh/bus/options.py), and a participant without a token is not waited for. A
+# slow one — a busy machine, a CPU-starved process — holds its token and is waited for: giving it
+# up would make the run depend on the machine's load, which is what lockstep is there to stop.
+DEFAULT_TIMEOUT = 30.0
+REPORT_AFTER = 2.5      # wall s: a participant silent this long is reported (still waited for)
 STEP_SLACK = 0.05       # simulated s past a participant's `next` a step may stop (one 20 ms step)
 STEP_BURST = 1.0        # simulated s a step may jump beyond that without wall time to show for it
 NEXT_HORIZON = 10.0     # simulated s: the longest `next` a StepDone may announce
@@ -84,8 +93,10 @@ LOG_FIRST = 5           # rejected samples logged one by one; then one line per 
 
 def count_wait(timeout: float) -> float:
     """How long counts that do not arrive are waited for before they are forgiven: half the
-    barrier's timeout (so a participant still answers in time), at most 1.25 s."""
-    return min(1.25, max(0.05, timeout / 2))
+    barrier's timeout (so a participant still answers in time), at most 5 s — long enough for
+    a CPU-starved process to deliver what it received (forgiving legitimate counts makes a run
+    inexact), short enough that a forged claim costs one 5 s pause, once (docs/security.md)."""
+    return min(5.0, max(0.05, timeout / 2))
 
 
 @message("mrta_msgs/Step")
@@ -107,18 +118,24 @@ class StepDone(Message):
     sent: dict[str, int]
     next: Finite = -1.0
     run: str = ""  # the run whose step this acknowledges
+    forgiven: int = 0  # claims this participant forgave in this run: the run is then inexact
 
 
 @message("mrta_msgs/LockstepStatus")
 class LockstepStatus(Message):
     """Participants the simulator stopped waiting for (alive, but silent past the timeout);
     `dropped`: StepDones and claims it refused (non-participants, implausible counts);
-    `rivals`: other clock sources or lockstep runs on the bus (one source per run)."""
+    `rivals`: other clock sources or lockstep runs on the bus (one source per run);
+    `given_up` / `forgiven`: how often, in this run, a participant was given up and a claim
+    forgiven — either makes the run inexact (it then depended on the machine), which a
+    mission's summary says (`lockstep_exact`)."""
 
     stamp: Finite
     unresponsive: tuple[str, ...]
     dropped: int = 0
     rivals: tuple[str, ...] = ()
+    given_up: int = 0
+    forgiven: int = 0
 
 
 class _Rejections:
@@ -141,31 +158,65 @@ class Books:
 
     Counts are cumulative per key. A sample that will never arrive (its link was down; a forged
     claim) would hold every later step for ever: `forgive` records it as an offset, so only the
-    one step waits (at most count_wait), and the next ones count from there."""
+    one step waits (at most count_wait), and the next ones count from there.
+
+    Which of this bus's subscriptions count a key is remembered per key (issue #27: a Step
+    names every key of the run — with 100 robots about a thousand — and matching each against
+    every subscription on every look cost an agent milliseconds per step); the memory is
+    dropped when the bus's subscriptions change, and bounded."""
+
+    MEMO = 4 * MAX_KEYS  # keys remembered; beyond, the memory starts again
 
     def __init__(self, bus) -> None:
         self.bus = bus
         self.offsets: dict[str, int] = {}
         self._forgiven: dict[str, tuple[int, int]] = {}  # key → (claim forgiven, offset before)
         self.lost = 0
+        self._subs: tuple = ()                    # the counting subscriptions `_matching` is for
+        self._matching: dict[str, tuple] = {}     # key → the counting subscriptions matching it
+        self._unmatched: set[str] = set()         # keys of `_matching` no subscription counts
+
+    def _counting(self) -> dict[str, tuple]:
+        """key → matching counting subscriptions, valid for the bus's subscriptions now."""
+        subs = self.bus.counting_subscriptions()  # what Bus.received_count reads
+        if subs != self._subs or len(self._matching) > self.MEMO:
+            self._subs = subs
+            self._matching = {}
+            self._unmatched = set()
+        return self._matching
 
     def received(self, key: str) -> int | None:
         """Samples on `key` every subscription of this bus matching it has taken into account
         (None: no subscription matches, nothing to wait for)."""
-        return self.bus.received_count(key)
+        return self._received(self._counting(), key)
 
-    def missing(self, required: dict[str, int]) -> dict[str, int]:
+    def _received(self, matching: dict[str, tuple], key: str) -> int | None:
+        subs = matching.get(key)
+        if subs is None:
+            subs = matching[key] = tuple(s for s in self._subs if _matches(s.key_expr, key))
+            if not subs:
+                self._unmatched.add(key)
+        if not subs:
+            return None
+        return min(s.counts[key] for s in subs)
+
+    def missing(self, required: dict[str, int], keys=None) -> dict[str, int]:
         """Key → samples claimed that have not arrived (keys this bus publishes itself, or does
-        not subscribe to, are never waited for)."""
+        not subscribe to, are never waited for). `keys`: look only at these of `required`
+        (those found missing before: counts only grow, so the others still have arrived)."""
         own = self.bus.sent_counts
+        matching = self._counting()
+        offsets = self.offsets
         out = {}
-        for key, n in required.items():
+        if keys is None:  # set operations in C: most keys of a Step are none of this bus's
+            keys = required.keys() - self._unmatched - own.keys()
+        for key in keys:
             if key in own:
                 continue
-            got = self.received(key)
+            got = self._received(matching, key)
             if got is None:
                 continue
-            gap = n - got - self.offsets.get(key, 0)
+            gap = required[key] - got - offsets.get(key, 0)
             if gap > 0:
                 out[key] = gap
         return out
@@ -243,12 +294,16 @@ class LockstepClock(SimClock):
         self._step_budget = StepBudget(CEILING, wall)
         self._pending: Step | None = None
         self._pending_wall = 0.0
+        # the pending step's keys found missing at the last look (None: look at all of them):
+        # each sample received while a step is pending looks again, at these only (issue #27)
+        self._still_missing: list[str] | None = None
         self._new_run = False                 # the pending step opens a new run
         self._refused: Step | None = None     # a new run's step refused while the old one lives
         self._timer: threading.Timer | None = None  # looks at a pending step's counts again
         self._acked = True
         self._sleeping_until: float | None = None  # the main loop waits for this time
         self._publish_done: Callable[[float, float], None] | None = None
+        self.forgiven = 0  # claims forgiven in this run (a new run starts again)
 
     def join(self, bus) -> contextlib.ExitStack:
         """Count traffic, follow steps, and announce the participant; returns the handles as
@@ -260,7 +315,7 @@ class LockstepClock(SimClock):
 
         def publish_done(stamp: float, next_due: float) -> None:
             bus.publish(done_key, StepDone(self.participant, stamp, dict(bus.sent_counts),
-                                           next_due, self.run or ""))
+                                           next_due, self.run or "", self.forgiven))
 
         self._publish_done = publish_done
         handles = [bus.watch_liveliness(f"{BARRIER}/*", self._on_barrier),
@@ -291,6 +346,8 @@ class LockstepClock(SimClock):
                     # new run's first step comes: its sensor data, counted just before, would
                     # be lost from the books.
                     self._books.reset()
+                    self.forgiven = 0
+                    self._still_missing = None
         if retry is not None:
             self._offer(retry)
 
@@ -313,6 +370,7 @@ class LockstepClock(SimClock):
             self.lockstep.set()
             self._pending = step
             self._pending_wall = self._wall()
+            self._still_missing = None
         self._release()
 
     def _judge(self, step: Step) -> str | None:
@@ -357,8 +415,9 @@ class LockstepClock(SimClock):
             if step is None:
                 return
             books = self._books
-            books.review(step.sent)
-            missing = books.missing(step.sent)
+            withdrawn = books.review(step.sent)
+            missing = books.missing(step.sent, None if withdrawn else self._still_missing)
+            self._still_missing = list(missing)
             if missing:
                 huge = any(gap > MAX_IN_FLIGHT for gap in missing.values())
                 left = count_wait(step.timeout) - (self._wall() - self._pending_wall)
@@ -369,10 +428,12 @@ class LockstepClock(SimClock):
                         self._timer.start()
                     return
                 books.forgive(missing, step.sent)
+                self.forgiven += 1  # told to the simulator in every StepDone (LockstepStatus)
                 log.warning("lockstep: %s: %d samples on %s never arrived by t=%.2f: forgiven",
                             _printable(self.participant), sum(missing.values()),
                             ", ".join(_printable(k) for k in sorted(missing)[:3]), step.stamp)
             self._pending = None
+            self._still_missing = None
             restarted = False
             if self._new_run:
                 self._new_run = False
@@ -447,6 +508,11 @@ class Barrier:
         self.done: dict[str, StepDone] = {}
         self.unresponsive: set[str] = set()
         self.rivals: set[str] = set()
+        self.given_up = 0   # participants given up, this run (LockstepStatus)
+        self.forgiven = 0   # claims forgiven, this run
+        self._report_at = 0.0  # wall time wait() reports the participants still silent
+        self._their_forgiven: dict[str, int] = {}  # participant → claims it forgave (StepDone)
+        self._tell = False  # a participant forgave more: publish the status
         self.books = Books(bus)
         self.dropped = _Rejections("StepDone")
         self._wall = wall
@@ -543,11 +609,15 @@ class Barrier:
             if d.next < 0 or d.next > d.stamp + NEXT_HORIZON:
                 # unknown or far: the barrier stops for it again at least every NEXT_HORIZON s
                 d = StepDone(d.participant, d.stamp, d.sent, d.stamp + NEXT_HORIZON
-                             if d.next >= 0 else d.next, d.run)
+                             if d.next >= 0 else d.next, d.run, d.forgiven)
             prev = self.done.get(name)
             if prev is not None and d.stamp < prev.stamp - EPSILON:
                 return  # an older answer overtaken by a newer one
             self.done[name] = d
+            if d.forgiven > self._their_forgiven.get(name, 0) and \
+                    (name in self._their_forgiven or len(self._their_forgiven) < MAX_NAMES):
+                self._their_forgiven[name] = d.forgiven
+                self._tell = True  # the next wait() publishes the status
             self._claim(prev, d)
             self._due_at = None
             if name in self.unresponsive and d.stamp >= published - EPSILON:
@@ -639,6 +709,7 @@ class Barrier:
         for beyond count_wait."""
         start = self._wall()
         deadline = start + self.timeout
+        self._report_at = start + min(REPORT_AFTER, self.timeout)
         answered_at: float | None = None  # when the last participant answered
         report = False  # a change for lockstep/status
         with self._cond:
@@ -650,6 +721,7 @@ class Barrier:
         finally:
             with self._cond:
                 self._stamp, self._waiting = None, set()
+                report, self._tell = report or self._tell, False
         if report:
             self._status(stamp)
 
@@ -682,14 +754,22 @@ class Barrier:
                 if huge or (missing and (late or now >= deadline)):
                     forgive = missing if late or now >= deadline else huge
                     self.books.forgive(forgive, required)
+                    self.forgiven += 1
                     self.dropped(f"claims of {sum(forgive.values())} samples on "
                                  f"{', '.join(_printable(k) for k in sorted(forgive)[:3])} that "
                                  f"did not arrive by t={stamp:.2f}: forgiven")
                     report = True
                     continue
+                if waiting and now >= self._report_at < deadline:
+                    self._report_at = deadline  # once per step
+                    log.warning("lockstep: %s did not finish t=%.2f within %.1f s; still waited "
+                                "for while it holds its participant token (given up after "
+                                "%.1f s)", ", ".join(_printable(p) for p in sorted(waiting)),
+                                stamp, REPORT_AFTER, self.timeout)
                 if now >= deadline:
                     waiting, self._waiting = set(waiting), set()
                     self.unresponsive |= waiting
+                    self.given_up += len(waiting)
                     self._due_at = None
                     log.warning("lockstep: %s did not finish t=%.2f within %.1f s: no longer "
                                 "waited for", ", ".join(_printable(p) for p in sorted(waiting)),
@@ -702,7 +782,8 @@ class Barrier:
     def _status(self, stamp: float) -> None:
         with self._cond:
             status = LockstepStatus(stamp, tuple(sorted(self.unresponsive)), self.dropped.count,
-                                    tuple(sorted(self.rivals)))
+                                    tuple(sorted(self.rivals)), self.given_up,
+                                    self.forgiven + sum(self._their_forgiven.values()))
         self.bus.publish(STATUS, status)
 
     def close(self) -> None:

@@ -6,7 +6,6 @@ simulation itself stays deterministic; only *when* a networked command lands dep
 
 from __future__ import annotations
 
-import functools
 import logging
 import threading
 import time
@@ -16,17 +15,16 @@ from mrta_zenoh import keys
 from mrta_zenoh.bus import Bus
 from mrta_zenoh.clock import CEILING, EPSILON
 from mrta_zenoh.lockstep import Barrier
-from mrta_zenoh.messages import Clock, Header, Odometry, Point2D, PointCloud, Pose2D, Twist
+from mrta_zenoh.messages import Clock, Header, Twist
 
 from .engine import SENSOR_EVERY, Simulation
-from .messages import Bumper, Segment, World
+from .messages import Segment, World
+from .wire import SONAR, ODOM, SensorWire, bumper_key, sample_messages
+
+# bumper_key is part of this module's interface (simulator/secure_role.py, tests' processes)
+__all__ = ["SimNode", "RunStats", "WORLD_KEY", "WORLD_EVERY", "bumper_key"]
 
 log = logging.getLogger("mrta.sim")
-
-
-def bumper_key(robot_id: str) -> str:
-    return f"{robot_id}/bumper"
-
 
 WORLD_KEY = "world"
 WORLD_EVERY = 50  # steps: the walls go out once a simulated second (a late viewer gets them)
@@ -66,13 +64,14 @@ class SimNode:
         self._pending: dict[str, tuple[float, float]] = {}
         self._lock = threading.Lock()
         self._warned: set[str] = set()
-        self._keys = [(keys.sonar(r), keys.odom(r), keys.ground_truth(r), bumper_key(r))
-                      for r in sim.ids]
         self._sub = bus.subscribe(keys.ALL_CMD_VEL, self._on_cmd, msg_type=Twist)
         # robots served as ROS 2 robots (simulator/ros2.py): their data go out there only, and
         # only commands from there move them
         self.ros2 = ros2(self.command) if ros2 is not None else None
         self._ros2_ids = set(self.ros2.nodes) if self.ros2 is not None else set()
+        self._ros2_rows = [(i, rid) for i, rid in enumerate(sim.ids) if rid in self._ros2_ids]
+        self._wire: SensorWire | None = None  # built on the first sensor period
+        self._batch = None
 
     def _on_cmd(self, sample) -> None:
         rid = keys.first_chunk(sample.key)
@@ -155,26 +154,26 @@ class SimNode:
                                           walls), lossy=True)
 
     def publish_all(self) -> None:
+        """One sensor period: sonar, odometry, ground truth and bumper of every robot, written
+        straight from the simulation's arrays (simulator/wire.py) and sent as one batch; a ROS 2
+        robot's sonar and odometry go to its driver instead (as message objects)."""
         sim = self.sim
-        t = sim.time
         reading = sim.sonar()
-        pts = reading.points.tolist()
-        pose, odom, twist = sim.pose.tolist(), sim.odom.tolist(), sim.odom_twist.tolist()
-        vel = sim.vel.tolist()
-        stalled, contacts = sim.stalled.tolist(), (sim.contacts > 0).tolist()
-        collisions = sim.collisions.tolist()
-        publish = functools.partial(self.bus.publish, lossy=True)  # sensor data: best effort
-        for i, rid in enumerate(sim.ids):
-            k_sonar, k_odom, k_truth, k_bump = self._keys[i]
-            cloud = PointCloud(Header(f"{rid}/sonar", t, 0), tuple(Point2D(x, y) for x, y in pts[i]))
-            odometry = Odometry(Header(f"{rid}/odom", t, 0), Pose2D(*odom[i]), Twist(*twist[i]))
-            if rid in self._ros2_ids:
-                self.ros2.publish(rid, odometry, cloud)
-            else:
-                publish(k_sonar, cloud)
-                publish(k_odom, odometry)
-            publish(k_truth, Odometry(Header("world", t, 0), Pose2D(*pose[i]), Twist(*vel[i])))
-            publish(k_bump, Bumper(Header(rid, t, 0), stalled[i], contacts[i], collisions[i]))
+        if self._wire is None:
+            # best effort, as all sensor data: a stopped observer must not slow the world
+            self._wire = SensorWire(sim.ids, len(sim.sonars), omit=self._ros2_ids)
+            self._batch = self.bus.declare_batch(self._wire.keys, self._wire.encodings,
+                                                 lossy=True)
+        contact = sim.contacts > 0
+        for i, rid in self._ros2_rows:
+            msgs = sample_messages(rid, sim.time, reading.points[i].tolist(), sim.odom[i].tolist(),
+                                   sim.odom_twist[i].tolist(), sim.pose[i].tolist(),
+                                   sim.vel[i].tolist(), bool(sim.stalled[i]), bool(contact[i]),
+                                   int(sim.collisions[i]))
+            self.ros2.publish(rid, msgs[ODOM], msgs[SONAR])
+        self._batch.publish(self._wire.encode(sim.time, reading.points, sim.odom,
+                                              sim.odom_twist, sim.pose, sim.vel, sim.stalled,
+                                              contact, sim.collisions))
 
     def close(self) -> None:
         self._sub.close()

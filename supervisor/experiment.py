@@ -43,17 +43,18 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from mrta_zenoh.clock import EPSILON
 from mrta_zenoh.errors import ConfigError, Interrupted
 from mrta_zenoh.failure import faults_problem, parse_faults
 from mrta_zenoh.files import write_atomically, write_text
-from mrta_zenoh.keys import LIVELINESS_PREFIX, normalize_robot_id
+from mrta_zenoh.keys import normalize_robot_id
 from mrta_zenoh.limits import MAX_RUNS, RUN_DURATION, SEED
 from mrta_zenoh.processes import ProcessGroup, mrta_argv
-from mrta_zenoh.recording import read_recording
+from mrta_zenoh.recording import TimeBase, read_recording
 from mrta_zenoh.toolchain.registry import Registry
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, load_yaml, plural
 
-from .mission import MissionOptions, resolve
+from .mission import MissionOptions, is_traffic, resolve
 from .summary import flat_metrics, read_summary
 
 log = logging.getLogger("mrta.experiment")
@@ -289,13 +290,29 @@ def row_for(run: Run, out: Path, wall: float, error: str = "") -> dict:
     row.update({k: v for k, v in run.overrides})
     if error:
         return row
-    row.update(flat_metrics(read_summary(out / "summary.json")))
+    summary = read_summary(out / "summary.json")
+    if summary.lockstep_exact is False:
+        row["status"] = "inexact"
+        row["error"] = (f"lockstep was not exact: {summary.lockstep_given_up} participant(s) "
+                        f"given up, {summary.lockstep_forgiven} claim(s) forgiven — the machine "
+                        "was too busy for the lockstep timeouts (fewer --jobs)")
+    row.update(flat_metrics(summary))
     try:
-        row["messages"] = sum(1 for r in read_recording(out / "run.mcap")
-                              if not r[0].startswith(LIVELINESS_PREFIX))
+        row["messages"] = recorded_messages(read_recording(out / "run.mcap"), summary.duration)
     except ConfigError:
         row["messages"] = ""
     return row
+
+
+def recorded_messages(records, duration: float) -> int:
+    """Samples recorded during the run (mission.is_traffic), its last instant excluded: what the
+    processes say as they stop (an agent's last zero velocity) lands there, recorded or not as
+    the shutdown races the recorder, so counting it made results.csv differ between two runs
+    of one seed (mission.message_rates counts the same window)."""
+    tb = TimeBase(records)
+    end = min(duration, max((tb(t) for _, _, t, _ in records), default=0.0))
+    return sum(1 for key, _, t, _ in records
+               if is_traffic(key) and tb(t) < end - EPSILON)
 
 
 def prepare_output(output: Path) -> None:
@@ -405,10 +422,23 @@ class Results:
         return self.rows
 
 
+def inexact(out: Path) -> bool:
+    """Whether the run in `out` ended well but its lockstep was not exact (summary.json)."""
+    try:
+        return read_summary(out / "summary.json").lockstep_exact is False
+    except ConfigError:
+        return False
+
+
 def _run_here(pkg, duration: float, runs: list[Run], output: Path, jobs: int,
               stop: threading.Event, results: Results) -> None:
-    """The runs as child processes of this one, `jobs` at once."""
+    """The runs as child processes of this one, `jobs` at once. A run whose lockstep was not
+    exact is run again, once, before its row is written (here; on a Dask cluster the row is
+    marked, not run again): its figures depended on the
+    machine; if it is inexact again, its row says so (status `inexact`) and the statistics
+    leave it out, like a failed run."""
     pending = list(runs)
+    retried: set[int] = set()
     active: dict[int, tuple[Run, Any, float, Path]] = {}
     with ProcessGroup() as group:
         while (pending or active) and not stop.is_set():
@@ -420,7 +450,9 @@ def _run_here(pkg, duration: float, runs: list[Run], output: Path, jobs: int,
                 out.mkdir(parents=True)
                 child = start_run(group, pkg, duration, run, out)
                 active[run.index] = (run, child, time.monotonic(), out)
-            _collect(active, results)
+            for run in _collect(active, results, retried):
+                retried.add(run.index)
+                pending.insert(0, run)
             stop.wait(0.1)
         if stop.is_set():
             # a run that ended cleanly before the stop is a finished run: keep its row; the
@@ -429,15 +461,22 @@ def _run_here(pkg, duration: float, runs: list[Run], output: Path, jobs: int,
             group.stop_all()
 
 
-def _collect(active: dict, results: Results, only_clean: bool = False) -> None:
+def _collect(active: dict, results: Results, retried: set[int] | None = None,
+             only_clean: bool = False) -> list[Run]:
     """Rows for the runs of `active` whose process has ended (with `only_clean`: ended with
-    exit 0), written to results.csv at once."""
+    exit 0), written to results.csv at once; returns the runs to run again instead (inexact
+    lockstep, not yet in `retried`)."""
+    again = []
     for index, (run, child, t0, out) in list(active.items()):
         if child.running() or (only_clean and child.returncode != 0):
             continue
         del active[index]
         rc = child.wait(10)
+        if rc == 0 and retried is not None and index not in retried and inexact(out):
+            again.append(run)
+            continue
         results.add(run, out, time.monotonic() - t0, "" if rc == 0 else error_of(rc, child.stdout))
+    return again
 
 
 def _write_csv(path: Path, rows: list[dict], fields: list[str]) -> list[str]:

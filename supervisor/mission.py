@@ -39,10 +39,12 @@ from mrta_zenoh import keys
 from mrta_zenoh.architectures import CRASH_ENV, Architecture, architecture
 from mrta_zenoh.bus import BusOptions, open_bus
 from mrta_zenoh.bus.options import private_rendezvous
-from mrta_zenoh.clock import SimClock, follow_sim_clock
+from mrta_zenoh.clock import EPSILON, SimClock, follow_sim_clock
 from mrta_zenoh.errors import ConfigError, Interrupted, MrtaRuntimeError
 from mrta_zenoh.failure import Failure, Faults, parse_faults
+from mrta_zenoh.codec import DecodeError, decode
 from mrta_zenoh.lifecycle import stop_on_signals
+from mrta_zenoh.lockstep import STATUS, LockstepStatus
 from mrta_zenoh.presence import RobotPresence
 from mrta_zenoh.processes import Child, ProcessGroup, mrta_argv
 from mrta_zenoh.recording import read_recording
@@ -477,14 +479,19 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
                     report.bound_seconds = round(run.arch.takeover_bound(run.robot_params(by),
                                                                          task), 2)
                     report.bound_formula = run.arch.bound_formula
+    given_up, forgiven = lockstep_trouble(records) if run.options.lockstep else (0, 0)
     summary = Summary(
         mission=run.mission.name, application=run.package.name, architecture=run.arch.name,
         duration=run.options.duration, speed=run.options.speed, seed=run.options.seed,
         wall_seconds=round(wall, 1), robots=run.robots, who_did_what=who,
         lockstep=run.options.lockstep,
+        lockstep_exact=(given_up + forgiven == 0) if run.options.lockstep else None,
+        lockstep_given_up=given_up, lockstep_forgiven=forgiven,
         first_full_allocation=first_full_allocation(intervals, run.app.tasks()),
         coverage=coverage(intervals, run.app.tasks(), t0, t1),
-        messages=message_rates(records, run.arch, max(t1 - t0, 1e-9)),
+        # the window experiment.recorded_messages counts too: up to the duration asked for
+        messages=message_rates(records, run.arch, max(min(t1, run.options.duration) - t0, 1e-9),
+                               tb),
         metrics=run.mission.metrics(run, records), failure=report,
         output=str(output), files=[], **mission_sections(run, records))
     # what this run wrote: new or changed files (an earlier run's are neither), and the
@@ -494,6 +501,21 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
                             if before.get(name) != state} | {"summary.json"})
     write_summary(output / "summary.json", summary)
     return summary
+
+
+def lockstep_trouble(records) -> tuple[int, int]:
+    """(participants given up, claims forgiven) over the run: the simulator's last lockstep
+    status says (its counts only grow within a run). Either makes the run inexact."""
+    given_up = forgiven = 0
+    for key, _, _, payload in records:
+        if key != STATUS:
+            continue
+        try:
+            status = decode(LockstepStatus.TYPE_NAME, payload)
+        except DecodeError:
+            continue  # not the simulator's (on an open bus anyone may publish there)
+        given_up, forgiven = max(given_up, status.given_up), max(forgiven, status.forgiven)
+    return given_up, forgiven
 
 
 def coverage(intervals: dict, tasks: list[str], t0: float, t1: float,
@@ -514,18 +536,37 @@ def coverage(intervals: dict, tasks: list[str], t0: float, t1: float,
     return out
 
 
-def message_rates(records, arch: Architecture, seconds: float) -> MessageRates:
-    """Samples per simulated second on the bus (liveliness events aside), and the share the
-    architecture's own coordination takes: keys under its namespace."""
-    total = coordination = 0
-    for key, _, _, _ in records:
-        if key.startswith("@"):
+UNCOUNTED = (keys.CLOCK, STATUS)  # infrastructure, best effort: not what a run's robots did
+
+
+def is_traffic(key: str) -> bool:
+    """Whether a recorded sample counts as bus traffic: not liveliness (`@…`), nor the
+    simulator's clock and lockstep status. The clock goes out best effort every physics step,
+    and the transport drops a few of them when the recorder falls behind — counting them made
+    two runs of one seed differ in their rates (and results.csv in its bytes)."""
+    return not key.startswith("@") and key not in UNCOUNTED
+
+
+def message_rates(records, arch: Architecture, seconds: float,
+                  time_of=None) -> MessageRates:
+    """Samples per simulated second on the bus (`is_traffic`); what robots tell
+    each other (the architecture's coordination kinds, sub-keys included: MURDOCH's
+    `robot1/murdoch/announcement/t1`); and all its namespace's samples (with monitoring).
+
+    With `time_of` (log time → run seconds), only samples of [0, seconds) count: the run's last
+    instant also holds what the processes say as they stop (an agent's last zero velocity),
+    recorded or not as the shutdown races the recorder — counting it made two runs of one seed
+    differ in their rates (and results.csv in its bytes)."""
+    total = coordination = namespace = 0
+    for key, _, t, _ in records:
+        if not is_traffic(key) or (time_of is not None and time_of(t) >= seconds - EPSILON):
             continue
         total += 1
-        if arch.is_coordination_key(key):
-            coordination += 1
+        if arch.is_namespace_key(key):
+            namespace += 1
+            coordination += arch.is_coordination_key(key)
     return MessageRates(round(total / seconds, 1), round(coordination / seconds, 1),
-                        arch.namespace)
+                        arch.namespace, round(namespace / seconds, 1), list(arch.coordination))
 
 
 def first_full_allocation(intervals: dict, tasks) -> float | None:

@@ -168,4 +168,9 @@ def print_summary(console: Console, s: Summary, title: str, arch_title: str,
                       f"more than one {c.more_than_one:.0%}", highlight=False)
     for line in extra:
         console.print(f"  {line}", highlight=False)
+    if s.lockstep_exact is False:
+        console.print(f"  lockstep was NOT exact: {s.lockstep_given_up} participant(s) given up, "
+                      f"{s.lockstep_forgiven} claim(s) forgiven — the machine was too busy for "
+                      "the lockstep timeouts; this run may not replay", style="yellow",
+                      highlight=False)
     console.print(f"  files in {s.output}: {', '.join(s.files)}", highlight=False)

@@ -50,11 +50,15 @@ class FailureReport(msgspec.Struct, forbid_unknown_fields=True, omit_defaults=Tr
 
 
 class MessageRates(msgspec.Struct, forbid_unknown_fields=True):
-    """Samples per simulated second on the bus, and the architecture's own share of them."""
+    """Samples per simulated second on the bus: all of them, what robots tell each other
+    (the architecture's `coordination` kinds, sub-keys included), and everything under its
+    namespace (coordination and monitoring: ALLIANCE's Motivation panels)."""
 
     total_per_second: float
     coordination_per_second: float
     coordination_namespace: str
+    namespace_per_second: float | None = None   # None: a summary written before it was counted
+    coordination_kinds: list[str] = []
 
 
 class Summary(msgspec.Struct, forbid_unknown_fields=True):
@@ -77,6 +81,13 @@ class Summary(msgspec.Struct, forbid_unknown_fields=True):
     # in lockstep a broadcast is heard the step it is sent: the takeover bound, which counts
     # from the last broadcast received, then counts from the death itself
     lockstep: bool = True
+    # in lockstep, whether the run was exact: false when the simulator gave a participant up or
+    # forgave a claim (a machine too busy for its timeouts) — the run then depended on the
+    # machine, and `mrta experiment` runs it again (here, not on a Dask cluster: there it is
+    # marked `inexact`; docs/architecture.md); None out of lockstep
+    lockstep_exact: bool | None = None
+    lockstep_given_up: int = 0   # participants given up, over the run
+    lockstep_forgiven: int = 0   # claims forgiven, over the run
     # a point-task mission's instance and allocation log (Mission.sections; docs/delivery.md)
     instance: dict[str, Any] | None = None
     allocation: list[dict[str, Any]] | None = None
@@ -114,6 +125,8 @@ def flat_metrics(summary: Summary) -> dict[str, Any]:
                                     else summary.first_full_allocation)
     row["messages_per_second"] = summary.messages.total_per_second
     row["coordination_messages_per_second"] = summary.messages.coordination_per_second
+    row["namespace_messages_per_second"] = ("" if summary.messages.namespace_per_second is None
+                                            else summary.messages.namespace_per_second)
     for name, value in summary.metrics.items():
         if isinstance(value, (int, float, str, bool)):
             row[f"metrics.{name}"] = value

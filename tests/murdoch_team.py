@@ -50,7 +50,8 @@ def tasks_doc(tasks: list[str], locations: dict[str, tuple[float, float]] | None
 
 class Team:
     def __init__(self, tmp: Path, skills: dict[str, dict[str, float]], tasks: list[str],
-                 locations=None, start: float = 100.0, **timing):
+                 locations=None, start: float = 100.0, roster: list[str] | None = None,
+                 **timing):
         self.net = InProcNetwork()
         self.clock = ManualClock(start)
         tf = write(tmp / "tasks.yaml", tasks_doc(tasks, locations))
@@ -61,12 +62,15 @@ class Team:
         self.pose: dict[str, tuple[float, float]] = {}
         self.observer = InProcBus(self.net)
         self.heard: list = []
-        self.observer.subscribe("*/murdoch/*", self.heard.append)
+        self.observer.subscribe("*/murdoch/**", self.heard.append)
+        self.tokens: list[tuple[str, bool]] = []  # every liveliness change, in order
+        self.observer.watch_liveliness("**", lambda key, alive: self.tokens.append((key, alive)))
         for rid, sk in skills.items():
             rf = write(tmp / f"{rid}.yaml", robot_doc(sk, **timing))
             bus = InProcBus(self.net)
             agent = MURDOCH.agent(MURDOCH.prepare(AgentOptions(rid, rf, tf)), bus, self.clock,
                                   np.random.default_rng(1))
+            agent.limit_team(roster)  # None: anyone holding a token joins
             agent.start()
             agent.declare_alive()
             self.agents[rid], self.buses[rid] = agent, bus
@@ -106,4 +110,5 @@ class Team:
         return self.clock.now() - t0
 
     def messages(self, kind: str) -> list:
-        return [s for s in self.heard if s.key.endswith("/" + kind)]
+        """Every `kind` message on the bus, sub-keys included (`robot1/murdoch/bid/robot2`)."""
+        return [s for s in self.heard if s.key.split("/")[2] == kind]

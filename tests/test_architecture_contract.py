@@ -64,6 +64,61 @@ def test_keys_tokens_and_namespace_come_from_the_contract():
     assert ALLIANCE.failure_env([]) == {}
 
 
+def test_coordination_is_what_robots_tell_each_other_sub_keys_included():
+    """ALLIANCE's coordination is its broadcast alone (Motivation and SensoryFeedback are
+    monitoring); MURDOCH's is every kind it sends, on sub-keys too (announcement/<task>)."""
+    assert ALLIANCE.coordination == ("inter_robot_communication",)
+    assert set(MURDOCH.coordination) == set(MURDOCH.messages)
+    assert ALLIANCE.is_coordination_key("robot1/alliance/inter_robot_communication")
+    assert not ALLIANCE.is_coordination_key("robot1/alliance/motivation/wander")
+    assert not ALLIANCE.is_coordination_key("robot1/alliance/sensory_feedback/wander")
+    assert ALLIANCE.is_namespace_key("robot1/alliance/motivation/wander")
+    assert not ALLIANCE.is_coordination_key("robot1/alliance/agent")  # a token, not a message
+    for key in ("robot1/murdoch/announcement", "robot1/murdoch/announcement/t1",
+                "robot2/murdoch/bid/t1/robot1", "robot3/murdoch/claim"):
+        assert MURDOCH.is_coordination_key(key), key
+    assert not MURDOCH.is_coordination_key("robot1/murdoch")
+    assert not MURDOCH.is_coordination_key("robot1/delivery/done")
+
+    from mrta_supervisor.mission import message_rates
+    records = [(k, "", 0, b"") for k in (
+        "robot1/alliance/inter_robot_communication", "robot2/alliance/inter_robot_communication",
+        "robot1/alliance/motivation/wander", "robot1/alliance/motivation/report",
+        "robot1/alliance/sensory_feedback/wander", "robot1/odom", "robot2/odom",
+        "@/liveliness/robot1/alliance/agent", "robot1/murdoch/announcement/t1")]
+    rates = message_rates(records, ALLIANCE, 2.0)
+    # all samples (liveliness aside) / the two broadcasts / everything under robotN/alliance/
+    assert (rates.total_per_second, rates.coordination_per_second,
+            rates.namespace_per_second) == (4.0, 1.0, 2.5)
+    assert rates.coordination_kinds == ["inter_robot_communication"]
+    rates = message_rates(records, MURDOCH, 1.0)
+    assert (rates.coordination_per_second, rates.namespace_per_second) == (1.0, 1.0)
+    # with log times: only [0, seconds) counts — the last instant holds what processes say as
+    # they stop, recorded or not by a race (the same seed gave two rates)
+    timed = [(k, "", int(t * 1e9), b"") for k, t in (
+        ("robot1/alliance/inter_robot_communication", 0.0), ("robot1/odom", 1.9),
+        ("robot1/alliance/inter_robot_communication", 2.0), ("robot1/cmd_vel", 2.0))]
+    rates = message_rates(timed, ALLIANCE, 2.0, lambda t: t / 1e9)
+    assert (rates.total_per_second, rates.coordination_per_second) == (1.0, 0.5)
+
+
+def test_coordination_kinds_outside_the_messages_are_refused_at_load(monkeypatch):
+    class Chatty(type(ALLIANCE)):
+        name = "chatty"
+        coordination_kinds = ("inter_robot_communication", "gossip")
+
+    class EntryPoint:
+        value = "tests:Chatty"
+
+        def load(self):
+            return Chatty
+
+    monkeypatch.setattr(architectures, "_loaded", {})
+    monkeypatch.setattr(architectures, "_entry_points", lambda: {"chatty": EntryPoint()})
+    with pytest.raises(ConfigError, match="coordination_kinds gossip are not among its messages"):
+        architecture("chatty")
+
+
 def test_who_is_doing_what_is_read_from_each_architectures_own_messages():
     mot = Motivation(Header("robot1", 12.5, 3), "wander", 1.0, False, False, False, True,
                      100.0, 100.0, True)

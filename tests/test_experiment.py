@@ -297,3 +297,28 @@ def test_an_unreachable_scheduler_is_a_runtime_error(tmp_path):
         run_on_cluster(address, package=None, duration=1.0, runs=[], output=tmp_path,
                        stop=threading.Event(), results=Results(tmp_path / "r.csv", 0),
                        connect_timeout=1.0)
+
+
+def test_results_rows_carry_coordination_and_namespace_traffic_and_older_summaries_still_read(
+        tmp_path):
+    """results.csv's traffic columns: all samples/s, what robots tell each other, everything
+    under the architecture's namespace (a summary from before that count reads as blank)."""
+    import json as _json
+
+    from mrta_supervisor.summary import flat_metrics, read_summary
+    s = {"mission": "patrol", "application": "patrol", "architecture": "alliance",
+         "duration": 10.0, "speed": 0.0, "seed": 1, "wall_seconds": 1.0, "robots": ["robot1"],
+         "who_did_what": {"robot1": []}, "first_full_allocation": None, "coverage": {},
+         "messages": {"total_per_second": 300.0, "coordination_per_second": 2.0,
+                      "coordination_namespace": "alliance"},
+         "output": "x", "files": []}
+    (tmp_path / "old.json").write_text(_json.dumps(s))
+    row = flat_metrics(read_summary(tmp_path / "old.json"))
+    assert (row["messages_per_second"], row["coordination_messages_per_second"],
+            row["namespace_messages_per_second"]) == (300.0, 2.0, "")
+    s["messages"].update(namespace_per_second=150.0,
+                         coordination_kinds=["inter_robot_communication"])
+    (tmp_path / "new.json").write_text(_json.dumps(s))
+    summary = read_summary(tmp_path / "new.json")
+    assert flat_metrics(summary)["namespace_messages_per_second"] == 150.0
+    assert summary.messages.coordination_kinds == ["inter_robot_communication"]

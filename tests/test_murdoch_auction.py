@@ -66,7 +66,7 @@ def test_no_bids_no_award_and_the_task_is_announced_again(tmp_path):
     team.step(55)  # 5.5 s
     assert not team.messages("award") and not team.holders("a")
     announcements = team.messages("announcement")
-    assert [s.key for s in announcements] == ["robot1/murdoch/announcement"] * 3  # t=0, 2, 4
+    assert [s.key for s in announcements] == ["robot1/murdoch/announcement/a"] * 3  # t=0, 2, 4
     team.blind = set()
     team.until(lambda: team.holders("a"), limit=3.0)
 
@@ -90,7 +90,7 @@ def test_the_loss_of_the_auctioneer_still_leads_to_an_allocation(tmp_path):
     # awards; robot2, next in rank, steps in one reannounce period later
     team = Team(tmp_path, {"robot1": {"a": 0.1}, "robot2": {"a": 0.5}, "robot3": {"a": 0.9}}, ["a"])
     team.step(1)
-    assert [s.key for s in team.messages("announcement")] == ["robot1/murdoch/announcement"]
+    assert [s.key for s in team.messages("announcement")] == ["robot1/murdoch/announcement/a"]
     team.frozen.add("robot1")
     took = team.until(lambda: team.holders("a"))
     assert team.holders("a") == ["robot3"]
@@ -114,7 +114,7 @@ def test_a_dead_auctioneer_is_replaced_at_once(tmp_path):
     team.kill("robot1")
     team.kill("robot2")
     took = team.until(lambda: team.holders("a") == ["robot4"])
-    assert team.agents["robot3"].coordinator.core.rank() == 0
+    assert team.agents["robot3"].coordinator.core.rank("a") == 0
     assert team.messages("award")[-1].key == "robot3/murdoch/award"
     assert took <= takeover_bound(team.agents["robot3"].coordinator.params.robot) + 1e-9
     assert team.holders("b") == ["robot3"]

@@ -11,7 +11,7 @@ import collections
 import logging
 import threading
 import time
-from typing import Any, Callable, Iterator
+from typing import Any, Callable, Iterator, Sequence
 
 import msgspec
 
@@ -247,6 +247,36 @@ class Subscription:
         self.close()
 
 
+class Batch:
+    """A fixed list of keys whose pre-encoded samples go out together (Bus.declare_batch): a
+    simulator sending thousands of sensor samples per period pays neither a message object nor
+    a key lookup per sample. This generic one sends through `publish_raw`, sample by sample;
+    an implementation may keep declared publishers instead (ZenohBus)."""
+
+    def __init__(self, bus: "Bus", keys: Sequence[str], encodings: Sequence[str], lossy: bool):
+        if len(keys) != len(encodings):
+            raise ValueError(f"a batch needs one encoding per key: {len(keys)} keys, "
+                             f"{len(encodings)} encodings")
+        self.bus = bus
+        self.keys = list(keys)
+        self.encodings = list(encodings)
+        self.lossy = lossy
+
+    def publish(self, payloads: Sequence[bytes]) -> None:
+        """Send payloads[i] on keys[i] with encodings[i], in order; counted as Bus.publish
+        counts (lockstep)."""
+        self._check(payloads)
+        raw, lossy = self.bus.publish_raw, self.lossy
+        for key, encoding, payload in zip(self.keys, self.encodings, payloads):
+            raw(key, encoding, payload, lossy)
+
+    def _check(self, payloads: Sequence[bytes]) -> None:
+        if len(payloads) != len(self.keys):
+            raise ValueError(f"a batch of {len(self.keys)} keys got {len(payloads)} payloads")
+        if self.bus.closed:
+            raise MrtaRuntimeError("publishing a batch on a closed bus")
+
+
 class LivelinessWatch:
     """Reports tokens appearing and disappearing under a key expression: on_change(key, alive)."""
 
@@ -334,6 +364,14 @@ class Bus:
 
     def publish_raw(self, key: str, encoding: str, payload: bytes, lossy: bool = False) -> None:
         raise NotImplementedError
+
+    def declare_batch(self, keys: Sequence[str], encodings: Sequence[str],
+                      lossy: bool = False) -> Batch:
+        """A handle that publishes one pre-encoded payload per key in one call
+        (`batch.publish(payloads)`), each exactly as `publish_raw(key, encoding, payload,
+        lossy)` would. The payloads must be what `codec.encode` gives for the encoding's type:
+        the batch sends bytes, it does not check them."""
+        return Batch(self, keys, encodings, lossy)
 
     def subscribe(
         self,
@@ -427,6 +465,11 @@ class Bus:
                   if not sub.raw and matches(sub.key_expr, key)]
         return min(counts) if counts else None
 
+    def counting_subscriptions(self) -> tuple:
+        """The subscriptions whose counts received_count reads, as they are now (lockstep's
+        Books remembers which of them match each key, and starts again when this changes)."""
+        return tuple(s for s in list(self._subs) if not s.raw)
+
     def reset_counts(self) -> None:
         """Start counting sent and received samples from zero (lockstep: a new run)."""
         self.sent_counts.clear()
@@ -437,6 +480,10 @@ class Bus:
     def _count_sent(self, key: str, lossy: bool) -> None:
         if not key.startswith("@"):  # lockstep's own traffic is not counted
             self.sent_counts[key] += 1
+
+    def _count_sent_all(self, keys: Sequence[str]) -> None:
+        """_count_sent for each of `keys`, which hold no lockstep key (`@…`)."""
+        self.sent_counts.update(keys)
 
     def _counted(self, sub: "Subscription", key: str) -> None:
         sub.counts[key] += 1

@@ -12,14 +12,14 @@ from __future__ import annotations
 import json
 import logging
 import threading
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 import zenoh
 
 from .. import codec
 from ..errors import ConfigError, MrtaRuntimeError
 from ..lifecycle import wait_for_stop
-from .base import Bus, LivelinessWatch, Sample, Subscription, Token
+from .base import Batch, Bus, LivelinessWatch, Sample, Subscription, Token
 from .options import BusOptions, session_configs
 from ..messages import GenericMessage, Message
 
@@ -72,6 +72,7 @@ class ZenohBus(Bus):
         self._publishers: dict[str, Any] = {}
         self._pub_lock = threading.Lock()
         self._encodings: dict[str, Any] = {}
+        self._declared_encoding: dict[str, str | None] = {}  # key → its publisher's default
         self._typed: dict[str, tuple] = {}
         self._attached: list = []  # attached publishers and subscribers (ROS 2)
 
@@ -99,7 +100,14 @@ class ZenohBus(Bus):
         if self.counting:
             self._count_sent(key, lossy)
 
-    def _publisher(self, key: str, lossy: bool = False) -> Any:
+    def declare_batch(self, keys: Sequence[str], encodings: Sequence[str],
+                      lossy: bool = False) -> Batch:
+        return _ZenohBatch(self, keys, encodings, lossy)
+
+    def _publisher(self, key: str, lossy: bool = False, encoding: str | None = None) -> Any:
+        """The key's publisher, declared on first use. `encoding`: the default its puts carry
+        when they name none (a batch's puts then skip the argument, ≈ 0.1 µs each); a put that
+        names one overrides it, so a key published both ways stays correct."""
         pub = self._publishers.get(key)
         if pub is None:
             with self._pub_lock:
@@ -107,8 +115,10 @@ class ZenohBus(Bus):
                 if pub is None:
                     pub = self.session.declare_publisher(
                         self._wire(key), congestion_control=zenoh.CongestionControl.DROP
-                        if lossy else zenoh.CongestionControl.BLOCK)
+                        if lossy else zenoh.CongestionControl.BLOCK,
+                        encoding=self._encoding(encoding) if encoding is not None else None)
                     self._publishers[key] = pub
+                    self._declared_encoding[key] = encoding
         return pub
 
     def _encoding(self, encoding: str) -> Any:
@@ -275,8 +285,37 @@ class ZenohBus(Bus):
         for pub in self._publishers.values():
             pub.undeclare()
         self._publishers.clear()
+        self._declared_encoding.clear()
         self._typed.clear()
         self.session.close()
+
+
+class _ZenohBatch(Batch):
+    """Declared publishers, one per key, each with its key's encoding as default: a sample
+    costs one put, as in raw zenoh-python."""
+
+    def __init__(self, bus: ZenohBus, keys: Sequence[str], encodings: Sequence[str],
+                 lossy: bool):
+        super().__init__(bus, keys, encodings, lossy)
+        pubs = [bus._publisher(k, lossy, e) for k, e in zip(self.keys, self.encodings)]
+        # keys whose publisher was declared earlier with another default: name it per put
+        self._plain = all(bus._declared_encoding.get(k) == e
+                          for k, e in zip(self.keys, self.encodings))
+        self._puts = [p.put for p in pubs]
+        self._encs = [bus._encoding(e) for e in self.encodings]
+        self._counted = [k for k in self.keys if not k.startswith("@")]
+
+    def publish(self, payloads: Sequence[bytes]) -> None:
+        self._check(payloads)
+        if self._plain:
+            for put, payload in zip(self._puts, payloads):
+                put(payload)
+        else:
+            for put, enc, payload in zip(self._puts, self._encs, payloads):
+                put(payload, encoding=enc)
+        bus = self.bus
+        if bus.counting:
+            bus._count_sent_all(self._counted)
 
 
 class Closable:

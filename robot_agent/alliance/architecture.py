@@ -45,6 +45,10 @@ class Alliance(AgentArchitecture):
     bound_formula = "τ + (⌈θ/fast⌉ + 1)/ρ"
     messages = {"inter_robot_communication": InterRobotCommunication,
                 "motivation": Motivation, "sensory_feedback": SensoryFeedback}
+    # what robots tell each other is the broadcast alone (Parker's inter-robot communication);
+    # Motivation and SensoryFeedback (one per behaviour set per tick) are rqt_alliance's
+    # monitoring, read by no teammate
+    coordination_kinds = ("inter_robot_communication",)
     doing_kinds = ("motivation",)
     doing_stale_after = 1.0  # Motivation every tick (spin_rate ≥ 1 Hz in every shipped file)
 

@@ -62,6 +62,15 @@ class MurdochCoordinator:
     def teammate(self, robot: str, alive: bool) -> None:
         self.core.on_teammate(robot, alive)
 
+    @property
+    def advertises(self) -> tuple[str, ...]:
+        """The tasks this robot serves, one liveliness token each (`robotN/murdoch/subject/<task>`,
+        mrta_agent.runtime.loop): teammates rank a task's auctioneers among its servers."""
+        return self.core.subjects
+
+    def teammate_subject(self, robot: str, subject: str, alive: bool) -> None:
+        self.core.on_subject(robot, subject, alive)
+
     def hear(self, kind: str, sender: str, msg, at: float) -> bool:
         getattr(self.core, "on_" + kind)(sender, msg, at)
         return True
@@ -72,4 +81,14 @@ class MurdochCoordinator:
             self.history.append((now, change))
             log.info("%s: %s %s (%s) at t=%.2f", self.robot_id, change.kind, change.task_id,
                      change.reason, now)
-        return [Say(kind, tuple(fields)) for kind, fields in out]
+        return [Say(kind, tuple(fields), subject) for kind, fields, subject in out]
+
+    def subjects(self, kind: str) -> tuple[str, ...] | None:
+        """Sub-keys heard per kind (the runtime subscribes to `*/murdoch/<kind>/<subject>`):
+        announcements of the tasks this robot serves, bids addressed to itself; None — awards,
+        claims, releases — every robot's, which every robot needs (docs/murdoch.md)."""
+        if kind == "announcement":
+            return self.core.subjects
+        if kind == "bid":
+            return (self.robot_id,)
+        return None

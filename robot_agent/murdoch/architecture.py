@@ -25,6 +25,9 @@ def murdoch_plugins(params: murdoch_params.MurdochParams) -> Plugins:
     return Plugins(params.robot.sensors, params.evaluators(), params.task_layers(), params.layers)
 
 
+SUBJECT_KINDS = ("announcement", "bid")  # published under a sub-key (agent.subjects)
+
+
 class Murdoch(AgentArchitecture):
     name = "murdoch"
     title = "MURDOCH"
@@ -38,6 +41,11 @@ class Murdoch(AgentArchitecture):
     doing_kinds = ("claim", "release")
     doing_stale_after = 2.0  # claims renewed every renewal_period (≤ the lease, 2 s by default)
     logger_name = "mrta.murdoch"
+
+    def has_subkeys(self, kind: str) -> bool:
+        """Announcements go out on their task's subject (`robot1/murdoch/announcement/t3`),
+        bids to their auctioneer (`robot2/murdoch/bid/robot1`)."""
+        return kind in SUBJECT_KINDS
 
     def prepare(self, options: AgentOptions) -> Prepared:
         params = murdoch_params.load_params(options.robot_params, options.tasks_params,

@@ -19,12 +19,16 @@ The protocol (Gerkey & Matarić 2002; docs/murdoch.md):
   whose progress evaluator (or resources) stays false for give_up_delay releases the task and
   does not bid for it again for as long. A robot awarded a task while busy releases it at once.
 * **Who auctions.** Every robot knows the mission's tasks, and any robot may auction an unheld
-  one: the auctioneer of rank k (k-th lowest id among live MURDOCH agents, this one included)
+  one it serves (its subjects: the tasks it has a skill for; it hears only their announcements,
+  and must hear whether someone else announced). Each robot advertises its subjects (a
+  liveliness token each, `on_subject`), so a task's auctioneers are ranked among the live
+  robots that serve it: the one of rank k (k-th lowest id among them, this one included)
   announces once the task has been unheld for k·reannounce_period and nobody announced it for
-  (k+1)·reannounce_period. Rank 0 therefore announces at once and re-announces every period
-  while nobody bids; the others stay silent while it lives and step in, in turn, when it dies
-  or is cut off. Gerkey's MURDOCH let the task's introducer be its auctioneer; in a team with
-  no introducer this rule is what keeps allocation going when any robot is lost.
+  (k+1)·reannounce_period. The lowest-id robot that serves a task therefore announces it at once
+  and re-announces every period while nobody bids; the others stay silent while it lives and
+  step in, in turn, when it dies or is cut off. Gerkey's MURDOCH let the task's introducer be
+  its auctioneer; in a team with no introducer this rule is what keeps allocation going when
+  any robot is lost.
 * **Two holders** (two auctioneers on either side of a healed partition): the earlier
   (since, id) keeps the task, the other releases it. Both compare the same reported numbers.
 """
@@ -52,10 +56,12 @@ class Readings(Protocol):
 
 class Out(NamedTuple):
     """A message to publish: `kind` names the key (announcement, bid, award, claim, release);
-    `fields` are the message's fields after its header."""
+    `fields` are the message's fields after its header; `subject` its sub-key, if any — an
+    announcement goes out on its task's subject, a bid to its auctioneer (docs/murdoch.md)."""
 
     kind: str
     fields: tuple
+    subject: str | None = None
 
 
 class Change(NamedTuple):
@@ -90,6 +96,7 @@ class Murdoch:
         self.p = robot
         self.tasks = tasks
         self.teammates: set[str] = set()
+        self.servers: dict[str, set[str]] = {t: set() for t in tasks}  # task → who advertise it
         self.leases: dict[str, dict[str, Lease]] = {t: {} for t in tasks}
         self.held_until: dict[str, float] = {}     # task → when its last claim/award lapses
         self.awarded: dict[str, tuple[str, float]] = {}  # winner → (task, until): not yet claimed
@@ -109,8 +116,21 @@ class Murdoch:
     def on_teammate(self, robot: str, alive: bool) -> None:
         (self.teammates.add if alive else self.teammates.discard)(robot)
 
+    def on_subject(self, robot: str, task_id: str, alive: bool) -> None:
+        """A teammate advertises (or stopped advertising) that it serves `task_id`; tasks not
+        in the tasks file are none of this robot's business."""
+        servers = self.servers.get(task_id)
+        if servers is not None:
+            (servers.add if alive else servers.discard)(robot)
+
+    @property
+    def subjects(self) -> tuple[str, ...]:
+        """The tasks this robot serves (a skill with level > 0): the announcement subjects it
+        hears, bids on and auctions. Static: resources stay a check at bid time."""
+        return tuple(t for t in self.tasks if (s := self.p.skill(t)) is not None and s.level > 0)
+
     def on_announcement(self, sender: str, msg: Announcement, t: float) -> None:
-        if msg.task_id not in self.tasks:
+        if msg.task_id not in self.subjects:  # heard only on its subjects: a mislabelled one
             return
         self.last_announced[msg.task_id] = max(self.last_announced.get(msg.task_id, t), t)
         if sender != self.id:
@@ -249,7 +269,7 @@ class Murdoch:
             if not all(readings.fresh(r, now) for r in ann.resources):
                 continue
             out.append(Out("bid", (auctioneer, ann.auction, ann.task_id,
-                                   self.utility(ann.task_id, readings))))
+                                   self.utility(ann.task_id, readings)), auctioneer))
 
     def _close_auctions(self, now: float, readings: Readings, out: list[Out],
                         changes: list[Change]) -> None:
@@ -281,16 +301,19 @@ class Murdoch:
     def _unheld(self, task: str, now: float) -> bool:
         return self.task != task and self.held_until.get(task, -math.inf) < now - EPSILON
 
-    def rank(self) -> int:
-        return sorted(self.teammates | {self.id}).index(self.id)
+    def rank(self, task_id: str) -> int:
+        """This robot's place among the live teammates that serve `task_id`, and itself (0:
+        the first to auction it). A robot counts while both its agent token and its subject
+        token live (the runtime tells both)."""
+        return sorted((self.servers[task_id] & self.teammates) | {self.id}).index(self.id)
 
     def _announce(self, now: float, readings: Readings, out: list[Out]) -> None:
         period = self.p.reannounce_period
-        wait = self.rank() * period
         auctioning = {a.task_id for a in self.open.values()}
-        for task in self.tasks:
+        for task in self.subjects:  # only what it hears: it must hear who else announced
             if task in auctioning or not self._unheld(task, now):
                 continue
+            wait = self.rank(task) * period
             unheld_since = max(self.held_until.get(task, self.start), self.start)
             if now < unheld_since + wait - EPSILON:
                 continue
@@ -302,6 +325,6 @@ class Murdoch:
             self.open[number] = auction
             self.last_announced[task] = now
             out.append(Out("announcement", (number, task, self.tasks[task].resources,
-                                            self.p.bid_window)))
+                                            self.p.bid_window), task))
             if self.task is None and self.capable(task, now, readings):
                 auction.bids[self.id] = self.utility(task, readings)

@@ -24,6 +24,8 @@ from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.lockstep import LockstepClock
 from mrta_zenoh.seeds import robot_rng
 
+from .loop import TEAM_WAIT
+
 if TYPE_CHECKING:
     import numpy as np  # annotations only: numpy loads when a plugin draws (mrta_zenoh.seeds)
 
@@ -108,6 +110,7 @@ class HostedAgent(Protocol):
     def limit_team(self, team) -> None: ...
     def start(self) -> None: ...
     def declare_alive(self) -> None: ...
+    def await_team(self, stop: threading.Event) -> list[str]: ...
     def run(self, stop: threading.Event, until: float | None = None) -> None: ...
     def shutdown(self) -> None: ...
 
@@ -154,6 +157,11 @@ def host(make_agent: Callable[[Bus, Clock, np.random.Generator], HostedAgent],
             if sim_time:
                 while not stop.is_set() and not clock.started.wait(0.1):
                     pass
+                if getattr(clock, "lockstep", None) is not None and clock.lockstep.is_set():
+                    missing = agent.await_team(stop)  # the whole team before the first tick
+                    if missing:
+                        logger.warning("%s: starting without %s: no agent token within %.0f s",
+                                       robot_id, ", ".join(missing), TEAM_WAIT)
             until = None if options.duration is None else clock.now() + options.duration
             agent.run(stop, until)
         finally:

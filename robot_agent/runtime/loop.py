@@ -9,7 +9,9 @@ what every architecture needs and none should write twice:
 * the inbox: network callbacks only enqueue; the loop thread drains, so the decision logic is
   never touched by two threads;
 * the team: robots whose agent of this architecture holds its liveliness token
-  (`robotN/<namespace>/agent`); a message from anyone else is ignored and counted. With a
+  (`robotN/<namespace>/agent`); a message from anyone else is ignored and counted. A
+  coordinator may also advertise subjects, one token each (`robotN/<namespace>/subject/<s>`),
+  and hear its teammates' under the same rules (`Coordinator`). With a
   roster (`--team robot1,robot2,…`, set by launch files from the application's robots) only
   the robots on it can join: a token or a message from a robot outside it is ignored and
   counted (`ignored_outsiders`), so robots of another application — or forged ones claiming
@@ -42,6 +44,7 @@ from typing import TYPE_CHECKING, Callable, Iterable, Iterator, NamedTuple, Prot
 from mrta_zenoh.architectures import Architecture
 from mrta_zenoh.bus import Bus, Sample
 from mrta_zenoh.clock import EPSILON, Clock
+from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.failure import FaultPlan
 from mrta_zenoh.keys import first_chunk, normalize_robot_id
 from mrta_zenoh.messages import Header
@@ -56,7 +59,10 @@ if TYPE_CHECKING:
 log = logging.getLogger("mrta.agent")
 
 INBOX = 10_000  # queued messages at most: a flood drops the oldest, never grows the process
+TEAM_WAIT = 10.0  # wall s an agent in lockstep waits for its roster's tokens before its first tick
 MAX_TOKENS = 1_000  # robots whose tokens are tracked: invented ids beyond are ignored, counted
+MAX_SUBJECT_TOKENS = 10_000  # teammates' subject tokens tracked: a flood beyond is ignored, counted
+SUBJECT = "subject"  # subject tokens: robotN/<namespace>/subject/<subject> (never `…/agent`)
 DROP_LOG_PERIOD = 10.0  # wall seconds between two log lines about the same kind of drop
 
 
@@ -74,9 +80,21 @@ class Say(NamedTuple):
 class Coordinator(Protocol):
     """An architecture's decision logic for one robot, driven by `Agent`.
 
-    `listens`: the message kinds it hears from teammates. `hear` gets each one from a teammate
+    `listens`: the message kinds it hears from teammates; by default every robot's message of
+    each kind (`Architecture.every`). A coordinator may also define `subjects(kind)`: the
+    sub-keys of `kind` it hears (`*/<namespace>/<kind>/<subject>` for each), or None for every
+    one — MURDOCH hears only the announcements of the tasks it serves and the bids addressed to
+    it. `hear` gets each one from a teammate
     (sender checked) at the time it counts as heard, and says whether it accepted it. `tick` is
-    the decision step: what to send. `active_task` is the task whose layers run."""
+    the decision step: what to send. `active_task` is the task whose layers run.
+
+    Optionally, `advertises`: subjects this robot tells its teammates about with a liveliness
+    token each (`robotN/<namespace>/subject/<subject>`, declared right after its agent token),
+    and `teammate_subject(robot, subject, alive)`: a teammate's subject came or went — told at
+    the decision step, like `teammate`, for teammates only: a subject counts while both its token
+    and the robot's agent token live, and goes when either goes. MURDOCH advertises the tasks a
+    robot serves, so the auctioneer of a task is ranked among the robots that serve it.
+    ALLIANCE defines neither: no token, no watch."""
 
     listens: tuple[str, ...]
 
@@ -124,9 +142,13 @@ class Agent:
         self.ignored_outsiders = 0  # tokens and messages of robots off the roster
         self.refused = 0
         self.dropped_by_fault = 0  # coordination messages lost, or not sent, by injected faults
+        # teammates' coordination messages that reached this agent, by kind (whatever became of
+        # them): the cost of what it subscribes to (docs/murdoch.md, Messages heard)
+        self.received: collections.Counter[str] = collections.Counter()
         self._last_drop_log: dict[str, float] = {}
         self._seq: dict[str, int] = collections.defaultdict(int)
-        # (time heard, what, *args): filled by network callbacks, drained by the loop thread only
+        # (time heard, kind, sender, message, key): filled by network callbacks, drained by the
+        # loop thread only
         self._inbox: collections.deque = collections.deque(maxlen=INBOX)
         # tokens are kept apart from the bounded inbox, so a flood of messages can never push
         # a teammate out of the team: callbacks record the latest state per robot (`_alive` is
@@ -136,6 +158,13 @@ class Agent:
         self._alive: set[str] = set()
         self._token_changes: dict[str, bool] = {}
         self.ignored_tokens = 0
+        # teammates' subject tokens, the same way: callbacks record changes per (robot,
+        # subject); the loop keeps who holds which (`_subject_tokens`, live tokens whatever the
+        # team) and what the coordinator was told (`_told_subjects`, only robots in the team)
+        self._subject_changes: dict[tuple[str, str], bool] = {}
+        self._subject_seen: set[tuple[str, str]] = set()  # callbacks' view (MAX_SUBJECT_TOKENS)
+        self._subject_tokens: dict[str, set[str]] = {}
+        self._told_subjects: dict[str, set[str]] = {}
         self._handles: list = []  # subscriptions and the agent's token, closed at shutdown
         self._layers_task: str | None = None
 
@@ -148,17 +177,74 @@ class Agent:
 
     def start(self) -> None:
         """Plugins subscribe, then the agent listens to its teammates and their tokens."""
+        self.advertised()  # a bad subject is a configuration error before anything starts
         self.plugins.setup(self.ctx)
         arch = self.architecture
         for kind in self.coordinator.listens:
-            self._handles.append(self.bus.subscribe(
-                arch.every(kind), lambda s, k=kind: self._on_message(k, s),
-                msg_type=arch.messages[kind]))
+            for key_expr in self.listen_keys(kind):
+                self._handles.append(self.bus.subscribe(
+                    key_expr, lambda s, k=kind: self._on_message(k, s),
+                    msg_type=arch.messages[kind]))
+        # subjects first: each watch asks for the tokens already there, and a teammate answers
+        # the two questions in order on one link — so, as its subject tokens were declared
+        # before its agent token, one that has the agent token has its subjects (await_team)
+        if hasattr(self.coordinator, "teammate_subject"):
+            self._handles.append(self.bus.watch_liveliness(arch.key("*", SUBJECT, "*"),
+                                                           self._on_subject_token))
         self._handles.append(self.bus.watch_liveliness(arch.agent_tokens, self._on_token))
 
+    def listen_keys(self, kind: str) -> list[str]:
+        """The key expressions the agent subscribes to for `kind`: every robot's, or only the
+        coordinator's subjects (`Coordinator`). Read once at start: a coordinator rebuilt when
+        time restarts has the same parameters, hence the same subjects."""
+        subjects_of = getattr(self.coordinator, "subjects", None)
+        subjects = subjects_of(kind) if subjects_of is not None else None
+        if subjects is None:
+            return [self.architecture.every(kind)]
+        return [self.architecture.key("*", kind, self._chunk(subject, kind))
+                for subject in subjects]
+
+    def _chunk(self, subject: str, what: str) -> str:
+        if not isinstance(subject, str) or not subject or any(c in subject for c in "/*$?#"):
+            raise ConfigError(f"{self.robot_id}: subject {subject!r} of {what!r} is not one "
+                              "key chunk")
+        return subject
+
+    def advertised(self) -> tuple[str, ...]:
+        """The subjects the coordinator advertises (`Coordinator.advertises`), checked: each
+        becomes one key chunk of a token."""
+        subjects = tuple(getattr(self.coordinator, "advertises", ()))
+        return tuple(self._chunk(s, "advertises") for s in subjects)
+
     def declare_alive(self) -> None:
-        """Last step of start-up: alive means ready (docs/zenoh.md, the start-up race)."""
-        self._handles.append(self.bus.declare_token(self.architecture.agent_token(self.robot_id)))
+        """Last step of start-up: alive means ready (docs/zenoh.md, the start-up race) — every
+        subscription is declared before any token. The subject tokens go just before the
+        agent's: a teammate does not count a subject before the robot's agent token anyway, and
+        one link carries a session's declarations in order, so a teammate that has the agent
+        token has its subjects too (`await_team` relies on it)."""
+        arch = self.architecture
+        for subject in self.advertised():
+            self._handles.append(self.bus.declare_token(arch.key(self.robot_id, SUBJECT,
+                                                                 subject)))
+        self._handles.append(self.bus.declare_token(arch.agent_token(self.robot_id)))
+
+    def await_team(self, stop: threading.Event, limit: float = TEAM_WAIT) -> list[str]:
+        """Before the first tick in lockstep: wait (wall time, at most `limit`) until every
+        robot on the roster holds its agent token, and return those still missing. Tokens
+        travel beside the steps, not in them: a teammate's token heard one tick later than in
+        another run of the same seed changed what the run did (MURDOCH's auctioneer ranks, a
+        first message dropped as a stranger's). The simulator waits for this participant's
+        first answer meanwhile, so simulated time does not move. Without a roster (no --team)
+        there is no one to wait for."""
+        if self.roster is None:
+            return []
+        deadline = time.monotonic() + limit
+        while True:
+            with self._token_lock:
+                missing = sorted(self.roster - self._alive - {self.robot_id})
+            if not missing or stop.is_set() or time.monotonic() >= deadline:
+                return missing
+            stop.wait(0.01)
 
     def _on_token(self, key: str, alive: bool) -> None:
         """A teammate's token came or went: recorded for the loop thread, which owns the team."""
@@ -175,12 +261,36 @@ class Agent:
             (self._alive.add if alive else self._alive.discard)(robot)
             self._token_changes[robot] = alive
 
+    def _on_subject_token(self, key: str, alive: bool) -> None:
+        """A teammate's subject token came or went: recorded for the loop thread, which tells
+        the coordinator once the robot is on the team (`_apply_subjects`)."""
+        robot, subject = first_chunk(key), key.rsplit("/", 1)[-1]
+        if robot == self.robot_id:
+            return  # its own: the coordinator knows what it advertises
+        if self.roster is not None and robot not in self.roster:
+            if alive:
+                self._drop("ignored_outsiders", "ignoring %s: %s is not on the team (--team)",
+                           key, robot)
+            return
+        pair = (robot, subject)
+        with self._token_lock:
+            if alive and pair not in self._subject_seen:
+                if len(self._subject_seen) >= MAX_SUBJECT_TOKENS:
+                    self.ignored_tokens += 1
+                    return
+                self._subject_seen.add(pair)
+            elif not alive:
+                self._subject_seen.discard(pair)
+            self._subject_changes[pair] = alive
+
     def _on_message(self, kind: str, sample: Sample) -> None:
         sender = first_chunk(sample.key)
         msg = sample.message
         if sender == self.robot_id:
             self.ignored_own += 1
             return
+        with self._token_lock:  # network callbacks run on several threads
+            self.received[kind] += 1
         if msg.header.frame_id.strip("/") != sender:
             self._drop("ignored_mismatch", "ignoring %s on %s with frame_id '%s'",
                        type(msg).__name__, sample.key, msg.header.frame_id)
@@ -203,7 +313,7 @@ class Agent:
             if plan.cut_off(heard):
                 self.dropped_by_fault += 1
                 return
-        self._inbox.append((heard, kind, sender, msg))
+        self._inbox.append((heard, kind, sender, msg, sample.key))
 
     # ------------------------------------------------------------ the inbox
     def in_lockstep(self) -> bool:
@@ -220,7 +330,12 @@ class Agent:
         """Every queued item due at `now`. In lockstep, one stamped at this very time waits for
         the next tick: the sender handled this step too, and what it said belongs after it.
         One delayed by an injected latency waits until its time (and they come in time order:
-        jitter reorders messages, as a network does)."""
+        jitter reorders messages, as a network does).
+
+        In lockstep the items due are put in (time heard, sender, key, sequence number) order:
+        the order they arrived in is the network's — even one teammate's, on two keys — and it
+        changed what a run did: which of two announcements stamped alike was bid on first,
+        hence the bids' sequence numbers, hence which bid an injected loss drew."""
         lockstep = self.in_lockstep()
         delayed = self.faults is not None and self.faults.latency is not None
         due, later = [], []
@@ -229,7 +344,9 @@ class Agent:
             (later if (lockstep and item[0] >= now) or (delayed and item[0] > now + EPSILON)
              else due).append(item)
         self._inbox.extendleft(reversed(later))
-        if delayed:
+        if lockstep:
+            due.sort(key=lambda item: (item[0], item[2], item[4], item[3].header.seq))
+        elif delayed:
             due.sort(key=lambda item: item[0])
         return due
 
@@ -250,11 +367,14 @@ class Agent:
     def tick_high(self, now: float) -> None:
         with self._token_lock:
             changes, self._token_changes = self._token_changes, {}
-        for robot, alive in changes.items():
+            subject_changes, self._subject_changes = self._subject_changes, {}
+        for robot, alive in sorted(changes.items()):  # not the network's order
             if robot != self.robot_id and (robot in self.team) != alive:
                 (self.team.add if alive else self.team.discard)(robot)
                 self.coordinator.teammate(robot, alive)
-        for t, kind, sender, what in self.take_due(now):
+        if changes or subject_changes:
+            self._apply_subjects(set(changes) | {r for r, _ in subject_changes}, subject_changes)
+        for t, kind, sender, what, _ in self.take_due(now):
             if sender not in self.team:
                 self._drop("ignored_strangers", "ignoring %s from %s, which holds no agent token",
                            type(what).__name__, sender)
@@ -264,6 +384,29 @@ class Agent:
         for say in self.coordinator.tick(now):
             self.send(say, now)
         self.switch_layers(self.coordinator.active_task, now)
+
+    def _apply_subjects(self, robots: set[str], changes: dict[tuple[str, str], bool]) -> None:
+        """Tell the coordinator what changed of its teammates' subjects: a subject counts while
+        its token lives and its robot is on the team (holds its agent token) — one whose agent
+        token comes later counts from then, and all of a robot's go with its agent token."""
+        for (robot, subject), alive in sorted(changes.items()):
+            held = self._subject_tokens.setdefault(robot, set())
+            (held.add if alive else held.discard)(subject)
+            if not held:
+                del self._subject_tokens[robot]
+        if not hasattr(self.coordinator, "teammate_subject"):
+            return
+        for robot in sorted(robots):
+            want = self._subject_tokens.get(robot, set()) if robot in self.team else set()
+            told = self._told_subjects.get(robot, set())
+            for subject in sorted(told - want):
+                self.coordinator.teammate_subject(robot, subject, False)
+            for subject in sorted(want - told):
+                self.coordinator.teammate_subject(robot, subject, True)
+            if want:
+                self._told_subjects[robot] = set(want)
+            else:
+                self._told_subjects.pop(robot, None)
 
     def send(self, say: Say, now: float) -> None:
         if self.faults is not None and self.faults.cut_off(now):
@@ -330,6 +473,9 @@ class Agent:
         self.coordinator = self._make_coordinator()
         for robot in sorted(self.team):
             self.coordinator.teammate(robot, True)
+        for robot, subjects in sorted(self._told_subjects.items()):
+            for subject in sorted(subjects):
+                self.coordinator.teammate_subject(robot, subject, True)
 
     def shutdown(self) -> None:
         """Stop the robot: deactivate the running layers, command zero velocity, let every
