@@ -225,10 +225,16 @@ class ZenohBus(Bus):
     # What ROS 2 over rmw_zenoh needs (mrta_zenoh.ros2): absolute keys (no namespace), raw
     # payloads, and the per-sample attachment rmw_zenoh requires. Kept here so that this stays
     # the only module importing zenoh.
-    def declare_attached_publisher(self, key: str, *, lossy: bool) -> "AttachedPublisher":
-        pub = AttachedPublisher(self.session.declare_publisher(
-            key, congestion_control=zenoh.CongestionControl.DROP if lossy
-            else zenoh.CongestionControl.BLOCK), self._encoding("application/cdr"))
+    def declare_attached_publisher(self, key: str, *, lossy: bool,
+                                   declare: Callable[..., Any] | None = None
+                                   ) -> "AttachedPublisher":
+        """A CDR publisher on `key` as given, closed before the session. `declare(key,
+        congestion_control=…)` makes it (default: a plain one; ROS 2 topics with history use
+        zenoh-ext's AdvancedPublisher, mrta_zenoh/ros2/node.py)."""
+        declare = declare or self.session.declare_publisher
+        pub = AttachedPublisher(declare(key, congestion_control=zenoh.CongestionControl.DROP
+                                        if lossy else zenoh.CongestionControl.BLOCK),
+                                self._encoding("application/cdr"))
         self._attached.append(pub)
         return pub
 

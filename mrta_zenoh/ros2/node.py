@@ -49,16 +49,12 @@ HEARTBEAT = 0.5  # seconds: rmw_zenoh's heartbeat period for TRANSIENT_LOCAL pub
 def _advanced_publisher(bus: ZenohBus, key: str, qos: Qos) -> AttachedPublisher:
     """An AdvancedPublisher with a cache of `depth` samples, publisher detection and a periodic
     heartbeat; undeclared with the bus like the plain one."""
-    from zenoh import CongestionControl, ext
+    from zenoh import ext
 
-    native = ext.declare_advanced_publisher(
-        bus.session, key,
-        congestion_control=CongestionControl.BLOCK if blocks(qos) else CongestionControl.DROP,
-        cache=ext.CacheConfig(max(1, qos.depth)), publisher_detection=True,
-        sample_miss_detection=ext.MissDetectionConfig(heartbeat=HEARTBEAT))
-    pub = AttachedPublisher(native, bus._encoding("application/cdr"))
-    bus._attached.append(pub)  # closed before the session, like every attached entity
-    return pub
+    return bus.declare_attached_publisher(
+        key, lossy=not blocks(qos), declare=lambda k, **kw: ext.declare_advanced_publisher(
+            bus.session, k, cache=ext.CacheConfig(max(1, qos.depth)), publisher_detection=True,
+            sample_miss_detection=ext.MissDetectionConfig(heartbeat=HEARTBEAT), **kw))
 
 
 def _advanced_subscription(bus: ZenohBus, key: str, qos: Qos,
