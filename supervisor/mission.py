@@ -202,10 +202,10 @@ def resolve(options: MissionOptions, reg: Registry | None = None) -> MissionRun:
 
 def parse_fail(spec: str | None) -> Faults | None:
     """A mission's --fail: a fault spec (mrta_zenoh/failure.py), or none (None: none either)."""
-    if spec is None or spec.lower() == "none":
+    if spec is None or spec.strip().lower() == "none":
         return None
     try:
-        return parse_faults(spec)
+        return parse_faults(spec.strip())
     except ValueError as exc:
         raise ConfigError(f"--fail {exc}; or none") from None
 
@@ -480,11 +480,12 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
                                                                          task), 2)
                     report.bound_formula = run.arch.bound_formula
     given_up, forgiven = lockstep_trouble(records) if run.options.lockstep else (0, 0)
+    faults = faults_of(run)
     summary = Summary(
         mission=run.mission.name, application=run.package.name, architecture=run.arch.name,
         duration=run.options.duration, speed=run.options.speed, seed=run.options.seed,
         wall_seconds=round(wall, 1), robots=run.robots, who_did_what=who,
-        lockstep=run.options.lockstep,
+        lockstep=run.options.lockstep, faults=faults.spec or "none",
         lockstep_exact=(given_up + forgiven == 0) if run.options.lockstep else None,
         lockstep_given_up=given_up, lockstep_forgiven=forgiven,
         first_full_allocation=first_full_allocation(intervals, run.app.tasks()),

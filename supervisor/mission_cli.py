@@ -27,8 +27,8 @@ from .view import render
 
 @click.command()
 @click.option("--application", default=None,
-              help="The application whose mission to run (mrta app list); default: the only "
-                   "one that registers a mission.")
+              help="The application whose mission to run (mrta app list); default: the one "
+                   "whose mission is marked default (Mission.default).")
 @click.option("--architecture", default=None,
               help="Run it under this architecture (mrta arch list); default: the one the "
                    "application names. Needs an application package configured for it, "
@@ -155,13 +155,18 @@ def print_summary(console: Console, s: Summary, title: str, arch_title: str,
                           highlight=False)
         elif f.takeover_seconds is not None:
             ok = "within" if f.takeover_seconds <= f.bound_seconds else "OVER"
+            # the bound is a crash's: a partitioned robot keeps its token, so it is noticed by
+            # its silence alone, later (docs/murdoch.md, "Timing and the takeover bound")
+            bound = "the crash bound" if f.fault == "partition" else "the bound"
             console.print(f"  {f.robot} {what} at {f.killed_at:.1f} s while doing {f.task}; "
                           f"{f.taken_over_by} took over after {f.takeover_seconds:.2f} s "
-                          f"({ok} the bound {f.bound_formula} = {f.bound_seconds:.2f} s"
+                          f"({ok} {bound} {f.bound_formula} = {f.bound_seconds:.2f} s"
                           + ("" if s.lockstep else " after its last broadcast was received")
+                          + (": a partitioned robot keeps its token and is noticed by its "
+                             "silence alone" if f.fault == "partition" and ok == "OVER" else "")
                           + ")", highlight=False)
         else:
-            console.print(f"  {f.robot} {what} at {f.killed_at}; task {f.task} was not taken "
+            console.print(f"  {f.robot} {what} at {f.killed_at} s; task {f.task} was not taken "
                           "over before the end", highlight=False)
     for task, c in s.coverage.items():
         console.print(f"  {task}: exactly one robot {c.exactly_one:.0%}, none {c.none:.0%}, "

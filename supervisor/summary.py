@@ -81,6 +81,9 @@ class Summary(msgspec.Struct, forbid_unknown_fields=True):
     # in lockstep a broadcast is heard the step it is sent: the takeover bound, which counts
     # from the last broadcast received, then counts from the death itself
     lockstep: bool = True
+    # every fault injected, as the spec reads (`failure` is about the first robot's only):
+    # `loss:0.2`, `latency:0.3±0.2`, `partition:robot1@5+10,loss:0.2` — or "none"
+    faults: str = "none"
     # in lockstep, whether the run was exact: false when the simulator gave a participant up or
     # forgave a claim (a machine too busy for its timeouts) — the run then depended on the
     # machine, and `mrta experiment` runs it again (here, not on a Dask cluster: there it is

@@ -95,6 +95,8 @@ def test_the_same_seed_gives_a_byte_identical_results_csv(children, tmp_path):
                             name=f"experiment {name}")
         assert run.wait(280) == 0, run.stderr[-10:] + run.stdout[-10:]
         files.append((out / "results.csv").read_bytes())
+        summary = json.loads((out / "run000" / "summary.json").read_text())
+        assert summary["faults"] == "loss:0.2" and summary["lockstep_exact"] is True
     a, b = (csv_without(x, "wall_seconds") for x in files)
     assert a == b
     header, row = a

@@ -233,3 +233,9 @@ def test_an_experiment_takes_every_fault_and_refuses_bad_ones_at_load(tmp_path):
                    'failures: [none, "stall:robot9@30"]\n')
     with pytest.raises(ConfigError, match=r"failures\[1\].*robot9 is not one of"):
         load_experiment(bad).check_against(["robot1", "robot2", "robot3"])
+
+
+def test_a_fail_spec_may_carry_spaces_around_it():
+    """`--fail ' none '` said "expected …; or none" — rejecting none while suggesting it."""
+    assert parse_fail(" none ") is None and parse_fail("NONE") is None
+    assert parse_fail(" loss:0.2 ").spec == "loss:0.2"
