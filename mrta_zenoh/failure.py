@@ -29,7 +29,6 @@ silence (ALLIANCE's τ, MURDOCH's lease), which keeps it exact in simulated time
 
 from __future__ import annotations
 
-import hashlib
 import re
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -172,7 +171,11 @@ def parse_faults(text: str) -> Faults:
 
 
 def _uniform(*parts: object) -> float:
-    """A number in [0, 1) from `parts` alone: the same parts, the same number, in any process."""
+    """A number in [0, 1) from `parts` alone: the same parts, the same number, in any process.
+    hashlib is imported here, not at the top: it loads OpenSSL (≈ 3 MB of every agent's RSS,
+    issue #27), and only a run with loss or latency draws."""
+    import hashlib
+
     digest = hashlib.blake2b("\0".join(map(str, parts)).encode(), digest_size=8).digest()
     return int.from_bytes(digest, "big") / 2.0 ** 64
 

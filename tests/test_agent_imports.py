@@ -10,8 +10,10 @@ import pytest
 
 from mrta_zenoh.seeds import robot_rng, robot_seed_sequence
 
+# _hashlib is OpenSSL's (≈ 3 MB of RSS): fault draws import hashlib only when a run has loss or
+# latency (mrta_zenoh/failure.py)
 HEAVY = ("numpy", "matplotlib", "rich", "foxglove", "rosbags", "cryptography", "scipy",
-         "pymunk", "mcap", "distributed")
+         "pymunk", "mcap", "distributed", "_hashlib")
 
 PROBE = """
 import sys
