@@ -178,7 +178,7 @@ class Books:
 
     def _counting(self) -> dict[str, tuple]:
         """key → matching counting subscriptions, valid for the bus's subscriptions now."""
-        subs = self.bus.counting_subscriptions()  # what Bus.received_count reads
+        subs = self.bus.counting_subscriptions()
         if subs != self._subs or len(self._matching) > self.MEMO:
             self._subs = subs
             self._matching = {}

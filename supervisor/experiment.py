@@ -43,18 +43,16 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from mrta_zenoh.clock import EPSILON
 from mrta_zenoh.errors import ConfigError, Interrupted
 from mrta_zenoh.failure import faults_problem, parse_faults
 from mrta_zenoh.files import write_atomically, write_text
 from mrta_zenoh.keys import normalize_robot_id
 from mrta_zenoh.limits import MAX_RUNS, RUN_DURATION, SEED
 from mrta_zenoh.processes import ProcessGroup, mrta_argv
-from mrta_zenoh.recording import TimeBase, read_recording
 from mrta_zenoh.toolchain.registry import Registry
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, load_yaml, plural
 
-from .mission import MissionOptions, is_traffic, resolve
+from .mission import MissionOptions, resolve
 from .summary import flat_metrics, read_summary
 
 log = logging.getLogger("mrta.experiment")
@@ -297,22 +295,9 @@ def row_for(run: Run, out: Path, wall: float, error: str = "") -> dict:
                         f"given up, {summary.lockstep_forgiven} claim(s) forgiven — the machine "
                         "was too busy for the lockstep timeouts (fewer --jobs)")
     row.update(flat_metrics(summary))
-    try:
-        row["messages"] = recorded_messages(read_recording(out / "run.mcap"), summary.duration)
-    except ConfigError:
-        row["messages"] = ""
+    # counted by the run's own analysis (mission.message_rates), not by reading run.mcap again
+    row["messages"] = "" if summary.messages.total is None else summary.messages.total
     return row
-
-
-def recorded_messages(records, duration: float) -> int:
-    """Samples recorded during the run (mission.is_traffic), its last instant excluded: what the
-    processes say as they stop (an agent's last zero velocity) lands there, recorded or not as
-    the shutdown races the recorder, so counting it made results.csv differ between two runs
-    of one seed (mission.message_rates counts the same window)."""
-    tb = TimeBase(records)
-    end = min(duration, max((tb(t) for _, _, t, _ in records), default=0.0))
-    return sum(1 for key, _, t, _ in records
-               if is_traffic(key) and tb(t) < end - EPSILON)
 
 
 def prepare_output(output: Path) -> None:

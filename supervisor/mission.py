@@ -490,7 +490,8 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
         lockstep_given_up=given_up, lockstep_forgiven=forgiven,
         first_full_allocation=first_full_allocation(intervals, run.app.tasks()),
         coverage=coverage(intervals, run.app.tasks(), t0, t1),
-        # the window experiment.recorded_messages counts too: up to the duration asked for
+        # up to the duration asked for: the last instant also holds what processes say as they
+        # stop, recorded or not as the shutdown races the recorder
         messages=message_rates(records, run.arch, max(min(t1, run.options.duration) - t0, 1e-9),
                                tb),
         metrics=run.mission.metrics(run, records), failure=report,
@@ -567,7 +568,8 @@ def message_rates(records, arch: Architecture, seconds: float,
             namespace += 1
             coordination += arch.is_coordination_key(key)
     return MessageRates(round(total / seconds, 1), round(coordination / seconds, 1),
-                        arch.namespace, round(namespace / seconds, 1), list(arch.coordination))
+                        arch.namespace, round(namespace / seconds, 1), list(arch.coordination),
+                        total)
 
 
 def first_full_allocation(intervals: dict, tasks) -> float | None:

@@ -59,6 +59,7 @@ class MessageRates(msgspec.Struct, forbid_unknown_fields=True):
     coordination_namespace: str
     namespace_per_second: float | None = None   # None: a summary written before it was counted
     coordination_kinds: list[str] = []
+    total: int | None = None  # the samples counted (results.csv's `messages`); None: older summary
 
 
 class Summary(msgspec.Struct, forbid_unknown_fields=True):

@@ -176,13 +176,17 @@ def test_in_lockstep_what_is_due_comes_in_time_sender_key_and_sequence_order():
 
 
 def test_an_agent_in_lockstep_waits_for_its_roster_before_its_first_tick():
-    agent, bus, _ = alliance_agent(team=("robot1", "robot2", "robot3"))
+    agent, bus, clock = alliance_agent(team=("robot1", "robot2", "robot3"))
     stop = threading.Event()
     two = bus.declare_token("robot2/alliance/agent")
+    assert agent.await_team(stop, limit=5.0) == []            # out of lockstep: no waiting
+    clock.lockstep = threading.Event()
+    clock.lockstep.set()
     assert agent.await_team(stop, limit=0.05) == ["robot3"]   # bounded: says who is missing
     three = bus.declare_token("robot3/alliance/agent")
     assert agent.await_team(stop, limit=5.0) == []
-    free, _, _ = alliance_agent()                              # no roster: nobody to wait for
+    free, _, free_clock = alliance_agent()                    # no roster: nobody to wait for
+    free_clock.lockstep = clock.lockstep
     assert free.await_team(stop, limit=5.0) == []
     for h in (two, three):
         h.close()

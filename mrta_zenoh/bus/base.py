@@ -458,16 +458,10 @@ class Bus:
                     return False
         return True
 
-    def received_count(self, key: str) -> int | None:
-        """Samples on `key` that every counting subscription matching it has taken into account
-        (the least of them); None when no subscription matches (nothing to wait for)."""
-        counts = [sub.counts[key] for sub in list(self._subs)
-                  if not sub.raw and matches(sub.key_expr, key)]
-        return min(counts) if counts else None
-
     def counting_subscriptions(self) -> tuple:
-        """The subscriptions whose counts received_count reads, as they are now (lockstep's
-        Books remembers which of them match each key, and starts again when this changes)."""
+        """The subscriptions that count what they take into account (`Subscription.counts`), as
+        they are now: lockstep's Books reads a key's count from those matching it, remembers
+        which match each key, and starts again when this changes."""
         return tuple(s for s in list(self._subs) if not s.raw)
 
     def reset_counts(self) -> None:

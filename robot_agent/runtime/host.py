@@ -157,11 +157,10 @@ def host(make_agent: Callable[[Bus, Clock, np.random.Generator], HostedAgent],
             if sim_time:
                 while not stop.is_set() and not clock.started.wait(0.1):
                     pass
-                if getattr(clock, "lockstep", None) is not None and clock.lockstep.is_set():
-                    missing = agent.await_team(stop)  # the whole team before the first tick
-                    if missing:
-                        logger.warning("%s: starting without %s: no agent token within %.0f s",
-                                       robot_id, ", ".join(missing), TEAM_WAIT)
+                missing = agent.await_team(stop)  # in lockstep: the team before the first tick
+                if missing:
+                    logger.warning("%s: starting without %s: no agent token within %.0f s",
+                                   robot_id, ", ".join(missing), TEAM_WAIT)
             until = None if options.duration is None else clock.now() + options.duration
             agent.run(stop, until)
         finally:

@@ -89,7 +89,7 @@ class Coordinator(Protocol):
     the decision step: what to send. `active_task` is the task whose layers run.
 
     Optionally, `advertises`: subjects this robot tells its teammates about with a liveliness
-    token each (`robotN/<namespace>/subject/<subject>`, declared right after its agent token),
+    token each (`robotN/<namespace>/subject/<subject>`, declared just before its agent token),
     and `teammate_subject(robot, subject, alive)`: a teammate's subject came or went — told at
     the decision step, like `teammate`, for teammates only: a subject counts while both its token
     and the robot's agent token live, and goes when either goes. MURDOCH advertises the tasks a
@@ -234,9 +234,9 @@ class Agent:
         travel beside the steps, not in them: a teammate's token heard one tick later than in
         another run of the same seed changed what the run did (MURDOCH's auctioneer ranks, a
         first message dropped as a stranger's). The simulator waits for this participant's
-        first answer meanwhile, so simulated time does not move. Without a roster (no --team)
-        there is no one to wait for."""
-        if self.roster is None:
+        first answer meanwhile, so simulated time does not move. Out of lockstep, or without a
+        roster (no --team), there is nothing to wait for."""
+        if self.roster is None or not self.in_lockstep():
             return []
         deadline = time.monotonic() + limit
         while True:
@@ -246,13 +246,19 @@ class Agent:
                 return missing
             stop.wait(0.01)
 
+    def _outsider(self, key: str, robot: str, alive: bool) -> bool:
+        """Whether a token of `robot` is off the roster (--team): ignored, its coming counted."""
+        if self.roster is None or robot in self.roster:
+            return False
+        if alive:
+            self._drop("ignored_outsiders", "ignoring %s: %s is not on the team (--team)", key,
+                       robot)
+        return True
+
     def _on_token(self, key: str, alive: bool) -> None:
         """A teammate's token came or went: recorded for the loop thread, which owns the team."""
         robot = first_chunk(key)
-        if self.roster is not None and robot not in self.roster:
-            if alive:
-                self._drop("ignored_outsiders", "ignoring %s: %s is not on the team (--team)",
-                           key, robot)
+        if self._outsider(key, robot, alive):
             return
         with self._token_lock:
             if alive and robot not in self._alive and len(self._alive) >= MAX_TOKENS:
@@ -265,13 +271,8 @@ class Agent:
         """A teammate's subject token came or went: recorded for the loop thread, which tells
         the coordinator once the robot is on the team (`_apply_subjects`)."""
         robot, subject = first_chunk(key), key.rsplit("/", 1)[-1]
-        if robot == self.robot_id:
-            return  # its own: the coordinator knows what it advertises
-        if self.roster is not None and robot not in self.roster:
-            if alive:
-                self._drop("ignored_outsiders", "ignoring %s: %s is not on the team (--team)",
-                           key, robot)
-            return
+        if robot == self.robot_id or self._outsider(key, robot, alive):
+            return  # its own (the coordinator knows what it advertises), or an outsider's
         pair = (robot, subject)
         with self._token_lock:
             if alive and pair not in self._subject_seen:
