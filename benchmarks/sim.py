@@ -3,14 +3,16 @@
 Prints one JSON line per figure. Each line carries the figure for our batched simulator and a
 baseline measured in the same run: the same world simulated the obvious way (a Python loop over
 pymunk bodies for control, one `segment_query_first` per sonar beam), so the numbers say what
-numpy batching buys. "with bus" publishes clock, sonar, odom, ground truth and bumper over real
-Zenoh while a separate subscriber process receives it (spawned, never forked; sensor data are
-best effort, so a subscriber that falls behind loses samples: `samples_received` against
-`samples_expected`). Beside it: the seconds per simulated second our sensor publishing costs
-(encoding and puts, the sonar sweep excluded) and what raw zenoh-python puts of as many samples
-cost in the same run.
+numpy batching buys. "with bus" publishes clock, sonar, odom, ground truth and bumper (the
+bumper on change and once a simulated second) over real Zenoh while a separate subscriber
+process receives it (spawned, never forked; sensor data are best effort, so a subscriber that
+falls behind loses samples: `samples_received`). Beside it: the seconds per simulated second
+our sensor publishing costs (encoding and puts, the sonar sweep excluded) and what raw
+zenoh-python puts of as many samples cost in the same run. Each robot count runs `--rounds`
+alternating rounds (ours, naive, ours with the bus) and prints medians with their range.
 
-Run: python benchmarks/sim.py [--robots 3 10 100 300 1000] [--seconds 10] [--plot PNG]
+Run: python benchmarks/sim.py [--robots 3 10 100 300 1000] [--seconds 10] [--rounds 3]
+     [--plot PNG]
 """
 
 from __future__ import annotations
@@ -19,6 +21,7 @@ import argparse
 import json
 import math
 import os
+import statistics
 import subprocess
 import sys
 import threading
@@ -218,26 +221,40 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--robots", type=int, nargs="+", default=[3, 10, 100, 300, 1000])
     ap.add_argument("--seconds", type=float, default=10.0)
+    ap.add_argument("--rounds", type=int, default=3,
+                    help="alternating rounds of ours / naive / ours with the bus per robot "
+                    "count; figures are their medians (one run swings ±25 %% at 1,000 robots "
+                    "on 2 cores: the receiving process competes for the second core)")
     ap.add_argument("--plot", metavar="PNG", help="also draw the curve of real-time factor "
                     "against robots (e.g. benchmarks/img/rtf.png)")
     args = ap.parse_args()
     curve = []
     for n in args.robots:
-        secs = args.seconds if n < 1000 else max(2.0, args.seconds / 5)
-        ours = run_ours(n, secs)
-        naive = run_naive(n, min(secs, 2.0) if n >= 100 else secs)
+        secs = args.seconds if n < 1000 else max(5.0, args.seconds / 2)
+        rows = []
+        for _ in range(args.rounds):
+            ours = run_ours(n, secs)
+            naive = run_naive(n, min(secs, 2.0) if n >= 100 else secs)
+            rows.append((ours, naive, *run_with_bus(n, secs)))
+        ours, naive, bus_rtf, received, raw_us, publish_s = \
+            (statistics.median(col) for col in zip(*rows))
+        spread = {name: [round(min(col), 1), round(max(col), 1)]
+                  for name, col in zip(("ours", "naive", "bus"), zip(*rows))}
         print(json.dumps({"figure": "real_time_factor_no_bus", "robots": n, "ours": round(ours, 1),
                           "baseline_naive_pymunk": round(naive, 1),
-                          "ratio": round(ours / naive, 2)}), flush=True)
-        bus_rtf, received, raw_us, publish_s = run_with_bus(n, secs)
-        puts = secs * 50 + secs * 10 * 4 * n  # clock at 50 Hz, four sensor samples at 10 Hz
+                          "ratio": round(ours / naive, 2), "rounds": args.rounds,
+                          "ours_range": spread["ours"], "naive_range": spread["naive"]}),
+              flush=True)
+        puts = secs * 50 + secs * 10 * 3 * n  # clock at 50 Hz, three sensor samples at 10 Hz
         print(json.dumps({"figure": "real_time_factor_with_bus", "robots": n,
-                          "ours": round(bus_rtf, 1), "samples_received": received,
+                          "ours": round(bus_rtf, 1), "baseline_naive_pymunk": round(naive, 1),
+                          "ratio_to_naive": round(bus_rtf / naive, 2),
+                          "ours_range": spread["bus"], "rounds": args.rounds,
+                          "samples_received": int(received),
                           "baseline_raw_zenoh_put_us": round(raw_us, 2),
                           "raw_put_seconds_per_simulated_second": round(
                               raw_us * 1e-6 * puts / secs, 3),
                           "ours_sensor_publish_seconds_per_simulated_second": round(publish_s, 3),
-                          "samples_expected": int(round((secs + 0.2) * 50 + 2 + ((secs + 0.2) * 10 + 2) * 4 * n + 10 * n)),
                           "ours_no_bus": round(ours, 1)}), flush=True)
         curve.append((n, ours, bus_rtf, naive))
     if args.plot:

@@ -167,7 +167,8 @@ class Simulation:
         half = m.sonar_half_angle
         ranges = np.minimum(
             ray_walls(origins, dirs, self.world.walls, m.sonar_max, half, k),
-            ray_robots(origins, dirs, self.pose[:, :2], m.radius, k, m.sonar_max, half))
+            ray_robots(origins, dirs, self.pose[:, :2], m.radius, k, m.sonar_max, half,
+                       axes=self.sonars[:, 2]))
         noise = self.rng.normal(0.0, 1.0, len(ranges))  # drawn every time: keeps the seed stream
         echo = np.isfinite(ranges)
         ranges = np.where(echo, ranges + noise * (m.sonar_noise * np.where(echo, ranges, 0.0)

@@ -11,6 +11,8 @@ import threading
 import time
 from dataclasses import dataclass
 
+import numpy as np
+
 from mrta_zenoh import keys
 from mrta_zenoh.bus import Bus
 from mrta_zenoh.clock import CEILING, EPSILON
@@ -28,6 +30,9 @@ log = logging.getLogger("mrta.sim")
 
 WORLD_KEY = "world"
 WORLD_EVERY = 50  # steps: the walls go out once a simulated second (a late viewer gets them)
+# Sensor periods between two bumper samples of a robot whose contact state did not change: a
+# bumper goes out when it changes and, as a heartbeat, every simulated second.
+BUMPER_EVERY = 10
 
 
 @dataclass
@@ -72,6 +77,8 @@ class SimNode:
         self._ros2_rows = [(i, rid) for i, rid in enumerate(sim.ids) if rid in self._ros2_ids]
         self._wire: SensorWire | None = None  # built on the first sensor period
         self._batch = None
+        self._sent_bumper: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
+        self._every_row: np.ndarray | None = None
 
     def _on_cmd(self, sample) -> None:
         rid = keys.first_chunk(sample.key)
@@ -154,9 +161,18 @@ class SimNode:
                                           walls), lossy=True)
 
     def publish_all(self) -> None:
-        """One sensor period: sonar, odometry, ground truth and bumper of every robot, written
-        straight from the simulation's arrays (simulator/wire.py) and sent as one batch; a ROS 2
-        robot's sonar and odometry go to its driver instead (as message objects)."""
+        """One sensor period: sonar, odometry and ground truth of every robot, and the bumpers
+        that changed (all of them once a simulated second), written straight from the
+        simulation's arrays (simulator/wire.py) and sent as one batch; a ROS 2 robot's sonar
+        and odometry go to its driver instead (as message objects).
+
+        Why a bumper goes out on change (issue #27): at 1,000 robots the four samples of every
+        robot are 40,000 puts a simulated second, and the puts, not the physics, set the pace.
+        A bumper is an event stream (kobuki's BumperEvent is sent on change only) whose
+        `collisions` is a running count, so a consumer that misses a sample (best effort) has
+        the right count from the next one; the heartbeat tells a late joiner within a second.
+        A period's samples are a function of the simulated time, so a run still replays bit for
+        bit."""
         sim = self.sim
         reading = sim.sonar()
         if self._wire is None:
@@ -164,7 +180,10 @@ class SimNode:
             self._wire = SensorWire(sim.ids, len(sim.sonars), omit=self._ros2_ids)
             self._batch = self.bus.declare_batch(self._wire.keys, self._wire.encodings,
                                                  lossy=True)
+            self._every_row = np.ones(len(self._wire.keys), dtype=bool)
         contact = sim.contacts > 0
+        rows = self._bumper_rows(sim.stalled, contact, sim.collisions,
+                                 (sim.steps // SENSOR_EVERY) % BUMPER_EVERY == 0)
         for i, rid in self._ros2_rows:
             msgs = sample_messages(rid, sim.time, reading.points[i].tolist(), sim.odom[i].tolist(),
                                    sim.odom_twist[i].tolist(), sim.pose[i].tolist(),
@@ -173,7 +192,23 @@ class SimNode:
             self.ros2.publish(rid, msgs[ODOM], msgs[SONAR])
         self._batch.publish(self._wire.encode(sim.time, reading.points, sim.odom,
                                               sim.odom_twist, sim.pose, sim.vel, sim.stalled,
-                                              contact, sim.collisions))
+                                              contact, sim.collisions), rows)
+
+    def _bumper_rows(self, stalled: np.ndarray, contact: np.ndarray, collisions: np.ndarray,
+                     heartbeat: bool) -> list[int] | None:
+        """The batch rows to send this period: None (all) on a heartbeat, else every row but
+        the bumpers whose (stalled, contact, collisions) did not change since they last went
+        out."""
+        before, now = self._sent_bumper, (stalled.copy(), contact.copy(), collisions.copy())
+        if heartbeat or before is None:
+            self._sent_bumper = now
+            return None
+        changed = (before[0] != now[0]) | (before[1] != now[1]) | (before[2] != now[2])
+        mask = self._every_row.copy()
+        mask[self._wire.bump_rows] = changed
+        for old, new in zip(before, now):
+            old[changed] = new[changed]
+        return np.flatnonzero(mask).tolist()
 
     def close(self) -> None:
         self._sub.close()

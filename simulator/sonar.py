@@ -140,18 +140,26 @@ def neighbour_pairs(centres: np.ndarray, reach: float) -> tuple[np.ndarray, np.n
 
 
 def ray_robots(origins: np.ndarray, dirs: np.ndarray, centres: np.ndarray, radius: float,
-               per_robot: int, max_range: float, half_angle: float = 0.0) -> np.ndarray:
+               per_robot: int, max_range: float, half_angle: float = 0.0,
+               axes: np.ndarray | None = None) -> np.ndarray:
     """Distance to the nearest point of another robot's disc inside each cone, `inf` if none.
 
     Only pairs of robots within reach are tested, and of those only the transducers whose
     cone can contain the other disc: the cost grows with neighbours, not with N².
+    `axes`: the transducers' axis angles in the robot's frame when every robot has that one
+    layout (a simulation has one robot model); the bearing test then works in each robot's
+    frame, a (pairs × transducers) product of contiguous arrays instead of a gather of every
+    pair's directions (≈ 0.6 ms of a 3 ms sweep at 1,000 robots). Either way only the culling
+    changes, never a reading: kept pairs are computed from `dirs` exactly.
     """
     n = len(centres)
     out = np.full(len(origins), np.inf)
     if n < 2:
         return out
-    off = origins.reshape(n, per_robot, 2) - centres[:, None, :]
-    rho = float(np.sqrt((off * off).sum(axis=2)).max())  # transducers' reach from the centre
+    # transducers' reach from the centre (one layout: the first robot's says it for all)
+    off = origins[:per_robot if axes is not None else None].reshape(-1, per_robot, 2) \
+        - centres[:1 if axes is not None else None, None, :]
+    rho = float(np.sqrt((off * off).sum(axis=2).max()))
     pi, pj = neighbour_pairs(centres, max_range + radius + rho + _SLACK)
     if len(pi) == 0:
         return out
@@ -164,15 +172,26 @@ def ray_robots(origins: np.ndarray, dirs: np.ndarray, centres: np.ndarray, radiu
             + np.arcsin(np.minimum(1.0, rho / np.maximum(dist, 1e-12)))
         ux, uy = vx / dist, vy / dist
     wide = (dist <= radius + rho) | (window >= np.pi)  # overlapping or very close: test all
-    cos_window = np.cos(np.minimum(window, np.pi))
-    k = np.arange(per_robot)
-    rays = pi[:, None] * per_robot + k[None, :]            # (P, K)
-    cos_bearing = dirs[rays, 0] * ux[:, None] + dirs[rays, 1] * uy[:, None]
-    keep = wide[:, None] | (cos_bearing >= cos_window[:, None] - 1e-12)
-    rays = rays[keep]
-    other = np.broadcast_to(pj[:, None], keep.shape)[keep]
-    if len(rays) == 0:
+    threshold = np.cos(np.minimum(window, np.pi)) - 1e-12
+    threshold[wide] = -np.inf
+    if axes is None:
+        # robot i's K directions gathered as one row per pair (a 2-D gather per coordinate
+        # of (P, K) computed indices cost 3× as much at 1,000 robots)
+        d = dirs.reshape(n, per_robot, 2)[pi]              # (P, K, 2)
+        cos_bearing = d[:, :, 0] * ux[:, None] + d[:, :, 1] * uy[:, None]
+    else:
+        # i → j turned into the frame of i's first transducer (its direction is dirs[i·K]),
+        # against each transducer's axis in that frame: d_ik · u = e_k · R(−φ_i) u
+        first = dirs[pi * per_robot]
+        wx = ux * first[:, 0] + uy * first[:, 1]
+        wy = uy * first[:, 0] - ux * first[:, 1]
+        rel = np.asarray(axes, dtype=float) - float(axes[0])
+        cos_bearing = wx[:, None] * np.cos(rel)[None, :] + wy[:, None] * np.sin(rel)[None, :]
+    pair, k = np.nonzero(cos_bearing >= threshold[:, None])
+    if len(pair) == 0:
         return out
+    rays = pi[pair] * per_robot + k
+    other = pj[pair]
     cox = centres[other, 0] - origins[rays, 0]  # origin → centre
     coy = centres[other, 1] - origins[rays, 1]
     dx, dy = dirs[rays, 0], dirs[rays, 1]

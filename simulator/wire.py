@@ -214,6 +214,7 @@ class SensorWire:
                 self.encodings.append(encs[kind])
                 self._slices.append(slice(i * size + lay.starts[kind], i * size + ends[kind]))
         self._split = _splitter(self._slices)
+        self.bump_rows = np.array(self._bump_at, dtype=np.intp)  # each robot's BUMP in `keys`
         self._values = np.empty((self.n, self._n_float))
         self._small = np.empty((self.n, 2 + _INT_ROOM), dtype=np.uint8)
 

@@ -199,13 +199,35 @@ def record(publish_all, ros2=(), rear_sonars=False):
     return got, (drivers[0].sent if drivers else []), collisions
 
 
+def bumpers_on_change(samples):
+    """The old path's samples with the bumper rule applied (simulator/node.py, BUMPER_EVERY):
+    a robot's bumper goes out when (stalled, contact, collisions) differs from the last one it
+    sent, and every robot's at each whole simulated second. Worked out here from the decoded
+    samples, independently of the node's arrays."""
+    kept, last = [], {}
+    for key, enc, payload in samples:
+        if key.endswith("/bumper"):
+            msg = msgspec.msgpack.decode(payload)
+            state = (msg["stalled"], msg["contact"], msg["collisions"])
+            stamp = msg["header"]["stamp"]
+            whole = abs(stamp - round(stamp)) < 1e-9
+            if not whole and last.get(key) == state:
+                continue
+            last[key] = state
+        kept.append((key, enc, payload))
+    return kept
+
+
 @pytest.mark.parametrize("ros2, rear", [((), False), (("robot22",), False), ((), True)])
 def test_simnode_sends_what_the_old_path_sent(ros2, rear):
     new, new_ros2, collisions = record(None, ros2, rear)
-    old, old_ros2, _ = record(old_publish_all, ros2, rear)
+    every, old_ros2, _ = record(old_publish_all, ros2, rear)
+    old = bumpers_on_change(every)
     assert any(c > 0 for c in collisions)  # the run did exercise contacts
     assert len(new) == len(old) > 0
     assert new == old
+    bumps = [k for k, _, _ in new if k.endswith("/bumper")]
+    assert 0 < len(bumps) < len([k for k, _, _ in every if k.endswith("/bumper")])
     assert new_ros2 == old_ros2
     sensor_keys = {k for k, _, _ in new if k.endswith(("/sonar", "/odom"))}
     assert not any(k.startswith(r + "/") for r in ros2 for k in sensor_keys)
@@ -223,6 +245,14 @@ def test_a_batch_on_the_inproc_bus_counts_and_delivers_like_publish():
     assert got == [("a/x", enc, payloads[0]), ("a/y", enc, payloads[1]),
                    ("a/x", enc, payloads[2])]
     assert bus.sent_counts == {"a/x": 2, "a/y": 1}
+    got.clear()
+    batch.publish(payloads, rows=[1, 2])  # only those keys, payloads still one per key
+    assert got == [("a/y", enc, payloads[1]), ("a/x", enc, payloads[2])]
+    assert bus.sent_counts == {"a/x": 3, "a/y": 2}
+    batch.publish(payloads, rows=[])
+    assert bus.sent_counts == {"a/x": 3, "a/y": 2}
+    with pytest.raises(ValueError):
+        batch.publish(payloads, rows=[3])
     with pytest.raises(ValueError):
         batch.publish(payloads[:2])
     with pytest.raises(ValueError):
@@ -269,6 +299,23 @@ def test_a_batch_on_zenoh_arrives_with_each_keys_encoding_and_is_counted():
         assert seen == {("w/1", odom_enc, payloads[0]), ("w/2", bump_enc, payloads[1]),
                         ("w/0", bump_enc, payloads[1])}
         assert a.sent_counts["w/1"] == a.sent_counts["w/2"] == a.sent_counts["w/0"] >= 1
+        # rows: only w/2 goes out (and is counted), through both kinds of batch
+        sent = dict(a.sent_counts)
+        with lock:
+            got.clear()
+        fresh.publish(payloads, rows=[1])
+        known.publish(payloads[1:], rows=[])
+        assert a.sent_counts["w/2"] == sent["w/2"] + 1
+        assert a.sent_counts["w/1"] == sent["w/1"] and a.sent_counts["w/0"] == sent["w/0"]
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline:
+            with lock:
+                if got:
+                    break
+            time.sleep(0.02)
+        time.sleep(0.2)
+        with lock:
+            assert got == [("w/2", bump_enc, payloads[1])]
         sub.close()
     with pytest.raises(MrtaRuntimeError):
         fresh.publish(payloads)

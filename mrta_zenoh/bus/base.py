@@ -262,17 +262,21 @@ class Batch:
         self.encodings = list(encodings)
         self.lossy = lossy
 
-    def publish(self, payloads: Sequence[bytes]) -> None:
+    def publish(self, payloads: Sequence[bytes], rows: Sequence[int] | None = None) -> None:
         """Send payloads[i] on keys[i] with encodings[i], in order; counted as Bus.publish
-        counts (lockstep)."""
-        self._check(payloads)
+        counts (lockstep). `rows`: send only those indices (ascending), `payloads` still one
+        per key — a simulator sends an event-like sample (a bumper) only when it changed."""
+        self._check(payloads, rows)
         raw, lossy = self.bus.publish_raw, self.lossy
-        for key, encoding, payload in zip(self.keys, self.encodings, payloads):
-            raw(key, encoding, payload, lossy)
+        for i in range(len(self.keys)) if rows is None else rows:
+            raw(self.keys[i], self.encodings[i], payloads[i], lossy)
 
-    def _check(self, payloads: Sequence[bytes]) -> None:
+    def _check(self, payloads: Sequence[bytes], rows: Sequence[int] | None = None) -> None:
         if len(payloads) != len(self.keys):
             raise ValueError(f"a batch of {len(self.keys)} keys got {len(payloads)} payloads")
+        if rows is not None and len(rows) and not 0 <= min(rows) <= max(rows) < len(self.keys):
+            raise ValueError(f"rows outside a batch of {len(self.keys)} keys: "
+                             f"{min(rows)}..{max(rows)}")
         if self.bus.closed:
             raise MrtaRuntimeError("publishing a batch on a closed bus")
 

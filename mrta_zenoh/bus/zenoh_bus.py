@@ -311,8 +311,11 @@ class _ZenohBatch(Batch):
         self._encs = [bus._encoding(e) for e in self.encodings]
         self._counted = [k for k in self.keys if not k.startswith("@")]
 
-    def publish(self, payloads: Sequence[bytes]) -> None:
-        self._check(payloads)
+    def publish(self, payloads: Sequence[bytes], rows: Sequence[int] | None = None) -> None:
+        self._check(payloads, rows)
+        if rows is not None:
+            self._publish_rows(payloads, rows)
+            return
         if self._plain:
             for put, payload in zip(self._puts, payloads):
                 put(payload)
@@ -322,6 +325,19 @@ class _ZenohBatch(Batch):
         bus = self.bus
         if bus.counting:
             bus._count_sent_all(self._counted)
+
+    def _publish_rows(self, payloads: Sequence[bytes], rows: Sequence[int]) -> None:
+        puts, encs = self._puts, self._encs
+        if self._plain:
+            for i in rows:
+                puts[i](payloads[i])
+        else:
+            for i in rows:
+                puts[i](payloads[i], encoding=encs[i])
+        bus = self.bus
+        if bus.counting:
+            keys = self.keys
+            bus._count_sent_all([keys[i] for i in rows if not keys[i].startswith("@")])
 
 
 class Closable:
