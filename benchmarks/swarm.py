@@ -193,6 +193,10 @@ def swarm(n: int, seconds: float, env: dict, folder: Path, topology: str,
         w0 = time.monotonic()
         done = sim.wait_stderr(lambda line: "done:" in line, 600)
         window = time.monotonic() - w0
+        gone = [c for c in agents + hub if not c.running()]
+        if gone:  # a process that died during the run makes its figures meaningless
+            raise RuntimeError(f"{gone[0].name} {gone[0].describe_exit()} during the run:\n"
+                               + gone[0].tail())
         after = {c.pid: proc_stat(c.pid) for c in agents + [sim] + hub}
         uss = [private_mb(c.pid) for c in agents]
         sim.wait(60)
@@ -244,8 +248,8 @@ def main() -> None:
                     help="the same run with this many agents (0: none)")
     ap.add_argument("--seconds", type=float, default=60.0, help="simulated seconds per run")
     ap.add_argument("--tasks", default=",".join(TASKS),
-                    help="patrol's tasks the robots have (report's ledger hears every "
-                         "robot's odometry: N² samples)")
+                    help="patrol's tasks the robots have (with report, every robot's "
+                         "ledger hears every teammate's log once a second: N² small samples)")
     ap.add_argument("--topology", choices=("router", "peer"), default="router",
                     help="router: `mrta router` and every process its client (a star: N + 1 "
                          "links); peer: the default peer mesh (N(N + 1)/2 links)")

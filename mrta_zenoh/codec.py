@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import re
 import sys
+import threading
 from dataclasses import dataclass
 from typing import Any, Callable
 
@@ -190,10 +191,22 @@ _decoders: dict[type, Callable[[bytes], Any]] = {}
 _generic = msgspec.msgpack.Decoder(dict)
 
 
-def _typed_decoder(cls: type[Message]) -> Callable[[bytes], Any]:
+_decoders_lock = threading.Lock()
+
+
+def struct_decoder(cls: type[Message]) -> Callable[[bytes], Any]:
+    """The type's decoder, built once under a lock. Why the lock: msgspec (0.22) builds a
+    Struct's type information on its first Decoder or convert, and two threads doing that at
+    once crash the process (a segfault; Zenoh delivers samples on several threads, and a
+    100-agent swarm hit it when many robots' first logs arrived together). Reproduced with 8
+    threads making Decoder(cls) of a fresh Struct: 3 crashes in 3 runs, none with the lock
+    (tests/test_codec_threads.py)."""
     dec = _decoders.get(cls)
     if dec is None:
-        dec = _decoders[cls] = msgspec.msgpack.Decoder(cls).decode
+        with _decoders_lock:
+            dec = _decoders.get(cls)
+            if dec is None:
+                dec = _decoders[cls] = msgspec.msgpack.Decoder(cls).decode
     return dec
 
 
@@ -204,7 +217,7 @@ def decoder_for(encoding: str) -> tuple[str, Callable[[bytes], Any]]:
     """
     type_name = type_from_encoding(encoding)
     cls = message_class(type_name)
-    raw = _typed_decoder(cls) if cls is not None else _generic.decode
+    raw = struct_decoder(cls) if cls is not None else _generic.decode
     errors = (msgspec.ValidationError, msgspec.DecodeError)
 
     def dec(payload: bytes) -> Any:
@@ -227,7 +240,7 @@ def typed_decoder(encoding: str) -> tuple[str, Callable[[bytes], Any] | None]:
     `translate` and refuse payloads over MAX_PAYLOAD_BYTES themselves."""
     type_name = type_from_encoding(encoding)
     cls = message_class(type_name)
-    return type_name, (_typed_decoder(cls) if cls is not None else None)
+    return type_name, (struct_decoder(cls) if cls is not None else None)
 
 
 DECODE_ERRORS = (msgspec.ValidationError, msgspec.DecodeError, RecursionError)
@@ -247,6 +260,7 @@ def decode(type_name: str, payload: bytes) -> Message | GenericMessage:
 
 def from_dict(cls: type[Message], data: Any) -> Message:
     """Build a message from a plain map with the same strict checks as decoding."""
+    struct_decoder(cls)  # the type's information built once, under the lock (see there)
     try:
         return msgspec.convert(data, cls, strict=True)
     except msgspec.ValidationError as exc:

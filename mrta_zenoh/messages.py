@@ -136,6 +136,9 @@ def checked(msg: Message) -> Message:
 
     Construction does not validate (msgspec Structs don't); code that builds a message from
     values it did not produce itself can call this to fail early instead of on the receiver."""
+    from .codec import struct_decoder  # codec imports this module
+
+    struct_decoder(type(msg))  # msgspec's type information built once, under codec's lock
     return msgspec.convert(msgspec.to_builtins(msg), type(msg))
 
 

@@ -8,7 +8,7 @@ from mrta_zenoh import codec
 from mrta_zenoh.messages import Clock, GenericMessage, Header, Odometry, Point2D, PointCloud, Pose2D, Twist, registered_types
 from mrta_agent.alliance.messages import InterRobotCommunication, Motivation, SensoryFeedback
 from mrta_simulator.messages import Bumper, Segment, World
-from mrta_patrol.messages import Report, TaskTime
+from mrta_patrol.messages import PatrolLog, Report, TaskTime
 from mrta_delivery.messages import TaskEvent
 from mrta_zenoh.lockstep import LockstepStatus, Step, StepDone
 from mrta_agent.murdoch.messages import Announcement, Award, Bid, Claim, Release
@@ -28,6 +28,7 @@ EXAMPLES = [
     Bumper(Header("robot2", 7.5, 4), True, True, 3),
     TaskTime("robot1", "wander", 12.5),
     Report(Header("robot3", 9.0, 1), 42.0, 0.5, (TaskTime("robot1", "wander", 12.5),)),
+    PatrolLog(Header("robot2", 5.0, 3), 12.5, 208, bytes(26), (TaskTime("robot2", "wander", 4.0),)),
     Clock(3.25, "run-a"),
     Step(12.5, 625, {"robot1/alliance/inter_robot_communication": 40}),
     StepDone("robot1", 12.5, {"robot1/cmd_vel": 125}, 12.6),

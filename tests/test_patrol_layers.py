@@ -119,7 +119,9 @@ def test_shutdown_closes_every_subscription_a_plugin_opened(ctx):
 
 def test_the_ledger_counts_only_teammates_and_finite_distances(ctx):
     """A NaN odometry sample used to poison every later report; a forged robot9 used to appear
-    in reports. Teammates are robots whose agent holds its token, heard on their own keys."""
+    in reports. A robot now logs its own work from its own odometry and doing feed (issue #27):
+    another robot's odometry or feed, and a sample on its key claiming another robot, add
+    nothing; teammates' work comes only in their logs (tests/test_patrol_ledger.py)."""
     import msgpack
 
     from mrta_patrol.layers import ReportLayer
@@ -146,6 +148,8 @@ def test_the_ledger_counts_only_teammates_and_finite_distances(ctx):
            "pose": {"x": float("nan"), "y": 0.0, "theta": 0.0}, "twist": {"linear": 0.0, "angular": 0.0}}
     bus.publish_raw("robot1/odom", encoding_for("mrta_msgs/Odometry"), msgpack.packb(nan))
     odom("robot1", 4.0)
+    odom("robot2", 0.0)
+    odom("robot2", 50.0)  # a teammate's odometry: its own log says what it did
     odom("robot9", 0.0)
     odom("robot9", 100.0)  # not a teammate: no token
     def doing(key, robot, t):
@@ -154,14 +158,15 @@ def test_the_ledger_counts_only_teammates_and_finite_distances(ctx):
 
     for i in range(6):  # 0.5 s of ticks; the ledger's clock moves with them
         c.clock.set(10.0 + i / 10)
+        doing("robot1/alliance/motivation/border_protection", "robot1", 10.0 + i / 10)
         doing("robot2/alliance/motivation/border_protection", "robot2", 10.0 + i / 10)
         doing("robot9/alliance/motivation/border_protection", "robot9", 10.0 + i / 10)
-        doing("robot1/alliance/motivation/border_protection", "robot2", 10.0 + i / 10)  # forged
+        doing("robot1/alliance/motivation/wander", "robot2", 10.0 + i / 10)  # forged
     report = layer.ledger.report("robot1", 12.0)
     assert report.distance == 4.0 and math.isfinite(report.distance)
     times = {(tt.robot_id, tt.task_id): tt.seconds for tt in report.task_times}
-    assert set(times) == {("robot2", "border_protection")}  # robot9 and the forgery add nothing
-    assert abs(times[("robot2", "border_protection")] - 0.5) < 1e-9
+    assert set(times) == {("robot1", "border_protection")}  # the others add nothing
+    assert abs(times[("robot1", "border_protection")] - 0.5) < 1e-9
     assert bus.stats["malformed"] == 1
     layer.shutdown()
     for t in tokens:
@@ -174,6 +179,8 @@ def test_the_ledger_counts_only_teammates_and_finite_distances(ctx):
     ("BorderProtection", "x_max", "1.0e+300", "<= 10000.0"),
     ("Report", "period", "1.0e-300", ">= 0.001"),
     ("Report", "speed", ".inf", "finite"),
+    ("Report", "log_period", "0.01", ">= 0.1"),
+    ("Report", "log_period", "3600.0", "<= 60.0"),
 ])
 def test_absurd_layer_parameters_are_refused_with_their_line(tmp_path, section, key, value, text):
     """Finite but absurd values (issue #23) get the file, the line and the bound."""

@@ -11,7 +11,10 @@ knows only what its sensors tell it, as on the real robot.
   diagonal echoes — that turns at inner corners and curves back to a wall it lost at outer ones,
   so it goes round the whole perimeter (the original was stubbed to spin in place).
 * `patrol/report`: drives to the report point, then publishes a team report on
-  `robotN/patrol/report` (see ledger.py).
+  `robotN/patrol/report`. The report comes from the robot's ledger (ledger.py), which runs
+  whether or not the behaviour is active: it logs the robot's own work and publishes that log
+  on `robotN/patrol/log` once per `Report/log_period`; a report merges it with the latest log
+  of each teammate.
 
 Parameters are typed (msgspec Structs below): the agent checks the layers file against them when
 it loads, so `speed: fast` is an error naming file and line before anything runs.
@@ -42,6 +45,10 @@ TurnRate = Annotated[float, msgspec.Meta(gt=0.0, le=20.0, description="rad/s")]
 Gain = Annotated[float, msgspec.Meta(ge=0.0, le=1000.0)]
 Coordinate = Annotated[float, msgspec.Meta(ge=-10_000.0, le=10_000.0, description="m")]
 Period = Annotated[float, msgspec.Meta(ge=0.001, le=86_400.0, description="s")]
+# How often a robot publishes its own log (ledger.py): not below the odometry's 10 Hz, which
+# drives it (a shorter period would change nothing but the check), and at most a minute, the
+# report period, so a teammate's part of a report is never more than one report old.
+LogPeriod = Annotated[float, msgspec.Meta(ge=0.1, le=60.0, description="s")]
 
 
 class WanderParams(msgspec.Struct, forbid_unknown_fields=True):
@@ -74,6 +81,9 @@ class ReportParams(msgspec.Struct, forbid_unknown_fields=True):
     y: Coordinate = 0.0
     speed: Speed = 0.5
     period: Period = 60.0
+    # the robot's own log goes to its teammates this often: a teammate's part of a report is
+    # up to this old, and the team's ledger traffic is N² logs per log_period (issue #27)
+    log_period: LogPeriod = 1.0
 
 
 class SonarView:
@@ -248,7 +258,9 @@ class ReportLayer(_SonarLayer):
 
     def setup(self, ctx: AgentContext) -> None:
         super().setup(ctx)
-        self.ledger = PatrolLedger(self, ctx.section("BorderProtection", BorderParams).border())
+        # the ledger logs this robot's work and publishes it from now on, active or not
+        self.ledger = PatrolLedger(self, ctx.section("BorderProtection", BorderParams).border(),
+                                   self.params.log_period)
 
     def on_activate(self, now: float) -> None:
         self.state: dict = {}
