@@ -1,7 +1,8 @@
 """Recorder benchmark: does `mrta record` keep up with the simulator's output?
 
 Prints one JSON line per figure (robots = 10 and 1,000): samples the simulator published (its
-clock, and sonar + odom + ground truth + bumper per robot at 10 Hz) in a fixed simulated time at
+clock, and sonar + odom + ground truth per robot at 10 Hz, the bumper on change and once a
+simulated second) in a fixed simulated time at
 `--speed 0`, samples the recorder wrote (read back from the file), the recorder's rate, and the
 samples it did not write. Baseline in the same run: a raw zenoh-python subscriber counting the
 same samples without converting or writing anything.

@@ -173,7 +173,6 @@ def ray_robots(origins: np.ndarray, dirs: np.ndarray, centres: np.ndarray, radiu
         ux, uy = vx / dist, vy / dist
     wide = (dist <= radius + rho) | (window >= np.pi)  # overlapping or very close: test all
     threshold = np.cos(np.minimum(window, np.pi)) - 1e-12
-    threshold[wide] = -np.inf
     if axes is None:
         # robot i's K directions gathered as one row per pair (a 2-D gather per coordinate
         # of (P, K) computed indices cost 3× as much at 1,000 robots)
@@ -187,7 +186,8 @@ def ray_robots(origins: np.ndarray, dirs: np.ndarray, centres: np.ndarray, radiu
         wy = uy * first[:, 0] - ux * first[:, 1]
         rel = np.asarray(axes, dtype=float) - float(axes[0])
         cos_bearing = wx[:, None] * np.cos(rel)[None, :] + wy[:, None] * np.sin(rel)[None, :]
-    pair, k = np.nonzero(cos_bearing >= threshold[:, None])
+    # `wide` by itself, not as a −inf threshold: robots at one centre have no bearing (NaN)
+    pair, k = np.nonzero(wide[:, None] | (cos_bearing >= threshold[:, None]))
     if len(pair) == 0:
         return out
     rays = pi[pair] * per_robot + k

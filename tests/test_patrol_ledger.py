@@ -223,3 +223,27 @@ def test_forged_logs_add_nothing(team):
     assert report.distance == 2.5
     assert report.task_times == (TaskTime("robot2", "wander", 5.0),)
     assert math.isfinite(report.border_covered) and report.border_covered == 0.0
+
+
+def test_a_restarted_teammates_earlier_work_still_counts(team):
+    """A new agent process for robot2 logs from seq 1 and distance 0 again: its first log used
+    to replace the earlier process's, and the team's distance went down."""
+    make, clock, _, _ = team
+    r1, r2 = make("robot1"), make("robot2")
+
+    def log(seq, stamp, distance, seconds):
+        r2.bus.publish("robot2/patrol/log", PatrolLog(
+            Header("robot2", stamp, seq), distance, CELLS, bytes(CELLS // 8),
+            (TaskTime("robot2", "wander", seconds),)))
+
+    log(1, 11.0, 3.0, 1.0)
+    log(2, 12.0, 5.0, 2.0)   # the first process's last log
+    log(1, 14.0, 0.5, 0.5)   # restarted: counts from 1 again
+    clock.set(20.0)
+    report = r1.ledger.report("robot1", 20.0)
+    assert report.distance == pytest.approx(r1.ledger.distance + 5.0 + 0.5)
+    times = {(t.robot_id, t.task_id): t.seconds for t in report.task_times}
+    assert times[("robot2", "wander")] == pytest.approx(2.5)
+    log(2, 15.0, 1.5, 1.0)   # the new process goes on: only its latest replaces its own
+    report = r1.ledger.report("robot1", 20.0)
+    assert report.distance == pytest.approx(r1.ledger.distance + 5.0 + 1.5)

@@ -148,3 +148,13 @@ def test_the_bearing_test_in_each_robots_frame_changes_no_reading_in_a_crowd():
                                 axes=sonars[:, 2])
             assert np.isfinite(plain).sum() > 100  # a crowd: many echoes
             assert np.array_equal(plain, framed)
+
+
+def test_robots_at_one_centre_touch_on_every_beam():
+    """Overlapping bodies read 0 (contact) — robots at the very same centre too, whose bearing
+    is undefined (a culling that compared it dropped them: every beam read no echo)."""
+    poses = np.array([[0.0, 0.0, 0.0], [0.0, 0.0, 1.0]])
+    origins, dirs = sonar_origins(poses, SONARS)
+    for axes in (None, SONARS[:, 2]):
+        r = ray_robots(origins, dirs, poses[:, :2], M.radius, K, MAX, HALF, axes=axes)
+        assert np.array_equal(r, np.zeros(2 * K))

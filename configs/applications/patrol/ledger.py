@@ -18,7 +18,11 @@ Only *teammates'* logs count: robots whose agent holds its liveliness token (rea
 architecture contract, mrta_zenoh.architectures, so the ledger names no architecture), heard on
 their own key with a matching `header/frame_id`; a forged `robot9`, or a log on robot1's key
 claiming to be robot2, adds nothing. The latest log of a robot whose token went away is kept:
-its work still counts after it dies. A log made for another border (its cell count differs
+its work still counts after it dies — and after it is restarted: a new agent process counts its
+log from 1 again, and its earlier process's last log is kept beside the new ones. Two limits
+follow from each robot logging for itself: a robot without the report layer publishes no log, so
+its work is in nobody's report; and a restarted robot's own report starts from its restart (its
+teammates still have the earlier part). A log made for another border (its cell count differs
 from this robot's) is counted and ignored, never merged. Odometry is finite by construction
 (the message type rejects NaN and ±inf), so one bad sample cannot poison a report.
 
@@ -74,12 +78,24 @@ def _perimeter_distance(border: tuple[float, float, float, float], x: float, y: 
 
 
 class _Log(NamedTuple):
-    """A teammate's log as merged: its stamp, distance, cells (bit i: cell i) and task times."""
+    """A teammate's log as merged: its stamp, distance, cells (bit i: cell i), task times and
+    sequence number (counted from 1 by each agent process)."""
 
     stamp: float
     distance: float
     visited: int
     times: dict[str, float]
+    seq: int = 0
+
+
+def _plus(a: _Log | None, b: _Log) -> _Log:
+    """Two logs' work together (a robot's earlier agent process and its latest)."""
+    if a is None:
+        return b
+    times = dict(a.times)
+    for task, s in b.times.items():
+        times[task] = times.get(task, 0.0) + s
+    return _Log(max(a.stamp, b.stamp), a.distance + b.distance, a.visited | b.visited, times)
 
 
 class PatrolLedger:
@@ -119,6 +135,8 @@ class PatrolLedger:
         self.teammates: set[str] = set()
         self.alive: set[str] = set()
         self.logs: dict[str, tuple[_Log, _Log | None]] = {}
+        # a teammate's work under its earlier agent processes (one restarted counts from 0 again)
+        self.earlier: dict[str, _Log] = {}
         self.ignored: collections.Counter[str] = collections.Counter()
         arch = ctx.architecture
         self.gap = arch.doing_stale_after if arch is not None else 0.0
@@ -154,10 +172,10 @@ class PatrolLedger:
         if doing is None or doing.robot != self.robot_id:
             return
         t = doing.stamp
-        if t > self.clock.now() + EPSILON:
-            self.ignored["future"] += 1
-            return
         with self._lock:
+            if t > self.clock.now() + EPSILON:
+                self.ignored["future"] += 1
+                return
             last = self._last_doing
             if not doing.active:
                 if last is not None and last[0] == doing.task:
@@ -235,7 +253,8 @@ class PatrolLedger:
             return  # its own, heard back
         if msg.header.frame_id.strip("/") != rid or any(tt.robot_id != rid or tt.seconds < 0
                                                          for tt in msg.task_times):
-            self.ignored["forged"] += 1  # about another robot than its sender
+            with self._lock:
+                self.ignored["forged"] += 1  # about another robot than its sender
             return
         visited = int.from_bytes(msg.visited, "little")
         if msg.cells != len(self.cells) or len(msg.visited) != self._nbytes \
@@ -249,12 +268,17 @@ class PatrolLedger:
                                  self.robot_id, rid, msg.cells, len(self.cells))
             return
         entry = _Log(msg.header.stamp, msg.distance, visited,
-                     {tt.task_id: tt.seconds for tt in msg.task_times})
+                     {tt.task_id: tt.seconds for tt in msg.task_times}, msg.header.seq)
         with self._lock:
             if rid not in self.alive:
                 self.ignored["strangers"] += 1  # holds no agent token
                 return
             kept = self.logs.get(rid)
+            if kept is not None and entry.seq <= kept[0].seq:
+                # its log count began again: a new agent process for that robot, whose log
+                # starts from nothing — the earlier process's work is kept beside it
+                self.earlier[rid] = _plus(self.earlier.get(rid), kept[0])
+                kept = None
             self.logs[rid] = (entry, kept[0] if kept is not None else None)
 
     # ------------------------------------------------------------ the report
@@ -268,6 +292,10 @@ class PatrolLedger:
             for rid, (latest, before) in self.logs.items():
                 log = latest if latest.stamp < now - EPSILON else before
                 if log is None or log.stamp >= now - EPSILON:
+                    log = None
+                earlier = self.earlier.get(rid)
+                log = _plus(earlier, log) if log is not None else earlier
+                if log is None:
                     continue
                 distance += log.distance
                 visited |= log.visited
