@@ -185,12 +185,9 @@ class Books:
             self._unmatched = set()
         return self._matching
 
-    def received(self, key: str) -> int | None:
+    def _received(self, matching: dict[str, tuple], key: str) -> int | None:
         """Samples on `key` every subscription of this bus matching it has taken into account
         (None: no subscription matches, nothing to wait for)."""
-        return self._received(self._counting(), key)
-
-    def _received(self, matching: dict[str, tuple], key: str) -> int | None:
         subs = matching.get(key)
         if subs is None:
             subs = matching[key] = tuple(s for s in self._subs if _matches(s.key_expr, key))

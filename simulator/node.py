@@ -78,7 +78,6 @@ class SimNode:
         self._wire: SensorWire | None = None  # built on the first sensor period
         self._batch = None
         self._sent_bumper: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None
-        self._every_row: np.ndarray | None = None
 
     def _on_cmd(self, sample) -> None:
         rid = keys.first_chunk(sample.key)
@@ -180,7 +179,6 @@ class SimNode:
             self._wire = SensorWire(sim.ids, len(sim.sonars), omit=self._ros2_ids)
             self._batch = self.bus.declare_batch(self._wire.keys, self._wire.encodings,
                                                  lossy=True)
-            self._every_row = np.ones(len(self._wire.keys), dtype=bool)
         contact = sim.contacts > 0
         rows = self._bumper_rows(sim.stalled, contact, sim.collisions,
                                  (sim.steps // SENSOR_EVERY) % BUMPER_EVERY == 0)
@@ -204,7 +202,7 @@ class SimNode:
             self._sent_bumper = now
             return None
         changed = (before[0] != now[0]) | (before[1] != now[1]) | (before[2] != now[2])
-        mask = self._every_row.copy()
+        mask = np.ones(len(self._wire.keys), dtype=bool)
         mask[self._wire.bump_rows] = changed
         for old, new in zip(before, now):
             old[changed] = new[changed]

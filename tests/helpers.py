@@ -226,3 +226,22 @@ class Tokens:
         for w in self._watches:
             w.close()
         self.bus.close()
+
+
+class Wall:
+    """A wall clock moved by hand (`wall.t += 3`): lockstep's timeouts tested without waiting
+    for them, whatever the machine's speed."""
+
+    def __init__(self, t: float = 100.0):
+        self.t = t
+
+    def __call__(self) -> float:
+        return self.t
+
+
+def wait_for(cond, timeout: float = 5.0, poll: float = 0.002) -> None:
+    """Until `cond()` holds (another thread gets there); fails the test after `timeout`."""
+    deadline = time.monotonic() + timeout
+    while not cond():
+        assert time.monotonic() < deadline, "condition not met"
+        time.sleep(poll)

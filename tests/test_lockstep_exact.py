@@ -20,21 +20,13 @@ from mrta_zenoh.messages import Twist
 from mrta_supervisor import experiment
 from mrta_supervisor.mission import lockstep_trouble
 from mrta_supervisor.summary import MessageRates, Summary, write_summary
+from tests import helpers
+from tests.helpers import Wall
 
 
-class Wall:
-    def __init__(self):
-        self.t = 100.0
-
-    def __call__(self):
-        return self.t
-
-
-def wait_for(cond, timeout=20.0):
-    deadline = time.monotonic() + timeout
-    while not cond():
-        assert time.monotonic() < deadline, "condition not met"
-        time.sleep(0.005)
+def wait_for(cond):
+    """tests.helpers.wait_for with room for a loaded machine's thread scheduling."""
+    helpers.wait_for(cond, timeout=20.0, poll=0.005)
 
 
 def in_thread(fn):

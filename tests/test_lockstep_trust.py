@@ -14,21 +14,8 @@ from mrta_zenoh.keys import CLOCK_SOURCE_TOKEN
 from mrta_zenoh.lockstep import (DONE, NEXT_HORIZON, STEP, Barrier, LockstepClock, Step,
                                  StepDone, count_wait)
 from mrta_zenoh.messages import Twist
+from tests.helpers import Wall, wait_for
 
-
-class Wall:
-    def __init__(self):
-        self.t = 100.0
-
-    def __call__(self):
-        return self.t
-
-
-def wait_for(cond, timeout=5.0):
-    deadline = time.monotonic() + timeout
-    while not cond():
-        assert time.monotonic() < deadline, "condition not met"
-        time.sleep(0.002)
 
 
 class Fleet:

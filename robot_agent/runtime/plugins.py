@@ -134,6 +134,17 @@ class Plugin:
         self._subscriptions.clear()
 
 
+def heard_at(clock: Clock, msg: Message) -> float:
+    """When a sample counts as heard. In lockstep, simulated time is shared: the sample's own
+    stamp is exact, whatever step the participant's clock shows when it arrives; otherwise,
+    the clock's time of arrival."""
+    lockstep = getattr(clock, "lockstep", None)
+    header = getattr(msg, "header", None)
+    if lockstep is not None and lockstep.is_set() and header is not None:
+        return header.stamp
+    return clock.now()
+
+
 class Sensor(Plugin):
     message_type: type[Message] | None = None  # None: accept any type
 
@@ -148,14 +159,9 @@ class Sensor(Plugin):
     def setup(self, ctx: AgentContext) -> None:
         super().setup(ctx)
         clock = ctx.clock
-        lockstep = getattr(clock, "lockstep", None)
 
         def handler(sample):
-            # in lockstep, simulated time is shared: the sample's own stamp is exact, whatever
-            # step the participant's clock shows when it arrives
-            header = getattr(sample.message, "header", None)
-            stamped = lockstep is not None and lockstep.is_set() and header is not None
-            self.on_message(sample.message, header.stamp if stamped else clock.now())
+            self.on_message(sample.message, heard_at(clock, sample.message))
 
         self.subscribe(keys.robot_topic(ctx.robot_id, self.params.topic_name), handler,
                        msg_type=self.message_type)

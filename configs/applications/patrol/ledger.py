@@ -45,7 +45,7 @@ from mrta_zenoh.clock import EPSILON
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.keys import first_chunk
 from mrta_zenoh.messages import Header, Odometry
-from mrta_agent.runtime.plugins import Plugin
+from mrta_agent.runtime.plugins import Plugin, heard_at
 
 from .keys import ALL_LOGS, log_key
 from .messages import PatrolLog, Report, TaskTime
@@ -187,11 +187,10 @@ class PatrolLedger:
 
     def _on_odom(self, sample) -> None:
         """Distance and border cells from the robot's own odometry; the log goes out when one
-        is due. In lockstep the sample's stamp is the time (the Sensor rule,
-        mrta_agent.runtime.plugins): the agent's clock may still show the previous step."""
+        is due. In lockstep the sample's stamp is the time (`heard_at`, the Sensor rule): the
+        agent's clock may still show the previous step."""
         msg = sample.message
-        lockstep = getattr(self.clock, "lockstep", None)
-        t = msg.header.stamp if lockstep is not None and lockstep.is_set() else self.clock.now()
+        t = heard_at(self.clock, msg)
         x, y = msg.pose.x, msg.pose.y
         with self._lock:
             if self._last_pos is not None:
