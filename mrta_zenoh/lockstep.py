@@ -198,22 +198,26 @@ class Books:
         return min(s.counts[key] for s in subs)
 
     def missing(self, required: dict[str, int], keys=None) -> dict[str, int]:
-        """Key → samples claimed that have not arrived (keys this bus publishes itself, or does
-        not subscribe to, are never waited for). `keys`: look only at these of `required`
-        (those found missing before: counts only grow, so the others still have arrived)."""
+        """Key → samples claimed that have not arrived (keys no subscription of this bus
+        counts are never waited for). A key this bus publishes itself is waited for up to what
+        it sent, heard back by its own subscriptions (a robot's ReportDue hearing its own
+        report): Zenoh hands a session's own samples to its subscribers on another thread, so
+        without this wait the tick that first sees one depended on thread scheduling — two
+        runs of one seed ended robot3's report 0.1 s apart under load. `keys`: look only at
+        these (those found missing before: counts only grow, so the others still have
+        arrived)."""
         own = self.bus.sent_counts
         matching = self._counting()
         offsets = self.offsets
         out = {}
         if keys is None:  # set operations in C: most keys of a Step are none of this bus's
-            keys = required.keys() - self._unmatched - own.keys()
+            keys = (required.keys() | own.keys()) - self._unmatched
         for key in keys:
-            if key in own:
-                continue
             got = self._received(matching, key)
             if got is None:
                 continue
-            gap = required[key] - got - offsets.get(key, 0)
+            need = own[key] if key in own else required[key]
+            gap = need - got - offsets.get(key, 0)
             if gap > 0:
                 out[key] = gap
         return out
@@ -221,7 +225,8 @@ class Books:
     def forgive(self, missing: dict[str, int], required: dict[str, int]) -> None:
         for key, gap in missing.items():
             before = self.offsets.get(key, 0)
-            self._forgiven[key] = (required[key], before)
+            if key in required:  # not so a key of its own nobody claimed: no claim to review
+                self._forgiven[key] = (required[key], before)
             self.offsets[key] = before + gap
             self.lost += gap
 
