@@ -126,7 +126,7 @@ with open_bus(BusOptions()) as bus:
             t0 = time.perf_counter()
         with cond:
             got[0] = 0
-        bus.publish(STEP, Step(0.02 * k, k + 1, {}, "bare-x0", 2.5))
+        bus.publish(STEP, Step(0.02 * k, k + 1, [], run="bare-x0", timeout=2.5))
         with cond:
             while got[0] < n:
                 if not cond.wait(10.0):

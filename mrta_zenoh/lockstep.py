@@ -10,10 +10,13 @@ The protocol (docs/architecture.md, "lockstep"):
   process died) is no longer waited for. An `@` key is matched by no wildcard, so observers
   (`echo '**'`, the recorder) neither see lockstep traffic nor take part in it.
 * After each physics step — sensor data published first, on the same link — the simulator
-  publishes `Step(stamp, step, sent)` reliably on `@mrta/lockstep/step`.
+  publishes `Step(stamp, step, counts, keys, base, table_crc)` reliably on
+  `@mrta/lockstep/step`: cumulative counts per key, by index in the run's key table
+  (`KeyTable`), of which it carries only the keys new since the previous step — the whole
+  table to a newcomer, and to a participant silent for REPORT_AFTER (one that missed keys).
 * A participant's time moves to `stamp` only once it has received every sample the other
-  participants had published before their last acknowledgement (`sent`: cumulative counts per
-  key, for the keys it subscribes to). That is what makes a broadcast from robot A, sent while
+  participants had published before their last acknowledgement (the counts, for the keys it
+  subscribes to). That is what makes a broadcast from robot A, sent while
   A handled step k, reach robot B before B handles step k+1, whatever the network's scheduling.
 * When the participant has nothing more to do at that time — its main loop would wait for a
   later time — it publishes `StepDone(participant, stamp, sent, next)` on
@@ -58,10 +61,15 @@ resumed or late participant answers at once instead of after the timeout.
 from __future__ import annotations
 
 import contextlib
+import itertools
 import logging
+import operator
 import threading
 import time
+import zlib
 from typing import Callable
+
+import msgspec
 
 from .clock import CEILING, EPSILON, SimClock, _printable, run_rate
 from .keys import CLOCK_SOURCE_TOKEN
@@ -101,9 +109,17 @@ def count_wait(timeout: float) -> float:
 
 @message("mrta_msgs/Step")
 class Step(Message):
+    """`counts[i]`: samples sent on the run's i-th key (`KeyTable`) before this step, for every
+    key of the table; `keys`: the table's keys from index `base` on — those new since the
+    previous step, or all of them (`base` 0) for a newcomer; `table_crc`: the whole table's
+    (a participant whose table differs waits for a whole one)."""
+
     stamp: Finite
     step: int
-    sent: dict[str, int]
+    counts: list[int]
+    keys: list[str] = []
+    base: int = 0
+    table_crc: int = 0
     run: str = ""                     # the simulator's run id (its barrier and clock tokens)
     timeout: Finite = DEFAULT_TIMEOUT  # the barrier's, wall seconds: participants' count_wait
 
@@ -153,6 +169,87 @@ class _Rejections:
             log.warning("lockstep: %s rejected (%d so far): %s", self.what, self.count, why)
 
 
+class KeyTable:
+    """The keys a run's claims count, in the order the simulator first claimed them.
+
+    A Step carries its claims as counts by index in this table, and only the keys new since the
+    previous step (issue #27: with 100 robots a Step named about 1,100 keys, and each of 100
+    participants decoded every name at every step). The table only grows within a run; `crc`
+    (zlib.crc32 of the keys, each ended by a newline) lets a participant check that its copy is
+    the simulator's: one that missed a step, or took a forged one, waits for a whole table —
+    the simulator sends one to a newcomer and to a participant silent for REPORT_AFTER."""
+
+    def __init__(self) -> None:
+        self.keys: list[str] = []
+        self.index: dict[str, int] = {}
+        self.crc = 0
+        self.generation = 0  # changes when keys are replaced, not only appended (Books)
+
+    def __len__(self) -> int:
+        return len(self.keys)
+
+    def add(self, keys) -> None:
+        """The simulator's side: append those of `keys` the table does not have (sorted)."""
+        self._append(sorted(keys - self.index.keys()))
+
+    def _append(self, new: list[str]) -> None:
+        n = len(self.keys)
+        self.keys.extend(new)
+        self.index.update(zip(new, range(n, n + len(new))))
+        if new:
+            self.crc = zlib.crc32(_joined(new), self.crc)
+
+    def take(self, step: "Step") -> str | None:
+        """A participant's side: make this table the one `step` counts by. None: done; "":
+        it cannot be known from this step (one carrying keys was missed, or this copy is not
+        the simulator's) — a whole table will come; otherwise why the step is malformed."""
+        base, keys, n = step.base, step.keys, len(self.keys)
+        if base < 0 or len(step.counts) != base + len(keys):
+            return f"it has {len(step.counts)} counts for {base} + {len(keys)} keys"
+        if base > n:
+            return ""
+        if base < n:  # a whole table (a newcomer's) or part of one: compared with this copy
+            keys = self.keys[:base] + keys
+            if keys[:n] != self.keys:  # not the same table: this copy was not the simulator's
+                return self._replace(keys, step.table_crc)
+            keys = keys[n:]
+        if len(set(keys)) != len(keys) or not self.index.keys().isdisjoint(keys):
+            return "its keys repeat"
+        if zlib.crc32(_joined(keys), self.crc) != step.table_crc:
+            return ""
+        self._append(keys)
+        return None
+
+    def _replace(self, keys: list[str], crc: int) -> str | None:
+        if len(set(keys)) != len(keys):
+            return "its keys repeat"
+        if zlib.crc32(_joined(keys)) != crc:
+            return ""
+        self.keys, self.index, self.crc = [], {}, 0
+        self._append(keys)
+        self.generation += 1
+        return None
+
+
+def _joined(keys: list[str]) -> bytes:
+    return "".join(k + "\n" for k in keys).encode()
+
+
+class Claims:
+    """What a step requires, by key: `counts[i]` samples on the table's i-th key."""
+
+    __slots__ = ("table", "counts")
+
+    def __init__(self, table: KeyTable, counts: list[int]) -> None:
+        self.table = table
+        short = len(table) - len(counts)
+        self.counts = counts + [0] * short if short > 0 else counts
+
+    def get(self, key: str) -> int | None:
+        i = self.table.index.get(key)
+        return None if i is None else self.counts[i]
+
+
 class Books:
     """What this process received of what the others say they sent, less what is known lost.
 
@@ -160,10 +257,15 @@ class Books:
     claim) would hold every later step for ever: `forgive` records it as an offset, so only the
     one step waits (at most count_wait), and the next ones count from there.
 
-    Which of this bus's subscriptions count a key is remembered per key (issue #27: a Step
-    names every key of the run — with 100 robots about a thousand — and matching each against
-    every subscription on every look cost an agent milliseconds per step); the memory is
-    dropped when the bus's subscriptions change, and bounded."""
+    Cost (issue #27). A step claims every key of the run — with 100 robots about 1,100 — and a
+    participant looks at its claims once per step; most keys are none of its subscriptions',
+    and of those that are (a teammate's broadcast, its log) few changed since the last step. A
+    loop over its few hundred keys in Python was half of a patrol agent's CPU with 100 agents on
+    2 cores (py-spy, GIL samples; caches are cold with 100 processes). So which subscriptions
+    count a key is worked out once per key (again when the bus's subscriptions change), and
+    which table indices each subscription counts once per table entry; claims and counts are
+    then compared per subscription in C (`map` and `compress` over the lists' and dicts' own
+    methods): Python sees only the keys that lag behind."""
 
     MEMO = 4 * MAX_KEYS  # keys remembered; beyond, the memory starts again
 
@@ -172,32 +274,46 @@ class Books:
         self.offsets: dict[str, int] = {}
         self._forgiven: dict[str, tuple[int, int]] = {}  # key → (claim forgiven, offset before)
         self.lost = 0
-        self._subs: tuple = ()                    # the counting subscriptions `_matching` is for
+        self._subs: tuple = ()                    # the counting subscriptions the memo is for
         self._matching: dict[str, tuple] = {}     # key → the counting subscriptions matching it
         self._unmatched: set[str] = set()         # keys of `_matching` no subscription counts
+        self._table: KeyTable | None = None       # the table `_indices` is for …
+        self._generation = -1                     # … in this generation
+        self._learned = 0                         # … up to this entry
+        self._indices: dict = {}                  # subscription → ([table index], [key])
 
-    def _counting(self) -> dict[str, tuple]:
-        """key → matching counting subscriptions, valid for the bus's subscriptions now."""
+    def _counting(self, table: KeyTable | None = None) -> dict[str, tuple]:
+        """key → matching counting subscriptions, valid for the bus's subscriptions now (and
+        `_indices` for `table`)."""
         subs = self.bus.counting_subscriptions()
         if subs != self._subs or len(self._matching) > self.MEMO:
             self._subs = subs
             self._matching = {}
             self._unmatched = set()
+            self._table = None
+        if table is not None and (table is not self._table or
+                                  table.generation != self._generation):
+            self._table, self._generation, self._learned = table, table.generation, 0
+            self._indices = {s: ([], []) for s in self._subs}
         return self._matching
 
-    def _received(self, matching: dict[str, tuple], key: str) -> int | None:
-        """Samples on `key` every subscription of this bus matching it has taken into account
-        (None: no subscription matches, nothing to wait for)."""
+    def _subs_of(self, matching: dict[str, tuple], key: str) -> tuple:
         subs = matching.get(key)
         if subs is None:
             subs = matching[key] = tuple(s for s in self._subs if _matches(s.key_expr, key))
             if not subs:
                 self._unmatched.add(key)
+        return subs
+
+    def _received(self, matching: dict[str, tuple], key: str) -> int | None:
+        """Samples on `key` every subscription of this bus matching it has taken into account
+        (None: no subscription matches, nothing to wait for)."""
+        subs = self._subs_of(matching, key)
         if not subs:
             return None
         return min(s.counts[key] for s in subs)
 
-    def missing(self, required: dict[str, int], keys=None) -> dict[str, int]:
+    def missing(self, required: Claims, keys=None) -> dict[str, int]:
         """Key → samples claimed that have not arrived (keys no subscription of this bus
         counts are never waited for). A key this bus publishes itself is waited for up to what
         it sent, heard back by its own subscriptions (a robot's ReportDue hearing its own
@@ -207,35 +323,66 @@ class Books:
         these (those found missing before: counts only grow, so the others still have
         arrived)."""
         own = self.bus.sent_counts
-        matching = self._counting()
+        matching = self._counting(required.table)
+        if keys is None:
+            keys = self._lagging(matching, required, own)
         offsets = self.offsets
         out = {}
-        if keys is None:  # set operations in C: most keys of a Step are none of this bus's
-            keys = (required.keys() | own.keys()) - self._unmatched
         for key in keys:
             got = self._received(matching, key)
-            if got is None:
+            need = own[key] if key in own else required.get(key)
+            if got is None or need is None:
                 continue
-            need = own[key] if key in own else required[key]
             gap = need - got - offsets.get(key, 0)
             if gap > 0:
                 out[key] = gap
         return out
 
-    def forgive(self, missing: dict[str, int], required: dict[str, int]) -> None:
+    def _lagging(self, matching: dict[str, tuple], required: Claims,
+                 own: dict[str, int]) -> set[str]:
+        """The keys that may lag: those some subscription has counted less of (plus its
+        offset) than claimed, found per subscription in C, and every key this bus sent that a
+        subscription of its own counts (its claim is what it sent: `missing` decides those one
+        by one). A superset of what is missing."""
+        table = required.table
+        if self._learned < len(table):
+            for i in range(self._learned, len(table)):
+                key = table.keys[i]
+                for s in self._subs_of(matching, key):
+                    indices, keys = self._indices[s]
+                    indices.append(i)
+                    keys.append(key)
+            self._learned = len(table)
+        if not own.keys() <= matching.keys():  # in C
+            for key in own.keys() - matching.keys():
+                self._subs_of(matching, key)
+        zeros = itertools.repeat(0)
+        counts, offsets = required.counts, self.offsets
+        out = set(own.keys() - self._unmatched)
+        for sub, (indices, keys) in self._indices.items():
+            claimed = map(counts.__getitem__, indices)
+            counted = map(sub.counts.get, keys, zeros)
+            if offsets:
+                counted = map(operator.add, counted, map(offsets.get, keys, zeros))
+            out.update(itertools.compress(keys, map(operator.gt, claimed, counted)))
+        return out
+
+    def forgive(self, missing: dict[str, int], required: Claims) -> None:
         for key, gap in missing.items():
             before = self.offsets.get(key, 0)
-            if key in required:  # not so a key of its own nobody claimed: no claim to review
-                self._forgiven[key] = (required[key], before)
+            claim = required.get(key)
+            if claim is not None:  # not so a key of its own nobody claimed: no claim to review
+                self._forgiven[key] = (claim, before)
             self.offsets[key] = before + gap
             self.lost += gap
 
-    def review(self, required: dict[str, int]) -> list[str]:
+    def review(self, required: Claims) -> list[str]:
         """Withdraw forgiveness a later, lower claim shows to have been forged (legitimate counts
         only grow within a run); the keys it was withdrawn for."""
         withdrawn = []
         for key, (claim, before) in list(self._forgiven.items()):
-            if key in required and required[key] < claim:
+            now = required.get(key)
+            if now is not None and now < claim:
                 self.offsets[key] = before
                 del self._forgiven[key]
                 withdrawn.append(key)
@@ -291,6 +438,8 @@ class LockstepClock(SimClock):
         self.step_rivals: set[str] = set()
         self._bus = None
         self._books: Books | None = None
+        self._table = KeyTable()              # the run's keys, as its steps name them
+        self.table_waits = 0                  # steps passed over while waiting for a whole table
         self._barriers: set[str] = set()      # runs whose barrier token lives
         self._step_no = 0
         self._step_budget = StepBudget(CEILING, wall)
@@ -348,6 +497,7 @@ class LockstepClock(SimClock):
                     # new run's first step comes: its sensor data, counted just before, would
                     # be lost from the books.
                     self._books.reset()
+                    self._table = KeyTable()
                     self.forgiven = 0
                     self._still_missing = None
         if retry is not None:
@@ -377,8 +527,8 @@ class LockstepClock(SimClock):
 
     def _judge(self, step: Step) -> str | None:
         """None: take it; "": a duplicate; otherwise why it is refused. Under self._cond."""
-        if len(step.sent) > MAX_KEYS:
-            return f"it counts {len(step.sent)} keys (at most {MAX_KEYS})"
+        if len(step.counts) > MAX_KEYS:
+            return f"it counts {len(step.counts)} keys (at most {MAX_KEYS})"
         if step.run != self.run:
             if step.run not in self._barriers:
                 return f"run {_printable(step.run)!r} holds no barrier token"
@@ -389,7 +539,12 @@ class LockstepClock(SimClock):
                                 _printable(step.run), _printable(self.run))
                 self._refused = step
                 return f"run {_printable(step.run)!r} while {_printable(self.run)!r} runs"
+            table = KeyTable()
+            why = self._take_table(table, step)
+            if why is not None:
+                return why
             self.run, self._step_no, self._new_run = step.run, step.step, True
+            self._table = table
             self._step_budget = StepBudget(run_rate(step.run) or CEILING, self._wall)
             return None
         pending = self._pending
@@ -405,20 +560,39 @@ class LockstepClock(SimClock):
         if beyond > EPSILON and not self._step_budget.spend(beyond):
             return (f"t={step.stamp:.3f} is beyond this participant's next (t={due:.3f}) by "
                     f"more than wall time allows")
-        self._step_no = step.step
-        return None
+        why = self._take_table(self._table, step)
+        if why is None:
+            self._step_no = step.step
+        return why
+
+    def _take_table(self, table: KeyTable, step: Step) -> str | None:
+        """The step's keys into `table` (KeyTable.take); a step that cannot be known yet is
+        passed over quietly (counted): a whole table comes to a newcomer, and to a participant
+        silent for REPORT_AFTER — the step itself again, which it then takes."""
+        why = table.take(step)
+        if why == "":
+            self.table_waits += 1
+            log.debug("lockstep: step %d passed over: waiting for the whole key table", step.step)
+        return why
 
     def _release(self) -> None:
         """Move time to the pending step once everything it requires has arrived (or is
         forgiven). If the main loop is already waiting for a later time, it has nothing to do
-        now: done at once. A new run restarts time: the main loop wakes and reschedules."""
+        now: done at once. A new run restarts time: the main loop wakes and reschedules.
+
+        Called for every sample counted: with no step pending (most samples, once a step is
+        released) it returns without taking the lock — a step that becomes pending after this
+        look is looked at by `_offer` itself, after this sample was counted."""
+        if self._pending is None:
+            return
         with self._cond:
             step = self._pending
             if step is None:
                 return
             books = self._books
-            withdrawn = books.review(step.sent)
-            missing = books.missing(step.sent, None if withdrawn else self._still_missing)
+            claims = Claims(self._table, step.counts)
+            withdrawn = books.review(claims)
+            missing = books.missing(claims, None if withdrawn else self._still_missing)
             self._still_missing = list(missing)
             if missing:
                 huge = any(gap > MAX_IN_FLIGHT for gap in missing.values())
@@ -429,7 +603,7 @@ class LockstepClock(SimClock):
                         self._timer.daemon = True
                         self._timer.start()
                     return
-                books.forgive(missing, step.sent)
+                books.forgive(missing, claims)
                 self.forgiven += 1  # told to the simulator in every StepDone (LockstepStatus)
                 log.warning("lockstep: %s: %d samples on %s never arrived by t=%.2f: forgiven",
                             _printable(self.participant), sum(missing.values()),
@@ -516,6 +690,9 @@ class Barrier:
         self._their_forgiven: dict[str, int] = {}  # participant → claims it forgave (StepDone)
         self._tell = False  # a participant forgave more: publish the status
         self.books = Books(bus)
+        self.table = KeyTable()  # the run's keys, as its steps name them
+        self._published = 0      # the table's length at the last step published
+        self._whole = True       # the next step carries the whole table (a newcomer appeared)
         self.dropped = _Rejections("StepDone")
         self._wall = wall
         self._cond = threading.Condition()
@@ -561,6 +738,7 @@ class Barrier:
                 if len(self.participants) < MAX_NAMES:
                     self.participants.add(name)
                     self._republish = True  # a newcomer (or a resumed one) gets the step at once
+                    self._whole = True      # with the whole key table, as the next one
                     if self._stamp is not None and name not in self.unresponsive and \
                             not self._answered(name, self._stamp):
                         self._waiting.add(name)
@@ -696,12 +874,29 @@ class Barrier:
                 self._due_at = due_at
             return self._due_at <= stamp + EPSILON
 
+    def claims(self) -> Claims:
+        """`sent()` by index in the run's key table (new keys appended)."""
+        required = self.sent()
+        table = self.table
+        table.add(required.keys())
+        return Claims(table, list(map(required.get, table.keys, itertools.repeat(0))))
+
     def publish(self, stamp: float) -> None:
         self.step += 1
-        step = Step(stamp, self.step, self.sent(), self.run, self.timeout)
+        counts = self.claims().counts
         with self._cond:
-            self._last, self._republish = step, False
+            base = 0 if self._whole else self._published
+            step = Step(stamp, self.step, counts, self.table.keys[base:], base, self.table.crc,
+                        self.run, self.timeout)
+            self._last, self._republish, self._whole = step, False, False
+            self._published = len(counts)
         self.bus.publish(STEP, step)
+
+    def _whole_step(self, step: Step) -> Step:
+        """`step` with the whole table it counts by (for a newcomer, or one that missed keys)."""
+        if step.base == 0:
+            return step
+        return msgspec.structs.replace(step, keys=self.table.keys[:len(step.counts)], base=0)
 
     def wait(self, stamp: float, stop: threading.Event) -> None:
         """Until every participant is done with `stamp` and its commands of that step have been
@@ -734,7 +929,7 @@ class Barrier:
                 step, republish = self._last, self._republish
                 self._republish = False
             if republish and step is not None:
-                self.bus.publish(STEP, step)
+                self.bus.publish(STEP, self._whole_step(step))
             with self._cond:
                 now = self._wall()
                 waiting = self._waiting  # (kept up to date by _on_done, under this lock)
@@ -743,7 +938,7 @@ class Barrier:
                     report = True
                     log.warning("lockstep: %s answers again",
                                 ", ".join(_printable(p) for p in sorted(back)))
-                required = self.sent()
+                required = self.claims()
                 self.books.review(required)
                 missing = self.books.missing(required)
                 if not waiting and answered_at is None:
@@ -764,6 +959,7 @@ class Barrier:
                     continue
                 if waiting and now >= self._report_at < deadline:
                     self._report_at = deadline  # once per step
+                    self._republish = True  # with the whole key table: it may have missed keys
                     log.warning("lockstep: %s did not finish t=%.2f within %.1f s; still waited "
                                 "for while it holds its participant token (given up after "
                                 "%.1f s)", ", ".join(_printable(p) for p in sorted(waiting)),

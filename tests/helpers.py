@@ -245,3 +245,17 @@ def wait_for(cond, timeout: float = 5.0, poll: float = 0.002) -> None:
     while not cond():
         assert time.monotonic() < deadline, "condition not met"
         time.sleep(poll)
+
+
+def claiming_step(stamp: float, step: int, sent: dict[str, int], run: str, timeout: float = 30.0,
+                  table=None):
+    """A lockstep Step (a forger's) claiming `sent` (key → count) with a whole key table: the
+    keys of `table` (the simulator's, copied) first, then those of `sent` it lacks."""
+    from mrta_zenoh.lockstep import KeyTable, Step
+
+    keys = KeyTable()
+    if table is not None:
+        keys._append(list(table.keys))  # in the simulator's order
+    keys.add(sent.keys())
+    return Step(stamp, step, [sent.get(k, 0) for k in keys.keys], list(keys.keys), 0, keys.crc,
+                run, timeout)

@@ -218,19 +218,19 @@ def test_a_participant_waits_for_its_own_samples_to_reach_its_own_subscriptions(
     """Zenoh hands a session's own samples to its subscribers on another thread: a robot's
     report heard back by its own ReportDue reached it a tick apart in two runs of one seed.
     The books now count what this bus sent on a key its own subscriptions count, as a claim."""
-    from mrta_zenoh.lockstep import Books
+    from mrta_zenoh.lockstep import Books, Claims, KeyTable
 
     net = InProcNetwork()
     bus, other = InProcBus(net), InProcBus(net)
     bus.subscribe("*/patrol/report", lambda s: None)
     bus.counting = True
-    books = Books(bus)
-    assert books.missing({}) == {}
+    books, none = Books(bus), Claims(KeyTable(), [])  # a step that claims nothing
+    assert books.missing(none) == {}
     bus.sent_counts["robot3/patrol/report"] += 1  # sent, not yet heard back
     bus.sent_counts["robot3/cmd_vel"] += 1        # sent, heard by no subscription of its own
-    assert books.missing({}) == {"robot3/patrol/report": 1}
+    assert books.missing(none) == {"robot3/patrol/report": 1}
     other.publish("robot3/patrol/report", Twist(0.0, 0.0))  # now it has come back
-    assert books.missing({}) == {}
-    assert books.missing({}, ["robot3/patrol/report"]) == {}
+    assert books.missing(none) == {}
+    assert books.missing(none, ["robot3/patrol/report"]) == {}
     bus.close()
     other.close()

@@ -11,10 +11,10 @@ from hypothesis import strategies as st
 from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
 from mrta_zenoh.clock import CEILING, RATE_MARGIN, SimClock, run_id, run_rate, run_speed
 from mrta_zenoh.keys import CLOCK_SOURCE_TOKEN
-from mrta_zenoh.lockstep import (DONE, NEXT_HORIZON, STEP, Barrier, LockstepClock, Step,
-                                 StepDone, count_wait)
+from mrta_zenoh.lockstep import (DONE, NEXT_HORIZON, STEP, Barrier, LockstepClock, StepDone,
+                                 count_wait)
 from mrta_zenoh.messages import Twist
-from tests.helpers import Wall, wait_for
+from tests.helpers import Wall, claiming_step, wait_for
 
 
 
@@ -36,27 +36,41 @@ class Fleet:
         self.forger = InProcBus(self.net)
         self.stop = threading.Event()
         self.ticks = []
+        self.extra = []
         self.thread = threading.Thread(target=self._loop, daemon=True)
         self.thread.start()
+        self.threads = [self.thread]
         self.sim_time = 0.0
         self.barrier.publish(0.0)
         self.barrier.wait(0.0, self.stop)
 
-    def _loop(self):
-        while not self.stop.is_set() and not self.clock.started.wait(0.01):
+    def _loop(self, clock=None, bus=None, name="robot1", ticks=None):
+        clock, bus = clock or self.clock, bus or self.agent_bus
+        ticks = self.ticks if ticks is None else ticks
+        while not self.stop.is_set() and not clock.started.wait(0.01):
             pass
-        epoch = self.clock.restarts
-        t = self.clock.now()
+        epoch = clock.restarts
+        t = clock.now()
         while not self.stop.is_set():
-            if self.clock.restarts != epoch:
-                epoch, t = self.clock.restarts, self.clock.now()
-            self.ticks.append(self.clock.now())
-            self.agent_bus.publish("robot1/cmd_vel", Twist(0.1, 0.0))
+            if clock.restarts != epoch:
+                epoch, t = clock.restarts, clock.now()
+            ticks.append(clock.now())
+            bus.publish(f"{name}/cmd_vel", Twist(0.1, 0.0))
             t += 0.1
-            if t <= self.clock.now() + 1e-9:  # fell behind (it was stopped): skip, no burst
-                t = self.clock.now() + 0.1
-            if not self.clock.sleep_until(round(t, 6), self.stop):
+            if t <= clock.now() + 1e-9:  # fell behind (it was stopped): skip, no burst
+                t = clock.now() + 0.1
+            if not clock.sleep_until(round(t, 6), self.stop):
                 return
+
+    def newcomer(self, name):
+        """A second participant joining now, ticking as the first does; its clock."""
+        bus = InProcBus(self.net)
+        clock = LockstepClock(name, wall=self.wall)
+        self.extra.append((clock.join(bus), bus))
+        thread = threading.Thread(target=self._loop, args=(clock, bus, name, []), daemon=True)
+        thread.start()
+        self.threads.append(thread)
+        return clock
 
     def advance(self, until):
         """The simulator's loop: 20 ms steps, stopping where the participant is due."""
@@ -68,13 +82,18 @@ class Fleet:
 
     def close(self):
         self.stop.set()
-        self.thread.join(2)
+        for thread in self.threads:
+            thread.join(2)
+        for stack, bus in self.extra:
+            stack.close()
+            bus.close()
         self.stack.close()
         self.barrier.close()
 
 
 def forged_step(fleet, stamp, step=10**6, run=None, sent=None):
-    fleet.forger.publish(STEP, Step(stamp, step, sent or {}, run or fleet.run))
+    fleet.forger.publish(STEP, claiming_step(stamp, step, sent or {}, run or fleet.run,
+                                             table=fleet.barrier.table))
 
 
 def test_a_run_id_names_its_speed_and_bounds_its_rate():
@@ -214,8 +233,8 @@ def test_counts_that_never_arrive_are_forgiven_once_after_count_wait():
         wait_for(lambda: f.clock._acked and f.clock.now() == 0.5)
         f.agent_bus.subscribe("robot2/report", lambda s: None, msg_type=Twist)
         # a step requiring 40 samples of robot2 that were lost on a link that went down
-        f.forger.publish(STEP, Step(0.6, f.barrier.step + 1, {"robot2/report": 40}, f.run,
-                                    2.5))
+        f.forger.publish(STEP, claiming_step(0.6, f.barrier.step + 1, {"robot2/report": 40},
+                                             f.run, 2.5, table=f.barrier.table))
         time.sleep(0.1)
         assert f.clock.now() == 0.5               # waited for...
         f.wall.t += count_wait(2.5) + 0.01
@@ -293,3 +312,51 @@ def test_no_sequence_of_samples_with_the_real_run_id_outruns_wall_time(samples, 
         wall.t += dt
         c.on_clock(stamp, run)
         assert c.now() <= c.max_jump + run_rate(run) * (wall.t - t0) + 1e-6
+
+
+def test_a_newcomer_passes_over_steps_until_it_has_the_whole_key_table():
+    """Steps carry only the keys new since the previous one (issue #27): a participant that
+    joins mid-run passes them over until the simulator, seeing its token, sends the whole
+    table — then counts by the same table as the simulator and runs in step."""
+    f = Fleet()
+    try:
+        f.advance(0.5)
+        for k in range(3):                        # keys the run claimed before robot2 came
+            f.sim_bus.publish(f"robot{k + 3}/odom", Twist(0.0, 0.0))
+        f.advance(1.0)
+        assert len(f.barrier.table) == 4
+        robot2 = f.newcomer("robot2")
+        wait_for(lambda: "robot2" in f.barrier.participants)
+        f.advance(2.0)
+        wait_for(lambda: robot2.now() == 2.0 and f.clock.now() == 2.0)
+        assert robot2._table.keys == f.barrier.table.keys[:len(robot2._table)]
+        assert "robot2/cmd_vel" in f.barrier.table.index and not f.barrier.unresponsive
+    finally:
+        f.close()
+
+
+def test_a_participant_whose_key_table_is_wrong_gets_the_whole_one_when_silent():
+    """A copy of the table that is not the simulator's (a step carrying keys missed, or a
+    forged one taken) fails the table's CRC: the participant passes the steps over, and the
+    simulator sends the whole table again once it has been silent for REPORT_AFTER."""
+    from mrta_zenoh.lockstep import REPORT_AFTER, KeyTable
+
+    f = Fleet(timeout=10.0)
+    try:
+        f.advance(0.5)
+        wait_for(lambda: f.clock.now() == 0.5 and f.clock._acked)
+        wrong = KeyTable()
+        wrong.add({"robot9/forged"})
+        with f.clock._cond:
+            f.clock._table = wrong
+        on = threading.Thread(target=f.advance, args=(1.0,), daemon=True)
+        on.start()
+        wait_for(lambda: f.clock.table_waits > 0)
+        assert f.clock.now() == 0.5                   # it cannot know what the step requires
+        f.wall.t += REPORT_AFTER + 0.01
+        wait_for(lambda: f.clock.now() == 1.0, timeout=10.0)
+        on.join(10)
+        assert f.clock._table.keys == f.barrier.table.keys[:len(f.clock._table)]
+        assert f.barrier.given_up == 0 and not f.barrier.unresponsive
+    finally:
+        f.close()

@@ -11,7 +11,7 @@ import pytest
 import yaml
 
 from mrta_zenoh.bus.inproc import InProcBus
-from mrta_zenoh.lockstep import Books
+from mrta_zenoh.lockstep import Books, Claims, KeyTable
 from mrta_zenoh.messages import Clock
 
 ROOT = Path(__file__).resolve().parent.parent
@@ -52,13 +52,15 @@ def test_books_memory_follows_the_subscriptions():
     """A key no subscription matched is waited for once a subscription that matches it comes."""
     with InProcBus() as bus:
         bus.counting = True
-        books = Books(bus)
+        books, table = Books(bus), KeyTable()
+        table.add({"robot2/clock"})
+        step = Claims(table, [3])
         bus.subscribe("robot1/clock", lambda s: None, msg_type=Clock)
-        assert books.missing({"robot2/clock": 3}) == {}
+        assert books.missing(step) == {}
         sub = bus.subscribe("*/clock", lambda s: None, msg_type=Clock)
-        assert books.missing({"robot2/clock": 3}) == {"robot2/clock": 3}
+        assert books.missing(step) == {"robot2/clock": 3}
         sub.close()
-        assert books.missing({"robot2/clock": 3}) == {}
+        assert books.missing(step) == {}
 
 
 @pytest.mark.multiprocess
