@@ -10,10 +10,11 @@ The protocol (docs/architecture.md, "lockstep"):
   process died) is no longer waited for. An `@` key is matched by no wildcard, so observers
   (`echo '**'`, the recorder) neither see lockstep traffic nor take part in it.
 * After each physics step — sensor data published first, on the same link — the simulator
-  publishes `Step(stamp, step, counts, keys, base, table_crc)` reliably on
+  publishes `Step(stamp, step, counts, keys, base, table_digest)` reliably on
   `@mrta/lockstep/step`: cumulative counts per key, by index in the run's key table
   (`KeyTable`), of which it carries only the keys new since the previous step — the whole
-  table to a newcomer, and to a participant silent for REPORT_AFTER (one that missed keys).
+  table to a newcomer, to a participant silent for REPORT_AFTER (one that missed keys), and
+  every REPORT_AFTER while one is given up; past MAX_KEYS keys a new table, sent whole.
 * A participant's time moves to `stamp` only once it has received every sample the other
   participants had published before their last acknowledgement (the counts, for the keys it
   subscribes to). That is what makes a broadcast from robot A, sent while
@@ -61,12 +62,12 @@ resumed or late participant answers at once instead of after the timeout.
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import itertools
 import logging
 import operator
 import threading
 import time
-import zlib
 from typing import Callable
 
 import msgspec
@@ -111,7 +112,7 @@ def count_wait(timeout: float) -> float:
 class Step(Message):
     """`counts[i]`: samples sent on the run's i-th key (`KeyTable`) before this step, for every
     key of the table; `keys`: the table's keys from index `base` on — those new since the
-    previous step, or all of them (`base` 0) for a newcomer; `table_crc`: the whole table's
+    previous step, or all of them (`base` 0) for a newcomer; `table_digest`: the whole table's
     (a participant whose table differs waits for a whole one)."""
 
     stamp: Finite
@@ -119,7 +120,7 @@ class Step(Message):
     counts: list[int]
     keys: list[str] = []
     base: int = 0
-    table_crc: int = 0
+    table_digest: bytes = b""
     run: str = ""                     # the simulator's run id (its barrier and clock tokens)
     timeout: Finite = DEFAULT_TIMEOUT  # the barrier's, wall seconds: participants' count_wait
 
@@ -174,15 +175,18 @@ class KeyTable:
 
     A Step carries its claims as counts by index in this table, and only the keys new since the
     previous step (issue #27: with 100 robots a Step named about 1,100 keys, and each of 100
-    participants decoded every name at every step). The table only grows within a run; `crc`
-    (zlib.crc32 of the keys, each ended by a newline) lets a participant check that its copy is
-    the simulator's: one that missed a step, or took a forged one, waits for a whole table —
-    the simulator sends one to a newcomer and to a participant silent for REPORT_AFTER."""
+    participants decoded every name at every step). The table only grows within a run (the
+    simulator starts a new one, sent whole, when it passes MAX_KEYS); `digest` (BLAKE2b of the
+    keys, each ended by a newline — a CRC would be forged by anybody) lets a participant check
+    that its copy is the simulator's: one that missed a step, or took a forged one, passes steps
+    over until a whole table comes — the simulator sends one to a newcomer, and to a
+    participant silent for REPORT_AFTER or given up."""
 
     def __init__(self) -> None:
         self.keys: list[str] = []
         self.index: dict[str, int] = {}
-        self.crc = 0
+        self._hash = hashlib.blake2b(digest_size=16)
+        self.digest = self._hash.digest()
         self.generation = 0  # changes when keys are replaced, not only appended (Books)
 
     def __len__(self) -> int:
@@ -192,12 +196,17 @@ class KeyTable:
         """The simulator's side: append those of `keys` the table does not have (sorted)."""
         self._append(sorted(keys - self.index.keys()))
 
-    def _append(self, new: list[str]) -> None:
+    def _append(self, new: list[str], hashed=None) -> None:
+        """Append `new`; `hashed`: the digest's state with them already in (take checked it)."""
+        if hashed is None:
+            if not new:
+                return
+            hashed = self._hash.copy()
+            hashed.update(_joined(new))
         n = len(self.keys)
         self.keys.extend(new)
         self.index.update(zip(new, range(n, n + len(new))))
-        if new:
-            self.crc = zlib.crc32(_joined(new), self.crc)
+        self._hash, self.digest = hashed, hashed.digest()
 
     def take(self, step: "Step") -> str | None:
         """A participant's side: make this table the one `step` counts by. None: done; "":
@@ -211,22 +220,27 @@ class KeyTable:
         if base < n:  # a whole table (a newcomer's) or part of one: compared with this copy
             keys = self.keys[:base] + keys
             if keys[:n] != self.keys:  # not the same table: this copy was not the simulator's
-                return self._replace(keys, step.table_crc)
+                return self._replace(keys, step.table_digest)
             keys = keys[n:]
+        if not keys:
+            return None if self.digest == step.table_digest else ""
         if len(set(keys)) != len(keys) or not self.index.keys().isdisjoint(keys):
             return "its keys repeat"
-        if zlib.crc32(_joined(keys), self.crc) != step.table_crc:
+        hashed = self._hash.copy()
+        hashed.update(_joined(keys))
+        if hashed.digest() != step.table_digest:
             return ""
-        self._append(keys)
+        self._append(keys, hashed)
         return None
 
-    def _replace(self, keys: list[str], crc: int) -> str | None:
+    def _replace(self, keys: list[str], digest: bytes) -> str | None:
         if len(set(keys)) != len(keys):
             return "its keys repeat"
-        if zlib.crc32(_joined(keys)) != crc:
+        hashed = hashlib.blake2b(_joined(keys), digest_size=16)
+        if hashed.digest() != digest:
             return ""
-        self.keys, self.index, self.crc = [], {}, 0
-        self._append(keys)
+        self.keys, self.index = [], {}
+        self._append(keys, hashed)
         self.generation += 1
         return None
 
@@ -418,8 +432,11 @@ class StepBudget:
         self._budget = min(self._budget + earned, max(STEP_BURST, earned))
         return self._budget
 
+    def affords(self, amount: float) -> bool:
+        return amount <= self._budget + EPSILON
+
     def spend(self, amount: float) -> bool:
-        if amount > self._budget + EPSILON:
+        if not self.affords(amount):
             return False
         self._budget = max(0.0, self._budget - amount)
         return True
@@ -557,11 +574,13 @@ class LockstepClock(SimClock):
         self._step_budget.refill()
         due = self._sleeping_until if self._sleeping_until is not None else self._now
         beyond = step.stamp - (max(due, self._now) + STEP_SLACK)
-        if beyond > EPSILON and not self._step_budget.spend(beyond):
+        if beyond > EPSILON and not self._step_budget.affords(beyond):
             return (f"t={step.stamp:.3f} is beyond this participant's next (t={due:.3f}) by "
                     f"more than wall time allows")
-        why = self._take_table(self._table, step)
+        why = self._take_table(self._table, step)  # a step passed over spends no budget
         if why is None:
+            if beyond > EPSILON:
+                self._step_budget.spend(beyond)
             self._step_no = step.step
         return why
 
@@ -693,6 +712,7 @@ class Barrier:
         self.table = KeyTable()  # the run's keys, as its steps name them
         self._published = 0      # the table's length at the last step published
         self._whole = True       # the next step carries the whole table (a newcomer appeared)
+        self._resend_at = 0.0    # wall time the whole table goes again to those given up
         self.dropped = _Rejections("StepDone")
         self._wall = wall
         self._cond = threading.Condition()
@@ -883,10 +903,15 @@ class Barrier:
 
     def publish(self, stamp: float) -> None:
         self.step += 1
+        if len(self.table) > MAX_KEYS:  # keys of participants gone (one that forged thousands):
+            self.table = KeyTable()     # a new table of the keys claimed now, sent whole
+            with self._cond:
+                self._whole = True
         counts = self.claims().counts
         with self._cond:
             base = 0 if self._whole else self._published
-            step = Step(stamp, self.step, counts, self.table.keys[base:], base, self.table.crc,
+            table = self.table
+            step = Step(stamp, self.step, counts, table.keys[base:], base, table.digest,
                         self.run, self.timeout)
             self._last, self._republish, self._whole = step, False, False
             self._published = len(counts)
@@ -964,6 +989,11 @@ class Barrier:
                                 "for while it holds its participant token (given up after "
                                 "%.1f s)", ", ".join(_printable(p) for p in sorted(waiting)),
                                 stamp, REPORT_AFTER, self.timeout)
+                if self.unresponsive and now >= self._resend_at:
+                    # one given up may be passing steps over for want of the table (it left
+                    # the waiting set, so the lines above no longer reach it)
+                    self._resend_at = now + REPORT_AFTER
+                    self._republish = True
                 if now >= deadline:
                     waiting, self._waiting = set(waiting), set()
                     self.unresponsive |= waiting

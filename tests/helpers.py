@@ -257,5 +257,5 @@ def claiming_step(stamp: float, step: int, sent: dict[str, int], run: str, timeo
     if table is not None:
         keys._append(list(table.keys))  # in the simulator's order
     keys.add(sent.keys())
-    return Step(stamp, step, [sent.get(k, 0) for k in keys.keys], list(keys.keys), 0, keys.crc,
+    return Step(stamp, step, [sent.get(k, 0) for k in keys.keys], list(keys.keys), 0, keys.digest,
                 run, timeout)

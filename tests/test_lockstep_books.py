@@ -105,12 +105,12 @@ def test_a_participants_key_table_is_the_simulators_whenever_it_takes_a_step(his
                 forged._append(list(mine.keys))
             forged.add({f"forged{next(fresh)}" for _ in range(extra)})
             assert mine.take(Step(0.0, 1, [0] * len(forged), list(forged.keys), 0,
-                                  forged.crc)) is None
+                                  forged.digest)) is None
             continue
         _, new, delivered, whole = event
         sim.add({f"k{next(fresh)}" for _ in range(new)})
         base = 0 if whole else published
-        step = Step(0.0, 1, list(range(len(sim))), sim.keys[base:], base, sim.crc)
+        step = Step(0.0, 1, list(range(len(sim))), sim.keys[base:], base, sim.digest)
         published = len(sim)
         if delivered:
             why = mine.take(step)
@@ -122,4 +122,4 @@ def test_a_step_whose_counts_and_keys_disagree_is_refused():
     table = KeyTable()
     assert "counts" in table.take(Step(0.0, 1, [1, 2], ["a"], 0, 0))
     table.add({"a"})
-    assert "repeat" in KeyTable().take(Step(0.0, 1, [1, 1], ["a", "a"], 0, table.crc))
+    assert "repeat" in KeyTable().take(Step(0.0, 1, [1, 1], ["a", "a"], 0, table.digest))

@@ -69,6 +69,7 @@ def test_a_slow_participant_is_waited_for_and_a_hung_one_makes_the_run_inexact(c
         barrier.publish(0.0)
         stepped = in_thread(lambda: barrier.wait(0.0, stop))
         wait_for(clock.started.is_set)           # the participant has step 0, and says nothing
+        wait_for(lambda: barrier._stamp is not None)  # the barrier waits: its clock started
         wall.t += REPORT_AFTER + 1.0              # the old timeout (2.5 s) is long past
         wait_for(lambda: "still waited for" in caplog.text)
         assert not stepped.is_set() and barrier.unresponsive == set()
@@ -79,6 +80,7 @@ def test_a_slow_participant_is_waited_for_and_a_hung_one_makes_the_run_inexact(c
         barrier.publish(0.1)
         stepped = in_thread(lambda: barrier.wait(0.1, stop))
         wait_for(answered.is_set)                 # it took step 0.1, then hangs (never answers)
+        wait_for(lambda: barrier._stamp is not None)
         wall.t += 31.0                            # past the 30 s timeout, its token alive
         wait_for(stepped.is_set)
         assert barrier.unresponsive == {"robot1"} and barrier.given_up == 1

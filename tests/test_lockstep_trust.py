@@ -337,7 +337,7 @@ def test_a_newcomer_passes_over_steps_until_it_has_the_whole_key_table():
 
 def test_a_participant_whose_key_table_is_wrong_gets_the_whole_one_when_silent():
     """A copy of the table that is not the simulator's (a step carrying keys missed, or a
-    forged one taken) fails the table's CRC: the participant passes the steps over, and the
+    forged one taken) fails the table's digest: the participant passes the steps over, and the
     simulator sends the whole table again once it has been silent for REPORT_AFTER."""
     from mrta_zenoh.lockstep import REPORT_AFTER, KeyTable
 
@@ -351,12 +351,41 @@ def test_a_participant_whose_key_table_is_wrong_gets_the_whole_one_when_silent()
             f.clock._table = wrong
         on = threading.Thread(target=f.advance, args=(1.0,), daemon=True)
         on.start()
-        wait_for(lambda: f.clock.table_waits > 0)
+        wait_for(lambda: f.clock.table_waits > 0 and f.barrier._stamp is not None)
         assert f.clock.now() == 0.5                   # it cannot know what the step requires
-        f.wall.t += REPORT_AFTER + 0.01
+        f.wall.t += REPORT_AFTER + 0.01               # (the barrier waits: its clock started)
         wait_for(lambda: f.clock.now() == 1.0, timeout=10.0)
         on.join(10)
         assert f.clock._table.keys == f.barrier.table.keys[:len(f.clock._table)]
         assert f.barrier.given_up == 0 and not f.barrier.unresponsive
+    finally:
+        f.close()
+
+
+def test_keys_of_participants_gone_leave_the_table_so_steps_stay_within_max_keys():
+    """A participant (a forger holding a token) that claims thousands of keys and leaves: the
+    simulator's table passes MAX_KEYS, and it starts a new one of the keys claimed now, sent
+    whole — instead of steps every participant refuses for the rest of the run."""
+    from mrta_zenoh.lockstep import MAX_KEYS, PARTICIPANT
+
+    f = Fleet()
+    try:
+        f.advance(0.5)
+        wait_for(lambda: f.clock.now() == 0.5 and f.clock._acked)
+        token = f.forger.declare_token(f"{PARTICIPANT}/ghost")
+        wait_for(lambda: "ghost" in f.barrier.participants)
+        f.forger.publish(f"{DONE}/ghost", StepDone("ghost", 0.5, {f"ghost/k{i}": 1 for i in
+                                                                  range(MAX_KEYS)}, 0.6, f.run))
+        wait_for(lambda: "ghost" in f.barrier.done)
+        f.barrier.claims()                        # the ghost's keys go into the table
+        assert len(f.barrier.table) > MAX_KEYS
+        token.close()
+        wait_for(lambda: "ghost" not in f.barrier.participants)
+        on = threading.Thread(target=f.advance, args=(1.0,), daemon=True)
+        on.start()
+        wait_for(lambda: f.clock.now() == 1.0, timeout=10.0)
+        on.join(10)
+        assert len(f.barrier.table) < 10 and f.clock._table.keys == f.barrier.table.keys
+        assert f.clock.rejected_steps.count == 0
     finally:
         f.close()
