@@ -62,7 +62,6 @@ resumed or late participant answers at once instead of after the timeout.
 from __future__ import annotations
 
 import contextlib
-import hashlib
 import itertools
 import logging
 import operator
@@ -71,6 +70,9 @@ import time
 from typing import Callable
 
 import msgspec
+# hashlib's own BLAKE2b, without hashlib: importing hashlib loads OpenSSL (_hashlib) into every
+# agent (tests/test_agent_imports.py)
+from _blake2 import blake2b
 
 from .clock import CEILING, EPSILON, SimClock, _printable, run_rate
 from .keys import CLOCK_SOURCE_TOKEN
@@ -185,7 +187,7 @@ class KeyTable:
     def __init__(self) -> None:
         self.keys: list[str] = []
         self.index: dict[str, int] = {}
-        self._hash = hashlib.blake2b(digest_size=16)
+        self._hash = blake2b(digest_size=16)
         self.digest = self._hash.digest()
         self.generation = 0  # changes when keys are replaced, not only appended (Books)
 
@@ -236,7 +238,7 @@ class KeyTable:
     def _replace(self, keys: list[str], digest: bytes) -> str | None:
         if len(set(keys)) != len(keys):
             return "its keys repeat"
-        hashed = hashlib.blake2b(_joined(keys), digest_size=16)
+        hashed = blake2b(_joined(keys), digest_size=16)
         if hashed.digest() != digest:
             return ""
         self.keys, self.index = [], {}
