@@ -252,14 +252,15 @@ def _joined(keys: list[str]) -> bytes:
 
 
 class Claims:
-    """What a step requires, by key: `counts[i]` samples on the table's i-th key."""
+    """What a step requires, by key: `counts[i]` samples on the table's i-th key. A step's
+    counts cover its table: the table changes only when a step is taken (which then is the one
+    pending) or when its run ends (emptied)."""
 
     __slots__ = ("table", "counts")
 
     def __init__(self, table: KeyTable, counts: list[int]) -> None:
         self.table = table
-        short = len(table) - len(counts)
-        self.counts = counts + [0] * short if short > 0 else counts
+        self.counts = counts
 
     def get(self, key: str) -> int | None:
         i = self.table.index.get(key)
@@ -588,8 +589,9 @@ class LockstepClock(SimClock):
 
     def _take_table(self, table: KeyTable, step: Step) -> str | None:
         """The step's keys into `table` (KeyTable.take); a step that cannot be known yet is
-        passed over quietly (counted): a whole table comes to a newcomer, and to a participant
-        silent for REPORT_AFTER — the step itself again, which it then takes."""
+        passed over quietly (counted): a whole table comes to a newcomer, to a participant
+        silent for REPORT_AFTER and to one given up — the step itself again, which it then
+        takes."""
         why = table.take(step)
         if why == "":
             self.table_waits += 1
@@ -712,7 +714,6 @@ class Barrier:
         self._tell = False  # a participant forgave more: publish the status
         self.books = Books(bus)
         self.table = KeyTable()  # the run's keys, as its steps name them
-        self._published = 0      # the table's length at the last step published
         self._whole = True       # the next step carries the whole table (a newcomer appeared)
         self._resend_at = 0.0    # wall time the whole table goes again to those given up
         self.dropped = _Rejections("StepDone")
@@ -911,12 +912,11 @@ class Barrier:
                 self._whole = True
         counts = self.claims().counts
         with self._cond:
-            base = 0 if self._whole else self._published
+            base = 0 if self._whole or self._last is None else len(self._last.counts)
             table = self.table
             step = Step(stamp, self.step, counts, table.keys[base:], base, table.digest,
                         self.run, self.timeout)
             self._last, self._republish, self._whole = step, False, False
-            self._published = len(counts)
         self.bus.publish(STEP, step)
 
     def _whole_step(self, step: Step) -> Step:
