@@ -13,6 +13,7 @@ simulator or a recorder for a robot.
 
 from __future__ import annotations
 
+import functools
 import re
 
 from .errors import ConfigError
@@ -120,22 +121,28 @@ def validate_key_expr(expr: str) -> str:
 def matches(expr: str, key: str) -> bool:
     """Does concrete `key` fall under key expression `expr` (`*` one chunk, `**` any number)?
 
-    As in Zenoh, a wildcard never matches a chunk that starts with `@` (a verbatim chunk)."""
-    return _match(expr.split("/"), key.split("/"))
+    As in Zenoh, a wildcard never matches a chunk that starts with `@` (a verbatim chunk).
+
+    Each expression is compiled once to a regular expression (issue #27: a lockstep agent
+    matches each of its subscriptions against the run's ≈ 1,100 keys when it learns them, and
+    a chunk-by-chunk match in Python made that most of an agent's first simulated second with
+    100 robots); tests/test_options.py checks it against the chunk-by-chunk rule."""
+    return _compiled(expr)(key + "/") is not None
 
 
-def _match(pat: list[str], parts: list[str]) -> bool:
-    if not pat:
-        return not parts
-    head = pat[0]
-    if head == "**":
-        return any(_match(pat[1:], parts[i:]) for i in range(len(parts) + 1)
-                   if not any(p.startswith("@") for p in parts[:i]))
-    if not parts:
-        return False
-    if (head == "*" and not parts[0].startswith("@")) or head == parts[0]:
-        return _match(pat[1:], parts[1:])
-    return False
+@functools.lru_cache(maxsize=4096)
+def _compiled(expr: str):
+    """`expr` as a regex over a key with a "/" appended, each chunk consuming itself and its
+    "/": `*` one chunk not starting with "@", `**` any number of those, others literally."""
+    parts = []
+    for chunk in expr.split("/"):
+        if chunk == "**":
+            parts.append(r"(?:(?!@)[^/]+/)*")
+        elif chunk == "*":
+            parts.append(r"(?!@)[^/]+/")
+        else:
+            parts.append(re.escape(chunk) + "/")
+    return re.compile("".join(parts), re.DOTALL).fullmatch
 
 
 def with_namespace(namespace: str, key: str) -> str:

@@ -1,4 +1,6 @@
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from mrta_zenoh.bus.options import BusOptions, check_endpoint, session_configs
 from mrta_zenoh.errors import ConfigError
@@ -67,6 +69,34 @@ def test_key_matching():
     assert matches("*/alliance/**", "robot1/alliance/motivation/wander")
     assert matches("robot1/**", "robot1")
     assert not matches("*/cmd_vel", "a/b/cmd_vel")
+    assert not matches("**", "@mrta/lockstep/step") and not matches("*/step", "@x/step")
+    assert matches("@mrta/**", "@mrta/lockstep/step")
+    assert matches("a.b/**/c", "a.b/x/y/c") and not matches("a.b/**/c", "aXb/c")
+
+
+def _chunk_match(pat: list[str], parts: list[str]) -> bool:
+    """The rule, chunk by chunk (matches() compiles it to a regex)."""
+    if not pat:
+        return not parts
+    head = pat[0]
+    if head == "**":
+        return any(_chunk_match(pat[1:], parts[i:]) for i in range(len(parts) + 1)
+                   if not any(p.startswith("@") for p in parts[:i]))
+    if not parts:
+        return False
+    if (head == "*" and not parts[0].startswith("@")) or head == parts[0]:
+        return _chunk_match(pat[1:], parts[1:])
+    return False
+
+
+_CHUNKS = st.sampled_from(["a", "b", "@a", "a.b", "(", "robot1", "x*y"])
+
+
+@settings(max_examples=300, derandomize=True, deadline=None)
+@given(st.lists(st.one_of(_CHUNKS, st.sampled_from(["*", "**"])), min_size=1, max_size=5),
+       st.lists(_CHUNKS, min_size=1, max_size=6))
+def test_key_matching_follows_the_chunk_rule(pat, parts):
+    assert matches("/".join(pat), "/".join(parts)) == _chunk_match(pat, parts)
 
 
 def test_robot_ids_are_normalised():
