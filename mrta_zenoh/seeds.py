@@ -7,7 +7,8 @@ robots exist or in which order processes start.
 
 A robot's stream is created on its first draw (`LazyGenerator`): numpy costs an agent process
 about 14 MB and 35 ms to import, and most plugins never draw (issue #27: an agent loads only
-what it uses). The numbers are the same as an eager generator's.
+what it uses). The numbers are the same as an eager generator's. A plugin that draws says so
+(`Plugin.draws`), and its stream is made at setup (`prepare`), before the run's first step.
 """
 
 from __future__ import annotations
@@ -52,3 +53,10 @@ class LazyGenerator:
 def robot_rng(seed: int, robot_id: str) -> "np.random.Generator":
     """Robot `robot_id`'s stream of run `seed` (created when first drawn from)."""
     return LazyGenerator(seed, robot_id)  # type: ignore[return-value]
+
+
+def prepare(rng: Any) -> None:
+    """Make a lazy stream now (a generator that is not lazy is left as it is): the import and
+    the seeding then happen at setup, not at the first draw inside a tick."""
+    if isinstance(rng, LazyGenerator):
+        rng.generator

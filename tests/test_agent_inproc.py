@@ -120,3 +120,24 @@ def test_absurd_expected_durations_are_refused_and_counted(tmp_path):
                 InterRobotCommunication(Header("robot2", clock.now(), 0), "a", 1e300))
     step(agent, bus, clock, 2)
     assert agent.refused == 1 and agent.coordinator.high.sets["a"].impatience == 5.0
+
+
+class DrawingLayer(DriveLayer):
+    draws = True
+
+
+def test_a_plugin_that_draws_gets_its_stream_at_setup_and_one_that_does_not_never(tmp_path):
+    """The robot's lazy stream is made at setup when a plugin says it draws (so numpy loads
+    before the run's first step, not inside a tick), and stays unmade when none does."""
+    from mrta_zenoh.seeds import robot_rng
+
+    for layer, made in (("DriveLayer", False), ("DrawingLayer", True)):
+        rf = write(tmp_path / "r.yaml", robot_yaml([{"task": "a", "fast": 25.0}], spin=10.0, broadcast=5.0,
+                                                    tau=1.0))
+        tf = write(tmp_path / "t.yaml", tasks_yaml(["a"], {"a": [f"tests.test_agent_inproc:{layer}"]}))
+        rng = robot_rng(3, "robot1")
+        agent = ALLIANCE.agent(ALLIANCE.prepare(AgentOptions("robot1", rf, tf)), InProcBus(),
+                               ManualClock(0.0), rng)
+        assert "not yet drawn" in repr(rng)
+        agent.start()
+        assert ("not yet drawn" not in repr(rng)) is made, layer

@@ -144,6 +144,7 @@ def avoid(view: SonarView, speed: float, safe: float, turn: float, state: dict,
 class Wander(_SonarLayer):
     params_section = "Wander"
     Params = WanderParams
+    draws = True  # its drift (the stream is made at setup: Plugin.draws)
 
     def on_activate(self, now: float) -> None:
         self.state: dict = {}
