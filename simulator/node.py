@@ -33,6 +33,12 @@ WORLD_EVERY = 50  # steps: the walls go out once a simulated second (a late view
 # Sensor periods between two bumper samples of a robot whose contact state did not change: a
 # bumper goes out when it changes and, as a heartbeat, every simulated second.
 BUMPER_EVERY = 10
+# In lockstep the clock is for observers only (participants move with steps and ignore it), so
+# it goes out once a sensor period and at every step where the barrier stops, not at every
+# physics step: 100 agents each took 50 clock samples a simulated second for nothing (5,000
+# Python callbacks, and as many deliveries by the router), about 17 % of what each heard
+# (issue #27). A free-running simulator still sends it every step: followers move with it.
+LOCKSTEP_CLOCK_EVERY = SENSOR_EVERY
 
 
 @dataclass
@@ -136,12 +142,14 @@ class SimNode:
                 break
             self._apply_commands()
             sim.step()
-            self.bus.publish(keys.CLOCK, Clock(sim.time, self.run_id), lossy=True)
+            stop_here = barrier is not None and barrier.due(sim.time)
+            if barrier is None or stop_here or sim.steps % LOCKSTEP_CLOCK_EVERY == 0:
+                self.bus.publish(keys.CLOCK, Clock(sim.time, self.run_id), lossy=True)
             if self.publish_sensors and sim.steps % SENSOR_EVERY == 0:
                 self.publish_all()
             if sim.steps % WORLD_EVERY == 0:
                 self.publish_world()
-            if barrier is not None and barrier.due(sim.time):
+            if stop_here:
                 barrier.publish(sim.time)
                 barrier.wait(sim.time, stop)
             # speed 0 ("as fast as possible") still stays under the followers' creep bound

@@ -319,3 +319,66 @@ def test_a_batch_on_zenoh_arrives_with_each_keys_encoding_and_is_counted():
         sub.close()
     with pytest.raises(MrtaRuntimeError):
         fresh.publish(payloads)
+
+
+def _clock_stamps(barrier_for=None, participant_every=None, duration=1.0):
+    """Stamps of the clock samples a SimNode sends in `duration` simulated seconds: free
+    running, or in lockstep with a participant that is due every `participant_every` s."""
+    from mrta_zenoh.bus.inproc import InProcNetwork
+    from mrta_zenoh.clock import run_id
+    from mrta_zenoh.lockstep import Barrier, LockstepClock
+    from mrta_zenoh.messages import Clock
+
+    net = InProcNetwork()
+    bus = InProcBus(net)
+    stamps = []
+    sub = bus.subscribe(keys.CLOCK, lambda s: stamps.append(s.message.stamp), msg_type=Clock)
+    stop = threading.Event()
+    node = SimNode(crowded(), bus, speed=0.0, publish_sensors=False)
+    barrier = stack = None
+    threads = []
+    if barrier_for is not None:
+        run = run_id(0.0)
+        barrier = Barrier(bus, run, 30.0)
+        source = bus.declare_token(f"{keys.CLOCK_SOURCE_TOKEN}/{run}")
+        agent_bus = InProcBus(net)
+        clock = LockstepClock("robot1")
+        stack = clock.join(agent_bus)
+
+        def loop():
+            clock.started.wait(10)
+            t = clock.now()
+            while not stop.is_set():
+                t = round(t + participant_every, 6)
+                if not clock.sleep_until(t, stop):
+                    return
+
+        threads.append(threading.Thread(target=loop, daemon=True))
+        threads[0].start()
+        barrier.settle(quiet=0.05, limit=1.0)
+    try:
+        node.run(stop, duration=duration, barrier=barrier)
+    finally:
+        stop.set()
+        for t in threads:
+            t.join(5)
+        if stack is not None:
+            stack.close()
+            barrier.close()
+            source.close()
+        node.close()
+        sub.close()
+    return [round(s, 6) for s in stamps]
+
+
+def test_a_lockstep_simulator_sends_the_clock_once_a_sensor_period_and_at_its_stops():
+    """In lockstep the clock is for observers (participants move with steps): it goes out at
+    each sensor period and wherever the barrier stops — here a participant due every 0.06 s —
+    not at every physics step, as a free-running simulator sends it."""
+    free = _clock_stamps()
+    assert free == [round(0.02 * k, 6) for k in range(0, 51)]
+    locked = _clock_stamps(barrier_for="robot1", participant_every=0.06)
+    stops = {round(0.06 * k, 6) for k in range(1, 17)}
+    periods = {round(0.1 * k, 6) for k in range(1, 11)}
+    assert set(locked) - {0.0} == periods | {s for s in stops if s <= 1.0 + 1e-9}
+    assert len(locked) < len(free) / 2
