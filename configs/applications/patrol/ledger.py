@@ -77,6 +77,36 @@ def _perimeter_distance(border: tuple[float, float, float, float], x: float, y: 
     return math.hypot(max(x0 - x, 0.0, x - x1), max(y0 - y, 0.0, y - y1))
 
 
+class CellGrid:
+    """Border cells bucketed on a grid of side 2 × reach, so that a position is compared with
+    the cells of the 3 × 3 buckets around it — every cell within `reach` is among them, with
+    room to spare for rounding — instead of with all of them (issue #27: a hall for 100 robots
+    has ≈ 250 cells, and the loop over them was most of an agent's odometry callback). The
+    distance test itself is the same, so the cells visited are exactly those of the loop over
+    every cell (tests/test_patrol_ledger_cells.py)."""
+
+    def __init__(self, cells: list[tuple[float, float]], reach: float) -> None:
+        self.reach = reach
+        self.side = 2.0 * reach
+        self.buckets: dict[tuple[int, int], list[tuple[int, float, float]]] = {}
+        for i, (cx, cy) in enumerate(cells):
+            self.buckets.setdefault(self._bucket(cx, cy), []).append((i, cx, cy))
+
+    def _bucket(self, x: float, y: float) -> tuple[int, int]:
+        return math.floor(x / self.side), math.floor(y / self.side)
+
+    def visit(self, mask: int, x: float, y: float) -> int:
+        """`mask` (bit i: cell i visited) with the cells within reach of (x, y) set."""
+        bx, by = self._bucket(x, y)
+        reach, buckets = self.reach, self.buckets
+        for gx in (bx - 1, bx, bx + 1):
+            for gy in (by - 1, by, by + 1):
+                for i, cx, cy in buckets.get((gx, gy), ()):
+                    if not mask >> i & 1 and math.hypot(cx - x, cy - y) <= reach:
+                        mask |= 1 << i
+        return mask
+
+
 class _Log(NamedTuple):
     """A teammate's log as merged: its stamp, distance, cells (bit i: cell i), task times and
     sequence number (counted from 1 by each agent process)."""
@@ -117,6 +147,7 @@ class PatrolLedger:
         self._publish_lock = threading.Lock()
         self.border = border
         self.cells = rectangle_cells(*border, self.CELL) if border is not None else []
+        self._near = CellGrid(self.cells, self.REACH)
         self._nbytes = (len(self.cells) + 7) // 8
         # this robot's own work
         self.distance = 0.0
@@ -197,11 +228,7 @@ class PatrolLedger:
                 self.distance += math.hypot(x - self._last_pos[0], y - self._last_pos[1])
             self._last_pos = (x, y)
             if self.border is not None and _perimeter_distance(self.border, x, y) <= self.REACH:
-                mask, reach = self.visited, self.REACH
-                for i, (cx, cy) in enumerate(self.cells):
-                    if not mask >> i & 1 and math.hypot(cx - x, cy - y) <= reach:
-                        mask |= 1 << i
-                self.visited = mask
+                self.visited = self._near.visit(self.visited, x, y)
             due = self._due(t)
         if due:
             self.publish_log(t)
