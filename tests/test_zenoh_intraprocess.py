@@ -1,0 +1,95 @@
+"""A process's own samples reach its own subscriptions in-process (ZenohBus, issue #27): before
+publish() returns, once each — never a second time from Zenoh — decoded and counted as samples
+from the network are; other sessions still get them over the network. Real sessions on
+loopback, in the test process."""
+
+import threading
+import time
+
+import pytest
+
+from mrta_zenoh import codec
+from mrta_zenoh.bus import BusOptions
+from mrta_zenoh.bus.zenoh_bus import ZenohBus
+from mrta_zenoh.messages import Twist
+from tests.helpers import free_port
+
+pytestmark = pytest.mark.multiprocess
+
+
+@pytest.fixture
+def pair():
+    port = free_port()
+    here = ZenohBus(BusOptions(listen=[f"tcp/127.0.0.1:{port}"]))
+    there = ZenohBus(BusOptions(connect=[f"tcp/127.0.0.1:{port}"], listen=["tcp/127.0.0.1:0"]))
+    try:
+        yield here, there
+    finally:
+        there.close()
+        here.close()
+
+
+def test_own_samples_are_handed_over_before_publish_returns_and_only_once(pair):
+    here, there = pair
+    here.counting = True
+    mine, wide, remote = [], [], threading.Event()
+    got_remote = []
+    here.subscribe("robot1/cmd_vel", lambda s: mine.append((s.message, threading.get_ident())),
+                   msg_type=Twist)
+    here.subscribe("robot1/**", lambda s: wide.append(s.key))
+    queue = here.subscribe("robot1/*", None)  # no handler: pulled with get()
+    there.subscribe("robot1/cmd_vel", lambda s: (got_remote.append(s.message), remote.set()),
+                    msg_type=Twist)
+    deadline = time.monotonic() + 10
+    while not remote.is_set():  # until `there`'s subscription has reached `here`
+        here.publish("robot1/cmd_vel", Twist(0.0, 0.0))
+        assert time.monotonic() < deadline, "the remote subscription never matched"
+        remote.wait(0.1)
+    mine.clear(), wide.clear()
+    while queue.get(0) is not None:  # the warm-up's
+        pass
+    before = len(got_remote)
+    counted = {s.key_expr: s.counts["robot1/cmd_vel"] for s in here.counting_subscriptions()}
+
+    here.publish("robot1/cmd_vel", Twist(0.5, 0.1))
+    assert mine == [(Twist(0.5, 0.1), threading.get_ident())]  # already, on this thread
+    assert wide == ["robot1/cmd_vel"]
+    here.publish_raw("robot1/cmd_vel", codec.encoding_for(Twist.TYPE_NAME),
+                     codec.encode(Twist(0.2, 0.0)))
+    batch = here.declare_batch(["robot1/cmd_vel", "robot2/cmd_vel"],
+                               [codec.encoding_for(Twist.TYPE_NAME)] * 2)
+    batch.publish([codec.encode(Twist(0.3, 0.0)), codec.encode(Twist(9.0, 0.0))])
+    batch.publish([codec.encode(Twist(9.0, 0.0)), codec.encode(Twist(0.4, 0.0))], rows=[1])
+    sent = [Twist(0.5, 0.1), Twist(0.2, 0.0), Twist(0.3, 0.0)]
+    assert [m for m, _ in mine] == sent
+    assert wide == ["robot1/cmd_vel"] * 3  # robot2's is none of its keys
+    # taken into account (lockstep's books) by the time publish returned, by each of them
+    assert {s.key_expr: s.counts["robot1/cmd_vel"] - counted[s.key_expr]
+            for s in here.counting_subscriptions()} == \
+        {"robot1/cmd_vel": 3, "robot1/**": 3, "robot1/*": 3}
+    time.sleep(0.5)  # Zenoh would have handed them over again by now
+    assert len(mine) == 3 and len(wide) == 3
+    assert [queue.get(0).message for _ in range(3)] == sent and queue.get(0) is None
+    deadline = time.monotonic() + 10
+    while len(got_remote) < before + 3 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert got_remote[before:] == sent
+
+
+def test_a_subscription_that_comes_or_goes_is_seen_at_the_next_publish(pair):
+    here, _ = pair
+    got = []
+    here.publish("robot1/cmd_vel", Twist(0.0, 0.0))  # remembered: nobody here hears it
+    sub = here.subscribe("robot1/cmd_vel", lambda s: got.append(s.message), msg_type=Twist)
+    here.publish("robot1/cmd_vel", Twist(1.0, 0.0))
+    sub.close()
+    here.publish("robot1/cmd_vel", Twist(2.0, 0.0))
+    assert got == [Twist(1.0, 0.0)]
+
+
+def test_a_malformed_own_sample_is_counted_and_dropped_like_a_remote_one(pair):
+    here, _ = pair
+    got = []
+    sub = here.subscribe("robot1/cmd_vel", lambda s: got.append(s), msg_type=Twist)
+    here.publish_raw("robot1/cmd_vel", codec.encoding_for(Twist.TYPE_NAME), b"\xc1not msgpack")
+    assert got == [] and sub.malformed == 1
