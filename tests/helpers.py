@@ -251,11 +251,11 @@ def claiming_step(stamp: float, step: int, sent: dict[str, int], run: str, timeo
                   table=None):
     """A lockstep Step (a forger's) claiming `sent` (key → count) with a whole key table: the
     keys of `table` (the simulator's, copied) first, then those of `sent` it lacks."""
-    from mrta_zenoh.lockstep import KeyTable, Step
+    from mrta_zenoh.lockstep import Claims, KeyTable, Step
 
     keys = KeyTable()
     if table is not None:
         keys._append(list(table.keys))  # in the simulator's order
     keys.add(sent.keys())
-    return Step(stamp, step, [sent.get(k, 0) for k in keys.keys], list(keys.keys), 0, keys.digest,
-                run, timeout)
+    counts = Claims(keys, [sent.get(k, 0) for k in keys.keys]).packed()
+    return Step(stamp, step, counts, list(keys.keys), 0, keys.digest, run, timeout)

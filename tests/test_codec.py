@@ -30,7 +30,7 @@ EXAMPLES = [
     Report(Header("robot3", 9.0, 1), 42.0, 0.5, (TaskTime("robot1", "wander", 12.5),)),
     PatrolLog(Header("robot2", 5.0, 3), 12.5, 208, bytes(26), (TaskTime("robot2", "wander", 4.0),)),
     Clock(3.25, "run-a"),
-    Step(12.5, 625, [40, 3], ["robot1/alliance/inter_robot_communication"], 1, bytes(16)),
+    Step(12.5, 625, bytes(range(16)), ["robot1/alliance/inter_robot_communication"], 1, bytes(16)),
     StepDone("robot1", 12.5, {"robot1/cmd_vel": 125}, 12.6),
     LockstepStatus(30.0, ("robot2",)),
     Segment(0.0, 0.0, 1.0, 2.0),

@@ -41,7 +41,7 @@ try:
     print(json.dumps({"ready": True}), flush=True)
     if mode == "step":
         pub = publisher("@mrta/lockstep/step")
-        pub.put(msgpack.packb({"stamp": 1e9, "step": 10**9, "counts": [], "run": run,
+        pub.put(msgpack.packb({"stamp": 1e9, "step": 10**9, "counts": b"", "run": run,
                                "timeout": 2.5}), encoding=zenoh.Encoding(ENC + "mrta_msgs/Step"))
     elif mode == "ghost":
         pub = publisher("@mrta/lockstep/done/ghost")
