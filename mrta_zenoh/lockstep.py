@@ -347,6 +347,7 @@ class Books:
         self._mask = 0                            # … as one integer
         # the claims of the step last taken: (table, generation, subscriptions, counts)
         self._settled: tuple | None = None
+        self._looked: tuple = ()                  # the subscriptions the last whole look was for
 
     def _counting(self, table: KeyTable | None = None) -> dict[str, tuple]:
         """key → matching counting subscriptions, valid for the bus's subscriptions now (and
@@ -414,6 +415,7 @@ class Books:
         subscription of its own counts (its claim is what it sent: `missing` decides those one
         by one). A superset of what is missing."""
         table = required.table
+        self._looked = self._subs
         if self._learned < len(table):
             words = self._words
             for i in range(self._learned, len(table)):
@@ -458,7 +460,7 @@ class Books:
     def settle(self, taken: Claims) -> None:
         """`taken`'s claims have all arrived or been forgiven (its step was taken): the next
         look compares with them (only what changed since can lag)."""
-        self._settled = (taken.table, taken.table.generation, self._subs, taken.counts)
+        self._settled = (taken.table, taken.table.generation, self._looked, taken.counts)
 
     def forgive(self, missing: dict[str, int], required: Claims) -> None:
         for key, gap in missing.items():

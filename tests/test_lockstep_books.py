@@ -162,3 +162,23 @@ def test_after_a_step_is_taken_a_claim_that_grows_is_still_waited_for():
         assert books.missing(claims(table, required)) == {}
         bus.subscribe("robot3/**", lambda s: None)  # counts nothing yet of robot3's log
         assert books.missing(claims(table, required)) == {"robot3/patrol/log": 9}
+
+
+def test_a_subscription_that_came_during_a_partial_look_is_looked_at_after_the_step():
+    """Found in review: a look at only the keys found missing before picked up a subscription
+    declared meanwhile, and settle() then vouched for it, so the next step compared only the
+    claims that changed and missed a key the new subscription lagged on (an agent's plugins
+    subscribe after its clock joined)."""
+    with InProcBus() as bus:
+        bus.counting = True
+        books, table = Books(bus), KeyTable()
+        odom = bus.subscribe("*/odom", lambda s: None)
+        required = {"robot1/odom": 1, "robot2/odom": 4}
+        odom.counts.update({"robot2/odom": 4})
+        pending = claims(table, required)
+        still = list(books.missing(pending))
+        bus.subscribe("robot2/**", lambda s: None)  # has counted nothing of robot2/odom
+        odom.counts["robot1/odom"] = 1
+        assert books.missing(pending, still) == {}
+        books.settle(pending)
+        assert books.missing(claims(table, required)) == {"robot2/odom": 4}

@@ -171,7 +171,10 @@ def test_stepdone_checks_are_exact():
         f.forger.publish(f"{DONE}/robot1", StepDone("robot2", 0.3, {}, 0.4, f.run))  # wrong key
         f.forger.publish(f"{DONE}/robot1", StepDone("robot1", 0.3, {}, 0.4, "other-x1"))
         f.forger.publish(f"{DONE}/robot1", StepDone("robot1", 99.0, {}, 100.0, f.run))  # future
-        assert f.barrier.dropped.count == before + 3
+        # a negative count: the claims are packed unsigned, so it would stop the simulator
+        f.forger.publish(f"{DONE}/robot1", StepDone("robot1", 0.3, {"robot1/cmd_vel": -1}, 0.4,
+                                                    f.run))
+        assert f.barrier.dropped.count == before + 4
         f.forger.publish(f"{DONE}/robot1", StepDone("robot1", 0.3, {}, 1e9, f.run))
         assert f.barrier.done["robot1"].next == 0.3 + NEXT_HORIZON  # clamped, not for ever
     finally:

@@ -93,3 +93,17 @@ def test_a_malformed_own_sample_is_counted_and_dropped_like_a_remote_one(pair):
     sub = here.subscribe("robot1/cmd_vel", lambda s: got.append(s), msg_type=Twist)
     here.publish_raw("robot1/cmd_vel", codec.encoding_for(Twist.TYPE_NAME), b"\xc1not msgpack")
     assert got == [] and sub.malformed == 1
+
+
+def test_what_a_subscriptions_hook_raises_reaches_neither_the_publisher_nor_the_others(pair):
+    here, _ = pair
+
+    def refuse(key, exc):
+        raise RuntimeError("a hook that fails")
+
+    first = here.subscribe("robot1/cmd_vel", lambda s: None, msg_type=Twist, on_error=refuse)
+    second = here.subscribe("robot1/cmd_vel", lambda s: None, msg_type=Twist)
+    errors = here.stats["handler_errors"]
+    here.publish_raw("robot1/cmd_vel", codec.encoding_for(Twist.TYPE_NAME), b"\xc1not msgpack")
+    assert first.malformed == 1 and second.malformed == 1
+    assert here.stats["handler_errors"] == errors + 1

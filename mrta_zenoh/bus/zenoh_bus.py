@@ -139,13 +139,19 @@ class ZenohBus(Bus):
                 self._own[key] = local
         return local
 
-    @staticmethod
-    def _hand_over(subs: tuple[Subscription, ...], key: str, encoding: str,
+    def _hand_over(self, subs: tuple[Subscription, ...], key: str, encoding: str,
                    payload: bytes) -> None:
         """The sample to this bus's own subscriptions, each as if it came from the network
-        (decoded afresh, counted, its handler or queue)."""
+        (decoded afresh, counted, its handler or queue). What a subscription's error or
+        counting hook raises is logged and counted, as Zenoh does on its callback thread: it
+        must neither reach the publisher nor keep the sample from the other subscriptions."""
         for sub in subs:
-            sub._dispatch(key, encoding, payload)
+            try:
+                sub._dispatch(key, encoding, payload)
+            except Exception:
+                self.stats.add("handler_errors")
+                log.exception("delivering %s to this process's subscription %s raised", key,
+                              sub.key_expr)
 
     def _subscriptions_changed(self) -> None:
         with self._local_lock:
