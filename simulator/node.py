@@ -34,10 +34,15 @@ WORLD_EVERY = 50  # steps: the walls go out once a simulated second (a late view
 # bumper goes out when it changes and, as a heartbeat, every simulated second.
 BUMPER_EVERY = 10
 # In lockstep the clock is for observers only (participants move with steps and ignore it), so
-# it goes out once a sensor period and at every step where the barrier stops, not at every
-# physics step: 100 agents each took 50 clock samples a simulated second for nothing (5,000
-# Python callbacks, and as many deliveries by the router), about 17 % of what each heard
-# (issue #27). A free-running simulator still sends it every step: followers move with it.
+# it goes out once a sensor period, at every step where the barrier stops and at the step after
+# it, not at every physics step: 100 agents each took 50 clock samples a simulated second for
+# nothing (5,000 Python callbacks, and as many deliveries by the router), about 17 % of what
+# each heard (issue #27). The step after a stop: a recorder on simulated time (SimLogTime) logs
+# a sample at the latest clock it has heard, and what the agents said at a stop can reach it
+# after the next clock — were that the next sensor period, a run's last words before its end
+# would be logged at the end and fall out of its message counts (two runs of one seed then
+# differed by 2 of 7,200 messages in CI), where the next physics step keeps them inside, as
+# before. A free-running simulator still sends it every step: followers move with it.
 LOCKSTEP_CLOCK_EVERY = SENSOR_EVERY
 
 
@@ -137,14 +142,16 @@ class SimNode:
             barrier.wait(sim.time, stop)
             self.bus.publish(keys.CLOCK, Clock(sim.time, self.run_id), lossy=True)
         wall0, sim0 = self._monotonic(), sim.time
+        stopped = barrier is not None  # the barrier stopped at the step before this one
         while not stop.is_set():
             if duration is not None and sim.time >= duration - EPSILON:
                 break
             self._apply_commands()
             sim.step()
             stop_here = barrier is not None and barrier.due(sim.time)
-            if barrier is None or stop_here or sim.steps % LOCKSTEP_CLOCK_EVERY == 0:
+            if barrier is None or stop_here or stopped or sim.steps % LOCKSTEP_CLOCK_EVERY == 0:
                 self.bus.publish(keys.CLOCK, Clock(sim.time, self.run_id), lossy=True)
+            stopped = stop_here
             if self.publish_sensors and sim.steps % SENSOR_EVERY == 0:
                 self.publish_all()
             if sim.steps % WORLD_EVERY == 0:
