@@ -1,0 +1,129 @@
+"""The ST-SR-TA problem every delivery-like mission poses, as planners and architectures read it:
+robots (start, speed, capabilities), point tasks (position, arrival, service time, capability,
+reward) and the travel-time model between any two of their points.
+
+Generic — no application, no architecture: the delivery application builds a `Problem` from its
+instance document; `central`, `ssi` and `cbba` plan on one; the mission's analysis evaluates the
+order robots actually served their tasks on one (`schedule.py`). Pure Python, no numpy: a
+robot's agent builds one at start, and an agent must stay small (numpy alone is ≈ 14 MB of RSS).
+
+Travel model: the robot-independent *distance* between points (straight lines in an open world,
+shortest paths around walls otherwise — `distances` is whatever the instance's world gives),
+divided by the robot's own speed. Points are indexed robots' starts first, then tasks, so
+`distance[i][n_robots + j]` is robot i's start to task j.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Callable, Sequence
+
+from ..errors import ConfigError
+
+Point = tuple[float, float]
+
+
+@dataclass(frozen=True)
+class Robot:
+    id: str
+    start: Point
+    speed: float                          # m/s: the speed it drives at (its commanded cap)
+    capabilities: frozenset[str] = frozenset()
+
+
+@dataclass(frozen=True)
+class Task:
+    id: str
+    position: Point
+    arrival: float = 0.0                  # s: when it appears (0: known from the start)
+    service: float = 0.0                  # s: how long a robot must stay at it
+    capability: str = ""                  # what a robot needs to serve it ("": nothing)
+    reward: float = 1.0                   # what serving it is worth (CBBA's score)
+
+
+def straight_line(a: Point, b: Point) -> float:
+    return math.hypot(b[0] - a[0], b[1] - a[1])
+
+
+@dataclass(frozen=True)
+class Problem:
+    """An instance as planners see it. `distance` is the (n_robots + n_tasks)² matrix of path
+    lengths between points (starts, then tasks), straight lines when not given."""
+
+    robots: tuple[Robot, ...]
+    tasks: tuple[Task, ...]
+    distance: tuple[tuple[float, ...], ...] = field(default=(), repr=False)
+
+    def __post_init__(self) -> None:
+        for what, items in (("robot", self.robots), ("task", self.tasks)):
+            seen: set[str] = set()
+            for x in items:
+                if x.id in seen:
+                    raise ConfigError(f"{what} id {x.id!r} appears twice in the instance")
+                seen.add(x.id)
+        for r in self.robots:
+            if not (math.isfinite(r.speed) and r.speed > 0):
+                raise ConfigError(f"robot {r.id}: speed must be a finite number > 0, "
+                                  f"got {r.speed!r}")
+        for t in self.tasks:
+            for name in ("arrival", "service"):
+                value = getattr(t, name)
+                if not (math.isfinite(value) and value >= 0):
+                    raise ConfigError(f"task {t.id}: {name} must be ≥ 0, got {value!r}")
+            if not math.isfinite(t.reward):
+                raise ConfigError(f"task {t.id}: reward must be a finite number, got {t.reward!r}")
+        n = len(self.robots) + len(self.tasks)
+        if not self.distance:
+            points = self.points
+            object.__setattr__(self, "distance", tuple(
+                tuple(straight_line(a, b) for b in points) for a in points))
+        elif len(self.distance) != n or any(len(row) != n for row in self.distance):
+            raise ConfigError(f"the distance matrix must be {n} × {n} (robots' starts, then "
+                              "tasks)")
+
+    @classmethod
+    def with_paths(cls, robots: Sequence[Robot], tasks: Sequence[Task],
+                   path: Callable[[Point, Point], float]) -> "Problem":
+        """A problem whose distances come from `path(a, b)` (e.g. shortest paths around walls)."""
+        points = [r.start for r in robots] + [t.position for t in tasks]
+        return cls(tuple(robots), tuple(tasks),
+                   tuple(tuple(path(a, b) for b in points) for a in points))
+
+    @property
+    def points(self) -> list[Point]:
+        return [r.start for r in self.robots] + [t.position for t in self.tasks]
+
+    @property
+    def online(self) -> bool:
+        """Whether some task arrives after the start."""
+        return any(t.arrival > 0 for t in self.tasks)
+
+    def robot_index(self, robot_id: str) -> int:
+        for i, r in enumerate(self.robots):
+            if r.id == robot_id:
+                return i
+        raise KeyError(robot_id)
+
+    def task_index(self, task_id: str) -> int:
+        for j, t in enumerate(self.tasks):
+            if t.id == task_id:
+                return j
+        raise KeyError(task_id)
+
+    def capable(self, i: int, j: int) -> bool:
+        need = self.tasks[j].capability
+        return not need or need in self.robots[i].capabilities
+
+    def travel(self, i: int, src: int | None, j: int) -> float:
+        """Robot i's travel time to task j from task `src` (None: from its start)."""
+        a = i if src is None else len(self.robots) + src
+        return self.distance[a][len(self.robots) + j] / self.robots[i].speed
+
+    def restricted(self, task_ids: Sequence[str]) -> "Problem":
+        """The same robots with only `task_ids` (in that order), distances kept: what a
+        planner re-solves when some tasks are done or not yet known."""
+        n = len(self.robots)
+        keep = list(range(n)) + [n + self.task_index(t) for t in task_ids]
+        return Problem(self.robots, tuple(self.tasks[k - n] for k in keep[n:]),
+                       tuple(tuple(self.distance[a][b] for b in keep) for a in keep))
