@@ -58,6 +58,7 @@ from .api import Refresh, attach
 from .ground_truth import intervals_from
 from .plots import TimeBase, plot_timeline, replay
 from .state import Supervisor
+from .tasks import TaskWatch
 from .summary import (SECTIONS, Coverage, FailureReport, MessageRates, Span, Summary,
                       write_summary)
 
@@ -99,6 +100,12 @@ class Mission:
         """Top-level sections of summary.json only this application has (SECTIONS: e.g. a
         point-task mission's `instance` and `allocation`, docs/delivery.md)."""
         return {}
+
+    def task_watch(self, run: "MissionRun") -> "TaskWatch | None":
+        """What tells the supervisor a task is done or not due yet (supervisor/tasks.py), so
+        that it raises no `task_unattended` for it. Default: none — every task always needs
+        a robot."""
+        return None
 
 
 @dataclass(frozen=True)
@@ -372,7 +379,7 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
         clock = SimClock()
         live.enter_context(follow_sim_clock(bus, clock))
         sup = Supervisor(run.arch_model, run.app, 0.0, unattended_after=30.0,
-                         duplicate_after=5.0)
+                         duplicate_after=5.0, watch=run.mission.task_watch(run))
         for h in attach(sup, bus, clock):
             live.callback(h.close)
         children = start_nodes(group, nodes)
