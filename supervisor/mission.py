@@ -56,7 +56,7 @@ from mrta_zenoh.yamlfile import did_you_mean
 
 from .api import Refresh, attach
 from .ground_truth import intervals_from
-from .plots import TimeBase, plot_timeline, replay
+from .plots import ROBOTS_TITLE, Panel, TimeBase, draw_timeline
 from .state import Supervisor
 from .tasks import TaskWatch
 from .summary import (SECTIONS, Coverage, FailureReport, MessageRates, Span, Summary,
@@ -450,7 +450,6 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
     output = run.options.output
     records = read_recording(output / "run.mcap")
     tb = TimeBase(records)
-    sup = replay(records, tb, run.app, run.arch_model)
     t0 = 0.0
     t1 = max((tb(t) for _, _, t, _ in records), default=run.options.duration)
     # what the robots did, from their own messages in simulated time (ground_truth.py) — not
@@ -460,8 +459,12 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
     failures = [(failure.robot, failed_at)] if failure and failure.kind == "crash" \
         and failed_at is not None else []
     intervals = intervals_from(records, run.arch, t1, run.arch.doing_stale_after, failures)
-    plot_timeline(output / "run.mcap", run.app, run.arch_model, output / "timeline.png",
-                  records, sup)
+    # the timeline draws the same ground truth: it agrees with the summary, and one seed gives
+    # one picture (a crash's time is exact in lockstep; the recorded liveliness is not)
+    draw_timeline(output / "timeline.png", run.app,
+                  [Panel(ROBOTS_TITLE, intervals,
+                         {r: [(at, run.options.duration)] for r, at in failures})],
+                  (t0, run.options.duration), tb.label)
     run.arch.plots(output / "run.mcap", run.robots, run.app.tasks(), output, records)
     who = {rid: [Span(t, round(a, 3), round(b, 3))
                  for t, a, b in sorted(intervals.get(rid, []), key=lambda x: x[1])]
