@@ -185,10 +185,12 @@ def draw_timeline(output: Path, app: Application, panels: list[Panel],
     tasks = sorted(set(app.tasks()) | {t for p in panels for iv in p.intervals.values()
                                        for t, _, _ in iv}, key=natural)
     colors = {t: plt.cm.tab10(i % 10) for i, t in enumerate(tasks)}
-    offline = any(s for p in panels for s in p.offline.values())
+    # a robot whose token goes as the run ends (every process stops) was not offline
+    offline = any(b > a for p in panels for s in p.offline.values() for a, b in s)
     rows = len(robots) * len(panels)
+    height = 1.3 + 0.6 * rows + 0.5 * (len(panels) - 1)  # inches: 0.3 of them for the legend
     fig, axes = plt.subplots(len(panels), 1, sharex=True, squeeze=False,
-                             figsize=(12, 1.0 + 0.6 * rows + 0.5 * (len(panels) - 1)), dpi=100)
+                             figsize=(12, height), dpi=100)
     try:
         for ax, panel in zip(axes[:, 0], panels):
             for row, rid in enumerate(robots):
@@ -211,10 +213,9 @@ def draw_timeline(output: Path, app: Application, panels: list[Panel],
                                          hatch="//"))
             labels.append("offline")
         fig.suptitle(f"{app.name}: which robot did which task when")
-        fig.tight_layout()
+        fig.tight_layout(rect=(0, 0.3 / height, 1, 1))
         fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 8), fontsize=8,
-                   bbox_to_anchor=(0.5, 0.0))
-        fig.subplots_adjust(bottom=0.22 if rows < 4 else 0.12)
+                   bbox_to_anchor=(0.5, 0.0), frameon=False)
         save_figure(fig, output)
     finally:
         plt.close(fig)
