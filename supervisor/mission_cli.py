@@ -22,7 +22,6 @@ from mrta_zenoh.cli.common import finite_float, verbosity
 
 from .cli import LiveScreen, quiet_alarms, state_line
 from .mission import MissionOptions, run_mission
-from .plots import natural
 from .summary import Summary
 from .view import render
 
@@ -168,7 +167,7 @@ def print_summary(console: Console, s: Summary, title: str, arch_title: str,
         else:
             console.print(f"  {f.robot} {what} at {f.killed_at} s; task {f.task} was not taken "
                           "over before the end", highlight=False)
-    for task, c in sorted(s.coverage.items(), key=lambda kv: natural(kv[0])):
+    for task, c in s.coverage.items():
         console.print(f"  {task}: exactly one robot {c.exactly_one:.0%}, none {c.none:.0%}, "
                       f"more than one {c.more_than_one:.0%}", highlight=False)
     for line in extra:
