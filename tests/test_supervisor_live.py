@@ -134,3 +134,21 @@ def test_a_resized_terminal_and_a_view_that_changes_shape_leave_nothing_stale(te
     assert sum("robots (Patrol, ALLIANCE)" in line for line in shown) == 1, "\n".join(shown)
     assert any("4.0 / 60 s" in line for line in shown)
     screen.close()
+
+
+def test_piped_demo_lines_come_at_each_tenth_simulated_second_with_the_alarms():
+    """Not on a terminal the demo prints a `t=` line at the first refresh past each 10th
+    simulated second — the README's "every 10 simulated seconds" — naming the alarms up (the
+    alarm log lines are off: the views name them)."""
+    from mrta_supervisor.mission_cli import _Lines
+
+    out = io.StringIO()
+    lines = _Lines(Console(file=out, width=200, color_system=None))
+    sup = supervisor_with_alarms()
+    for now in (0.4, 1.6, 11.8, 12.9, 22.5, 30.0, 39.9, 40.0, 41.0):
+        sup.update(now)
+        lines(now, sup, None, None)
+    shown = out.getvalue().splitlines()
+    assert [line.split("s ")[0] for line in shown] == \
+        ["t=  0.4", "t= 11.8", "t= 22.5", "t= 30.0", "t= 40.0"]
+    assert "alarms: task_unattended border_protection" in shown[-1]
