@@ -105,6 +105,8 @@ class Refresh:
     def __init__(self, sup: Supervisor, clock, sim_time: bool):
         self.sup, self.clock, self.sim_time = sup, clock, sim_time
         self._restarts = 0
+        if sim_time:
+            sup.source_gone = clock.ended
 
     def __call__(self) -> float:
         now = self.clock.now()

@@ -60,6 +60,9 @@ class Supervisor:
                  quiet: bool = False, unknown_expiry: float = 30.0, ros2_domain: int = 0,
                  watch: TaskWatch | None = None):
         self.arch, self.app, self.watch = arch, app, watch
+        # whether the simulation run's clock source is gone (set by api.Refresh on simulated
+        # time: SimClock.ended); a robot's token lost then is the run ending, not a fault
+        self.source_gone: Callable[[], bool] = lambda: False
         self.monitors = monitors_of(arch)
         self._timeouts = {m.role: m.topic.timeout for m in self.monitors}
         self.unattended_after = unattended_after
@@ -221,16 +224,18 @@ class Supervisor:
     def on_clock(self, stopped: bool, now: float, ended: bool = False) -> None:
         """The simulation clock stopped (or came back): robots are `unknown` meanwhile. A run
         that `ended` (its source is gone) raises nothing: the picture stays as it left it."""
-        stopped = stopped and not ended
         with self._lock:
-            if (stopped, ended) == (self.clock_stopped, self.run_ended):
-                return
-            self.clock_stopped, self.run_ended = stopped, ended
-            self._alarms.set("clock_stopped", "clock", stopped, now)
-            if ended:
-                self.history.add(StateChange(now, "run", "clock", "running", "ended"))
-            for r in self.robots.values():
-                self._reassess_robot(r, now)
+            self._clock(stopped and not ended, ended, now)
+
+    def _clock(self, stopped: bool, ended: bool, now: float) -> None:
+        if (stopped, ended) == (self.clock_stopped, self.run_ended):
+            return
+        self.clock_stopped, self.run_ended = stopped, ended
+        self._alarms.set("clock_stopped", "clock", stopped, now)
+        if ended:
+            self.history.add(StateChange(now, "run", "clock", "running", "ended"))
+        for r in self.robots.values():
+            self._reassess_robot(r, now)
 
     def on_lockstep(self, unresponsive: tuple[str, ...], now: float,
                     rivals: tuple[str, ...] = (), dropped: int = 0) -> None:
@@ -275,6 +280,10 @@ class Supervisor:
                 r.tokens.add(key)
                 r.ever_token = True
             else:
+                if not self.run_ended and self.source_gone():
+                    # the run's processes stop as it ends, its clock source first: seen now,
+                    # not at the next refresh, so that their going raises no alarm
+                    self._clock(False, True, now)
                 r.tokens.discard(key)
                 if not r.tokens:
                     # its messages can no longer be trusted to keep arriving: drop held states now
@@ -368,7 +377,10 @@ class Supervisor:
             self.history.add(StateChange(now, "robot", r.id, r.state, state))
             r.state, r.since = state, now
         if r.known and r.ever_token:
-            self._alarms.set("communication_lost", r.id, not r.tokens, now)
+            if r.tokens:
+                self._alarms.clear("communication_lost", r.id, now)
+            elif not self.run_ended:  # after the end of a run its processes stop: no fault
+                self._alarms.raise_("communication_lost", r.id, now)
         if r.busy.high:
             self._alarms.clear("messages_stopped", r.id, now)
 

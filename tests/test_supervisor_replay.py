@@ -22,16 +22,22 @@ NS = 1_000_000_000
 CLOCK_ENC = codec.encoding_for(Clock.TYPE_NAME)
 
 
-def recording(path, run: str, seconds: float, speed: float, simulated: bool, step=0.1):
+def recording(path, run: str, seconds: float, speed: float, simulated: bool, step=0.1,
+              robot: str | None = None):
     """A recording of `run`'s clock for `seconds` simulated, every `step`: in simulated time,
-    or in the wall time of a run at `speed`."""
+    or in the wall time of a run at `speed`; with `robot`, its agent's token from the start
+    to after the last clock (its process stopping as the run ends)."""
     log_time = SimLogTime(SimClock()) if simulated else None
     with McapRecorder(path, log_time=log_time) as rec:
+        if robot is not None:
+            rec.liveliness(f"{robot}/alliance/agent", True, 0)
         n = int(round(seconds / step))
         for i in range(n + 1):
             stamp = round(i * step, 6)
             t = stamp if simulated else stamp / speed
             rec.sample(CLOCK, CLOCK_ENC, codec.encode(Clock(stamp, run)), int(t * NS))
+        if robot is not None:
+            rec.liveliness(f"{robot}/alliance/agent", False, int(t * NS) + 1)
     return read_recording(path)
 
 
@@ -116,9 +122,10 @@ def test_a_replay_that_falls_behind_slips_instead_of_bursting(monkeypatch):
 def test_supervise_follows_a_fast_replay_to_its_end_and_stops_there(children, tmp_path):
     """`mrta replay --speed 4 --clock` of a recording made at speed 2 beside `mrta supervise
     --sim-time --duration N`: the supervisor's time reaches the recording's end, robots never
-    turn `unknown`, and the supervisor exits once the replay is over although N never passed."""
+    turn `unknown` nor raise `communication_lost` as the run ends, and the supervisor exits
+    once the replay is over although N never passed."""
     rec = tmp_path / "run.mcap"
-    recording(rec, "3f2a9c1b7d4e-x2", 40.0, 2.0, simulated=False)
+    recording(rec, "3f2a9c1b7d4e-x2", 40.0, 2.0, simulated=False, robot="robot1")
     sup = children.mrta("supervise", "patrol", "--sim-time", "--json", "--rate", "10",
                         "--duration", "1000", name="supervise")
     replay = children.mrta("replay", str(rec), "--speed", "4", "--clock", name="replay")
@@ -127,4 +134,8 @@ def test_supervise_follows_a_fast_replay_to_its_end_and_stops_there(children, tm
     snaps = [json.loads(x) for x in sup.stdout if x.startswith("{")]
     assert snaps and snaps[-1]["run_ended"] is True
     assert snaps[-1]["time"] == pytest.approx(40.0, abs=0.5)
-    assert not any(a["kind"] == "clock_stopped" for s in snaps for a in s["alarms"])
+    # robot1 was up all along: never `unknown`, and no alarm when its token went at the end
+    assert all(s["robots"][0]["state"] == "idle" for s in snaps if s["time"] > 1.0
+               and not s["run_ended"])
+    kinds = {a["kind"] for s in snaps for a in s["alarms"]}
+    assert not kinds & {"communication_lost", "clock_stopped"}, kinds  # (nobody did a task)

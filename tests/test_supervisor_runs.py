@@ -153,6 +153,10 @@ def test_the_end_of_a_run_raises_no_clock_stopped(patrol):
     snap = sup.snapshot(60.0)
     assert snap["alarms"] == [] and snap["run_ended"] is True
     assert snap["robots"][0]["state"] == "busy"
+    # the run's processes then stop: offline, but no communication_lost — it is over
+    sup.on_liveliness("robot1/alliance/agent", False, 60.0)
+    snap = sup.snapshot(60.0)
+    assert snap["robots"][0]["state"] == "offline" and snap["alarms"] == []
     # a simulator that hangs (its token alive) is a stopped clock, alarmed
     clock2 = SimClock(wall=wall)
     clock2.on_source("run-b-x2", True)
@@ -214,3 +218,20 @@ def test_elapsed_counts_across_a_new_run():
     assert e(130.0) == 30.0
     assert e(0.5) == 30.0  # time restarted: nothing counted backwards
     assert e(10.5) == 40.0
+
+
+def test_robots_going_right_after_the_clock_source_raise_no_alarm(patrol):
+    """A replay (or a launch) ends: the clock source's token goes, then at once the robots'
+    — before the next refresh. The supervisor sees the run's end with the first of them."""
+    app, arch = patrol
+    clock = SimClock(wall=FakeWall())
+    clock.on_source("run-a-x4", True)
+    clock.on_clock(40.0, "run-a-x4")
+    sup = Supervisor(arch, app, 40.0)
+    Refresh(sup, clock, sim_time=True)()
+    sup.on_liveliness("robot1/alliance/agent", True, 40.0)
+    clock.on_source("run-a-x4", False)
+    sup.on_liveliness("robot1/alliance/agent", False, 40.0)  # no refresh in between
+    snap = sup.snapshot(40.0)
+    assert snap["run_ended"] and snap["alarms"] == []
+    assert snap["robots"][0]["state"] == "offline"
