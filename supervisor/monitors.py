@@ -1,6 +1,14 @@
 """The supervisor's monitors, read from the architecture file (rqt_mrta's `busy_robots`,
 `idle_robots`, `incoming_tasks`, `allocated_tasks` topics): which key expression, message type
-and field each role reads."""
+and field each role reads, and what the field's value means:
+
+* `busy_robots` / `idle_robots`: a robot id; it holds that state for the topic's `timeout`.
+* `incoming_tasks`: a task id waiting for a robot.
+* `allocated_tasks`: a task id; its robot is the `busy_robots` value of the same sample when
+  both monitors read the same key expression (ALLIANCE's broadcast carries both), otherwise
+  the first chunk of the sample's key (`robot1/…`).
+* Architecture names in the ROS form (`/alliance/x`) become `**/alliance/x`.
+"""
 
 from __future__ import annotations
 

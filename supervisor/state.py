@@ -1,33 +1,24 @@
 """What the supervisor knows: robots Idle / Busy / Offline, tasks and allocations, alarms.
 
-Everything comes from the architecture file's monitors (key expression, type, field path,
-timeout; monitors.py), so nothing here knows ALLIANCE: another architecture with other keys,
-fields and types works unchanged. The rules:
+Everything comes from the architecture file's monitors (monitors.py: what each role's field
+means), so nothing here knows ALLIANCE: another architecture with other keys, fields and types
+works unchanged. Samples are checked before they change anything (intake.py); ids outside the
+application are reported, never shown as robots or tasks (strangers.py); alarms and the
+lockstep simulator's reports: alarms.py.
 
-* `busy_robots` / `idle_robots`: the field's value is a robot id; it holds that state for `timeout`.
-* `incoming_tasks`: the field's value is a task id waiting for a robot.
-* `allocated_tasks`: the field's value is a task id; its robot is the `busy_robots` value of the
-  same sample when both monitors read the same key expression (ALLIANCE's broadcast carries both),
-  otherwise the first chunk of the sample's key (`robot1/…`).
 * Offline comes from liveliness: a robot is online while any token under `<robot_id>/**` exists.
   A robot that never declared a token (an architecture without liveliness) counts as online
   while any of its monitors is high. A robot driven through ROS 2 is also offline when its
   driver or its bridge is gone (drivers.py).
 * A task the application says is done, or not due yet (its mission hook's TaskWatch,
   tasks.py), is `done` / `waiting` and raises no `task_unattended` alarm.
-
-Samples are checked before they change anything (intake.py); ids outside the application are
-reported, never shown as robots or tasks (strangers.py); alarms and the lockstep simulator's
-reports: alarms.py. On simulation time:
-* while the clock is stopped (`clock_stopped` alarm) robots are shown `unknown`: their held
-  states are stale, not busy;
-* once the run has ended (its clock source's token is gone: the simulator exited) the picture
-  stays as the run left it, with no alarm: a run that ends is no fault;
-* a new run (a restarted simulator; time starts again) starts the picture afresh — as a
-  supervisor started at that moment would see it — keeping only what still holds: the
-  liveliness tokens and the ROS 2 graph.
+* On simulation time, while the clock is stopped (`clock_stopped`) robots are `unknown`: their
+  held states are stale, not busy. Once the run has ended (its clock source's token is gone:
+  the simulator exited) the picture stays as the run left it, with no alarm — its processes
+  stopping then is no fault either. A new run (a restarted simulator) starts the picture
+  afresh, as a supervisor started at that moment would see it, keeping only what still holds:
+  the liveliness tokens and the ROS 2 graph.
 """
-
 from __future__ import annotations
 
 import logging
@@ -88,8 +79,7 @@ class Supervisor:
             rid = keys.normalize_robot_id(r.id)
             self.robots[rid] = self._robot(rid, now)
         for t in app.tasks():
-            self.tasks[t] = TaskInfo(t, True, SampleHolder(self._timeouts.get("incoming_tasks", 1.0)),
-                                     since=now)
+            self.tasks[t] = self._task(t, now)
         self._schedule(now)
 
     def _fresh(self, now: float) -> None:
@@ -106,6 +96,10 @@ class Supervisor:
         return RobotInfo(rid, True, SampleHolder(self._timeouts.get("busy_robots", 1.0)),
                          SampleHolder(self._timeouts.get("idle_robots", 1.0)),
                          state="offline", since=now)
+
+    def _task(self, tid: str, now: float) -> TaskInfo:
+        return TaskInfo(tid, True, SampleHolder(self._timeouts.get("incoming_tasks", 1.0)),
+                        since=now)
 
     def _schedule(self, now: float) -> None:
         for status in self.watch.schedule() if self.watch is not None else ():
@@ -262,8 +256,7 @@ class Supervisor:
                 self.drivers.reassess(r, now)
                 self._reassess_robot(r, now)
             for tid in self.tasks:
-                self.tasks[tid] = TaskInfo(tid, True, SampleHolder(
-                    self._timeouts.get("incoming_tasks", 1.0)), since=now)
+                self.tasks[tid] = self._task(tid, now)
             self._schedule(now)
             for t in self.tasks.values():
                 self._reassess_task(t, now)
