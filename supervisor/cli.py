@@ -135,8 +135,9 @@ class LiveScreen:
     `top` does: a resized terminal or a view that grows or narrows leaves nothing stale (drawn
     in place, rich moves the cursor up by the height it last drew, which a terminal that
     rewrapped the old lines, or any line written meanwhile, makes wrong — stale headers piled
-    up). Log lines written while it shows would land across it, so they are held and shown in
-    the view's last lines instead (`logs`), then written out in full once it is gone; the
+    up). Once it is gone its last picture is printed, as an in-place view would have left it.
+    Log lines written while it shows would land across it, so they are held and shown in
+    the view's last lines instead, then written out in full once it is gone; the
     supervisor's own alarm lines are not written at all — the view shows the alarms.
     The screen is taken at the first frame, so that nothing is drawn for an application that
     does not load; log lines are held, and alarm lines off, from the start."""
@@ -146,6 +147,7 @@ class LiveScreen:
     def __init__(self, console: Console):
         self.console = console
         self.live: Live | None = None
+        self.last = None
         self.held: list[str] = []
         self._stack = contextlib.ExitStack()
         self._stack.enter_context(quiet_alarms())
@@ -157,6 +159,7 @@ class LiveScreen:
                              redirect_stdout=False, redirect_stderr=False)
             self.live.start()
         logs = [Text(visible(line), style="dim") for line in self.held[-self.KEEP:]]
+        self.last = renderable
         self.live.update(Group(renderable, *logs), refresh=True)
 
     def __enter__(self) -> "LiveScreen":
@@ -169,6 +172,7 @@ class LiveScreen:
         if self.live is not None:
             self.live.stop()
             self.live = None
+            self.console.print(self.last)  # the last picture stays on the terminal
         self._stack.close()
         for line in self.held:
             self.console.print(Text(line), highlight=False, markup=False)

@@ -115,6 +115,7 @@ def test_log_lines_and_alarms_do_not_land_across_the_view(terminal):
     # once the view is gone every held line is written out, and the alarms were not logged
     assert sum("a line while the view runs" in line for line in after) == 5
     assert not any("alarm:" in line for line in after)
+    assert sum(HEADER in line for line in after) == 1  # the last picture stays, once
 
 
 def test_a_resized_terminal_and_a_view_that_changes_shape_leave_nothing_stale(terminal):
