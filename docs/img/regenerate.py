@@ -8,8 +8,11 @@ in a scratch folder and copies its pictures here:
     timeline.png                               → demo_timeline.png
     motivation_robot3_border_protection.png    → demo_motivation_robot3_border_protection.png
 
-One seed gives one run, so the pictures change only when the code's behaviour does. Run it after
-a change that alters what the demo does or draws, and commit the pictures it reports changed.
+One seed gives one run: the world and the timeline change only when the code's behaviour does
+(they are the same, byte for byte, at any --speed). The motivation panels are drawn on the
+recording's log times (ALLIANCE's plots), which follow the recorder's hearing: they may differ
+in small details from one run to the next. Run it after a change that alters what the demo
+does or draws, and commit the pictures.
 """
 
 from __future__ import annotations
