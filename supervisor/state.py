@@ -31,7 +31,7 @@ from mrta_zenoh.toolchain.model import Application, Architecture
 
 from .alarms import Alarms, LockstepAlarms
 from .drivers import Ros2Drivers
-from .entities import RobotInfo, TaskInfo
+from .entities import Allocations, RobotInfo, TaskInfo
 from .holders import History, SampleHolder, StateChange
 from .intake import Ids, Intake
 from .monitors import ROLES, Monitor, group_reader, monitors_of  # noqa: F401 (the public names)
@@ -84,13 +84,11 @@ class Supervisor:
 
     def _fresh(self, now: float) -> None:
         """What a run starts without: allocations, the clock's and lockstep's word."""
-        self.allocations: dict[tuple[str, str], SampleHolder] = {}
+        self.held = Allocations(self._timeouts.get("allocated_tasks", 1.0))
         self.clock_stopped = False
         self.run_ended = False
         self._dup_since: dict[str, float] = {}
         self.lockstep = LockstepAlarms(self._alarms, MAX_UNKNOWN, MAX_NAME)
-        self._robot_alloc: dict[str, set[str]] = {}  # robot → tasks whose holder is high
-        self._task_alloc: dict[str, set[str]] = {}   # task → robots whose holder is high
 
     def _robot(self, rid: str, now: float) -> RobotInfo:
         return RobotInfo(rid, True, SampleHolder(self._timeouts.get("busy_robots", 1.0)),
@@ -117,6 +115,10 @@ class Supervisor:
     @property
     def alarms(self) -> dict[tuple[str, str], float]:
         return self._alarms.up
+
+    @property
+    def allocations(self) -> dict[tuple[str, str], SampleHolder]:
+        return self.held.holders
 
     @property
     def unknown(self) -> dict[tuple[str, str], float]:
@@ -185,13 +187,8 @@ class Supervisor:
         if tid not in self.tasks:
             self.strangers.heard("task", tid, now)
             return None
-        holder = self.allocations.get((tid, rid))
-        if holder is None:
-            holder = SampleHolder(self._timeouts["allocated_tasks"])
-            self.allocations[(tid, rid)] = holder
-        if holder.sample(now, tid):
-            self._robot_alloc.setdefault(rid, set()).add(tid)
-            self._task_alloc.setdefault(tid, set()).add(rid)
+        holder, rose = self.held.sample(tid, rid, now)
+        if rose:
             self._reassess_robot(self.robots[rid], now)
             self._reassess_task(self.tasks[tid], now)
         return holder
@@ -282,9 +279,7 @@ class Supervisor:
                     # its messages can no longer be trusted to keep arriving: drop held states now
                     r.busy.drop()
                     r.idle.drop()
-                    for tid in list(self._robot_alloc.get(r.id, ())):
-                        self.allocations[(tid, r.id)].drop()
-                        self._unallocate(tid, r.id)
+                    for tid in self.held.drop_robot(r.id):
                         self._reassess_task(self.tasks[tid], now)
             self._reassess_robot(r, now)
 
@@ -320,11 +315,9 @@ class Supervisor:
                     changed_robots.add(r.id)
                 if fell_busy and not r.ever_token and r.known:
                     self._alarms.raise_("messages_stopped", r.id, now)
-            for (tid, robot), h in self.allocations.items():
-                if h.update(now):
-                    self._unallocate(tid, robot)
-                    changed_tasks.add(tid)
-                    changed_robots.add(robot)
+            for tid, robot in self.held.update(now):
+                changed_tasks.add(tid)
+                changed_robots.add(robot)
             for t in self.tasks.values():
                 if t.incoming.update(now):
                     changed_tasks.add(t.id)
@@ -347,14 +340,7 @@ class Supervisor:
             return True
         if r.ever_token:
             return False
-        return r.busy.high or r.idle.high or self._robot_tasks(r.id) != []
-
-    def _robot_tasks(self, rid: str) -> list[str]:
-        return sorted(self._robot_alloc.get(rid, ()))
-
-    def _unallocate(self, tid: str, rid: str) -> None:
-        self._robot_alloc.get(rid, set()).discard(tid)
-        self._task_alloc.get(tid, set()).discard(rid)
+        return r.busy.high or r.idle.high or self.held.tasks_of(r.id) != []
 
     def _reassess_robot(self, r: RobotInfo, now: float) -> None:
         online = self._online(r)
@@ -362,7 +348,7 @@ class Supervisor:
             state = "unknown"
         elif not online:
             state = "offline"
-        elif r.busy.high or self._robot_tasks(r.id):
+        elif r.busy.high or self.held.tasks_of(r.id):
             state = "busy"
         else:
             state = "idle"
@@ -378,7 +364,7 @@ class Supervisor:
             self._alarms.clear("messages_stopped", r.id, now)
 
     def _reassess_task(self, t: TaskInfo, now: float) -> None:
-        robots = tuple(sorted(self._task_alloc.get(t.id, ())))
+        robots = self.held.robots_on(t.id)
         state = ("allocated" if robots else t.status if t.status is not None
                  else "incoming" if t.incoming.high else "unallocated")
         if robots != t.robots:
@@ -414,7 +400,7 @@ class Supervisor:
             robots = []
             order = {rid: i for i, rid in enumerate(self.robots)}  # application order first
             for r in sorted(self.robots.values(), key=lambda r: (not r.known, order[r.id])):
-                tasks = self._robot_tasks(r.id)
+                tasks = self.held.tasks_of(r.id)
                 robots.append({"id": r.id, "state": r.state, "task": tasks[0] if tasks else None,
                                "online": self._online(r), "since": r.since})
             tasks = [{"id": t.id, "state": t.state, "robots": list(t.robots), "since": t.since}
