@@ -103,7 +103,8 @@ class SimClock(ManualClock):
         moves time by at most `max_jump` per sample.
     A new run is adopted (a restarted simulator) — with a log line, time restarting from its
     stamp — once the adopted run has been silent for `silence` wall seconds or its token is gone.
-    `stalled(wall_seconds)` tells a follower that time stopped (the simulator died or hangs).
+    `stalled(wall_seconds)` tells a follower that time stopped (the simulator hangs), `ended()`
+    that the run is over (its source's token is gone: the simulator or a replay exited).
     """
 
     def __init__(self, max_jump: float = 10.0, silence: float = 2.0, wall=time.monotonic) -> None:
@@ -229,6 +230,13 @@ class SimClock(ManualClock):
             return
         with self._cond:
             self._source_alive = False
+
+    def ended(self) -> bool:
+        """The adopted run is over: its source's `@mrta/clock_source/<run>` token is gone (the
+        simulator exited, a replay finished) and no other run was adopted since. A run that
+        never held a token (a ROS-style publisher) never ends this way: it may only pause."""
+        with self._cond:
+            return self.started.is_set() and not self._source_alive
 
     def stalled(self, wall_seconds: float) -> bool:
         """No accepted sample for `wall_seconds` of wall time (only meaningful once started)."""

@@ -25,6 +25,7 @@ from mrta_zenoh.toolchain.registry import Registry
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
 
 from .state import Supervisor
+from .tasks import application_watch
 
 log = logging.getLogger("mrta.supervisor")
 CLOCK_STALL = 2.0  # wall seconds without a clock sample: the `clock_stopped` alarm
@@ -68,13 +69,17 @@ def only_application(registry: Registry) -> str:
 
 
 def attach(sup: Supervisor, bus: Bus, clock) -> list:
-    """Subscribe once per key expression for the monitors that read it, and watch liveliness."""
+    """Subscribe once per key expression for the monitors that read it, and to the
+    application's task news (its TaskWatch), and watch liveliness."""
     by_key = defaultdict(list)
     for m in sup.monitors:
         by_key[m.key_expr].append(m)
     handles = []
     for key_expr, monitors in by_key.items():
         handles.append(bus.subscribe(key_expr, sup.handler_for(monitors, clock.now)))
+    for key_expr, msg_type in sup.watch.feed() if sup.watch is not None else ():
+        handles.append(bus.subscribe(key_expr, lambda s: sup.on_task_sample(
+            s.key, s.message, clock.now()), msg_type=msg_type))
     handles.append(bus.watch_liveliness("**", lambda k, alive: sup.on_liveliness(k, alive,
                                                                                 clock.now())))
     # the ROS 2 graph (rmw_zenoh's tokens): an `@` chunk is matched only literally; and the
@@ -92,13 +97,16 @@ def attach(sup: Supervisor, bus: Bus, clock) -> list:
 class Refresh:
     """One refresh of a Supervisor at its clock's time: what every tool that shows one does
     (`mrta supervise`, `mrta view`, the patrol demo). On simulation time a new run (time
-    restarted) drops what the old run held, and a clock that stopped raises `clock_stopped`.
-    The cadence is the caller's, in wall time even on simulation time, so that a simulator that
-    stops or restarts is noticed instead of freezing the picture."""
+    restarted) starts the picture afresh, a clock that stopped raises `clock_stopped`, and a
+    run that ended (its source's token is gone: SimClock.ended) raises nothing — the end of a
+    run is no fault. The cadence is the caller's, in wall time even on simulation time, so that
+    a simulator that stops or restarts is noticed instead of freezing the picture."""
 
     def __init__(self, sup: Supervisor, clock, sim_time: bool):
         self.sup, self.clock, self.sim_time = sup, clock, sim_time
         self._restarts = 0
+        if sim_time:
+            sup.source_gone = clock.ended
 
     def __call__(self) -> float:
         now = self.clock.now()
@@ -106,9 +114,22 @@ class Refresh:
             if self.clock.restarts != self._restarts:
                 self._restarts = self.clock.restarts
                 self.sup.restart(now)
-            self.sup.on_clock(self.clock.stalled(CLOCK_STALL), now)
+            self.sup.on_clock(self.clock.stalled(CLOCK_STALL), now, ended=self.clock.ended())
         self.sup.update(now)
         return now
+
+
+class Elapsed:
+    """Seconds of the supervisor's clock since the start, across new runs (time restarting
+    at a restarted simulator counts from there on, never backwards)."""
+
+    def __init__(self, start: float):
+        self.total, self.last = 0.0, start
+
+    def __call__(self, now: float) -> float:
+        self.total += max(0.0, now - self.last)
+        self.last = now
+        return self.total
 
 
 @dataclass(frozen=True)
@@ -130,7 +151,8 @@ def run_supervise(options: SuperviseOptions, bus_options: BusOptions,
                   on_snapshot: Callable[[dict], None],
                   stop: threading.Event | None = None) -> int:
     """Supervise an application on the bus and hand its snapshots to `on_snapshot`: one per
-    refresh (`rate` a second) until `duration` or `stop`; with `once`, a single one after the
+    refresh (`rate` a second) until `duration` or `stop` — on simulated time also once the run
+    has ended, when the duration would never pass; with `once`, a single one after the
     monitors' timeouts. The supervisor never prints: the verb shows the snapshots."""
     o = options
     app, arch = resolve_application(o.app)
@@ -144,22 +166,25 @@ def run_supervise(options: SuperviseOptions, bus_options: BusOptions,
                 if stop.is_set():
                     return 0
         sup = Supervisor(arch, app, clock.now(), o.unattended_after, o.duplicate_after,
-                         ros2_domain=o.ros2_domain)
+                         ros2_domain=o.ros2_domain, watch=application_watch(app))
         for h in attach(sup, bus, clock):
             handles.callback(h.close)
-        start, wall_start = clock.now(), time.monotonic()
+        wall_start = time.monotonic()
         settle = max([m.topic.timeout for m in sup.monitors] + [1.0])
         refresh = Refresh(sup, clock, o.sim_time)
+        elapsed = Elapsed(clock.now())
         while True:
             stop.wait(1.0 / o.rate)
-            refresh()
+            now = refresh()
             if o.once:  # wall time: a stopped simulation must not hold `--once` forever
                 if time.monotonic() - wall_start >= settle or stop.is_set():
                     break
                 continue
-            if stop.is_set() or (o.duration is not None and clock.now() - start >= o.duration):
+            if stop.is_set() or (o.duration is not None and elapsed(now) >= o.duration):
                 break
-            on_snapshot(sup.snapshot(clock.now()))
+            on_snapshot(sup.snapshot(now))
+            if o.duration is not None and sup.run_ended:
+                break  # the simulated duration will never pass: the run is over
         if o.once:
             on_snapshot(sup.snapshot(clock.now()))
     return 0

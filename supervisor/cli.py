@@ -7,24 +7,42 @@ Times people read are relative: simulated seconds with `--sim-time`, otherwise s
 which nobody reads at a glance). A `--json` line keeps the supervisor's clock in `time` and
 every `since` (so they compare with each other), and adds `wall_time` (Unix epoch seconds when
 the snapshot was taken) and `sim_time` (simulated seconds, or null without `--sim-time`).
-Into a pipe (no terminal) the live table becomes one line per change, written at once."""
+Into a pipe (no terminal) the live table becomes one line per change, written at once. The
+views name the alarms themselves, so the supervisor's alarm log lines are off while they run
+(with `--json` they stay on stderr, beside the snapshots on stdout)."""
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import time
 from pathlib import Path
 
 import click
-from rich.console import Console
+from rich.console import Console, Group
 from rich.live import Live
+from rich.text import Text
 
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.cli.common import bus_options, finite_float
 from mrta_zenoh.cli.common import console as make_console
 from mrta_zenoh.untrusted import visible
 
+from .alarms import ALARM_LOG
 from .api import SuperviseOptions, run_supervise, to_json
 from .view import render
+
+
+@contextlib.contextmanager
+def quiet_alarms():
+    """The supervisor's alarm log lines off while a view that names the alarms runs."""
+    alarms = logging.getLogger(ALARM_LOG)
+    level = alarms.level
+    alarms.setLevel(logging.ERROR)
+    try:
+        yield
+    finally:
+        alarms.setLevel(level)
 
 
 @click.command()
@@ -58,10 +76,12 @@ def supervise(as_json: bool, bus_options: BusOptions, **options) -> None:
             render(relative(snap, origin), console.width)))
         return
     if not console.is_terminal:
-        run_supervise(opts, bus_options, ChangeLines(console, origin))
+        with quiet_alarms():  # the lines name the alarms
+            run_supervise(opts, bus_options, ChangeLines(console, origin))
         return
-    with LiveTable(console, opts.rate) as table:
-        run_supervise(opts, bus_options, lambda snap: table.show(relative(snap, origin)))
+    with LiveScreen(console) as screen:
+        run_supervise(opts, bus_options,
+                      lambda snap: screen.show(render(relative(snap, origin), console.width)))
 
 
 def with_clocks(snap: dict, sim_time: bool) -> dict:
@@ -110,29 +130,81 @@ class ChangeLines:
                                highlight=False)
 
 
-class LiveTable:
-    """The supervisor's table redrawn in place, started with the first snapshot (so that
-    nothing is drawn for an application that does not load)."""
+class LiveScreen:
+    """The live view on a terminal, drawn whole on the alternate screen at each refresh, as
+    `top` does: a resized terminal or a view that grows or narrows leaves nothing stale (drawn
+    in place, rich moves the cursor up by the height it last drew, which a terminal that
+    rewrapped the old lines, or any line written meanwhile, makes wrong — stale headers piled
+    up). Once it is gone its last picture is printed, as an in-place view would have left it.
+    Log lines written while it shows would land across it, so they are held and shown in
+    the view's last lines instead, then written out in full once it is gone; the
+    supervisor's own alarm lines are not written at all — the view shows the alarms.
+    The screen is taken at the first frame, so that nothing is drawn for an application that
+    does not load; log lines are held, and alarm lines off, from the start."""
 
-    def __init__(self, console: Console, rate: float):
-        self.console, self.rate = console, rate
+    KEEP = 3  # log lines shown under the view
+
+    def __init__(self, console: Console):
+        self.console = console
         self.live: Live | None = None
+        self.last = None
+        self.held: list[str] = []
+        self._stack = contextlib.ExitStack()
+        self._stack.enter_context(quiet_alarms())
+        self._stack.enter_context(_Hold(self.held))
 
-    def show(self, snap: dict) -> None:
-        table = render(snap, self.console.width)
+    def show(self, renderable) -> None:
         if self.live is None:
-            self.live = Live(table, console=self.console, refresh_per_second=self.rate,
-                             transient=False)
+            self.live = Live(console=self.console, screen=True, auto_refresh=False,
+                             redirect_stdout=False, redirect_stderr=False)
             self.live.start()
-        else:
-            self.live.update(table)
+        logs = [Text(visible(line), style="dim") for line in self.held[-self.KEEP:]]
+        self.last = renderable
+        self.live.update(Group(renderable, *logs), refresh=True)
 
-    def __enter__(self) -> "LiveTable":
+    def __enter__(self) -> "LiveScreen":
         return self
 
     def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    def close(self) -> None:
         if self.live is not None:
             self.live.stop()
+            self.live = None
+            self.console.print(self.last)  # the last picture stays on the terminal
+        self._stack.close()
+        for line in self.held:
+            self.console.print(Text(line), highlight=False, markup=False)
+        self.held.clear()
+
+
+class _Hold(logging.Filter):
+    """While entered, a filter on the root's handlers that holds their records (formatted as
+    the first of them would have written them) instead of letting them write."""
+
+    def __init__(self, held: list[str]):
+        super().__init__()
+        self.held = held
+        self._handlers: list[logging.Handler] = []
+        self._last: logging.LogRecord | None = None
+
+    def __enter__(self) -> "_Hold":
+        self._handlers = list(logging.getLogger().handlers)
+        for h in self._handlers:
+            h.addFilter(self)
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for h in self._handlers:
+            h.removeFilter(self)
+        self._handlers = []
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        if record is not self._last:  # one record reaches every handler: held once
+            self._last = record
+            self.held.append(self._handlers[0].format(record))
+        return False
 
 
 @click.command()

@@ -51,8 +51,8 @@ class SampleHolder:
 @dataclass(frozen=True)
 class StateChange:
     time: float
-    kind: str       # robot | task | allocation | alarm
-    subject: str    # robot id, task id, "task->robot", alarm subject
+    kind: str       # robot | task | allocation | alarm | run
+    subject: str    # robot id, task id, "task->robot", alarm subject, "clock"
     old: str
     new: str
 
@@ -72,6 +72,9 @@ class History:
 
     def recent(self, n: int) -> list[StateChange]:
         return list(self._items)[-n:]
+
+    def clear(self) -> None:
+        self._items.clear()
 
     def all(self) -> list[StateChange]:
         return list(self._items)

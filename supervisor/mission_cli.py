@@ -2,10 +2,11 @@
 any registered architecture (patrol under its own, ALLIANCE, by default) — that shows the
 supervisor while the mission runs and prints the summary.
 
-Output follows the Unix habits: the live view only on a terminal (a `t=` line every 10
-simulated seconds otherwise); `mrta -q demo` prints no progress (nor the supervisor's alarm
-lines), only the summary (the result) and errors; `-qq` errors only (summary.json is written
-either way). Into a pipe nothing is wrapped (cli.common.console); Ctrl-C exits 130."""
+Output follows the Unix habits: the live view only on a terminal (otherwise a `t=` line at
+the first refresh past every 10th simulated second, with the alarms up); the views show the
+alarms, so the supervisor's alarm log lines are off; `mrta -q demo` prints no progress, only
+the summary (the result) and errors; `-qq` errors only (summary.json is written either way).
+Into a pipe nothing is wrapped (cli.common.console); Ctrl-C exits 130."""
 
 from __future__ import annotations
 
@@ -14,12 +15,12 @@ from pathlib import Path
 
 import click
 from rich.console import Console, Group
-from rich.live import Live
 from rich.text import Text
 
 from mrta_zenoh.cli.common import console as make_console
 from mrta_zenoh.cli.common import finite_float, verbosity
 
+from .cli import LiveScreen, quiet_alarms, state_line
 from .mission import MissionOptions, run_mission
 from .summary import Summary
 from .view import render
@@ -63,13 +64,14 @@ def demo(live: bool | None, **kwargs) -> None:
     show_live = console.is_terminal if live is None else live
     view = (_Silent() if quiet < 0 else _LiveView(console, options) if show_live
             else _Lines(console))
-    if quiet < 0:  # the supervisor's alarm lines are progress too (the recording keeps them)
+    if quiet < 0:  # the supervisor's lines are progress too (the recording keeps the alarms)
         logging.getLogger("mrta.supervisor").setLevel(logging.ERROR)
     if options.foxglove_port is not None and quiet > -2:
         console.print(f"Foxglove / Lichtblick: Open connection → "
                       f"ws://127.0.0.1:{options.foxglove_port}", highlight=False)
     try:
-        run, summary = run_mission(options, progress=view)
+        with quiet_alarms():  # every view names the alarms (or, with -q, none is wanted)
+            run, summary = run_mission(options, progress=view)
     finally:
         view.close()
     if quiet > -2:
@@ -88,31 +90,34 @@ class _Silent:
 
 
 class _Lines:
-    """Without a terminal: one line of robot states every 10 simulated seconds."""
+    """Without a terminal: one line of robot states (and the alarms up) at the first refresh
+    past each 10th simulated second — refreshes come 4 times a wall second, so at `--speed 0`
+    a line may come a few simulated seconds past its mark; it says when it was taken."""
+
+    EVERY = 10.0
 
     def __init__(self, console: Console):
         self.console = console
-        self.last = -10.0
+        self.mark: int | None = None
 
     def __call__(self, now: float, sup, failure, failed_at: float | None) -> None:
-        if now - self.last < 10.0:
+        mark = int(now // self.EVERY)
+        if mark == self.mark:
             return
-        self.last = now
-        snap = sup.snapshot(now)
-        self.console.print(f"t={now:5.1f}s  " + "  ".join(
-            f"{r['id']}:{r['state']}{'/' + r['task'] if r['task'] else ''}"
-            for r in snap["robots"]), highlight=False)
+        self.mark = mark
+        self.console.print(f"t={now:5.1f}s  {state_line(sup.snapshot(now))}", highlight=False,
+                           markup=False)
 
     def close(self) -> None:
         pass
 
 
 class _LiveView:
-    """The supervisor's live view under a header line."""
+    """The supervisor's live view under a header line (cli.LiveScreen)."""
 
     def __init__(self, console: Console, options: MissionOptions):
         self.console, self.options = console, options
-        self.live: Live | None = None
+        self.screen = LiveScreen(console)
 
     def __call__(self, now: float, sup, failure, failed_at: float | None) -> None:
         o = self.options
@@ -124,16 +129,10 @@ class _LiveView:
         app = f" · {o.application}" if o.application else ""
         header = Text(f"mrta demo{app} · simulated {now:5.1f} / {o.duration:.0f} s"
                       f" · speed {o.speed or 'max'}{fail}", style="bold")
-        body = Group(header, render(sup.snapshot(now), self.console.width))
-        if self.live is None:
-            self.live = Live(body, console=self.console, refresh_per_second=4, transient=False)
-            self.live.start()
-        else:
-            self.live.update(body)
+        self.screen.show(Group(header, render(sup.snapshot(now), self.console.width)))
 
     def close(self) -> None:
-        if self.live is not None:
-            self.live.stop()
+        self.screen.close()
 
 
 _FAULT_WORDS = {"crash": "killed", "stall": "stalled", "partition": "cut off"}

@@ -13,7 +13,8 @@ import click
 from mrta_zenoh.cli.main import EntryPointGroup
 
 from .api import resolve_application
-from .plots import plot_timeline
+from .plots import VIEWS, plot_timeline
+from .tasks import application_watch
 
 
 class PlotGroup(EntryPointGroup):
@@ -31,8 +32,13 @@ def plot() -> None:
               help="The application whose monitors read the recording (name or rqt_mrta.xml); "
                    "default: the only registered application.")
 @click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path))
-def timeline(recording: Path, app_spec: str | None, output: Path) -> None:
+@click.option("--view", type=click.Choice(VIEWS), default="robots", show_default=True,
+              help="robots: what the robots said they did (the demo summary's ground truth); "
+                   "supervisor: what the supervisor showed (it lags by its monitors' "
+                   "timeouts); both: one above the other.")
+def timeline(recording: Path, app_spec: str | None, output: Path, view: str) -> None:
     """Which robot did which task when (a Gantt chart), with offline periods hatched."""
     app, arch = resolve_application(app_spec)
-    plot_timeline(recording, app, arch, output)
+    watch = application_watch(app) if view != "robots" else None
+    plot_timeline(recording, app, arch, output, view, watch)
     click.echo(f"wrote {output}")

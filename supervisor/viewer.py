@@ -46,6 +46,7 @@ from mrta_zenoh.untrusted import visible
 from .api import Refresh, attach, resolve_application
 from .foxglove import FoxgloveOutputs
 from .state import Supervisor
+from .tasks import application_watch
 
 log = logging.getLogger("mrta.view")
 SCENE_KEYS = ("world", "*/ground_truth", "*/sonar")
@@ -208,7 +209,7 @@ def run_view(*, app: str | None, bus_options: BusOptions, port: int | None = 876
         sup = refresh = None
         if application is not None:
             app_model, arch = application
-            sup = Supervisor(arch, app_model, clock.now())
+            sup = Supervisor(arch, app_model, clock.now(), watch=application_watch(app_model))
             for h in attach(sup, bus, clock):
                 handles.callback(h.close)
             refresh = Refresh(sup, clock, sim_time)

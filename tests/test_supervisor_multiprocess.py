@@ -73,7 +73,7 @@ def test_supervise_json_busy_idle_offline_then_sigkill_is_offline_fast(children,
                          name="plot-t")
     assert plot.wait(60) == 0, plot.stderr
     w, h = png_size(gantt)
-    assert (w, h) == (1200, 280) and gantt.stat().st_size > 10_000
+    assert (w, h) == (1200, 310) and gantt.stat().st_size > 10_000
     bad = children.mrta("plot", "motivation", str(rec_file), "--robot", "robot1", "--task",
                         "report", "-o", str(tmp_path / "x.png"), name="plot-bad")
     assert bad.wait(60) == 2

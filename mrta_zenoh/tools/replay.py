@@ -8,7 +8,18 @@ replay then runs on the wall clock of whoever watches, or on its own recorded ti
 Timing follows the recording's log times (mrta_zenoh.recording): a wall-time recording (`mrta
 record`) replays at the pace it was recorded; a simulated-time one (the mission runner's, `mrta
 view --sim-time`) at the simulated pace — a 60 s mission recorded at `--speed 0` in 2 s replays
-in 60 s at `--speed 1`, in 6 s at `--speed 10` — its simulator restarts 1 s apart.
+in 60 s at `--speed 1`, in 6 s at `--speed 10` — its simulator restarts 1 s apart. A replay that
+falls behind (a loaded machine, a heavy recording) by more than MAX_LAG seconds of the
+recording slips instead of catching up in a burst: the pace between samples stays the
+recording's, and the clock never runs faster than the speed the replay announces.
+
+With `clock=True` the replay is the clock source, as a simulator is (docs/architecture.md, "The
+clock"): each recorded run is announced under a new run id naming the speed at which the replay
+moves its simulated time (`clock.run_id`) — the replay's `--speed` for a simulated-time
+recording, the recorded run's speed times it for a wall-time one — and holds
+`@mrta/clock_source/<run id>` while it plays that run. A follower's creep bound (SimClock) then
+trusts the replay at its own pace, not at the recorded run's, and sees the run end when the
+replay is over (`mrta supervise --sim-time --duration N` stops there).
 
 A recording is input like any other, and may be crafted (issue #23: a topic `a//b`, a
 liveliness payload `[1]`, log times 0 and 2⁶⁴−1 made tracebacks or a 31-year wait). So the
@@ -26,16 +37,20 @@ from __future__ import annotations
 
 import json
 import logging
+import os
 import threading
 import time
 from collections import Counter
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
+from .. import codec
 from ..bus import Bus, BusOptions, open_bus
+from ..clock import run_id, run_speed
 from ..errors import ConfigError
+from ..messages import Clock
 from ..yamlfile import plural
-from ..keys import CLOCK, LIVELINESS_PREFIX, matches, validate_key_expr
+from ..keys import CLOCK, CLOCK_SOURCE_TOKEN, LIVELINESS_PREFIX, matches, validate_key_expr
 from ..lifecycle import stop_on_signals
 from ..limits import RUN_DURATION
 from ..recording import Record, read_recording
@@ -44,6 +59,7 @@ from ..lifecycle import wait_for_stop
 log = logging.getLogger("mrta.replay")
 
 MAX_GAP = 60.0  # seconds of the recording: the longest silence replayed as it was
+MAX_LAG = 1.0   # seconds of the recording a replay may fall behind before it slips
 NS = 1_000_000_000
 
 
@@ -133,6 +149,52 @@ def plan_replay(records: list[Record], key_expr: str = "**", clock: bool = False
     return plan
 
 
+def announce_runs(plan: Plan, speed: float, simulated: bool) -> Plan:
+    """The plan, replayed at `speed`, with every recorded run's clock samples renamed to a new
+    run id announcing the pace at which the replay moves that run's time (`_pace`), and its
+    `@mrta/clock_source/<id>` token held from the run's first sample to its last. A clock
+    sample that does not decode goes out as recorded: its followers reject it, as they would
+    have then."""
+    ids: dict[str, str] = {}
+    last: dict[str, int] = {}  # new id → index of its last sample in `steps`
+    steps: list[Step] = []
+    for step in plan.steps:
+        if step.alive is not None or step.key != CLOCK:
+            steps.append(step)
+            continue
+        try:
+            msg = codec.decode(Clock.TYPE_NAME, step.payload)
+        except codec.DecodeError:
+            steps.append(step)
+            continue
+        new = ids.get(msg.source)
+        if new is None:
+            new = ids[msg.source] = _run_id(_pace(msg.source, speed, simulated))
+            steps.append(Step(step.at, f"{CLOCK_SOURCE_TOKEN}/{new}", alive=True))
+        steps.append(replace(step, payload=codec.encode(Clock(msg.stamp, new))))
+        last[new] = len(steps) - 1
+    for new, i in sorted(last.items(), key=lambda kv: -kv[1]):  # from the end: indexes hold
+        steps.insert(i + 1, Step(steps[i].at, f"{CLOCK_SOURCE_TOKEN}/{new}", alive=False))
+    plan.steps = steps
+    return plan
+
+
+def _pace(source: str, speed: float, simulated: bool) -> float | None:
+    """Simulated seconds per wall second a replay at `speed` moves the recorded run `source`
+    (0: as fast as possible): `speed` itself for a simulated-time recording; for a wall-time
+    one, the recorded run's speed times it — None when that run announced none."""
+    if simulated:
+        return speed
+    recorded = run_speed(source)
+    if recorded is None:
+        return None
+    return 0.0 if recorded == 0 or speed == 0 else recorded * speed
+
+
+def _run_id(pace: float | None) -> str:
+    return run_id(pace) if pace is not None else os.urandom(6).hex()
+
+
 def execute(plan: Plan, bus: Bus, speed: float, stop: threading.Event) -> int:
     """Carry out `plan` on `bus` at `speed` (0: as fast as possible) until done or `stop`;
     returns how many samples went out. Tokens declared here are closed before returning."""
@@ -147,6 +209,8 @@ def execute(plan: Plan, bus: Bus, speed: float, stop: threading.Event) -> int:
                 ahead = step.at / speed - (time.monotonic() - wall0)
                 if ahead > 0 and wait_for_stop(stop, ahead):
                     break
+                if ahead < -MAX_LAG / speed:  # fallen behind: slip, never a burst
+                    wall0 += -ahead - MAX_LAG / speed
             if step.alive is None:
                 bus.publish_raw(step.key, step.encoding, step.payload)
                 sent += 1
@@ -176,6 +240,8 @@ def run_replay(*, recording: Path, bus_options: BusOptions, speed: float = 1.0,
     if not records:
         raise ConfigError("the recording holds no bus channel", file=str(recording))
     plan = plan_replay(records, key_expr, clock, max_gap)
+    if clock:
+        announce_runs(plan, speed, records.log_time == "simulated")
     for reason, n in plan.skipped.items():
         log.warning("%s: skipped %d records: %s (first: %r)", recording, n, reason,
                     plan.first_skipped[reason][:120])

@@ -15,9 +15,13 @@ from __future__ import annotations
 from typing import Any
 
 from mrta_agent.runtime.params import load_layers_params
+from mrta_zenoh.keys import first_chunk
 from mrta_supervisor.mission import Mission, MissionRun
+from mrta_supervisor.tasks import TaskStatus, TaskWatch
 
 from .instance import DeliveryParams
+from .keys import ALL_DONE
+from .messages import TaskEvent
 from .metrics import RunAnalysis, analyse, instance_json
 
 
@@ -28,6 +32,24 @@ def run_instance(run: MissionRun) -> DeliveryParams:
     params = doc.convert(("Delivery",), DeliveryParams)
     params.check()
     return params
+
+
+class DeliveryWatch(TaskWatch):
+    """A delivered task is done for good; one that arrives later is waiting until then."""
+
+    def __init__(self, params: DeliveryParams):
+        self.arrivals = {tid: t.arrival for tid, t in params.tasks.items()}
+
+    def feed(self):
+        return [(ALL_DONE, TaskEvent)]
+
+    def schedule(self) -> list[TaskStatus]:
+        return [TaskStatus(tid, "waiting", at) for tid, at in self.arrivals.items() if at > 0]
+
+    def read(self, key: str, message) -> TaskStatus | None:
+        if message.event != "done" or message.header.frame_id.strip("/") != first_chunk(key):
+            return None  # the board's rule (board.py): only a robot's own `done` counts
+        return TaskStatus(message.task_id, "done")
 
 
 class Delivery(Mission):
@@ -58,6 +80,9 @@ class Delivery(Mission):
         a = self.analysis(run, records)
         return {"instance": instance_json(a.instance),
                 "allocation": [e.to_json() for e in a.log]}
+
+    def task_watch(self, run: MissionRun) -> TaskWatch:
+        return DeliveryWatch(run_instance(run))
 
     def describe(self, metrics: dict[str, Any]) -> list[str]:
         opt = metrics.get("optimality")

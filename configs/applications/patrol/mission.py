@@ -14,12 +14,33 @@ from __future__ import annotations
 from typing import Any
 
 from mrta_agent.runtime.params import load_layers_params
+from mrta_zenoh.keys import first_chunk
 from mrta_supervisor.mission import Mission, MissionRun
+from mrta_supervisor.tasks import TaskStatus, TaskWatch
 
-from .layers import BorderParams
+from .keys import ALL_REPORTS
+from .layers import BorderParams, ReportParams
+from .messages import Report
 from .metrics import mission_metrics
 
 DEFAULT_BORDER = (-20.0, -6.0, 20.0, 6.0)  # the patrol world's inner rectangle
+REPORT_TASK = "report"  # the task whose layer publishes the Report
+
+
+class ReportWatch(TaskWatch):
+    """A report, once published, is not due again for Report/period seconds (the
+    `patrol/report_due` evaluator's rule): the supervisor shows the task `done` meanwhile."""
+
+    def __init__(self, period: float):
+        self.period = period
+
+    def feed(self):
+        return [(ALL_REPORTS, Report)]
+
+    def read(self, key: str, message) -> TaskStatus | None:
+        if message.header.frame_id.strip("/") != first_chunk(key):
+            return None  # a sample on robot1's key claiming to be robot2 says nothing
+        return TaskStatus(REPORT_TASK, "done", self.period)
 
 
 class Patrol(Mission):
@@ -33,6 +54,12 @@ class Patrol(Mission):
         border = layers.convert(("BorderProtection",), BorderParams) if layers is not None \
             else BorderParams()
         return mission_metrics(records, border.border() or DEFAULT_BORDER, border.distance + 1.0)
+
+    def task_watch(self, run: MissionRun) -> TaskWatch:
+        layers = load_layers_params(run.layers_params)
+        report = layers.convert(("Report",), ReportParams) if layers is not None \
+            else ReportParams()
+        return ReportWatch(report.period)
 
     def describe(self, metrics: dict[str, Any]) -> list[str]:
         return [f"collisions: {metrics['collisions_total']}; border visited: "

@@ -1,0 +1,84 @@
+"""What the supervisor holds per robot and per task."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from .holders import SampleHolder
+
+
+@dataclass
+class RobotInfo:
+    id: str
+    known: bool                 # part of the application
+    busy: SampleHolder
+    idle: SampleHolder
+    tokens: set[str] = field(default_factory=set)
+    ever_token: bool = False
+    bridges: set[str] = field(default_factory=set)  # `@mrta/ros2_bridge/<id>` tokens alive
+    ros2_driver: bool = False   # a ROS 2 node lives in the robot's namespace
+    ever_ros2: bool = False     # … and one did since a bridge took the robot
+    state: str = "offline"
+    since: float = 0.0
+
+
+@dataclass
+class TaskInfo:
+    id: str
+    known: bool
+    incoming: SampleHolder
+    state: str = "unallocated"
+    robots: tuple[str, ...] = ()
+    since: float = 0.0
+    # what the application said of the task (supervisor/tasks.py): "done" or "waiting", up to
+    # `until` (None: for good); a task that is neither needs a robot
+    status: str | None = None
+    until: float | None = None
+
+
+class Allocations:
+    """Who holds which task: one SampleHolder per (task, robot) pair heard, high for the
+    `allocated_tasks` monitor's timeout after its latest sample, and the pairs now high, by
+    robot and by task."""
+
+    def __init__(self, timeout: float):
+        self.timeout = timeout
+        self.holders: dict[tuple[str, str], SampleHolder] = {}
+        self._by_robot: dict[str, set[str]] = {}  # robot → tasks whose holder is high
+        self._by_task: dict[str, set[str]] = {}   # task → robots whose holder is high
+
+    def sample(self, tid: str, rid: str, now: float) -> tuple[SampleHolder, bool]:
+        """The pair's holder after a sample, and whether it rose (a new allocation)."""
+        holder = self.holders.get((tid, rid))
+        if holder is None:
+            holder = self.holders[(tid, rid)] = SampleHolder(self.timeout)
+        rose = holder.sample(now, tid)
+        if rose:
+            self._by_robot.setdefault(rid, set()).add(tid)
+            self._by_task.setdefault(tid, set()).add(rid)
+        return holder, rose
+
+    def drop_robot(self, rid: str) -> list[str]:
+        """Every task `rid` holds, dropped at once (its token is gone); the tasks."""
+        tasks = sorted(self._by_robot.get(rid, ()))
+        for tid in tasks:
+            self.holders[(tid, rid)].drop()
+            self._release(tid, rid)
+        return tasks
+
+    def update(self, now: float) -> list[tuple[str, str]]:
+        """The (task, robot) pairs whose holder fell by `now`."""
+        fell = [pair for pair, h in self.holders.items() if h.update(now)]
+        for tid, rid in fell:
+            self._release(tid, rid)
+        return fell
+
+    def tasks_of(self, rid: str) -> list[str]:
+        return sorted(self._by_robot.get(rid, ()))
+
+    def robots_on(self, tid: str) -> tuple[str, ...]:
+        return tuple(sorted(self._by_task.get(tid, ())))
+
+    def _release(self, tid: str, rid: str) -> None:
+        self._by_robot.get(rid, set()).discard(tid)
+        self._by_task.get(tid, set()).discard(rid)

@@ -1,0 +1,69 @@
+"""What an application tells the supervisor about its tasks' life cycle: a task that is done,
+or not due yet, needs no robot — it is shown `done` / `waiting`, and no `task_unattended`
+alarm is raised for it.
+
+The supervisor is generic: it knows no application. An application that has such tasks (a
+delivery is done once delivered; a task of an online instance is waiting until it arrives; a
+periodic report is not due again until its period has passed) gives a `TaskWatch` from its
+mission hook (`Mission.task_watch`, supervisor/mission.py): the keys to read and what each
+sample says, plus what is known in advance. A status holds for `seconds` from when it is
+heard (None: for good), on the supervisor's clock, so a supervisor on wall time watching a
+simulated run is not misled by the senders' simulated stamps. A task on which a robot works
+is `allocated` whatever its status says: the picture shows who works, the status only why
+nobody needs to.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Literal
+
+from mrta_zenoh.toolchain.model import Application
+from mrta_zenoh.toolchain.registry import Registry
+
+TASK_STATES = ("done", "waiting")
+
+
+@dataclass(frozen=True)
+class TaskStatus:
+    task: str
+    state: Literal["done", "waiting"]
+    seconds: float | None = None  # how long it holds from when it is heard; None: for good
+
+
+class TaskWatch:
+    """An application's view of its tasks' life cycle (py_trees style: override what you
+    need; the defaults say nothing)."""
+
+    def feed(self) -> list[tuple[str, type]]:
+        """(key expression, message type) pairs whose samples `read` understands."""
+        return []
+
+    def schedule(self) -> list[TaskStatus]:
+        """What is known at the start of a run (tasks that arrive later are `waiting` for
+        `seconds`: their arrival time)."""
+        return []
+
+    def read(self, key: str, message: Any) -> TaskStatus | None:
+        """What a sample of the feed says of a task (None: nothing)."""
+        return None
+
+
+def application_watch(app: Application, registry: Registry | None = None) -> TaskWatch | None:
+    """The TaskWatch of the application package `app` was loaded from, from its mission hook
+    (the mission registered for it or for a package it depends on, as `mrta demo` finds it);
+    None when it has no mission, or its mission watches nothing — then every task always
+    needs a robot, as rqt_mrta's supervisor assumed."""
+    from .mission import MissionOptions, missions, resolve  # the runner imports this module
+    reg = registry or Registry()
+    source = Path(app.source).resolve().parent if app.source else None
+    pkg = next((p for p, _ in reg.applications()
+                if source is not None and Path(p.path).resolve() == source), None)
+    if pkg is None:
+        return None  # an rqt_mrta.xml outside every registered package: no mission either
+    eps = missions()
+    if not any(name in eps for name in (pkg.name, *pkg.depends)):
+        return None
+    run = resolve(MissionOptions(application=pkg.name), reg)
+    return run.mission.task_watch(run)

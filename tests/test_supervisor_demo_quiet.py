@@ -1,0 +1,21 @@
+"""A normal `mrta demo` prints no WARNING (issue 37 point 1): delivered tasks are `done`, not
+unattended, and the end of the run is no stopped clock."""
+
+import json
+
+import pytest
+
+pytestmark = pytest.mark.multiprocess
+
+
+def test_a_delivery_demo_ends_without_a_warning(children, tmp_path):
+    """Every delivery is done by ≈ 26 s: unattended for 30 s from then was alarmed at 45–58 s
+    of the 60 s run, and `clock_stopped` once the simulator stopped at 60 s."""
+    out = tmp_path / "demo"
+    demo = children.mrta("demo", "--application", "delivery", "--speed", "0", "--no-live",
+                         "--output", str(out), name="demo")
+    assert demo.wait(240) == 0, demo.stderr[-20:] + demo.stdout[-20:]
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["metrics"]["completed"] == 4 and summary["duration"] == 60
+    printed = demo.stdout + demo.stderr
+    assert not [line for line in printed if "WARNING" in line or "alarm" in line], printed
