@@ -1,0 +1,210 @@
+"""Shortest drivable paths around walls: a visibility graph over the walls' inflated outlines.
+
+A robot of radius r collides with a wall segment exactly when its centre enters the wall's
+*capsule* (every point within r of the segment). So each wall is inflated by `clearance` (the
+robot's radius plus a margin: `CLEARANCE`) into a convex polygon that contains its capsule — the
+hull of two regular `SIDES`-gons circumscribing the discs at the wall's ends — and the robot's
+centre must stay outside every polygon's interior. The shortest such path bends only at polygon
+corners, so it is a shortest path in the graph whose nodes are the corners (those not inside
+another obstacle) plus the two end points, and whose edges are the straight segments that cross
+no obstacle's interior (touching an outline is allowed: the outline already keeps the margin).
+Dijkstra's algorithm on that graph gives the path and its length.
+
+Why a polygon and not the exact capsule: the capsule's shortest paths follow arcs, which a
+robot drives no better than the polygon's short chords, and straight legs keep the path a list
+of waypoints for the delivery layer to drive (`configs/applications/delivery/layers.py`). The
+polygon is at most clearance · (1/cos(π/SIDES) − 1) ≈ 3 cm longer per corner (0.4 m, 8 sides).
+
+Pure Python (an agent builds one at start and plans each task's path on it).
+"""
+
+from __future__ import annotations
+
+import heapq
+import math
+from dataclasses import dataclass, field
+from typing import Sequence
+
+from ..errors import ConfigError
+from .problem import Point
+
+ROBOT_RADIUS = 0.26      # m: the simulator's P3-DX model (it contains every sonar transducer)
+MARGIN = 0.14            # m: room for the robot's tracking error around a corner
+CLEARANCE = ROBOT_RADIUS + MARGIN
+SIDES = 8
+EPS = 1e-9
+
+Segment = tuple[float, float, float, float]
+
+
+def _cross(ox: float, oy: float, ax: float, ay: float, bx: float, by: float) -> float:
+    return (ax - ox) * (by - oy) - (ay - oy) * (bx - ox)
+
+
+def _hull(points: list[Point]) -> list[Point]:
+    """The convex hull, counter-clockwise (Andrew's monotone chain)."""
+    pts = sorted(set(points))
+    if len(pts) <= 2:
+        return pts
+    lower: list[Point] = []
+    for p in pts:
+        while len(lower) >= 2 and _cross(*lower[-2], *lower[-1], *p) <= 0:
+            lower.pop()
+        lower.append(p)
+    upper: list[Point] = []
+    for p in reversed(pts):
+        while len(upper) >= 2 and _cross(*upper[-2], *upper[-1], *p) <= 0:
+            upper.pop()
+        upper.append(p)
+    return lower[:-1] + upper[:-1]
+
+
+@dataclass(frozen=True)
+class Obstacle:
+    """A wall inflated to a convex polygon (counter-clockwise corners)."""
+
+    corners: tuple[Point, ...]
+    box: tuple[float, float, float, float] = field(init=False)
+
+    def __post_init__(self) -> None:
+        xs, ys = [c[0] for c in self.corners], [c[1] for c in self.corners]
+        object.__setattr__(self, "box", (min(xs), min(ys), max(xs), max(ys)))
+
+    @classmethod
+    def around(cls, wall: Segment, clearance: float) -> "Obstacle":
+        x1, y1, x2, y2 = wall
+        r = clearance / math.cos(math.pi / SIDES)
+        ring = [(r * math.cos(2 * math.pi * (k + 0.5) / SIDES),
+                 r * math.sin(2 * math.pi * (k + 0.5) / SIDES)) for k in range(SIDES)]
+        return cls(tuple(_hull([(x + dx, y + dy) for x, y in ((x1, y1), (x2, y2))
+                                for dx, dy in ring])))
+
+    def contains(self, p: Point, eps: float = 1e-7) -> bool:
+        """Whether p lies strictly inside (more than eps from the outline)."""
+        c = self.corners
+        return all(_edge_depth(c[k], c[(k + 1) % len(c)], p) > eps for k in range(len(c)))
+
+    def blocks(self, a: Point, b: Point) -> bool:
+        """Whether the segment a–b crosses the interior (Cyrus–Beck clipping against the
+        half-planes, each shrunk by a tolerance so that a segment along an edge passes)."""
+        x0, y0, x1, y1 = self.box
+        if (max(a[0], b[0]) <= x0 or min(a[0], b[0]) >= x1 or max(a[1], b[1]) <= y0
+                or min(a[1], b[1]) >= y1):
+            return False
+        t_in, t_out = 0.0, 1.0
+        c = self.corners
+        for k in range(len(c)):
+            da = _edge_depth(c[k], c[(k + 1) % len(c)], a) - 1e-7
+            db = _edge_depth(c[k], c[(k + 1) % len(c)], b) - 1e-7
+            if da <= 0 and db <= 0:
+                return False
+            if da < 0 or db < 0:
+                t = da / (da - db)
+                if da < 0:
+                    t_in = max(t_in, t)
+                else:
+                    t_out = min(t_out, t)
+                if t_in >= t_out - 1e-9:
+                    return False
+        return t_in < t_out - 1e-9
+
+
+def _edge_depth(p: Point, q: Point, x: Point) -> float:
+    """How far x lies on the inner (left) side of the edge p→q of a counter-clockwise polygon."""
+    ex, ey = q[0] - p[0], q[1] - p[1]
+    return (ex * (x[1] - p[1]) - ey * (x[0] - p[0])) / math.hypot(ex, ey)
+
+
+class PathMap:
+    """Shortest drivable paths among `walls` for a robot needing `clearance` around it."""
+
+    def __init__(self, walls: Sequence[Segment], clearance: float = CLEARANCE):
+        if not (math.isfinite(clearance) and clearance > 0):
+            raise ConfigError(f"clearance must be a finite number > 0, got {clearance!r}")
+        self.walls = tuple(tuple(float(v) for v in w) for w in walls)
+        self.clearance = clearance
+        self.obstacles = [Obstacle.around(w, clearance) for w in self.walls]
+        self.nodes: list[Point] = [c for k, o in enumerate(self.obstacles) for c in o.corners
+                                   if not any(p.contains(c) for m, p in
+                                              enumerate(self.obstacles) if m != k)]
+        n = len(self.nodes)
+        self.edges: list[list[tuple[int, float]]] = [[] for _ in range(n)]
+        for i in range(n):
+            for j in range(i + 1, n):
+                if self.visible(self.nodes[i], self.nodes[j]):
+                    d = math.dist(self.nodes[i], self.nodes[j])
+                    self.edges[i].append((j, d))
+                    self.edges[j].append((i, d))
+
+    def visible(self, a: Point, b: Point) -> bool:
+        return not any(o.blocks(a, b) for o in self.obstacles)
+
+    def check_point(self, p: Point, what: str) -> None:
+        """ConfigError when a robot's centre cannot be at p (too close to a wall)."""
+        for w, o in zip(self.walls, self.obstacles):
+            if o.contains(p):
+                raise ConfigError(
+                    f"{what} at ({p[0]:g}, {p[1]:g}) is closer than {self.clearance:g} m (a "
+                    f"robot's radius and margin) to the wall {list(w)}: no robot can be there")
+
+    def _search(self, a: Point) -> tuple[list[float], list[int]]:
+        """Dijkstra from a over the corners: (distance, predecessor: −1 = from a)."""
+        n = len(self.nodes)
+        dist = [math.inf] * n
+        prev = [-1] * n
+        heap = []
+        for i, c in enumerate(self.nodes):
+            if self.visible(a, c):
+                dist[i] = math.dist(a, c)
+                heap.append((dist[i], i))
+        heapq.heapify(heap)
+        while heap:
+            d, i = heapq.heappop(heap)
+            if d > dist[i]:
+                continue
+            for j, w in self.edges[i]:
+                if d + w < dist[j]:
+                    dist[j], prev[j] = d + w, i
+                    heapq.heappush(heap, (d + w, j))
+        return dist, prev
+
+    def path(self, a: Point, b: Point) -> list[Point]:
+        """The waypoints of a shortest drivable path from a to b, both included."""
+        a, b = (float(a[0]), float(a[1])), (float(b[0]), float(b[1]))
+        if self.visible(a, b):
+            return [a, b]
+        dist, prev = self._search(a)
+        best, last = math.inf, -1
+        for i, c in enumerate(self.nodes):
+            if dist[i] < math.inf and self.visible(c, b):
+                total = dist[i] + math.dist(c, b)
+                if total < best:
+                    best, last = total, i
+        if last < 0:
+            raise ConfigError(f"no drivable path from ({a[0]:g}, {a[1]:g}) to "
+                              f"({b[0]:g}, {b[1]:g}): walls close it off")
+        out = [b]
+        while last >= 0:
+            out.append(self.nodes[last])
+            last = prev[last]
+        out.append(a)
+        return out[::-1]
+
+    def length(self, a: Point, b: Point) -> float:
+        p = self.path(a, b)
+        return sum(math.dist(p[k], p[k + 1]) for k in range(len(p) - 1))
+
+    def matrix(self, points: Sequence[Point]) -> tuple[tuple[float, ...], ...]:
+        """Path lengths between every pair of `points` (symmetric: computed once per pair)."""
+        n = len(points)
+        out = [[0.0] * n for _ in range(n)]
+        for i in range(n):
+            for j in range(i + 1, n):
+                out[i][j] = out[j][i] = self.length(points[i], points[j])
+        return tuple(tuple(row) for row in out)
+
+
+def room_walls(width: float, height: float) -> list[Segment]:
+    """The four walls of a `width` × `height` room centred on the origin."""
+    w, h = width / 2, height / 2
+    return [(-w, -h, w, -h), (w, -h, w, h), (w, h, -w, h), (-w, h, -w, -h)]
