@@ -136,8 +136,8 @@ class PathMap:
                     self.edges[i].append((j, d))
                     self.edges[j].append((i, d))
 
-    def visible(self, a: Point, b: Point) -> bool:
-        return not any(o.blocks(a, b) for o in self.obstacles)
+    def visible(self, a: Point, b: Point, skip: Sequence[Obstacle] = ()) -> bool:
+        return not any(o.blocks(a, b) for o in self.obstacles if o not in skip)
 
     def check_point(self, p: Point, what: str) -> None:
         """ConfigError when a robot's centre cannot be at p (too close to a wall)."""
@@ -147,16 +147,19 @@ class PathMap:
                     f"{what} at ({p[0]:g}, {p[1]:g}) is closer than {self.clearance:g} m (a "
                     f"robot's radius and margin) to the wall {list(w)}: no robot can be there")
 
-    def _search(self, a: Point) -> tuple[list[float], list[int]]:
-        """Dijkstra from a over the corners: (distance, predecessor: −1 = from a)."""
-        n = len(self.nodes)
-        dist = [math.inf] * n
-        prev = [-1] * n
-        heap = []
-        for i, c in enumerate(self.nodes):
-            if self.visible(a, c):
-                dist[i] = math.dist(a, c)
-                heap.append((dist[i], i))
+    def _seen(self, p: Point, skip: Sequence[Obstacle] = ()) -> list[tuple[int, float]]:
+        """The corners visible from p, with their distances."""
+        return [(i, math.dist(p, c)) for i, c in enumerate(self.nodes)
+                if self.visible(p, c, skip)]
+
+    def _search(self, seen: list[tuple[int, float]]) -> tuple[list[float], list[int]]:
+        """Dijkstra over the corners from a point that sees `seen`: (distance, predecessor;
+        −1: the point itself)."""
+        dist = [math.inf] * len(self.nodes)
+        prev = [-1] * len(self.nodes)
+        for i, d in seen:
+            dist[i] = d
+        heap = [(d, i) for i, d in seen]
         heapq.heapify(heap)
         while heap:
             d, i = heapq.heappop(heap)
@@ -168,21 +171,33 @@ class PathMap:
                     heapq.heappush(heap, (d + w, j))
         return dist, prev
 
-    def path(self, a: Point, b: Point) -> list[Point]:
-        """The waypoints of a shortest drivable path from a to b, both included."""
-        a, b = (float(a[0]), float(a[1])), (float(b[0]), float(b[1]))
-        if self.visible(a, b):
-            return [a, b]
-        dist, prev = self._search(a)
+    @staticmethod
+    def _last(dist: list[float], seen_b: list[tuple[int, float]]) -> tuple[float, int]:
+        """The shortest total to b through the corners b sees, and that corner (−1: none)."""
         best, last = math.inf, -1
-        for i, c in enumerate(self.nodes):
-            if dist[i] < math.inf and self.visible(c, b):
-                total = dist[i] + math.dist(c, b)
-                if total < best:
-                    best, last = total, i
+        for i, d in seen_b:
+            if dist[i] + d < best:
+                best, last = dist[i] + d, i
+        return best, last
+
+    def _unreachable(self, a: Point, b: Point) -> ConfigError:
+        return ConfigError(f"no drivable path from ({a[0]:g}, {a[1]:g}) to ({b[0]:g}, "
+                           f"{b[1]:g}): walls close it off")
+
+    def path(self, a: Point, b: Point) -> list[Point]:
+        """The waypoints of a shortest drivable path from a to b, both included.
+
+        A start inside an obstacle's margin (a robot that drifted a few centimetres past an
+        outline on its way round a corner) may leave it: that obstacle does not block the
+        first leg."""
+        a, b = (float(a[0]), float(a[1])), (float(b[0]), float(b[1]))
+        inside = [o for o in self.obstacles if o.contains(a)]
+        if self.visible(a, b, inside):
+            return [a, b]
+        dist, prev = self._search(self._seen(a, inside))
+        _, last = self._last(dist, self._seen(b))
         if last < 0:
-            raise ConfigError(f"no drivable path from ({a[0]:g}, {a[1]:g}) to "
-                              f"({b[0]:g}, {b[1]:g}): walls close it off")
+            raise self._unreachable(a, b)
         out = [b]
         while last >= 0:
             out.append(self.nodes[last])
@@ -195,12 +210,24 @@ class PathMap:
         return sum(math.dist(p[k], p[k + 1]) for k in range(len(p) - 1))
 
     def matrix(self, points: Sequence[Point]) -> tuple[tuple[float, ...], ...]:
-        """Path lengths between every pair of `points` (symmetric: computed once per pair)."""
-        n = len(points)
+        """Path lengths between every pair of `points`: one search per point, symmetric (each
+        pair computed once), the same lengths as `length`."""
+        pts = [(float(p[0]), float(p[1])) for p in points]
+        seen = [self._seen(p) for p in pts]
+        n = len(pts)
         out = [[0.0] * n for _ in range(n)]
         for i in range(n):
+            dist = None
             for j in range(i + 1, n):
-                out[i][j] = out[j][i] = self.length(points[i], points[j])
+                if self.visible(pts[i], pts[j]):
+                    d = math.dist(pts[i], pts[j])
+                else:
+                    if dist is None:
+                        dist = self._search(seen[i])[0]
+                    d, last = self._last(dist, seen[j])
+                    if last < 0:
+                        raise self._unreachable(pts[i], pts[j])
+                out[i][j] = out[j][i] = d
         return tuple(tuple(row) for row in out)
 
 
@@ -208,3 +235,22 @@ def room_walls(width: float, height: float) -> list[Segment]:
     """The four walls of a `width` × `height` room centred on the origin."""
     w, h = width / 2, height / 2
     return [(-w, -h, w, -h), (w, -h, w, h), (w, h, -w, h), (-w, h, -w, -h)]
+
+
+def point_segment_distance(p: Point, w: Segment) -> float:
+    x1, y1, x2, y2 = w
+    dx, dy = x2 - x1, y2 - y1
+    norm = dx * dx + dy * dy
+    t = 0.0 if norm == 0 else max(0.0, min(1.0, ((p[0] - x1) * dx + (p[1] - y1) * dy) / norm))
+    return math.hypot(p[0] - x1 - t * dx, p[1] - y1 - t * dy)
+
+
+def segment_distance(u: Segment, w: Segment) -> float:
+    """The least distance between two segments (0 when they cross)."""
+    a, b, c, d = (u[0], u[1]), (u[2], u[3]), (w[0], w[1]), (w[2], w[3])
+    d1, d2 = _cross(*a, *b, *c), _cross(*a, *b, *d)
+    d3, d4 = _cross(*c, *d, *a), _cross(*c, *d, *b)
+    if d1 * d2 < 0 and d3 * d4 < 0:
+        return 0.0
+    return min(point_segment_distance(a, w), point_segment_distance(b, w),
+               point_segment_distance(c, u), point_segment_distance(d, u))

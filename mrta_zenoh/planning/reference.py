@@ -31,6 +31,7 @@ class Reference:
     proven_optimal: bool
     seconds: float                # the solve's wall time (a measurement, never a criterion)
     objective: Objective = Objective.MINSUM
+    capped: bool = False          # the routing search stopped on its time cap (machine-dependent)
 
     @property
     def label(self) -> str:
@@ -53,6 +54,7 @@ def reference(problem: Problem, objective: Objective | str, *, exact_limit: int 
         raise ConfigError(f"unknown objective {objective!r}; known: "
                           + ", ".join(o.value for o in Objective)) from None
     t0 = time.perf_counter()
+    capped = False
     if len(problem.tasks) <= exact_limit:
         from .exact import solve_exact
         routes, method, proven = solve_exact(problem, objective).routes, EXACT, True
@@ -60,6 +62,7 @@ def reference(problem: Problem, objective: Objective | str, *, exact_limit: int 
         from .routing import solve_routing
         found = solve_routing(problem, objective, solutions=solutions, time_limit=time_limit)
         routes, method, proven = found.routes, BEST_FOUND, False
+        capped = found.capped
     seconds = time.perf_counter() - t0
     return Reference(evaluate(problem, routes).value(objective), routes, method, proven,
-                     seconds, objective)
+                     seconds, objective, capped)
