@@ -161,8 +161,8 @@ def load_document(path: Path | str) -> InstanceDoc:
     read too: its `instance` section is the document. The name defaults to the file's stem."""
     doc = load_yaml(path)
     base: tuple = ()
-    if isinstance(doc.data, dict) and "instance" in doc.data and "robots" not in doc.data:
-        base = ("instance",)
+    if isinstance(doc.data, dict) and isinstance(doc.data.get("instance"), dict):
+        base = ("instance",)  # a summary.json (an instance document has no such key)
     for group, kind in (("robots", RobotSpec), ("tasks", TaskSpec)):
         entries = get_path(doc.data, base + (group,))
         if isinstance(entries, dict):  # entry by entry: an error then names its entry's line
