@@ -49,7 +49,7 @@ def _read(path: str):
         return vrplib.read_instance(path, instance_format="solomon")
     except FileNotFoundError:
         raise ConfigError("no such file", file=path) from None
-    except (ValueError, IndexError, KeyError) as exc:
+    except (ValueError, IndexError, KeyError, RuntimeError) as exc:
         raise ConfigError(f"not a Solomon-format instance ({exc})", file=path) from None
 
 
