@@ -36,17 +36,21 @@ def installed_state() -> dict[str, tuple[int, int]]:
             and "__pycache__" not in p.parts}
 
 
-def closest_to_walls(out: Path, walls: list) -> float:
-    """The least distance of any robot's centre (simulator ground truth) to an inner wall."""
+def recorded(out: Path, walls: list) -> tuple[float, set]:
+    """The least distance of any robot's centre (simulator ground truth) to an inner wall, and
+    the walls the simulator said its world has (its `world` messages)."""
     from mrta_zenoh.codec import decode, type_from_encoding
     from mrta_zenoh.planning.geometry import point_segment_distance
     from mrta_zenoh.recording import read_recording
-    least = math.inf
+    least, simulated = math.inf, set()
     for key, enc, _t, payload in read_recording(out / "run.mcap"):
         if key.endswith("/ground_truth"):
             pose = decode(type_from_encoding(enc), payload).pose
             least = min(least, min(point_segment_distance((pose.x, pose.y), w) for w in walls))
-    return least
+        elif key == "world":
+            simulated |= {tuple(round(v, 3) for v in (w.x1, w.y1, w.x2, w.y2))
+                          for w in decode(type_from_encoding(enc), payload).walls}
+    return least, simulated
 
 
 @pytest.mark.timeout(900)
@@ -75,7 +79,9 @@ def test_a_generated_instance_with_a_wall_runs_under_both_architectures_and_roun
         assert "around the walls" in s["instance"]["cost_model"]
         out = tmp_path / arch
         assert (out / "instance" / "delivery" / "worlds" / "delivery.yaml").is_file()
-        assert closest_to_walls(out, walls) > ROBOT_RADIUS + 0.05
+        least, simulated = recorded(out, walls)
+        assert tuple(walls[0]) in simulated  # the simulator ran the instance's world
+        assert least > ROBOT_RADIUS + 0.05  # and no robot touched its wall
     # the section read back is the same instance (its cost and cost_model ignored)
     again = load_document(tmp_path / "alliance" / "summary.json")
     assert again.params() == doc.params()

@@ -32,7 +32,8 @@ ROBOT_RADIUS = 0.26      # m: the simulator's P3-DX model (it contains every son
 MARGIN = 0.14            # m: room for the robot's tracking error around a corner
 CLEARANCE = ROBOT_RADIUS + MARGIN
 SIDES = 8
-EPS = 1e-9
+ON_OUTLINE = 1e-7     # m: a point this close to an outline is on it, not inside
+SLIVER = 1e-9         # of a segment's length: an overlap this short is a touch, not a crossing
 
 Segment = tuple[float, float, float, float]
 
@@ -79,7 +80,7 @@ class Obstacle:
         return cls(tuple(_hull([(x + dx, y + dy) for x, y in ((x1, y1), (x2, y2))
                                 for dx, dy in ring])))
 
-    def contains(self, p: Point, eps: float = 1e-7) -> bool:
+    def contains(self, p: Point, eps: float = ON_OUTLINE) -> bool:
         """Whether p lies strictly inside (more than eps from the outline)."""
         c = self.corners
         return all(_edge_depth(c[k], c[(k + 1) % len(c)], p) > eps for k in range(len(c)))
@@ -94,8 +95,8 @@ class Obstacle:
         t_in, t_out = 0.0, 1.0
         c = self.corners
         for k in range(len(c)):
-            da = _edge_depth(c[k], c[(k + 1) % len(c)], a) - 1e-7
-            db = _edge_depth(c[k], c[(k + 1) % len(c)], b) - 1e-7
+            da = _edge_depth(c[k], c[(k + 1) % len(c)], a) - ON_OUTLINE
+            db = _edge_depth(c[k], c[(k + 1) % len(c)], b) - ON_OUTLINE
             if da <= 0 and db <= 0:
                 return False
             if da < 0 or db < 0:
@@ -104,9 +105,9 @@ class Obstacle:
                     t_in = max(t_in, t)
                 else:
                     t_out = min(t_out, t)
-                if t_in >= t_out - 1e-9:
+                if t_in >= t_out - SLIVER:
                     return False
-        return t_in < t_out - 1e-9
+        return t_in < t_out - SLIVER
 
 
 def _edge_depth(p: Point, q: Point, x: Point) -> float:

@@ -105,7 +105,8 @@ def parse_mix(mix: str) -> list[tuple[str, float]]:
         if not sep or not name or not 0 <= prob <= 1:
             raise ConfigError(f"capability mix: {item!r} is not NAME:P with 0 ≤ P ≤ 1")
         out.append((name, prob))
-    if sum(p for _, p in out) > 1 + 1e-9:
+    total = sum(p for _, p in out)
+    if total > 1 and not math.isclose(total, 1.0):
         raise ConfigError(f"capability mix {mix!r}: the probabilities sum to more than 1")
     return out
 
