@@ -43,7 +43,8 @@ class InstanceKind:
         """What results carry for this instance (never a path)."""
         return ""
 
-    def describe(self, doc: Any, *, exact_limit: int, time_limit: float) -> dict[str, Any]:
+    def describe(self, doc: Any, *, exact_limit: int, time_limit: float,
+                 solutions: int) -> dict[str, Any]:
         """What `mrta instance show` prints (JSON values): sizes, costs, reference values."""
         return {}
 
@@ -123,11 +124,12 @@ def load(path: Path, application: str | None = None) -> Loaded:
 
 
 def show(path: Path, application: str | None = None, *, exact_limit: int = 10,
-         time_limit: float = 30.0) -> dict[str, Any]:
+         time_limit: float = 30.0, solutions: int = 1000) -> dict[str, Any]:
     """What `mrta instance show` prints."""
     loaded = load(path, application)
     return {"name": loaded.name, "application": loaded.kind.application,
-            **loaded.kind.describe(loaded.doc, exact_limit=exact_limit, time_limit=time_limit)}
+            **loaded.kind.describe(loaded.doc, exact_limit=exact_limit, time_limit=time_limit,
+                                   solutions=solutions)}
 
 
 def generate(name: str, options: dict[str, Any], seed: int, output: Path | None) -> str:

@@ -150,3 +150,16 @@ def test_points_too_close_to_a_wall_and_closed_off_points_are_errors():
     m.check_point((-2.0, 0.0), "task t1")
     with pytest.raises(ConfigError, match="no drivable path"):
         m.path((-3.0, 0.0), (3.0, 0.0))
+
+
+@pytest.mark.multiprocess
+def test_what_agents_import_loads_no_numpy_scipy_or_ortools():
+    import subprocess
+    import sys
+    code = ("import sys, mrta_zenoh.planning, mrta_zenoh.planning.geometry, mrta_delivery.layers,"
+            " mrta_delivery.evaluators; print(sorted(m for m in ('numpy', 'scipy', 'ortools')"
+            " if m in sys.modules))")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == "[]"

@@ -4,7 +4,8 @@ reference values a run is compared with (`reference.py`: the exact recursion, or
 routing, loaded only where called)."""
 
 from .problem import Point, Problem, Robot, Task, straight_line
+from .reference import Reference, reference
 from .schedule import Evaluation, Objective, Visit, check_routes, evaluate, route_visits, routes_by_id
 
 __all__ = ["Point", "Problem", "Robot", "Task", "straight_line", "Evaluation", "Objective", "Visit",
-           "check_routes", "evaluate", "route_visits", "routes_by_id"]
+           "check_routes", "evaluate", "route_visits", "routes_by_id", "Reference", "reference"]

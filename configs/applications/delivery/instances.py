@@ -30,7 +30,8 @@ START_GAP = 1.0                  # m between two robots' starts (robots are bodi
 TASK_GAP = 0.6                   # m between a task and any other start or task
 
 
-def describe(doc: InstanceDoc, *, exact_limit: int, time_limit: float) -> dict[str, Any]:
+def describe(doc: InstanceDoc, *, exact_limit: int, time_limit: float,
+             solutions: int) -> dict[str, Any]:
     """Sizes, the travel-cost matrix's summary, the IA optimum and the reference values."""
     from mrta_zenoh.planning.assignment import ia_costs, optimal_assignment
     from mrta_zenoh.planning.reference import reference
@@ -39,7 +40,8 @@ def describe(doc: InstanceDoc, *, exact_limit: int, time_limit: float) -> dict[s
     finite = [float(c) for c in cost.flat if math.isfinite(c)]
     refs = {}
     for objective in ("minsum", "makespan", "flowtime"):
-        ref = reference(problem, objective, exact_limit=exact_limit, time_limit=time_limit)
+        ref = reference(problem, objective, exact_limit=exact_limit, time_limit=time_limit,
+                        solutions=solutions)
         refs[objective] = {"value": round(ref.value, 3), "label": ref.label,
                            "method": ref.method, "seconds": round(ref.seconds, 3),
                            **({"stopped_by_time_limit": True} if ref.capped else {})}
@@ -66,9 +68,10 @@ class DeliveryKind(InstanceKind):
     def name(self, doc: InstanceDoc) -> str:
         return doc.name
 
-    def describe(self, doc: InstanceDoc, *, exact_limit: int, time_limit: float
-                 ) -> dict[str, Any]:
-        return describe(doc, exact_limit=exact_limit, time_limit=time_limit)
+    def describe(self, doc: InstanceDoc, *, exact_limit: int, time_limit: float,
+                 solutions: int) -> dict[str, Any]:
+        return describe(doc, exact_limit=exact_limit, time_limit=time_limit,
+                        solutions=solutions)
 
 
 KIND = DeliveryKind()
