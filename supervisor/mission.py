@@ -123,8 +123,9 @@ class MissionOptions:
 
 
 def instance_folder(options: MissionOptions) -> Path:
-    """Where a run's packages derived from its instance go: inside its output folder."""
-    return options.output / "instance"
+    """Where a run's packages derived from its instance go: inside its output folder (absolute:
+    the children find them through MRTA_PACKAGE_PATH)."""
+    return options.output.resolve() / "instance"
 
 
 @dataclass(frozen=True)
