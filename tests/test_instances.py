@@ -223,3 +223,18 @@ def test_a_solomon_file_maps_depot_customers_times_and_scale(tmp_path):
     bad.write_text("not a solomon file\n")
     r = CliRunner().invoke(cli, ["instance", "generate", "solomon", "--file", str(bad)])
     assert r.exit_code == 2 and str(bad) in r.output and "Solomon" in r.output
+
+
+@pytest.mark.parametrize("args, message", [
+    (("--speeds", "0.7", "0.3"), "--speeds 0.7 0.3"),
+    (("--speeds", "0.001", "0.3"), "0.01 ≤ MIN"),
+    (("--capabilities", "lift:0.8,cold:0.5"), "sum to more than 1"),
+    (("--capabilities", "lift"), "'lift' is not NAME:P"),
+    (("--walls", "30", "--room", "4", "4"), "could not place wall"),
+    (("--robots", "100", "--room", "3", "3"), "could not place robot"),
+])
+def test_bad_generator_parameters_exit_2_in_one_line(tmp_path, args, message):
+    out = tmp_path / "x.yaml"
+    r = CliRunner().invoke(cli, ["instance", "generate", "delivery", *args, "-o", str(out)])
+    assert r.exit_code == 2 and message in r.output, r.output
+    assert len(r.output.strip().splitlines()) == 1 and not out.exists()

@@ -159,8 +159,9 @@ def _check_ranges(p: DeliveryGeneratorParams) -> None:
                 and (lo > 0 if positive else lo >= 0)):
             raise ConfigError(f"--{name} {lo:g} {hi:g}: need {'0 <' if positive else '0 ≤'} "
                               "MIN ≤ MAX")
-    if p.speeds[1] > 100:
-        raise ConfigError("--speeds: at most 100 m/s")
+    if not 0.01 <= p.speeds[0] <= p.speeds[1] <= 100:
+        raise ConfigError(f"--speeds {p.speeds[0]:g} {p.speeds[1]:g}: speeds are written to the "
+                          "cm/s, so 0.01 ≤ MIN ≤ MAX ≤ 100 m/s")
     if not all(math.isfinite(x) and 0 < x <= 10_000 for x in p.room):
         raise ConfigError(f"--room {p.room[0]:g} {p.room[1]:g}: need sizes in (0, 10000] m")
 
@@ -218,7 +219,7 @@ def generate_document(p: DeliveryGeneratorParams, seed: int) -> InstanceDoc:
     for i, start in enumerate(starts):
         speed = _r(p.speeds[0] + (p.speeds[1] - p.speeds[0]) * rng.random(), 2)
         caps = tuple(name for name, _ in mix if i == 0 or rng.random() < 0.5)
-        robots[f"robot{i + 1}"] = RobotSpec(start, max(speed, 0.01), caps)
+        robots[f"robot{i + 1}"] = RobotSpec(start, speed, caps)
     arrivals = (poisson_arrivals(rng, p.rate, p.tasks) if p.rate > 0 else [0.0] * p.tasks)
     tasks = {}
     for j, spot in enumerate(spots):
