@@ -96,6 +96,11 @@ class Mission:
         """Lines for the printed summary."""
         return []
 
+    def derive(self, instance: Path, folder: Path) -> None:
+        """Write the run's own application packages, derived from an instance file, into
+        `folder` (`--instance`): the runner puts it first on the package path for that run."""
+        raise ConfigError(f"the {self.name} mission takes no --instance")
+
     def sections(self, run: "MissionRun", records: list) -> dict[str, Any]:
         """Top-level sections of summary.json only this application has (SECTIONS: e.g. a
         point-task mission's `instance` and `allocation`, docs/delivery.md)."""
@@ -121,6 +126,13 @@ class MissionOptions:
     seed: int = 0
     lockstep: bool = True
     foxglove_port: int | None = None
+    instance: Path | None = None      # an instance file the run's packages are derived from
+
+
+def instance_folder(options: MissionOptions) -> Path:
+    """Where a run's packages derived from its instance go: inside its output folder (absolute:
+    the children find them through MRTA_PACKAGE_PATH)."""
+    return options.output.resolve() / "instance"
 
 
 @dataclass(frozen=True)
@@ -299,7 +311,16 @@ def run_mission(options: MissionOptions, *, stop: threading.Event | None = None,
         raise ConfigError(f"mission {run.mission.name!r} names no launch file")
     options.output.mkdir(parents=True, exist_ok=True)
     with output_lock(options.output):
+        if options.instance is not None:
+            run.mission.derive(options.instance, instance_folder(options))
+            reg = Registry([instance_folder(options)] + reg_path())
+            run = resolve(options, reg)
+            faults = faults_of(run)  # against the instance's robots
         return _run_in(run, faults, reg, stop, progress, folder_state(options.output))
+
+
+def reg_path() -> list[Path]:
+    return [Path(p) for p in os.environ.get("MRTA_PACKAGE_PATH", "").split(os.pathsep) if p]
 
 
 LOCK_FILE = ".mrta-run.lock"
@@ -355,6 +376,9 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
     check_executables(nodes)
     rendezvous = private_rendezvous()
     env = dict(os.environ, MRTA_RENDEZVOUS=rendezvous, PYTHONUNBUFFERED="1")
+    if options.instance is not None:  # the children find the run's own packages first
+        env["MRTA_PACKAGE_PATH"] = os.pathsep.join(map(str, [instance_folder(options)]
+                                                       + reg_path()))
     failure = faults.primary
     crashes = [f for f in faults.failures if f.kind == "crash"]
     # the agents inject the faults themselves at their simulated times: exact in lockstep, so

@@ -34,6 +34,10 @@ from .view import render
               help="Run it under this architecture (mrta arch list); default: the one the "
                    "application names. Needs an application package configured for it, "
                    "made with `mrta app new`.")
+@click.option("--instance", type=click.Path(exists=True, dir_okay=False, path_type=Path),
+              help="Run this instance file (mrta instance generate; a summary.json runs its "
+                   "`instance` section): the run's packages are derived from it in "
+                   "OUTPUT/instance.")
 @click.option("--duration", type=finite_float(min=0, min_open=True), default=60.0,
               show_default=True, help="Simulated seconds of mission.")
 @click.option("--speed", type=finite_float(min=0), default=2.0, show_default=True,

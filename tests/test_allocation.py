@@ -1,4 +1,4 @@
-"""The ST-SR-IA baseline (mrta_supervisor.allocation): the optimum equals brute force on small
+"""The ST-SR-IA baseline (mrta_zenoh.planning.assignment): the optimum equals brute force on small
 instances (rectangular and with incapable pairs), MURDOCH's greedy online rule reaches at least
 ⅓ of the offline optimum utility on 100 seeded online instances, and bad instances are refused.
 
@@ -14,10 +14,10 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from mrta_supervisor.allocation import (Instance, Robot, Task, greedy_online, murdoch_utility,
-                                        optimal_assignment, optimal_utility_assignment,
-                                        random_instance, travel_time)
-from mrta_zenoh.errors import ConfigError
+from mrta_delivery.instances import DeliveryGeneratorParams, generate_document
+from mrta_zenoh.planning import Problem, Robot, Task
+from mrta_zenoh.planning.assignment import (greedy_online, ia_costs, murdoch_utility,
+                                            optimal_assignment, optimal_utility_assignment)
 
 EXAMPLES = int(os.environ.get("MRTA_PROPERTY_EXAMPLES", "150"))
 SETTINGS = settings(max_examples=EXAMPLES, derandomize=True, deadline=None,
@@ -72,27 +72,18 @@ def test_rectangular_and_infeasible_cases():
     assert optimal_assignment(np.zeros((0, 3))).pairs == ()
 
 
-def test_the_cost_matrix_is_straight_line_travel_time_and_capabilities():
-    inst = Instance((Robot("r1", (0.0, 0.0), 0.5, frozenset({"lift"})),
-                     Robot("r2", (3.0, 0.0), 1.0, frozenset())),
-                    (Task("a", (3.0, 4.0), capability="lift"), Task("b", (0.0, 4.0))))
-    c = inst.cost_matrix()
+def test_the_cost_matrix_is_travel_time_from_the_start_and_capabilities():
+    inst = Problem((Robot("r1", (0.0, 0.0), 0.5, frozenset({"lift"})),
+                    Robot("r2", (3.0, 0.0), 1.0, frozenset())),
+                   (Task("a", (3.0, 4.0), capability="lift"), Task("b", (0.0, 4.0))))
+    c = ia_costs(inst)
     assert c[0, 0] == pytest.approx(10.0) and c[0, 1] == pytest.approx(8.0)
     assert math.isinf(c[1, 0]) and c[1, 1] == pytest.approx(5.0)
-    assert travel_time(inst.robots[1], inst.tasks[1]) == pytest.approx(5.0)
     assert optimal_assignment(c).pairs == ((0, 0), (1, 1))
     assert not inst.online
-
-
-@pytest.mark.parametrize("bad, match", [
-    (dict(robots=(Robot("r", (0, 0), 0.0, frozenset()),), tasks=()), "speed"),
-    (dict(robots=(Robot("r", (0, 0), math.nan, frozenset()),), tasks=()), "speed"),
-    (dict(robots=(), tasks=(Task("a", (0, 0), arrival=-1.0),)), "arrival"),
-    (dict(robots=(), tasks=(Task("a", (0, 0)), Task("a", (1, 1)))), "twice"),
-])
-def test_bad_instances_are_refused(bad, match):
-    with pytest.raises(ConfigError, match=match):
-        Instance(**bad)
+    # around walls: the problem's path lengths, whatever they are
+    detour = Problem.with_paths(inst.robots, inst.tasks, lambda a, b: 2 * math.dist(a, b))
+    assert ia_costs(detour)[1, 1] == pytest.approx(10.0)
 
 
 def test_greedy_online_assigns_on_arrival_and_keeps_robots():
@@ -111,12 +102,13 @@ def test_murdoch_greedy_reaches_a_third_of_the_offline_optimum_on_100_online_ins
     the utility greedy reaches is at least ⅓ of the offline optimum with hindsight."""
     rng = np.random.default_rng(25)
     worst, cost_ratios = math.inf, []
-    for _ in range(100):
+    for seed in range(100):
         n = int(rng.integers(2, 9))
-        inst = random_instance(rng, n, int(rng.integers(1, n + 1)), rate=0.2,
-                               capabilities=("", "lift"))
+        inst = generate_document(DeliveryGeneratorParams(
+            robots=n, tasks=int(rng.integers(1, n + 1)), rate=0.2, capabilities="lift:0.5"),
+            seed).problem()
         assert inst.online
-        cost = inst.cost_matrix()
+        cost = ia_costs(inst)
         u = murdoch_utility(cost, level=1.0, weight=0.01)
         greedy = greedy_online(u, [t.arrival for t in inst.tasks])
         achieved = sum(u[i, j] for i, j in greedy)

@@ -12,8 +12,7 @@ from mrta_agent.runtime.builtin import OdometrySensor
 from mrta_agent.runtime.params import SensorParams
 from mrta_agent.runtime.plugins import AgentContext
 from mrta_delivery.evaluators import TaskOpen
-from mrta_delivery.generate import INSTANCE, alliance_answers, load_instance, murdoch_answers, \
-    package_files
+from mrta_delivery.generate import INSTANCE, all_files, load_instance
 from mrta_delivery.instance import DeliveryParams
 from mrta_delivery.keys import event_key
 from mrta_delivery.layers import Deliver
@@ -25,6 +24,7 @@ from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
 from mrta_zenoh.clock import ManualClock
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.messages import Header, Odometry, Pose2D, Twist
+from mrta_zenoh.planning.assignment import ia_costs
 from tests.helpers import CONFIGS
 from tests.layer_harness import LayerRun
 
@@ -115,12 +115,12 @@ def test_the_loader_tells_each_layer_its_task_and_a_layer_without_one_is_refused
 
 
 def test_metrics_count_the_first_assignment_and_handovers():
-    inst = PARAMS.instance()
+    inst = PARAMS.problem()
     log = [Entry("t1", "robot3", 1.0, 5.0), Entry("t1", "robot1", 6.0, 20.0, 15.0, 19.0),
            Entry("t2", "robot2", 1.0, 12.0, 10.0, 13.0), Entry("t3", "robot4", 1.0, 14.0, 9.0, 14.0),
            Entry("t4", "robot5", 1.0, 15.0, 12.0, 15.0)]
     m = measure(inst, log, {"robot1": 3.0, "robot2": 4.0})
-    cost = inst.cost_matrix()
+    cost = ia_costs(inst)
     achieved = cost[2, 0] + cost[1, 1] + cost[3, 2] + cost[4, 3]  # t1's first holder: robot3
     assert m["achieved_cost"] == pytest.approx(achieved, abs=1e-3)
     assert m["optimality"] == pytest.approx(m["optimal_cost"] / achieved, abs=1e-4)
@@ -131,12 +131,11 @@ def test_metrics_count_the_first_assignment_and_handovers():
     assert partial["optimality"] is None and partial["makespan"] is None
 
 
-@pytest.mark.parametrize("package, answers", [("delivery", alliance_answers),
-                                              ("delivery_murdoch", murdoch_answers)])
-def test_the_shipped_packages_are_what_the_generator_writes(package, answers):
-    params = load_instance(INSTANCE)
-    for rel, data in package_files(params, answers(params, package)).items():
-        assert (CONFIGS / "applications" / package / rel).read_bytes() == data, rel
+def test_the_shipped_packages_are_what_the_generator_writes():
+    files = all_files(load_instance(INSTANCE), "delivery", "delivery_murdoch")
+    assert "delivery/worlds/delivery.yaml" in files
+    for rel, data in files.items():
+        assert (CONFIGS / "applications" / rel).read_bytes() == data, rel
 
 
 def test_the_agent_loader_gives_each_delivery_layer_its_task():

@@ -1,11 +1,14 @@
-"""Write both delivery application packages from one instance: `python -m mrta_delivery.generate_cli
-[--instance FILE] [--output DIR] [--arrivals poisson --rate R --seed S]`.
+"""Both delivery application packages from one instance: `python -m mrta_delivery.generate_cli
+[--instance FILE] [--output DIR] [--arrivals poisson --rate R --seed S]` writes the shipped ones
+(or copies elsewhere); `derive` writes a run's own into its folder (`mrta demo --instance FILE`).
 
 The rqt_mrta files (package.xml, rqt_mrta.xml, the robots' parameter files, the tasks file, the
 per-robot launch files) come from the toolchain's own generator (`mrta app new`'s
 `build_application`), fed with answers computed from the instance; the layers file (the
-instance as its `Delivery` section) and `launch/delivery_sim.launch` (the simulator with the
-instance's starts, and the agents) are written beside them. The Python modules of
+instance as its `Delivery` section), `launch/delivery_sim.launch` (the simulator with the
+instance's starts, and one agent per robot of the instance) and, in the ALLIANCE package,
+`worlds/delivery.yaml` (the instance's room and walls, the world the simulator loads by name)
+are written beside them. The Python modules of
 `mrta_delivery` are not touched. tests/test_delivery_config.py checks that the shipped packages
 are exactly what this writes.
 
@@ -25,7 +28,7 @@ How the instance becomes each architecture's parameters (docs/delivery.md):
 from __future__ import annotations
 
 import dataclasses
-import math
+import random
 from pathlib import Path
 
 import msgspec
@@ -33,12 +36,12 @@ import yaml
 
 from mrta_zenoh.architectures import TEAM_ENV
 from mrta_zenoh.errors import ConfigError
-from mrta_zenoh.files import write_text
+from mrta_zenoh.files import write_folder, write_text
 from mrta_zenoh.toolchain.generator import Answers, build_application
 from mrta_zenoh.toolchain.registry import Registry
-from mrta_zenoh.yamlfile import load_yaml
 
-from .instance import DeliveryParams
+from .instance import (DeliveryParams, InstanceDoc, document_data, document_yaml, flow,
+                       load_document)
 
 HERE = Path(__file__).resolve().parent
 INSTANCE = HERE / "instance.yaml"
@@ -54,26 +57,28 @@ COMMON = dict(version="1.0.0", maintainer="mrta-zenoh maintainers",
 
 
 def load_instance(path: Path = INSTANCE) -> DeliveryParams:
-    doc = load_yaml(path)
-    params = doc.convert((), DeliveryParams)
-    params.check()
-    return params
+    return load_document(path).params()
 
 
 def with_poisson_arrivals(params: DeliveryParams, rate: float, seed: int) -> DeliveryParams:
-    """The same robots and tasks with Poisson arrivals (rate tasks/s) drawn from `seed`, in task
-    order (numpy only here: the agents read the times from the file, never draw them)."""
-    import numpy as np
-    from mrta_supervisor.allocation import poisson_arrivals
-    times = poisson_arrivals(np.random.default_rng(seed), rate, len(params.tasks))
+    """The same robots and tasks with Poisson arrivals (rate tasks/s) drawn from `seed`'s own
+    stream, in task order (the agents read the times from the file, never draw them)."""
+    from .instances import poisson_arrivals
+    if not rate > 0:
+        raise ConfigError(f"--rate must be > 0, got {rate!r}")
+    times = poisson_arrivals(random.Random(f"mrta.instances/poisson/{seed}"), rate,
+                             len(params.tasks))
     tasks = {tid: msgspec.structs.replace(t, arrival=at)
              for (tid, t), at in zip(params.tasks.items(), times)}
     return msgspec.structs.replace(params, tasks=tasks)
 
 
-def _cost(params: DeliveryParams, rid: str, tid: str) -> float:
-    r, t = params.robot(rid), params.task(tid)
-    return math.hypot(t.position[0] - r.start[0], t.position[1] - r.start[1]) / r.speed
+def _costs(params: DeliveryParams) -> dict[tuple[str, str], float]:
+    """Each robot's travel time from its start to each task: the planning problem's (around
+    the walls when there are any)."""
+    problem = params.problem()
+    return {(r.id, t.id): problem.travel(i, None, j) for i, r in enumerate(problem.robots)
+            for j, t in enumerate(problem.tasks)}
 
 
 def _sig(x: float) -> float:
@@ -104,11 +109,12 @@ def _tasks_list(params: DeliveryParams, murdoch: bool) -> list[dict]:
 
 def alliance_answers(params: DeliveryParams, package: str = "delivery") -> Answers:
     robots = _robot_tasks(params)
+    costs = _costs(params)
     per_robot = {}
     for k, (rid, tasks) in enumerate(robots.items()):
         sets = []
         for tid in tasks:
-            cost = _cost(params, rid, tid)
+            cost = costs[(rid, tid)]
             expected = round(2.0 * (cost + params.task(tid).service) + 10.0, 1)
             sets.append({
                 "task_expected_duration": expected,
@@ -154,16 +160,23 @@ def murdoch_answers(params: DeliveryParams, package: str = "delivery_murdoch") -
 
 
 def layers_yaml(params: DeliveryParams, stem: str) -> bytes:
-    body = msgspec.to_builtins(params)
-    for r in body["robots"].values():
-        r["start"] = list(r["start"])
-        r["capabilities"] = list(r["capabilities"])
-    for t in body["tasks"].values():
-        t["position"] = list(t["position"])
     head = (f"# layers_{stem}_params: the delivery instance (written by `python -m "
             "mrta_delivery.generate_cli` from instance.yaml; docs/delivery.md)\n")
-    return (head + yaml.safe_dump({"Delivery": body}, sort_keys=False, default_flow_style=None,
-                                  width=100)).encode()
+    return (head + "Delivery:\n" + document_yaml(document_data(params), "  ")).encode()
+
+
+def world_yaml(params: DeliveryParams) -> bytes:
+    """The simulator's world (docs/worlds.md): the instance's room and walls."""
+    w, h = params.world.size
+    room = [[-w / 2, -h / 2], [w / 2, -h / 2], [w / 2, h / 2], [-w / 2, h / 2]]
+    head = (f"# The delivery world: a {w:g} m × {h:g} m room"
+            + (f" with {len(params.world.walls)} walls inside" if params.world.walls
+               else ", open")
+            + " (written by mrta_delivery.generate from the instance; docs/delivery.md).\n"
+            "# Starts come from the instance (the launch file's --robot options).\n")
+    lines = ["name: delivery", "walls:", f"  - polygon: {flow(room)}"]
+    lines += [f"  - segment: {flow(list(map(float, wall)))}" for wall in params.world.walls]
+    return (head + "\n".join(lines) + "\n").encode()
 
 
 def sim_launch(params: DeliveryParams, package: str, arch_pkg: str, stem: str) -> bytes:
@@ -214,18 +227,35 @@ def package_files(params: DeliveryParams, answers: Answers, registry: Registry |
     return files
 
 
+def all_files(params: DeliveryParams, alliance: str, murdoch: str) -> dict[str, bytes]:
+    """Both packages' generated files, by path under their common parent folder."""
+    files = {}
+    for answers, folder in ((alliance_answers(params, alliance), alliance),
+                            (murdoch_answers(params, murdoch), murdoch)):
+        for rel, data in package_files(params, answers).items():
+            files[f"{folder}/{rel}"] = data
+    files[f"{alliance}/worlds/delivery.yaml"] = world_yaml(params)
+    return files
+
+
 def generate(params: DeliveryParams, alliance_dir: Path, murdoch_dir: Path) -> list[Path]:
     """Write both packages' generated files. Everything is built before the first file is
     written, so a bad instance writes nothing; each file is replaced atomically (the package
     folders also hold this application's Python modules, so they are not replaced whole)."""
-    built = [(folder, package_files(params, answers)) for answers, folder in
-             ((alliance_answers(params, alliance_dir.name), alliance_dir),
-              (murdoch_answers(params, murdoch_dir.name), murdoch_dir))]
+    if alliance_dir.parent != murdoch_dir.parent:
+        raise ConfigError("both packages go into one folder")
+    files = all_files(params, alliance_dir.name, murdoch_dir.name)
     written = []
-    for folder, files in built:
-        for rel, data in sorted(files.items()):
-            path = folder / rel
-            path.parent.mkdir(parents=True, exist_ok=True)
-            write_text(path, data.decode())
-            written.append(path)
+    for rel, data in sorted(files.items()):
+        path = alliance_dir.parent / rel
+        path.parent.mkdir(parents=True, exist_ok=True)
+        write_text(path, data.decode())
+        written.append(path)
     return written
+
+
+def derive(doc: InstanceDoc, folder: Path) -> list[Path]:
+    """A run's own packages from an instance (`mrta demo --instance FILE`): `delivery` and
+    `delivery_murdoch` in `folder`, replacing it whole or not at all. Put first on the package
+    path, they shadow the installed ones for that run; nothing is written into those."""
+    return write_folder(folder, all_files(doc.params(), "delivery", "delivery_murdoch"))

@@ -1,25 +1,35 @@
-"""The delivery instance as the agents' layers file carries it (section `Delivery`) and as
-`instance.yaml` states it for the generator: robots (start, speed, capabilities) and tasks
-(position, arrival, service, capability). Typed (msgspec), so a bad value is an error naming
-file, line and key when the agent loads its parameters, before anything runs.
+"""The delivery instance document (docs/delivery.md, "Instances"): robots (start, heading, speed,
+capabilities), tasks (position, arrival, service, capability, reward) and the world (room size,
+walls), as a YAML file states it, as the agents' layers file carries it (section `Delivery`) and
+as summary.json's `instance` section writes it back. Typed (msgspec), so a bad value is an error
+naming file, line and key before anything runs.
 
-Both packages (ALLIANCE's `delivery`, MURDOCH's `delivery_murdoch`) carry the same section, so
-every robot, whatever its architecture, and the mission hook read one instance.
+Every package derived from an instance (ALLIANCE's `delivery`, MURDOCH's `delivery_murdoch`)
+carries the same section, so every robot, whatever its architecture, and the mission hook read
+one instance. The travel model is `mrta_zenoh.planning`'s: straight lines in an open room,
+shortest drivable paths around the walls otherwise (`planning.geometry`).
 """
 
 from __future__ import annotations
 
 import math
-from typing import Annotated
+from pathlib import Path
+from typing import Annotated, Any
 
 import msgspec
+import yaml
 
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.messages import Finite
+from mrta_zenoh.planning import Problem, Robot, Task
+from mrta_zenoh.planning.geometry import PathMap, room_walls
+from mrta_zenoh.yamlfile import YamlDoc, get_path, load_yaml
 
 Point = Annotated[tuple[Finite, Finite], msgspec.Meta(title="x, y in metres")]
 NonNegative = Annotated[float, msgspec.Meta(ge=0.0, le=1e9)]
 Positive = Annotated[float, msgspec.Meta(gt=0.0, le=100.0)]
+Size = Annotated[float, msgspec.Meta(gt=0.0, le=10_000.0)]
+Wall = tuple[Finite, Finite, Finite, Finite]
 
 
 class RobotSpec(msgspec.Struct, forbid_unknown_fields=True):
@@ -34,15 +44,26 @@ class TaskSpec(msgspec.Struct, forbid_unknown_fields=True):
     arrival: NonNegative = 0.0           # s: when the task appears
     service: NonNegative = 0.0           # s: how long a robot must stay at it
     capability: str = ""                 # what it needs ("": any robot)
+    reward: Finite = 1.0                 # what serving it is worth
+    due: NonNegative | None = None       # s: a due time (Solomon files), kept for later use
 
 
-class DeliveryParams(msgspec.Struct, forbid_unknown_fields=True):
-    """The layers file's `Delivery` section (and instance.yaml's body)."""
+class WorldSpec(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    size: tuple[Size, Size] = (12.0, 8.0)   # m: the room, centred on the origin (its 4 walls)
+    walls: tuple[Wall, ...] = ()            # m: walls inside it, x1, y1, x2, y2
 
+    def all_walls(self) -> list[tuple[float, float, float, float]]:
+        return room_walls(*self.size) + [tuple(map(float, w)) for w in self.walls]
+
+
+DEFAULT_WORLD = WorldSpec()
+
+
+class InstanceBody(msgspec.Struct, forbid_unknown_fields=True):
     robots: dict[str, RobotSpec] = {}
     tasks: dict[str, TaskSpec] = {}
-    tolerance: Annotated[float, msgspec.Meta(gt=0.0, le=5.0)] = 0.3  # m: "at the task"
-    turn_rate: Annotated[float, msgspec.Meta(gt=0.0, le=3.0)] = 1.2   # rad/s at most
+    world: WorldSpec = DEFAULT_WORLD
+    name: str = ""                       # what results carry (a generator's, or the file's stem)
 
     def robot(self, robot_id: str) -> RobotSpec:
         spec = self.robots.get(robot_id)
@@ -58,27 +79,141 @@ class DeliveryParams(msgspec.Struct, forbid_unknown_fields=True):
                               f"{', '.join(self.tasks) or 'none'})")
         return spec
 
-    def instance(self):
-        """The generic ST-SR-IA instance (mrta_supervisor.allocation), in file order. Imported
-        here, not at the top: agents read this module and must not load numpy or scipy."""
-        from mrta_supervisor.allocation import Instance, Robot, Task
-        return Instance(
-            tuple(Robot(rid, tuple(r.start), r.speed, frozenset(r.capabilities))
-                  for rid, r in self.robots.items()),
-            tuple(Task(tid, tuple(t.position), t.arrival, t.service, t.capability)
-                  for tid, t in self.tasks.items()))
-
     def capable(self, robot_id: str, task_id: str) -> bool:
         need = self.task(task_id).capability
         return not need or need in self.robot(robot_id).capabilities
 
-    def check(self) -> None:
-        """What the types cannot say: every task some robot can serve."""
+    def path_map(self) -> PathMap | None:
+        """Shortest drivable paths in the world; None when it has no inner wall (then, in a
+        convex room, the straight line is the shortest path)."""
+        return PathMap(self.world.all_walls()) if self.world.walls else None
+
+    def faults(self) -> list[tuple[tuple, str]]:
+        """What the types cannot say, as (key path, message): every task some robot can serve,
+        every start and task inside the room and clear of its walls."""
+        out = []
         for tid in self.tasks:
             if not any(self.capable(rid, tid) for rid in self.robots):
-                raise ConfigError(f"Delivery/tasks/{tid}: no robot has capability "
-                                  f"{self.tasks[tid].capability!r}")
+                out.append((("tasks", tid, "capability"),
+                            f"no robot has capability {self.tasks[tid].capability!r}"))
+        paths = PathMap(self.world.all_walls())
+        w, h = self.world.size
+        where = [(("robots", rid, "start"), f"robot {rid}", r.start)
+                 for rid, r in self.robots.items()]
+        where += [(("tasks", tid, "position"), f"task {tid}", t.position)
+                  for tid, t in self.tasks.items()]
+        for key, what, p in where:
+            if abs(p[0]) >= w / 2 or abs(p[1]) >= h / 2:
+                out.append((key, f"{what} at ({p[0]:g}, {p[1]:g}) is outside the {w:g} × {h:g} m "
+                                 "room"))
+                continue
+            try:
+                paths.check_point(tuple(p), what)
+            except ConfigError as exc:
+                out.append((key, str(exc)))
+        return out
+
+    def check(self) -> None:
+        for _, message in self.faults()[:1]:
+            raise ConfigError(message)
+
+    def problem(self) -> Problem:
+        """The planning problem (file order), distances around the walls when there are any."""
+        robots = tuple(Robot(rid, (float(r.start[0]), float(r.start[1])), r.speed,
+                             frozenset(r.capabilities)) for rid, r in self.robots.items())
+        tasks = tuple(Task(tid, (float(t.position[0]), float(t.position[1])), t.arrival,
+                           t.service, t.capability, t.reward) for tid, t in self.tasks.items())
+        paths = self.path_map()
+        if paths is None:
+            return Problem(robots, tasks)
+        return Problem(robots, tasks, paths.matrix([r.start for r in robots]
+                                                   + [t.position for t in tasks]))
+
+    def travel_model(self) -> str:
+        if self.world.walls:
+            return (f"shortest drivable path around the walls (visibility graph, clearance "
+                    f"{self.path_map().clearance:g} m) / speed (s)")
+        return "straight-line distance / speed (s)"
 
 
-def heading_to(x: float, y: float, gx: float, gy: float) -> float:
-    return math.atan2(gy - y, gx - x)
+class DeliveryParams(InstanceBody, forbid_unknown_fields=True):
+    """The layers file's `Delivery` section: the instance and how the layer drives."""
+
+    tolerance: Annotated[float, msgspec.Meta(gt=0.0, le=5.0)] = 0.3  # m: "at the task"
+    turn_rate: Annotated[float, msgspec.Meta(gt=0.0, le=3.0)] = 1.2   # rad/s at most
+
+
+class InstanceDoc(InstanceBody, forbid_unknown_fields=True):
+    """An instance file. `generator` says where it came from; `cost` and `cost_model` are what
+    summary.json adds to it — accepted and ignored, so a summary's section runs again as is."""
+
+    application: str = ""                # "delivery" (or nothing)
+    generator: dict[str, Any] = {}
+    cost: Any = None
+    cost_model: Any = None
+
+    def params(self) -> DeliveryParams:
+        return DeliveryParams(self.robots, self.tasks, self.world, self.name)
+
+
+def load_document(path: Path | str) -> InstanceDoc:
+    """An instance file, checked (ConfigError naming file, line and key). A summary.json is
+    read too: its `instance` section is the document. The name defaults to the file's stem."""
+    doc = load_yaml(path)
+    base: tuple = ()
+    if isinstance(doc.data, dict) and isinstance(doc.data.get("instance"), dict):
+        base = ("instance",)  # a summary.json (an instance document has no such key)
+    for group, kind in (("robots", RobotSpec), ("tasks", TaskSpec)):
+        entries = get_path(doc.data, base + (group,))
+        if isinstance(entries, dict):  # entry by entry: an error then names its entry's line
+            for key in entries:
+                doc.convert(base + (group, key), kind)
+    inst = doc.convert(base, InstanceDoc)
+    if inst.application not in ("", "delivery"):
+        raise doc.error(base + ("application",), f"this is a {inst.application!r} instance, "
+                        "not a delivery one")
+    raise_faults(doc, base, inst)
+    if not inst.name:
+        inst = msgspec.structs.replace(inst, name=Path(path).stem)
+    return inst
+
+
+def raise_faults(doc: YamlDoc, base: tuple, inst: InstanceBody) -> None:
+    if not inst.robots:
+        raise doc.error(base + ("robots",), "an instance needs at least one robot")
+    for key, message in inst.faults()[:1]:
+        raise doc.error(base + key, message)
+
+
+def document_data(inst: InstanceBody) -> dict[str, Any]:
+    """The document as plain data in its own order: lists for points, no empty defaults."""
+    body = msgspec.to_builtins(inst)
+    for r in body["robots"].values():
+        r["start"] = list(r["start"])
+        r["capabilities"] = list(r["capabilities"])
+    for t in body["tasks"].values():
+        t["position"] = list(t["position"])
+        if t.get("due") is None:
+            t.pop("due", None)
+    body["world"] = {"size": list(inst.world.size), "walls": [list(w) for w in inst.world.walls]}
+    for key in ("application", "generator", "cost", "cost_model"):
+        if not body.get(key):
+            body.pop(key, None)
+    return body
+
+
+def flow(value: Any) -> str:
+    text = yaml.safe_dump(value, default_flow_style=True, width=math.inf, sort_keys=False)
+    return text.removesuffix("\n...\n").strip()  # a scalar's document-end marker
+
+
+def document_yaml(body: dict[str, Any], indent: str = "") -> str:
+    """`body` (document_data's) as YAML, one line per robot and task, in its own order."""
+    lines = []
+    for key, value in body.items():
+        if key in ("robots", "tasks") and value:
+            lines.append(f"{indent}{key}:")
+            lines += [f"{indent}  {flow(k)}: {flow(v)}" for k, v in value.items()]
+        else:
+            lines.append(f"{indent}{flow(key)}: {flow(value)}")
+    return "\n".join(lines) + "\n"

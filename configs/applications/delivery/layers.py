@@ -1,12 +1,16 @@
 """`delivery/deliver`: drive to the task, stay for its service time, tell the team.
 
-The robot turns towards the task and drives straight at its own speed (`Delivery/robots/<id>/
+The robot drives the path the cost model prices (docs/delivery.md, "Cost model"): on the first
+step after each activation it plans a shortest drivable path from where it is to the task
+around the world's walls (`mrta_zenoh.planning.geometry`, the same visibility graph the
+instance's cost matrix comes from; a straight line in an open room) and follows its waypoints
+in turn — turning towards the next, driving straight at its own speed (`Delivery/robots/<id>/
 speed`, its commanded cap: the simulator's robot model has one speed limit for every robot,
-0.75 m/s, so robots differ in speed by what their layer commands). It reads only odometry: a
-delivery world is open, and the cost model (docs/delivery.md) is the straight line. Within
-`tolerance` of the task it stops, says `started`, waits `service` seconds and says `done`
-(reliably: that is what makes the task inapplicable for every teammate). Deactivated before
-that (a handover), it starts over when activated again.
+0.75 m/s, so robots differ in speed by what their layer commands). It reads only odometry: the
+walls are known from the instance. Within `tolerance` of the task it stops, says `started`,
+waits `service` seconds and says `done` (reliably: that is what makes the task inapplicable
+for every teammate). Deactivated before that (a handover), it starts over when activated
+again, from where it then is.
 
 Which task a layer serves: the agent runtime's loader sets every layer's `task_id` to the
 task whose layers it builds, so one registered class serves every task.
@@ -19,6 +23,7 @@ import math
 from mrta_zenoh.clock import EPSILON
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.messages import Header
+from mrta_zenoh.planning.geometry import PathMap
 from mrta_agent.runtime.builtin import odometry_pose
 from mrta_agent.runtime.plugins import AgentContext, Layer
 
@@ -28,6 +33,8 @@ from .keys import event_key
 from .messages import TaskEvent
 
 ALIGNED = 0.35  # rad: beyond this heading error the robot turns (almost) in place
+CORNER = 0.1    # m: a corner counts as passed this close (the path keeps 0.14 m of margin)
+PATHS = "_delivery_paths"  # where the robot's path map hangs on its AgentContext
 
 
 def _clip(v: float, lo: float, hi: float) -> float:
@@ -48,12 +55,14 @@ class Deliver(Layer):
         self.service = task.service
         self.speed = self.params.robot(ctx.robot_id).speed
         self.board = Board.of(self)
+        self.paths = path_map_of(self)
         self.seq = 0
         self.on_activate(0.0)
 
     def on_activate(self, now: float) -> None:
         self.serving_since: float | None = None
         self.finished = False
+        self.waypoints: list[tuple[float, float]] | None = None  # planned at the next step
 
     def pose(self, now: float) -> tuple[float, float, float] | None:
         return odometry_pose(self.ctx, now)
@@ -73,7 +82,13 @@ class Deliver(Layer):
         if pose is None:
             self.ctx.publish_cmd(0.0, 0.0)  # blind: stand still
             return
-        v, w, arrived = self.command(pose)
+        if self.waypoints is None:
+            self.waypoints = self.plan(pose)
+        while len(self.waypoints) > 1 and math.hypot(self.waypoints[0][0] - pose[0],
+                                                     self.waypoints[0][1] - pose[1]) \
+                <= CORNER:
+            self.waypoints.pop(0)  # a corner passed
+        v, w, arrived = self.command(pose, self.waypoints[0], len(self.waypoints) == 1)
         if arrived:
             self.serving_since = now
             self.ctx.publish_cmd(0.0, 0.0)
@@ -81,14 +96,29 @@ class Deliver(Layer):
             return
         self.ctx.publish_cmd(v, w)
 
-    def command(self, pose: tuple[float, float, float]) -> tuple[float, float, bool]:
-        """(linear, angular, arrived) towards the goal from `pose`: turn to face it, then drive
+    def plan(self, pose: tuple[float, float, float]) -> list[tuple[float, float]]:
+        """The waypoints still to reach (the task last): the shortest drivable path from the
+        pose; just the task in an open room, or when walls close it off (logged: the cost
+        model said it could be reached, so that is a fault worth seeing)."""
+        if self.paths is None:
+            return [self.goal]
+        try:
+            return self.paths.path((pose[0], pose[1]), self.goal)[1:]
+        except ConfigError as exc:
+            self.ctx.log.error("%s: %s; driving straight at %s", self.ctx.robot_id, exc,
+                               self.task_id)
+            return [self.goal]
+
+    def command(self, pose: tuple[float, float, float], target: tuple[float, float],
+                last: bool) -> tuple[float, float, bool]:
+        """(linear, angular, arrived) towards `target` from `pose`: turn to face it, then drive
         at the robot's speed, slowing only in the last half metre (the P3-DX decelerates at
-        0.3 m/s², so braking from full speed earlier would overshoot the tolerance)."""
+        0.3 m/s², so braking from full speed earlier would overshoot the tolerance). `last`:
+        the target is the task (else a corner, where the robot turns)."""
         x, y, th = pose
-        gx, gy = self.goal
+        gx, gy = target
         dist = math.hypot(gx - x, gy - y)
-        if dist <= self.params.tolerance:
+        if last and dist <= self.params.tolerance:
             return 0.0, 0.0, True
         err = math.atan2(gy - y, gx - x) - th
         err = math.atan2(math.sin(err), math.cos(err))
@@ -105,3 +135,12 @@ class Deliver(Layer):
                              TaskEvent(Header(self.ctx.robot_id, now, self.seq), self.task_id,
                                        event))
         self.ctx.log.info("%s: %s %s at t=%.2f", self.ctx.robot_id, event, self.task_id, now)
+
+
+def path_map_of(layer: Deliver) -> PathMap | None:
+    """The robot's path map of the instance's world (None: an open room), built by its first
+    delivery layer and shared by the others, as the board is."""
+    ctx = layer.ctx
+    if PATHS not in ctx.__dict__:
+        ctx.__dict__[PATHS] = layer.params.path_map()
+    return ctx.__dict__[PATHS]

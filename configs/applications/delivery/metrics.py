@@ -7,8 +7,9 @@
   appears once per holder.
 * The metrics: makespan, total distance (ground truth), mean waiting time, completed, the
   achieved cost (Σ cost of the *first* assignment of each task), the optimal cost (scipy's
-  linear_sum_assignment on the instance's cost matrix) and their ratio, optimality; MURDOCH's
-  greedy rule on the same instance as a second reference.
+  linear_sum_assignment on the instance's cost matrix: travel times along the paths robots
+  drive, around the walls when there are any) and their ratio, optimality; MURDOCH's greedy
+  rule on the same instance as a second reference.
 """
 
 from __future__ import annotations
@@ -19,10 +20,12 @@ from typing import Any, Iterable
 
 from mrta_zenoh.architectures import Architecture
 from mrta_zenoh.codec import DecodeError, decode, type_from_encoding
-from mrta_supervisor.allocation import (Instance, greedy_online, murdoch_utility,
-                                        optimal_assignment)
+from mrta_zenoh.planning import Problem
+from mrta_zenoh.planning.assignment import (greedy_online, ia_costs, murdoch_utility,
+                                            optimal_assignment)
 from mrta_supervisor.ground_truth import intervals_from
 
+from .instance import DeliveryParams, document_data
 from .messages import TaskEvent
 
 MATCH_SLACK = 1.0  # s: an event this long after its holder's interval still belongs to it
@@ -46,7 +49,8 @@ class Entry:
 
 @dataclass
 class RunAnalysis:
-    instance: Instance
+    params: DeliveryParams
+    instance: Problem
     log: list[Entry]
     metrics: dict[str, Any] = field(default_factory=dict)
 
@@ -88,7 +92,7 @@ def paths(records: Iterable, robots: set[str]) -> dict[str, float]:
     return dist
 
 
-def allocation_log(records: list, arch: Architecture, instance: Instance,
+def allocation_log(records: list, arch: Architecture, instance: Problem,
                    end: float) -> list[Entry]:
     """Every assignment of an instance task, in order of assignment, with its service times."""
     tasks = {t.id for t in instance.tasks}
@@ -119,8 +123,8 @@ def first_assignments(log: list[Entry]) -> dict[str, Entry]:
     return out
 
 
-def measure(instance: Instance, log: list[Entry], distance: dict[str, float]) -> dict[str, Any]:
-    cost = instance.cost_matrix()
+def measure(instance: Problem, log: list[Entry], distance: dict[str, float]) -> dict[str, Any]:
+    cost = ia_costs(instance)
     rows = {r.id: i for i, r in enumerate(instance.robots)}
     cols = {t.id: j for j, t in enumerate(instance.tasks)}
     done: dict[str, float] = {}
@@ -153,21 +157,23 @@ def measure(instance: Instance, log: list[Entry], distance: dict[str, float]) ->
     }
 
 
-def analyse(records: list, arch: Architecture, instance: Instance, end: float) -> RunAnalysis:
+def analyse(records: list, arch: Architecture, params: DeliveryParams,
+            end: float) -> RunAnalysis:
+    instance = params.problem()
     log = allocation_log(records, arch, instance, end)
     distance = paths(records, {r.id for r in instance.robots})
-    return RunAnalysis(instance, log, measure(instance, log, distance))
+    return RunAnalysis(params, instance, log, measure(instance, log, distance))
 
 
-def instance_json(instance: Instance) -> dict[str, Any]:
-    """summary.json's `instance`: robots, tasks and the cost matrix (null: cannot serve)."""
-    cost = instance.cost_matrix()
-    return {
-        "robots": [{"id": r.id, "start": list(r.start), "speed": r.speed,
-                    "capabilities": sorted(r.capabilities)} for r in instance.robots],
-        "tasks": [{"id": t.id, "position": list(t.position), "arrival": t.arrival,
-                   "service": t.service, "capability": t.capability} for t in instance.tasks],
-        "cost": [[round(float(c), 3) if math.isfinite(c) else None for c in row]
-                 for row in cost],
-        "cost_model": "straight-line distance from the start / speed (s)",
-    }
+def instance_json(params: DeliveryParams, instance: Problem) -> dict[str, Any]:
+    """summary.json's `instance`: the instance document (fed back as `--instance`, it gives the
+    same run), plus the travel-time matrix (robot × task, s; null: cannot serve) and how it was
+    computed — which a document read back ignores."""
+    cost = ia_costs(instance)
+    body = document_data(params)
+    for key in ("tolerance", "turn_rate"):
+        body.pop(key, None)
+    return {"application": "delivery", **body,
+            "cost": [[round(float(c), 3) if math.isfinite(c) else None for c in row]
+                     for row in cost],
+            "cost_model": params.travel_model()}

@@ -3,7 +3,8 @@ registered under `mrta.missions` as `delivery`. The framework's runner launches,
 supervises and writes the summary; this hook adds what only a delivery run can measure — the
 allocation log and the metrics against the optimal assignment (metrics.py) — from the
 recording. Both packages (delivery, delivery_murdoch) hold `launch/delivery_sim.launch` and a
-layers file whose `Delivery` section is the instance.
+layers file whose `Delivery` section is the instance; `derive` writes a run's own pair from an
+instance file (`mrta demo --instance FILE`).
 
 `metrics` lands in summary.json's `metrics` (scalars: also `mrta experiment`'s columns);
 `sections` is the instance and the allocation log, for the top-level `instance` and
@@ -12,6 +13,7 @@ layers file whose `Delivery` section is the instance.
 
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from mrta_agent.runtime.params import load_layers_params
@@ -19,7 +21,8 @@ from mrta_zenoh.keys import first_chunk
 from mrta_supervisor.mission import Mission, MissionRun
 from mrta_supervisor.tasks import TaskStatus, TaskWatch
 
-from .instance import DeliveryParams
+from .generate import derive
+from .instance import DeliveryParams, load_document
 from .keys import ALL_DONE
 from .messages import TaskEvent
 from .metrics import RunAnalysis, analyse, instance_json
@@ -64,12 +67,16 @@ class Delivery(Mission):
         """None: the delivery baseline is measured without faults (ask with --fail)."""
         return None
 
+    def derive(self, instance: Path, folder: Path) -> None:
+        """`mrta demo --instance FILE`: both packages derived from the file, into `folder`."""
+        derive(load_document(instance), folder)
+
     def analysis(self, run: MissionRun, records: list) -> RunAnalysis:
         """Computed once per recording (metrics and sections both read it)."""
         if self._last is not None and self._last[0] == id(records):
             return self._last[1]
         # what is still held at the end of the run ends there (simulated seconds)
-        result = analyse(records, run.arch, run_instance(run).instance(), run.options.duration)
+        result = analyse(records, run.arch, run_instance(run), run.options.duration)
         self._last = (id(records), result)
         return result
 
@@ -78,7 +85,7 @@ class Delivery(Mission):
 
     def sections(self, run: MissionRun, records: list) -> dict[str, Any]:
         a = self.analysis(run, records)
-        return {"instance": instance_json(a.instance),
+        return {"instance": instance_json(a.params, a.instance),
                 "allocation": [e.to_json() for e in a.log]}
 
     def task_watch(self, run: MissionRun) -> TaskWatch:

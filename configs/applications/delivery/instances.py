@@ -1,0 +1,245 @@
+"""Delivery instances as run input (docs/delivery.md, "Instances"): the document kind `mrta
+instance show | validate` read, and the `delivery` generator (registered under
+`mrta.instances`); the Solomon reader is `solomon.py`.
+
+The generator draws from its own stream, `random.Random("mrta.instances/delivery/<seed>")` —
+never the run's seed — and only through `random()` (whose sequence Python keeps fixed across
+versions), rounding what it writes, so the same parameters and seed give the same file byte for
+byte on any machine.
+"""
+
+from __future__ import annotations
+
+import math
+import random
+from pathlib import Path
+from typing import Annotated, Any
+
+import msgspec
+
+from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.instances import InstanceGenerator, InstanceKind
+from mrta_zenoh.planning.geometry import CLEARANCE, point_segment_distance, segment_distance
+
+from .instance import (InstanceDoc, RobotSpec, TaskSpec, WorldSpec, document_data,
+                       document_yaml, load_document)
+
+WALL_GAP = 2 * CLEARANCE + 0.3   # m between walls: a corridor two robots' clearances wide
+POINT_GAP = CLEARANCE + 0.2      # m from a start or task to any wall
+START_GAP = 1.0                  # m between two robots' starts (robots are bodies)
+TASK_GAP = 0.6                   # m between a task and any other start or task
+
+
+def describe(doc: InstanceDoc, *, exact_limit: int, time_limit: float,
+             solutions: int) -> dict[str, Any]:
+    """Sizes, the travel-cost matrix's summary, the IA optimum and the reference values."""
+    from mrta_zenoh.planning.assignment import ia_costs, optimal_assignment
+    from mrta_zenoh.planning.reference import reference
+    problem = doc.problem()
+    cost = ia_costs(problem)
+    finite = [float(c) for c in cost.flat if math.isfinite(c)]
+    refs = {}
+    for objective in ("minsum", "makespan", "flowtime"):
+        ref = reference(problem, objective, exact_limit=exact_limit, time_limit=time_limit,
+                        solutions=solutions)
+        refs[objective] = {"value": round(ref.value, 3), "label": ref.label,
+                           "method": ref.method, "seconds": round(ref.seconds, 3),
+                           **({"stopped_by_time_limit": True} if ref.capped else {})}
+    return {
+        "robots": len(problem.robots), "tasks": len(problem.tasks),
+        "online": problem.online,
+        "world": {"size": list(doc.world.size), "walls": len(doc.world.walls)},
+        "cost_model": doc.travel_model(),
+        "cost": {"min": round(min(finite), 3) if finite else None,
+                 "mean": round(sum(finite) / len(finite), 3) if finite else None,
+                 "max": round(max(finite), 3) if finite else None,
+                 "incapable_pairs": cost.size - len(finite)},
+        "ia_optimal_cost": round(optimal_assignment(cost).cost, 3),
+        "reference": refs,
+    }
+
+
+class DeliveryKind(InstanceKind):
+    application = "delivery"
+
+    def load(self, path: Path) -> InstanceDoc:
+        return load_document(path)
+
+    def name(self, doc: InstanceDoc) -> str:
+        return doc.name
+
+    def describe(self, doc: InstanceDoc, *, exact_limit: int, time_limit: float,
+                 solutions: int) -> dict[str, Any]:
+        return describe(doc, exact_limit=exact_limit, time_limit=time_limit,
+                        solutions=solutions)
+
+
+KIND = DeliveryKind()
+
+
+def document_text(doc: InstanceDoc, header: str) -> str:
+    """The YAML of an instance document, after `header` (comment lines)."""
+    return header + document_yaml({"application": KIND.application, **document_data(doc)})
+
+
+def _r(x: float, digits: int = 3) -> float:
+    return round(x, digits) + 0.0  # + 0.0: no -0.0 in the file
+
+
+def poisson_arrivals(rng: random.Random, rate: float, n: int) -> list[float]:
+    """Arrival times of a Poisson process of `rate` tasks per second: n cumulative exponential
+    gaps (inverse transform of `random()`), rounded to the millisecond."""
+    t, out = 0.0, []
+    for _ in range(n):
+        t += -math.log(1.0 - rng.random()) / rate
+        out.append(_r(t))
+    return out
+
+
+def parse_mix(mix: str) -> list[tuple[str, float]]:
+    """`lift:0.25,cold:0.25` → [(lift, 0.25), (cold, 0.25)] (probabilities summing to ≤ 1)."""
+    out = []
+    for item in filter(None, (s.strip() for s in mix.split(","))):
+        name, sep, p = item.partition(":")
+        try:
+            prob = float(p)
+        except ValueError:
+            prob = math.nan
+        if not sep or not name or not 0 <= prob <= 1:
+            raise ConfigError(f"capability mix: {item!r} is not NAME:P with 0 ≤ P ≤ 1")
+        out.append((name, prob))
+    total = sum(p for _, p in out)
+    if total > 1 and not math.isclose(total, 1.0):
+        raise ConfigError(f"capability mix {mix!r}: the probabilities sum to more than 1")
+    return out
+
+
+class DeliveryGeneratorParams(msgspec.Struct, forbid_unknown_fields=True):
+    robots: Annotated[int, msgspec.Meta(ge=1, le=200, description="Robots N.")] = 3
+    tasks: Annotated[int, msgspec.Meta(ge=0, le=1000, description="Tasks M.")] = 5
+    capabilities: Annotated[str, msgspec.Meta(
+        description="Capability mix NAME:P,…: a task needs NAME with probability P; each robot "
+                    "has each NAME with probability ½, the first robot has all.")] = \
+        "lift:0.25,cold:0.25"
+    speeds: Annotated[tuple[float, float], msgspec.Meta(
+        description="Speed spread: robots' speeds uniform in [MIN, MAX] m/s.")] = (0.3, 0.7)
+    service: Annotated[tuple[float, float], msgspec.Meta(
+        description="Service times uniform in [MIN, MAX] s.")] = (2.0, 6.0)
+    rate: Annotated[float, msgspec.Meta(
+        ge=0.0, description="Arrivals: Poisson at RATE tasks/s; 0: all at 0.")] = 0.0
+    room: Annotated[tuple[float, float], msgspec.Meta(
+        description="Room WIDTH HEIGHT (m), centred on the origin.")] = (12.0, 8.0)
+    walls: Annotated[int, msgspec.Meta(
+        ge=0, le=50, description="Walls inside the room that robots drive around.")] = 0
+    wall_length: Annotated[tuple[float, float], msgspec.Meta(
+        description="Inner walls' lengths uniform in [MIN, MAX] m.")] = (2.0, 4.0)
+
+
+class DeliveryGenerator(InstanceGenerator):
+    """Random delivery instances: robots, tasks, capabilities, speeds, arrivals, walls.
+
+    Starts and tasks are uniform in the room, clear of every wall; walls have random
+    orientations and leave corridors two robots' clearances wide."""
+
+    name = "delivery"
+    kind = KIND
+    Params = DeliveryGeneratorParams
+
+    def generate(self, params: DeliveryGeneratorParams, seed: int) -> str:
+        doc = generate_document(params, seed)
+        header = (f"# A delivery instance (docs/delivery.md, \"Instances\"): `mrta instance "
+                  f"generate delivery` with the parameters under `generator`.\n")
+        return document_text(doc, header)
+
+
+def _check_ranges(p: DeliveryGeneratorParams) -> None:
+    for name, (lo, hi), positive in (("speeds", p.speeds, True), ("service", p.service, False),
+                                     ("wall-length", p.wall_length, True)):
+        if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi
+                and (lo > 0 if positive else lo >= 0)):
+            raise ConfigError(f"--{name} {lo:g} {hi:g}: need {'0 <' if positive else '0 ≤'} "
+                              "MIN ≤ MAX")
+    if not 0.01 <= p.speeds[0] <= p.speeds[1] <= 100:
+        raise ConfigError(f"--speeds {p.speeds[0]:g} {p.speeds[1]:g}: speeds are written to the "
+                          "cm/s, so 0.01 ≤ MIN ≤ MAX ≤ 100 m/s")
+    if not all(math.isfinite(x) and 0 < x <= 10_000 for x in p.room):
+        raise ConfigError(f"--room {p.room[0]:g} {p.room[1]:g}: need sizes in (0, 10000] m")
+
+
+def _place_walls(rng: random.Random, p: DeliveryGeneratorParams) -> list[tuple]:
+    w, h = p.room
+    room = WorldSpec(size=(w, h)).all_walls()
+    walls: list[tuple] = []
+    for k in range(p.walls):
+        for _ in range(1000):
+            length = p.wall_length[0] + (p.wall_length[1] - p.wall_length[0]) * rng.random()
+            angle = math.pi * rng.random()
+            cx, cy = w * (rng.random() - 0.5), h * (rng.random() - 0.5)
+            dx, dy = length / 2 * math.cos(angle), length / 2 * math.sin(angle)
+            wall = (_r(cx - dx), _r(cy - dy), _r(cx + dx), _r(cy + dy))
+            inside = max(abs(wall[0]), abs(wall[2])) < w / 2 and \
+                max(abs(wall[1]), abs(wall[3])) < h / 2
+            if inside and all(segment_distance(wall, o) >= WALL_GAP for o in room + walls):
+                walls.append(wall)
+                break
+        else:
+            raise ConfigError(f"could not place wall {k + 1} of {p.walls} in a {w:g} × {h:g} m "
+                              f"room (walls keep {WALL_GAP:g} m apart): fewer --walls, a "
+                              "bigger --room or shorter --wall-length")
+    return walls
+
+
+def _place_points(rng: random.Random, p: DeliveryGeneratorParams, walls: list[tuple],
+                  count: int, taken: list[tuple[float, float]], gap: float, what: str
+                  ) -> list[tuple[float, float]]:
+    w, h = p.room
+    every = WorldSpec(size=(w, h)).all_walls() + walls
+    out = []
+    for k in range(count):
+        for _ in range(5000):
+            pt = (_r(w * (rng.random() - 0.5)), _r(h * (rng.random() - 0.5)))
+            if all(point_segment_distance(pt, x) >= POINT_GAP for x in every) \
+                    and all(math.dist(pt, q) >= gap for q in taken + out):
+                out.append(pt)
+                break
+        else:
+            raise ConfigError(f"could not place {what} {k + 1} of {count} in a {w:g} × {h:g} m "
+                              "room: fewer robots or tasks, or a bigger --room")
+    return out
+
+
+def generate_document(p: DeliveryGeneratorParams, seed: int) -> InstanceDoc:
+    _check_ranges(p)
+    mix = parse_mix(p.capabilities)
+    rng = random.Random(f"mrta.instances/delivery/{seed}")
+    walls = _place_walls(rng, p)
+    starts = _place_points(rng, p, walls, p.robots, [], START_GAP, "robot")
+    spots = _place_points(rng, p, walls, p.tasks, starts, TASK_GAP, "task")
+    robots = {}
+    for i, start in enumerate(starts):
+        speed = _r(p.speeds[0] + (p.speeds[1] - p.speeds[0]) * rng.random(), 2)
+        caps = tuple(name for name, _ in mix if i == 0 or rng.random() < 0.5)
+        robots[f"robot{i + 1}"] = RobotSpec(start, speed, caps)
+    arrivals = (poisson_arrivals(rng, p.rate, p.tasks) if p.rate > 0 else [0.0] * p.tasks)
+    tasks = {}
+    for j, spot in enumerate(spots):
+        u, need, acc = rng.random(), "", 0.0
+        for name, prob in mix:
+            acc += prob
+            if u < acc:
+                need = name
+                break
+        service = _r(p.service[0] + (p.service[1] - p.service[0]) * rng.random(), 1)
+        tasks[f"t{j + 1}"] = TaskSpec(spot, arrivals[j], service, need)
+    source = {"name": "delivery", "seed": seed, **msgspec.to_builtins(p)}
+    for key, value in source.items():
+        if isinstance(value, tuple):
+            source[key] = list(value)
+    doc = InstanceDoc(robots, tasks, WorldSpec(tuple(p.room), tuple(walls)),
+                      f"delivery-r{p.robots}-t{p.tasks}-{seed}", generator=source)
+    doc.check()
+    doc.problem()  # every task reachable: a ConfigError now rather than at the run
+    return doc
+
+
+GENERATOR = DeliveryGenerator()

@@ -1,0 +1,120 @@
+"""Solomon-format VRPTW files as delivery instances: read by `vrplib` (the format's maintained
+reader, PyPI), mapped as docs/delivery.md ("Solomon files") says, registered under
+`mrta.instances` as `solomon`:
+
+    mrta instance generate solomon --file C101.txt --robots 3 --tasks 10 -o c101.yaml
+
+* the depot → the robots' starts (robots are bodies, so they stand on a circle around it, at
+  least `START_GAP` apart; one robot stands on it);
+* customers 1…M (file order) → tasks `c<number>`: position, ready time → arrival, service time,
+  due date → `due` (kept for later use: nothing enforces it yet);
+* coordinates scaled into the room (centred, 1 m from its walls): one factor s for both axes;
+* time: Solomon's vehicles cover one distance unit per time unit. A robot covers s metres in
+  s / v seconds at speed v, so every time (ready, due, service) is multiplied by s / v: the
+  instance keeps its time structure — who can reach what before it is ready or due.
+* demand and capacity are dropped (the delivery model has no loads); the fleet is homogeneous
+  (`--speed`), with no capabilities.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Annotated
+
+import msgspec
+
+from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.instances import InstanceGenerator
+
+from .instance import InstanceDoc, RobotSpec, TaskSpec, WorldSpec
+from .instances import KIND, START_GAP, _r, document_text
+
+MARGIN = 1.0  # m between the scaled points' box and the room's walls
+
+
+class SolomonParams(msgspec.Struct, forbid_unknown_fields=True):
+    file: Annotated[str, msgspec.Meta(description="The Solomon-format file to read.")]
+    robots: Annotated[int, msgspec.Meta(ge=1, le=200, description="Robots N (at the depot); "
+                                        "0 < N.")] = 3
+    tasks: Annotated[int, msgspec.Meta(ge=0, description="The first M customers; 0: all.")] = 0
+    room: Annotated[tuple[float, float], msgspec.Meta(
+        description="Room WIDTH HEIGHT (m) the coordinates are scaled into.")] = (12.0, 8.0)
+    speed: Annotated[float, msgspec.Meta(gt=0, le=100,
+                                         description="Every robot's speed (m/s).")] = 0.5
+
+
+def _read(path: str):
+    import vrplib
+    try:
+        return vrplib.read_instance(path, instance_format="solomon")
+    except FileNotFoundError:
+        raise ConfigError("no such file", file=path) from None
+    except (ValueError, IndexError, KeyError, RuntimeError) as exc:
+        raise ConfigError(f"not a Solomon-format instance ({exc})", file=path) from None
+
+
+def solomon_document(p: SolomonParams) -> InstanceDoc:
+    data = _read(p.file)
+    coords = [tuple(map(float, xy)) for xy in data["node_coord"]]
+    windows = [tuple(map(float, w)) for w in data["time_window"]]
+    service = [float(s) for s in data["service_time"]]
+    customers = list(range(1, len(coords)))
+    if p.tasks:
+        if p.tasks > len(customers):
+            raise ConfigError(f"--tasks {p.tasks}: the file has {len(customers)} customers",
+                              file=p.file)
+        customers = customers[:p.tasks]
+    used = [0] + customers
+    xs, ys = [coords[k][0] for k in used], [coords[k][1] for k in used]
+    w, h = p.room
+    span_x, span_y = max(xs) - min(xs), max(ys) - min(ys)
+    room_x, room_y = w - 2 * MARGIN, h - 2 * MARGIN
+    if room_x <= 0 or room_y <= 0:
+        raise ConfigError(f"--room {w:g} {h:g}: too small (the points keep {MARGIN:g} m from "
+                          "the walls)")
+    scale = min(room_x / span_x if span_x else math.inf, room_y / span_y if span_y else math.inf)
+    scale = 1.0 if not math.isfinite(scale) else scale
+    cx, cy = (max(xs) + min(xs)) / 2, (max(ys) + min(ys)) / 2
+
+    def place(k: int) -> tuple[float, float]:
+        return (_r((coords[k][0] - cx) * scale), _r((coords[k][1] - cy) * scale))
+
+    times = scale / p.speed  # s per Solomon time unit
+    depot = place(0)
+    ring = 0.0 if p.robots == 1 else max(START_GAP, START_GAP * p.robots / (2 * math.pi))
+    robots = {}
+    for i in range(p.robots):
+        angle = 2 * math.pi * i / p.robots
+        start = (_r(depot[0] + ring * math.cos(angle)) if i else depot[0],
+                 _r(depot[1] + ring * math.sin(angle)) if i else depot[1])
+        robots[f"robot{i + 1}"] = RobotSpec(start, p.speed)
+    tasks = {f"c{k}": TaskSpec(place(k), _r(windows[k][0] * times), _r(service[k] * times),
+                               due=_r(windows[k][1] * times))
+             for k in customers}
+    name = f"{data.get('name') or 'solomon'}-r{p.robots}-t{len(customers)}"
+    doc = InstanceDoc(robots, tasks, WorldSpec((w, h)), name,
+                      generator={"name": "solomon", "file": p.file.rsplit("/", 1)[-1],
+                                 "robots": p.robots, "tasks": p.tasks, "room": [w, h],
+                                 "speed": p.speed, "scale_m_per_unit": _r(scale, 6),
+                                 "seconds_per_unit": _r(times, 6)})
+    doc.check()
+    return doc
+
+
+class SolomonGenerator(InstanceGenerator):
+    """Delivery instances from a Solomon-format VRPTW file (read by vrplib).
+
+    The depot holds the robots' starts, customers become tasks (ready time → arrival, service
+    time, due date kept), coordinates and times scaled into the room (docs/delivery.md)."""
+
+    name = "solomon"
+    kind = KIND
+    Params = SolomonParams
+
+    def generate(self, params: SolomonParams, seed: int) -> str:
+        header = ("# A delivery instance from a Solomon-format file (docs/delivery.md, \"Solomon "
+                  "files\"): `mrta instance generate solomon`.\n")
+        return document_text(solomon_document(params), header)
+
+
+GENERATOR = SolomonGenerator()

@@ -1,0 +1,146 @@
+"""Problem instances as run input: what `mrta instance generate | show | validate` do.
+
+An *instance* is a file an application's mission runs (`mrta demo --instance FILE`): for a
+point-task application, its robots, tasks and world. The core knows no application: an
+application registers its **generators** under the `mrta.instances` entry-point group, each an
+`InstanceGenerator` naming the `InstanceKind` (the application's document: how to read, check and
+summarise one) it writes. A pip-installed package adds its own the same way.
+
+Generators draw from their own seed stream — a function of the generator's name and the seed
+given to it, never of a run's seed — so one instance runs under many run seeds and fault draws,
+and the same generator, parameters and seed give the same file byte for byte.
+
+A generator's parameters are a msgspec Struct (`Params`); the verb turns its fields into
+command-line options, so a generator needs no command-line code of its own.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from importlib.metadata import entry_points
+from pathlib import Path
+from typing import Any, ClassVar
+
+import msgspec
+
+from .errors import ConfigError
+from .files import write_text
+from .yamlfile import did_you_mean, load_yaml
+
+GROUP = "mrta.instances"
+
+
+class InstanceKind:
+    """An application's instance documents. Hooks (no-op defaults where one makes sense)."""
+
+    application: ClassVar[str] = ""
+
+    def load(self, path: Path) -> Any:
+        """The checked document (ConfigError naming file, line and key)."""
+        raise NotImplementedError
+
+    def name(self, doc: Any) -> str:
+        """What results carry for this instance (never a path)."""
+        return ""
+
+    def describe(self, doc: Any, *, exact_limit: int, time_limit: float,
+                 solutions: int) -> dict[str, Any]:
+        """What `mrta instance show` prints (JSON values): sizes, costs, reference values."""
+        return {}
+
+
+class InstanceGenerator:
+    """A registered generator: `name`, the `kind` of document it writes, its `Params`."""
+
+    name: ClassVar[str] = ""
+    kind: ClassVar[InstanceKind]
+    Params: ClassVar[type]
+
+    def generate(self, params: Any, seed: int) -> str:
+        """The document's text, a function of `params` and `seed` alone."""
+        raise NotImplementedError
+
+
+def generators() -> dict[str, InstanceGenerator]:
+    out = {}
+    for ep in entry_points(group=GROUP):
+        gen = ep.load()
+        gen = gen() if isinstance(gen, type) else gen
+        if not isinstance(gen, InstanceGenerator):
+            raise ConfigError(f"entry point {GROUP}:{ep.name} ({ep.value}) is not an "
+                              "InstanceGenerator")
+        out[ep.name] = gen
+    return out
+
+
+def generator(name: str) -> InstanceGenerator:
+    gens = generators()
+    if name not in gens:
+        raise ConfigError(f"no instance generator {name!r}" + did_you_mean(name, gens)
+                          + f" (registered: {', '.join(sorted(gens)) or 'none'})")
+    return gens[name]
+
+
+def kinds() -> dict[str, InstanceKind]:
+    """Instance kinds by application, from the registered generators."""
+    return {g.kind.application: g.kind for g in generators().values()}
+
+
+def kind_of(path: Path, application: str | None = None) -> InstanceKind:
+    """The kind a file is read as: `application` when given, else the file's own
+    `application:` key, else the only registered kind."""
+    known = kinds()
+    if application is None:
+        doc = load_yaml(path)
+        data = doc.data.get("instance", doc.data) if isinstance(doc.data, dict) else None
+        named = data.get("application") if isinstance(data, dict) else None
+        if isinstance(named, str):
+            application = named
+        elif len(known) == 1:
+            return next(iter(known.values()))
+        else:
+            raise ConfigError(f"{path}: say which application this instance is for "
+                              f"(--application; registered: {', '.join(sorted(known))})")
+    if application not in known:
+        raise ConfigError(f"no application reads instances named {application!r}"
+                          + did_you_mean(application, known)
+                          + f" (registered: {', '.join(sorted(known)) or 'none'})")
+    return known[application]
+
+
+@dataclass(frozen=True)
+class Loaded:
+    path: Path
+    kind: InstanceKind
+    doc: Any
+    name: str = field(default="")
+
+
+def load(path: Path, application: str | None = None) -> Loaded:
+    """Read and check an instance file (`mrta instance validate`)."""
+    kind = kind_of(path, application)
+    doc = kind.load(path)
+    return Loaded(path, kind, doc, kind.name(doc))
+
+
+def show(path: Path, application: str | None = None, *, exact_limit: int = 10,
+         time_limit: float = 30.0, solutions: int = 1000) -> dict[str, Any]:
+    """What `mrta instance show` prints."""
+    loaded = load(path, application)
+    return {"name": loaded.name, "application": loaded.kind.application,
+            **loaded.kind.describe(loaded.doc, exact_limit=exact_limit, time_limit=time_limit,
+                                   solutions=solutions)}
+
+
+def generate(name: str, options: dict[str, Any], seed: int, output: Path | None) -> str:
+    """Run generator `name` on `options` (its Params' fields); write the text to `output`
+    (whole or not at all) when given; return it."""
+    gen = generator(name)
+    try:
+        params = msgspec.convert(options, gen.Params)
+    except msgspec.ValidationError as exc:
+        raise ConfigError(f"generator {name}: {exc}") from None
+    text = gen.generate(params, seed)
+    if output is not None:
+        write_text(output, text)
+    return text

@@ -1,0 +1,122 @@
+"""Best-found reference values for problems too large for the exact recursion: OR-Tools routing.
+
+Why OR-Tools (not PyVRP). Every part of the model maps onto one of its documented features:
+per-robot speeds are per-vehicle transit matrices (`AddDimensionWithVehicleTransits`,
+`SetArcCostEvaluatorOfVehicle`), capabilities are the vehicles allowed at a node
+(the node's vehicle variable), arrivals are time windows with waiting as slack, makespan is the
+time dimension's global span cost, flowtime the sum of cumul costs (a soft upper bound of 0 at
+each task: cost = the time service starts), both weighted over the travel cost, which only
+breaks ties. PyVRP solves VRPTW with a genetic
+search and a fixed objective (distance, duration, fixed costs): neither makespan nor flowtime
+is among its objectives, and per-vehicle speeds need a profile per robot.
+
+Open routes (no return to the start, as the objectives define): every robot ends at one dummy
+node reached from anywhere at no cost. OR-Tools works on integers: times are in milliseconds
+(`SCALE`); the value reported is recomputed from the routes in floats by `schedule.evaluate`,
+so it is the routes' own value whatever the rounding.
+
+Deterministic. The search (parallel cheapest insertion — on makespan and flowtime it started
+from far better routes than cheapest-arc, which follows travel alone — then guided local
+search) stops after `solutions` accepted solutions — a count, not a time, so the same problem
+gives the same routes on any machine; `time_limit` is a safety cap, and a search stopped by it
+says so (`capped`), because then the result depends on the machine's speed. A best-found value is never called optimal.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+from ..errors import ConfigError
+from .problem import Problem
+from .schedule import Objective
+
+SCALE = 1000.0          # OR-Tools integer units per second
+WEIGHT = 100            # makespan's span / flowtime's cumul cost per ms, over the travel tie-break (1)
+
+
+@dataclass(frozen=True)
+class BestFound:
+    routes: dict[int, list[int]]
+    capped: bool        # stopped by the time limit (then not reproducible across machines)
+
+
+def solve_routing(problem: Problem, objective: Objective | str, *, solutions: int = 2000,
+                  time_limit: float = 30.0) -> BestFound:
+    """The best routes OR-Tools finds serving every task (ConfigError: a task nobody can
+    serve). `solutions`: the search's deterministic budget; `time_limit`: its safety cap (s)."""
+    from ortools.constraint_solver import pywrapcp, routing_enums_pb2
+
+    objective = Objective(objective)
+    m, n = len(problem.robots), len(problem.tasks)
+    if m == 0 or n == 0:
+        return BestFound({i: [] for i in range(m)}, False)
+    for j in range(n):
+        if not any(problem.capable(i, j) for i in range(m)):
+            raise ConfigError(f"task {problem.tasks[j].id}: no robot has capability "
+                              f"{problem.tasks[j].capability!r}")
+    end = m + n  # nodes: robots' starts, tasks, the dummy end
+    manager = pywrapcp.RoutingIndexManager(end + 1, m, list(range(m)), [end] * m)
+    routing = pywrapcp.RoutingModel(manager)
+
+    def task_of(node: int) -> int | None:
+        return node - m if m <= node < end else None
+
+    def travel_ms(i: int, a: int, b: int) -> int:
+        """Robot i's travel from node a to node b (ms); nothing into the dummy end, and never
+        into another robot's start (a start is only ever left)."""
+        if b == end or b < m or a == end:
+            return 0
+        src = task_of(a) if a >= m else None
+        if src is None and a != i:
+            return 0  # another robot's start: not on robot i's route
+        return round(problem.travel(i, src, b - m) * SCALE)
+
+    def service_ms(a: int) -> int:
+        j = task_of(a)
+        return 0 if j is None else round(problem.tasks[j].service * SCALE)
+
+    nodes = range(end + 1)
+    travel = [[[travel_ms(i, a, b) for b in nodes] for a in nodes] for i in range(m)]
+    travel_cb = [routing.RegisterTransitMatrix(t) for t in travel]
+    time_cb = [routing.RegisterTransitMatrix([[t[a][b] + service_ms(a) for b in nodes]
+                                              for a in nodes]) for t in travel]
+    for i in range(m):
+        routing.SetArcCostEvaluatorOfVehicle(travel_cb[i], i)
+    horizon = (sum(max(map(max, t)) for t in travel) + sum(service_ms(a) for a in nodes)
+               + round(max(t.arrival for t in problem.tasks) * SCALE)) * 2 + 1
+    routing.AddDimensionWithVehicleTransits(time_cb, horizon, horizon, True, "time")
+    clock = routing.GetDimensionOrDie("time")
+    for j, task in enumerate(problem.tasks):
+        index = manager.NodeToIndex(m + j)
+        clock.CumulVar(index).SetMin(round(task.arrival * SCALE))
+        # the vehicles allowed at a node (SetAllowedVehiclesForIndex's effect; its Python
+        # binding refuses a list in this release)
+        routing.VehicleVar(index).RemoveValues([i for i in range(m) if not problem.capable(i, j)])
+        if objective is Objective.FLOWTIME:
+            clock.SetCumulVarSoftUpperBound(index, 0, WEIGHT)
+    if objective is Objective.MAKESPAN:
+        clock.SetGlobalSpanCostCoefficient(WEIGHT)
+
+    params = pywrapcp.DefaultRoutingSearchParameters()
+    params.first_solution_strategy = (
+        routing_enums_pb2.FirstSolutionStrategy.PARALLEL_CHEAPEST_INSERTION)
+    params.local_search_metaheuristic = (
+        routing_enums_pb2.LocalSearchMetaheuristic.GUIDED_LOCAL_SEARCH)
+    params.solution_limit = solutions
+    params.time_limit.FromMilliseconds(round(time_limit * 1000))
+    t0 = time.perf_counter()
+    solution = routing.SolveWithParameters(params)
+    if solution is None:
+        raise ConfigError(f"OR-Tools found no route serving every task "
+                          f"(status {routing.status()})")
+    routes: dict[int, list[int]] = {}
+    for i in range(m):
+        index, route = routing.Start(i), []
+        while not routing.IsEnd(index):
+            j = task_of(manager.IndexToNode(index))
+            if j is not None:
+                route.append(j)
+            index = solution.Value(routing.NextVar(index))
+        routes[i] = route
+    return BestFound(routes, time.perf_counter() - t0 >= 0.98 * time_limit)
