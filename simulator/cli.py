@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from mrta_zenoh.bus import BusOptions
-from mrta_zenoh.cli.common import bus_options, finite_float
+from mrta_zenoh.cli.common import SEED_TYPE, OutputPath, bus_options, finite_float
 from mrta_zenoh.lockstep import DEFAULT_TIMEOUT
 from mrta_zenoh.ros2.types import SONAR_TYPES
 
@@ -23,10 +23,11 @@ from .api import SimOptions, run_simulator
                    "to use the start named like the robot or the next free one. Repeatable.")
 @click.option("--speed", type=finite_float(min=0), default=1.0, show_default=True,
               help="Simulated seconds per wall second; 0 runs as fast as possible.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed for sensor noise.")
+@click.option("--seed", type=SEED_TYPE, default=0, show_default=True,
+              help="Seed for sensor noise, 0 to 2^63 − 1.")
 @click.option("--duration", type=finite_float(min=0, min_open=True),
               help="Stop after this many simulated seconds.")
-@click.option("--snapshot", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--snapshot", type=OutputPath(folder=False),
               help="On exit, write a PNG of the world with robots, sonar beams and trails.")
 @click.option("--rear-sonars", is_flag=True, help="Also simulate the 8 rear transducers.")
 @click.option("--lockstep", is_flag=True,

@@ -10,6 +10,7 @@ from pathlib import Path
 
 import click
 
+from mrta_zenoh.cli.common import OutputPath
 from mrta_zenoh.cli.main import EntryPointGroup
 
 from .api import resolve_application
@@ -30,7 +31,8 @@ def plot() -> None:
 @click.option("--app", "app_spec", metavar="NAME|PATH",
               help="The application whose monitors read the recording (name or rqt_mrta.xml); "
                    "default: the only registered application.")
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-o", "--output", required=True, type=OutputPath(folder=False),
+              help="The PNG to write.")
 def timeline(recording: Path, app_spec: str | None, output: Path) -> None:
     """Which robot did which task when (a Gantt chart), with offline periods hatched."""
     app, arch = resolve_application(app_spec)
