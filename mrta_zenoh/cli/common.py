@@ -17,7 +17,6 @@ import click
 from ..bus.options import MODES, BusOptions
 from ..errors import ConfigError
 from ..files import check_writable
-from ..keys import validate_key_expr
 from ..limits import SEED
 from ..untrusted import visible
 from ..yamlfile import plural  # noqa: F401 - the verbs import it from here
@@ -44,9 +43,7 @@ def bus_options(f: Callable | None = None) -> Callable:
         def wrapper(*args: Any, connect, listen, mode, zenoh_config, bus_namespace, **kwargs: Any):
             opts = BusOptions(mode=mode, connect=list(connect), listen=list(listen),
                               zenoh_config=zenoh_config, namespace=bus_namespace)
-            if opts.namespace:
-                validate_key_expr(opts.namespace)
-            opts.user_config()  # a bad file is bad input: fail before anything starts
+            opts.check()  # a bad namespace or config file is bad input: before anything starts
             return f(*args, bus_options=opts, **kwargs)
 
         return wrapper
