@@ -188,3 +188,14 @@ def test_app_validate_reads_every_robots_files_as_its_agent_would(tmp_path):
     bad = CliRunner().invoke(cli, ["app", "validate", str(pkg)])
     assert bad.exit_code == 2
     assert "robot2_alliance_params.yaml:" in bad.output and "between 0.001 and 86400 s" in bad.output
+
+
+def test_an_unknown_architecture_is_named_with_file_and_line(tmp_path):
+    f = tmp_path / "rqt_mrta.xml"
+    f.write_text(APP.format(second="robot2", task="wander").replace(
+        "<architecture>alliance</architecture>", "<architecture>aliance</architecture>"))
+    res = CliRunner().invoke(cli, ["app", "validate", str(f)])
+    assert res.exit_code == 2, res.output
+    (line,) = res.output.strip().splitlines()
+    assert line.startswith(f"Error: {f}:4: <architecture>: unknown architecture 'aliance' "
+                           "(did you mean 'alliance'?) (known: "), line

@@ -114,7 +114,7 @@ def _validate(path: Path, kind: type) -> None:
                           f"{kind.__name__.lower()} file", file=str(path))
     checked = []
     if isinstance(model, Application):
-        Registry().architecture(model.architecture)
+        Registry().architecture_of(model)
         checked = check_robot_files(path.parent, model)
     click.echo(f"{path}: valid {kind.__name__.lower()} {model.name!r}"
                + (f" (the parameter files of {plural(len(checked), 'robot')} checked)"

@@ -1,13 +1,13 @@
 """What `mrta app validate` checks beyond the rqt_mrta.xml file: each robot's parameter files,
 read by the application's architecture exactly as its agent reads them at start
-(`Architecture.check_files`). Before, an application validated and then every agent refused
-its files at launch (issue #23)."""
+(`Architecture.check_files`), so an application that validates is one its agents accept."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 from ..architectures import architecture
+from ..errors import ConfigError
 from ..keys import normalize_robot_id
 from .model import Application
 
@@ -15,7 +15,11 @@ from .model import Application
 def check_robot_files(package: Path, app: Application) -> list[str]:
     """The robots whose files were checked (those whose parameter file the package holds,
     under the names `mrta app new` writes); the first bad file raises its ConfigError."""
-    arch = architecture(app.architecture)
+    try:
+        arch = architecture(app.architecture)
+    except ConfigError as exc:  # an rqt_mrta package whose contract nobody registered
+        raise ConfigError(exc.detail, file=app.source, line=app.architecture_line,
+                          element="<architecture>") from None
     config = package / "config"
     stem = arch.param_stem
     tasks, layers = config / f"tasks_{stem}_params.yaml", config / f"layers_{stem}_params.yaml"

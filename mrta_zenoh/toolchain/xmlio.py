@@ -321,7 +321,7 @@ def _application(r: _Reader, el, configs, launches, path) -> Application:
             first_line[rid] = rb.sourceline
             robots.append(RobotEntry(raw, tasks))
     return Application(r.text(el, "architecture"), r.text(el, "name"), robots, configs, launches,
-                       source=str(path))
+                       source=str(path), architecture_line=r.one(el, "architecture").sourceline)
 
 
 # -------------------------------------------------------------------------------- writing
