@@ -35,9 +35,11 @@ from .api import SimOptions, run_simulator
                    "current step: runs reproducible whatever the machine's load.")
 @click.option("--lockstep-timeout", type=finite_float(min=0, min_open=True),
               default=DEFAULT_TIMEOUT, show_default=True, metavar="SECONDS",
-              help="Stop waiting for a participant silent this long (wall time); it is reported. "
-                   "Keep it below the Zenoh lease (3 s), so a stopped agent is reported before "
-                   "its token expires.")
+              help="Give up on a participant that holds its token but has not answered for "
+                   "this long (wall time); it is reported, and rejoins when it answers. A "
+                   "stopped or dead agent is not waited for: its token goes with its session "
+                   "(at once, or after the 3 s Zenoh lease). Lower it only where no process "
+                   "may be starved of CPU: a slow agent given up makes the run inexact.")
 @click.option("--wait-robots", type=finite_float(min=0), metavar="SECONDS",
               help="Start the clock only once every robot has a process up (a liveliness token "
                    "under robotN/**), waiting at most this long.")

@@ -31,7 +31,8 @@ def bus_options(f: Callable | None = None) -> Callable:
         @click.option("--connect", "connect", multiple=True, metavar="ENDPOINT",
                       help="Zenoh endpoint to connect to (repeatable), e.g. tcp/192.168.1.10:7447.")
         @click.option("--listen", "listen", multiple=True, metavar="ENDPOINT",
-                      help="Zenoh endpoint to listen on (repeatable). Default: tcp/127.0.0.1:0.")
+                      help="Zenoh endpoint to listen on (repeatable). Default: tcp/127.0.0.1:0, "
+                           "and the rendezvous endpoint while nobody holds it.")
         @click.option("--mode", type=click.Choice(MODES[:2]), default="peer", show_default=True,
                       help="Zenoh session mode.")
         @click.option("--zenoh-config", type=click.Path(dir_okay=False, path_type=Path),
