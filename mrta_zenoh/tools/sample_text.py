@@ -91,6 +91,11 @@ def _yaml_scalar(v: Any) -> str:
             if len(_yaml_strings) < _CACHE_MAX:
                 _yaml_strings[v] = text
         return text
+    return _int_bool_null(v, t)
+
+
+def _int_bool_null(v: Any, t: type) -> str:
+    """The scalars YAML and JSON write alike; anything else is unusual."""
     if t is int:
         return str(v)
     if t is bool:
@@ -179,13 +184,7 @@ def _json(v: Any) -> str:
         return "{" + ", ".join(f"{_json_key(k)}: {_json(x)}" for k, x in v.items()) + "}"
     if t is list:
         return "[" + ", ".join(map(_json, v)) + "]"
-    if t is int:
-        return str(v)
-    if t is bool:
-        return "true" if v else "false"
-    if v is None:
-        return "null"
-    raise _Unusual
+    return _int_bool_null(v, t)
 
 
 def _json_key(k: Any) -> str:
