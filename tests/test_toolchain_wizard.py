@@ -140,3 +140,21 @@ def test_fast_rate_is_told_per_tick_as_the_runtime_adds_it():
 
     tip = find(arch.config("alliance_params").children, "fast_rate").tool_tip
     assert "per high-level tick" in tip and "per second" not in tip
+
+
+def test_an_answers_file_of_aliases_cannot_make_a_million_sensors(tmp_path):
+    """Aliases are allowed in answers files (to share a block), so a short file can name one
+    sensor a great many times: arrays are bounded, and the error line is one short line."""
+    text = PATROL_ANSWERS.read_text()
+    block = ("      sensors: &sensors\n"
+             "        - {plugin_name: alliance/odometry, topic_name: odom}\n"
+             "        - {plugin_name: alliance/point_cloud, topic_name: sonar}\n")
+    assert block in text
+    many = ("      sensors: &sensors [&s {plugin_name: alliance/odometry, topic_name: odom}"
+            + ", *s" * 1000 + "]\n")
+    text = text.replace(block, many, 1)
+    f = tmp_path / "answers.yaml"
+    f.write_text(text)
+    res = run("app", "new", "--answers", f, "--output", tmp_path / "out")
+    assert_refused(res, tmp_path / "out", "robot1/sensors/sensor: 1,001 entries, more than 1,000")
+    assert len(res.output) < 300

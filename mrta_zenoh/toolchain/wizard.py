@@ -24,7 +24,7 @@ from .generator import (EMAIL, PACKAGE_NAME, VERSION, Answers, restrict_layers,
                         without_layers)
 from .model import Application, Architecture, Node, Param, Params, RobotEntry
 from .registry import Package, Registry, matches_taxonomy, taxonomy_value
-from .templates import ARRAY_SIZE, TASK_PLACEHOLDER, convert
+from .templates import ARRAY_SIZE, MAX_ITEMS, TASK_PLACEHOLDER, convert
 
 T = TypeVar("T")
 
@@ -81,8 +81,8 @@ def _count(value: str) -> int:
         n = int(value.strip())
     except ValueError:
         raise InvalidAnswer(f"{value!r} is not a valid integer") from None
-    if not 0 <= n <= 1000:
-        raise InvalidAnswer(f"{n} is not in the range 0<=x<=1000")
+    if not 0 <= n <= MAX_ITEMS:
+        raise InvalidAnswer(f"{n} is not in the range 0<=x<={MAX_ITEMS}")
     return n
 
 
