@@ -199,3 +199,17 @@ def test_an_unknown_architecture_is_named_with_file_and_line(tmp_path):
     (line,) = res.output.strip().splitlines()
     assert line.startswith(f"Error: {f}:4: <architecture>: unknown architecture 'aliance' "
                            "(did you mean 'alliance'?) (known: "), line
+
+
+@pytest.mark.parametrize("data,line,what", [
+    (b"<rqt_mrta>\n<a>\x00</a></rqt_mrta>", 2, "Char 0x0 out of allowed range"),
+    (b"<rqt_mrta>" + b"<a>" * 5000 + b"</a>" * 5000 + b"</rqt_mrta>", 1, "Excessive depth"),
+    (b"<rqt_mrta>\n<a>caf\xe9</a></rqt_mrta>", None, "Invalid bytes in character encoding"),
+])
+def test_hostile_xml_is_one_line_naming_the_file(tmp_path, data, line, what):
+    f = tmp_path / "rqt_mrta.xml"
+    f.write_bytes(data)
+    res = CliRunner().invoke(cli, ["arch", "validate", str(f)])
+    assert res.exit_code == 2, res.output
+    (out,) = res.output.strip().splitlines()
+    assert out.startswith(f"Error: {f}:{line}: " if line else f"Error: {f}: ") and what in out
