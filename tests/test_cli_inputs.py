@@ -115,3 +115,15 @@ def test_check_writable_leaves_nothing_behind_and_makes_nothing(tmp_path):
         check_writable(tmp_path / "f" / "sub", folder=True)
     with pytest.raises(ConfigError, match="is a folder, not a file"):
         check_writable(tmp_path, folder=False)
+
+
+@pytest.mark.parametrize("args,option", [(["--seed", "-1"], "'--seed'"),
+                                         (["--rate", "nan"], "'--rate'"),
+                                         (["--rate", "0"], "'--rate'"),
+                                         (["--output", "/dev/null/x"], "'--output'")])
+def test_the_delivery_generator_takes_the_same_checked_options(tmp_path, args, option):
+    from mrta_delivery.generate_cli import main
+
+    argv = ["--arrivals", "poisson", "--name", "x", "--output", str(tmp_path), *args]
+    assert_usage_error(CliRunner().invoke(main, argv), option)
+    assert list(tmp_path.iterdir()) == []
