@@ -147,6 +147,13 @@ class Architecture(ABC):
         naming file, line and key), without starting anything: what `mrta experiment` runs on
         every overridden value before the first run. Default: nothing to check."""
 
+    def layer_sections(self, robot_id: str, robot_params: Path,
+                       tasks_params: Path) -> frozenset[str] | None:
+        """The sections of the layers file this robot's plugins read: what `mrta app new`
+        asks for and writes (a section no plugin reads is a warning at every start). Default:
+        None, not known — every section of the template is asked for."""
+        return None
+
     # ------------------------------------------------------------ faults
     def failure_env(self, failures: Iterable[Failure] | Faults) -> dict[str, str]:
         """Environment for the agents that injects the faults (mrta_zenoh/failure.py): every

@@ -81,6 +81,34 @@ def _remove(tmp: Path) -> None:
         tmp.unlink(missing_ok=True)
 
 
+def check_writable(target: Path | str, *, folder: bool) -> None:
+    """ConfigError naming `target` unless a run could write it: `folder` — a folder that exists
+    or can be made (its nearest existing ancestor is a folder we can write in); otherwise a file
+    whose folder exists and can be written. Asked before a command starts anything, so a run of
+    minutes does not end on a path it could never write (`--output /proc/x`, a read-only
+    folder). Tried, not deduced from permission bits: root passes every `os.access` check, yet
+    cannot write in /sys or on a read-only mount."""
+    target = Path(target)
+    if folder:
+        where = target
+        while not where.exists() and where != where.parent:
+            where = where.parent
+        if not where.is_dir():
+            raise ConfigError(f"{where} is not a folder", file=str(target))
+    else:
+        where = target.parent if str(target.parent) else Path(".")
+        if target.is_dir():
+            raise ConfigError("is a folder, not a file", file=str(target))
+        if not where.is_dir():
+            raise ConfigError(f"folder {where} does not exist", file=str(target))
+    try:
+        fd, probe = tempfile.mkstemp(prefix=".mrta-probe-", dir=where)
+    except OSError as exc:
+        raise ConfigError(f"cannot write in {where}: {exc.strerror}", file=str(target)) from None
+    os.close(fd)
+    os.unlink(probe)
+
+
 def save_figure(fig, output: Path | str) -> Path:
     """A matplotlib figure to `output` as PNG, atomically; ConfigError if it cannot be written."""
     return write_atomically(output, lambda tmp: fig.savefig(tmp, format="png"))

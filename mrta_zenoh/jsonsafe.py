@@ -20,8 +20,10 @@ DIGITS = 15  # DBL_DIG: any decimal of up to 15 significant digits survives a do
 
 
 def tidy(x: float) -> float:
-    """`x` rounded to DIGITS significant digits (its repr is then the short one)."""
-    return float(f"{x:.{DIGITS}g}")
+    """`x` rounded to DIGITS significant digits (its repr is then the short one) — or `x` itself
+    where rounding up would overflow to infinity (1.7976931348623157e+308, the largest double)."""
+    t = float(f"{x:.{DIGITS}g}")
+    return t if math.isfinite(t) else x
 
 
 def tidy_all(value: Any) -> Any:

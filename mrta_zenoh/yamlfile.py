@@ -64,10 +64,22 @@ class YamlDoc:
         return str(self.error(path, message))
 
 
+# A parameter, world or experiment file is data: text, numbers, booleans, lists and mappings
+# whose keys are text. Anything else YAML can say is refused with its line, because what it
+# builds reaches code that expects JSON-like data (a date key, `? [a, b]`, !!binary, !!set) and
+# would fail there with a traceback instead of naming the file.
+MAX_BYTES = 8 * 1024 * 1024  # the largest file read (a parameter file is a few kB)
+_TAG = "tag:yaml.org,2002:"
+_KIND = {"int": "a number", "float": "a number", "bool": "a boolean", "null": "null",
+         "timestamp": "a date"}
+_REFUSED_TAGS = ("binary", "timestamp", "omap", "pairs", "set")
+
+
 class _StrictLoader(yaml.SafeLoader):
-    """SafeLoader that refuses duplicate keys (YAML's "last one wins" silently loses a value)
-    and, for parameter files, anchors and aliases (a "billion laughs" file would otherwise
-    expand without bound wherever the data is walked)."""
+    """SafeLoader that refuses duplicate keys (YAML's "last one wins" silently loses a value),
+    keys that are not text, integers too long to convert, dates, binary data, sets and ordered
+    maps — each with its line — and, for parameter files, anchors and aliases (a "billion
+    laughs" file would otherwise expand without bound wherever the data is walked)."""
 
     allow_aliases = False
 
@@ -89,17 +101,58 @@ class _StrictLoader(yaml.SafeLoader):
     def construct_mapping(self, node, deep=False):
         seen: dict = {}
         for key_node, _ in node.value:
+            _check_key(key_node)
+            if key_node.tag == _TAG + "merge":
+                continue
             key = key_node.value
             if key in seen:
                 raise yaml.constructor.ConstructorError(
                     None, None, f"duplicate key {key!r} (first on line {seen[key]})",
                     key_node.start_mark)
             seen[key] = key_node.start_mark.line + 1
+        self.flatten_mapping(node)  # `<<:` brings keys in: they must be text too
+        for key_node, _ in node.value:
+            _check_key(key_node)
         return super().construct_mapping(node, deep)
 
+    def construct_yaml_int(self, node):
+        try:
+            return super().construct_yaml_int(node)
+        except ValueError:  # past Python's 4,300 digits (int_max_str_digits)
+            raise yaml.constructor.ConstructorError(
+                None, None, f"an integer of {len(node.value):,} characters is too long",
+                node.start_mark) from None
 
-_StrictLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG,
-                              _StrictLoader.construct_mapping)
+    def construct_refused(self, node):
+        kind = node.tag[len(_TAG):] if node.tag.startswith(_TAG) else node.tag
+        hint = " (quote it if it is text)" if kind == "timestamp" else ""
+        raise yaml.constructor.ConstructorError(
+            None, None, f"{_KIND.get(kind, '!!' + kind)} is not allowed here{hint}: "
+            "only text, numbers, booleans, lists and mappings", node.start_mark)
+
+
+def _check_key(key_node: yaml.Node) -> None:
+    """A mapping key must be text: `? [a, b]` (a list as key) and `2020-01-01:` (a date) would
+    otherwise reach the code as keys it cannot hash or compare with its own."""
+    if not isinstance(key_node, yaml.ScalarNode):
+        what = "a list" if isinstance(key_node, yaml.SequenceNode) else "a mapping"
+        raise yaml.constructor.ConstructorError(
+            None, None, f"a key must be text, not {what} (YAML complex key)",
+            key_node.start_mark)
+    if key_node.tag == _TAG + "merge":
+        return  # `<<:` merges the mapping it names into this one (flatten_mapping)
+    if key_node.tag != _TAG + "str":
+        kind = key_node.tag[len(_TAG):] if key_node.tag.startswith(_TAG) else key_node.tag
+        raise yaml.constructor.ConstructorError(
+            None, None, f"key {key_node.value[:40]!r} is read as "
+            f"{_KIND.get(kind, '!!' + kind)}; keys must be text: quote it",
+            key_node.start_mark)
+
+
+_StrictLoader.add_constructor(_TAG + "map", _StrictLoader.construct_mapping)
+_StrictLoader.add_constructor(_TAG + "int", _StrictLoader.construct_yaml_int)
+for _tag in _REFUSED_TAGS:
+    _StrictLoader.add_constructor(_TAG + _tag, _StrictLoader.construct_refused)
 
 
 class _AliasLoader(_StrictLoader):
@@ -107,16 +160,24 @@ class _AliasLoader(_StrictLoader):
 
 
 def load_yaml(path: Path | str, aliases: bool = False) -> YamlDoc:
-    """A YAML file with line numbers per key; ConfigError (file, line) for anything malformed,
-    duplicate keys included, and aliases unless `aliases` (answers files use them to share a
-    block; each node is then walked once)."""
+    """A YAML file with line numbers per key; ConfigError (file, line) for anything malformed —
+    duplicate or non-text keys, characters YAML forbids (NUL), integers too long, dates, tags
+    beyond plain data — and aliases unless `aliases` (answers files use them to share a block;
+    each node is then walked once)."""
     path = Path(path)
     try:
-        text = path.read_text(encoding="utf-8")
+        with path.open("rb") as f:
+            raw = f.read(MAX_BYTES + 1)
     except OSError as exc:
         raise ConfigError(f"cannot read: {exc.strerror}", file=str(path)) from None
-    except UnicodeDecodeError:
-        raise ConfigError("not a UTF-8 text file", file=str(path)) from None
+    if len(raw) > MAX_BYTES:
+        raise ConfigError(f"larger than {MAX_BYTES // (1024 * 1024)} MiB: not a parameter file",
+                          file=str(path))
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        raise ConfigError("not a UTF-8 text file", file=str(path),
+                          line=raw.count(b"\n", 0, exc.start) + 1) from None
     try:
         loader = (_AliasLoader if aliases else _StrictLoader)(text)
         try:
@@ -124,16 +185,20 @@ def load_yaml(path: Path | str, aliases: bool = False) -> YamlDoc:
             data = loader.construct_document(node) if node is not None else {}
         finally:
             loader.dispose()
+        lines: dict[tuple, int] = {}
+        if node is not None:
+            _walk(node, (), lines, set())
+    except yaml.reader.ReaderError as exc:  # a character YAML forbids: it gives no line
+        name = "NUL" if exc.character == 0 else f"#x{exc.character:04x}"
+        raise ConfigError(f"invalid YAML: character {name} is not allowed",
+                          file=str(path), line=text.count("\n", 0, exc.position) + 1) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         problem = getattr(exc, "problem", None) or str(exc)
-        raise ConfigError(f"invalid YAML: {problem}", file=str(path),
+        raise ConfigError(f"invalid YAML: {' '.join(problem.split())}", file=str(path),
                           line=mark.line + 1 if mark else None) from None
     except RecursionError:
         raise ConfigError("invalid YAML: nested too deeply", file=str(path)) from None
-    lines: dict[tuple, int] = {}
-    if node is not None:
-        _walk(node, (), lines, set())
     return YamlDoc(path, data if data is not None else {}, lines)
 
 

@@ -195,7 +195,8 @@ def run_simulator(options: SimOptions, bus_options: BusOptions,
             if o.wait_robots is not None and not barrier.participants:
                 raise MrtaRuntimeError(
                     f"lockstep: no participant after {o.wait_robots:g} s although "
-                    f"{plural(len(robots), 'robot')} were expected (--wait-robots): the agents "
+                    f"{plural(len(robots), 'robot')} {'was' if len(robots) == 1 else 'were'} "
+                    "expected (--wait-robots): the agents "
                     "run without --sim-time, or are not up, or an access-control configuration "
                     f"denies their {PARTICIPANT}/<robot> tokens to this simulator (docs/"
                     "security.md); running without them would not be lockstep")

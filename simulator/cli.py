@@ -7,7 +7,7 @@ from pathlib import Path
 import click
 
 from mrta_zenoh.bus import BusOptions
-from mrta_zenoh.cli.common import bus_options, finite_float
+from mrta_zenoh.cli.common import SEED_TYPE, OutputPath, bus_options, finite_float
 from mrta_zenoh.lockstep import DEFAULT_TIMEOUT
 from mrta_zenoh.ros2.types import SONAR_TYPES
 
@@ -23,10 +23,11 @@ from .api import SimOptions, run_simulator
                    "to use the start named like the robot or the next free one. Repeatable.")
 @click.option("--speed", type=finite_float(min=0), default=1.0, show_default=True,
               help="Simulated seconds per wall second; 0 runs as fast as possible.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed for sensor noise.")
+@click.option("--seed", type=SEED_TYPE, default=0, show_default=True,
+              help="Seed for sensor noise, 0 to 2^63 − 1.")
 @click.option("--duration", type=finite_float(min=0, min_open=True),
               help="Stop after this many simulated seconds.")
-@click.option("--snapshot", type=click.Path(dir_okay=False, path_type=Path),
+@click.option("--snapshot", type=OutputPath(folder=False),
               help="On exit, write a PNG of the world with robots, sonar beams and trails.")
 @click.option("--rear-sonars", is_flag=True, help="Also simulate the 8 rear transducers.")
 @click.option("--lockstep", is_flag=True,
@@ -34,9 +35,11 @@ from .api import SimOptions, run_simulator
                    "current step: runs reproducible whatever the machine's load.")
 @click.option("--lockstep-timeout", type=finite_float(min=0, min_open=True),
               default=DEFAULT_TIMEOUT, show_default=True, metavar="SECONDS",
-              help="Stop waiting for a participant silent this long (wall time); it is reported. "
-                   "Keep it below the Zenoh lease (3 s), so a stopped agent is reported before "
-                   "its token expires.")
+              help="Give up on a participant that holds its token but has not answered for "
+                   "this long (wall time); it is reported, and rejoins when it answers. A "
+                   "stopped or dead agent is not waited for: its token goes with its session "
+                   "(at once, or after the 3 s Zenoh lease). Lower it only where no process "
+                   "may be starved of CPU: a slow agent given up makes the run inexact.")
 @click.option("--wait-robots", type=finite_float(min=0), metavar="SECONDS",
               help="Start the clock only once every robot has a process up (a liveliness token "
                    "under robotN/**), waiting at most this long.")

@@ -93,9 +93,13 @@ class SimNode:
     def _on_cmd(self, sample) -> None:
         rid = keys.first_chunk(sample.key)
         if rid in self._ros2_ids:
+            # the robot's own agent publishes here in normal use, and the bridge carries those
+            # commands to its ROS 2 cmd_vel: counted, said at debug level, never a warning
             self.stats.ros2_bypass_commands += 1
-            self._warn_once(rid + "/ros2", f"{rid} is a ROS 2 robot: commands on {sample.key} "
-                            "are ignored (they reach it through its ROS 2 cmd_vel)")
+            if rid + "/ros2" not in self._warned:
+                self._warned.add(rid + "/ros2")
+                log.debug("%s is a ROS 2 robot: commands on %s go to it through the bridge, "
+                          "not from here", rid, sample.key)
             return
         msg = sample.message
         self.command(rid, msg.linear, msg.angular)

@@ -331,24 +331,35 @@ def output_lock(output: Path):
     """Hold `output` for this run: a second run writing into the same folder would interleave
     two recordings into one corrupt run.mcap and two summaries into one, and both would exit 0.
     An advisory lock (flock) on a hidden file: released by the kernel when this process ends,
-    however it ends, so a killed run never leaves the folder locked."""
+    however it ends, so a killed run never leaves the folder locked. The file is removed when
+    the run ends (a killed run leaves it, unlocked); a run that opened it just before — and so
+    locked a file no longer in the folder — opens the folder's file again."""
     import fcntl
     path = output / LOCK_FILE
-    f = path.open("a+")
-    try:
+    while True:
+        f = path.open("a+")
         try:
             fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
             f.seek(0)
             holder = f.read().strip() or "?"
+            f.close()
             raise ConfigError(f"{output} is in use by another run (pid {holder}): choose "
                               "another --output") from None
+        try:
+            if os.stat(path).st_ino == os.fstat(f.fileno()).st_ino:
+                break
+        except FileNotFoundError:
+            pass
+        f.close()
+    try:
         f.seek(0)
         f.truncate()
         f.write(str(os.getpid()))
         f.flush()
         yield
     finally:
+        path.unlink(missing_ok=True)  # still locked: nobody else holds this file meanwhile
         f.close()
 
 

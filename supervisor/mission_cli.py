@@ -18,7 +18,7 @@ from rich.console import Console, Group
 from rich.text import Text
 
 from mrta_zenoh.cli.common import console as make_console
-from mrta_zenoh.cli.common import finite_float, verbosity
+from mrta_zenoh.cli.common import SEED_TYPE, OutputPath, finite_float, verbosity
 
 from .cli import LiveScreen, quiet_alarms, state_line
 from .mission import MissionOptions, run_mission
@@ -47,11 +47,11 @@ from .view import render
                    "this simulated time), stall:ROBOT@T, partition:ROBOT@T+D, loss:P, "
                    "latency:MEAN±JITTER (docs/delivery.md, Fault grammar). Default: the "
                    "second robot crashes at half the duration.")
-@click.option("--output", type=click.Path(file_okay=False, path_type=Path),
+@click.option("--output", type=OutputPath(folder=True),
               default=Path("demo-output"), show_default=True,
               help="Folder for the recording, pictures and summary.json.")
-@click.option("--seed", type=int, default=0, show_default=True,
-              help="The run's master seed (each robot derives its own stream).")
+@click.option("--seed", type=SEED_TYPE, default=0, show_default=True,
+              help="The run's master seed, 0 to 2^63 − 1 (each robot derives its own stream).")
 @click.option("--live/--no-live", default=None,
               help="Show the live supervisor view (default: when the output is a terminal).")
 @click.option("--lockstep/--no-lockstep", default=True, show_default=True,

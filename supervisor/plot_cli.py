@@ -10,6 +10,7 @@ from pathlib import Path
 
 import click
 
+from mrta_zenoh.cli.common import OutputPath
 from mrta_zenoh.cli.main import EntryPointGroup
 
 from .api import resolve_application
@@ -31,7 +32,8 @@ def plot() -> None:
 @click.option("--app", "app_spec", metavar="NAME|PATH",
               help="The application whose monitors read the recording (name or rqt_mrta.xml); "
                    "default: the only registered application.")
-@click.option("-o", "--output", required=True, type=click.Path(dir_okay=False, path_type=Path))
+@click.option("-o", "--output", required=True, type=OutputPath(folder=False),
+              help="The PNG to write.")
 @click.option("--view", type=click.Choice(VIEWS), default="robots", show_default=True,
               help="robots: what the robots said they did (the demo summary's ground truth); "
                    "supervisor: what the supervisor showed (it lags by its monitors' "

@@ -131,3 +131,145 @@ def test_yaml_and_field_output_carry_no_float_noise():
     assert "x: 51.62\n" in body and "y: [0.3]" in body
     assert format_sample("robot1/odom", "T", 0.1 + 0.2, False, FieldPath.parse("x")) == \
         "robot1/odom: 0.3"
+
+
+# ------------------------------------------------------------------ keeping up, and saying so
+def _echo_on(bus, monkeypatch, first, on_emit, **kwargs):
+    """run_echo on the in-process `bus`; `first` samples are published the moment its
+    subscription exists, `on_emit(n)` is called after the n-th write. Returns (lines,
+    warnings, printed)."""
+    from mrta_zenoh.bus import BusOptions
+    from mrta_zenoh.tools.echo import run_echo
+
+    subscribe_raw = bus.subscribe_raw
+
+    def subscribed(*args, **kw):
+        sub = subscribe_raw(*args, **kw)
+        for msg in first:
+            bus.publish(KEY_ODOM, msg)
+        return sub
+
+    monkeypatch.setattr(bus, "subscribe_raw", subscribed)
+    lines, warnings = [], []
+
+    def emit(text):
+        lines.extend(text.split("\n"))
+        on_emit(len(lines))
+
+    printed = run_echo(bus_options=BusOptions(), key_expr="robot1/**", emit=emit,
+                       warn=warnings.append, as_json=True, bus=bus, **kwargs)
+    return [json.loads(x)["message"]["header"]["seq"] for x in lines], warnings, printed
+
+
+KEY_ODOM = "robot1/odom"
+
+
+def _odom(seq):
+    from mrta_zenoh.messages import Header, Odometry, Pose2D, Twist
+    return Odometry(Header("robot1", seq * 0.1, seq), Pose2D(0.0, 0.0, 0.0), Twist(0.0, 0.0))
+
+
+def test_a_burst_beyond_the_queue_is_dropped_oldest_first_and_said(monkeypatch):
+    """While the first sample is being printed, ten more arrive into a queue of three: the
+    seven oldest go, and echo says so — while it goes on and in all at the end."""
+    from mrta_zenoh.bus import InProcBus
+    from mrta_zenoh.tools import echo
+
+    monkeypatch.setattr(echo, "MAX_PENDING", 3)
+    monkeypatch.setattr(echo, "REPORT_EVERY", 0.0)
+    bus = InProcBus()
+
+    def burst(n):
+        if n == 1:
+            for seq in range(1, 11):
+                bus.publish(KEY_ODOM, _odom(seq))
+
+    seqs, warnings, printed = _echo_on(bus, monkeypatch, [_odom(0)], burst, count=4)
+    assert seqs == [0, 8, 9, 10] and printed == 4
+    assert warnings == [
+        "dropped 7 samples in the last 0 s: printing could not keep up (7 of 11 dropped so far)",
+        "dropped 7 of 11 samples in all: printing could not keep up"]
+
+
+def test_samples_a_stop_leaves_unprinted_are_counted(monkeypatch):
+    import threading
+
+    from mrta_zenoh.bus import InProcBus
+
+    bus = InProcBus()
+    stop = threading.Event()
+
+    def burst_then_stop(n):
+        for seq in range(1, 6):
+            bus.publish(KEY_ODOM, _odom(seq))
+        stop.set()
+
+    seqs, warnings, printed = _echo_on(bus, monkeypatch, [_odom(0)], burst_then_stop, stop=stop)
+    assert seqs == [0] and printed == 1
+    assert warnings == ["5 samples received were not printed: stopped before them"]
+
+
+def test_everything_is_printed_in_order_when_nothing_overflows(monkeypatch):
+    """A burst of 5,000 within the queue: every sample, in order, none said to be dropped, in
+    far fewer writes than samples (many per write)."""
+    from mrta_zenoh.bus import InProcBus
+
+    bus = InProcBus()
+    writes = []
+    seqs, warnings, printed = _echo_on(bus, monkeypatch, [_odom(i) for i in range(5000)],
+                                       writes.append, count=5000)
+    assert seqs == list(range(5000)) and printed == 5000 and warnings == []
+    assert len(writes) <= 10
+
+
+# ------------------------------------------------------------------ the text, fast and the same
+from hypothesis import example, given, settings  # noqa: E402
+from hypothesis import strategies as st  # noqa: E402
+
+_FIELD = st.from_regex(r"[a-z][a-z0-9_]{0,8}", fullmatch=True)
+_WORD = st.from_regex(r"[a-z/][a-z0-9_/]{0,8}", fullmatch=True)
+_FLOAT = st.floats(allow_nan=False, allow_infinity=False)
+_MESSAGE_LEAF = st.one_of(_FLOAT, st.integers(-2**63, 2**64 - 1), st.booleans(), st.none(), _WORD)
+_ANY_LEAF = st.one_of(_MESSAGE_LEAF, st.floats(), st.text(max_size=12))
+
+
+def _data(leaf, keys):
+    return st.recursive(leaf, lambda inner: st.one_of(
+        st.lists(inner, max_size=4), st.dictionaries(keys, inner, max_size=4)), max_leaves=20)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.dictionaries(_FIELD, _data(_MESSAGE_LEAF, _FIELD), max_size=5))
+def test_yaml_of_message_shaped_data_is_pyyamls_text(value):
+    import yaml
+
+    from mrta_zenoh import jsonsafe
+    from mrta_zenoh.tools.sample_text import yaml_text
+    # one line per flow collection: PyYAML's without its wrapping at 80 columns (lines a script
+    # greps must not be cut in two)
+    expected = yaml.safe_dump(jsonsafe.tidy_all(value), sort_keys=False,
+                              default_flow_style=None, width=float("inf")).rstrip()
+    assert yaml_text(value) == expected
+
+
+TRICKY = ["it's", "a: b", "- x", "#x", "x #y", "yes", "No", "~", "12", "1e3", "", " a", "a ",
+          "é", "\x1b[2J", "\x85", "\u2028", "\x7f", "'", '"', "a\nb", "null", ".inf", "-",
+          "?", "[a]", "{a}", "&a", "*a", "!a", "%a", "@a", "`a", "|", ">", "0x1F", "1_000"]
+
+
+@settings(max_examples=200, deadline=None)
+@given(_data(_ANY_LEAF, st.text(max_size=8)))
+@example({"tricky": TRICKY, **{t: t for t in TRICKY}})
+@example([1.7976931348623157e308, -1.7976931348623151e308, 5e-324])  # tidy once made them inf
+def test_any_json_like_data_reads_back_and_prints_no_control_character(value):
+    import yaml
+
+    from mrta_zenoh import jsonsafe
+    from mrta_zenoh.tools.sample_text import json_text, yaml_text
+    text = yaml_text(value)
+    assert not any(c < " " and c != "\n" or "\x7f" <= c <= "\x9f" for c in text), text
+    as_json = json_text(value)
+    assert as_json == jsonsafe.dumps(value, nonfinite=str)
+    comparable = json.loads(as_json)  # NaN as "nan": equal to itself
+    back = yaml.safe_load(text)
+    assert json.loads(jsonsafe.dumps(back, nonfinite=str)) == comparable

@@ -3,13 +3,15 @@
 import os
 import signal
 import time
+from pathlib import Path
 
 import pytest
 from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
 from mrta_zenoh.errors import ConfigError
-from mrta_zenoh.toolchain.launchfile import LaunchEvaluator, check_executables
+from mrta_zenoh.toolchain.launchfile import (MAX_DEPTH, MAX_INCLUDES, MAX_NODES, MAX_TEXT,
+                                             LaunchEvaluator, check_executables)
 from mrta_zenoh.keys import matches
 from tests.helpers import REFERENCE
 
@@ -70,6 +72,75 @@ def test_malformed_launch_files_exit_2_with_file_and_line(tmp_path, text, line, 
     assert message in str(err.value) and err.value.line == line, str(err.value)
     res = CliRunner().invoke(cli, ["launch", str(f), "--dry-run"])
     assert res.exit_code == 2 and f"{f}:{line}" in res.output
+
+
+def _chain(tmp_path, n: int, fanout: int, last: str) -> Path:
+    """f1.launch … f{n}.launch, each including the next `fanout` times; the last holds `last`."""
+    for i in range(1, n):
+        includes = f'<include file="{tmp_path}/f{i + 1}.launch"/>' * fanout
+        write(tmp_path, f"<launch>\n{includes}\n</launch>\n", f"f{i}.launch")
+    write(tmp_path, f"<launch>\n{last}\n</launch>\n", f"f{n}.launch")
+    return tmp_path / "f1.launch"
+
+
+def test_an_include_bomb_is_refused_at_the_depth_bound_naming_the_chain(tmp_path):
+    """Twenty files of under 200 bytes, each including the next twice: 2^19 includes. The
+    evaluation stops at MAX_DEPTH, naming the include that went too deep and the chain."""
+    top = _chain(tmp_path, 20, 2, '<node pkg="simulator" type="sim"/>')
+    assert all(f.stat().st_size - 2 * len(str(tmp_path)) < 200 for f in tmp_path.iterdir())
+    res = CliRunner().invoke(cli, ["launch", str(top), "--dry-run"])
+    assert res.exit_code == 2, res.output
+    (line,) = res.output.strip().splitlines()
+    deepest = tmp_path / f"f{MAX_DEPTH}.launch"
+    assert line.startswith(f"Error: {deepest}:2: <include>: includes nest more than "
+                           f"{MAX_DEPTH} deep (included from "), line
+    assert f"f{MAX_DEPTH - 1}.launch:2 ← " in line and line.endswith(f"← {top}:2)")
+
+
+def test_a_wide_include_bomb_is_refused_at_the_count_bound(tmp_path):
+    """Within the depth bound, but 3^11 includes: refused when the count passes the bound,
+    long before it would have expanded them all."""
+    top = _chain(tmp_path, 12, 3, '<arg name="x" default="1"/>')
+    with pytest.raises(ConfigError, match=f"more than {MAX_INCLUDES:,} includes") as err:
+        evaluate(top)
+    assert "included from" in str(err.value)
+
+
+def test_nodes_are_bounded(tmp_path):
+    nodes = '<node pkg="simulator" type="sim"/>' * 40
+    top = _chain(tmp_path, 3, 30, nodes)  # 30 × 30 × 40 = 36,000 nodes
+    with pytest.raises(ConfigError, match=f"more than {MAX_NODES:,} nodes"):
+        evaluate(top)
+
+
+def test_an_argument_doubled_into_a_huge_string_is_refused(tmp_path):
+    args = "".join(f'<arg name="a{i + 1}" default="$(arg a{i})$(arg a{i})"/>' for i in range(60))
+    f = write(tmp_path, f'<launch>\n<arg name="a0" default="{"x" * 64}"/>\n{args}\n</launch>')
+    with pytest.raises(ConfigError, match=f"longer than {MAX_TEXT:,} characters") as err:
+        evaluate(f)
+    assert err.value.line == 3
+
+
+def test_an_error_in_an_included_file_names_where_it_was_included(tmp_path):
+    write(tmp_path, '<launch>\n\n<node pkg="simulator" typ="sim"/>\n</launch>', "inner.launch")
+    write(tmp_path, '<launch>\n<include file="$(find here)/inner.launch"/>\n</launch>',
+          "middle.launch")
+    top = write(tmp_path, '<launch>\n<group ns="a">\n<include file="$(find here)/middle.launch"/>'
+                          "\n</group>\n</launch>")
+    with pytest.raises(ConfigError) as err:
+        evaluate(top)
+    assert err.value.file == str(tmp_path / "inner.launch") and err.value.line == 3
+    assert str(err.value).endswith(f"unexpected attribute 'typ' (did you mean 'type'?) "
+                                   "(allowed: args, cwd, name, ns, output, pkg, required, "
+                                   f"respawn, type) (included from {tmp_path}/middle.launch:2 "
+                                   f"← {top}:3)"), str(err.value)
+    # a sibling include that succeeded leaves no trace in a later error's chain
+    write(tmp_path, "<launch/>", "ok.launch")
+    top2 = write(tmp_path, '<launch>\n<include file="$(find here)/ok.launch"/>\n'
+                           '<node pkg="simulator"/>\n</launch>', "top2.launch")
+    with pytest.raises(ConfigError) as err:
+        evaluate(top2)
+    assert "included from" not in str(err.value) and err.value.line == 3
 
 
 def test_undeclared_argument_is_refused(tmp_path):

@@ -2,7 +2,10 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from mrta_zenoh.bus.options import BusOptions, check_endpoint, session_configs
+from click.testing import CliRunner
+
+from mrta_zenoh.bus.options import MAX_CONFIG_BYTES, BusOptions, check_endpoint, session_configs
+from mrta_zenoh.cli.main import cli
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.keys import KeyExprError, matches, normalize_robot_id, validate_key_expr
 
@@ -57,6 +60,56 @@ def test_bad_config_file_names_file_and_line(tmp_path):
     assert str(f) in str(info.value) and "line:3" in str(info.value)
     with pytest.raises(ConfigError, match="cannot read"):
         BusOptions(zenoh_config=tmp_path / "missing.json5").user_config()
+
+
+
+# ------------------------------------------------------------------ hostile --zenoh-config files
+HOSTILE_CONFIGS = [
+    ("nested objects", "{a:" * 5000 + "1" + "}" * 5000, None, "nested too deeply"),
+    ("nested lists", "{a: " + "[" * 100_000 + "]" * 100_000 + "}", None, "nested too deeply"),
+    ("Latin-1", "{\n  mode: 'p\xe9er'}".encode("latin-1"), 2, "not a UTF-8 text file"),
+    ("a 5,000-digit number", "{a: " + "9" * 5000 + "}", None, "invalid JSON5"),
+    ("a list", "[1]", None, "must be a JSON5 object"),
+    ("an unknown key", "{foo: 1}", None, "Zenoh refuses 'foo': unknown key"),
+    ("a number for the mode", "{mode: 5}", None, "Zenoh refuses 'mode': invalid type"),
+    ("a bad endpoint", "{listen: {endpoints: ['bogus']}}", None, "Endpoints must be of the form"),
+    ("NaN in a known section", "{transport: {link: {tx: {lease: NaN}}}}", None,
+     "'transport': NaN and Infinity are not numbers"),
+]
+
+
+@pytest.mark.parametrize("text,line,what", [h[1:] for h in HOSTILE_CONFIGS],
+                         ids=[h[0] for h in HOSTILE_CONFIGS])
+def test_a_hostile_zenoh_config_is_config_error_naming_the_file(tmp_path, text, line, what):
+    f = tmp_path / "z.json5"
+    f.write_bytes(text if isinstance(text, bytes) else text.encode())
+    with pytest.raises(ConfigError) as info:
+        BusOptions(zenoh_config=f).check()
+    assert info.value.file == str(f) and info.value.line == line, str(info.value)
+    assert what in str(info.value) and " at /" not in str(info.value)
+
+
+def test_a_zenoh_config_larger_than_the_bound_is_not_read(tmp_path):
+    f = tmp_path / "z.json5"
+    f.write_text("{/*" + " " * MAX_CONFIG_BYTES + "*/}")
+    with pytest.raises(ConfigError, match="larger than"):
+        BusOptions(zenoh_config=f).user_config()
+
+
+def test_a_config_zenoh_accepts_passes_the_check(tmp_path):
+    f = tmp_path / "z.json5"
+    f.write_text("{transport: {link: {tx: {lease: 1000}}}, scouting: {delay: 5}}")
+    BusOptions(zenoh_config=f).check()
+
+
+@pytest.mark.parametrize("verb", [["echo", "x", "--count", "1"], ["record", "-o", "r.mcap"],
+                                  ["sim", "--world", "patrol", "--robot", "robot1"]])
+def test_commands_exit_2_naming_the_config_file_before_opening_a_session(tmp_path, verb):
+    f = tmp_path / "z.json5"
+    f.write_text("{mode: 5}")
+    result = CliRunner().invoke(cli, [*verb, "--zenoh-config", str(f)])
+    assert result.exit_code == 2, result.output
+    assert result.output.strip().splitlines()[-1].startswith(f"Error: {f}: Zenoh refuses 'mode'")
 
 
 @pytest.mark.parametrize("bad", ["", "/a", "a/", "a//b", "a/b*", "a?b", "a#"])

@@ -188,3 +188,28 @@ def test_app_validate_reads_every_robots_files_as_its_agent_would(tmp_path):
     bad = CliRunner().invoke(cli, ["app", "validate", str(pkg)])
     assert bad.exit_code == 2
     assert "robot2_alliance_params.yaml:" in bad.output and "between 0.001 and 86400 s" in bad.output
+
+
+def test_an_unknown_architecture_is_named_with_file_and_line(tmp_path):
+    f = tmp_path / "rqt_mrta.xml"
+    f.write_text(APP.format(second="robot2", task="wander").replace(
+        "<architecture>alliance</architecture>", "<architecture>aliance</architecture>"))
+    res = CliRunner().invoke(cli, ["app", "validate", str(f)])
+    assert res.exit_code == 2, res.output
+    (line,) = res.output.strip().splitlines()
+    assert line.startswith(f"Error: {f}:4: <architecture>: unknown architecture 'aliance' "
+                           "(did you mean 'alliance'?) (known: "), line
+
+
+@pytest.mark.parametrize("data,line,what", [
+    (b"<rqt_mrta>\n<a>\x00</a></rqt_mrta>", 2, "Char 0x0 out of allowed range"),
+    (b"<rqt_mrta>" + b"<a>" * 5000 + b"</a>" * 5000 + b"</rqt_mrta>", 1, "Excessive depth"),
+    (b"<rqt_mrta>\n<a>caf\xe9</a></rqt_mrta>", None, "Invalid bytes in character encoding"),
+])
+def test_hostile_xml_is_one_line_naming_the_file(tmp_path, data, line, what):
+    f = tmp_path / "rqt_mrta.xml"
+    f.write_bytes(data)
+    res = CliRunner().invoke(cli, ["arch", "validate", str(f)])
+    assert res.exit_code == 2, res.output
+    (out,) = res.output.strip().splitlines()
+    assert out.startswith(f"Error: {f}:{line}: " if line else f"Error: {f}: ") and what in out

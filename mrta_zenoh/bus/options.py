@@ -16,6 +16,7 @@ An explicit rendezvous (`$MRTA_RENDEZVOUS`, `rendezvous=`) is used as given.
 
 from __future__ import annotations
 
+import json
 import logging
 import os
 import re
@@ -26,6 +27,7 @@ from pathlib import Path
 from typing import Any
 
 from ..errors import ConfigError
+from ..keys import validate_key_expr
 
 DEFAULT_RENDEZVOUS = "tcp/127.0.0.1:7447"
 RENDEZVOUS_ENV = "MRTA_RENDEZVOUS"
@@ -35,6 +37,7 @@ _markers: dict[int, socket.socket] = {}  # markers this process holds, for its w
 _warned: set[int] = set()
 log = logging.getLogger("mrta.bus")
 MODES = ("peer", "client", "router")
+MAX_CONFIG_BYTES = 1024 * 1024  # a Zenoh config is a few kB; the file is read whole
 
 _ENDPOINT = re.compile(r"^(tcp|udp|tls|quic|ws|unixsock-stream|unixpipe)/(.+)$")
 _HOSTPORT = re.compile(r"^(\[[0-9A-Fa-f:.]+\]|[A-Za-z0-9.\-]+):(\d{1,5})(#.*)?$")
@@ -94,23 +97,73 @@ class BusOptions:
         return not (self.connect or self.listen or self.zenoh_config) and self.mode == "peer"
 
     def user_config(self) -> dict[str, Any]:
-        """The --zenoh-config file as a dict (JSON5); ConfigError naming file and line if bad."""
+        """The --zenoh-config file as a dict (JSON5); ConfigError naming the file (and the line
+        where the parser gives one) if it cannot be read or parsed: not UTF-8, nested past
+        the parser's recursion, over MAX_CONFIG_BYTES, or not an object."""
         if self.zenoh_config is None:
             return {}
         import json5  # only needed for this option
 
         path = Path(self.zenoh_config)
         try:
-            text = path.read_text(encoding="utf-8")
+            with path.open("rb") as f:
+                raw = f.read(MAX_CONFIG_BYTES + 1)
         except OSError as exc:
-            raise ConfigError(f"{path}: cannot read Zenoh config file: {exc.strerror}") from None
+            raise ConfigError(f"cannot read Zenoh config file: {exc.strerror}",
+                              file=str(path)) from None
+        if len(raw) > MAX_CONFIG_BYTES:
+            raise ConfigError(f"larger than {MAX_CONFIG_BYTES // 1024} kB: not a Zenoh config "
+                              "file", file=str(path))
+        try:
+            text = raw.decode("utf-8")
+        except UnicodeDecodeError as exc:
+            raise ConfigError("not a UTF-8 text file", file=str(path),
+                              line=raw.count(b"\n", 0, exc.start) + 1) from None
         try:
             data = json5.loads(text)
+        except RecursionError:
+            raise ConfigError("invalid JSON5: nested too deeply", file=str(path)) from None
         except ValueError as exc:
-            raise ConfigError(f"{path}: invalid JSON5: {str(exc).replace('<string>', 'line')}") from None
+            raise ConfigError(f"invalid JSON5: {str(exc).replace('<string>', 'line')}",
+                              file=str(path)) from None
         if not isinstance(data, dict):
-            raise ConfigError(f"{path}: a Zenoh config must be a JSON5 object, got {type(data).__name__}")
+            raise ConfigError(f"a Zenoh config must be a JSON5 object, got {type(data).__name__}",
+                              file=str(path))
         return data
+
+    def check(self) -> None:
+        """What a command checks before it starts anything: the --zenoh-config file read
+        (user_config) and, merged over our defaults, accepted by Zenoh itself key by key —
+        an unknown key or a value of the wrong type is bad input naming the file and the key,
+        not a failure when the session opens."""
+        if self.namespace:
+            validate_key_expr(self.namespace)
+        user = self.user_config()
+        if not user:
+            return
+        import zenoh  # the bus package's own dependency; every networked command loads it
+
+        conf = zenoh.Config()
+        merged = merge(base_config(self.mode), user)
+        for key in user:
+            try:
+                # NaN and Infinity are JSON5, not JSON: Zenoh would read a NaN lease as 0
+                conf.insert_json5(key, json.dumps(merged[key], allow_nan=False))
+            except zenoh.ZError as exc:
+                raise ConfigError(f"Zenoh refuses {key!r}: {zenoh_problem(str(exc))}",
+                                  file=str(self.zenoh_config)) from None
+            except ValueError:
+                raise ConfigError(f"{key!r}: NaN and Infinity are not numbers Zenoh can take",
+                                  file=str(self.zenoh_config)) from None
+
+
+def zenoh_problem(text: str) -> str:
+    """The reason in a Zenoh config error, without the Rust source location and debug
+    wrapping around it (`Json5Err(Message { msg: "…", location: … }) at /root/.cargo/…`)."""
+    m = (re.search(r'msg: "((?:[^"\\]|\\.)*)"', text)
+         or re.search(r'Str\("((?:[^"\\]|\\.)*)"\)', text))
+    reason = m.group(1) if m else text.split(" at /", 1)[0]
+    return " ".join(reason.split(" at /", 1)[0].split())
 
 
 def _port_of(endpoint: str) -> int | None:

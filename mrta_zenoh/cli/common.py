@@ -15,7 +15,9 @@ from typing import Any, Callable
 import click
 
 from ..bus.options import MODES, BusOptions
-from ..keys import validate_key_expr
+from ..errors import ConfigError
+from ..files import check_writable
+from ..limits import SEED
 from ..untrusted import visible
 from ..yamlfile import plural  # noqa: F401 - the verbs import it from here
 
@@ -29,7 +31,8 @@ def bus_options(f: Callable | None = None) -> Callable:
         @click.option("--connect", "connect", multiple=True, metavar="ENDPOINT",
                       help="Zenoh endpoint to connect to (repeatable), e.g. tcp/192.168.1.10:7447.")
         @click.option("--listen", "listen", multiple=True, metavar="ENDPOINT",
-                      help="Zenoh endpoint to listen on (repeatable). Default: tcp/127.0.0.1:0.")
+                      help="Zenoh endpoint to listen on (repeatable). Default: tcp/127.0.0.1:0, "
+                           "and the rendezvous endpoint while nobody holds it.")
         @click.option("--mode", type=click.Choice(MODES[:2]), default="peer", show_default=True,
                       help="Zenoh session mode.")
         @click.option("--zenoh-config", type=click.Path(dir_okay=False, path_type=Path),
@@ -41,9 +44,7 @@ def bus_options(f: Callable | None = None) -> Callable:
         def wrapper(*args: Any, connect, listen, mode, zenoh_config, bus_namespace, **kwargs: Any):
             opts = BusOptions(mode=mode, connect=list(connect), listen=list(listen),
                               zenoh_config=zenoh_config, namespace=bus_namespace)
-            if opts.namespace:
-                validate_key_expr(opts.namespace)
-            opts.user_config()  # a bad file is bad input: fail before anything starts
+            opts.check()  # a bad namespace or config file is bad input: before anything starts
             return f(*args, bus_options=opts, **kwargs)
 
         return wrapper
@@ -79,6 +80,52 @@ class FiniteFloat(click.ParamType):
 def finite_float(min: float | None = None, min_open: bool = False,
                  max: float | None = None) -> FiniteFloat:
     return FiniteFloat(min, min_open, max)
+
+
+class Seed(click.ParamType):
+    """A run's master seed: a non-negative 63-bit integer (mrta_zenoh.limits.SEED), as the
+    experiment file requires. numpy refuses a negative entropy with a traceback, and a larger
+    one would not fit the results' CSV column other tools read as int64."""
+
+    name = "seed"
+
+    def convert(self, value, param, ctx):
+        if isinstance(value, int) and not isinstance(value, bool):
+            x = value
+        else:
+            text = str(value).strip()
+            if len(text) > 24:  # int() of thousands of digits is refused by Python itself
+                self.fail(f"{text[:24]}… {SEED.problem(10**24)}", param, ctx)
+            try:
+                x = int(text, 10)
+            except ValueError:
+                self.fail(f"{value!r} is not an integer", param, ctx)
+        problem = SEED.problem(x)
+        if problem:
+            self.fail(problem, param, ctx)
+        return x
+
+
+SEED_TYPE = Seed()
+
+
+class OutputPath(click.Path):
+    """A path the command will write — a folder (`folder=True`) or a file — refused before the
+    command starts anything when it cannot be written (mrta_zenoh.files.check_writable): the
+    same exit 2 and one line for `--output /proc/x`, `/dev/null/x` or a read-only folder in
+    every command."""
+
+    def __init__(self, folder: bool):
+        super().__init__(file_okay=not folder, dir_okay=folder, path_type=Path)
+        self.folder = folder
+
+    def convert(self, value, param, ctx):
+        path = super().convert(value, param, ctx)
+        try:
+            check_writable(path, folder=self.folder)
+        except ConfigError as exc:
+            self.fail(str(exc), param, ctx)
+        return path
 
 
 def console(stderr: bool = False) -> "rich.console.Console":

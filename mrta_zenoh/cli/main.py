@@ -2,7 +2,11 @@
 
 The applications (robot_agent, simulator, supervisor) add their subcommands by entry point, so
 the core never imports them, and a pip-installed package can add its own subcommand the same way.
-Subcommands are imported only when used: `mrta echo` does not pay for matplotlib.
+Subcommands are imported only when used: `mrta echo` does not pay for matplotlib, and `mrta
+--help` imports none of them — it lists them with their short help from SHORT_HELP, a table of
+this distribution's commands that tests/test_cli_help.py keeps equal to the real ones (importing
+every verb to print one line each cost 1.3–1.5 s of CPU; a third party's command not in the table
+is imported to show its line).
 
 This is also the one place where the library's errors become exit codes (docs/architecture.md,
 "exit codes"): `run` is how every program of the project ends — the `mrta` group, a launch
@@ -21,7 +25,6 @@ import click
 
 from ..errors import Interrupted, MrtaError
 from ..lifecycle import die_with_parent, forget_signals, interrupted_by_user
-from .common import VERBOSITY_KEY, setup_logging
 
 
 def report(exc: BaseException) -> int:
@@ -81,6 +84,64 @@ def run_callable(target: Callable[[list[str]], Any], args: list[str]) -> int:
     return _exit_code(rv)
 
 
+# Entry-point value → the first paragraph of its command's help (or its short_help, marked by a
+# leading "!"): what `mrta --help` and `mrta plot --help` show without importing the commands.
+# tests/test_cli_help.py fails, printing the line to write, when a command of this distribution
+# is missing or its help changed.
+SHORT_HELP = {
+    "mrta_agent.alliance.cli:agent":
+        "Run ROBOT_ID's ALLIANCE agent: motivational behaviours, sensors, evaluators and layers.",
+    "mrta_zenoh.cli.toolchain:app": "Registered MRTA applications; create new ones.",
+    "mrta_zenoh.cli.toolchain:arch": "Registered MRTA architectures (rqt_mrta's plugins).",
+    "mrta_supervisor.mission_cli:demo":
+        "A mission end to end: simulator, agents and supervisor, then a summary.",
+    "mrta_zenoh.cli.echo:echo": "!Print the samples on a key expression or ROS topic.",
+    "mrta_supervisor.experiment_cli:experiment":
+        "Run the matrix of FILE (seeds × failures × parameter overrides) and summarise it.",
+    "mrta_zenoh.cli.instance:instance":
+        "Problem instances: generate them, look at them, check them (`mrta demo --instance`).",
+    "mrta_zenoh.cli.toolchain:launch":
+        "Run a launch file: `mrta launch PACKAGE FILE.launch [name:=value …]` or a path.",
+    "mrta_agent.murdoch.cli:murdoch":
+        "Run ROBOT_ID's MURDOCH agent: auctions, leases, sensors, evaluators and layers.",
+    "mrta_supervisor.plot_cli:plot":
+        "Plots from a recording made with `mrta record` (or `mrta demo`).",
+    "mrta_zenoh.cli.record:record":
+        "Record every sample on KEYEXPR… (default: everything) to an MCAP file.",
+    "mrta_zenoh.cli.replay:replay":
+        "Republish RECORDING's bus channels with their original timing (rosbag play).",
+    "mrta_zenoh.cli.ros2:ros2":
+        "ROS 2 robots over rmw_zenoh, with no ROS 2 installation (docs/ros2.md).",
+    "mrta_zenoh.cli.router:router":
+        "Run a Zenoh router, listening on the rendezvous endpoint unless told otherwise.",
+    "mrta_zenoh.cli.secure:secure":
+        "Authenticated, authorised fleets: certificates and Zenoh configs (docs/security.md).",
+    "mrta_simulator.cli:sim":
+        "Simulate Pioneer 3-DX robots: cmd_vel in; clock, sonar, odom, ground_truth, bumper out.",
+    "mrta_supervisor.cli:supervise":
+        "Supervise APP (a registered application or its rqt_mrta.xml): robots, tasks, alarms,\n"
+        "    and the ROS 2 graph (a robot whose ROS 2 driver node is gone is offline).",
+    "mrta_supervisor.cli:view":
+        "Serve APP's robots, scene and supervisor to Foxglove (ws://HOST:PORT), live.",
+    # `mrta plot` kinds (mrta.plots)
+    "mrta_agent.alliance.plot_cli:motivation":
+        "rqt_alliance's seven panels for one robot and task, over time.",
+    "mrta_supervisor.plot_cli:timeline":
+        "Which robot did which task when (a Gantt chart), with offline periods hatched.",
+}
+
+
+def listed(name: str, ep) -> click.Command:
+    """What a help listing shows for the entry point `ep`: a stand-in holding its short help
+    when SHORT_HELP knows the command, the loaded command otherwise."""
+    text = SHORT_HELP.get(ep.value)
+    if text is None:
+        return ep.load()
+    if text.startswith("!"):
+        return click.Command(name, short_help=text[1:])
+    return click.Command(name, help=text)
+
+
 class EntryPointGroup(click.Group):
     """A click group whose subcommands are the entry points of GROUP, loaded when used."""
 
@@ -88,6 +149,21 @@ class EntryPointGroup(click.Group):
 
     def _entry_points(self) -> dict:
         return {ep.name: ep for ep in entry_points(group=self.GROUP)}
+
+    def format_commands(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        """click's listing of subcommands, with each line from SHORT_HELP where it can be
+        (`listed`), so that `--help` imports no subcommand."""
+        eps = self._entry_points()
+        rows = []
+        for name in self.list_commands(ctx):
+            held = super().get_command(ctx, name)
+            cmd = held if held is not None else listed(name, eps[name])
+            if cmd is not None and not cmd.hidden:
+                rows.append((name, cmd))
+        if rows:
+            limit = formatter.width - 6 - max(len(name) for name, _ in rows)
+            with formatter.section("Commands"):
+                formatter.write_dl([(name, cmd.get_short_help_str(limit)) for name, cmd in rows])
 
     def list_commands(self, ctx: click.Context) -> list[str]:
         return sorted(set(super().list_commands(ctx)) | set(self._entry_points()))
@@ -128,6 +204,8 @@ class RootGroup(EntryPointGroup):
 @click.pass_context
 def cli(ctx: click.Context, verbose: int, quiet: int) -> None:
     """Multi-robot task allocation on Zenoh: agents, simulator, supervisor and config tools."""
+    from .common import VERBOSITY_KEY, setup_logging  # not for `mrta --help`: it imports the bus
+
     ctx.meta[VERBOSITY_KEY] = verbose - quiet
     setup_logging(verbose - quiet)
 

@@ -39,6 +39,7 @@ def router(listen: tuple[str, ...], connect: tuple[str, ...], zenoh_config: Path
     opts = BusOptions(mode="router", connect=given.connect,
                       listen=given.listen or ([] if configured else [given.rendezvous_endpoint]),
                       zenoh_config=zenoh_config)
+    opts.check()  # Zenoh's own refusal of the file: exit 2 naming it, before anything starts
     with stop_on_signals() as stop:
         click.echo(f"router listening on {', '.join(opts.listen or configured)}", err=True)
         run_router(opts, stop)

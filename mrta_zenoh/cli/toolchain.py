@@ -11,13 +11,13 @@ import click
 
 from ..errors import ConfigError, Interrupted, MrtaRuntimeError
 from ..lifecycle import interrupted_by_user, stop_on_signals
-from ..toolchain.checks import check_robot_files
-from ..toolchain.generator import build_application, load_answers, write_package
+from ..toolchain.checks import PackageRefused, check_package_files, check_robot_files
+from ..toolchain.generator import build_application, load_answers, restrict_layers, write_package
 from ..toolchain.launchfile import LaunchEvaluator, check_executables
 from ..toolchain.model import Application, Architecture, Array, Param, Params
 from ..toolchain.registry import Registry, matches_taxonomy, taxonomy_value
 from ..toolchain.runner import command_for, run_nodes
-from ..toolchain.wizard import InvalidAnswer, collect, summary
+from ..toolchain.wizard import InvalidAnswer, ask_again, collect, summary
 from ..toolchain.xmlio import load_rqt_mrta
 from .common import plural
 
@@ -114,7 +114,7 @@ def _validate(path: Path, kind: type) -> None:
                           f"{kind.__name__.lower()} file", file=str(path))
     checked = []
     if isinstance(model, Application):
-        Registry().architecture(model.architecture)
+        Registry().architecture_of(model)
         checked = check_robot_files(path.parent, model)
     click.echo(f"{path}: valid {kind.__name__.lower()} {model.name!r}"
                + (f" (the parameter files of {plural(len(checked), 'robot')} checked)"
@@ -175,20 +175,37 @@ def app_validate(path: Path) -> None:
 @click.option("--force", is_flag=True, help="Replace an existing package folder.")
 @click.option("--yes", is_flag=True, help="Do not ask for confirmation after the summary.")
 def app_new(answers: Path | None, output: Path, force: bool, yes: bool) -> None:
-    """Create an application package: general data, architecture, robots, parameters, summary."""
+    """Create an application package: general data, architecture, robots, parameters, summary.
+
+    Nothing is written that `mrta app validate` would refuse: the generated files are first
+    read by the architecture as its agents will read them; the wizard then asks again for the
+    answers behind a refused file, an answers file is refused naming its line."""
     reg = Registry()
     if answers is not None:
         a, doc = load_answers(answers)
         arch_pkg, arch_model = reg.architecture(a.architecture)
+        arch_model = restrict_layers(arch_pkg, arch_model, a, doc)
+        app, files = build_application(arch_pkg, arch_model, a, doc)
+        checked = check_package_files(files, app, doc)
     else:
-        a, arch_pkg, arch_model = collect(reg, TerminalPrompter())
-        doc = None
-    _, files = build_application(arch_pkg, arch_model, a, doc)
+        ui = TerminalPrompter()
+        a, arch_pkg, arch_model = collect(reg, ui)
+        while True:
+            app, files = build_application(arch_pkg, arch_model, a)
+            try:
+                checked = check_package_files(files, app)
+                break
+            except PackageRefused as exc:
+                click.echo(click.style(f"Error: {exc}", fg="red"), err=True)
+                ask_again(ui, a, arch_model, exc.generated)
     dest = output / a.package
     if dest.exists() and not force:
         raise ConfigError(f"{dest} already exists; use --force to replace it")
     click.echo(click.style("5/5 Summary", bold=True) if answers is None else "Summary")
     click.echo(summary(a, arch_model, files, dest))
+    if not checked:
+        click.echo(f"(the parameter files are not checked: no contract for architecture "
+                   f"{arch_pkg.name!r} is registered under mrta.architectures)")
     if answers is None and not yes and not click.confirm("Write these files?", default=True):
         raise click.ClickException("nothing written")
     write_package(files, dest, force)
@@ -215,6 +232,8 @@ class TerminalPrompter:
                 return check(value)
             except InvalidAnswer as exc:  # click.prompt says it and asks again
                 raise click.UsageError(str(exc)) from None
+        if default is None:  # click would ask again after an empty answer, saying nothing:
+            default, show_default = "", False  # `check` says why it needs one
         return click.prompt(question, default=default, show_default=show_default,
                             value_proc=proc)
 

@@ -6,6 +6,7 @@ file (documented in docs/toolchain.md), so both paths share every check below.
 
 from __future__ import annotations
 
+import dataclasses
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -18,7 +19,9 @@ from ..errors import ConfigError
 from ..files import write_folder
 from ..keys import KeyExprError, is_id, normalize_robot_id
 from ..yamlfile import YamlDoc, did_you_mean, load_yaml
-from .model import Application, Architecture, Config, Launch, LaunchArg, LaunchInclude, RobotEntry
+from .checks import layers_config_id, read_layer_sections
+from .model import (Application, Architecture, Config, Launch, LaunchArg, LaunchInclude, Params,
+                    RobotEntry)
 from .registry import Package
 from .templates import instantiate, to_data
 from .xmlio import to_xml
@@ -166,6 +169,43 @@ def build_application(arch_pkg: Package, arch: Architecture, a: Answers,
     files["rqt_mrta.xml"] = to_xml(app)
     files["package.xml"] = _package_xml(a, arch_pkg.name)
     return app, files
+
+
+def _stub(arch_pkg: Package, a: Answers) -> Application:
+    return Application(arch_pkg.name, a.name, [RobotEntry(r, list(t)) for r, t in a.robots.items()])
+
+
+def without_layers(arch_pkg: Package, arch: Architecture, a: Answers,
+                   doc: YamlDoc | None = None) -> tuple[str | None, dict[str, bytes]]:
+    """The layers file's config id (None when the architecture has no contract) and the
+    package's files without it: the robots' and the tasks' files say which plugins run."""
+    layers_id = layers_config_id(_stub(arch_pkg, a))
+    without = dataclasses.replace(arch, configs=[c for c in arch.configs if c.id != layers_id])
+    others = {c.id for c in without.configs}  # an unknown config is the full build's to report
+    _, files = build_application(arch_pkg, without, dataclasses.replace(
+        a, configs={k: v for k, v in a.configs.items() if k in others}), doc)
+    return layers_id, files
+
+
+def restrict_layers(arch_pkg: Package, arch: Architecture, a: Answers,
+                    doc: YamlDoc | None = None) -> Architecture:
+    """`arch` with its layers-file template holding only the sections some robot's plugins
+    read (Architecture.layer_sections, from the robot and tasks files these answers make) or
+    that the answers set: a patrol without a border task is not asked for, and does not get,
+    BorderProtection parameters, which every agent would then warn nobody reads. Unchanged
+    when the architecture cannot say."""
+    layers_id, files = without_layers(arch_pkg, arch, a, doc)
+    layers = arch.config(layers_id) if layers_id else None
+    if layers is None:
+        return arch
+    read = read_layer_sections(files, _stub(arch_pkg, a))
+    if read is None:
+        return arch
+    given = a.configs.get(layers_id)
+    keep = read | (set(given) if isinstance(given, dict) else set())
+    kept = [c for c in layers.children if not isinstance(c, Params) or c.name in keep]
+    return dataclasses.replace(arch, configs=[
+        dataclasses.replace(c, children=kept) if c.id == layers_id else c for c in arch.configs])
 
 
 def _located(doc: YamlDoc | None, path: tuple, message: str) -> ConfigError:

@@ -6,6 +6,13 @@ unknown tag or attribute is a ConfigError with file and line. Nodes map `pkg/typ
 registered in the `mrta.executables` entry-point group (a click command), e.g. `robot_agent/agent`.
 `param` and `rosparam load` have no parameter server to go to: they are collected per node and
 handed to it as JSON in the `MRTA_NODE_PARAMS` environment variable.
+
+Bounded, unlike roslaunch: includes nest at most MAX_DEPTH deep, a launch expands at most
+MAX_INCLUDES includes and MAX_NODES nodes, and a substituted value is at most MAX_TEXT
+characters. Twenty files of 200 bytes, each including the next twice, are a million includes
+(roslaunch, and this evaluator before the bounds, ran on for minutes); `$(arg a)$(arg a)`
+doubled through fifty args is a petabyte string. Either is refused at once, naming the chain of
+includes. An error inside an included file names where it was included from.
 """
 
 from __future__ import annotations
@@ -24,6 +31,10 @@ from ..yamlfile import did_you_mean
 from .xmlio import parse_xml_file
 
 EXECUTABLES_GROUP = "mrta.executables"
+MAX_DEPTH = 16        # includes within includes (the shipped missions nest 2 deep)
+MAX_INCLUDES = 5_000  # includes evaluated in one launch (one per robot and per agent: 2,500 robots)
+MAX_NODES = 1_000     # processes one launch starts
+MAX_TEXT = 100_000    # characters of one attribute after substitution
 
 _ATTRS = {
     "launch": set(),
@@ -115,11 +126,30 @@ class LaunchEvaluator:
         self.find = find
         self.environ = dict(os.environ if environ is None else environ)
         self.nodes: list[NodeSpec] = []
-        self._stack: list[Path] = []
+        self._stack: list[Path] = []  # the files being evaluated, outermost first
+        self._sites: list[tuple[Path, int | None]] = []  # where each of them was included
+        self._includes = 0
+        self._parsed: dict[Path, object] = {}  # a file included many times is parsed once
 
     def run(self, path: Path, args: dict[str, str]) -> list[NodeSpec]:
-        self._file(Path(path), dict(args), "", {})
+        """The nodes of the launch file `path`; ConfigError naming file, line and — for an
+        error inside an included file — the chain of includes that led there."""
+        try:
+            self._file(Path(path), dict(args), "", {})
+        except ConfigError as exc:
+            if not self._sites:
+                raise
+            raise ConfigError(f"{exc.detail} (included from {self._chain()})", file=exc.file,
+                              line=exc.line, element=exc.element) from None
         return self.nodes
+
+    def _chain(self) -> str:
+        """`b.launch:3 ← a.launch:2`: the include sites from the innermost out (at most the
+        three innermost and the outermost, so the line stays one line)."""
+        sites = [f"{f}:{line}" if line else str(f) for f, line in reversed(self._sites)]
+        if len(sites) > 4:
+            sites = sites[:3] + [f"… {len(sites) - 4} more"] + sites[-1:]
+        return " ← ".join(sites)
 
     # ------------------------------------------------------------------------ evaluation
 
@@ -128,12 +158,15 @@ class LaunchEvaluator:
                            element=f"<{el.tag}>" if el is not None else None)
 
     def _file(self, path: Path, given: dict[str, str], ns: str, env: dict[str, str]) -> None:
-        if path.resolve() in self._stack:
+        resolved = path.resolve()
+        if resolved in self._stack:
             raise ConfigError("launch file includes itself", file=str(path))
-        root = parse_xml_file(path)
+        root = self._parsed.get(resolved)
+        if root is None:
+            root = self._parsed[resolved] = parse_xml_file(path)
         if root.tag != "launch":
             raise self._err(path, root, "the root element must be <launch>")
-        self._stack.append(path.resolve())
+        self._stack.append(resolved)
         scope = _Scope(path, {}, ns, dict(env))
         declared: set[str] = set()
         for el in root:
@@ -147,7 +180,9 @@ class LaunchEvaluator:
                               + f" (it declares: {', '.join(sorted(declared)) or 'none'})",
                               file=str(path))
         self._children(scope, root, given)
-        self._stack.pop()
+        self._stack.pop()  # on success only: an error's chain is the stack where it happened
+        if self._sites:
+            self._sites.pop()
 
     def _check(self, scope: _Scope, el) -> None:
         allowed = _ATTRS[el.tag]
@@ -164,27 +199,34 @@ class LaunchEvaluator:
         if text is None:
             return ""
         out = []
+        size = 0
         for part in parse_substitutions(text, lambda m: self._err(scope.file, el, m)):
-            if isinstance(part, Text):
-                out.append(part.text)
-            elif part.kind == "arg":
-                name = part.args[0]
-                if name not in scope.args:
-                    raise self._err(scope.file, el, f"$(arg {name}): no such argument in scope"
-                                    + did_you_mean(name, scope.args))
-                out.append(scope.args[name])
-            elif part.kind == "find":
-                try:
-                    out.append(str(self.find(part.args[0])))
-                except ConfigError as exc:
-                    raise self._err(scope.file, el, f"$(find {part.args[0]}): {exc}") from None
-            elif part.kind == "env":
-                if part.args[0] not in self.environ:
-                    raise self._err(scope.file, el, f"$(env {part.args[0]}): variable not set")
-                out.append(self.environ[part.args[0]])
-            else:  # optenv
-                out.append(self.environ.get(part.args[0], part.args[1] if len(part.args) > 1 else ""))
+            piece = part.text if isinstance(part, Text) else self._value(scope, el, part)
+            size += len(piece)
+            if size > MAX_TEXT:
+                raise self._err(scope.file, el, f"a value longer than {MAX_TEXT:,} characters "
+                                "after substitution")
+            out.append(piece)
         return "".join(out)
+
+    def _value(self, scope: _Scope, el, part: Substitution) -> str:
+        if part.kind == "arg":
+            name = part.args[0]
+            if name not in scope.args:
+                raise self._err(scope.file, el, f"$(arg {name}): no such argument in scope"
+                                + did_you_mean(name, scope.args))
+            return scope.args[name]
+        if part.kind == "find":
+            try:
+                return str(self.find(part.args[0]))
+            except ConfigError as exc:
+                raise self._err(scope.file, el, f"$(find {part.args[0]}): {exc}") from None
+        if part.kind == "env":
+            if part.args[0] not in self.environ:
+                raise self._err(scope.file, el, f"$(env {part.args[0]}): variable not set")
+            return self.environ[part.args[0]]
+        # optenv
+        return self.environ.get(part.args[0], part.args[1] if len(part.args) > 1 else "")
 
     def _children(self, scope: _Scope, parent, given: dict[str, str]) -> None:
         allowed = _CHILDREN[parent.tag]
@@ -243,6 +285,13 @@ class LaunchEvaluator:
             else:
                 env[child.get("name")] = self._sub(scope, child, child.get("value"))
         ns = self._sub(scope, el, el.get("ns")).strip("/")
+        self._includes += 1
+        if len(self._stack) >= MAX_DEPTH:
+            raise self._err(scope.file, el, f"includes nest more than {MAX_DEPTH} deep")
+        if self._includes > MAX_INCLUDES:
+            raise self._err(scope.file, el, f"more than {MAX_INCLUDES:,} includes in one "
+                            "launch (files that include others several times multiply)")
+        self._sites.append((scope.file, el.sourceline))
         self._file(file, args, "/".join(p for p in (scope.ns, ns) if p), env)
 
     def _param(self, scope: _Scope, el, given) -> None:
@@ -292,6 +341,8 @@ class LaunchEvaluator:
             else:
                 spec.remaps[self._sub(scope, child, child.get("from"))] = \
                     self._sub(scope, child, child.get("to"))
+        if len(self.nodes) >= MAX_NODES:
+            raise self._err(scope.file, el, f"more than {MAX_NODES:,} nodes in one launch")
         self.nodes.append(spec)
 
 

@@ -141,6 +141,7 @@ class Application:
     configs: list[Config] = field(default_factory=list)
     launches: list[Launch] = field(default_factory=list)
     source: str | None = field(default=None, compare=False, repr=False)
+    architecture_line: int | None = field(default=None, compare=False, repr=False)
 
     def tasks(self) -> list[str]:
         seen: dict[str, None] = {}

@@ -207,6 +207,15 @@ class Registry:
     def application(self, name: str) -> tuple[Package, Application]:
         return self._named(name, "application", self.applications())
 
+    def architecture_of(self, app: Application) -> tuple[Package, Architecture]:
+        """The architecture an application names; unknown, a ConfigError at its
+        `<architecture>` element (file and line), not a bare "unknown architecture"."""
+        try:
+            return self.architecture(app.architecture)
+        except ConfigError as exc:
+            raise ConfigError(exc.detail, file=app.source, line=app.architecture_line,
+                              element="<architecture>") from None
+
 
 # ------------------------------------------------------------------- Gerkey–Matarić filter
 

@@ -19,6 +19,9 @@ from .model import Array, Config, Node, Param, Params
 ARRAY_SIZE = "@array_size@"
 TASK_PLACEHOLDER = "@task_id@"
 INDEX = "@index@"
+# Entries of one array (sensors, behaviour sets, tasks): far beyond a robot's needs, and a bound
+# on what an answers file of aliases (`- *sensor` a million times) can make the generator build.
+MAX_ITEMS = 1000
 
 
 def convert(type_: str | None, value: Any, where: str) -> Any:
@@ -78,7 +81,7 @@ def _fill(children: list[Node], values: dict | list, where: str,
     if isinstance(values, list) and len(arrays) == 1:
         values = {_array_key(arrays[0]): values}  # `sensors: [...]` for size + sensor@index@
     if not isinstance(values, dict):
-        raise ConfigError(f"{where}: expected a mapping of parameters, got {values!r}")
+        raise ConfigError(f"{where}: expected a mapping of parameters, got {values!r:.80}")
     known = {c.name for c in children if not isinstance(c, Array)}
     array_keys = {_array_key(a): a for a in arrays}
     for key in values:
@@ -94,7 +97,7 @@ def _fill(children: list[Node], values: dict | list, where: str,
         if _uses_task_id(a) and robot_tasks is not None:
             given = items if isinstance(items, list) else []
             if items is not None and not isinstance(items, list):
-                raise ConfigError(f"{where}/{key}: expected a list, got {items!r}")
+                raise ConfigError(f"{where}/{key}: expected a list, got {items!r:.80}")
             if len(given) not in (0, len(robot_tasks)):
                 raise ConfigError(f"{where}/{key}: one entry per task of the robot "
                                   f"({', '.join(robot_tasks)}), got {len(given)}")
@@ -105,7 +108,9 @@ def _fill(children: list[Node], values: dict | list, where: str,
             items = []
         if not isinstance(items, list):
             raise ConfigError(f"{where}/{key}: expected a list (one item per {key} entry), "
-                              f"got {items!r}")
+                              f"got {items!r:.80}")
+        if len(items) > MAX_ITEMS:
+            raise ConfigError(f"{where}/{key}: {len(items):,} entries, more than {MAX_ITEMS:,}")
         out = []
         for i, item in enumerate(items):
             name = a.name.replace(INDEX, str(i))
@@ -148,7 +153,7 @@ def _fill(children: list[Node], values: dict | list, where: str,
 def _fill_item(children: list[Node], item: Any, where: str,
                robot_tasks: list[str] | None) -> list[Node]:
     if not isinstance(item, dict):
-        raise ConfigError(f"{where}: expected a mapping, got {item!r}")
+        raise ConfigError(f"{where}: expected a mapping, got {item!r:.80}")
     task = item.pop("@task_id@", None)
     filled = _fill(children, item, where, robot_tasks)
     if task is not None:

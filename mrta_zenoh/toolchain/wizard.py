@@ -5,6 +5,12 @@ General data → architecture (with taxonomy filters) → robots and their tasks
 user) → a summary of exactly what will be written → confirm. It only *collects* answers; checking
 and writing are the generator's, shared with `--answers`. The talking is a Prompter's: the
 terminal's lives in the CLI layer, so this module knows no terminal.
+
+Two departures from the dissertation's wizard, both so that it never writes what `mrta app
+validate` refuses: the layers file's sections are asked for only when a plugin of the robots
+reads them (generator.restrict_layers), and when the architecture refuses a generated file
+(checks.check_package_files), `ask_again` asks for that file's answers once more — the earlier
+answers offered as defaults — instead of ending the session.
 """
 
 from __future__ import annotations
@@ -13,10 +19,12 @@ from typing import Any, Callable, Protocol, TypeVar
 
 from ..errors import ConfigError
 from ..keys import is_id
-from .generator import EMAIL, PACKAGE_NAME, VERSION, Answers
-from .model import Architecture, Node, Param, Params
+from .checks import PackageRefused, check_package_files, layers_config_id
+from .generator import (EMAIL, PACKAGE_NAME, VERSION, Answers, restrict_layers,
+                        without_layers)
+from .model import Application, Architecture, Node, Param, Params, RobotEntry
 from .registry import Package, Registry, matches_taxonomy, taxonomy_value
-from .templates import ARRAY_SIZE, TASK_PLACEHOLDER, convert
+from .templates import ARRAY_SIZE, MAX_ITEMS, TASK_PLACEHOLDER, convert
 
 T = TypeVar("T")
 
@@ -67,12 +75,14 @@ def _text(value: str) -> str:
 
 
 def _count(value: str) -> int:
+    if not value.strip():
+        raise InvalidAnswer("give a number of entries, 0 or more")
     try:
         n = int(value.strip())
     except ValueError:
         raise InvalidAnswer(f"{value!r} is not a valid integer") from None
-    if not 0 <= n <= 1000:
-        raise InvalidAnswer(f"{n} is not in the range 0<=x<=1000")
+    if not 0 <= n <= MAX_ITEMS:
+        raise InvalidAnswer(f"{n} is not in the range 0<=x<={MAX_ITEMS}")
     return n
 
 
@@ -150,24 +160,70 @@ def collect(registry: Registry, ui: Prompter) -> tuple[Answers, Package, Archite
         robots[rid] = ui.ask(f"Tasks {rid} can do", subset, default=",".join(task_ids))
 
     ui.step("4/5 Parameters")
-    configs: dict[str, Any] = {}
-    for c in arch.configs:
-        if c.id == arch.config_id:
-            configs[c.id] = {}
-            for rid, tasks in robots.items():
-                ui.section(f"{rid}_{c.id}")
-                configs[c.id][rid] = _ask_children(ui, c.children, f"{rid}", tasks)
-        elif c.children:
-            ui.section(c.id)
-            configs[c.id] = _ask_children(ui, c.children, c.id, None)
     answers = Answers(package=package, name=name, architecture=arch_pkg.name, robots=robots,
-                      configs=configs, version=version, description=description,
+                      configs={}, version=version, description=description,
                       maintainer=maintainer, email=email, license=license_, depends=depends)
+    layers_id = layers_config_id(_application(arch_pkg, answers))
+    for c in list(arch.configs):
+        if c.id == layers_id:  # asked after the robots' and tasks' files: their plugins tell
+            _until_accepted(ui, arch_pkg, arch, answers)
+            arch = restrict_layers(arch_pkg, arch, answers)
+        _ask_config(ui, answers, arch, c.id, {})
     return answers, arch_pkg, arch
 
 
+def _until_accepted(ui: Prompter, arch_pkg: Package, arch: Architecture,
+                    answers: Answers) -> None:
+    """The robots' and tasks' files, checked by the architecture, asked for again until it
+    accepts them: which layer sections to ask for is known only from files it accepts."""
+    while True:
+        _, files = without_layers(arch_pkg, arch, answers)
+        try:
+            check_package_files(files, _application(arch_pkg, answers))
+            return
+        except PackageRefused as exc:
+            ui.say(f"Error: {exc}")
+            ask_again(ui, answers, arch, exc.generated)
+
+
+def _application(arch_pkg: Package, answers: Answers) -> Application:
+    return Application(arch_pkg.name, answers.name,
+                       [RobotEntry(r, t) for r, t in answers.robots.items()])
+
+
+def _ask_config(ui: Prompter, answers: Answers, arch: Architecture, config_id: str,
+                previous: dict, robot: str | None = None) -> None:
+    """The answers for one config template into `answers.configs` — every robot's, or only
+    `robot`'s, for the per-robot one — offering `previous` answers as defaults."""
+    c = arch.config(config_id)
+    if c.id == arch.config_id:
+        per_robot = answers.configs.setdefault(c.id, {})
+        for rid, tasks in answers.robots.items():
+            if robot in (None, rid):
+                ui.section(f"{rid}_{c.id}")
+                per_robot[rid] = _ask_children(ui, c.children, rid, tasks, previous.get(rid))
+    elif c.children:
+        ui.section(c.id)
+        answers.configs[c.id] = _ask_children(ui, c.children, c.id, None, previous)
+
+
+def ask_again(ui: Prompter, answers: Answers, arch: Architecture, generated: str) -> None:
+    """The answers behind the generated file `generated` (config/robot1_alliance_params.yaml),
+    asked for once more with the earlier ones as defaults: the architecture refused the file."""
+    stem = generated.rsplit("/", 1)[-1].removesuffix(".yaml")
+    for rid in answers.robots:
+        if stem == f"{rid}_{arch.config_id}":
+            _ask_config(ui, answers, arch, arch.config_id, answers.configs[arch.config_id],
+                        robot=rid)
+            return
+    if arch.config(stem) is None:
+        raise ConfigError(f"{generated}: not a file of the parameters asked for")
+    _ask_config(ui, answers, arch, stem, answers.configs.get(stem) or {})
+
+
 def _ask_children(ui: Prompter, children: list[Node], path: str,
-                  tasks: list[str] | None) -> dict:
+                  tasks: list[str] | None, previous: Any = None) -> dict:
+    before = previous if isinstance(previous, dict) else {}
     out: dict[str, Any] = {}
     for child in children:
         if isinstance(child, Param):
@@ -175,21 +231,26 @@ def _ask_children(ui: Prompter, children: list[Node], path: str,
                 continue  # sized from the array below / filled from the robot's tasks
             if child.value and "@" not in child.value:
                 continue  # fixed by the architecture
-            out[child.name] = _ask_param(ui, child, f"{path}/{child.name}")
+            out[child.name] = _ask_param(ui, child, f"{path}/{child.name}",
+                                         before.get(child.name))
         elif isinstance(child, Params):
-            out[child.name] = _ask_children(ui, child.children, f"{path}/{child.name}", tasks)
+            out[child.name] = _ask_children(ui, child.children, f"{path}/{child.name}", tasks,
+                                            before.get(child.name))
         else:
             key = child.name.replace("@index@", "")
+            earlier = before.get(key) if isinstance(before.get(key), list) else []
             if tasks is not None and _has_task_id(child):
                 count = len(tasks)
                 labels = tasks
             else:
-                count = ui.ask(f"{path}: how many {key} entries", _count)
+                count = ui.ask(f"{path}: how many {key} entries", _count,
+                               default=str(len(earlier)) if earlier else None)
                 labels = [str(i) for i in range(count)]
             items = []
             for i in range(count):
                 ui.say(f"  {child.name.replace('@index@', str(i))} ({labels[i]})")
-                items.append(_ask_children(ui, child.children, f"{path}/{key}{i}", tasks))
+                items.append(_ask_children(ui, child.children, f"{path}/{key}{i}", tasks,
+                                           earlier[i] if i < len(earlier) else None))
             out[key] = items
     return out
 
@@ -200,17 +261,22 @@ def _has_task_id(node: Node) -> bool:
     return any(_has_task_id(c) for c in node.children)
 
 
-def _ask_param(ui: Prompter, p: Param, path: str) -> Any:
+def _ask_param(ui: Prompter, p: Param, path: str, previous: Any = None) -> Any:
+    """One parameter; an earlier answer (`previous`) or the template's default is offered."""
+    default = p.default or None
+    if previous is not None:
+        default = ("true" if previous else "false") if isinstance(previous, bool) \
+            else str(previous)
+
     def proc(v: str) -> Any:
-        if v == "" and not p.default:
-            raise InvalidAnswer(f"{p.name} is mandatory")
+        if v == "" and not default:
+            raise InvalidAnswer(f"{p.name} is mandatory: give a value")
         try:
-            return convert(p.type, v if v != "" else p.default, path)
+            return convert(p.type, v if v != "" else default, path)
         except ConfigError as exc:
             raise InvalidAnswer(str(exc)) from None
     help_ = f" — {p.tool_tip}" if p.tool_tip else ""
-    return ui.ask(f"{path} [{p.type or 'string'}]{help_}", proc,
-                  default=p.default if p.default else None)
+    return ui.ask(f"{path} [{p.type or 'string'}]{help_}", proc, default=default)
 
 
 def summary(answers: Answers, arch: Architecture, files: dict[str, bytes], dest) -> str:

@@ -229,10 +229,11 @@ def parse_xml_file(path: Path):
         parser = etree.XMLParser(remove_blank_text=False, resolve_entities=False, no_network=True)
         return etree.parse(str(path), parser).getroot()
     except OSError as exc:
-        raise ConfigError(f"cannot read: {exc}", file=str(path)) from None
+        raise ConfigError(f"cannot read: {' '.join(str(exc).split())}", file=str(path)) from None
     except etree.XMLSyntaxError as exc:
         line = exc.lineno if exc.lineno else None
-        raise ConfigError(f"not well-formed XML: {exc.msg}", file=str(path), line=line) from None
+        raise ConfigError(f"not well-formed XML: {' '.join(str(exc.msg).split())}",
+                          file=str(path), line=line) from None  # libxml2's can span lines
 
 
 def load_rqt_mrta(path: Path | str) -> Architecture | Application:
@@ -321,7 +322,7 @@ def _application(r: _Reader, el, configs, launches, path) -> Application:
             first_line[rid] = rb.sourceline
             robots.append(RobotEntry(raw, tasks))
     return Application(r.text(el, "architecture"), r.text(el, "name"), robots, configs, launches,
-                       source=str(path))
+                       source=str(path), architecture_line=r.one(el, "architecture").sourceline)
 
 
 # -------------------------------------------------------------------------------- writing

@@ -15,6 +15,7 @@ from typing import Iterable
 
 from mrta_zenoh.clock import EPSILON
 from mrta_zenoh.keys import task_chunk
+from mrta_zenoh.timetext import at
 
 from ..runtime.loop import Say
 from ..runtime.plugins import Plugins
@@ -69,11 +70,11 @@ class AllianceCoordinator:
         for tr in transitions:
             self.history.append((now, tr))
             if tr.kind == "reset":
-                log.info("%s: motivation for %s reset (%s) at t=%.2f", self.robot_id,
-                         tr.task_id, tr.reason, now)
+                log.info("%s: motivation for %s reset (%s) %s", self.robot_id,
+                         tr.task_id, tr.reason, at(now))
             else:
-                log.info("%s: %s %s (%s) at t=%.2f", self.robot_id, tr.kind, tr.task_id,
-                         tr.reason, now)
+                log.info("%s: %s %s (%s) %s", self.robot_id, tr.kind, tr.task_id,
+                         tr.reason, at(now))
         after = self.high.active_task
         if after != before and after is not None:
             self._last_broadcast = None  # announce a new activation at once

@@ -14,6 +14,7 @@ import logging
 from typing import Iterable
 
 from mrta_zenoh.messages import Odometry
+from mrta_zenoh.timetext import at
 
 from ..runtime.loop import Say
 from ..runtime.plugins import Plugins
@@ -79,8 +80,8 @@ class MurdochCoordinator:
         out, changes = self.core.tick(now, self.readings)
         for change in changes:
             self.history.append((now, change))
-            log.info("%s: %s %s (%s) at t=%.2f", self.robot_id, change.kind, change.task_id,
-                     change.reason, now)
+            log.info("%s: %s %s (%s) %s", self.robot_id, change.kind, change.task_id,
+                     change.reason, at(now))
         return [Say(kind, tuple(fields), subject) for kind, fields, subject in out]
 
     def subjects(self, kind: str) -> tuple[str, ...] | None:

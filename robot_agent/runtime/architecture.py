@@ -58,6 +58,12 @@ class AgentArchitecture(Architecture):
         """The contract's file check: exactly what the agent's start reads (prepare)."""
         self.prepare(AgentOptions(robot_id, robot_params, tasks_params, layers_params))
 
+    def layer_sections(self, robot_id: str, robot_params: Path,
+                       tasks_params: Path) -> frozenset[str]:
+        """The sections the robot's plugins declare (Plugin.sections, Layer.params_section)."""
+        prepared = self.prepare(AgentOptions(robot_id, robot_params, tasks_params, None))
+        return frozenset(name for name, _ in prepared.plugins.sections)
+
     @abstractmethod
     def coordinator(self, prepared: Prepared, agent_clock: Clock) -> Coordinator:
         """The decision logic for one robot, fresh (called again when time restarts)."""

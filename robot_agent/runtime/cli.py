@@ -10,7 +10,7 @@ import click
 
 from mrta_zenoh.architectures import TEAM_ENV
 from mrta_zenoh.bus import BusOptions
-from mrta_zenoh.cli.common import bus_options, finite_float
+from mrta_zenoh.cli.common import SEED_TYPE, bus_options, finite_float
 from mrta_zenoh.keys import KeyExprError, normalize_robot_id
 
 from .architecture import AgentArchitecture
@@ -47,9 +47,9 @@ def agent_command(arch: AgentArchitecture, help: str) -> click.Command:
                      help=f"Parameters for the layer plugins (layers_{stem}_params.yaml)."),
         click.option("--sim-time", is_flag=True,
                      help="Follow the simulator's clock instead of wall time."),
-        click.option("--seed", type=int, default=0, show_default=True,
-                     help="The run's master seed; this robot's stream is derived from it "
-                          "and its id."),
+        click.option("--seed", type=SEED_TYPE, default=0, show_default=True,
+                     help="The run's master seed, 0 to 2^63 − 1; this robot's stream is "
+                          "derived from it and its id."),
         click.option("--duration", type=finite_float(min=0, min_open=True),
                      help="Stop after this many seconds (of the agent's clock)."),
         click.option("--team", metavar="ROBOT,ROBOT,…", envvar=TEAM_ENV, callback=_team,

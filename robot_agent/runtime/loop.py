@@ -49,6 +49,7 @@ from mrta_zenoh.failure import FaultPlan
 from mrta_zenoh.keys import first_chunk, normalize_robot_id
 from mrta_zenoh.messages import Header
 from mrta_zenoh.seeds import robot_rng
+from mrta_zenoh.timetext import at
 from mrta_zenoh.untrusted import visible
 
 from .plugins import AgentContext, Layer, Plugins
@@ -435,8 +436,8 @@ class Agent:
         """The stall fault: the running layers stop and the robot stands still, for good; the
         decision logic goes on (its token, its broadcasts or lease renewals), so only what
         watches progress — ALLIANCE's φ and ψ — can tell."""
-        self.log.warning("%s: stalling at t=%.2f as asked (fault injection): alive, stuck",
-                         self.robot_id, now)
+        self.log.warning("%s: stalling %s as asked (fault injection): alive, stuck",
+                         self.robot_id, at(now))
         for layer in self.layers_of(self.active_task):
             layer.on_deactivate(now)
         self.stalled = True
@@ -515,8 +516,8 @@ class Agent:
             yield t
             now = self.clock.now()
             if self.crash_at is not None and now >= self.crash_at:
-                self.log.warning("%s: crashing at t=%.2f as asked (fault injection)",
-                                 self.robot_id, now)
+                self.log.warning("%s: crashing %s as asked (fault injection)",
+                                 self.robot_id, at(now))
                 logging.shutdown()
                 os.kill(os.getpid(), signal.SIGKILL)  # no shutdown, no goodbye: a real crash
             if self.faults is not None and not self.stalled and self.faults.stalled(now):

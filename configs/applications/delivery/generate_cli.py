@@ -8,6 +8,7 @@ from pathlib import Path
 
 import click
 
+from mrta_zenoh.cli.common import SEED_TYPE, OutputPath, finite_float
 from mrta_zenoh.cli.main import run
 
 from .generate import HERE, INSTANCE, generate, load_instance, with_poisson_arrivals
@@ -16,7 +17,7 @@ from .generate import HERE, INSTANCE, generate, load_instance, with_poisson_arri
 @click.command()
 @click.option("--instance", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               default=INSTANCE, show_default=True)
-@click.option("--output", type=click.Path(file_okay=False, path_type=Path), default=HERE.parent,
+@click.option("--output", type=OutputPath(folder=True), default=HERE.parent,
               help="Folder receiving NAME/ and NAME_murdoch/ (default: beside this package, "
                    "i.e. regenerate the shipped ones).")
 @click.option("--name", default="delivery", show_default=True,
@@ -24,9 +25,9 @@ from .generate import HERE, INSTANCE, generate, load_instance, with_poisson_arri
                    "delivery makes them depend on delivery, whose mission they run.")
 @click.option("--arrivals", type=click.Choice(["static", "poisson"]), default="static",
               show_default=True)
-@click.option("--rate", type=float, default=0.1, show_default=True,
+@click.option("--rate", type=finite_float(min=0, min_open=True), default=0.1, show_default=True,
               help="Poisson arrivals: tasks per second.")
-@click.option("--seed", type=int, default=0, show_default=True,
+@click.option("--seed", type=SEED_TYPE, default=0, show_default=True,
               help="Poisson arrivals: their seed.")
 def main(instance: Path, output: Path, name: str, arrivals: str, rate: float,
          seed: int) -> None:

@@ -1,0 +1,160 @@
+"""`mrta app new` never writes what `mrta app validate` refuses (issue 37, point 8): the files
+are read by the architecture before any is written; the wizard asks again for the answers behind
+a refused file, an answers file is refused at its line; empty mandatory answers are told why;
+layer sections no plugin of the application reads are neither asked for nor written."""
+
+from __future__ import annotations
+
+import yaml
+from click.testing import CliRunner
+
+from mrta_zenoh.cli.main import cli
+from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
+from tests.helpers import ALLIANCE_ARCH, CONFIGS
+
+PATROL_ANSWERS = CONFIGS / "applications" / "patrol_answers.yaml"
+
+
+def run(*args, input=None):
+    return CliRunner().invoke(cli, list(map(str, args)), input=input)
+
+
+def answers(tmp_path, change) -> tuple:
+    data = yaml.safe_load(PATROL_ANSWERS.read_text())
+    change(data)
+    f = tmp_path / "answers.yaml"
+    f.write_text(yaml.safe_dump(data, sort_keys=False))
+    return f, f.read_text().splitlines()
+
+
+def line_of(lines: list[str], text: str, after: str = "") -> int:
+    """The 1-based line holding `text` (the first after the line holding `after`)."""
+    start = next(i for i, x in enumerate(lines) if after in x) if after else 0
+    return next(i for i, x in enumerate(lines) if i >= start and text in x) + 1
+
+
+def assert_refused(res, out, *fragments):
+    assert res.exit_code == 2, res.output
+    (line,) = res.output.strip().splitlines()
+    for f in fragments:
+        assert f in line, line
+    assert not out.exists() or not any(out.iterdir())
+
+
+def test_answers_with_a_task_the_tasks_file_lacks_are_refused_at_the_tasks_file(tmp_path):
+    def drop_report(d):
+        d["configs"]["tasks_alliance_params"]["tasks"] = [
+            t for t in d["configs"]["tasks_alliance_params"]["tasks"] if t["id"] != "report"]
+    f, lines = answers(tmp_path, drop_report)
+    res = run("app", "new", "--answers", f, "--output", tmp_path / "out")
+    assert_refused(res, tmp_path / "out",
+                   f"{f}:{line_of(lines, 'tasks_alliance_params:')}: the package would not "
+                   "load: config/robot1_alliance_params.yaml: 'task_id': behaviour set for task "
+                   "'report'", "the robots were given wander, border_protection, report")
+
+
+def test_answers_with_a_misspelt_task_in_the_tasks_file_say_which_ids_are_right(tmp_path):
+    """The architecture's own hint proposes the misspelling ('reprot'); the robots' tasks —
+    the application's — say which spelling is right."""
+    def misspell(d):
+        d["configs"]["tasks_alliance_params"]["tasks"][2]["id"] = "reprot"
+    f, _ = answers(tmp_path, misspell)
+    res = run("app", "new", "--answers", f, "--output", tmp_path / "out")
+    assert_refused(res, tmp_path / "out", "the tasks file has border_protection, reprot, wander",
+                   "the robots were given wander, border_protection, report")
+
+
+def test_answers_with_an_unknown_sensor_plugin_are_refused_at_its_line(tmp_path):
+    def typo(d):
+        d["configs"]["alliance_params"]["robot2"]["sensors"] = [
+            {"plugin_name": "alliance/odometri", "topic_name": "odom"},
+            {"plugin_name": "alliance/point_cloud", "topic_name": "sonar"}]
+    f, lines = answers(tmp_path, typo)
+    res = run("app", "new", "--answers", f, "--output", tmp_path / "out")
+    assert_refused(res, tmp_path / "out",
+                   f"{f}:{line_of(lines, 'alliance/odometri', after='robot2:')}: the package "
+                   "would not load: config/robot2_alliance_params.yaml:",
+                   "unknown sensor plugin 'alliance/odometri' (did you mean 'alliance/odometry'?)")
+
+
+def test_the_shipped_answers_still_make_the_shipped_package(tmp_path):
+    """All three patrol tasks' layers read every section: nothing is left out."""
+    res = run("app", "new", "--answers", PATROL_ANSWERS, "--output", tmp_path)
+    assert res.exit_code == 0, res.output
+    shipped = CONFIGS / "applications" / "patrol" / "config" / "layers_alliance_params.yaml"
+    assert (tmp_path / "patrol/config/layers_alliance_params.yaml").read_bytes() == \
+        shipped.read_bytes()
+
+
+# ------------------------------------------------------------------ the wizard in the terminal
+WANDER_ONLY = [
+    "mypkg", "", "My App", "", "", "Ana", "ana@example.org", "", "",  # an empty name: told why
+    "single-task", "", "", "",                                         # ALLIANCE
+    "robot1", "wander", "",                                            # one robot, one task
+    # robot1_alliance_params: an empty mandatory name, then a sensor plugin misspelt
+    "", "Robot 1", "", "", "", "", "1", "alliance/odometri", "odom", "", "",
+    "60", "20", "30", "60", "2", "", "1", "odom",
+    # tasks_alliance_params
+    "1", "wander", "Wander", "1", "patrol/wander",
+    # refused: robot1's file is asked for again, the earlier answers offered as defaults
+    "", "", "", "", "", "", "alliance/odometry", "", "", "",
+    "", "", "", "", "", "", "", "",
+    # layers_alliance_params: only Wander's three parameters are asked for
+    "", "", "",
+    "y",
+]
+
+
+def test_the_wizard_asks_again_for_a_refused_file_and_only_for_the_layers_read(tmp_path):
+    res = run("app", "new", "--output", tmp_path, input="\n".join(WANDER_ONLY) + "\n")
+    assert res.exit_code == 0, res.output
+    assert "Error: the name cannot be empty" in res.output
+    assert "Error: name is mandatory: give a value" in res.output
+    assert ("Error: the package would not load: config/robot1_alliance_params.yaml:10: unknown "
+            "sensor plugin 'alliance/odometri'") in res.output
+    assert "[alliance/odometri]" in res.output  # the earlier answer, offered again
+    # no section a plugin of a wander-only robot does not read
+    template = load_rqt_mrta(ALLIANCE_ARCH / "rqt_mrta.xml").config("layers_alliance_params")
+    assert {g.name for g in template.children} == {"Wander", "BorderProtection", "Report"}
+    assert "BorderProtection" not in res.output and "Report/" not in res.output
+    pkg = tmp_path / "mypkg"
+    layers = yaml.safe_load((pkg / "config" / "layers_alliance_params.yaml").read_text())
+    assert list(layers) == ["Wander"]
+    robot = yaml.safe_load((pkg / "config" / "robot1_alliance_params.yaml").read_text())
+    assert robot["sensors"]["sensor0"]["plugin_name"] == "alliance/odometry"
+    assert robot["name"] == "Robot 1"
+    assert run("app", "validate", pkg).exit_code == 0
+
+
+def test_fast_rate_is_told_per_tick_as_the_runtime_adds_it():
+    arch = load_rqt_mrta(ALLIANCE_ARCH / "rqt_mrta.xml")
+
+    def find(children, name):
+        for c in children:
+            if c.name == name:
+                return c
+            found = find(getattr(c, "children", []), name)
+            if found is not None:
+                return found
+        return None
+
+    tip = find(arch.config("alliance_params").children, "fast_rate").tool_tip
+    assert "per high-level tick" in tip and "per second" not in tip
+
+
+def test_an_answers_file_of_aliases_cannot_make_a_million_sensors(tmp_path):
+    """Aliases are allowed in answers files (to share a block), so a short file can name one
+    sensor a great many times: arrays are bounded, and the error line is one short line."""
+    text = PATROL_ANSWERS.read_text()
+    block = ("      sensors: &sensors\n"
+             "        - {plugin_name: alliance/odometry, topic_name: odom}\n"
+             "        - {plugin_name: alliance/point_cloud, topic_name: sonar}\n")
+    assert block in text
+    many = ("      sensors: &sensors [&s {plugin_name: alliance/odometry, topic_name: odom}"
+            + ", *s" * 1000 + "]\n")
+    text = text.replace(block, many, 1)
+    f = tmp_path / "answers.yaml"
+    f.write_text(text)
+    res = run("app", "new", "--answers", f, "--output", tmp_path / "out")
+    assert_refused(res, tmp_path / "out", "robot1/sensors/sensor: 1,001 entries, more than 1,000")
+    assert len(res.output) < 300
