@@ -64,7 +64,7 @@ def test_answers_wake_the_simulator_once_per_step_not_once_per_participant():
 
 
 def brute_sent(b: Barrier) -> dict[str, int]:
-    out = dict(b.bus.sent_counts)
+    out = dict(b.counts.sent)
     for d in b.done.values():
         for k, n in d.sent.items():
             out[k] = max(out.get(k, 0), n)

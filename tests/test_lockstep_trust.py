@@ -186,7 +186,7 @@ def test_a_participant_restarts_its_counts_and_time_with_a_new_run():
     try:
         f.advance(3.0)
         wait_for(lambda: f.clock.now() == 3.0 and f.clock._acked)
-        assert f.agent_bus.sent_counts["robot1/cmd_vel"] >= 30
+        assert f.clock.counts.sent["robot1/cmd_vel"] >= 30
         f.barrier.close()                         # the simulator dies; another one starts
         f.source.close()
         run2 = run_id(2)
