@@ -75,10 +75,13 @@ import importlib
 _WHERE = {
     **dict.fromkeys(("STEP", "DONE", "PARTICIPANT", "BARRIER", "STATUS", "DEFAULT_TIMEOUT",
                      "REPORT_AFTER", "STEP_SLACK", "STEP_BURST", "NEXT_HORIZON",
-                     "MAX_IN_FLIGHT", "MAX_KEYS", "MAX_NAMES", "LOG_FIRST", "count_wait",
-                     "Step", "StepDone", "LockstepStatus", "Rejections"), "protocol"),
+                     "MAX_IN_FLIGHT", "MAX_KEYS", "MAX_NAMES", "LOG_FIRST", "FORGIVE_WINDOW",
+                     "CLAIM_KEYS", "CLAIM_KEY_CHARS", "CLAIM_CHARS", "count_wait", "Step",
+                     "StepDone", "LockstepStatus", "Rejections"), "protocol"),
     **dict.fromkeys(("KeyTable", "Claims", "WORD", "count_of"), "table"),
-    "Books": "books",
+    **dict.fromkeys(("Books", "claimant"), "books"),
+    **dict.fromkeys(("Sequence", "ASK_AGAIN", "ANSWER_WITHIN"), "sequence"),
+    "Ledger": "ledger",
     **dict.fromkeys(("LockstepClock", "StepBudget"), "participant"),
     "Barrier": "barrier",
 }

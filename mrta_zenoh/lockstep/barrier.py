@@ -1,4 +1,12 @@
-"""The simulator's side of lockstep: the `Barrier` — whom to wait for, and waiting."""
+"""The simulator's side of lockstep: the `Barrier` — whom to wait for, and waiting.
+
+What keeps one forged sample from stopping the run here (docs/security.md): a participant's
+claims within the caps of its role (ledger.py); a participant that asks for the current step
+with the whole table (a StepDone with `resync`: a step contradicted what it took) gets it at
+the next physics step — one request per participant per REPORT_AFTER is honoured, so forged
+requests cost at most that many extra stops; and while any participant is given up the
+barrier stops every REPORT_AFTER to send it the whole table, whatever else is given up (when
+every participant was, it never stopped again, and the promised resend never came)."""
 
 from __future__ import annotations
 
@@ -11,9 +19,10 @@ import msgspec
 from ..clock import EPSILON, _printable
 from ..keys import CLOCK_SOURCE_TOKEN
 from .books import Books
-from .protocol import (BARRIER, DEFAULT_TIMEOUT, DONE, MAX_IN_FLIGHT, MAX_KEYS, MAX_NAMES,
-                       NEXT_HORIZON, PARTICIPANT, REPORT_AFTER, STATUS, STEP, LockstepStatus,
-                       Rejections, Step, StepDone, count_wait, log)
+from .ledger import Ledger
+from .protocol import (BARRIER, DEFAULT_TIMEOUT, DONE, MAX_KEYS, MAX_NAMES, NEXT_HORIZON,
+                       PARTICIPANT, REPORT_AFTER, STATUS, STEP, LockstepStatus, Rejections, Step,
+                       StepDone, count_wait, log)
 from .table import Claims, KeyTable, count_of
 
 
@@ -32,7 +41,8 @@ class Barrier:
         self.run = run_id
         self.timeout = timeout
         self.participants: set[str] = set()
-        self.done: dict[str, StepDone] = {}
+        self.ledger = Ledger()
+        self.done = self.ledger.done  # participant → its last answer
         self.unresponsive: set[str] = set()
         self.rivals: set[str] = set()
         self.given_up = 0   # participants given up, this run (LockstepStatus)
@@ -43,6 +53,8 @@ class Barrier:
         self.table = KeyTable()  # the run's keys, as its steps name them
         self._whole = True       # the next step carries the whole table (a newcomer appeared)
         self._resend_at = 0.0    # wall time the whole table goes again to those given up
+        self._asked: dict[str, float] = {}  # participant → wall time its request was honoured
+        self._resync = False     # a request honoured: stop at the next step, the table whole
         self.dropped = Rejections("StepDone")
         self._wall = wall
         self._cond = threading.Condition()
@@ -54,11 +66,10 @@ class Barrier:
         # of every participant per answer (issue #27: 100 participants answering every step)
         self._stamp: float | None = None  # the step wait() is waiting on
         self._waiting: set[str] = set()   # participants it still waits for
-        self._claims: dict[str, int] = {}  # key → the largest count in `done`
         self._due_at: float | None = None  # due() before this stamp is False (None: unknown)
         # before the commands' subscription (SimNode) exists: commands are counted from the first
         self.counts = bus.enable_counting(self._poke)
-        self.books = Books(self.counts)
+        self.books = Books(self.counts, wall)
         self.handles = [
             bus.watch_liveliness(f"{PARTICIPANT}/*", self._on_participant),
             bus.subscribe(f"{DONE}/*", self._on_done, msg_type=StepDone),
@@ -96,9 +107,8 @@ class Barrier:
             else:
                 self.participants.discard(name)
                 self._waiting.discard(name)
-                gone = self.done.pop(name, None)
-                if gone is not None:
-                    self._recount(k for k, n in gone.sent.items() if self._claims.get(k) == n)
+                self.ledger.forget(name)
+                self._asked.pop(name, None)
                 self.unresponsive.discard(name)
             self._cond.notify_all()
 
@@ -128,30 +138,37 @@ class Barrier:
                 why = f"{_printable(name)!r} holds no participant token"
             elif d.run != self.run:
                 why = f"{_printable(name)!r} acknowledges run {_printable(d.run)!r}"
+            elif d.resync:
+                why = self._honour(name)
             elif published is None or d.stamp > published + EPSILON:
                 why = f"{_printable(name)!r} acknowledges t={d.stamp:.3f}, not yet published"
-            elif len(d.sent) > MAX_KEYS:
-                why = f"{_printable(name)!r} counts {len(d.sent)} keys"
             elif d.sent and min(d.sent.values()) < 0:
                 why = f"{_printable(name)!r} counts fewer than no samples on a key"
             else:
                 why = None
             if why is not None:
                 self.dropped(why)
+            if why is not None or d.resync:
                 return
-            if d.next < 0 or d.next > d.stamp + NEXT_HORIZON:
-                # unknown or far: the barrier stops for it again at least every NEXT_HORIZON s
-                d = StepDone(d.participant, d.stamp, d.sent, d.stamp + NEXT_HORIZON
-                             if d.next >= 0 else d.next, d.run, d.forgiven)
+            over = self.ledger.over_cap(name, d.sent, self.counts.sent.keys())
+            if over is not None:  # its answer counts, its claims do not
+                self.dropped(f"{_printable(name)!r}'s claims dropped: {_printable(over)}")
+                if name not in self.ledger.capped and len(self.ledger.capped) < MAX_NAMES:
+                    self.ledger.capped.add(name)
+                    self.forgiven += 1  # not waited for: the run is inexact
+                    self._tell = True
+            far = d.next > d.stamp + NEXT_HORIZON
+            if over is not None or far:  # far: stopped for again at least every NEXT_HORIZON s
+                d = StepDone(d.participant, d.stamp, {} if over is not None else d.sent,
+                             d.stamp + NEXT_HORIZON if far else d.next, d.run, d.forgiven)
             prev = self.done.get(name)
             if prev is not None and d.stamp < prev.stamp - EPSILON:
                 return  # an older answer overtaken by a newer one
-            self.done[name] = d
+            self.ledger.answer(name, d)
             if d.forgiven > self._their_forgiven.get(name, 0) and \
                     (name in self._their_forgiven or len(self._their_forgiven) < MAX_NAMES):
                 self._their_forgiven[name] = d.forgiven
                 self._tell = True  # the next wait() publishes the status
-            self._claim(prev, d)
             self._due_at = None
             if name in self.unresponsive and d.stamp >= published - EPSILON:
                 # answers the current step again: waited for (and stopped for) from now on
@@ -163,44 +180,30 @@ class Barrier:
                 if not self._waiting:  # the last answer: wait() looks at the counts
                     self._cond.notify_all()
 
+    def _honour(self, name: str) -> str | None:
+        """`name` asks for the current step with the whole table (it cannot follow the steps it
+        heard): at the next physics step, or at once if a step is being waited on. One request
+        per participant per REPORT_AFTER (a forger may ask in its name); None if honoured."""
+        now = self._wall()
+        if now - self._asked.get(name, now - REPORT_AFTER) < REPORT_AFTER:
+            return f"{_printable(name)!r} asked for the whole table again within {REPORT_AFTER} s"
+        self._asked[name] = now
+        self._resync = self._republish = self._whole = True
+        self._cond.notify_all()
+        return None
+
     def _answered(self, name: str, stamp: float) -> bool:
         d = self.done.get(name)
         return d is not None and d.stamp >= stamp - EPSILON
-
-    def _claim(self, prev: StepDone | None, d: StepDone) -> None:
-        """Keep `_claims` the per-key maximum over `done` after `prev` became `d` (counts only
-        grow in an honest run; a lower one may take the maximum down: those keys are counted
-        again over every participant)."""
-        claims, lowered = self._claims, []
-        old = prev.sent if prev is not None else {}
-        for k, n in d.sent.items():
-            top = claims.get(k)
-            if top is None or n > top:
-                claims[k] = n
-            elif n < top and old.get(k) == top:
-                lowered.append(k)
-        if old:
-            lowered.extend(k for k in old.keys() - d.sent.keys() if claims.get(k) == old[k])
-        if lowered:
-            self._recount(lowered)
-
-    def _recount(self, keys) -> None:
-        for k in list(keys):
-            counts = [d.sent[k] for d in self.done.values() if k in d.sent]
-            if counts:
-                self._claims[k] = max(counts)
-            else:
-                self._claims.pop(k, None)
 
     def sent(self) -> dict[str, int]:
         """What the next step requires: the simulator's own samples (sensor data: on the same
         link as the step, but Zenoh may run the callbacks of two subscriptions concurrently)
         and every participant's, cumulative counts per key."""
-        out: dict[str, int] = dict(self.counts.sent)
+        own = self.counts.sent
         with self._cond:
-            for k, n in self._claims.items():
-                if n > out.get(k, 0) or k not in out:
-                    out[k] = n
+            out = dict(self.ledger.claims)
+        out.update(own)  # what it sent itself, it knows: nobody's claim on those counts
         return out
 
     def _poke(self) -> None:
@@ -212,8 +215,11 @@ class Barrier:
 
     def due(self, stamp: float) -> bool:
         """Must the simulator stop at `stamp`? Yes if a participant has something to do by
-        then (or has not said); the steps in between run without a round trip."""
+        then (or has not said), asked for the whole table, or is given up and has not had it
+        for REPORT_AFTER; the steps in between run without a round trip."""
         with self._cond:
+            if self._resync or (self.unresponsive and self._wall() >= self._resend_at):
+                return True
             if self._due_at is None:  # recomputed only after answers or the set changed
                 due_at = float("inf")
                 for p in self.participants:
@@ -227,26 +233,33 @@ class Barrier:
                 self._due_at = due_at
             return self._due_at <= stamp + EPSILON
 
-    def claims(self) -> Claims:
+    def claims(self, required: dict[str, int] | None = None) -> Claims:
         """`sent()` by index in the run's key table (new keys appended)."""
-        required = self.sent()
+        required = self.sent() if required is None else required
         table = self.table
         table.add(required.keys())
         return Claims(table, list(map(required.get, table.keys, itertools.repeat(0))))
 
     def publish(self, stamp: float) -> None:
         self.step += 1
-        if len(self.table) > MAX_KEYS:  # keys of participants gone (one that forged thousands):
-            self.table = KeyTable()     # a new table of the keys claimed now, sent whole
+        required = self.sent()
+        if len(self.table) + len(required.keys() - self.table.index.keys()) > MAX_KEYS:
+            # keys of participants gone: a new table of the keys claimed now, sent whole (the
+            # caps keep those within MAX_KEYS, ledger.py)
+            self.table = KeyTable()
             with self._cond:
                 self._whole = True
-        counts = self.claims().packed()
+        counts = self.claims(required).packed()
         with self._cond:
+            now = self._wall()
+            if self.unresponsive and now >= self._resend_at:
+                self._resend_at = now + REPORT_AFTER  # those given up get the whole table
+                self._whole = True
             base = 0 if self._whole or self._last is None else count_of(self._last)
             table = self.table
             step = Step(stamp, self.step, counts, table.keys[base:], base, table.digest,
                         self.run, self.timeout)
-            self._last, self._republish, self._whole = step, False, False
+            self._last, self._republish, self._whole, self._resync = step, False, False, False
         self.bus.publish(STEP, step)
 
     def _whole_step(self, step: Step) -> Step:
@@ -285,6 +298,8 @@ class Barrier:
             with self._cond:
                 step, republish = self._last, self._republish
                 self._republish = False
+                if republish:
+                    self._resync = False  # the request is answered by this one
             if republish and step is not None:
                 self.bus.publish(STEP, self._whole_step(step))
             with self._cond:
@@ -303,17 +318,16 @@ class Barrier:
                 if not waiting and not missing:
                     self.books.settle(required)
                     break
-                huge = {k: n for k, n in missing.items() if n > MAX_IN_FLIGHT}
                 late = answered_at is not None and \
                     now - answered_at >= count_wait(self.timeout)
-                if huge or (missing and (late or now >= deadline)):
-                    forgive = missing if late or now >= deadline else huge
-                    self.books.forgive(forgive, required)
-                    self.forgiven += 1
+                forgive = missing if late or now >= deadline else self.books.at_once(missing)
+                if forgive:
+                    if self.books.forgive(forgive, required):  # a claimant's first, in a window
+                        self.forgiven += 1
+                        report = True
                     self.dropped(f"claims of {sum(forgive.values())} samples on "
                                  f"{', '.join(_printable(k) for k in sorted(forgive)[:3])} that "
                                  f"did not arrive by t={stamp:.2f}: forgiven")
-                    report = True
                     continue
                 if waiting and now >= self._report_at < deadline:
                     self._report_at = deadline  # once per step

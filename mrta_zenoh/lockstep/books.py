@@ -5,10 +5,12 @@ from __future__ import annotations
 
 import itertools
 import operator
+import time
 from array import array
+from typing import Callable
 
 from ..keys import matches
-from .protocol import MAX_KEYS
+from .protocol import FORGIVE_WINDOW, MAX_IN_FLIGHT, MAX_KEYS, MAX_NAMES
 from .table import WORD, Claims, KeyTable
 
 _COUNTED, _IGNORED = b"\xff" * WORD, bytes(WORD)  # a table index's word in Books' mask
@@ -20,6 +22,15 @@ class Books:
     Counts are cumulative per key. A sample that will never arrive (its link was down; a forged
     claim) would hold every later step for ever: `forgive` records it as an offset, so only the
     one step waits (at most count_wait), and the next ones count from there.
+
+    One pause per claimant per FORGIVE_WINDOW. A key's claimant is its first chunk: a
+    participant's claims count only under its own name (the barrier drops the others, as a
+    secured fleet's access control drops what a robot publishes elsewhere). Once a claimant's
+    claims were forgiven, its unmet claims are forgiven without waiting for FORGIVE_WINDOW
+    (`at_once`): a claim that keeps changing — lowered to withdraw a forgiveness, or raised
+    past it — cannot pause the run again and again (the probe: 8 pauses in 45 s, the fleet at
+    6 % of its speed). The price, in a run that is inexact anyway: for that window this process
+    does not wait for that claimant's samples in flight either.
 
     Cost (issue #27). A step claims every key of the run — with 100 robots about 1,100 — and a
     participant looks at its claims once per step; most keys are none of its subscriptions',
@@ -43,8 +54,10 @@ class Books:
 
     MEMO = 4 * MAX_KEYS  # keys remembered; beyond, the memory starts again
 
-    def __init__(self, counts) -> None:
+    def __init__(self, counts, wall: Callable[[], float] = time.monotonic) -> None:
         self.counts = counts                      # the bus's (Bus.enable_counting)
+        self._wall = wall
+        self._excused: dict[str, float] = {}      # claimant → wall time its window closes
         self.offsets: dict[str, int] = {}
         self._forgiven: dict[str, tuple[int, int]] = {}  # key → (claim forgiven, offset before)
         self.lost = 0
@@ -174,7 +187,19 @@ class Books:
         look compares with them (only what changed since can lag)."""
         self._settled = (taken.table, taken.table.generation, self._looked, taken.counts)
 
-    def forgive(self, missing: dict[str, int], required: Claims) -> None:
+    def at_once(self, missing: dict[str, int]) -> dict[str, int]:
+        """Of `missing`, what is forgiven without waiting: a gap no process has in flight
+        (MAX_IN_FLIGHT), or one whose claimant's claims were forgiven within FORGIVE_WINDOW."""
+        if not self._excused:
+            return {k: n for k, n in missing.items() if n > MAX_IN_FLIGHT}
+        now, excused = self._wall(), self._excused
+        return {k: n for k, n in missing.items()
+                if n > MAX_IN_FLIGHT or excused.get(claimant(k), now) > now}
+
+    def forgive(self, missing: dict[str, int], required: Claims) -> bool:
+        """Forgive `missing`; True if a claimant of it was not excused yet (this forgiveness is
+        news: the caller counts and logs it), whose window then opens."""
+        now, excused, news = self._wall(), self._excused, False
         for key, gap in missing.items():
             before = self.offsets.get(key, 0)
             claim = required.get(key)
@@ -182,6 +207,15 @@ class Books:
                 self._forgiven[key] = (claim, before)
             self.offsets[key] = before + gap
             self.lost += gap
+            who = claimant(key)
+            if excused.get(who, now) <= now:
+                news = True
+                if len(excused) >= MAX_NAMES:  # bounded: the closed windows go first
+                    for gone in [c for c, until in excused.items() if until <= now]:
+                        del excused[gone]
+                if len(excused) < MAX_NAMES:
+                    excused[who] = now + FORGIVE_WINDOW
+        return news
 
     def review(self, required: Claims) -> list[str]:
         """Withdraw forgiveness a later, lower claim shows to have been forged (legitimate counts
@@ -200,5 +234,11 @@ class Books:
         self.counts.reset()
         self.offsets.clear()
         self._forgiven.clear()
+        self._excused.clear()
         self._settled = None
+
+
+def claimant(key: str) -> str:
+    """Who may claim `key`: its first chunk (a robot speaks under `robotN/`)."""
+    return key.split("/", 1)[0]
 

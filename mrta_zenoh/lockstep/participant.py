@@ -10,9 +10,12 @@ from typing import Callable
 
 from ..clock import CEILING, EPSILON, SimClock, _printable, run_rate
 from .books import Books
-from .protocol import (BARRIER, DONE, MAX_IN_FLIGHT, MAX_KEYS, MAX_NAMES, PARTICIPANT, STEP,
+from .protocol import (BARRIER, DONE, MAX_KEYS, MAX_NAMES, PARTICIPANT, STEP,
                        STEP_BURST, STEP_SLACK, Rejections, Step, StepDone, count_wait, log)
+from .sequence import Sequence
 from .table import Claims, KeyTable, count_of
+
+BEHIND = "behind"  # _judge: a step this participant's time is already past
 
 
 class StepBudget:
@@ -60,7 +63,8 @@ class LockstepClock(SimClock):
         self._table = KeyTable()              # the run's keys, as its steps name them
         self.table_waits = 0                  # steps passed over while waiting for a whole table
         self._barriers: set[str] = set()      # runs whose barrier token lives
-        self._step_no = 0
+        self._sequence = Sequence(wall)       # the steps believed (lockstep/sequence.py)
+        self._ask = False                     # _judge: ask the barrier for a whole step
         self._step_budget = StepBudget(CEILING, wall)
         self._pending: Step | None = None
         self._claims: Claims | None = None    # the pending step's
@@ -73,7 +77,7 @@ class LockstepClock(SimClock):
         self._timer: threading.Timer | None = None  # looks at a pending step's counts again
         self._acked = True
         self._sleeping_until: float | None = None  # the main loop waits for this time
-        self._publish_done: Callable[[float, float], None] | None = None
+        self._publish_done: Callable[..., None] | None = None
         self.forgiven = 0  # claims forgiven in this run (a new run starts again)
 
     def join(self, bus) -> contextlib.ExitStack:
@@ -82,12 +86,12 @@ class LockstepClock(SimClock):
         self._bus = bus
         # while steps are pending, every received sample may be the one they wait for
         counts = self.counts = bus.enable_counting(self._release)
-        self._books = Books(counts)
+        self._books = Books(counts, self._wall)
         done_key = f"{DONE}/{self.participant}"
 
-        def publish_done(stamp: float, next_due: float) -> None:
+        def publish_done(stamp: float, next_due: float, resync: bool = False) -> None:
             bus.publish(done_key, StepDone(self.participant, stamp, dict(counts.sent),
-                                           next_due, self.run or "", self.forgiven))
+                                           next_due, self.run or "", self.forgiven, resync))
 
         self._publish_done = publish_done
         handles = [bus.watch_liveliness(f"{BARRIER}/*", self._on_barrier),
@@ -132,22 +136,38 @@ class LockstepClock(SimClock):
         self._offer(sample.message)
 
     def _offer(self, step: Step) -> None:
+        done = None
         with self._cond:
             why = self._judge(step)
-            if why == "":
-                return  # the step again (re-published for a newcomer): nothing new
-            if why is not None:
+            ask = self._ask
+            self._ask = False
+            if why == BEHIND:
+                # this participant's time is past the run's (a forged step moved it): it did
+                # that time already, so it is done with this step at once and keeps its time
+                self._pending, self._still_missing = None, None
+                due = self._sleeping_until if self._sleeping_until is not None else self._now
+                done = (step.stamp, due)
+            elif why == "":
+                pass  # the step again (re-published for a newcomer), or one it cannot read yet
+            elif why is not None:
                 self.rejected_steps(why)
-                return
-            self.lockstep.set()
-            self._pending = step
-            self._claims = Claims.of(self._table, step)
-            self._pending_wall = self._wall()
-            self._still_missing = None
-        self._release()
+            else:
+                self.lockstep.set()
+                self._pending = step
+                self._claims = Claims.of(self._table, step)
+                self._pending_wall = self._wall()
+                self._still_missing = None
+        if ask:  # the barrier's holder sends its current step with the whole table
+            self._publish_done(self._now, -1.0, True)
+        if done is not None:
+            self._publish_done(*done)
+        elif why is None:
+            self._release()
 
     def _judge(self, step: Step) -> str | None:
-        """None: take it; "": a duplicate; otherwise why it is refused. Under self._cond."""
+        """None: take it; "": a duplicate, or passed over; BEHIND: taken, but this participant's
+        time is past it; otherwise why it is refused. Sets `_ask` when the step contradicts
+        what was taken (lockstep/sequence.py). Under self._cond."""
         if count_of(step) > MAX_KEYS:
             return f"it counts {count_of(step)} keys (at most {MAX_KEYS})"
         if step.run != self.run:
@@ -164,17 +184,19 @@ class LockstepClock(SimClock):
             why = self._take_table(table, step)
             if why is not None:
                 return why
-            self.run, self._step_no, self._new_run = step.run, step.step, True
+            self.run, self._new_run = step.run, True
+            self._sequence.restart(step)
             self._table = table
             self._step_budget = StepBudget(run_rate(step.run) or CEILING, self._wall)
             return None
-        pending = self._pending
-        if step.step <= self._step_no:
-            if step.step == self._step_no and (pending is None or pending.step == step.step):
-                return ""
-            return f"step {step.step} after step {self._step_no}"
-        if step.stamp < self._now - EPSILON:
-            return f"t={step.stamp:.3f} is behind this participant's t={self._now:.3f}"
+        sequence = self._sequence
+        if sequence.again(step):
+            return ""
+        if not sequence.answers(step):
+            why = sequence.follows(step)
+            if why is not None:
+                self._ask = sequence.contradicted()
+                return why
         self._step_budget.refill()
         due = self._sleeping_until if self._sleeping_until is not None else self._now
         beyond = step.stamp - (max(due, self._now) + STEP_SLACK)
@@ -182,17 +204,19 @@ class LockstepClock(SimClock):
             return (f"t={step.stamp:.3f} is beyond this participant's next (t={due:.3f}) by "
                     f"more than wall time allows")
         why = self._take_table(self._table, step)  # a step passed over spends no budget
-        if why is None:
-            if beyond > EPSILON:
-                self._step_budget.spend(beyond)
-            self._step_no = step.step
-        return why
+        if why == "":  # this copy of the table cannot read it: ask for the whole one
+            self._ask = sequence.contradicted()
+        if why is not None:
+            return why
+        if beyond > EPSILON:
+            self._step_budget.spend(beyond)
+        sequence.accept(step)
+        return BEHIND if step.stamp < self._now - EPSILON else None
 
     def _take_table(self, table: KeyTable, step: Step) -> str | None:
         """The step's keys into `table` (KeyTable.take); a step that cannot be known yet is
-        passed over quietly (counted): a whole table comes to a newcomer, to a participant
-        silent for REPORT_AFTER and to one given up — the step itself again, which it then
-        takes."""
+        passed over quietly (counted): a whole table comes to a newcomer, to a participant that
+        asks, to one silent for REPORT_AFTER and to one given up."""
         why = table.take(step)
         if why == "":
             self.table_waits += 1
@@ -219,19 +243,20 @@ class LockstepClock(SimClock):
             missing = books.missing(claims, None if withdrawn else self._still_missing)
             self._still_missing = list(missing)
             if missing:
-                huge = any(gap > MAX_IN_FLIGHT for gap in missing.values())
                 left = count_wait(step.timeout) - (self._wall() - self._pending_wall)
-                if not huge and left > 0:
+                gaps = missing if left <= 0 else books.at_once(missing)
+                if gaps and books.forgive(gaps, claims):
+                    self.forgiven += 1  # told to the simulator in every StepDone (LockstepStatus)
+                    log.warning("lockstep: %s: %d samples on %s never arrived by t=%.2f: "
+                                "forgiven", _printable(self.participant), sum(gaps.values()),
+                                ", ".join(_printable(k) for k in sorted(gaps)[:3]), step.stamp)
+                if len(gaps) < len(missing):
+                    self._still_missing = [k for k in missing if k not in gaps]
                     if self._timer is None:  # look again then, even if nothing arrives
                         self._timer = threading.Timer(left + 0.01, self._recheck)
                         self._timer.daemon = True
                         self._timer.start()
                     return
-                books.forgive(missing, claims)
-                self.forgiven += 1  # told to the simulator in every StepDone (LockstepStatus)
-                log.warning("lockstep: %s: %d samples on %s never arrived by t=%.2f: forgiven",
-                            _printable(self.participant), sum(missing.values()),
-                            ", ".join(_printable(k) for k in sorted(missing)[:3]), step.stamp)
             books.settle(claims)
             self._pending = None
             self._still_missing = None

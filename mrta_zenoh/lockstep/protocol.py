@@ -30,6 +30,13 @@ NEXT_HORIZON = 10.0     # simulated s: the longest `next` a StepDone may announc
 MAX_IN_FLIGHT = 10_000  # samples a claim may be ahead of what arrived and still be waited for
 MAX_KEYS = 4096         # keys a Step or StepDone may count
 MAX_NAMES = 1024        # participants and runs remembered (a flood of tokens costs bounded memory)
+FORGIVE_WINDOW = 60.0   # wall s: after a forgiveness, a claimant's unmet claims are not waited for
+# What one participant may claim in a StepDone (more drops its claims, not the Steps): keys, the
+# characters of one key, and of all of them. A patrol agent claims about 11 keys of ≈ 30
+# characters; a MURDOCH one a bid key per auctioneer besides — 512 leave room for 500 robots.
+CLAIM_KEYS = 512
+CLAIM_KEY_CHARS = 256
+CLAIM_CHARS = 32 * 1024
 LOG_FIRST = 5           # rejected samples logged one by one; then one line per LOG_EVERY
 
 
@@ -71,6 +78,9 @@ class StepDone(Message):
     next: Finite = -1.0
     run: str = ""  # the run whose step this acknowledges
     forgiven: int = 0  # claims this participant forgave in this run: the run is then inexact
+    # not an answer but a request: a step contradicted what this participant took (or it
+    # cannot read the table); send the current step again with the whole table (sequence.py)
+    resync: bool = False
 
 
 @message("mrta_msgs/LockstepStatus")
