@@ -39,7 +39,14 @@ who cannot declare our tokens (a secured fleet) and against blind forgers on an 
 * a Step counts only if its `run` holds `@mrta/lockstep/barrier/<run>`; a participant follows
   one run at a time, and another run is taken only once the first one's token is gone (a second
   lockstep simulator is reported, not followed);
-* step numbers only grow within a run; a step behind the participant's time is rejected;
+* a step counts only as the next one in sequence, or as the same step again; whatever
+  contradicts what a participant took (a step out of sequence, another under a number it took,
+  a table it cannot read) makes it ask the barrier for the current step with the whole table,
+  which it takes whatever its number (`sequence`): one forged step costs a request's round trip;
+  a step behind the participant's time moves no time, it is answered at once;
+* a participant's claims count only under its own name, within caps on keys and their length
+  and while the run's table has room; over a cap its claims are dropped, not the Steps
+  (`ledger`);
 * a StepDone counts only from a name that holds its participant token, under its own key, for
   this run, for a step already published (never "done" in advance); its `next` is clamped to
   `NEXT_HORIZON` seconds ahead, so no claim can excuse a participant for long;
@@ -54,9 +61,12 @@ Heuristics — plausibility against an attacker on an open bus who copies run id
   smaller one that is not met within `count_wait(timeout)` is forgiven (`Books`: the samples were
   lost, e.g. while a stopped peer's link was down) — counted and logged, never waited for again;
   a later, lower claim for the same key withdraws a forgiveness (legitimate counts only grow
-  within a run, so the forgiven one was forged).
+  within a run, so the forgiven one was forged); once a claimant's claims were forgiven, its
+  unmet claims are forgiven without waiting for FORGIVE_WINDOW — one pause per claimant per
+  window, however its claims move.
 The barrier also re-publishes the step it waits on when a participant (re)appears, so a
-resumed or late participant answers at once instead of after the timeout.
+resumed or late participant answers at once instead of after the timeout, and stops every
+REPORT_AFTER to send the whole table while any participant is given up.
 
 The package, by concern (an agent loads the participant's modules only, the supervisor and the
 access-control generator the protocol only; names are looked up lazily, so `from
@@ -64,7 +74,9 @@ mrta_zenoh.lockstep import X` loads only the module that defines X):
 * `protocol` — keys, messages (Step, StepDone, LockstepStatus) and limits;
 * `table` — the run's key table and a step's claims by index (KeyTable, Claims);
 * `books` — what a process received of what was claimed, less what it forgave (Books);
+* `sequence` — which steps a participant believes, and when it asks for the whole table;
 * `participant` — a participant's clock (LockstepClock);
+* `ledger` — each participant's last answer and claims, and their caps;
 * `barrier` — the simulator's side (Barrier).
 """
 
