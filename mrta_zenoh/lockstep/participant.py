@@ -147,6 +147,7 @@ class LockstepClock(SimClock):
                 self._pending, self._still_missing = None, None
                 due = self._sleeping_until if self._sleeping_until is not None else self._now
                 done = (step.stamp, due)
+                self._acked = True  # what it does now, it says at the step there
             elif why == "":
                 pass  # the step again (re-published for a newcomer), or one it cannot read yet
             elif why is not None:
@@ -184,6 +185,11 @@ class LockstepClock(SimClock):
             why = self._take_table(table, step)
             if why is not None:
                 return why
+            if self.run is not None:
+                # what it sent between two runs (its clock watchdog's stop) no simulator of the
+                # new run may have heard: claimed, it was waited for at every step — met only by
+                # the watchdog's next stop, 2 s later, and claimed again (one step per 2 s)
+                self.counts.sent.clear()
             self.run, self._new_run = step.run, True
             self._sequence.restart(step)
             self._table = table
