@@ -214,8 +214,9 @@ def attack(env: dict, mode: str, args: list[str]) -> dict:
         end = time.monotonic()
 
     def longest(times, lo, hi):
-        inside = [t for t in times if lo <= t <= hi]
-        return max((b - a for a, b in zip(inside, inside[1:])), default=float("nan"))
+        """The longest stretch of [lo, hi] without a sample (an agent that froze: all of it)."""
+        inside = [lo, *(t for t in times if lo < t < hi), hi]
+        return max(b - a for a, b in zip(inside, inside[1:]))
 
     return {"figure": "lockstep_attack", "forger": " ".join([mode, *args]),
             "ready": "lockstep with 2 participants" in ready,

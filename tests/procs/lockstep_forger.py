@@ -9,7 +9,8 @@ argv: MODE RUN [N [CHARS]]
                        5 ms (the probe: 300 in 1.5 s), starting 9.9 s ahead of the latest real one
   copy    RUN          one real Step, copied as it came, with step number 10**9
   replay  RUN N        a whole-table Step (asked for with a participant token held a moment), kept
-                       N seconds, then sent again numbered as the real one after the latest
+                       N seconds, then sent again as the next one: numbered and stamped as the
+                       real one after the latest would be (its table, counts and digest old)
   claims  RUN N CHARS  holds the participant token `ghost` and answers every step at once,
                        claiming N keys `ghost/k…` of CHARS characters each, for 20 s
   descend RUN N        follows every StepDone of robot1 with a copy claiming 50 samples of
@@ -91,10 +92,11 @@ try:
         say(copied=real["step"], stamp=real["stamp"])
     elif mode == "replay":
         pub = publisher("@mrta/lockstep/step")
-        whole, latest = [], [0]
+        whole, latest, stamp = [], [0], [0.0]
 
         def on_step(s):
             latest[0] = max(latest[0], s["step"])
+            stamp[0] = max(stamp[0], s["stamp"])
             if s.get("base", 0) == 0 and not whole:
                 whole.append(s)
         sub = steps(on_step)
@@ -104,7 +106,7 @@ try:
             time.sleep(0.01)
         token.undeclare()  # not waited for: it never answers
         time.sleep(count)
-        pub.put(msgpack.packb({**whole[0], "step": latest[0] + 1}),
+        pub.put(msgpack.packb({**whole[0], "step": latest[0] + 1, "stamp": stamp[0]}),
                 encoding=encoding("mrta_msgs/Step"))
         sub.undeclare()
         say(replayed=whole[0]["step"], stamp=whole[0]["stamp"], keys=len(whole[0]["keys"]),
