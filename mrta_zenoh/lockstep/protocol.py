@@ -44,7 +44,8 @@ def count_wait(timeout: float) -> float:
     """How long counts that do not arrive are waited for before they are forgiven: half the
     barrier's timeout (so a participant still answers in time), at most 5 s — long enough for
     a CPU-starved process to deliver what it received (forgiving legitimate counts makes a run
-    inexact), short enough that a forged claim costs one 5 s pause, once (docs/security.md)."""
+    inexact), short enough that a forged claim costs one 5 s pause — once per claimant per
+    FORGIVE_WINDOW (Books.at_once; docs/security.md)."""
     return min(5.0, max(0.05, timeout / 2))
 
 
