@@ -338,23 +338,30 @@ def test_a_newcomer_passes_over_steps_until_it_has_the_whole_key_table():
         f.close()
 
 
+def with_a_wrong_table(f):
+    """The participant's copy of the key table replaced by another, then the simulator's loop
+    to t=1.0 on a thread (returned)."""
+    from mrta_zenoh.lockstep import KeyTable
+
+    wrong = KeyTable()
+    wrong.add({"robot9/forged"})
+    with f.clock._cond:
+        f.clock._table = wrong
+    on = threading.Thread(target=f.advance, args=(1.0,), daemon=True)
+    on.start()
+    return on
+
+
 def test_a_participant_whose_key_table_is_wrong_asks_for_the_whole_one():
     """A copy of the table that is not the simulator's (a step carrying keys missed, or a
     forged one taken) fails the table's digest: the participant asks the barrier's holder for
     the current step with the whole table (lockstep/sequence.py) and is in step again — no
     wall time has to pass."""
-    from mrta_zenoh.lockstep import KeyTable
-
     f = Fleet(timeout=10.0)
     try:
         f.advance(0.5)
         wait_for(lambda: f.clock.now() == 0.5 and f.clock._acked)
-        wrong = KeyTable()
-        wrong.add({"robot9/forged"})
-        with f.clock._cond:
-            f.clock._table = wrong
-        on = threading.Thread(target=f.advance, args=(1.0,), daemon=True)
-        on.start()
+        on = with_a_wrong_table(f)
         wait_for(lambda: f.clock.now() == 1.0, timeout=10.0)
         on.join(10)
         assert f.clock.table_waits > 0 and f.clock._sequence.asks == 1
@@ -367,7 +374,7 @@ def test_a_participant_whose_key_table_is_wrong_asks_for_the_whole_one():
 def test_a_participant_whose_request_is_not_honoured_gets_the_whole_table_when_silent():
     """A forger asked in its name just before (one request per REPORT_AFTER is honoured): the
     simulator still sends the whole table to a participant silent for REPORT_AFTER."""
-    from mrta_zenoh.lockstep import REPORT_AFTER, KeyTable
+    from mrta_zenoh.lockstep import REPORT_AFTER
 
     f = Fleet(timeout=10.0)
     try:
@@ -376,12 +383,7 @@ def test_a_participant_whose_request_is_not_honoured_gets_the_whole_table_when_s
         f.forger.publish(f"{DONE}/robot1", StepDone("robot1", 0.5, {}, -1.0, f.run,
                                                     resync=True))
         f.advance(0.52)                               # honoured: a stop, the table whole
-        wrong = KeyTable()
-        wrong.add({"robot9/forged"})
-        with f.clock._cond:
-            f.clock._table = wrong
-        on = threading.Thread(target=f.advance, args=(1.0,), daemon=True)
-        on.start()
+        on = with_a_wrong_table(f)
         wait_for(lambda: f.clock.table_waits > 0 and f.barrier._stamp is not None)
         assert f.clock.now() == 0.52 and f.barrier.dropped.count == 1  # its request: refused
         f.wall.t += REPORT_AFTER + 0.01
