@@ -5,8 +5,9 @@ claims within the caps of its role (ledger.py); a participant that asks for the 
 with the whole table (a StepDone with `resync`: a step contradicted what it took) gets it at
 the next physics step — one request per participant per REPORT_AFTER is honoured, so forged
 requests cost at most that many extra stops; and while any participant is given up the
-barrier stops every REPORT_AFTER to send it the whole table, whatever else is given up (when
-every participant was, it never stopped again, and the promised resend never came)."""
+barrier stops every REPORT_AFTER to send it the whole table, whatever else is given up (with
+every participant given up, nobody is due: without this stop no step, and no table, would go
+out again)."""
 
 from __future__ import annotations
 

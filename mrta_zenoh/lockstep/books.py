@@ -28,9 +28,10 @@ class Books:
     secured fleet's access control drops what a robot publishes elsewhere). Once a claimant's
     claims were forgiven, its unmet claims are forgiven without waiting for FORGIVE_WINDOW
     (`at_once`): a claim that keeps changing — lowered to withdraw a forgiveness, or raised
-    past it — cannot pause the run again and again (the probe: 8 pauses in 45 s, the fleet at
-    6 % of its speed). The price, in a run that is inexact anyway: for that window this process
-    does not wait for that claimant's samples in flight either.
+    past it — cannot pause the run again and again (a claim lowered by 1 every 5.2 s would
+    otherwise pause the fleet 8 times in 45 s, at 6 % of its speed). The price, in a run that
+    is inexact anyway: for that window this process does not wait for that claimant's samples
+    in flight either.
 
     Cost (issue #27). A step claims every key of the run — with 100 robots about 1,100 — and a
     participant looks at its claims once per step; most keys are none of its subscriptions',

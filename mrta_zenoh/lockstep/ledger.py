@@ -1,11 +1,12 @@
 """The barrier's ledger: each participant's last answer, the largest claim per key over them, and
 what one participant may claim (docs/security.md, "Lockstep and the clock").
 
-Why caps. Every step carries every claim to every participant, so one participant's claims
-were everybody's problem: 4,096 keys of its own (or 4,000 keys of 1 KB, a Step past the 4 MiB a
-sample may have) made every Step one the participants refuse, and the fleet stood still while
-the claimant held its token — on a secured fleet too, with one robot's own certificate. Now a
-participant's claims are bounded by what its role may publish: keys under its own name only
+Why caps. Every step carries every claim to every participant, so one participant's claims are
+everybody's problem: 4,096 keys of its own (or 4,000 keys of 1 KB, a Step past the 4 MiB a
+sample may have) would make every Step one the participants refuse, and the fleet would stand
+still while the claimant holds its token — on a secured fleet too, with one robot's own
+certificate. So a participant's claims are bounded by what its role may publish: keys under
+its own name only
 (a secured fleet's access control lets robotN publish under `robotN/**` only, and an honest agent
 publishes nowhere else on an open bus either), at most CLAIM_KEYS keys of CLAIM_KEY_CHARS
 characters, CLAIM_CHARS in all, and only as long as the run's key table has room (MAX_KEYS, first

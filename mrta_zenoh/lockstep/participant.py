@@ -186,9 +186,9 @@ class LockstepClock(SimClock):
             if why is not None:
                 return why
             if self.run is not None:
-                # what it sent between two runs (its clock watchdog's stop) no simulator of the
-                # new run may have heard: claimed, it was waited for at every step — met only by
-                # the watchdog's next stop, 2 s later, and claimed again (one step per 2 s)
+                # what it sent between two runs (its clock watchdog's stop) the new run's
+                # simulator may never have heard: claimed, it would be waited for at every step
+                # and met only by the watchdog's next stop, 2 s later — one step per 2 s
                 self.counts.sent.clear()
             self.run, self._new_run = step.run, True
             self._sequence.restart(step)

@@ -2,10 +2,11 @@
 follows from the previous one, and one that does not makes it ask the barrier's holder for the
 current step with the whole key table (docs/security.md, "Lockstep and the clock").
 
-On an open bus anybody can copy a real Step and change it. What one forged sample could do
-before: a step number of 10⁹ raised the floor every later real step was refused under, for
-the rest of the run; a forged step numbered as the next one shadowed the real next one (dropped
-as a duplicate) and could carry a table that made every later step unreadable. Now:
+On an open bus anybody can copy a real Step and change it. Were the largest step number heard
+believed, one step numbered 10⁹ would raise the floor every later real step is refused under,
+for the rest of the run; were a number taken only once, a forged step numbered as the next one
+would shadow the real one (dropped as a duplicate) and could carry a table that makes every
+later step unreadable. So:
 * a step counts only if it is the next one in sequence (`number + 1`), or the same step again
   (a re-publication: same number, stamp, counts and table digest) — a step number far ahead is
   not believed, however plausible its time;
