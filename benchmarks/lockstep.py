@@ -12,8 +12,14 @@ Prints one JSON line per figure:
                         own cost is the difference
   experiment_20_runs    20 patrol runs (60 s each) through `mrta experiment --jobs 2`, against
                         20 × the wall time of one run measured in the same run
+  lockstep_attack       what one forger costs a lockstep fleet on an open bus (2 agents, speed
+                        4; the forgers of tests/procs/lockstep_forger.py, issue 42): the longest
+                        wall-time pause of an agent's own time (the gap between two of its
+                        motivation samples) in the 25 s after the forgery began, against the
+                        longest in the 10 s before it, in the same run; and the forgiveness
+                        pauses the run's status counted
 
-Run: python benchmarks/lockstep.py [--only patrol|steps|experiment]
+Run: python benchmarks/lockstep.py [--only patrol|steps|experiment|attacks]
 """
 
 from __future__ import annotations
@@ -126,7 +132,7 @@ with open_bus(BusOptions()) as bus:
             t0 = time.perf_counter()
         with cond:
             got[0] = 0
-        bus.publish(STEP, Step(0.02 * k, k + 1, [], run="bare-x0", timeout=2.5))
+        bus.publish(STEP, Step(0.02 * k, k + 1, b"", run="bare-x0", timeout=2.5))
         with cond:
             while got[0] < n:
                 if not cond.wait(10.0):
@@ -142,6 +148,8 @@ def bare_round_trip(env: dict, participants: int, steps: int = 2000) -> float:
         bare = group.start([sys.executable, "-c", BARE, str(participants), str(steps)],
                            name="bare")
         bare.wait(900)
+        if not bare.stdout:
+            raise RuntimeError("the bare round trip printed nothing: " + " / ".join(bare.stderr[-5:]))
         return float(bare.stdout[-1])
 
 
@@ -167,12 +175,78 @@ def experiment(env: dict) -> dict:
             "speedup": round(20 * single / total, 2)}
 
 
+FORGER = Path(__file__).resolve().parent.parent / "tests" / "procs" / "lockstep_forger.py"
+ATTACKS = [("copy", []), ("replay", ["3"]), ("claims", ["4096", "0"]),
+           ("claims", ["4000", "1024"]), ("descend", ["25"])]
+if os.environ.get("MRTA_ATTACKS"):  # a subset: MRTA_ATTACKS=copy,descend
+    ATTACKS = [a for a in ATTACKS if a[0] in os.environ["MRTA_ATTACKS"].split(",")]
+
+
+def attack(env: dict, mode: str, args: list[str]) -> dict:
+    """One forger against a fresh lockstep fleet; the agents' pauses before and during it."""
+    from mrta_zenoh.bus import BusOptions, open_bus
+    from mrta_zenoh.lockstep import STATUS, LockstepStatus
+
+    heard: dict[str, list[float]] = {"robot1": [], "robot2": []}
+    forgiven = [0]
+    with ProcessGroup(env) as group, open_bus(BusOptions(
+            connect=[env["MRTA_RENDEZVOUS"]], listen=["tcp/127.0.0.1:0"])) as bus:
+        for r in ("robot1", "robot2"):
+            bus.subscribe(f"{r}/alliance/motivation/wander",
+                          lambda s, r=r: heard[r].append(time.monotonic()))
+        bus.subscribe(STATUS, lambda s: forgiven.__setitem__(0, s.message.forgiven),
+                      msg_type=LockstepStatus)
+        sim = group.start(mrta_argv("sim", "--world", "patrol", "--robot", "robot1", "--robot",
+                                    "robot2", "--speed", "4", "--lockstep", "--wait-robots",
+                                    "60"), name="sim")
+        for r in ("robot1", "robot2"):
+            group.start(mrta_argv("-q", "agent", r, "--robot-params",
+                                  CONFIG / f"{r}_alliance_params.yaml", "--tasks-params",
+                                  CONFIG / "tasks_alliance_params.yaml", "--layers-params",
+                                  CONFIG / "layers_alliance_params.yaml", "--sim-time"), name=r)
+        ready = sim.wait_stderr(lambda line: "ready:" in line, 120)
+        run = _run_of(bus)
+        time.sleep(10.0)
+        start = time.monotonic()
+        f = group.start([sys.executable, str(FORGER), mode, run, *args], name="forger")
+        time.sleep(25.0)
+        f.wait(60)
+        end = time.monotonic()
+
+    def longest(times, lo, hi):
+        """The longest stretch of [lo, hi] without a sample (an agent that froze: all of it)."""
+        inside = [lo, *(t for t in times if lo < t < hi), hi]
+        return max(b - a for a, b in zip(inside, inside[1:]))
+
+    return {"figure": "lockstep_attack", "forger": " ".join([mode, *args]),
+            "ready": "lockstep with 2 participants" in ready,
+            "longest_pause_s_before": round(max(longest(heard[r], start - 10, start)
+                                                for r in heard), 2),
+            "longest_pause_s_during": round(max(longest(heard[r], start, end)
+                                                for r in heard), 2),
+            "forgiveness_pauses": forgiven[0],
+            "given_up": sum("no longer waited for" in line for line in sim.stderr)}
+
+
+def _run_of(bus) -> str:
+    """The run id from its barrier token."""
+    from mrta_zenoh.lockstep import BARRIER
+
+    found: list[str] = []
+    watch = bus.watch_liveliness(f"{BARRIER}/*", lambda key, up: up and found.append(key))
+    deadline = time.monotonic() + 10
+    while not found and time.monotonic() < deadline:
+        time.sleep(0.05)
+    watch.close()
+    return found[0].rsplit("/", 1)[-1]
+
+
 def main() -> None:
     if len(sys.argv) > 2 and sys.argv[1] == "--child":
         child_participants(int(sys.argv[2]), int(sys.argv[3]))
         return
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--only", choices=("patrol", "steps", "experiment"))
+    ap.add_argument("--only", choices=("patrol", "steps", "experiment", "attacks"))
     args = ap.parse_args()
     env = dict(os.environ, MRTA_RENDEZVOUS=private_rendezvous(), RUST_LOG="error")
     if args.only in (None, "patrol"):
@@ -196,6 +270,10 @@ def main() -> None:
                   flush=True)
     if args.only in (None, "experiment"):
         print(json.dumps(experiment(env)), flush=True)
+    if args.only in (None, "attacks"):
+        for mode, extra in ATTACKS:
+            print(json.dumps(attack(dict(env, MRTA_RENDEZVOUS=private_rendezvous()), mode,
+                                    extra)), flush=True)
 
 
 if __name__ == "__main__":

@@ -48,7 +48,7 @@ from .files import write_atomically, write_folder
 from .identity import BRIDGE, BRIDGE_URN, OBSERVER, ROBOT, bridge_node_name
 from .keys import (RECORDER_TOKEN, ROS2_BRIDGE_TOKEN, KeyExprError, is_id,
                    normalize_robot_id, odom, sonar, validate_key_expr)
-from .lockstep import DONE, PARTICIPANT
+from .lockstep.protocol import DONE, PARTICIPANT
 from .ros2.names import ADMIN_SPACE as ROS2_SPACE  # rmw_zenoh's liveliness space
 
 DEFAULT_ENDPOINT = "tls/127.0.0.1:7448"

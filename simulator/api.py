@@ -163,7 +163,10 @@ def run_simulator(options: SimOptions, bus_options: BusOptions,
     with contextlib.ExitStack() as resources:
         stop = resources.enter_context(stop_on_signals(stop))
         bus = resources.enter_context(open_bus(bus_options))
-        bus.counting = o.lockstep  # from the start: lockstep counts the commands it receives
+        # lockstep counts the commands it receives from the start: an agent waiting for the
+        # run may already have sent some (its clock watchdog's stop), and claims them
+        barrier = resources.enter_context(Barrier(bus, run_id, o.lockstep_timeout)) \
+            if o.lockstep else None
         driver = (lambda command: Ros2Driver(bus, ros2_ids, command, domain=o.ros2_domain,
                                              distro=o.ros2_distro,
                                              sonar_type=o.ros2_sonar_type)
@@ -172,9 +175,7 @@ def run_simulator(options: SimOptions, bus_options: BusOptions,
         if o.wait_robots is not None and not wait_for_robots(bus, list(robots), o.wait_robots,
                                                              stop):
             return node.stats
-        barrier = None
-        if o.lockstep:
-            barrier = resources.enter_context(Barrier(bus, run_id, o.lockstep_timeout))
+        if barrier is not None:
             barrier.settle()  # the participants already up are heard
             if o.wait_robots is not None:
                 # every robot's agent in step from step 0: one that joins later starts its

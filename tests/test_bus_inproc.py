@@ -1,6 +1,7 @@
 import logging
 
 import msgpack
+import pytest
 
 from mrta_zenoh.bus import InProcBus, InProcNetwork
 from mrta_zenoh.codec import encoding_for
@@ -134,3 +135,42 @@ def test_handler_with_queue_runs_on_a_worker():
     assert done.wait(2.0)
     assert seen[0].startswith("mrta-sub:")
     bus.close()
+
+
+def test_lockstep_counting_has_one_owner_and_counts_what_it_should():
+    """Bus.enable_counting: samples published per key (not lockstep's own `@` keys) and, per
+    decoded subscription, samples taken into account — after its handler; one owner, whose
+    callback runs per counted sample; closed, the bus counts nothing until another owner
+    starts from zero."""
+    from mrta_zenoh.errors import MrtaRuntimeError
+    from mrta_zenoh.messages import Twist
+
+    net = InProcNetwork()
+    bus, other = InProcBus(net), InProcBus(net)
+    before = bus.subscribe("robot2/*", lambda s: None, msg_type=Twist)  # before counting
+    raw = bus.subscribe_raw("robot2/**", lambda s: None)
+    pokes, seen_by_handler = [], []
+    counts = bus.enable_counting(lambda: pokes.append(1))
+    after = bus.subscribe("robot2/cmd_vel",
+                          lambda s: seen_by_handler.append(counts.received(after)[s.key]),
+                          msg_type=Twist)
+    with pytest.raises(MrtaRuntimeError):
+        bus.enable_counting()
+    bus.publish("robot1/cmd_vel", Twist(0.0, 0.0))
+    bus.publish("@mrta/lockstep/step/x", Twist(0.0, 0.0))
+    other.publish("robot2/cmd_vel", Twist(0.0, 0.0))
+    other.publish("robot2/cmd_vel", Twist(0.0, 0.0))
+    assert counts.sent == {"robot1/cmd_vel": 1}
+    assert counts.received(before) == counts.received(after) == {"robot2/cmd_vel": 2}
+    assert seen_by_handler == [0, 1]           # counted once its handler has run
+    assert [t.key_expr for t in counts.tallies()] == ["robot2/*", "robot2/cmd_vel"]
+    with pytest.raises(ValueError):
+        counts.received(raw)                   # raw subscriptions count nothing
+    assert len(pokes) == 4                     # two samples, two counting subscriptions
+    counts.close()
+    other.publish("robot2/cmd_vel", Twist(0.0, 0.0))
+    assert len(pokes) == 4
+    again = bus.enable_counting()
+    assert again.sent == {} and again.received(before) == {}
+    bus.close()
+    other.close()

@@ -101,3 +101,26 @@ def test_a_hung_participant_is_reported_and_after_the_limit_no_longer_waited_for
         sup.wait_json(lambda o: o["time"] > alarm["time"] + 3.0, 60)  # it goes on without robot2
     finally:
         agents["robot2"].signal(signal.SIGCONT)
+
+
+PROBE = """
+import sys
+import {modules}
+print(",".join(sorted(m for m in sys.modules if m.startswith("mrta_zenoh.lockstep."))))
+"""
+
+
+@pytest.mark.parametrize("modules, loaded", [
+    # an agent: its clock and books, never the simulator's barrier
+    ("mrta_agent.runtime.host, mrta_agent.alliance.cli",
+     "mrta_zenoh.lockstep.books,mrta_zenoh.lockstep.participant,mrta_zenoh.lockstep.protocol,"
+     "mrta_zenoh.lockstep.sequence,mrta_zenoh.lockstep.table"),
+    # observers and the access-control generator: the protocol only
+    ("mrta_supervisor.api, mrta_supervisor.mission, mrta_zenoh.secure",
+     "mrta_zenoh.lockstep.protocol"),
+])
+def test_each_process_loads_only_the_lockstep_it_needs(modules, loaded):
+    out = subprocess.run([sys.executable, "-c", PROBE.format(modules=modules)],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 0, out.stderr
+    assert out.stdout.strip() == loaded

@@ -5,11 +5,12 @@ unit-tested in tests/test_lockstep_trust.py."""
 
 import json
 import signal
+import sys
 import time
 
 import pytest
 
-from tests.helpers import PATROL
+from tests.helpers import PATROL, PROCS, Child
 
 pytestmark = pytest.mark.multiprocess
 
@@ -141,3 +142,122 @@ def test_lockstep_with_robots_expected_and_no_participant_is_an_error(children):
     assert s.wait(60) == 1
     assert any("no participant" in line and "participant/" in line for line in s.stderr), \
         s.tail()
+
+
+# ------------------------------------------------ issue 42: one forged sample, one claimant
+
+def forger(children, *args):
+    """A forger started, and ready (its first line printed)."""
+    f = children.python("lockstep_forger.py", *args, name=f"forger {args[0]}")
+    f.wait_json(lambda o: o.get("ready"), 60)
+    return f
+
+
+def goes_on(s, sup, robot="robot1", children=None, seconds=5.0):
+    """The fleet goes on, in step: the world and the agent's own time move `seconds` further,
+    and nobody was given up (the simulator running on alone would move the world only)."""
+    before = sup.wait_json(lambda o: True, 30)
+    sup.wait_json(lambda o: o["time"] > before["time"] + seconds, 60)
+    assert agent_time(children, robot) > before["time"] + seconds / 2
+    assert not any("no longer waited for" in line for line in s.stderr), s.tail()
+
+
+def test_a_copied_step_numbered_a_billion_stops_nobody(children, tokens):
+    """Before: every agent refused every real step afterwards ("step 63 after step
+    1000000000"), and the simulator gave them up after 30 s and ran on alone."""
+    s, agents, sup, run = lockstep_fleet(children, tokens)
+    copied = forger(children, "copy", run).wait_json(lambda o: "copied" in o, 60)
+    assert copied["copied"] > 0
+    agents["robot1"].wait_stderr(lambda line: "skips ahead" in line, 30)
+    goes_on(s, sup, children=children)
+
+
+def test_an_old_whole_step_replayed_as_the_next_one_heals(children, tokens):
+    """Before: all agents stuck for the 50 s watched — the forged number shadowed the real
+    next step, and the old table made every later step unreadable."""
+    s, agents, sup, run = lockstep_fleet(children, tokens)
+    replayed = forger(children, "replay", run, "3").wait_json(lambda o: "replayed" in o, 60)
+    assert replayed["as_step"] > replayed["replayed"] and replayed["keys"] > 0
+    goes_on(s, sup, children=children)
+    assert not any("did not finish" in line for line in s.stderr), s.tail()
+
+
+@pytest.mark.parametrize("keys, chars", [(4096, 0), (4000, 1024)])
+def test_a_participant_claiming_thousands_of_keys_freezes_nobody(children, tokens, keys, chars):
+    """Before: every Step counted the claimant's keys (4,096 of them, or 4,000 of 1 KB: a Step
+    past 4 MiB) and every participant refused it while the claimant held its token."""
+    s, agents, sup, run = lockstep_fleet(children, tokens)
+    f = forger(children, "claims", run, str(keys), str(chars))
+    f.wait_json(lambda o: "claiming" in o, 60)
+    s.wait_stderr(lambda line: "'ghost''s claims dropped" in line, 30)
+    goes_on(s, sup, children=children)
+    assert f.wait_json(lambda o: "done" in o, 60)
+    assert not any("rejected" in line for line in agents["robot1"].stderr), \
+        agents["robot1"].tail()
+
+
+def test_a_claim_that_keeps_descending_pauses_the_run_once(children, tokens):
+    """Before: a claim lowered by 1 every 5.2 s withdrew each forgiveness and paused the fleet
+    again (8 pauses in 45 s, the fleet at 6 % of its speed). Now one pause per claimant per
+    FORGIVE_WINDOW: the run's status counts one forgiveness."""
+    s, agents, sup, run = lockstep_fleet(children, tokens)
+    status = children.mrta("echo", "lockstep/status", "--json", name="status")
+    f = forger(children, "descend", run, "22")
+    assert f.wait_json(lambda o: "done" in o, 90)
+    goes_on(s, sup, children=children)
+    forgiven = [json.loads(line)["message"]["forgiven"] for line in status.stdout
+                if line.startswith("{")]
+    assert forgiven and max(forgiven) == 1, (forgiven, s.tail())
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(420)
+def test_a_certified_robot_claiming_thousands_of_keys_cannot_freeze_a_secured_fleet(
+        children, tmp_path):
+    """Before: robot1's own certificate was enough — it claimed 4,096 keys of its own and
+    robot2 stayed at t = 5.2 for the 45 s watched."""
+    from click.testing import CliRunner
+
+    from mrta_zenoh.cli.main import cli
+    from tests.helpers import free_port
+    from tests.test_secure import wait_accepting
+
+    folder, endpoint = tmp_path / "fleet", f"tls/127.0.0.1:{free_port()}"
+    result = CliRunner().invoke(cli, ["secure", "init", str(folder), "--robot", "robot1",
+                                      "--robot", "robot2", "--observer", "supervisor",
+                                      "--endpoint", endpoint])
+    assert result.exit_code == 0, result.output
+    router = children.mrta("router", "--zenoh-config", folder / "router.json5", name="router")
+    router.wait_stderr(lambda line: "router listening on tls/" in line, 30)
+    wait_accepting(endpoint)
+    s = children.mrta("sim", "--world", "patrol", "--robot", "robot1", "--robot", "robot2",
+                      "--speed", "4", "--lockstep", "--wait-robots", "60", "--zenoh-config",
+                      folder / "simulator.json5", name="sim")
+    agents = {r: children.mrta("agent", r, "--robot-params", CONFIG / f"{r}_alliance_params.yaml",
+                               "--tasks-params", CONFIG / "tasks_alliance_params.yaml",
+                               "--layers-params", CONFIG / "layers_alliance_params.yaml",
+                               "--sim-time", "--zenoh-config", folder / f"{r}.json5", name=r)
+              for r in ("robot1", "robot2")}
+    s.wait_stderr(lambda line: "lockstep with 2 participants" in line, 90)
+    sup = children.mrta("supervise", "patrol", "--sim-time", "--json", "--zenoh-config",
+                        folder / "supervisor.json5", name="supervise")
+    sup.wait_json(lambda o: o["time"] > 2.0, 60)
+    # robot1's own certificate: it may answer as robot1, claiming keys of its own
+    env = dict(children.env, MRTA_FORGER_CONFIG=str(folder / "robot1.json5"))
+    f = Child([sys.executable, str(PROCS / "lockstep_forger.py"), "claims", "any", "4096", "0"],
+              env, "forger robot1")
+    children.all.append(f)
+    f.wait_json(lambda o: "claiming" in o and o["name"] == "robot1", 60)
+    s.wait_stderr(lambda line: "'robot1''s claims dropped" in line, 30)
+    before = sup.wait_json(lambda o: True, 30)
+    sup.wait_json(lambda o: o["time"] > before["time"] + 5.0, 60)
+    assert agent_time_secured(children, folder, "robot2") > before["time"] + 2.5
+    assert not any("no longer waited for" in line for line in s.stderr), s.tail()
+    assert agents["robot2"].running()
+
+
+def agent_time_secured(children, folder, robot, task="wander"):
+    echo = children.mrta("echo", f"{robot}/alliance/motivation/*", "--json", "--count", "1",
+                         "--zenoh-config", folder / "supervisor.json5", name="echo")
+    assert echo.wait(60) == 0, echo.tail()
+    return json.loads(echo.stdout[-1])["message"]["header"]["stamp"]

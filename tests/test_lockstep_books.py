@@ -29,12 +29,12 @@ def claims(table: KeyTable, required: dict[str, int]) -> Claims:
     return Claims(table, [required.get(k, 0) for k in table.keys])
 
 
-def by_the_rule(bus, books: Books, required: dict[str, int], keys=None) -> dict[str, int]:
+def by_the_rule(counts, books: Books, required: dict[str, int], keys=None) -> dict[str, int]:
     """The rule, key by key, with nothing remembered."""
-    own = bus.sent_counts
+    own = counts.sent
     out = {}
     for key in set(required) | set(own) if keys is None else keys:
-        subs = [s for s in bus.counting_subscriptions() if matches(s.key_expr, key)]
+        subs = [s for s in counts.tallies() if matches(s.key_expr, key)]
         if not subs:
             continue
         need = own[key] if key in own else required[key]
@@ -61,8 +61,8 @@ op = st.one_of(
 @given(st.lists(op, max_size=40))
 def test_the_books_give_what_the_rule_gives_key_by_key(history):
     with InProcBus() as bus:
-        bus.counting = True
-        books, table = Books(bus), KeyTable()
+        counts = bus.enable_counting()
+        books, table = Books(counts), KeyTable()
         subs, required = [], {}
         for step in history:
             kind = step[0]
@@ -71,11 +71,11 @@ def test_the_books_give_what_the_rule_gives_key_by_key(history):
             elif kind == "close" and subs:
                 subs.pop(step[1] % len(subs)).close()
             elif kind == "count" and subs:
-                subs[step[1] % len(subs)].counts[step[2]] += step[3]
+                counts.received(subs[step[1] % len(subs)])[step[2]] += step[3]
             elif kind == "claim":  # more claimed (sent since the last step)
                 required[step[1]] = required.get(step[1], 0) + step[2]
             elif kind == "send":
-                bus.sent_counts[step[1]] += 1
+                counts.sent[step[1]] += 1
             elif kind == "forgive":
                 step = claims(table, required)
                 books.forgive(books.missing(step), step)
@@ -87,19 +87,19 @@ def test_the_books_give_what_the_rule_gives_key_by_key(history):
                 # a lower claim (a forger's): a forgiveness it shows forged is withdrawn
                 required[step[1]] = max(0, required[step[1]] - 2)
                 books.review(claims(table, required))
-            expected = by_the_rule(bus, books, required)
+            expected = by_the_rule(counts, books, required)
             step = claims(table, required)
             settled = books._settled
             assert books.missing(step) == expected
             assert books._settled is settled  # looking settles nothing
             # and Python looked only at those, and at what this bus sent that it hears back
-            heard_back = {k for k in bus.sent_counts
-                          if any(matches(s.key_expr, k) for s in bus.counting_subscriptions())}
-            assert books._lagging(books._counting(table), step, bus.sent_counts) == \
+            heard_back = {k for k in counts.sent
+                          if any(matches(s.key_expr, k) for s in counts.tallies())}
+            assert books._lagging(books._counting(table), step, counts.sent) == \
                 set(expected) | heard_back
             # a later look at some keys (those found missing before: named by a claim or sent)
-            some = [k for k in KEYS[::2] if k in required or k in bus.sent_counts]
-            assert books.missing(step, some) == by_the_rule(bus, books, required, some)
+            some = [k for k in KEYS[::2] if k in required or k in counts.sent]
+            assert books.missing(step, some) == by_the_rule(counts, books, required, some)
 
 
 sim_step = st.tuples(st.just("step"), st.integers(0, 3), st.booleans(), st.booleans())
@@ -148,17 +148,17 @@ def test_after_a_step_is_taken_a_claim_that_grows_is_still_waited_for():
     """The look after `settle` compares with the step taken: a claim that grew since (beyond
     what arrived) lags, one that did not is met, and a new subscription looks at every key."""
     with InProcBus() as bus:
-        bus.counting = True
-        books, table = Books(bus), KeyTable()
+        counts = bus.enable_counting()
+        books, table = Books(counts), KeyTable()
         odom = bus.subscribe("*/odom", lambda s: None)
         required = {"robot1/odom": 1, "robot2/odom": 4, "robot3/patrol/log": 9}
-        odom.counts.update({"robot1/odom": 1, "robot2/odom": 4})
+        counts.received(odom).update({"robot1/odom": 1, "robot2/odom": 4})
         taken = claims(table, required)
         assert books.missing(taken) == {}
         books.settle(taken)
         required["robot1/odom"] = 3
         assert books.missing(claims(table, required)) == {"robot1/odom": 2}
-        odom.counts["robot1/odom"] = 3
+        counts.received(odom)["robot1/odom"] = 3
         assert books.missing(claims(table, required)) == {}
         bus.subscribe("robot3/**", lambda s: None)  # counts nothing yet of robot3's log
         assert books.missing(claims(table, required)) == {"robot3/patrol/log": 9}
@@ -170,15 +170,15 @@ def test_a_subscription_that_came_during_a_partial_look_is_looked_at_after_the_s
     claims that changed and missed a key the new subscription lagged on (an agent's plugins
     subscribe after its clock joined)."""
     with InProcBus() as bus:
-        bus.counting = True
-        books, table = Books(bus), KeyTable()
+        counts = bus.enable_counting()
+        books, table = Books(counts), KeyTable()
         odom = bus.subscribe("*/odom", lambda s: None)
         required = {"robot1/odom": 1, "robot2/odom": 4}
-        odom.counts.update({"robot2/odom": 4})
+        counts.received(odom).update({"robot2/odom": 4})
         pending = claims(table, required)
         still = list(books.missing(pending))
         bus.subscribe("robot2/**", lambda s: None)  # has counted nothing of robot2/odom
-        odom.counts["robot1/odom"] = 1
+        counts.received(odom)["robot1/odom"] = 1
         assert books.missing(pending, still) == {}
         books.settle(pending)
         assert books.missing(claims(table, required)) == {"robot2/odom": 4}

@@ -225,11 +225,11 @@ def test_a_participant_waits_for_its_own_samples_to_reach_its_own_subscriptions(
     net = InProcNetwork()
     bus, other = InProcBus(net), InProcBus(net)
     bus.subscribe("*/patrol/report", lambda s: None)
-    bus.counting = True
-    books, none = Books(bus), Claims(KeyTable(), [])  # a step that claims nothing
+    counts = bus.enable_counting()
+    books, none = Books(counts), Claims(KeyTable(), [])  # a step that claims nothing
     assert books.missing(none) == {}
-    bus.sent_counts["robot3/patrol/report"] += 1  # sent, not yet heard back
-    bus.sent_counts["robot3/cmd_vel"] += 1        # sent, heard by no subscription of its own
+    counts.sent["robot3/patrol/report"] += 1  # sent, not yet heard back
+    counts.sent["robot3/cmd_vel"] += 1        # sent, heard by no subscription of its own
     assert books.missing(none) == {"robot3/patrol/report": 1}
     other.publish("robot3/patrol/report", Twist(0.0, 0.0))  # now it has come back
     assert books.missing(none) == {}

@@ -11,8 +11,8 @@ from hypothesis import strategies as st
 from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
 from mrta_zenoh.clock import CEILING, RATE_MARGIN, SimClock, run_id, run_rate, run_speed
 from mrta_zenoh.keys import CLOCK_SOURCE_TOKEN
-from mrta_zenoh.lockstep import (DONE, NEXT_HORIZON, STEP, Barrier, LockstepClock, StepDone,
-                                 count_wait)
+from mrta_zenoh.lockstep import (DONE, NEXT_HORIZON, STEP, Barrier, LockstepClock, Step,
+                                 StepDone, count_wait)
 from mrta_zenoh.messages import Twist
 from tests.helpers import Wall, claiming_step, wait_for
 
@@ -186,7 +186,7 @@ def test_a_participant_restarts_its_counts_and_time_with_a_new_run():
     try:
         f.advance(3.0)
         wait_for(lambda: f.clock.now() == 3.0 and f.clock._acked)
-        assert f.agent_bus.sent_counts["robot1/cmd_vel"] >= 30
+        assert f.clock.counts.sent["robot1/cmd_vel"] >= 30
         f.barrier.close()                         # the simulator dies; another one starts
         f.source.close()
         run2 = run_id(2)
@@ -338,57 +338,84 @@ def test_a_newcomer_passes_over_steps_until_it_has_the_whole_key_table():
         f.close()
 
 
-def test_a_participant_whose_key_table_is_wrong_gets_the_whole_one_when_silent():
-    """A copy of the table that is not the simulator's (a step carrying keys missed, or a
-    forged one taken) fails the table's digest: the participant passes the steps over, and the
-    simulator sends the whole table again once it has been silent for REPORT_AFTER."""
-    from mrta_zenoh.lockstep import REPORT_AFTER, KeyTable
+def with_a_wrong_table(f):
+    """The participant's copy of the key table replaced by another, then the simulator's loop
+    to t=1.0 on a thread (returned)."""
+    from mrta_zenoh.lockstep import KeyTable
 
+    wrong = KeyTable()
+    wrong.add({"robot9/forged"})
+    with f.clock._cond:
+        f.clock._table = wrong
+    on = threading.Thread(target=f.advance, args=(1.0,), daemon=True)
+    on.start()
+    return on
+
+
+def test_a_participant_whose_key_table_is_wrong_asks_for_the_whole_one():
+    """A copy of the table that is not the simulator's (a step carrying keys missed, or a
+    forged one taken) fails the table's digest: the participant asks the barrier's holder for
+    the current step with the whole table (lockstep/sequence.py) and is in step again — no
+    wall time has to pass."""
     f = Fleet(timeout=10.0)
     try:
         f.advance(0.5)
         wait_for(lambda: f.clock.now() == 0.5 and f.clock._acked)
-        wrong = KeyTable()
-        wrong.add({"robot9/forged"})
-        with f.clock._cond:
-            f.clock._table = wrong
-        on = threading.Thread(target=f.advance, args=(1.0,), daemon=True)
-        on.start()
-        wait_for(lambda: f.clock.table_waits > 0 and f.barrier._stamp is not None)
-        assert f.clock.now() == 0.5                   # it cannot know what the step requires
-        f.wall.t += REPORT_AFTER + 0.01               # (the barrier waits: its clock started)
+        on = with_a_wrong_table(f)
         wait_for(lambda: f.clock.now() == 1.0, timeout=10.0)
         on.join(10)
+        assert f.clock.table_waits > 0 and f.clock._sequence.asks == 1
         assert f.clock._table.keys == f.barrier.table.keys[:len(f.clock._table)]
         assert f.barrier.given_up == 0 and not f.barrier.unresponsive
     finally:
         f.close()
 
 
-def test_keys_of_participants_gone_leave_the_table_so_steps_stay_within_max_keys():
-    """A participant (a forger holding a token) that claims thousands of keys and leaves: the
-    simulator's table passes MAX_KEYS, and it starts a new one of the keys claimed now, sent
-    whole — instead of steps every participant refuses for the rest of the run."""
-    from mrta_zenoh.lockstep import MAX_KEYS, PARTICIPANT
+def test_a_participant_whose_request_is_not_honoured_gets_the_whole_table_when_silent():
+    """A forger asked in its name just before (one request per REPORT_AFTER is honoured): the
+    simulator still sends the whole table to a participant silent for REPORT_AFTER."""
+    from mrta_zenoh.lockstep import REPORT_AFTER
+
+    f = Fleet(timeout=10.0)
+    try:
+        f.advance(0.5)
+        wait_for(lambda: f.clock.now() == 0.5 and f.clock._acked)
+        f.forger.publish(f"{DONE}/robot1", StepDone("robot1", 0.5, {}, -1.0, f.run,
+                                                    resync=True))
+        f.advance(0.52)                               # honoured: a stop, the table whole
+        on = with_a_wrong_table(f)
+        wait_for(lambda: f.clock.table_waits > 0 and f.barrier._stamp is not None)
+        assert f.clock.now() == 0.52 and f.barrier.dropped.count == 1  # its request: refused
+        f.wall.t += REPORT_AFTER + 0.01
+        wait_for(lambda: f.clock.now() == 1.0, timeout=10.0)
+        on.join(10)
+        assert f.barrier.given_up == 0 and not f.barrier.unresponsive
+    finally:
+        f.close()
+
+
+def test_a_participant_claiming_thousands_of_keys_loses_its_claims_not_the_steps():
+    """A participant (a forger holding a token, or a robot with its own certificate) that
+    claims 4,096 keys of its own: its answer counts, its claims are dropped (CLAIM_KEYS), so
+    the Steps stay what the others can read; once per run it counts as forgiven."""
+    from mrta_zenoh.lockstep import CLAIM_KEYS, PARTICIPANT
 
     f = Fleet()
     try:
         f.advance(0.5)
         wait_for(lambda: f.clock.now() == 0.5 and f.clock._acked)
+        claims = {f"ghost/k{i}": 1 for i in range(4 * CLAIM_KEYS)}
+        # the claimant answers every step, at once, with its claims
+        f.forger.subscribe(STEP, lambda s: f.forger.publish(f"{DONE}/ghost", StepDone(
+            "ghost", s.message.stamp, claims, s.message.stamp + 0.1, f.run)), msg_type=Step)
         token = f.forger.declare_token(f"{PARTICIPANT}/ghost")
         wait_for(lambda: "ghost" in f.barrier.participants)
-        f.forger.publish(f"{DONE}/ghost", StepDone("ghost", 0.5, {f"ghost/k{i}": 1 for i in
-                                                                  range(MAX_KEYS)}, 0.6, f.run))
-        wait_for(lambda: "ghost" in f.barrier.done)
-        f.barrier.claims()                        # the ghost's keys go into the table
-        assert len(f.barrier.table) > MAX_KEYS
+        f.forger.publish(f"{DONE}/ghost", StepDone("ghost", 0.5, claims, 0.6, f.run))
+        assert f.barrier.done["ghost"].sent == {} and f.barrier.forgiven == 1
+        f.advance(2.0)
+        wait_for(lambda: f.clock.now() == 2.0)
+        assert f.barrier.dropped.count > 2 and f.barrier.forgiven == 1  # once per run
         token.close()
-        wait_for(lambda: "ghost" not in f.barrier.participants)
-        on = threading.Thread(target=f.advance, args=(1.0,), daemon=True)
-        on.start()
-        wait_for(lambda: f.clock.now() == 1.0, timeout=10.0)
-        on.join(10)
-        assert len(f.barrier.table) < 10 and f.clock._table.keys == f.barrier.table.keys
-        assert f.clock.rejected_steps.count == 0
+        assert len(f.barrier.table) < 10 and f.clock.rejected_steps.count == 0
     finally:
         f.close()

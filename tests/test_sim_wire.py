@@ -237,20 +237,20 @@ def test_a_batch_on_the_inproc_bus_counts_and_delivers_like_publish():
     bus = InProcBus()
     got = []
     bus.subscribe_raw("a/**", lambda s: got.append((s.key, s.encoding, s.payload)))
-    bus.counting = True
+    counts = bus.enable_counting()
     enc = codec.encoding_for(Twist.TYPE_NAME)
     batch = bus.declare_batch(["a/x", "a/y", "a/x"], [enc] * 3, lossy=True)
     payloads = [codec.encode(Twist(float(i), 0.0)) for i in range(3)]
     batch.publish(payloads)
     assert got == [("a/x", enc, payloads[0]), ("a/y", enc, payloads[1]),
                    ("a/x", enc, payloads[2])]
-    assert bus.sent_counts == {"a/x": 2, "a/y": 1}
+    assert counts.sent == {"a/x": 2, "a/y": 1}
     got.clear()
     batch.publish(payloads, rows=[1, 2])  # only those keys, payloads still one per key
     assert got == [("a/y", enc, payloads[1]), ("a/x", enc, payloads[2])]
-    assert bus.sent_counts == {"a/x": 3, "a/y": 2}
+    assert counts.sent == {"a/x": 3, "a/y": 2}
     batch.publish(payloads, rows=[])
-    assert bus.sent_counts == {"a/x": 3, "a/y": 2}
+    assert counts.sent == {"a/x": 3, "a/y": 2}
     with pytest.raises(ValueError):
         batch.publish(payloads, rows=[3])
     with pytest.raises(ValueError):
@@ -282,7 +282,7 @@ def test_a_batch_on_zenoh_arrives_with_each_keys_encoding_and_is_counted():
         a.publish("w/0", Twist(1.0, 2.0), lossy=True)
         fresh = a.declare_batch(["w/1", "w/2"], [odom_enc, bump_enc], lossy=True)
         known = a.declare_batch(["w/0"], [bump_enc], lossy=True)
-        a.counting = True
+        counts = a.enable_counting()
         msgs = [Odometry(Header("w", 1.0, 0), Pose2D(1, 2, 3), Twist(4, 5)),
                 Bumper(Header("w", 1.0, 0), True, False, 300)]
         payloads = [codec.encode(m) for m in msgs]
@@ -298,15 +298,15 @@ def test_a_batch_on_zenoh_arrives_with_each_keys_encoding_and_is_counted():
             seen = {(k, e, p) for k, e, p in got if k != "w/0" or e == bump_enc}
         assert seen == {("w/1", odom_enc, payloads[0]), ("w/2", bump_enc, payloads[1]),
                         ("w/0", bump_enc, payloads[1])}
-        assert a.sent_counts["w/1"] == a.sent_counts["w/2"] == a.sent_counts["w/0"] >= 1
+        assert counts.sent["w/1"] == counts.sent["w/2"] == counts.sent["w/0"] >= 1
         # rows: only w/2 goes out (and is counted), through both kinds of batch
-        sent = dict(a.sent_counts)
+        sent = dict(counts.sent)
         with lock:
             got.clear()
         fresh.publish(payloads, rows=[1])
         known.publish(payloads[1:], rows=[])
-        assert a.sent_counts["w/2"] == sent["w/2"] + 1
-        assert a.sent_counts["w/1"] == sent["w/1"] and a.sent_counts["w/0"] == sent["w/0"]
+        assert counts.sent["w/2"] == sent["w/2"] + 1
+        assert counts.sent["w/1"] == sent["w/1"] and counts.sent["w/0"] == sent["w/0"]
         deadline = time.monotonic() + 20
         while time.monotonic() < deadline:
             with lock:

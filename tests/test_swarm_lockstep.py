@@ -51,8 +51,7 @@ def test_a_task_subset_keeps_the_matching_behaviour_sets(tmp_path):
 def test_books_memory_follows_the_subscriptions():
     """A key no subscription matched is waited for once a subscription that matches it comes."""
     with InProcBus() as bus:
-        bus.counting = True
-        books, table = Books(bus), KeyTable()
+        books, table = Books(bus.enable_counting()), KeyTable()
         table.add({"robot2/clock"})
         step = Claims(table, [3])
         bus.subscribe("robot1/clock", lambda s: None, msg_type=Clock)

@@ -31,7 +31,7 @@ def pair():
 
 def test_own_samples_are_handed_over_before_publish_returns_and_only_once(pair):
     here, there = pair
-    here.counting = True
+    counts = here.enable_counting()
     mine, wide, remote = [], [], threading.Event()
     got_remote = []
     here.subscribe("robot1/cmd_vel", lambda s: mine.append((s.message, threading.get_ident())),
@@ -49,7 +49,7 @@ def test_own_samples_are_handed_over_before_publish_returns_and_only_once(pair):
     while queue.get(0) is not None:  # the warm-up's
         pass
     before = len(got_remote)
-    counted = {s.key_expr: s.counts["robot1/cmd_vel"] for s in here.counting_subscriptions()}
+    counted = {s.key_expr: s.counts["robot1/cmd_vel"] for s in counts.tallies()}
 
     here.publish("robot1/cmd_vel", Twist(0.5, 0.1))
     assert mine == [(Twist(0.5, 0.1), threading.get_ident())]  # already, on this thread
@@ -65,7 +65,7 @@ def test_own_samples_are_handed_over_before_publish_returns_and_only_once(pair):
     assert wide == ["robot1/cmd_vel"] * 3  # robot2's is none of its keys
     # taken into account (lockstep's books) by the time publish returned, by each of them
     assert {s.key_expr: s.counts["robot1/cmd_vel"] - counted[s.key_expr]
-            for s in here.counting_subscriptions()} == \
+            for s in counts.tallies()} == \
         {"robot1/cmd_vel": 3, "robot1/**": 3, "robot1/*": 3}
     time.sleep(0.5)  # Zenoh would have handed them over again by now
     assert len(mine) == 3 and len(wide) == 3

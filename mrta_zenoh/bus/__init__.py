@@ -7,12 +7,13 @@ logic and unit tests stay fast.
 from __future__ import annotations
 
 from .base import Bus, LivelinessWatch, RawSample, Sample, Subscription, Token
+from .counts import Counts
 from .inproc import InProcBus, InProcNetwork
 from .options import BusOptions, check_endpoint
 
 __all__ = [
-    "Bus", "BusOptions", "InProcBus", "InProcNetwork", "LivelinessWatch", "RawSample", "Sample",
-    "Subscription", "Token", "check_endpoint", "open_bus",
+    "Bus", "BusOptions", "Counts", "InProcBus", "InProcNetwork", "LivelinessWatch", "RawSample",
+    "Sample", "Subscription", "Token", "check_endpoint", "open_bus",
 ]
 
 

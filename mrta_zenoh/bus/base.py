@@ -17,8 +17,9 @@ import msgspec
 
 from .. import codec
 from ..errors import MrtaRuntimeError
-from ..keys import matches, validate_key_expr
+from ..keys import validate_key_expr
 from ..messages import GenericMessage, Message
+from .counts import Counts
 
 log = logging.getLogger("mrta.bus")
 
@@ -100,7 +101,7 @@ class Subscription:
         self.msg_type = msg_type
         self.on_error = on_error
         self.raw = raw
-        self.counts: collections.Counter[str] = collections.Counter()  # per key, when counting
+        self._tally = None  # its lockstep counts (Counts.tally), once the bus counts
         self.received = 0
         self.malformed = 0
         self.wrong_type = 0
@@ -183,11 +184,15 @@ class Subscription:
             except Exception:  # a user's handler must never kill the network thread
                 self.bus.stats.add("handler_errors")
                 log.exception("handler for %s raised", self.key_expr)
-            if self.bus.counting:  # after the handler: "received" means "taken into account"
-                self.bus._counted(self, sample.key)
+            tally = self._tally
+            if tally is not None:  # after the handler: "received" means "taken into account"
+                tally.counts[sample.key] += 1
+                tally.counted()
             return
-        if self.bus.counting:
-            self.bus._counted(self, sample.key)
+        tally = self._tally
+        if tally is not None:
+            tally.counts[sample.key] += 1
+            tally.counted()
         with self._cond:
             if len(self._queue) == self._queue.maxlen:
                 self.dropped += 1
@@ -350,11 +355,7 @@ class Bus:
         self._tokens: list[Token] = []
         self._lock = threading.Lock()
         self._closed = False
-        # Lockstep bookkeeping (mrta_zenoh.lockstep), off unless a participant turns it on:
-        # samples published (per key) and received (per subscription and key).
-        self.counting = False
-        self.sent_counts: collections.Counter[str] = collections.Counter()
-        self.on_counted: Callable[[], None] | None = None
+        self._counts: Counts | None = None  # lockstep's (enable_counting), else nothing counted
 
     # ---- public API
     def publish(self, key: str, msg: Message | GenericMessage, lossy: bool = False) -> None:
@@ -388,7 +389,9 @@ class Bus:
     ) -> Subscription:
         validate_key_expr(key_expr)
         sub = Subscription(self, key_expr, handler, queue_size, msg_type, on_error)
+        self._attach_tally(sub)  # counted from its first sample
         self._declare(sub)
+        self._attach_tally(sub)  # (if counting was turned on meanwhile)
         return sub
 
     def subscribe_raw(
@@ -450,43 +453,36 @@ class Bus:
     def __exit__(self, *exc: object) -> None:
         self.close()
 
-    def received_all(self, required: dict[str, int]) -> bool:
-        """Has every subscription of this bus received, per key, at least `required` samples?
-        Keys this bus does not subscribe to, and keys it publishes itself, are not waited for."""
-        own = self.sent_counts
-        for key, n in required.items():
-            if key in own:
-                continue
-            for sub in list(self._subs):
-                if not sub.raw and sub.counts[key] < n and matches(sub.key_expr, key):
-                    return False
-        return True
+    def enable_counting(self, on_counted: Callable[[], None] | None = None) -> Counts:
+        """Count, for lockstep, the samples this bus publishes and those its subscriptions take
+        into account, from now on; `on_counted()` after each received sample is counted (on the
+        thread that delivered it: keep it tiny). The counts have one owner (a lockstep
+        participant, or the simulator's barrier) until it closes them."""
+        with self._lock:
+            if self._counts is not None:
+                raise MrtaRuntimeError("this bus already counts for lockstep: counting has one "
+                                       "owner")
+            counts = self._counts = Counts(self, on_counted)
+            subs = list(self._subs)
+        for sub in subs:
+            self._attach_tally(sub)
+        return counts
 
-    def counting_subscriptions(self) -> tuple:
-        """The subscriptions that count what they take into account (`Subscription.counts`), as
-        they are now: lockstep's Books reads a key's count from those matching it, remembers
-        which match each key, and starts again when this changes."""
-        return tuple(s for s in list(self._subs) if not s.raw)
+    def _stop_counting(self, counts: Counts) -> None:
+        with self._lock:
+            if self._counts is not counts:
+                return
+            self._counts = None
+            for sub in self._subs:
+                sub._tally = None
 
-    def reset_counts(self) -> None:
-        """Start counting sent and received samples from zero (lockstep: a new run)."""
-        self.sent_counts.clear()
-        for sub in list(self._subs):
-            sub.counts.clear()
-
-    # ---- for implementations
-    def _count_sent(self, key: str, lossy: bool) -> None:
-        if not key.startswith("@"):  # lockstep's own traffic is not counted
-            self.sent_counts[key] += 1
-
-    def _count_sent_all(self, keys: Sequence[str]) -> None:
-        """_count_sent for each of `keys`, which hold no lockstep key (`@…`)."""
-        self.sent_counts.update(keys)
-
-    def _counted(self, sub: "Subscription", key: str) -> None:
-        sub.counts[key] += 1
-        if self.on_counted is not None:
-            self.on_counted()
+    def _attach_tally(self, sub: Subscription) -> None:
+        counts = self._counts
+        if counts is None or sub.raw:
+            return
+        with self._lock:
+            if sub._tally is None:
+                sub._tally = counts.tally(sub.key_expr)
 
     def _forget(self, items: list, item: object) -> None:
         """A closed entity leaves the bus's books (long-running processes open and close many)."""

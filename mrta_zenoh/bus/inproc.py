@@ -27,8 +27,9 @@ class InProcBus(Bus):
         self.network = network or InProcNetwork()
 
     def publish_raw(self, key: str, encoding: str, payload: bytes, lossy: bool = False) -> None:
-        if self.counting:
-            self._count_sent(key, lossy)
+        counts = self._counts
+        if counts is not None and not key.startswith("@"):  # lockstep's own keys: not counted
+            counts.sent[key] += 1
         wire = self._wire(key)
         with self.network.lock:
             targets = [s for s in self.network.subs if matches(s.bus._wire(s.key_expr), wire)]

@@ -108,16 +108,18 @@ class ZenohBus(Bus):
         _, pub, enc = entry
         payload = _encode(msg)
         pub.put(payload, encoding=enc)
-        if self.counting:
-            self._count_sent(key, lossy)
+        counts = self._counts
+        if counts is not None and not key.startswith("@"):  # lockstep's own keys: not counted
+            counts.sent[key] += 1
         local = self._own_subscriptions(key)
         if local:
             self._hand_over(local, key, codec.encoding_for(msg.TYPE_NAME), payload)
 
     def publish_raw(self, key: str, encoding: str, payload: bytes, lossy: bool = False) -> None:
         self._publisher(key, lossy).put(payload, encoding=self._encoding(encoding))
-        if self.counting:
-            self._count_sent(key, lossy)
+        counts = self._counts
+        if counts is not None and not key.startswith("@"):
+            counts.sent[key] += 1
         local = self._own_subscriptions(key)
         if local:
             self._hand_over(local, key, encoding, payload)
@@ -243,10 +245,12 @@ class ZenohBus(Bus):
             try:
                 handler(make(key, type_name, msg, payload))
             except Exception:  # a user's handler must never kill the network thread
-                sub.bus.stats.add("handler_errors")
+                bus.stats.add("handler_errors")
                 log.exception("handler for %s raised", sub.key_expr)
-            if bus.counting:  # after the handler: "received" means "taken into account"
-                bus._counted(sub, key)
+            tally = sub._tally
+            if tally is not None:  # after the handler: "received" means "taken into account"
+                tally.counts[key] += 1
+                tally.counted()
 
         return on_sample
 
@@ -369,7 +373,7 @@ class _ZenohBatch(Batch):
                           for k, e in zip(self.keys, self.encodings))
         self._puts = [p.put for p in pubs]
         self._encs = [bus._encoding(e) for e in self.encodings]
-        self._counted = [k for k in self.keys if not k.startswith("@")]
+        self._counted_keys = [k for k in self.keys if not k.startswith("@")]
         self._own: tuple[int, list] = (-1, [])  # (generation, [(row, own subscriptions)])
 
     def publish(self, payloads: Sequence[bytes], rows: Sequence[int] | None = None) -> None:
@@ -383,9 +387,9 @@ class _ZenohBatch(Batch):
         else:
             for put, enc, payload in zip(self._puts, self._encs, payloads):
                 put(payload, encoding=enc)
-        bus = self.bus
-        if bus.counting:
-            bus._count_sent_all(self._counted)
+        counts = self.bus._counts
+        if counts is not None:
+            counts.sent.update(self._counted_keys)
         self._hand_over(payloads, None)
 
     def _hand_over(self, payloads: Sequence[bytes], rows: Sequence[int] | None) -> None:
@@ -411,10 +415,10 @@ class _ZenohBatch(Batch):
         else:
             for i in rows:
                 puts[i](payloads[i], encoding=encs[i])
-        bus = self.bus
-        if bus.counting:
+        counts = self.bus._counts
+        if counts is not None:
             keys = self.keys
-            bus._count_sent_all([keys[i] for i in rows if not keys[i].startswith("@")])
+            counts.sent.update([keys[i] for i in rows if not keys[i].startswith("@")])
         self._hand_over(payloads, rows)
 
 

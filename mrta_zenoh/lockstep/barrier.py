@@ -1,0 +1,374 @@
+"""The simulator's side of lockstep: the `Barrier` — whom to wait for, and waiting.
+
+What keeps one forged sample from stopping the run here (docs/security.md): a participant's
+claims within the caps of its role (ledger.py); a participant that asks for the current step
+with the whole table (a StepDone with `resync`: a step contradicted what it took) gets it at
+the next physics step — one request per participant per REPORT_AFTER is honoured, so forged
+requests cost at most that many extra stops; and while any participant is given up the
+barrier stops every REPORT_AFTER to send it the whole table, whatever else is given up (with
+every participant given up, nobody is due: without this stop no step, and no table, would go
+out again)."""
+
+from __future__ import annotations
+
+import itertools
+import threading
+import time
+
+import msgspec
+
+from ..clock import EPSILON, _printable
+from ..keys import CLOCK_SOURCE_TOKEN
+from .books import Books
+from .ledger import Ledger
+from .protocol import (BARRIER, DEFAULT_TIMEOUT, DONE, MAX_KEYS, MAX_NAMES, NEXT_HORIZON,
+                       PARTICIPANT, REPORT_AFTER, STATUS, STEP, LockstepStatus, Rejections, Step,
+                       StepDone, count_wait, log)
+from .table import Claims, KeyTable, count_of
+
+
+class Barrier:
+    """The simulator's side: whom to wait for, and waiting. A context manager: leaving it
+    withdraws the barrier's token and subscriptions (close()).
+
+    Cost per step (issue #27: 100 participants answering every step): an answer updates who
+    is still waited for, the per-key claims and the due cache in O(its own keys); only the
+    last answer (then the counts it waits for) wakes wait(). Before, every answer and every
+    counted sample woke it and each wake rescanned every participant's StepDone."""
+
+    def __init__(self, bus, run_id: str, timeout: float = DEFAULT_TIMEOUT,
+                 wall=time.monotonic):
+        self.bus = bus
+        self.run = run_id
+        self.timeout = timeout
+        self.participants: set[str] = set()
+        self.ledger = Ledger()
+        self.done = self.ledger.done  # participant → its last answer
+        self.unresponsive: set[str] = set()
+        self.rivals: set[str] = set()
+        self.given_up = 0   # participants given up, this run (LockstepStatus)
+        self.forgiven = 0   # claims forgiven, this run
+        self._report_at = 0.0  # wall time wait() reports the participants still silent
+        self._their_forgiven: dict[str, int] = {}  # participant → claims it forgave (StepDone)
+        self._tell = False  # a participant forgave more: publish the status
+        self.table = KeyTable()  # the run's keys, as its steps name them
+        self._whole = True       # the next step carries the whole table (a newcomer appeared)
+        self._resend_at = 0.0    # wall time the whole table goes again to those given up
+        self._asked: dict[str, float] = {}  # participant → wall time its request was honoured
+        self._resync = False     # a request honoured: stop at the next step, the table whole
+        self.dropped = Rejections("StepDone")
+        self._wall = wall
+        self._cond = threading.Condition()
+        self._changed, self._changed_at = 0, wall()
+        self._last: Step | None = None  # the step published last (re-published for newcomers)
+        self._republish = False
+        self._back: set[str] = set()  # given up, and answering again
+        # Kept up to date as StepDones arrive, so a step costs one look per answer, not a scan
+        # of every participant per answer (issue #27: 100 participants answering every step)
+        self._stamp: float | None = None  # the step wait() is waiting on
+        self._waiting: set[str] = set()   # participants it still waits for
+        self._due_at: float | None = None  # due() before this stamp is False (None: unknown)
+        # before the commands' subscription (SimNode) exists: commands are counted from the first
+        self.counts = bus.enable_counting(self._poke)
+        self.books = Books(self.counts, wall)
+        self.handles = [
+            bus.watch_liveliness(f"{PARTICIPANT}/*", self._on_participant),
+            bus.subscribe(f"{DONE}/*", self._on_done, msg_type=StepDone),
+            bus.watch_liveliness(f"{CLOCK_SOURCE_TOKEN}/*", self._on_source),
+            bus.watch_liveliness(f"{BARRIER}/*", self._on_source),
+            bus.declare_token(f"{BARRIER}/{run_id}"),
+        ]
+        self.step = 0
+
+    def settle(self, quiet: float = 0.5, limit: float = 3.0) -> None:
+        """Give participants that are already up the time to be heard: until the set has not
+        changed for `quiet` seconds (a new session first has to reach every peer)."""
+        deadline = self._wall() + limit
+        with self._cond:
+            while self._wall() < deadline:
+                changed = self._changed
+                self._cond.wait(min(quiet, max(0.0, deadline - self._wall())))
+                if self._changed == changed and self._wall() - self._changed_at >= quiet:
+                    return
+
+    def _on_participant(self, key: str, alive: bool) -> None:
+        name = key.rsplit("/", 1)[-1]
+        with self._cond:
+            self._changed += 1
+            self._changed_at = self._wall()
+            self._due_at = None
+            if alive:
+                if len(self.participants) < MAX_NAMES:
+                    self.participants.add(name)
+                    self._republish = True  # a newcomer (or a resumed one) gets the step at once
+                    self._whole = True      # with the whole key table, as the next one
+                    if self._stamp is not None and name not in self.unresponsive and \
+                            not self._answered(name, self._stamp):
+                        self._waiting.add(name)
+            else:
+                self.participants.discard(name)
+                self._waiting.discard(name)
+                self.ledger.forget(name)
+                self._asked.pop(name, None)
+                self.unresponsive.discard(name)
+            self._cond.notify_all()
+
+    def _on_source(self, key: str, alive: bool) -> None:
+        """Another clock source or lockstep run on this bus: one source per run, so an alarm."""
+        run = key.rsplit("/", 1)[-1]
+        if not alive or run == self.run:
+            return
+        with self._cond:
+            if run in self.rivals or len(self.rivals) >= MAX_NAMES:
+                return
+            self.rivals.add(run)
+            stamp = self._last.stamp if self._last is not None else 0.0
+        log.warning("lockstep: another clock source %r is on the bus beside this run %r: two "
+                    "simulators (or a forger); participants follow only this one",
+                    _printable(run), _printable(self.run))
+        self._status(stamp)
+
+    def _on_done(self, sample) -> None:
+        d: StepDone = sample.message
+        name = sample.key.rsplit("/", 1)[-1]
+        with self._cond:
+            published = self._last.stamp if self._last is not None else None
+            if d.participant != name:
+                why = f"{_printable(name)!r} sent a StepDone naming {_printable(d.participant)!r}"
+            elif name not in self.participants:
+                why = f"{_printable(name)!r} holds no participant token"
+            elif d.run != self.run:
+                why = f"{_printable(name)!r} acknowledges run {_printable(d.run)!r}"
+            elif d.resync:
+                why = self._honour(name)
+            elif published is None or d.stamp > published + EPSILON:
+                why = f"{_printable(name)!r} acknowledges t={d.stamp:.3f}, not yet published"
+            elif d.sent and min(d.sent.values()) < 0:
+                why = f"{_printable(name)!r} counts fewer than no samples on a key"
+            else:
+                why = None
+            if why is not None:
+                self.dropped(why)
+            if why is not None or d.resync:
+                return
+            over = self.ledger.over_cap(name, d.sent, self.counts.sent.keys())
+            if over is not None:  # its answer counts, its claims do not
+                self.dropped(f"{_printable(name)!r}'s claims dropped: {_printable(over)}")
+                if name not in self.ledger.capped and len(self.ledger.capped) < MAX_NAMES:
+                    self.ledger.capped.add(name)
+                    self.forgiven += 1  # not waited for: the run is inexact
+                    self._tell = True
+            far = d.next > d.stamp + NEXT_HORIZON
+            if over is not None or far:  # far: stopped for again at least every NEXT_HORIZON s
+                d = StepDone(d.participant, d.stamp, {} if over is not None else d.sent,
+                             d.stamp + NEXT_HORIZON if far else d.next, d.run, d.forgiven)
+            prev = self.done.get(name)
+            if prev is not None and d.stamp < prev.stamp - EPSILON:
+                return  # an older answer overtaken by a newer one
+            self.ledger.answer(name, d)
+            if d.forgiven > self._their_forgiven.get(name, 0) and \
+                    (name in self._their_forgiven or len(self._their_forgiven) < MAX_NAMES):
+                self._their_forgiven[name] = d.forgiven
+                self._tell = True  # the next wait() publishes the status
+            self._due_at = None
+            if name in self.unresponsive and d.stamp >= published - EPSILON:
+                # answers the current step again: waited for (and stopped for) from now on
+                self.unresponsive.discard(name)
+                self._back.add(name)
+                self._cond.notify_all()
+            elif name in self._waiting and d.stamp >= self._stamp - EPSILON:
+                self._waiting.discard(name)
+                if not self._waiting:  # the last answer: wait() looks at the counts
+                    self._cond.notify_all()
+
+    def _honour(self, name: str) -> str | None:
+        """`name` asks for the current step with the whole table (it cannot follow the steps it
+        heard): at the next physics step, or at once if a step is being waited on. One request
+        per participant per REPORT_AFTER (a forger may ask in its name); None if honoured."""
+        now = self._wall()
+        if now - self._asked.get(name, now - REPORT_AFTER) < REPORT_AFTER:
+            return f"{_printable(name)!r} asked for the whole table again within {REPORT_AFTER} s"
+        self._asked[name] = now
+        self._resync = self._republish = self._whole = True
+        self._cond.notify_all()
+        return None
+
+    def _answered(self, name: str, stamp: float) -> bool:
+        d = self.done.get(name)
+        return d is not None and d.stamp >= stamp - EPSILON
+
+    def sent(self) -> dict[str, int]:
+        """What the next step requires: the simulator's own samples (sensor data: on the same
+        link as the step, but Zenoh may run the callbacks of two subscriptions concurrently)
+        and every participant's, cumulative counts per key."""
+        own = self.counts.sent
+        with self._cond:
+            out = dict(self.ledger.claims)
+        out.update(own)  # what it sent itself, it knows: nobody's claim on those counts
+        return out
+
+    def _poke(self) -> None:
+        """A sample was counted: what wait() is after once every participant has answered
+        (before that, an answer wakes it)."""
+        with self._cond:
+            if self._stamp is not None and not self._waiting:
+                self._cond.notify_all()
+
+    def due(self, stamp: float) -> bool:
+        """Must the simulator stop at `stamp`? Yes if a participant has something to do by
+        then (or has not said), asked for the whole table, or is given up and has not had it
+        for REPORT_AFTER; the steps in between run without a round trip."""
+        with self._cond:
+            if self._resync or (self.unresponsive and self._wall() >= self._resend_at):
+                return True
+            if self._due_at is None:  # recomputed only after answers or the set changed
+                due_at = float("inf")
+                for p in self.participants:
+                    if p in self.unresponsive:
+                        continue
+                    d = self.done.get(p)
+                    if d is None or d.next < 0:
+                        due_at = float("-inf")
+                        break
+                    due_at = min(due_at, d.next)
+                self._due_at = due_at
+            return self._due_at <= stamp + EPSILON
+
+    def claims(self, required: dict[str, int] | None = None) -> Claims:
+        """`sent()` by index in the run's key table (new keys appended)."""
+        required = self.sent() if required is None else required
+        table = self.table
+        table.add(required.keys())
+        return Claims(table, list(map(required.get, table.keys, itertools.repeat(0))))
+
+    def publish(self, stamp: float) -> None:
+        self.step += 1
+        required = self.sent()
+        if len(self.table) + len(required.keys() - self.table.index.keys()) > MAX_KEYS:
+            # keys of participants gone: a new table of the keys claimed now, sent whole (the
+            # caps keep those within MAX_KEYS, ledger.py)
+            self.table = KeyTable()
+            with self._cond:
+                self._whole = True
+        counts = self.claims(required).packed()
+        with self._cond:
+            now = self._wall()
+            if self.unresponsive and now >= self._resend_at:
+                self._resend_at = now + REPORT_AFTER  # those given up get the whole table
+                self._whole = True
+            base = 0 if self._whole or self._last is None else count_of(self._last)
+            table = self.table
+            step = Step(stamp, self.step, counts, table.keys[base:], base, table.digest,
+                        self.run, self.timeout)
+            self._last, self._republish, self._whole, self._resync = step, False, False, False
+        self.bus.publish(STEP, step)
+
+    def _whole_step(self, step: Step) -> Step:
+        """`step` with the whole table it counts by (for a newcomer, or one that missed keys)."""
+        if step.base == 0:
+            return step
+        return msgspec.structs.replace(step, keys=self.table.keys[:count_of(step)], base=0)
+
+    def wait(self, stamp: float, stop: threading.Event) -> None:
+        """Until every participant is done with `stamp` and its commands of that step have been
+        taken into account here (the counts in its StepDone; Zenoh may run two subscriptions'
+        callbacks out of order) — or the participant is given up for this time; it rejoins
+        when it answers again. Claims that cannot be met are forgiven (Books), never waited
+        for beyond count_wait."""
+        start = self._wall()
+        deadline = start + self.timeout
+        self._report_at = start + min(REPORT_AFTER, self.timeout)
+        answered_at: float | None = None  # when the last participant answered
+        report = False  # a change for lockstep/status
+        with self._cond:
+            self._stamp = stamp
+            self._waiting = {p for p in self.participants
+                             if p not in self.unresponsive and not self._answered(p, stamp)}
+        try:
+            report = self._wait(stamp, stop, deadline, answered_at, report)
+        finally:
+            with self._cond:
+                self._stamp, self._waiting = None, set()
+                report, self._tell = report or self._tell, False
+        if report:
+            self._status(stamp)
+
+    def _wait(self, stamp: float, stop: threading.Event, deadline: float,
+              answered_at: float | None, report: bool) -> bool:
+        while not stop.is_set():
+            with self._cond:
+                step, republish = self._last, self._republish
+                self._republish = False
+                if republish:
+                    self._resync = False  # the request is answered by this one
+            if republish and step is not None:
+                self.bus.publish(STEP, self._whole_step(step))
+            with self._cond:
+                now = self._wall()
+                waiting = self._waiting  # (kept up to date by _on_done, under this lock)
+                back, self._back = self._back, set()
+                if back:
+                    report = True
+                    log.warning("lockstep: %s answers again",
+                                ", ".join(_printable(p) for p in sorted(back)))
+                required = self.claims()
+                self.books.review(required)
+                missing = self.books.missing(required)
+                if not waiting and answered_at is None:
+                    answered_at = now
+                if not waiting and not missing:
+                    self.books.settle(required)
+                    break
+                late = answered_at is not None and \
+                    now - answered_at >= count_wait(self.timeout)
+                forgive = missing if late or now >= deadline else self.books.at_once(missing)
+                if forgive:
+                    if self.books.forgive(forgive, required):  # a claimant's first, in a window
+                        self.forgiven += 1
+                        report = True
+                    self.dropped(f"claims of {sum(forgive.values())} samples on "
+                                 f"{', '.join(_printable(k) for k in sorted(forgive)[:3])} that "
+                                 f"did not arrive by t={stamp:.2f}: forgiven")
+                    continue
+                if waiting and now >= self._report_at < deadline:
+                    self._report_at = deadline  # once per step
+                    self._republish = True  # with the whole key table: it may have missed keys
+                    log.warning("lockstep: %s did not finish t=%.2f within %.1f s; still waited "
+                                "for while it holds its participant token (given up after "
+                                "%.1f s)", ", ".join(_printable(p) for p in sorted(waiting)),
+                                stamp, REPORT_AFTER, self.timeout)
+                if self.unresponsive and now >= self._resend_at:
+                    # one given up may be passing steps over for want of the table (it left
+                    # the waiting set, so the lines above no longer reach it)
+                    self._resend_at = now + REPORT_AFTER
+                    self._republish = True
+                if now >= deadline:
+                    waiting, self._waiting = set(waiting), set()
+                    self.unresponsive |= waiting
+                    self.given_up += len(waiting)
+                    self._due_at = None
+                    log.warning("lockstep: %s did not finish t=%.2f within %.1f s: no longer "
+                                "waited for", ", ".join(_printable(p) for p in sorted(waiting)),
+                                stamp, self.timeout)
+                    report = True
+                    break
+                self._cond.wait(min(deadline - now, 0.05))
+        return report
+
+    def _status(self, stamp: float) -> None:
+        with self._cond:
+            status = LockstepStatus(stamp, tuple(sorted(self.unresponsive)), self.dropped.count,
+                                    tuple(sorted(self.rivals)), self.given_up,
+                                    self.forgiven + sum(self._their_forgiven.values()))
+        self.bus.publish(STATUS, status)
+
+    def close(self) -> None:
+        for h in self.handles:
+            h.close()
+        self.counts.close()
+
+    def __enter__(self) -> "Barrier":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
