@@ -58,7 +58,7 @@ from .api import Refresh, attach
 from .ground_truth import intervals_from
 from .plots import TimeBase, plot_timeline, replay
 from .state import Supervisor
-from .summary import (SECTIONS, Coverage, FailureReport, MessageRates, Span, Summary,
+from .summary import (Coverage, FailureReport, MessageRates, Span, Summary, checked_sections,
                       write_summary)
 
 log = logging.getLogger("mrta.mission")
@@ -73,12 +73,18 @@ class Mission:
     Set `name`, `title` and `launch` (a launch file in each application package configured for
     the mission: the simulator and the agents, taking the args `speed`, `seed` and `sim_args`);
     override `metrics` to add what only the application can measure, `describe` to print it,
-    and `default_failure` to pick which robot fails by default."""
+    and `default_failure` to pick which robot fails by default. An application with summary
+    sections of its own names their type in `summary_sections` (a summary.SummarySections
+    subclass) and returns one from `sections`."""
 
     name: str = ""
     title: str = ""
     launch: str = ""
     default: bool = False  # the mission `mrta demo` runs when several are registered
+    summary_sections: type | None = None  # its summary.json sections (summary.SummarySections)
+    # which direction is better for each of its `metrics` ("lower" or "higher"): the
+    # experiment report's comparisons say so (A12, the probability of improvement, profiles)
+    better: dict[str, str] = {}
 
     def default_failure(self, robots: list[str], duration: float) -> str | None:
         """The failure `mrta demo` injects when none is given: the second robot at half time
@@ -95,10 +101,11 @@ class Mission:
         """Lines for the printed summary."""
         return []
 
-    def sections(self, run: "MissionRun", records: list) -> dict[str, Any]:
-        """Top-level sections of summary.json only this application has (SECTIONS: e.g. a
-        point-task mission's `instance` and `allocation`, docs/delivery.md)."""
-        return {}
+    def sections(self, run: "MissionRun", records: list) -> Any:
+        """Top-level sections of summary.json only this application has, as its
+        `summary_sections` type (e.g. a point-task mission's `instance` and `allocation`,
+        docs/delivery.md); None: none."""
+        return None
 
 
 @dataclass(frozen=True)
@@ -424,16 +431,11 @@ def _watch(sim: Child, sup: Supervisor, clock: SimClock, agents: dict[str, Child
 
 
 # ------------------------------------------------------------------ the summary
-def mission_sections(run: MissionRun, records: list) -> dict[str, Any]:
-    """The mission hook's own top-level sections of summary.json, checked by name (a typo in
-    an application's hook is a ConfigError, not a silently dropped section)."""
-    extra = run.mission.sections(run, records)
-    unknown = sorted(set(extra) - set(SECTIONS))
-    if unknown:
-        raise ConfigError(f"mission {run.mission.name!r} returned unknown summary sections "
-                          f"{', '.join(unknown)}; known: {', '.join(SECTIONS)}"
-                          + did_you_mean(unknown[0], SECTIONS))
-    return extra
+def mission_sections(run: MissionRun, records: list) -> Any:
+    """The mission hook's own summary sections, as the type it declares (summary.py checks
+    them: a section it did not declare is a ConfigError, not a silently dropped one)."""
+    return checked_sections(run.mission.name, run.mission.summary_sections,
+                            run.mission.sections(run, records))
 
 
 def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
@@ -495,7 +497,7 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
         messages=message_rates(records, run.arch, max(min(t1, run.options.duration) - t0, 1e-9),
                                tb),
         metrics=run.mission.metrics(run, records), failure=report,
-        output=str(output), files=[], **mission_sections(run, records))
+        output=str(output), files=[], sections=mission_sections(run, records))
     # what this run wrote: new or changed files (an earlier run's are neither), and the
     # summary itself, written next
     before = before or {}

@@ -6,19 +6,66 @@ recording. Both packages (delivery, delivery_murdoch) hold `launch/delivery_sim.
 layers file whose `Delivery` section is the instance.
 
 `metrics` lands in summary.json's `metrics` (scalars: also `mrta experiment`'s columns);
-`sections` is the instance and the allocation log, for the top-level `instance` and
-`allocation` sections of summary.json (the runner merges what it returns, once it calls it).
+`sections` is the instance and the allocation log, the top-level `instance` and `allocation`
+of summary.json: delivery's own schema (`DeliverySections`, declared as the Mission's
+`summary_sections`), which `read_summary` checks a summary against when it reads one back.
 """
 
 from __future__ import annotations
 
 from typing import Any
 
+import msgspec
+
 from mrta_agent.runtime.params import load_layers_params
 from mrta_supervisor.mission import Mission, MissionRun
+from mrta_supervisor.summary import SummarySections
 
 from .instance import DeliveryParams
 from .metrics import RunAnalysis, analyse, instance_json
+
+
+class _Section(msgspec.Struct, forbid_unknown_fields=True):
+    pass
+
+
+class RobotEntry(_Section):
+    id: str
+    start: tuple[float, float]
+    speed: float
+    capabilities: list[str]
+
+
+class TaskEntry(_Section):
+    id: str
+    position: tuple[float, float]
+    arrival: float
+    service: float
+    capability: str
+
+
+class InstanceSection(_Section):
+    """The instance a run served (metrics.instance_json): robots, tasks, the cost matrix."""
+
+    robots: list[RobotEntry]
+    tasks: list[TaskEntry]
+    cost: list[list[float | None]]   # cost[i][j]: robot i's travel time to task j (None: cannot)
+    cost_model: str
+
+
+class AllocationEntry(_Section):
+    """One stretch a robot held a task (metrics.Entry)."""
+
+    task: str
+    robot: str
+    assigned_at: float
+    started_at: float | None
+    done_at: float | None
+
+
+class DeliverySections(SummarySections):
+    instance: InstanceSection
+    allocation: list[AllocationEntry]
 
 
 def run_instance(run: MissionRun) -> DeliveryParams:
@@ -34,6 +81,10 @@ class Delivery(Mission):
     name = "delivery"
     title = "Delivery mission"
     launch = "delivery_sim.launch"
+    summary_sections = DeliverySections
+    better = {"makespan": "lower", "total_distance": "lower", "mean_waiting_time": "lower",
+              "achieved_cost": "lower", "optimality": "higher", "completed": "higher",
+              "assigned": "higher", "handovers": "lower"}
 
     def __init__(self) -> None:
         self._last: tuple[int, RunAnalysis] | None = None
@@ -54,10 +105,10 @@ class Delivery(Mission):
     def metrics(self, run: MissionRun, records: list) -> dict[str, Any]:
         return self.analysis(run, records).metrics
 
-    def sections(self, run: MissionRun, records: list) -> dict[str, Any]:
+    def sections(self, run: MissionRun, records: list) -> DeliverySections:
         a = self.analysis(run, records)
-        return {"instance": instance_json(a.instance),
-                "allocation": [e.to_json() for e in a.log]}
+        return msgspec.convert({"instance": instance_json(a.instance),
+                                "allocation": [e.to_json() for e in a.log]}, DeliverySections)
 
     def describe(self, metrics: dict[str, Any]) -> list[str]:
         opt = metrics.get("optimality")
