@@ -121,6 +121,7 @@ class MissionOptions:
     seed: int = 0
     lockstep: bool = True
     foxglove_port: int | None = None
+    plots: bool = True                # the pictures (world, timeline, the architecture's own)
 
 
 @dataclass(frozen=True)
@@ -348,7 +349,8 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
             before: dict[str, tuple[int, int, int]]) -> tuple[MissionRun, Summary]:
     options, output = run.options, run.options.output
     launch_args = {"speed": str(options.speed), "seed": str(options.seed),
-                   "sim_args": f"--duration {options.duration} --snapshot {output / 'world.png'}"
+                   "sim_args": f"--duration {options.duration}"
+                               + (f" --snapshot {output / 'world.png'}" if options.plots else "")
                                + (" --lockstep" if options.lockstep else "")}
     nodes = LaunchEvaluator(lambda name: reg.find(name).path).run(
         run.package.path / "launch" / run.mission.launch, launch_args)
@@ -455,9 +457,10 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
     failures = [(failure.robot, failed_at)] if failure and failure.kind == "crash" \
         and failed_at is not None else []
     intervals = intervals_from(records, run.arch, t1, run.arch.doing_stale_after, failures)
-    plot_timeline(output / "run.mcap", run.app, run.arch_model, output / "timeline.png",
-                  records, sup)
-    run.arch.plots(output / "run.mcap", run.robots, run.app.tasks(), output, records)
+    if run.options.plots:
+        plot_timeline(output / "run.mcap", run.app, run.arch_model, output / "timeline.png",
+                      records, sup)
+        run.arch.plots(output / "run.mcap", run.robots, run.app.tasks(), output, records)
     who = {rid: [Span(t, round(a, 3), round(b, 3))
                  for t, a, b in sorted(intervals.get(rid, []), key=lambda x: x[1])]
            for rid in run.robots}
