@@ -129,7 +129,10 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
     runs = exp.runs()
     pictures = {next(r.index for r in runs if r.cell == c) for c in exp.cells()} if plots \
         else set()
-    context = Context(resolved.mission.name, pkg.name, resolved.arch.name, exp.spec.duration)
+    # the application as the file names it, not the package configured for the architecture
+    # (patrol_murdoch): runs of one application under two architectures are of one instance
+    context = Context(resolved.mission.name, exp.spec.application, resolved.arch.name,
+                      exp.spec.duration)
     results = Results(output / "results.csv", len(runs), progress, context)
     backend = _Backend(pkg, exp.spec.duration, output, jobs, scheduler, stop, results, pictures)
     backend.run(runs)
@@ -137,8 +140,9 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
     if until:
         precision = _until_precise(exp, backend, runs, until, block, max_runs, report)
     rows = results.finish()
-    options = replace(report, plots=plots, metrics=_with_targets(report.metrics, until))
-    write_report(output / "results.csv", output, options, precision)
+    if rows:  # a Ctrl-C before any run ended leaves nothing to report
+        options = replace(report, plots=plots, metrics=_with_targets(report.metrics, until))
+        write_report(output / "results.csv", output, options, precision)
     if stop.is_set():
         raise Interrupted(f"stopped after {len(rows)} of {plural(results.total, 'run')}; "
                           f"{results.path} has them")
@@ -158,10 +162,11 @@ def _until_precise(exp: Experiment, backend: "_Backend", runs: list[Run],
     docstring); the precision reached, for summary.md."""
     used = sorted(exp.spec.seeds)
     total, blocks = len(runs), 1
-    while True:
+    missed: list[tuple[str, str, float | None]] = []
+    while not backend.stop.is_set():
         backend.results.finish()  # results.csv in run order: the report reads it
         missed = missed_targets(backend.results.path, until, report)
-        if not missed or backend.stop.is_set():
+        if not missed:
             break
         seeds = list(range(used[-1] + 1, used[-1] + 1 + block))
         more = exp.runs(seeds, first=total)

@@ -24,6 +24,7 @@ from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.limits import MAX_RUNS
 
 from .experiment import parse_target, run_experiment
+from .experiment_runs import prepare_output
 from .report import Options
 from .report_md import write_report
 
@@ -166,8 +167,6 @@ def report(results: Path, output: Path | None, baseline: str | None,
     """Rebuild summary.md, cells.csv, comparisons.csv and the plots from RESULTS_DIR's
     results.csv, running nothing."""
     if output is not None:
-        from .experiment_runs import prepare_output
-
         prepare_output(output)
     where = output or (results if results.is_dir() else results.parent)
     write_report(results, output, Options(baseline=baseline, metrics=metrics, plots=plots))

@@ -335,12 +335,12 @@ def profile_data(report: Report, metric: str) -> tuple[dict[str, list[float]],
     """Performance ratios per variant over the problems — each (group, instance), its value the
     mean over that instance's runs — against the best variant, and against the reference column
     (metrics.reference_X for metrics.X) when the results have one. Empty without a better
-    direction or a second variant."""
+    direction or a second architecture."""
     better = report.better.get(metric)
+    if better is None or report.axis is None:  # profiles compare architectures, not cells
+        return {}, None
     groups = _groups(report)
     names = sorted({name for variants in groups.values() for name in variants})
-    if better is None or len(names) < 2:
-        return {}, None
     table = report.table
     ref_col = REFERENCE + metric.removeprefix("metrics.")
     has_ref = metric.startswith("metrics.") and ref_col in table.columns

@@ -18,6 +18,7 @@ from .report import Cell, Options, Report, build
 from .results import read_results, write_csv
 
 SHARE = (".exactly_one", ".none", ".more_than_one")  # shares of the run, shown in %
+SMALL = 5  # below this many values a bootstrap interval is at most the values' range
 BETTER_WORDS = {stats.LOWER: "lower is better", stats.HIGHER: "higher is better",
                 None: "which direction is better is not declared"}
 
@@ -56,9 +57,15 @@ def scale_of(metric: str) -> tuple[float, str]:
     return (100.0, " %") if metric.endswith(SHARE) else (1.0, "")
 
 
+TITLES = {"takeover_seconds": "takeover (s)", "first_full_allocation": "first full allocation (s)",
+          "coordination_messages_per_second": "coordination msgs/s",
+          "messages_per_second": "all msgs/s", "namespace_messages_per_second": "namespace msgs/s"}
+
+
 def title(metric: str) -> str:
-    if metric == "takeover_seconds":
-        return "takeover (s)"
+    """A column's name in a table's header (its section heading names the column too)."""
+    if metric in TITLES:
+        return TITLES[metric]
     if metric.endswith(".exactly_one"):
         return metric.removesuffix(".exactly_one") + " covered"
     return metric.removeprefix("metrics.")
@@ -161,7 +168,12 @@ def _overview(report: Report) -> list[str]:
     for cell in report.cells:
         lines.append(f"| {cell.label} | {len(cell.rows)} ({len(cell.rows) - len(cell.ok)}) | "
                      + " | ".join(brief(report.figure(cell, m), m) for m in ms) + " |")
-    return lines + ["", _bootstrap_note(report, [f.figures.interval for f in report.figures])]
+    lines += ["", _bootstrap_note(report, [f.figures.interval for f in report.figures])]
+    if any(2 <= f.figures.n < SMALL and not f.figures.identical for f in report.figures):
+        lines += ["", f"A cell of fewer than {SMALL} runs: its bootstrap interval cannot be wider "
+                      "than the range of its values and understates the uncertainty (the "
+                      "Student's t interval in the tables below shows how much)."]
+    return lines
 
 
 def _details(report: Report) -> list[str]:

@@ -180,3 +180,30 @@ def test_an_application_metric_not_measured_is_refused_after_the_first_block(tmp
     assert result.exit_code == 2, result.output
     assert "results.csv:1: no column 'metrics.makespan'" in result.output
     assert len(rows(tmp_path / "o")) == 4  # what ran is kept
+
+
+def test_every_row_names_the_parameters_of_its_cell(tmp_path, missions):
+    """Under another architecture the application is still the file's (patrol, not the package
+    patrol_murdoch): runs of one application under two architectures pair as one instance."""
+    f = tmp_path / "exp.yaml"
+    f.write_text("application: patrol\narchitecture: murdoch\nduration: 10\nseeds: [4]\n"
+                 "overrides:\n  robot*.lease_timeout: [2.0, 3.0]\n")
+    experiment.run_experiment(file=f, output=tmp_path / "o", jobs=1, plots=False)
+    got = rows(tmp_path / "o")
+    assert [(r["mission"], r["application"], r["architecture"], r["duration"], r["failure"],
+             r["robot*.lease_timeout"], r["seed"]) for r in got] == [
+        ("patrol", "patrol", "murdoch", "10.0", "none", "2.0", "4"),
+        ("patrol", "patrol", "murdoch", "10.0", "none", "3.0", "4")]
+
+
+def test_a_stop_before_any_run_ends_is_interrupted_not_an_error(tmp_path, missions):
+    import threading
+
+    from mrta_zenoh.errors import Interrupted
+
+    stop = threading.Event()
+    stop.set()
+    with pytest.raises(Interrupted, match="stopped after 0 of 4 runs"):
+        experiment.run_experiment(file=exp_file(tmp_path), output=tmp_path / "o", jobs=1,
+                                  stop=stop, until={"takeover_seconds": 0.1})
+    assert missions == []
