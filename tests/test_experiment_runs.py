@@ -207,3 +207,39 @@ def test_a_stop_before_any_run_ends_is_interrupted_not_an_error(tmp_path, missio
         experiment.run_experiment(file=exp_file(tmp_path), output=tmp_path / "o", jobs=1,
                                   stop=stop, until={"takeover_seconds": 0.1})
     assert missions == []
+
+
+def test_the_backends_share_the_run_helpers_without_an_import_circle():
+    """The Dask backend imports the run helpers, not the module that imports it."""
+    import ast
+
+    from tests.helpers import ROOT
+
+    def imports(name: str) -> set[str]:
+        tree = ast.parse((ROOT / "supervisor" / f"{name}.py").read_text())
+        return {node.module for node in ast.walk(tree)
+                if isinstance(node, ast.ImportFrom) and node.level == 1 and node.module}
+
+    assert "experiment" not in imports("experiment_dask")
+    assert "experiment" not in imports("experiment_runs") | imports("experiment_file")
+    assert {"experiment_file", "experiment_runs"} <= imports("experiment_dask")
+
+
+@pytest.mark.multiprocess
+@pytest.mark.timeout(240)
+def test_a_demo_without_plots_draws_no_picture_and_measures_the_same(children, tmp_path):
+    import json
+
+    out = {}
+    for plots in (True, False):
+        out[plots] = tmp_path / str(plots)
+        demo = children.mrta("-q", "demo", "--duration", "8", "--speed", "0", "--seed", "3",
+                             "--fail", "none", "--no-live", "--output", out[plots],
+                             *([] if plots else ["--no-plots"]), name=f"demo {plots}")
+        assert demo.wait(200) == 0, demo.tail(20)
+    assert not list(out[False].glob("*.png")) and (out[False] / "run.mcap").stat().st_size
+    assert {"world.png", "timeline.png"} <= {p.name for p in out[True].glob("*.png")}
+    drawn, bare = (json.loads((out[p] / "summary.json").read_text()) for p in (True, False))
+    for s in (drawn, bare):
+        s.pop("wall_seconds"), s.pop("output"), s.pop("files")
+    assert drawn == bare  # the pictures change nothing measured

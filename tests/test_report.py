@@ -15,6 +15,7 @@ from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
 from mrta_supervisor.stats import SEED
+from tests.test_stats import holm_by_definition
 
 TAKEOVER = {"alliance": [3.1, 2.9, 3.4, 3.0, 3.8, 2.7], "murdoch": [2.3, 2.4, 2.3, 2.2, 2.9, 2.3]}
 MAKESPAN = {"alliance": [25.0, None, 27.5, 24.0, 26.0, 25.5],    # seed 2: a task never served
@@ -96,15 +97,6 @@ def test_a_metric_missing_in_some_runs_is_counted_apart_never_averaged_as_zero(t
     assert "± 0.00" not in md
 
 
-def brute_force_holm(p: list[float]) -> list[float]:
-    m = len(p)
-    order = sorted(range(m), key=lambda i: p[i])
-    out = [0.0] * m
-    for pos, i in enumerate(order):
-        out[i] = min(1.0, max((m - j) * p[order[j]] for j in range(pos + 1)))
-    return out
-
-
 def test_comparisons_are_paired_by_seed_with_wilcoxon_holm_a12_and_improvement(tmp_path):
     data = rows()
     # a second group of the other parameters, so a metric's Holm family has two members
@@ -131,7 +123,7 @@ def test_comparisons_are_paired_by_seed_with_wilcoxon_holm_a12_and_improvement(t
     tested = [c for c in comps if c["wilcoxon_p"]]
     assert len(tested) == 2  # fail=none has no takeover: no pair, out of the family
     assert [float(c["holm_p"]) for c in tested] == pytest.approx(
-        brute_force_holm([float(c["wilcoxon_p"]) for c in tested]))
+        holm_by_definition([float(c["wilcoxon_p"]) for c in tested]))
     md = (folder / "summary.md").read_text()
     assert "Holm family: the 2 comparisons of `takeover_seconds` with a p-value in this table " \
            "(1 without one" in md
