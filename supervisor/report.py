@@ -5,8 +5,8 @@ report_md.write_report, which writes summary.md, cells.csv, comparisons.csv and 
 (report_plots.py).
 
 Cells: the runs that share every parameter column (results.py) but the instance and the seed.
-Within a cell, runs are grouped by instance (no `instance` column: one instance per application
-package) for the two-level bootstrap. Comparisons: when the results hold several architectures,
+Within a cell, runs are grouped by instance (no `instance` column: one instance per
+application, the `application` column) for the two-level bootstrap. Comparisons: when the results hold several architectures,
 each other architecture against the baseline one within each cell of the other parameters,
 paired by (instance, seed) — with the failure and the overrides fixed by the cell, that is the
 same (instance, seed, failure); otherwise every cell against the baseline cell, paired the same
@@ -109,7 +109,8 @@ class Report:
 
 
 def instance_of(table: ResultsTable, row: dict[str, str]) -> str:
-    """The row's instance: its `instance` column, or its application package's one instance."""
+    """The row's instance: its `instance` column, or its application's one instance (the
+    application as the experiment file names it: the same under every architecture)."""
     if INSTANCE in table.columns:
         return row[INSTANCE]
     return row.get("application", "")

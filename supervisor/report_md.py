@@ -143,7 +143,7 @@ def _intro(report: Report) -> str:
     seeds = sorted({int(r["seed"]) for r in report.table.rows})
     instances = sorted({report.instance(r) for r in report.table.rows})
     where = ("`instance` column" if "instance" in report.table.columns
-             else "one per application package: no `instance` column")
+             else "one per application: no `instance` column")
     return (f"Runs over seeds ({', '.join(map(str, seeds))}); "
             f"{plural(len(instances), 'instance')} ({where}); "
             f"{plural(len(report.cells), 'cell')}. Each figure is over the runs of a cell that "
