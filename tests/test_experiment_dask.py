@@ -176,8 +176,9 @@ def test_the_cluster_gives_the_rows_of_the_local_backend(cluster, children, tmp_
         assert ra["taken_over_by"] in ("robot1", "robot3"), ra  # a takeover to compare
         assert who_did_what(tmp_path / "remote", ra) == who_did_what(tmp_path / "local", rb)
         folder = tmp_path / "remote" / f"run{int(ra['run']):03d}"
-        assert {p.name for p in folder.iterdir()} >= {"run.mcap", "summary.json",
-                                                      "timeline.png"}
+        assert {p.name for p in folder.iterdir()} >= {"run.mcap", "summary.json"}
+        # the pictures: drawn by the first run of the cell only, on the worker as here
+        assert ("timeline.png" in {p.name for p in folder.iterdir()}) == (ra["run"] == "0")
         summary = json.loads((folder / "summary.json").read_text())
         assert summary["output"] == str(folder)  # here, not the worker's scratch folder
     assert (tmp_path / "remote" / "summary.md").read_text().count("fail=robot2@10") >= 1
