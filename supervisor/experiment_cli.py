@@ -110,8 +110,9 @@ def report_options(f):
 
 @click.group(cls=ExperimentGroup, invoke_without_command=False, no_args_is_help=True)
 def experiment() -> None:
-    """Run an experiment file's matrix of runs and summarise it, or rebuild a report from
-    results.csv: `mrta experiment FILE.yaml [OPTIONS]`, `mrta experiment report DIR`."""
+    """Run an experiment file's matrix of runs and summarise it (`mrta experiment FILE.yaml
+    [OPTIONS]`, the `run` command: `mrta experiment run --help` lists its options), or rebuild
+    the report of a finished one from its results.csv (`mrta experiment report DIR`)."""
 
 
 @experiment.command(RUN)
