@@ -179,7 +179,7 @@ def _until_precise(exp: Experiment, backend: "_Backend", runs: list[Run],
         used += seeds
         total += len(more)
         blocks += 1
-    return Precision(until, total, max_runs, blocks, missed)
+    return Precision(until, total, max_runs, blocks, missed, backend.stop.is_set())
 
 
 def missed_targets(results: Path, until: dict[str, float], report: Options = Options()

@@ -32,6 +32,7 @@ class Precision:
     max_runs: int
     blocks: int
     missed: list[tuple[str, str, float | None]] = field(default_factory=list)  # cell, metric, hw
+    stopped: bool = False  # a Ctrl-C ended the blocks, not the cap
 
 
 def write_report(results: Path, output: Path | None = None, options: Options = Options(),
@@ -243,8 +244,9 @@ def _precision(report: Report, p: Precision) -> list[str]:
                 f"({asked}) after {plural(p.blocks, 'block')}, {plural(p.runs, 'run')}.", ""]
     lines = ["## Precision not reached", "",
              f"`--until-ci` asked for bootstrap half-widths {asked}; after "
-             f"{plural(p.blocks, 'block')}, {plural(p.runs, 'run')} (the cap, --max-runs "
-             f"{p.max_runs:,}, leaves no room for another block) these cells are wider:", "",
+             f"{plural(p.blocks, 'block')}, {plural(p.runs, 'run')} ("
+             + ("stopped by the user" if p.stopped else f"the cap, --max-runs {p.max_runs:,}, "
+                "leaves no room for another block") + ") these cells are wider:", "",
              "| cell | metric | half-width | asked |", "| --- | --- | --- | --- |"]
     for cell, m, hw in p.missed:
         lines.append(f"| {cell} | `{m}` | "
