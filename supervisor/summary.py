@@ -214,7 +214,7 @@ def read_summary(path: Path) -> Summary:
             if data.get(key, 0) is None:
                 del data[key]
     extra = {k: data.pop(k) for k in list(data) if k not in FRAMEWORK_KEYS}
-    data["schema"] = SCHEMA  # read as what it is now: sections apart
+    data["schema"] = SCHEMA  # read as this schema: the sections apart
     try:
         summary = msgspec.convert(data, Summary)
     except msgspec.ValidationError as exc:

@@ -1,6 +1,6 @@
 """`python benchmarks/compare_architectures.py`: its tables come from the experiment report
 (docs/statistics.md), and it writes docs/comparison.md and the README only when asked
-(`--write-docs`) — run as the README writes it, it used to rewrite both."""
+(`--write-docs`), not when run as the README writes it."""
 
 from __future__ import annotations
 

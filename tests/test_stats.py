@@ -1,4 +1,4 @@
-"""The report's statistics against independent computations (issue 41, point 7): scipy called
+"""The report's statistics against independent computations: scipy called
 directly, brute-force enumerations and the definitions, never the code under test."""
 
 from __future__ import annotations
