@@ -1,10 +1,13 @@
-"""`mrta experiment FILE.yaml`: a thin click wrapper over mrta_supervisor.experiment.
+"""`mrta experiment FILE.yaml` and `mrta experiment report DIR`: thin click wrappers over
+mrta_supervisor.experiment (the runs) and mrta_supervisor.report_md (the report alone).
 
-Progress goes to stderr, as runs end, so stdout holds only the result (the summary a script
-reads): on a terminal a live bar; into a pipe or a file one plain line per finished run
-(`run 3/10: ok, 12.4 s`), nothing with `-q`. The bar used to go to stdout, where rich draws a
-non-terminal only at the end. Ctrl-C stops the runs, keeps the finished rows and exits 130
-(mrta_zenoh.errors.Interrupted, translated once in mrta_zenoh.cli.main).
+`experiment` is a group whose default command runs a file, so both spellings work: a first
+argument that is not `report` (nor `run`, nor --help) is a file to run. Progress goes to
+stderr, so stdout holds only the result (the summary a script reads): on a terminal a live bar
+whose total is known from the start (it grows with each block of --until-ci); into a pipe or a
+file one line per finished run, `[3/10] run002 ok, 12.4 s` — the count of runs done, then the
+run's own name, the one its folder and results.csv's `run` column carry; nothing with `-q`.
+Ctrl-C stops the runs, keeps the finished rows and exits 130.
 """
 
 from __future__ import annotations
@@ -16,47 +19,108 @@ from typing import Callable, Iterator
 import click
 
 from mrta_zenoh.cli.common import console, plural, verbosity
-from mrta_zenoh.errors import MrtaRuntimeError
+from mrta_zenoh.errors import ConfigError, MrtaRuntimeError
 from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.limits import MAX_RUNS
 
-from .experiment import run_experiment
+from .experiment import parse_target, run_experiment
+from .experiment_runs import prepare_output
+from .report import Options
+from .report_md import write_report
 
-Progress = Callable[[int, int, dict], None]
+Progress = Callable[[int, int, "dict | None"], None]
+RUN, REPORT = "run", "report"
 
 
 @contextlib.contextmanager
 def progress_reporter() -> Iterator[Progress | None]:
-    """The progress callback for run_experiment: a live bar on a terminal's stderr, a line per
-    run on a non-terminal stderr, None (silent) with -q."""
+    """The progress callback for run_experiment: `(done, total, row)` as each run ends, and
+    `(done, total, None)` when the total is known or grows. A live bar on a terminal's stderr,
+    a line per run on a non-terminal stderr, None (silent) with -q."""
     if verbosity() < 0:
         yield None
         return
     err = console(stderr=True)
     if not err.is_terminal:
-        def line(done: int, total: int, row: dict) -> None:
-            click.echo(f"run {done}/{total}: run {row['run']} {row['status']}, "
-                       f"{row['wall_seconds']:.1f} s", err=True)
+        def line(done: int, total: int, row: dict | None) -> None:
+            if row is not None:
+                click.echo(f"[{done}/{total}] run{row['run']:03d} {row['status']}, "
+                           f"{row['wall_seconds']:.1f} s", err=True)
         yield line
         return
     from rich.progress import (BarColumn, MofNCompleteColumn, Progress as Bar, TextColumn,
                                TimeElapsedColumn)
 
-    with Bar(TextColumn("[bold]runs"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
-             TextColumn("{task.description}"), console=err, transient=False) as bar:
-        task = bar.add_task("", total=None)
+    bar = Bar(TextColumn("[bold]runs"), BarColumn(), MofNCompleteColumn(), TimeElapsedColumn(),
+              TextColumn("{task.description}"), console=err, transient=False)
+    tasks: list = []
 
-        def update(done: int, total: int, row: dict) -> None:
-            bar.update(task, completed=done, total=total,
-                       description=f"last: run {row['run']} {row['status']}")
+    def update(done: int, total: int, row: dict | None) -> None:
+        if not tasks:  # drawn once the total is known: never `0/?`
+            bar.start()
+            tasks.append(bar.add_task("", total=total))
+        last = "" if row is None else f"last: run{row['run']:03d} {row['status']}"
+        bar.update(tasks[0], completed=done, total=total, description=last)
+    try:
         yield update
+    finally:
+        if tasks:
+            bar.stop()
 
 
-@click.command()
+class ExperimentGroup(click.Group):
+    """`mrta experiment FILE …` runs FILE (the `run` command); `mrta experiment report DIR`
+    makes the report of a finished one."""
+
+    def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
+        if args and args[0] not in self.commands and args[0] not in ctx.help_option_names:
+            args = [RUN, *args]
+        return super().parse_args(ctx, args)
+
+    def format_usage(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
+        formatter.write_usage(ctx.command_path, "FILE.yaml [OPTIONS]  |  report RESULTS_DIR "
+                                                "[OPTIONS]")
+
+
+def _targets(ctx, param, values: tuple[str, ...]) -> dict[str, float]:
+    try:
+        return dict(parse_target(v) for v in values)
+    except ConfigError as exc:
+        raise click.BadParameter(exc.detail, ctx, param) from None
+
+
+def _metrics(ctx, param, values: tuple[str, ...]) -> tuple[str, ...] | None:
+    names = tuple(m.strip() for v in values for m in v.split(",") if m.strip())
+    return names or None
+
+
+def report_options(f):
+    """The options that shape a report, shared by both commands."""
+    f = click.option("--baseline", metavar="NAME", default=None,
+                     help="Compare every other architecture (or, with one architecture, every "
+                          "other cell) with this one; default: the first in sorted order.")(f)
+    f = click.option("--metrics", multiple=True, metavar="COLUMN[,COLUMN…]", callback=_metrics,
+                     help="The results.csv columns to report (repeatable); default: every "
+                          "measured column with numbers.")(f)
+    f = click.option("--plots/--no-plots", default=True, show_default=True,
+                     help="Draw pictures: with --no-plots, no run draws its own and the report "
+                          "draws none (the recordings are kept: `mrta plot` draws any later).")(f)
+    return f
+
+
+@click.group(cls=ExperimentGroup, invoke_without_command=False, no_args_is_help=True)
+def experiment() -> None:
+    """Run an experiment file's matrix of runs and summarise it (`mrta experiment FILE.yaml
+    [OPTIONS]`, the `run` command: `mrta experiment run --help` lists its options), or rebuild
+    the report of a finished one from its results.csv (`mrta experiment report DIR`)."""
+
+
+@experiment.command(RUN)
 @click.argument("file", type=click.Path(dir_okay=False, path_type=Path))
 @click.option("--output", type=click.Path(file_okay=False, path_type=Path),
               default=Path("experiment-output"), show_default=True,
-              help="Folder for results.csv, summary.md, plots and one folder per run.")
+              help="Folder for results.csv, summary.md, cells.csv, comparisons.csv, plots and "
+                   "one folder per run.")
 @click.option("--jobs", type=click.IntRange(min=1), default=None,
               show_default="one per CPU",
               help="Runs at once on this machine (each on its own private rendezvous).")
@@ -64,17 +128,47 @@ def progress_reporter() -> Iterator[Progress | None]:
               help="Run every run as a task on this Dask cluster instead (workers started with "
                    "--resources runs=1; needs pip install 'mrta-zenoh[dask]').")
 @click.option("--max-runs", type=click.IntRange(min=1), default=MAX_RUNS, show_default=True,
-              help="Refuse a matrix of more runs than this (seeds × failures × overrides).")
-def experiment(file: Path, output: Path, jobs: int | None, scheduler: str | None,
-               max_runs: int) -> None:
+              help="Refuse a matrix of more runs than this (seeds × failures × overrides); "
+                   "with --until-ci, the cap on every run it adds too.")
+@click.option("--until-ci", "until", multiple=True, metavar="METRIC:HALF_WIDTH",
+              callback=_targets,
+              help="Add seeds in blocks until the 95 % bootstrap interval of METRIC (a "
+                   "results.csv column) is narrower than ± HALF_WIDTH in every cell "
+                   "(repeatable), or --max-runs is reached.")
+@click.option("--block", type=click.IntRange(min=1), default=1, show_default=True,
+              help="Seeds each --until-ci block adds to every cell.")
+@report_options
+def run(file: Path, output: Path, jobs: int | None, scheduler: str | None, max_runs: int,
+        until: dict[str, float], block: int, baseline: str | None,
+        metrics: tuple[str, ...] | None, plots: bool) -> None:
     """Run the matrix of FILE (seeds × failures × parameter overrides) and summarise it."""
     with stop_on_signals() as stop, progress_reporter() as progress:
         rows = run_experiment(file=file, output=output, jobs=jobs, stop=stop, progress=progress,
-                              scheduler=scheduler, max_runs=max_runs)
+                              scheduler=scheduler, max_runs=max_runs, until=until or None,
+                              block=block, plots=plots,
+                              report=Options(baseline=baseline, metrics=metrics))
     failed = sum(r["status"] != "ok" for r in rows)
     click.echo(f"{plural(len(rows), 'run')} ({failed} failed): {output / 'results.csv'}, "
-               f"{output / 'summary.md'}, {output / 'takeover.png'}, {output / 'coverage.png'}")
+               f"{output / 'summary.md'}, {output / 'cells.csv'}, "
+               f"{output / 'comparisons.csv'}")
     click.echo((output / "summary.md").read_text())
     if failed:  # a sweep with holes is not a result: say so to scripts and CI (exit 1)
         raise MrtaRuntimeError(f"{failed} of {plural(len(rows), 'run')} failed: "
                                f"see {output / 'summary.md'}")
+
+
+@experiment.command(REPORT)
+@click.argument("results", metavar="RESULTS_DIR",
+                type=click.Path(exists=True, path_type=Path))
+@click.option("--output", type=click.Path(file_okay=False, path_type=Path), default=None,
+              help="Folder for the report (default: RESULTS_DIR).")
+@report_options
+def report(results: Path, output: Path | None, baseline: str | None,
+           metrics: tuple[str, ...] | None, plots: bool) -> None:
+    """Rebuild summary.md, cells.csv, comparisons.csv and the plots from RESULTS_DIR's
+    results.csv, running nothing."""
+    if output is not None:
+        prepare_output(output)
+    where = output or (results if results.is_dir() else results.parent)
+    write_report(results, output, Options(baseline=baseline, metrics=metrics, plots=plots))
+    click.echo((where / "summary.md").read_text())

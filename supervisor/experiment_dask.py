@@ -3,11 +3,11 @@
 
 A run is one task, because a run is `mrta demo` plus the processes it starts (simulator, agents,
 recorder) on one private loopback rendezvous: they must all be on one machine. The task
-(`run_task`) runs on a worker exactly the argv the local backend runs (experiment.demo_args),
+(`run_task`) runs on a worker exactly the argv the local backend runs (experiment_runs.demo_args),
 as a child of the worker, in a scratch folder under the worker's local directory, and returns
 the exit code, the end of the output and the run folder's files as bytes (a few MB: run.mcap,
 pictures, summary.json); the client writes them into OUTPUT/runNNN and makes the row the same
-way the local backend does (experiment.row_for), so the same seeds give the same rows. Workers
+way the local backend does (experiment_runs.row_for), so the same seeds give the same rows. Workers
 need mrta-zenoh and the application's packages installed, as the client has.
 
 How many runs a worker takes at once: every task asks for the Dask resource `runs=1`, and a
@@ -36,17 +36,15 @@ import time
 import uuid
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from mrta_zenoh.errors import ConfigError, MrtaRuntimeError
 from mrta_zenoh.files import write_folder as files_write_folder
 from mrta_zenoh.processes import ProcessGroup
 from mrta_zenoh.toolchain.registry import Registry
 
-from .experiment import Run, error_of, package_copy, start_run
-
-if TYPE_CHECKING:
-    from .experiment import Results
+from .experiment_file import Run
+from .experiment_runs import Results, error_of, package_copy, start_run
 
 log = logging.getLogger("mrta.experiment.dask")
 
@@ -87,6 +85,7 @@ class RunTask:
     duration: float
     run: Run
     stop_event: str
+    plots: bool = True
 
 
 @dataclass
@@ -123,7 +122,7 @@ def run_task(task: RunTask) -> RunResult:
         stopped = False
         with ProcessGroup() as group:
             child = start_run(group, Registry().find(task.package), task.duration, task.run,
-                              out)
+                              out, task.plots)
             while child.running():
                 if stop.wait(POLL):
                     stopped = True
@@ -195,10 +194,11 @@ def check_workers(client, address: str) -> None:
 
 
 def run_on_cluster(address: str, *, package, duration: float, runs: list[Run], output: Path,
-                   stop: threading.Event, results: "Results",
+                   stop: threading.Event, results: Results, pictures: set[int] = frozenset(),
                    connect_timeout: float = CONNECT_TIMEOUT) -> None:
     """Every run as a task on the cluster at `address`; each run's folder and row as soon as it
-    ends. On `stop`: the runs that had finished cleanly are kept, the others stopped."""
+    ends (the runs in `pictures` draw theirs). On `stop`: the runs that had finished cleanly are
+    kept, the others stopped."""
     distributed = require_distributed()
     # fail here, as the local backend would at that run, rather than once per run on workers
     combos = {run.overrides for run in runs if run.overrides}
@@ -215,7 +215,7 @@ def run_on_cluster(address: str, *, package, duration: float, runs: list[Run], o
         event = f"mrta-experiment-stop-{token}"
         futures = {}
         for run in runs:
-            task = RunTask(package.name, duration, run, event)
+            task = RunTask(package.name, duration, run, event, run.index in pictures)
             future = client.submit(run_task, task, key=f"mrta-run{run.index:03d}-{token}",
                                    resources={RESOURCE: 1}, retries=RETRIES)
             futures[future] = run
@@ -233,7 +233,7 @@ def run_on_cluster(address: str, *, package, duration: float, runs: list[Run], o
         client.close()
 
 
-def _gather(future, run: Run, output: Path, results: "Results", only_clean: bool = False) -> None:
+def _gather(future, run: Run, output: Path, results: Results, only_clean: bool = False) -> None:
     """The row (and folder) of a task that ended; with `only_clean`, only if its run exited 0."""
     out = output / f"run{run.index:03d}"
     if future.status == "finished":

@@ -59,7 +59,7 @@ from .ground_truth import intervals_from
 from .plots import ROBOTS_TITLE, Panel, TimeBase, draw_timeline
 from .state import Supervisor
 from .tasks import TaskWatch
-from .summary import (SECTIONS, Coverage, FailureReport, MessageRates, Span, Summary,
+from .summary import (Coverage, FailureReport, MessageRates, Span, Summary, checked_sections,
                       write_summary)
 
 log = logging.getLogger("mrta.mission")
@@ -74,12 +74,18 @@ class Mission:
     Set `name`, `title` and `launch` (a launch file in each application package configured for
     the mission: the simulator and the agents, taking the args `speed`, `seed` and `sim_args`);
     override `metrics` to add what only the application can measure, `describe` to print it,
-    and `default_failure` to pick which robot fails by default."""
+    and `default_failure` to pick which robot fails by default. An application with summary
+    sections of its own names their type in `summary_sections` (a summary.SummarySections
+    subclass) and returns one from `sections`."""
 
     name: str = ""
     title: str = ""
     launch: str = ""
     default: bool = False  # the mission `mrta demo` runs when several are registered
+    summary_sections: type | None = None  # its summary.json sections (summary.SummarySections)
+    # which direction is better for each of its `metrics` ("lower" or "higher"): the
+    # experiment report's comparisons say so (A12, the probability of improvement, profiles)
+    better: dict[str, str] = {}
 
     def default_failure(self, robots: list[str], duration: float) -> str | None:
         """The failure `mrta demo` injects when none is given: the second robot at half time
@@ -101,10 +107,11 @@ class Mission:
         `folder` (`--instance`): the runner puts it first on the package path for that run."""
         raise ConfigError(f"the {self.name} mission takes no --instance")
 
-    def sections(self, run: "MissionRun", records: list) -> dict[str, Any]:
-        """Top-level sections of summary.json only this application has (SECTIONS: e.g. a
-        point-task mission's `instance` and `allocation`, docs/delivery.md)."""
-        return {}
+    def sections(self, run: "MissionRun", records: list) -> Any:
+        """Top-level sections of summary.json only this application has, as its
+        `summary_sections` type (e.g. a point-task mission's `instance` and `allocation`,
+        docs/delivery.md); None: none."""
+        return None
 
     def task_watch(self, run: "MissionRun") -> "TaskWatch | None":
         """What tells the supervisor a task is done or not due yet (supervisor/tasks.py), so
@@ -127,6 +134,7 @@ class MissionOptions:
     lockstep: bool = True
     foxglove_port: int | None = None
     instance: Path | None = None      # an instance file the run's packages are derived from
+    plots: bool = True                # the pictures (world, timeline, the architecture's own)
 
 
 def instance_folder(options: MissionOptions) -> Path:
@@ -380,7 +388,8 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
             before: dict[str, tuple[int, int, int]]) -> tuple[MissionRun, Summary]:
     options, output = run.options, run.options.output
     launch_args = {"speed": str(options.speed), "seed": str(options.seed),
-                   "sim_args": f"--duration {options.duration} --snapshot {output / 'world.png'}"
+                   "sim_args": f"--duration {options.duration}"
+                               + (f" --snapshot {output / 'world.png'}" if options.plots else "")
                                + (" --lockstep" if options.lockstep else "")}
     nodes = LaunchEvaluator(lambda name: reg.find(name).path).run(
         run.package.path / "launch" / run.mission.launch, launch_args)
@@ -466,16 +475,11 @@ def _watch(sim: Child, sup: Supervisor, clock: SimClock, agents: dict[str, Child
 
 
 # ------------------------------------------------------------------ the summary
-def mission_sections(run: MissionRun, records: list) -> dict[str, Any]:
-    """The mission hook's own top-level sections of summary.json, checked by name (a typo in
-    an application's hook is a ConfigError, not a silently dropped section)."""
-    extra = run.mission.sections(run, records)
-    unknown = sorted(set(extra) - set(SECTIONS))
-    if unknown:
-        raise ConfigError(f"mission {run.mission.name!r} returned unknown summary sections "
-                          f"{', '.join(unknown)}; known: {', '.join(SECTIONS)}"
-                          + did_you_mean(unknown[0], SECTIONS))
-    return extra
+def mission_sections(run: MissionRun, records: list) -> Any:
+    """The mission hook's own summary sections, as the type it declares (summary.py checks
+    them: a section it did not declare is a ConfigError, not a silently dropped one)."""
+    return checked_sections(run.mission.name, run.mission.summary_sections,
+                            run.mission.sections(run, records))
 
 
 def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
@@ -494,13 +498,14 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
     failures = [(failure.robot, failed_at)] if failure and failure.kind == "crash" \
         and failed_at is not None else []
     intervals = intervals_from(records, run.arch, t1, run.arch.doing_stale_after, failures)
-    # the timeline draws the same ground truth: it agrees with the summary, and one seed gives
-    # one picture (a crash's time is exact in lockstep; the recorded liveliness is not)
-    draw_timeline(output / "timeline.png", run.app,
-                  [Panel(ROBOTS_TITLE, intervals,
-                         {r: [(at, run.options.duration)] for r, at in failures})],
-                  (t0, run.options.duration), tb.label)
-    run.arch.plots(output / "run.mcap", run.robots, run.app.tasks(), output, records)
+    if run.options.plots:
+        # the timeline draws the same ground truth: it agrees with the summary, and one seed
+        # gives one picture (a crash's time is exact in lockstep; the recorded liveliness is not)
+        draw_timeline(output / "timeline.png", run.app,
+                      [Panel(ROBOTS_TITLE, intervals,
+                             {r: [(at, run.options.duration)] for r, at in failures})],
+                      (t0, run.options.duration), tb.label)
+        run.arch.plots(output / "run.mcap", run.robots, run.app.tasks(), output, records)
     who = {rid: [Span(t, round(a, 3), round(b, 3))
                  for t, a, b in sorted(intervals.get(rid, []), key=lambda x: x[1])]
            for rid in run.robots}
@@ -540,7 +545,7 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
         messages=message_rates(records, run.arch, max(min(t1, run.options.duration) - t0, 1e-9),
                                tb),
         metrics=run.mission.metrics(run, records), failure=report,
-        output=str(output), files=[], **mission_sections(run, records))
+        output=str(output), files=[], sections=mission_sections(run, records))
     # what this run wrote: new or changed files (an earlier run's are neither), and the
     # summary itself, written next
     before = before or {}

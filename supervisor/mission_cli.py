@@ -60,6 +60,9 @@ from .view import render
 @click.option("--foxglove", "foxglove_port", type=click.IntRange(0, 65535), is_flag=False,
               flag_value=8765, default=None, metavar="[PORT]",
               help="Also serve the run live to Foxglove / Lichtblick (ws://127.0.0.1:8765).")
+@click.option("--plots/--no-plots", default=True, show_default=True,
+              help="Draw the run's pictures (world, timeline, the architecture's plots); "
+                   "the recording and summary.json are written either way.")
 def demo(live: bool | None, **kwargs) -> None:
     """A mission end to end: simulator, agents and supervisor, then a summary."""
     options = MissionOptions(**kwargs)

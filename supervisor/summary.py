@@ -4,12 +4,25 @@ that writes it (mission.py) and read back from here by `mrta experiment` and the
 Generic over applications and architectures: who did what, coverage, the first full allocation,
 the failure and its takeover beside the architecture's bound, bus traffic. What only an
 application can measure (patrol: collisions, the share of the border visited) is its own
-`metrics` mapping, contributed through the mission hook (mission.Mission.metrics). `schema`
-changes when a field changes meaning.
+`metrics` mapping, contributed through the mission hook (mission.Mission.metrics).
+
+An application's own *sections* (delivery: its `instance` and `allocation` log) are its own
+schema, not the framework's: its Mission declares them as a `SummarySections` Struct
+(`Mission.summary_sections`), the runner stores their fields at the top level of summary.json
+beside the framework's, and `read_summary` validates them with that same type, found through
+the summary's `mission` name (the `mrta.missions` entry point). The framework knows no section
+by name; a section that would shadow a framework field is refused when the type is used.
+
+`schema` changes when a field changes meaning. 3: sections are the application's (top-level
+keys its Mission declares). A schema-2 summary still reads: its `instance` and `allocation`
+were framework fields, null unless a delivery run wrote them, so null ones are dropped and the
+others are read as the mission's sections — the same keys delivery declares. Schema 1 (the
+patrol demo's flat dict) is refused with the schema named.
 """
 
 from __future__ import annotations
 
+from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any
 
@@ -17,9 +30,17 @@ import msgspec
 
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.files import write_text
+from mrta_zenoh.yamlfile import did_you_mean
 
-SCHEMA = 2  # 1: the patrol demo's flat dict (application metrics at the top level)
-SECTIONS = ("instance", "allocation")  # what a Mission hook may add at the top level
+SCHEMA = 3
+MISSIONS_GROUP = "mrta.missions"        # where a summary's `mission` names its hook
+OLD_FRAMEWORK_SECTIONS = ("instance", "allocation")  # schema 2's fields, null but for delivery
+
+
+class SummarySections(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
+    """Base of an application's own summary sections: subclass it with one field per
+    top-level key (`instance: DeliveryInstance`, `allocation: list[Entry]`), and name the
+    subclass in the Mission's `summary_sections`."""
 
 
 class Span(msgspec.Struct, forbid_unknown_fields=True):
@@ -92,25 +113,125 @@ class Summary(msgspec.Struct, forbid_unknown_fields=True):
     lockstep_exact: bool | None = None
     lockstep_given_up: int = 0   # participants given up, over the run
     lockstep_forgiven: int = 0   # claims forgiven, over the run
-    # a point-task mission's instance and allocation log (Mission.sections; docs/delivery.md)
-    instance: dict[str, Any] | None = None
-    allocation: list[dict[str, Any]] | None = None
     schema: int = SCHEMA
+    # the application's own sections (its Mission's `summary_sections` type): written at the
+    # top level of summary.json, not under this name (write_summary / read_summary)
+    sections: SummarySections | None = None
+
+
+SECTIONS_FIELD = "sections"
+FRAMEWORK_KEYS = frozenset(f.encode_name for f in msgspec.structs.fields(Summary)
+                           if f.name != SECTIONS_FIELD)
+
+
+def check_sections_type(mission: str, kind: Any) -> type[SummarySections] | None:
+    """A mission's declared sections type, checked: a SummarySections subclass whose keys
+    shadow no framework field (None: the mission has no sections)."""
+    if kind is None:
+        return None
+    if not (isinstance(kind, type) and issubclass(kind, SummarySections)):
+        raise ConfigError(f"mission {mission!r}: summary_sections must be a subclass of "
+                          f"mrta_supervisor.summary.SummarySections, got {kind!r:.60}")
+    clash = sorted({f.encode_name for f in msgspec.structs.fields(kind)} & FRAMEWORK_KEYS)
+    if clash:
+        raise ConfigError(f"mission {mission!r}: its summary sections {', '.join(clash)} "
+                          "would shadow the framework's fields of the same name")
+    return kind
+
+
+def checked_sections(mission: str, kind: Any, value: Any) -> SummarySections | None:
+    """What a mission's `sections` hook returned, as its declared type (a mapping is converted
+    and validated; a section it did not declare is a ConfigError naming it)."""
+    kind = check_sections_type(mission, kind)
+    if value is None or value == {}:
+        return None
+    if kind is None:
+        names = ", ".join(sorted(value)) if isinstance(value, dict) else type(value).__name__
+        raise ConfigError(f"mission {mission!r} returned summary sections ({names}) but "
+                          "declares no summary_sections type for them")
+    if isinstance(value, kind):
+        return value
+    try:
+        return msgspec.convert(value, kind)
+    except msgspec.ValidationError as exc:
+        raise ConfigError(f"mission {mission!r}: its summary sections do not match "
+                          f"{kind.__name__}: {exc}") from None
+
+
+def mission_hook(mission: str) -> Any:
+    """The hook registered under `mrta.missions` as `mission` (a Mission, or its class), None
+    when no installed package registers it."""
+    eps = entry_points(group=MISSIONS_GROUP, name=mission)
+    return next(iter(eps)).load() if eps else None
+
+
+def sections_type(mission: str) -> type[SummarySections] | None:
+    """The sections type the mission registered under `mrta.missions` as `mission` declares."""
+    hook = mission_hook(mission)
+    if hook is None:
+        known = sorted(ep.name for ep in entry_points(group=MISSIONS_GROUP))
+        raise ConfigError(f"mission {mission!r} is not installed here (no {MISSIONS_GROUP} "
+                          f"entry point): its summary sections cannot be read; installed: "
+                          f"{', '.join(known) or 'none'}" + did_you_mean(mission, known))
+    try:
+        kind = hook.summary_sections
+    except AttributeError:
+        raise ConfigError(f"{MISSIONS_GROUP} entry point {mission!r} is not a "
+                          "mrta_supervisor.mission.Mission") from None
+    return check_sections_type(mission, kind)
+
+
+def summary_json(summary: Summary) -> bytes:
+    """summary.json's bytes: the framework's fields, then the application's sections at the top
+    level, indented for people."""
+    data = msgspec.to_builtins(summary)
+    sections = data.pop(SECTIONS_FIELD, None) or {}
+    data.update(sections)
+    return msgspec.json.format(msgspec.json.encode(data), indent=2)
 
 
 def write_summary(path: Path, summary: Summary) -> None:
     """Everything or nothing (files.write_text), as indented JSON people read too."""
-    write_text(path, msgspec.json.format(msgspec.json.encode(summary), indent=2).decode())
+    write_text(path, summary_json(summary).decode())
 
 
 def read_summary(path: Path) -> Summary:
-    """A run's summary; ConfigError naming the file and the field at fault."""
+    """A run's summary, its application sections validated by the mission's own type;
+    ConfigError naming the file and the field at fault."""
     try:
-        return msgspec.json.decode(Path(path).read_bytes(), type=Summary)
+        data = msgspec.json.decode(Path(path).read_bytes(), type=dict[str, Any])
     except OSError as exc:
         raise ConfigError(f"cannot read the summary: {exc.strerror}", file=str(path)) from None
     except msgspec.DecodeError as exc:
+        raise ConfigError(f"not a summary (JSON object) of schema {SCHEMA}: {exc}",
+                          file=str(path)) from None
+    schema = data.get("schema", 2)
+    if schema not in (2, SCHEMA):
+        raise ConfigError(f"a summary of schema {schema!r}; this version reads schemas 2 and "
+                          f"{SCHEMA} (run the mission again to write one)", file=str(path))
+    if schema == 2:
+        for key in OLD_FRAMEWORK_SECTIONS:
+            if data.get(key, 0) is None:
+                del data[key]
+    extra = {k: data.pop(k) for k in list(data) if k not in FRAMEWORK_KEYS}
+    data["schema"] = SCHEMA  # read as this schema: the sections apart
+    try:
+        summary = msgspec.convert(data, Summary)
+    except msgspec.ValidationError as exc:
         raise ConfigError(f"not a summary of schema {SCHEMA}: {exc}", file=str(path)) from None
+    if extra:
+        kind = sections_type(summary.mission)
+        if kind is None:
+            key = sorted(extra)[0]
+            raise ConfigError(f"unknown field {key!r}: mission {summary.mission!r} declares no "
+                              "summary sections" + did_you_mean(key, FRAMEWORK_KEYS),
+                              file=str(path))
+        try:
+            summary.sections = msgspec.convert(extra, kind)
+        except msgspec.ValidationError as exc:
+            raise ConfigError(f"mission {summary.mission!r}'s sections: {exc}",
+                              file=str(path)) from None
+    return summary
 
 
 def flat_metrics(summary: Summary) -> dict[str, Any]:

@@ -3,16 +3,17 @@ show."""
 
 from __future__ import annotations
 
-from mrta_supervisor import experiment
+import csv
+
+from mrta_supervisor import report, report_plots
+from mrta_supervisor.results import read_results
 
 
 def test_the_coverage_legend_hides_no_bar(tmp_path, monkeypatch):
     """Patrol's wander is covered ≈ 99 % of a run: its bar reaches the top, where the legend
     used to sit."""
-    from mrta_zenoh import files
-
     figures = {}
-    save = files.save_figure
+    save = report_plots.save_figure
 
     def keep(fig, output):
         fig.canvas.draw()
@@ -23,11 +24,17 @@ def test_the_coverage_legend_hides_no_bar(tmp_path, monkeypatch):
                                  for lg in [ax.get_legend(), *fig.legends] if lg is not None])
         return save(fig, output)
 
-    monkeypatch.setattr(files, "save_figure", keep)
-    rows = [{"config": c, "status": "ok", "takeover_seconds": "3.6",
+    monkeypatch.setattr(report_plots, "save_figure", keep)
+    rows = [{"failure": c, "seed": str(seed), "status": "ok", "takeover_seconds": "3.6",
              "wander.exactly_one": 0.99, "border_protection.exactly_one": 0.91,
-             "report.exactly_one": 0.2} for c in ("fail=none", "fail=robot2@30") for _ in (1, 2)]
-    experiment.plot_results(rows, tmp_path)
+             "report.exactly_one": 0.2} for c in ("none", "robot2@30")
+            for seed in (1, 2)]
+    path = tmp_path / "results.csv"
+    with path.open("w", newline="") as f:
+        w = csv.DictWriter(f, fieldnames=list(rows[0]))
+        w.writeheader()
+        w.writerows(rows)
+    report_plots.plot_coverage(report.build(read_results(path)), tmp_path / "coverage.png")
     bars, legends = figures["coverage.png"]
     assert len(bars) == 6 and legends
     for legend in legends:

@@ -7,8 +7,9 @@ layers file whose `Delivery` section is the instance; `derive` writes a run's ow
 instance file (`mrta demo --instance FILE`).
 
 `metrics` lands in summary.json's `metrics` (scalars: also `mrta experiment`'s columns);
-`sections` is the instance and the allocation log, for the top-level `instance` and
-`allocation` sections of summary.json (the runner merges what it returns, once it calls it).
+`sections` is the instance and the allocation log, the top-level `instance` and `allocation`
+of summary.json: delivery's own schema (`DeliverySections`, declared as the Mission's
+`summary_sections`), which `read_summary` checks a summary against when it reads one back.
 """
 
 from __future__ import annotations
@@ -16,16 +17,62 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
+import msgspec
+
 from mrta_agent.runtime.params import load_layers_params
 from mrta_zenoh.keys import first_chunk
 from mrta_supervisor.mission import Mission, MissionRun
 from mrta_supervisor.tasks import TaskStatus, TaskWatch
+from mrta_supervisor.summary import SummarySections
 
 from .generate import derive
 from .instance import DeliveryParams, load_document
 from .keys import ALL_DONE
 from .messages import TaskEvent
 from .metrics import RunAnalysis, analyse, instance_json
+
+
+class _Section(msgspec.Struct, forbid_unknown_fields=True):
+    pass
+
+
+class RobotEntry(_Section):
+    id: str
+    start: tuple[float, float]
+    speed: float
+    capabilities: list[str]
+
+
+class TaskEntry(_Section):
+    id: str
+    position: tuple[float, float]
+    arrival: float
+    service: float
+    capability: str
+
+
+class InstanceSection(_Section):
+    """The instance a run served (metrics.instance_json): robots, tasks, the cost matrix."""
+
+    robots: list[RobotEntry]
+    tasks: list[TaskEntry]
+    cost: list[list[float | None]]   # cost[i][j]: robot i's travel time to task j (None: cannot)
+    cost_model: str
+
+
+class AllocationEntry(_Section):
+    """One stretch a robot held a task (metrics.Entry)."""
+
+    task: str
+    robot: str
+    assigned_at: float
+    started_at: float | None
+    done_at: float | None
+
+
+class DeliverySections(SummarySections):
+    instance: InstanceSection
+    allocation: list[AllocationEntry]
 
 
 def run_instance(run: MissionRun) -> DeliveryParams:
@@ -59,6 +106,10 @@ class Delivery(Mission):
     name = "delivery"
     title = "Delivery mission"
     launch = "delivery_sim.launch"
+    summary_sections = DeliverySections
+    better = {"makespan": "lower", "total_distance": "lower", "mean_waiting_time": "lower",
+              "achieved_cost": "lower", "optimality": "higher", "completed": "higher",
+              "assigned": "higher", "handovers": "lower"}
 
     def __init__(self) -> None:
         self._last: tuple[int, RunAnalysis] | None = None
@@ -83,10 +134,10 @@ class Delivery(Mission):
     def metrics(self, run: MissionRun, records: list) -> dict[str, Any]:
         return self.analysis(run, records).metrics
 
-    def sections(self, run: MissionRun, records: list) -> dict[str, Any]:
+    def sections(self, run: MissionRun, records: list) -> DeliverySections:
         a = self.analysis(run, records)
-        return {"instance": instance_json(a.params, a.instance),
-                "allocation": [e.to_json() for e in a.log]}
+        return msgspec.convert({"instance": instance_json(a.params, a.instance),
+                                "allocation": [e.to_json() for e in a.log]}, DeliverySections)
 
     def task_watch(self, run: MissionRun) -> TaskWatch:
         return DeliveryWatch(run_instance(run))

@@ -48,6 +48,7 @@ class Patrol(Mission):
     title = "Patrol mission"
     launch = "patrol_sim.launch"
     default = True  # the dissertation's mission: what a bare `mrta demo` runs
+    better = {"collisions_total": "lower", "border_visited": "higher"}
 
     def metrics(self, run: MissionRun, records: list) -> dict[str, Any]:
         layers = load_layers_params(run.layers_params)

@@ -1,0 +1,171 @@
+"""One run of an experiment, the same whichever backend starts it — here (experiment.py,
+`--jobs`) or on a Dask worker (experiment_dask.py, `--scheduler`): the package copy a run
+with parameter overrides gets, the `mrta demo` argv, how a run is started, and how what it
+left becomes a row of results.csv. Both backends import this module and nothing of each other.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import os
+import shutil
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.processes import ProcessGroup, mrta_argv
+
+from .experiment_file import Run
+from .results import write_csv
+from .summary import flat_metrics, read_summary
+
+
+@dataclass(frozen=True)
+class Context:
+    """What every run of one experiment shares, written into each row: with the run's own
+    failure and overrides, the parameters that define its cell (results.py)."""
+
+    mission: str = ""
+    application: str = ""
+    architecture: str = ""
+    duration: float | None = None
+
+    def columns(self) -> dict[str, Any]:
+        return {k: v for k, v in (("mission", self.mission), ("application", self.application),
+                                  ("architecture", self.architecture),
+                                  ("duration", self.duration)) if v not in ("", None)}
+
+
+def _set_path(data: dict, path: list[str], value: Any, where: str) -> None:
+    d = data
+    for i, p in enumerate(path[:-1]):
+        if not isinstance(d, dict) or p not in d:
+            raise ConfigError(f"override {where}: no key {'.'.join(path[:i + 1])!r}")
+        d = d[p]
+    if not isinstance(d, dict) or path[-1] not in d:
+        raise ConfigError(f"override {where}: no key {'.'.join(path)!r}")
+    d[path[-1]] = value
+
+
+def package_copy(pkg_path: Path, dest: Path, overrides: tuple[tuple[str, Any], ...]) -> Path:
+    """A copy of the application's package with the overridden parameter values."""
+    import yaml
+
+    target = dest / pkg_path.name
+    shutil.copytree(pkg_path, target, ignore=shutil.ignore_patterns("__pycache__", "*.py"))
+    for key, value in overrides:
+        glob, _, dotted = key.partition(".")
+        files = [f for f in sorted((target / "config").glob("*.yaml"))
+                 if fnmatch.fnmatch(f.stem, glob) or fnmatch.fnmatch(f.stem, glob + "_*")]
+        if not files:
+            raise ConfigError(f"override {key}: no parameter file matches {glob!r}")
+        for f in files:
+            data = yaml.safe_load(f.read_text())
+            _set_path(data, dotted.split("."), value, f"{key} in {f.name}")
+            f.write_text(yaml.safe_dump(data, sort_keys=False))
+    return target
+
+
+def demo_args(package: str, duration: float, run: Run, out: Path, plots: bool = True
+              ) -> list[str]:
+    """`mrta ARGS…` for one run, whichever backend starts it: one spelling, so both run
+    exactly the same mission. Without `plots` the run draws no picture (its recording and
+    summary are the same: pictures are drawn from them)."""
+    return ["-q", "demo", "--application", package, "--duration", str(duration), "--speed",
+            "0", "--fail", run.failure, "--seed", str(run.seed), "--output", str(out),
+            "--no-live"] + ([] if plots else ["--no-plots"])
+
+
+def start_run(group: ProcessGroup, package, duration: float, run: Run, out: Path,
+              plots: bool = True):
+    """One run's mission as a child of `group`, writing into `out` (which exists): with its own
+    copy of the application package when the run overrides parameters."""
+    env = {}
+    if run.overrides:
+        package_copy(package.path, out / "package", run.overrides)
+        env["MRTA_PACKAGE_PATH"] = str(out / "package")
+    return group.start(mrta_argv(*demo_args(package.name, duration, run, out, plots)),
+                       name=f"run{run.index:03d}", env=env, merge_stderr=True)
+
+
+def error_of(returncode: int, lines: list[str]) -> str:
+    """The `error` cell of a run that did not exit 0: its code, the mission's own error line
+    (which names the process that failed and its exit code) and the end of its output."""
+    said = next((line for line in reversed(lines) if line.startswith("Error:")), "")
+    tail = " | ".join(line for line in lines[-5:] if line.strip() and line != said)
+    return (f"exit {returncode}: " + " | ".join(filter(None, [said, tail])))[-600:]
+
+
+def row_for(run: Run, out: Path, wall: float, error: str = "",
+            context: Context = Context()) -> dict:
+    """The run's row: bookkeeping, the parameters of its cell, then what it measured."""
+    row: dict[str, Any] = {"run": run.index, "config": run.config, "seed": run.seed}
+    row.update(context.columns())
+    row["failure"] = run.failure
+    row.update({k: v for k, v in run.overrides})
+    row.update({"status": "failed" if error else "ok", "error": error,
+                "wall_seconds": round(wall, 2)})
+    if error:
+        return row
+    summary = read_summary(out / "summary.json")
+    if summary.lockstep_exact is False:
+        row["status"] = "inexact"
+        row["error"] = (f"lockstep was not exact: {summary.lockstep_given_up} participant(s) "
+                        f"given up, {summary.lockstep_forgiven} claim(s) forgiven — the machine "
+                        "was too busy for the lockstep timeouts (fewer --jobs)")
+    row.update(flat_metrics(summary))
+    # counted by the run's own analysis (mission.message_rates), not by reading run.mcap again
+    row["messages"] = "" if summary.messages.total is None else summary.messages.total
+    return row
+
+
+def inexact(out: Path) -> bool:
+    """Whether the run in `out` ended well but its lockstep was not exact (summary.json)."""
+    try:
+        return read_summary(out / "summary.json").lockstep_exact is False
+    except ConfigError:
+        return False
+
+
+def prepare_output(output: Path) -> None:
+    """The output folder, made (with its parents) before any run starts, or a ConfigError
+    naming it."""
+    try:
+        output.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise ConfigError(f"--output: cannot make the folder: {exc.strerror}",
+                          file=str(output)) from None
+    if not os.access(output, os.W_OK | os.X_OK):
+        raise ConfigError("--output: the folder is not writable", file=str(output))
+
+
+class Results:
+    """The rows of the runs that ended, in results.csv as soon as each ends (a Ctrl-C or a
+    crash keeps them), the progress callback told: `progress(done, total, row)`, and
+    `progress(0, total, None)` when the total is known or grows (a block of --until-ci)."""
+
+    def __init__(self, path: Path, total: int, progress=None, context: Context = Context()):
+        self.path, self.total, self.progress, self.context = path, total, progress, context
+        self.rows: list[dict] = []
+        self.fields: list[str] = []
+        self.expect(total)
+
+    def expect(self, total: int) -> None:
+        self.total = total
+        if self.progress is not None:
+            self.progress(len(self.rows), total, None)
+
+    def add(self, run: Run, out: Path, wall: float, error: str = "") -> dict:
+        row = row_for(run, out, wall, error, self.context)
+        self.rows.append(row)
+        self.fields = write_csv(self.path, self.rows, self.fields)
+        if self.progress is not None:
+            self.progress(len(self.rows), self.total, row)
+        return row
+
+    def finish(self) -> list[dict]:
+        """The rows in run order, results.csv rewritten in that order."""
+        self.rows.sort(key=lambda r: r["run"])
+        write_csv(self.path, self.rows, [])
+        return self.rows

@@ -1,0 +1,155 @@
+"""`results.csv`: one row per run of an experiment, written as runs end and read back, strictly,
+by the report (report.py) — the report is made from this file alone.
+
+A row holds the run's bookkeeping (`run`, `config`, `seed`, `status`, `error`,
+`wall_seconds`), every parameter that defines its cell (`mission`, `application`,
+`architecture`, `duration`, `failure`, one column per parameter override; `instance`,
+`n_robots`, `n_tasks` where an experiment has them), and what the run measured
+(summary.flat_metrics: the takeover, coverage per task, traffic, the application's
+`metrics.*`). Which column is which is decided by name alone (`kind`), so a file from another
+version, or rows of several experiments put together, read the same way: a measured column is
+one of the framework's own or ends in a coverage share or starts with `metrics.`; bookkeeping
+is the fixed list; every other column is a parameter. An override whose key would read as a
+measure is refused by the experiment file (experiment_file.py), so the split is exact.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.files import write_atomically
+from mrta_zenoh.yamlfile import did_you_mean
+
+BOOKKEEPING = ("run", "config", "seed", "status", "error", "wall_seconds", "taken_over_by")
+MEASURES = ("takeover_seconds", "first_full_allocation", "messages", "messages_per_second",
+            "coordination_messages_per_second", "namespace_messages_per_second")
+COVERAGE = (".exactly_one", ".none", ".more_than_one")
+APPLICATION_PREFIX = "metrics."
+INSTANCE, SEED, STATUS, OK = "instance", "seed", "status", "ok"
+REQUIRED = (SEED, STATUS)
+
+
+def kind(column: str) -> str:
+    """"bookkeeping", "measure" or "parameter" (see the module's docstring)."""
+    if column in BOOKKEEPING:
+        return "bookkeeping"
+    if column in MEASURES or column.endswith(COVERAGE) or column.startswith(APPLICATION_PREFIX):
+        return "measure"
+    return "parameter"
+
+
+def measure_problem(key: str) -> str | None:
+    """Why an override key would be read back as a measure (None: it would not)."""
+    if kind(key) != "parameter":
+        return (f"{key!r} would read as a measured column of results.csv (a name ending in "
+                f"{', '.join(COVERAGE)} or starting with {APPLICATION_PREFIX!r}, or a "
+                "framework column)")
+    return None
+
+
+@dataclass
+class ResultsTable:
+    """The rows of a results.csv (values as written: strings), and where each came from."""
+
+    path: Path
+    columns: list[str]
+    rows: list[dict[str, str]]
+    lines: list[int]  # the file line of each row, for errors
+
+    @property
+    def parameters(self) -> list[str]:
+        return [c for c in self.columns if kind(c) == "parameter"]
+
+    def ok(self) -> list[dict[str, str]]:
+        return [r for r in self.rows if r.get(STATUS) == OK]
+
+    def number(self, row: dict[str, str], column: str) -> float | None:
+        """The value of `column` in `row` as a number, None when blank; ConfigError naming the
+        file, its line and the column when it is something else."""
+        text = row.get(column, "")
+        if text is None or text.strip() == "":
+            return None
+        try:
+            value = float(text)
+        except ValueError:
+            raise self.error(row, column, f"not a number: {text!r:.40}") from None
+        if not math.isfinite(value):
+            raise self.error(row, column, f"not a finite number: {text!r:.40}")
+        return value
+
+    def error(self, row: dict[str, str] | None, column: str, message: str) -> ConfigError:
+        line = self.lines[self.rows.index(row)] if row is not None else 1
+        return ConfigError(message, file=str(self.path), line=line, element=f"'{column}'")
+
+    def check_metric(self, column: str) -> None:
+        """A metric named by the user is a measured column of this file."""
+        measures = [c for c in self.columns if kind(c) == "measure"]
+        if column not in self.columns:
+            raise ConfigError(f"no column {column!r}" + did_you_mean(column, measures)
+                              + f"; measured columns: {', '.join(measures) or 'none'}",
+                              file=str(self.path), line=1)
+        if kind(column) != "measure":
+            raise ConfigError(f"{column!r} is a {kind(column)} column, not a measured one"
+                              + did_you_mean(column, measures), file=str(self.path), line=1)
+
+
+def read_results(path: Path) -> ResultsTable:
+    """results.csv, checked: the columns every report needs (`seed`, `status`), seeds as
+    integers, no row longer than the header. Measures are checked as they are read
+    (ResultsTable.number)."""
+    path = Path(path)
+    try:
+        f = path.open(newline="", encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(f"cannot read the results: {exc.strerror}", file=str(path)) from None
+    with f:
+        try:
+            reader = csv.reader(f)
+            header = next(reader, None)
+            if not header:
+                raise ConfigError("empty: no header row", file=str(path))
+            rows, lines = [], []
+            for cells in reader:
+                if not cells:
+                    continue
+                if len(cells) > len(header):
+                    raise ConfigError(f"{len(cells)} cells for {len(header)} columns",
+                                      file=str(path), line=reader.line_num)
+                rows.append(dict(zip(header, cells + [""] * (len(header) - len(cells)))))
+                lines.append(reader.line_num)
+        except (csv.Error, UnicodeDecodeError) as exc:
+            raise ConfigError(f"not a CSV file: {exc}", file=str(path)) from None
+    table = ResultsTable(path, header, rows, lines)
+    for column in REQUIRED:
+        if column not in header:
+            raise ConfigError(f"missing column {column!r}" + did_you_mean(column, header),
+                              file=str(path), line=1, element=f"'{column}'")
+    for row in rows:
+        try:
+            int(row[SEED])
+        except ValueError:
+            raise table.error(row, SEED, f"not an integer: {row[SEED]!r:.40}") from None
+    return table
+
+
+def write_csv(path: Path, rows: list[dict[str, Any]], fields: list[str]) -> list[str]:
+    """`rows` to `path`, whole or not at all, under `fields` extended by every key a row has."""
+    for r in rows:
+        for k in r:
+            if k not in fields:
+                fields.append(k)
+
+    def write(tmp: Path) -> None:
+        with tmp.open("w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=fields)
+            w.writeheader()
+            for r in rows:
+                w.writerow(r)
+
+    write_atomically(path, write)
+    return fields
