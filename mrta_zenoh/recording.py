@@ -38,6 +38,7 @@ from . import codec, keys
 from .clock import SimClock
 from .codec import DecodeError, type_from_encoding
 from .errors import ConfigError, MrtaRuntimeError
+from .flat_schema import message_schema, object_schema
 from .messages import Clock, message_class
 
 _json = msgspec.json  # lossless for our values: shortest round-trip floats
@@ -113,15 +114,17 @@ class SimLogTime:
 
 def json_channel(encoding: str) -> tuple[tuple[str, str, bytes], Any] | None:
     """For a sample of our wire format: ((schema name, "jsonschema", schema), payload → JSON
-    bytes); None for anything else. What viewers (Foxglove, Lichtblick) decode."""
+    bytes); None for anything else. What viewers (Foxglove, Lichtblick) decode: the schema is
+    flattened to what their parsers take (mrta_zenoh.flat_schema)."""
     try:
         type_name = type_from_encoding(encoding)
     except DecodeError:
         return None
     cls = message_class(type_name)
-    schema = msgspec.json.schema(cls) if cls is not None else {"title": type_name, "type": "object"}
+    schema = message_schema(cls) if cls is not None else \
+        json.dumps(object_schema(type_name, "a type this recorder does not know")).encode()
     _, decode = codec.decoder_for(encoding)
-    return (type_name, "jsonschema", json.dumps(schema).encode()), \
+    return (type_name, "jsonschema", schema), \
         (lambda payload: _json.encode(decode(payload)))
 
 
@@ -129,7 +132,8 @@ class McapRecorder:
     """Writes from one thread; bus callbacks only enqueue (they must stay tiny).
 
     Every bus channel is written as Foxglove and Lichtblick read it: JSON messages with a JSON
-    Schema generated from the message definition (msgspec), topic = the Zenoh key. The channel
+    Schema generated from the message definition (msgspec, flattened for the viewers' parsers:
+    mrta_zenoh.flat_schema), topic = the Zenoh key. The channel
     metadata keeps the Zenoh encoding and type name, and msgspec's JSON is lossless for our
     values, so a recording still replays the bus exactly (read_recording turns it back into the
     wire's msgpack). A sample that is not in our wire format, or malformed, is kept as it came

@@ -43,9 +43,14 @@ from .api import to_json
 
 Emit = Callable[[str, tuple[str, str, bytes], str, bytes, int], None]  # topic, schema, enc, data, t
 
-_NUMBER = {"type": ["number", "null"]}  # null: a non-finite value (api.to_json)
+# Foxglove's and Lichtblick's JSON Schema parsers take one type string per property, never
+# "null" (mrta_zenoh.flat_schema): a value that may be null (a non-finite number, api.to_json;
+# a robot without a task) is declared by its type, not required, and left out of the message
+# when null (`_without_nulls`), so each message still validates against its schema.
+_NUMBER = {"type": "number"}
 _STRING = {"type": "string"}
 _STRINGS = {"type": "array", "items": _STRING}
+_INTEGER = {"type": "integer"}
 
 
 def _object(required: dict, **optional) -> dict:
@@ -58,6 +63,10 @@ ROBOT_TASK = {
     **_object({"state": {**_STRING, "description": "busy, idle, offline or unknown"},
                "task": {**_STRING, "description": "the task it is allocated, '-' for none"}}),
 }
+# the supervisor's counts (supervisor/state.py); a newer supervisor's other counts still
+# validate (additionalProperties), though the panels offer only these
+COUNTS = ("samples", "wrong_type", "field_errors", "key_mismatch", "unknown", "unknown_overflow",
+          "bad_keys", "stranger_tokens")
 # the snapshot of docs/architecture.md ("The supervisor snapshot"); extra fields are allowed so
 # that a newer supervisor's snapshot still validates
 SUPERVISOR_SNAPSHOT = {
@@ -67,10 +76,10 @@ SUPERVISOR_SNAPSHOT = {
         "time": {**_NUMBER, "description": "the supervisor's time (simulated seconds on sim time)"},
         "application": _STRING,
         "architecture": _STRING,
-        "robots": {"type": "array", "items": _object({
-            "id": _STRING, "state": {**_STRING, "description": "busy, idle, offline or unknown"},
-            "task": {"type": ["string", "null"]}, "online": {"type": "boolean"},
-            "since": _NUMBER})},
+        "robots": {"type": "array", "items": _object(
+            {"id": _STRING, "state": {**_STRING, "description": "busy, idle, offline or unknown"},
+             "online": {"type": "boolean"}, "since": _NUMBER},
+            task={**_STRING, "description": "the task it is on; absent when none"})},
         "tasks": {"type": "array", "items": _object({
             "id": _STRING,
             "state": {**_STRING, "description": "allocated, incoming or unallocated"},
@@ -80,14 +89,17 @@ SUPERVISOR_SNAPSHOT = {
         "transitions": {"type": "array", "items": _object({
             "time": _NUMBER,
             "kind": {**_STRING, "description": "robot, task, allocation or alarm"},
-            "subject": _STRING, "from": _STRING, "to": _STRING})},
-        "counts": {"type": "object", "additionalProperties": {"type": "integer"}},
-    }, ros2={**_object({"domain": {"type": "integer"}, "nodes": _STRINGS,
+            "subject": _STRING}, **{
+            "from": {**_STRING, "description": "absent for a first state"},
+            "to": {**_STRING, "description": "absent when the state ended"}})},
+        "counts": {"type": "object", "properties": {c: _INTEGER for c in COUNTS},
+                   "additionalProperties": _INTEGER},
+    }, ros2={**_object({"domain": _INTEGER, "nodes": _STRINGS,
                         "topics": {"type": "array", "items": _object({
                             "topic": _STRING, "types": _STRINGS,
-                            "publishers": {"type": "integer"},
-                            "subscriptions": {"type": "integer"}})},
-                        "invalid_tokens": {"type": "integer"}}),
+                            "publishers": _INTEGER,
+                            "subscriptions": _INTEGER})},
+                        "invalid_tokens": _INTEGER}),
              "description": "the ROS 2 graph (docs/ros2.md)"}),
 }
 ROBOT_TASK_SCHEMA = ("mrta.RobotTask", "jsonschema", json.dumps(ROBOT_TASK).encode())
@@ -169,6 +181,16 @@ class Scene:
             return dict(self.poses)
 
 
+def _without_nulls(value):
+    """A JSON value with every null member of a map left out (see _NUMBER); a snapshot is a
+    few kilobytes, twice a simulated second."""
+    if isinstance(value, dict):
+        return {k: _without_nulls(v) for k, v in value.items() if v is not None}
+    if isinstance(value, (list, tuple)):
+        return [_without_nulls(v) for v in value]
+    return value
+
+
 class FoxgloveOutputs:
     """Turns bus samples and supervisor snapshots into the channels above, through `emit`."""
 
@@ -199,7 +221,7 @@ class FoxgloveOutputs:
         """`/supervisor/state`, every robot's `/robots/<id>/task`, and `/supervisor/alarms`
         for the alarms raised or cleared since the last frame."""
         self.emit("/supervisor/state", SUPERVISOR_SNAPSHOT_SCHEMA, "json",
-                  to_json(snapshot).encode(), t_ns)
+                  to_json(_without_nulls(snapshot)).encode(), t_ns)
         for r in snapshot["robots"]:
             self.emit(f"/robots/{r['id']}/task", ROBOT_TASK_SCHEMA, "json",
                       json.dumps({"state": r["state"], "task": r["task"] or "-"}).encode(),

@@ -407,7 +407,8 @@ def test_run_record_in_simulated_time(tmp_path):
 
 
 def test_the_derived_json_channels_have_schemas_their_messages_fit():
-    """`/supervisor/state` and `/robots/<id>/task` used to say only {"type": "object"}."""
+    """`/supervisor/state` and `/robots/<id>/task` have real schemas, and what is sent on them
+    (the snapshot without its nulls: foxglove._without_nulls) fits them."""
     import jsonschema
 
     from mrta_supervisor.api import resolve_application, to_json
@@ -423,7 +424,6 @@ def test_the_derived_json_channels_have_schemas_their_messages_fit():
     snap = json.loads(to_json(sup.snapshot(40.0)))
     assert snap["transitions"] and snap["alarms"]
     jsonschema.Draft202012Validator.check_schema(SUPERVISOR_SNAPSHOT)
-    jsonschema.Draft202012Validator(SUPERVISOR_SNAPSHOT).validate(snap)
     emitted = {}
     FoxgloveOutputs(lambda topic, schema, enc, data, t: emitted.setdefault(
         topic, (schema, json.loads(data) if enc == "json" else None))).supervisor_frame(0, snap)
@@ -433,3 +433,4 @@ def test_the_derived_json_channels_have_schemas_their_messages_fit():
             assert body.get("properties"), topic
             jsonschema.Draft202012Validator(body).validate(data)
     assert emitted["/robots/robot1/task"][0][2] == json.dumps(ROBOT_TASK).encode()
+    assert emitted["/supervisor/state"][1]["transitions"] == snap["transitions"]
