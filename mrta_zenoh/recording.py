@@ -22,6 +22,7 @@ from __future__ import annotations
 import bisect
 import json
 import logging
+import os
 import queue
 import threading
 import time
@@ -73,11 +74,13 @@ class SimLogTime:
     the clock first, so it is logged at its own stamp whichever subscription Zenoh served first.
     """
 
-    def __init__(self, clock: SimClock):
+    def __init__(self, clock: SimClock, dated: bool = False):
         self.clock = clock
+        self.dated = dated
         self._lock = threading.Lock()
         self._restarts = clock.restarts
         self._offset = 0
+        self._origin: int | None = None if dated else 0
         self._last = 0
         self._decode = None
 
@@ -104,6 +107,9 @@ class SimLogTime:
                 break
         t = round(now * NS)
         with self._lock:
+            if self._origin is None:
+                self._origin = time.time_ns() - t
+            t += self._origin
             if restarts != self._restarts:
                 self._restarts = restarts
                 self._offset = self._last + RESTART_GAP_NS - t
@@ -128,6 +134,21 @@ def json_channel(encoding: str) -> tuple[tuple[str, str, bytes], Any] | None:
         (lambda payload: _json.encode(decode(payload)))
 
 
+def check_output(path: Path) -> None:
+    """ConfigError (exit 2) up front for an output a recorder could not create: its folder
+    missing, not a folder, or not writable; the path itself a folder."""
+    path = Path(path)
+    folder = path.resolve().parent
+    if not folder.is_dir():
+        raise ConfigError(f"folder {folder} does not exist", file=str(path))
+    if path.is_dir():
+        raise ConfigError("is a folder, not a file", file=str(path))
+    if not os.access(folder, os.W_OK | os.X_OK) or path.exists() and not os.access(path, os.W_OK):
+        raise ConfigError(f"cannot write the recording: folder {folder} is not writable"
+                          if not os.access(folder, os.W_OK | os.X_OK) else
+                          "cannot write the recording: the file is read-only", file=str(path))
+
+
 class McapRecorder:
     """Writes from one thread; bus callbacks only enqueue (they must stay tiny).
 
@@ -140,6 +161,10 @@ class McapRecorder:
     (message encoding `msgpack` or the raw one): preserved, though no viewer decodes it.
     Derived channels (a scene, a supervisor's state) are added with `add`.
 
+    A file that cannot be written (a full disk, a file size limit, a vanished mount) calls
+    `on_error` once, from the writer thread: `mrta record` and `mrta view` stop then, and
+    `close` raises MrtaRuntimeError (exit 1) saying how much was written and lost.
+
     Log time: `log_time()` when the sample is handed over (its arrival, taken in the caller's
     thread, not when the writer gets to it), for every channel alike: the wall time by default,
     the simulated time with a SimLogTime. A `log_time` returning None means "no time yet": the
@@ -150,7 +175,8 @@ class McapRecorder:
     """
 
     def __init__(self, path: Path, flush_every: float = 1.0,
-                 log_time: Callable[[], int | None] | None = None):
+                 log_time: Callable[[], int | None] | None = None,
+                 on_error: Callable[[], None] | None = None):
         self.path = path
         self.flush_every = flush_every
         self.log_time = log_time or time.time_ns
@@ -161,7 +187,10 @@ class McapRecorder:
             raise ConfigError(f"cannot write the recording: {exc.strerror}", file=str(path)) from None
         self._w = Writer(self._f)
         self._w.start(profile="", library="mrta-zenoh")
-        self._w.add_metadata("mrta", {"log_time": "simulated" if self.simulated else "wall"})
+        meta = {"log_time": "simulated" if self.simulated else "wall"}
+        if self.simulated and log_time.dated:
+            meta["time_origin"] = "run_start"
+        self._w.add_metadata("mrta", meta)
         self._channels: dict[tuple[str, str], tuple[int, Any]] = {}
         self._schemas: dict[tuple[str, str], int] = {}
         self._last: dict[int, int] = {}  # channel id → its last log time
@@ -170,6 +199,7 @@ class McapRecorder:
         self.count = 0
         self.lost = 0  # samples not written because the file could not be (a full disk)
         self._error: OSError | None = None
+        self._on_error = on_error
         self._thread = threading.Thread(target=self._run, name="mcap-writer", daemon=True)
         self._thread.start()
 
@@ -269,7 +299,10 @@ class McapRecorder:
             except OSError as exc:  # a full disk, a vanished mount: reported once, at close
                 self._error = exc
                 self.lost += bool(item)
-                log.error("cannot write %s: %s; recording stops", self.path, exc.strerror)
+                log.error("cannot write %s: %s; recording stops", self.path,
+                          exc.strerror or exc)
+                if self._on_error is not None:
+                    self._on_error()  # the recorder stops: it exits 1 when it closes this
 
     def close(self) -> None:
         """Write what is queued, finish the file (its summary and index); once. Samples still

@@ -106,8 +106,16 @@ ROBOT_TASK_SCHEMA = ("mrta.RobotTask", "jsonschema", json.dumps(ROBOT_TASK).enco
 SUPERVISOR_SNAPSHOT_SCHEMA = ("mrta.SupervisorSnapshot", "jsonschema",
                               json.dumps(SUPERVISOR_SNAPSHOT).encode())
 TRAIL = 300  # poses kept per robot
-GREY, BLUE, ORANGE, WHITE = (Color(r=.6, g=.6, b=.6, a=1), Color(r=.2, g=.5, b=1, a=1),
-                             Color(r=1, g=.6, b=.1, a=.8), Color(r=1, g=1, b=1, a=1))
+MAX_BEAMS = 32  # sonar points drawn per robot (a Pioneer has 16)
+# robots drawn without an application to say which; beyond, counted (Scene.ignored): a flood of
+# invented robots must not make every frame megabytes nor the view's memory grow
+MAX_SCENE_ROBOTS = 32
+WALLS_WAIT_NS = 1_000_000_000  # a scene frame waits this long (log time) for the world's walls
+GREY, BLUE, ORANGE, WHITE, YELLOW = (
+    Color(r=.6, g=.6, b=.6, a=1), Color(r=.2, g=.5, b=1, a=1), Color(r=1, g=.6, b=.1, a=.8),
+    Color(r=1, g=1, b=1, a=1), Color(r=1, g=.85, b=.1, a=1))
+ROBOT_RADIUS = 0.25  # m, a Pioneer 3-DX (DESIGN.md); the label sits beside the disc, not on it
+LABEL_OFFSET = (0.45, 0.35)  # m from the robot's centre, in the world frame
 
 
 @functools.cache
@@ -129,14 +137,29 @@ def _stamp(t_ns: int) -> Timestamp:
 
 
 class Scene:
-    """Walls, robots, beams and trails, from the bus."""
+    """Walls, robots, beams and trails, from the bus; bounded: the application's robots only
+    (`robots`), or the first MAX_SCENE_ROBOTS without one — any other robot's samples are
+    counted in `ignored` — so a frame's size and the memory behind it do not grow with what
+    others publish."""
 
-    def __init__(self) -> None:
+    def __init__(self, robots: list[str] | None = None) -> None:
         self._lock = threading.Lock()
+        self.allowed = frozenset(robots) if robots is not None else None
         self.walls: list[tuple[float, float, float, float]] = []
         self.poses: dict[str, tuple[float, float, float]] = {}
         self.trails: dict[str, collections.deque] = {}
         self.beams: dict[str, list[tuple[float, float]]] = {}
+        self.ignored = 0
+
+    def _drawn(self, robot: str) -> bool:
+        if robot in self.poses or robot in self.beams:
+            return True
+        if self.allowed is not None:
+            ok = robot in self.allowed
+        else:
+            ok = len(set(self.poses) | set(self.beams)) < MAX_SCENE_ROBOTS
+        self.ignored += not ok
+        return ok
 
     def on_sample(self, key: str, message) -> None:
         with self._lock:
@@ -144,10 +167,14 @@ class Scene:
                 self.walls = [(w.x1, w.y1, w.x2, w.y2) for w in message.walls]
             elif key.endswith("/ground_truth"):
                 robot, p = first_chunk(key), message.pose
-                self.poses[robot] = (p.x, p.y, p.theta)
-                self.trails.setdefault(robot, collections.deque(maxlen=TRAIL)).append((p.x, p.y))
+                if self._drawn(robot):
+                    self.poses[robot] = (p.x, p.y, p.theta)
+                    self.trails.setdefault(robot, collections.deque(maxlen=TRAIL)).append(
+                        (p.x, p.y))
             elif key.endswith("/sonar"):
-                self.beams[first_chunk(key)] = [(q.x, q.y) for q in message.points]
+                robot = first_chunk(key)
+                if self._drawn(robot):
+                    self.beams[robot] = [(q.x, q.y) for q in message.points[:MAX_BEAMS]]
 
     def update(self) -> SceneUpdate:
         with self._lock:
@@ -159,14 +186,20 @@ class Scene:
                 beams = [Point3(x=v, y=w, z=0.1) for bx, by in self.beams.get(robot, [])
                          for v, w in ((x, y), (x + bx * math.cos(th) - by * math.sin(th),
                                                y + bx * math.sin(th) + by * math.cos(th)))]
-                pose = _pose(x, y, th)
+                d = 2 * ROBOT_RADIUS
+                dx, dy = LABEL_OFFSET
                 ents.append(SceneEntity(
                     id=robot, frame_id="world",
-                    cylinders=[CylinderPrimitive(pose=pose, size=Vector3(x=0.5, y=0.5, z=0.25),
+                    cylinders=[CylinderPrimitive(pose=_pose(x, y, th),
+                                                 size=Vector3(x=d, y=d, z=0.25),
                                                  bottom_scale=1, top_scale=1, color=BLUE)],
-                    arrows=[ArrowPrimitive(pose=pose, shaft_length=0.35, shaft_diameter=0.06,
-                                           head_length=0.15, head_diameter=0.15, color=WHITE)],
-                    texts=[TextPrimitive(pose=_pose(x, y, 0.0, z=0.6),
+                    # above the disc, from its centre to past its rim: seen from the top-down
+                    # camera, in a colour the disc and the trail do not have
+                    arrows=[ArrowPrimitive(pose=_pose(x, y, th, z=0.3), shaft_length=0.3,
+                                           shaft_diameter=0.08, head_length=0.2,
+                                           head_diameter=0.22, color=YELLOW)],
+                    # beside the robot, not on it: the label must not hide the disc or arrow
+                    texts=[TextPrimitive(pose=_pose(x + dx, y + dy, 0.0, z=0.3),
                                          text=robot, font_size=14, billboard=True,
                                          scale_invariant=True, color=WHITE)],
                     lines=[LinePrimitive(type=LinePrimitiveLineType.LineStrip, thickness=0.04,
@@ -179,6 +212,18 @@ class Scene:
     def poses_now(self) -> dict[str, tuple[float, float, float]]:
         with self._lock:
             return dict(self.poses)
+
+
+def derived_channels(robots: list[str]) -> list[tuple[str, tuple[str, str, bytes], str]]:
+    """(topic, schema, message encoding) of every channel FoxgloveOutputs emits for `robots`:
+    what a live server advertises before the first frame."""
+    out = [("/world", _schema(SceneUpdate), "protobuf"),
+           ("/supervisor/state", SUPERVISOR_SNAPSHOT_SCHEMA, "json"),
+           ("/supervisor/alarms", _schema(Log), "protobuf")]
+    for robot in robots:
+        out += [(f"/robots/{robot}/pose", _schema(PoseInFrame), "protobuf"),
+                (f"/robots/{robot}/task", ROBOT_TASK_SCHEMA, "json")]
+    return out
 
 
 def _without_nulls(value):
@@ -194,10 +239,11 @@ def _without_nulls(value):
 class FoxgloveOutputs:
     """Turns bus samples and supervisor snapshots into the channels above, through `emit`."""
 
-    def __init__(self, emit: Emit):
+    def __init__(self, emit: Emit, robots: list[str] | None = None):
         self.emit = emit
-        self.scene = Scene()
+        self.scene = Scene(robots)
         self._alarms: set[tuple[str, str]] = set()
+        self._first_scene: int | None = None  # log time of the first scene frame asked for
 
     def on_sample(self, key: str, message) -> None:
         if key == "world" or key.endswith(("/ground_truth", "/sonar")):
@@ -210,7 +256,13 @@ class FoxgloveOutputs:
             self.supervisor_frame(t_ns, snapshot)
 
     def scene_frame(self, t_ns: int) -> None:
-        """`/world` and every robot's pose, as the bus has them now, at log time `t_ns`."""
+        """`/world` and every robot's pose, as the bus has them now, at log time `t_ns`. The
+        first frames wait for the world's walls (up to WALLS_WAIT_NS of log time: a world
+        may have none), so a viewer's first `/world` frame is never an empty floor."""
+        if self._first_scene is None:
+            self._first_scene = t_ns
+        if not self.scene.walls and t_ns - self._first_scene < WALLS_WAIT_NS:
+            return
         self.emit("/world", _schema(SceneUpdate), "protobuf", self.scene.update().encode(), t_ns)
         for robot, (x, y, th) in self.scene.poses_now().items():
             msg = PoseInFrame(timestamp=_stamp(t_ns), frame_id="world", pose=_pose(x, y, th))

@@ -8,6 +8,7 @@ process, no Zenoh session."""
 from __future__ import annotations
 
 import json
+import struct
 import threading
 import time
 from collections import defaultdict
@@ -25,6 +26,7 @@ from mrta_zenoh.recording import (
 )
 from mrta_supervisor import viewer
 from mrta_supervisor.foxglove import FoxgloveOutputs
+from mrta_simulator.messages import Segment, World
 
 S = NS  # one simulated second in log-time nanoseconds
 
@@ -171,9 +173,11 @@ def test_a_restart_gives_one_readable_file_with_the_runs_end_to_end(tmp_path):
 class Emitted:
     def __init__(self) -> None:
         self.by_topic = defaultdict(list)
+        self.data = defaultdict(list)
 
     def __call__(self, topic, schema, enc, data, t_ns) -> None:
         self.by_topic[topic].append(t_ns)
+        self.data[topic].append(data)
 
 
 def test_next_tick_is_on_the_simulated_grid_and_skips_what_passed():
@@ -213,6 +217,7 @@ def test_derived_frames_follow_the_simulated_clock_at_their_rates():
     stamp = SimLogTime(clock)
     emitted = Emitted()
     outputs = FoxgloveOutputs(emitted)
+    outputs.scene.on_sample("world", WALLS)
     outputs.scene.on_sample("robot1/ground_truth",
                             Odometry(Header("world", 0, 0), Pose2D(1, 1, 0), Twist(0, 0)))
     snaps = []
@@ -240,11 +245,39 @@ def test_derived_frames_follow_the_simulated_clock_at_their_rates():
     assert emitted.by_topic["/robots/robot1/task"] == state
 
 
+WALLS = World(Header("world", 0.0, 0), "box", (Segment(0, 0, 5, 0), Segment(5, 0, 5, 5)))
+
+
+def test_the_first_world_frame_waits_for_the_walls_a_second_at_most():
+    """The simulator sends its walls once a simulated second; a first frame before them showed
+    an empty floor. With walls heard at 0.3 s, the first frame is at 0.4 s (the next 5 Hz
+    tick) and has them; with none ever heard, frames start 1 s after the first one asked."""
+    for walls_at, first in ((0.3, 0.4), (None, 1.0)):
+        clock = SimClock()
+        emitted = Emitted()
+        outputs = FoxgloveOutputs(emitted)
+
+        def feed(pacer):
+            for k in range(151):  # 3 simulated seconds
+                if walls_at is not None and abs(k * 0.02 - walls_at) < 1e-9:
+                    outputs.scene.on_sample("world", WALLS)
+                clock.on_clock(k * 0.02, "run1")
+                pacer.poke()
+                keep_pace(pacer)
+
+        run_frames(clock, SimLogTime(clock), outputs, feed=feed)
+        world = emitted.by_topic["/world"]
+        assert world[0] == round(first * S), (walls_at, world[:3])
+        if walls_at is not None:  # the wall's far corner (5, 5), as protobuf doubles
+            assert struct.pack("<d", 5.0) in emitted.data["/world"][0]
+
+
 def test_a_slow_frame_loop_never_holds_up_the_bus_and_skips_frames_instead():
     clock = SimClock()
     stamp = SimLogTime(clock)
     emitted = Emitted()
     outputs = FoxgloveOutputs(emitted)
+    outputs.scene.on_sample("world", WALLS)
     slow = outputs.scene_frame
 
     def scene_frame(t_ns):
@@ -305,9 +338,9 @@ def test_run_view_records_the_bus_and_the_scene_in_simulated_time(tmp_path, monk
     out = tmp_path / "view.mcap"
     stop = threading.Event()
     ready = threading.Event()
-    th = threading.Thread(target=viewer.run_view, kwargs=dict(
-        app="patrol", bus_options=None, port=None, output=out, sim_time=True, stop=stop,
-        on_ready=lambda url: ready.set(), bus=bus), daemon=True)
+    th = threading.Thread(target=viewer.run_view, args=(
+        viewer.ViewOptions(app="patrol", port=None, output=out, sim_time=True), None),
+        kwargs=dict(stop=stop, on_ready=lambda url: ready.set(), bus=bus), daemon=True)
     th.start()
     assert ready.wait(30)
     token = bus.declare_token(f"{CLOCK_SOURCE_TOKEN}/run1")
