@@ -6,7 +6,8 @@ filter the recording and anyone with msgpack can decode it. Liveliness changes a
 on topics `@liveliness/<key>` as JSON `{"alive": true|false}`.
 
 Log time: wall time (ns since the epoch) by default; in a simulated-time recording
-(`SimLogTime`: `mrta view --sim-time`, the mission runner's recorder, `run_record(sim_time=True)`)
+(`SimLogTime`, mrta_zenoh/sim_log_time.py: `mrta view --sim-time`, the mission runner's recorder,
+`run_record(sim_time=True)`)
 the simulated time of the run as the recorder's `SimClock` follows it, so Foxglove plays a run at
 mission speed whatever `--speed` it ran at. Either way a channel's log times never decrease (MCAP
 readers expect it). The file's `mrta` metadata record says which (`log_time`: `wall` or
@@ -36,11 +37,11 @@ from mcap.writer import Writer
 import msgspec
 
 from . import codec, keys
-from .clock import SimClock
 from .codec import DecodeError, type_from_encoding
 from .errors import ConfigError, MrtaRuntimeError
 from .flat_schema import message_schema, object_schema
-from .messages import Clock, message_class
+from .messages import message_class
+from .sim_log_time import NS, RESTART_GAP_NS, SimLogTime
 
 _json = msgspec.json  # lossless for our values: shortest round-trip floats
 
@@ -51,71 +52,11 @@ Record = tuple[str, str, int, bytes]  # (key, encoding, log time ns, payload)
 
 LIVELINESS_SCHEMA = {"title": "liveliness", "type": "object",
                      "properties": {"alive": {"type": "boolean"}}, "required": ["alive"]}
-NS = 1_000_000_000
-RESTART_GAP_NS = NS  # a restarted simulation's log times start this long after the last run's
 HOLD_MAX = 10_000  # samples held for the first clock sample; beyond, written at log time 0
-
-
-class SimLogTime:
-    """Log times in simulated time: nanoseconds of `clock` (a SimClock the recorder follows).
-
-    * Before the first clock sample there is no simulated time: the call returns None and the
-      recorder holds the sample until the first stamped one, then writes it at that sample's
-      log time (the run's first instant). Nothing is stamped with a time it never had, and a
-      recorder that joins a run late does not start its file at 0 with a gap up to the present.
-    * A restarted simulation (the clock adopted a new run, `SimClock.restarts`) starts again
-      from its own stamps; its log times are offset so that they continue RESTART_GAP_NS after
-      the last log time handed out. One file, log times increasing throughout, the runs one
-      after the other, as readers expect; the `clock` channel still holds each run's own
-      stamps, which is what TimeBase maps log times back to.
-    * Log times handed out never decrease (a late or concurrent caller gets the latest one).
-
-    `observe` is to be called with every raw sample before stamping it: a `clock` sample moves
-    the clock first, so it is logged at its own stamp whichever subscription Zenoh served first.
-    """
-
-    def __init__(self, clock: SimClock, dated: bool = False):
-        self.clock = clock
-        self.dated = dated
-        self._lock = threading.Lock()
-        self._restarts = clock.restarts
-        self._offset = 0
-        self._origin: int | None = None if dated else 0
-        self._last = 0
-        self._decode = None
-
-    def observe(self, key: str, encoding: str, payload: bytes) -> None:
-        if key != keys.CLOCK:
-            return
-        try:
-            if self._decode is None or self._decode[0] != encoding:
-                self._decode = (encoding, codec.decoder_for(encoding)[1])
-            msg = self._decode[1](payload)
-        except DecodeError:
-            return  # counted by the clock's typed subscriber; it moves nothing here
-        if isinstance(msg, Clock):
-            self.clock.on_clock(msg.stamp, msg.source)
-
-    def __call__(self) -> int | None:
-        clock = self.clock
-        if not clock.started.is_set():
-            return None
-        while True:  # a consistent (restarts, now) pair: a restart changes both
-            restarts = clock.restarts
-            now = clock.now()
-            if clock.restarts == restarts:
-                break
-        t = round(now * NS)
-        with self._lock:
-            if self._origin is None:
-                self._origin = time.time_ns() - t
-            t += self._origin
-            if restarts != self._restarts:
-                self._restarts = restarts
-                self._offset = self._last + RESTART_GAP_NS - t
-            out = max(self._last, self._offset + t)
-            self._last = out
-            return out
+# channels (keys) one recording holds; keys come from the network, and a flood of invented
+# ones must not grow the recorder's memory (and the file's summary) for good: samples on keys
+# beyond are counted (`refused`) and not written
+MAX_CHANNELS = 20_000
 
 
 def json_channel(encoding: str) -> tuple[tuple[str, str, bytes], Any] | None:
@@ -198,6 +139,7 @@ class McapRecorder:
         self._q: queue.SimpleQueue = queue.SimpleQueue()
         self.count = 0
         self.lost = 0  # samples not written because the file could not be (a full disk)
+        self.refused = 0  # samples on new keys beyond MAX_CHANNELS
         self._error: OSError | None = None
         self._on_error = on_error
         self._thread = threading.Thread(target=self._run, name="mcap-writer", daemon=True)
@@ -223,12 +165,15 @@ class McapRecorder:
             sid = self._schemas[(name, encoding)] = self._w.register_schema(name, encoding, data)
         return sid
 
-    def _channel(self, key: str, encoding) -> tuple[int, Any]:
-        """(channel id, payload converter) for a key and its encoding, registered once."""
+    def _channel(self, key: str, encoding) -> tuple[int, Any] | None:
+        """(channel id, payload converter) for a key and its encoding, registered once; None
+        for a new bus key beyond MAX_CHANNELS."""
         ident = (key, encoding if isinstance(encoding, str) else encoding[1][0])
         entry = self._channels.get(ident)
         if entry is not None:
             return entry
+        if len(self._channels) >= MAX_CHANNELS and isinstance(encoding, str):
+            return None  # derived channels (the recorder's own) are never refused
         if not isinstance(encoding, str):  # a derived channel
             _, (name, schema_enc, data), msg_enc = encoding
             ch = self._w.register_channel(topic=key, message_encoding=msg_enc,
@@ -264,12 +209,23 @@ class McapRecorder:
             held, self._held = self._held, []
             for item in held:
                 self._write(t, *item)
-        ch, convert = self._channel(key, enc)
+        entry = self._channel(key, enc)
+        if entry is None:
+            self.refused += 1
+            if self.refused == 1:
+                log.warning("more than %d keys: samples on new keys are not recorded",
+                            MAX_CHANNELS)
+            return
+        ch, convert = entry
         if convert is not None:
             try:
                 payload = convert(payload)
             except DecodeError:  # malformed: kept as it came, on a channel of its own
-                ch, _ = self._channel(key + "/@malformed", "application/octet-stream")
+                entry = self._channel(key + "/@malformed", "application/octet-stream")
+                if entry is None:
+                    self.refused += 1
+                    return
+                ch = entry[0]
         t = max(t, self._last.get(ch, 0))
         self._last[ch] = t
         self._w.add_message(channel_id=ch, log_time=t, publish_time=t, data=payload,
