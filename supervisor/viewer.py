@@ -33,6 +33,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from mrta_zenoh import codec, keys
+from mrta_zenoh.architectures import architecture
 from mrta_zenoh.bus import Bus, BusOptions, open_bus
 from mrta_zenoh.identity import OBSERVER, check_identity
 from mrta_zenoh.clock import EPSILON, SimClock, WallClock, follow_sim_clock
@@ -173,12 +174,17 @@ class ViewOptions:
             raise ConfigError("--dated is for --sim-time (wall-time log times are dates already)")
 
 
-def known_channels(app_model, arch) -> list[tuple[str, tuple[str, str, bytes], str]]:
+def known_channels(app_model) -> list[tuple[str, tuple[str, str, bytes], str]]:
     """(topic, schema, encoding) of the channels an application's run will have, from its
-    application and architecture files: each robot's simulator keys and its architecture's
-    (a kind with sub-keys once per task: ALLIANCE's motivation/<task>), and the derived
-    channels. Advertised when the server starts, so a layout finds its topics at once."""
+    application file and its architecture's contract: each robot's simulator keys and its
+    architecture's (a kind with sub-keys once per task: ALLIANCE's motivation/<task>), and the
+    derived channels. Advertised when the server starts, so a layout finds its topics at once.
+    An architecture with no registered contract (an rqt_mrta file only) adds none of its own."""
     robots = [normalize_robot_id(r.id) for r in app_model.robots]
+    try:
+        arch = architecture(app_model.architecture)
+    except ConfigError:
+        arch = None
     out = list(derived_channels(robots))
 
     def bus(key: str, cls) -> None:
@@ -191,7 +197,7 @@ def known_channels(app_model, arch) -> list[tuple[str, tuple[str, str, bytes], s
         for key, cls in ((keys.ground_truth(rid), Odometry), (keys.odom(rid), Odometry),
                          (keys.sonar(rid), PointCloud), (keys.cmd_vel(rid), Twist)):
             bus(key, cls)
-        for kind, cls in arch.messages.items():
+        for kind, cls in (arch.messages.items() if arch is not None else ()):
             subs = app_model.tasks() if arch.has_subkeys(kind) else [None]
             for task in subs:
                 bus(arch.key(rid, kind) if task is None else arch.key(rid, kind, task), cls)
@@ -220,7 +226,7 @@ def run_view(options: ViewOptions, bus_options: BusOptions, *,
             if application is not None else None
         live = handles.enter_context(LiveChannels(
             options.host, options.port,
-            known_channels(*application) if application is not None else ())) \
+            known_channels(application[0]) if application is not None else ())) \
             if options.port is not None else None
         # a recording that cannot be written stops the view at once (`stop`); closing it
         # then raises MrtaRuntimeError: exit 1, not a server that runs on recording nothing
