@@ -61,7 +61,9 @@ ROBOT_TASK = {
     "title": "mrta.RobotTask",
     "description": "A robot's state and the task it is on, for the State Transitions panel.",
     **_object({"state": {**_STRING, "description": "busy, idle, offline or unknown"},
-               "task": {**_STRING, "description": "the task it is allocated, '-' for none"}}),
+               "task": {**_STRING, "description": "the task it is allocated, '-' for none"},
+               "activity": {**_STRING, "description": "the task while busy, else the state: "
+                            "one State Transitions row per robot says both"}}),
 }
 # the supervisor's counts (supervisor/state.py); a newer supervisor's other counts still
 # validate (additionalProperties), though the panels offer only these
@@ -275,9 +277,10 @@ class FoxgloveOutputs:
         self.emit("/supervisor/state", SUPERVISOR_SNAPSHOT_SCHEMA, "json",
                   to_json(_without_nulls(snapshot)).encode(), t_ns)
         for r in snapshot["robots"]:
+            activity = r["task"] if r["state"] == "busy" and r["task"] else r["state"]
             self.emit(f"/robots/{r['id']}/task", ROBOT_TASK_SCHEMA, "json",
-                      json.dumps({"state": r["state"], "task": r["task"] or "-"}).encode(),
-                      t_ns)
+                      json.dumps({"state": r["state"], "task": r["task"] or "-",
+                                  "activity": activity}).encode(), t_ns)
         alarms = {(a["kind"], a["subject"]) for a in snapshot["alarms"]}
         for kind, subject in sorted(alarms - self._alarms):
             self._log(t_ns, LogLevel.Warning, f"ALARM {kind} {subject}")

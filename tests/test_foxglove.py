@@ -60,8 +60,9 @@ def test_every_channel_has_a_schema_foxglove_decodes_and_every_json_message_fits
         assert f"/robots/{robot}/pose" in seen and f"/robots/{robot}/task" in seen
     assert any(b"communication_lost robot2" in d for d in seen["/supervisor/alarms"])
     tasks = [json.loads(d) for d in seen["/robots/robot2/task"]]
-    assert {"state": "busy", "task": "border_protection"} in tasks
-    assert tasks[-1]["state"] == "offline"
+    assert {"state": "busy", "task": "border_protection",
+            "activity": "border_protection"} in tasks
+    assert tasks[-1]["state"] == tasks[-1]["activity"] == "offline"
 
 
 def test_a_speed_0_recording_is_in_simulated_time_with_frames_per_simulated_second(recorded):
