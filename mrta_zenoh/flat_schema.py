@@ -24,15 +24,22 @@ from __future__ import annotations
 
 import functools
 import json
+import math
 from typing import Any
 
 import msgspec
 
 from . import codec
 
-__all__ = ["flatten", "message_schema", "object_schema"]
+__all__ = ["flatten", "from_viewer", "message_schema", "object_schema", "to_viewer"]
 
+_json = msgspec.json  # lossless for our values: shortest round-trip floats
 SCALARS = ("boolean", "string", "number", "integer")
+STAMP_SECONDS = "stamp_seconds"  # the header stamp's exact float, beside its {sec, nsec} form
+TIME = {"type": "object", "title": "time",
+        "description": "the header stamp as ROS time: whole seconds and nanoseconds",
+        "properties": {"sec": {"type": "integer"}, "nsec": {"type": "integer"}},
+        "required": ["sec", "nsec"]}
 MAX_DEPTH = 32  # nested objects followed; deeper (a recursive type) is left out
 
 
@@ -49,6 +56,12 @@ def object_schema(title: str, description: str = "") -> dict:
     return out
 
 
+def has_header(cls: type) -> bool:
+    """Whether a message class has our Header as its `header` field."""
+    from .messages import Header
+    return any(f.name == "header" and f.type is Header for f in msgspec.structs.fields(cls))
+
+
 @functools.cache
 def message_schema(cls: type) -> bytes:
     """A message class's flattened schema, as the bytes a channel carries (cached: the same
@@ -62,7 +75,54 @@ def message_schema(cls: type) -> bytes:
     codec.struct_decoder(cls)
     with codec.TYPE_INFO_LOCK:
         schema = msgspec.json.schema(cls)
-    return json.dumps(flatten(schema)).encode()
+    out = flatten(schema)
+    if has_header(cls):
+        header = out["properties"]["header"]
+        header["properties"]["stamp"] = TIME
+        header["properties"][STAMP_SECONDS] = {
+            "type": "number", "description": "the stamp in seconds, as the sender wrote it"}
+        header["required"] = [*header.get("required", ()), STAMP_SECONDS]
+    return json.dumps(out).encode()
+
+
+# ------------------------------------------------------------------ header stamps
+# Foxglove's and Lichtblick's panels read `header.stamp` of every message as ROS time: the Plot
+# panel evaluates `"sec" in header.stamp` for each message it plots, which throws on a number —
+# our stamp is seconds as a float (the wire format) — and the panel shows an error instead of
+# its lines. So the JSON that viewers get (recordings, live channels) writes a top-level
+# header's stamp as {sec, nsec}, and keeps the exact float beside it (`stamp_seconds`), from
+# which `from_viewer` gives the wire's message back bit for bit (sec + nsec / 1e9 would not).
+
+def to_viewer(cls: type):
+    """message → the JSON bytes viewers get (the header stamp as above)."""
+    if not has_header(cls):
+        return _json.encode
+
+    def encode(message) -> bytes:
+        value = msgspec.to_builtins(message)
+        header = value["header"]
+        stamp = header["stamp"]
+        sec = math.floor(stamp)
+        nsec = min(round((stamp - sec) * 1e9), 999_999_999)
+        header["stamp"] = {"sec": sec, "nsec": nsec}
+        header[STAMP_SECONDS] = stamp
+        return _json.encode(value)
+
+    return encode
+
+
+def from_viewer(data: bytes, cls: type):
+    """The message of a viewer's JSON (to_viewer's, or a plain one) — msgspec's errors raised."""
+    try:
+        return _json.decode(data, type=cls)
+    except msgspec.ValidationError:
+        value = _json.decode(data)
+        header = value.get("header") if isinstance(value, dict) else None
+        if not (isinstance(header, dict) and isinstance(header.get("stamp"), dict)
+                and STAMP_SECONDS in header):
+            raise
+        header["stamp"] = header.pop(STAMP_SECONDS)
+        return _json.decode(_json.encode(value), type=cls)
 
 
 def flatten(schema: dict) -> dict:

@@ -39,7 +39,7 @@ import msgspec
 from . import codec, keys
 from .codec import DecodeError, type_from_encoding
 from .errors import ConfigError, MrtaRuntimeError
-from .flat_schema import message_schema, object_schema
+from .flat_schema import from_viewer, message_schema, object_schema, to_viewer
 from .messages import message_class
 from .sim_log_time import NS, RESTART_GAP_NS, SimLogTime
 
@@ -62,7 +62,8 @@ MAX_CHANNELS = 20_000
 def json_channel(encoding: str) -> tuple[tuple[str, str, bytes], Any] | None:
     """For a sample of our wire format: ((schema name, "jsonschema", schema), payload → JSON
     bytes); None for anything else. What viewers (Foxglove, Lichtblick) decode: the schema is
-    flattened to what their parsers take (mrta_zenoh.flat_schema)."""
+    flattened to what their parsers take, a header's stamp written as ROS time
+    (mrta_zenoh.flat_schema)."""
     try:
         type_name = type_from_encoding(encoding)
     except DecodeError:
@@ -71,8 +72,8 @@ def json_channel(encoding: str) -> tuple[tuple[str, str, bytes], Any] | None:
     schema = message_schema(cls) if cls is not None else \
         json.dumps(object_schema(type_name, "a type this recorder does not know")).encode()
     _, decode = codec.decoder_for(encoding)
-    return (type_name, "jsonschema", schema), \
-        (lambda payload: _json.encode(decode(payload)))
+    encode = to_viewer(cls) if cls is not None else _json.encode
+    return (type_name, "jsonschema", schema), (lambda payload: encode(decode(payload)))
 
 
 def check_output(path: Path) -> None:
@@ -365,7 +366,7 @@ def _to_wire(type_name: str, data: bytes) -> bytes:
     """A recorded JSON message back to the msgpack the bus carried (lossless for our values)."""
     cls = message_class(type_name)
     try:
-        value = _json.decode(data, type=cls) if cls is not None else _json.decode(data)
+        value = from_viewer(data, cls) if cls is not None else _json.decode(data)
     except (msgspec.ValidationError, msgspec.DecodeError):
         return data  # kept; the decoder downstream reports it
     return codec.encode(value) if cls is not None else codec.encode_struct(value)

@@ -116,8 +116,12 @@ WALLS_WAIT_NS = 1_000_000_000  # a scene frame waits this long (log time) for th
 GREY, BLUE, ORANGE, WHITE, YELLOW = (
     Color(r=.6, g=.6, b=.6, a=1), Color(r=.2, g=.5, b=1, a=1), Color(r=1, g=.6, b=.1, a=.8),
     Color(r=1, g=1, b=1, a=1), Color(r=1, g=.85, b=.1, a=1))
-ROBOT_RADIUS = 0.25  # m, a Pioneer 3-DX (DESIGN.md); the label sits beside the disc, not on it
-LABEL_OFFSET = (0.45, 0.35)  # m from the robot's centre, in the world frame
+ROBOT_RADIUS = 0.25  # m, a Pioneer 3-DX (DESIGN.md)
+# A robot's name: in metres (not scale-invariant pixels, whose box covered the robot and its
+# heading at a world-wide zoom), centred above the disc with a gap, so it is beside the robot
+# at every zoom
+LABEL_SIZE = 0.4  # m, the text's height
+LABEL_ABOVE = ROBOT_RADIUS + 0.15 + LABEL_SIZE / 2  # m from the robot's centre to the label's
 
 
 @functools.cache
@@ -189,7 +193,6 @@ class Scene:
                          for v, w in ((x, y), (x + bx * math.cos(th) - by * math.sin(th),
                                                y + bx * math.sin(th) + by * math.cos(th)))]
                 d = 2 * ROBOT_RADIUS
-                dx, dy = LABEL_OFFSET
                 ents.append(SceneEntity(
                     id=robot, frame_id="world",
                     cylinders=[CylinderPrimitive(pose=_pose(x, y, th),
@@ -200,10 +203,9 @@ class Scene:
                     arrows=[ArrowPrimitive(pose=_pose(x, y, th, z=0.3), shaft_length=0.3,
                                            shaft_diameter=0.08, head_length=0.2,
                                            head_diameter=0.22, color=YELLOW)],
-                    # beside the robot, not on it: the label must not hide the disc or arrow
-                    texts=[TextPrimitive(pose=_pose(x + dx, y + dy, 0.0, z=0.3),
-                                         text=robot, font_size=14, billboard=True,
-                                         scale_invariant=True, color=WHITE)],
+                    texts=[TextPrimitive(pose=_pose(x, y + LABEL_ABOVE, 0.0, z=0.3),
+                                         text=robot, font_size=LABEL_SIZE, billboard=True,
+                                         scale_invariant=False, color=WHITE)],
                     lines=[LinePrimitive(type=LinePrimitiveLineType.LineStrip, thickness=0.04,
                                          color=BLUE, points=[Point3(x=a, y=b, z=0.02) for a, b
                                                              in self.trails.get(robot, ())]),

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import faulthandler
+import sys
 from pathlib import Path
 
 import click
@@ -28,6 +29,7 @@ from .common import bus_options, finite_float
 def record(output: Path, key_exprs: tuple[str, ...], duration: float | None, sim_time: bool,
            dated: bool, bus_options: BusOptions) -> None:
     """Record every sample on KEYEXPR… (default: everything) to an MCAP file."""
-    faulthandler.enable()  # a native crash (zenoh, msgspec, mcap) leaves its threads' stacks
+    if sys.__stderr__ is not None:  # a native crash (zenoh, msgspec, mcap) leaves its stacks
+        faulthandler.enable(sys.__stderr__)
     run_record(output=output, key_exprs=list(key_exprs) or ["**"], bus_options=bus_options,
                duration=duration, sim_time=sim_time, dated=dated)
