@@ -93,22 +93,32 @@ def message_schema(cls: type) -> bytes:
 # header's stamp as {sec, nsec}, and keeps the exact float beside it (`stamp_seconds`), from
 # which `from_viewer` gives the wire's message back bit for bit (sec + nsec / 1e9 would not).
 
+class _Time(msgspec.Struct, gc=False):
+    sec: int
+    nsec: int
+
+
+class _ViewerHeader(msgspec.Struct, gc=False):
+    frame_id: str
+    stamp: _Time
+    seq: int
+    stamp_seconds: float
+
+
 def to_viewer(cls: type):
     """message → the JSON bytes viewers get (the header stamp as above)."""
     if not has_header(cls):
         return _json.encode
+    replace, encode, floor = msgspec.structs.replace, _json.encode, math.floor
 
-    def encode(message) -> bytes:
-        value = msgspec.to_builtins(message)
-        header = value["header"]
-        stamp = header["stamp"]
-        sec = math.floor(stamp)
-        nsec = min(round((stamp - sec) * 1e9), 999_999_999)
-        header["stamp"] = {"sec": sec, "nsec": nsec}
-        header[STAMP_SECONDS] = stamp
-        return _json.encode(value)
+    def to_json(message) -> bytes:
+        h = message.header
+        sec = floor(h.stamp)
+        nsec = min(round((h.stamp - sec) * 1e9), 999_999_999)
+        return encode(replace(message, header=_ViewerHeader(h.frame_id, _Time(sec, nsec), h.seq,
+                                                            h.stamp)))
 
-    return encode
+    return to_json
 
 
 def from_viewer(data: bytes, cls: type):

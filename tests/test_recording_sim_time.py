@@ -96,6 +96,27 @@ def test_a_restarted_simulation_continues_one_second_after_the_previous_runs_end
     assert stamp() == end + RESTART_GAP_NS + S // 2
 
 
+def test_a_dated_recording_starts_at_the_wall_clock_and_keeps_simulated_durations(tmp_path):
+    """--dated: the first clock sample's log time is the wall time it was heard at (a viewer
+    shows the run's date, not 1970-01-01); every later one is that plus the simulated time that
+    passed, however fast the run went; the file says it is dated."""
+    clock = SimClock()
+    stamp = SimLogTime(clock, dated=True)
+    assert stamp() is None
+    before = time.time_ns()
+    clock.on_clock(2.0, "run1")
+    first = stamp()
+    after = time.time_ns()
+    assert before - 2 * S <= first - 2 * S <= after  # the origin: when 2.0 s was heard, less 2 s
+    for k in range(1, 3001):  # a minute of simulated time, as fast as it comes
+        clock.on_clock(2.0 + k * 0.02, "run1")
+    assert stamp() - first == 60 * S
+    out = tmp_path / "dated.mcap"
+    with McapRecorder(out, log_time=stamp):
+        pass
+    assert read(out)[2]["mrta"] == {"log_time": "simulated", "time_origin": "run_start"}
+
+
 # ------------------------------------------------------------------ the recorder
 def test_the_recorder_holds_samples_until_the_first_clock_sample_then_logs_them_there(tmp_path):
     clock = SimClock()
