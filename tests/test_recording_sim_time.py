@@ -477,6 +477,7 @@ def test_the_derived_json_channels_have_schemas_their_messages_fit():
     sup.update(40.0)
     snap = json.loads(to_json(sup.snapshot(40.0)))
     assert snap["transitions"] and snap["alarms"]
+    assert any(r["task"] is None for r in snap["robots"])  # what the schema cannot say
     jsonschema.Draft202012Validator.check_schema(SUPERVISOR_SNAPSHOT)
     emitted = {}
     FoxgloveOutputs(lambda topic, schema, enc, data, t: emitted.setdefault(
@@ -488,3 +489,5 @@ def test_the_derived_json_channels_have_schemas_their_messages_fit():
             jsonschema.Draft202012Validator(body).validate(data)
     assert emitted["/robots/robot1/task"][0][2] == json.dumps(ROBOT_TASK).encode()
     assert emitted["/supervisor/state"][1]["transitions"] == snap["transitions"]
+    assert all("task" not in r for r in emitted["/supervisor/state"][1]["robots"]
+               if r["state"] == "offline")  # left out, not null
