@@ -27,6 +27,7 @@ from __future__ import annotations
 import collections
 import functools
 import json
+import logging
 import math
 import threading
 from typing import Callable
@@ -38,9 +39,11 @@ from foxglove.messages import (
 )
 
 from mrta_zenoh.keys import first_chunk
+from mrta_zenoh.untrusted import visible
 
 from .api import to_json
 
+log = logging.getLogger("mrta.view")
 Emit = Callable[[str, tuple[str, str, bytes], str, bytes, int], None]  # topic, schema, enc, data, t
 
 # Foxglove's and Lichtblick's JSON Schema parsers take one type string per property, never
@@ -164,7 +167,12 @@ class Scene:
             ok = robot in self.allowed
         else:
             ok = len(set(self.poses) | set(self.beams)) < MAX_SCENE_ROBOTS
-        self.ignored += not ok
+        if not ok:
+            self.ignored += 1
+            if self.ignored == 1:  # once: the rest are counted (the supervisor alarms strangers)
+                log.warning("the scene draws %s only; ignoring %s and any other robot",
+                            "the application's robots" if self.allowed is not None
+                            else f"the first {MAX_SCENE_ROBOTS} robots", visible(robot, 100))
         return ok
 
     def on_sample(self, key: str, message) -> None:

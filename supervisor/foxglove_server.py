@@ -76,7 +76,6 @@ class Client:
     """One connection: its subscriptions and what waits to be sent to it."""
 
     ws: ServerConnection
-    loop: asyncio.AbstractEventLoop
     wake: asyncio.Event = field(default_factory=asyncio.Event)
     subs: dict[int, int] = field(default_factory=dict)  # subscription id → channel id
     by_channel: dict[int, set[int]] = field(default_factory=dict)  # channel id → subscription ids
@@ -202,7 +201,7 @@ class FoxgloveServer:
             pass
 
     async def _handle(self, ws: ServerConnection) -> None:
-        client = Client(ws, self._loop)
+        client = Client(ws)
         with self._lock:
             self.clients.append(client)
             ads = [ch.advertisement() for ch in self.channels.values()]
