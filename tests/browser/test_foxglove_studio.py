@@ -45,7 +45,8 @@ def needs() -> str | None:
 
 @pytest.fixture(scope="module")
 def recording(tmp_path_factory):
-    """The demo's run.mcap (robot2 fails at 15 s: the communication_lost alarm)."""
+    """The demo's run.mcap, 20 simulated seconds (robot2 fails at 10 s: the communication_lost
+    alarm)."""
     from tests.helpers import Children
     why = needs()
     if why:
@@ -53,7 +54,7 @@ def recording(tmp_path_factory):
     children = Children()
     out = tmp_path_factory.mktemp("browser") / "run"
     try:
-        demo = children.mrta("demo", "--duration", "30", "--speed", "0", "--no-live",
+        demo = children.mrta("demo", "--duration", "20", "--speed", "0", "--no-live",
                              "--output", out, name="demo")
         assert demo.wait(240) == 0, demo.stderr[-10:]
     finally:
@@ -113,9 +114,9 @@ return arguments[1].map(name => [...root.querySelectorAll('*')].some(e =>
 def test_the_demo_recording_fills_every_panel_with_no_problem(recording, browser, tmp_path):
     from selenium.webdriver.common.by import By
     with HostServer(LAYOUT, recording) as url:
-        # at 29.5 s of the 30 s run: the supervisor's latest state, the alarm of 15 s
+        # at 19.5 s of the 20 s run: the supervisor's latest state, the alarm after 10 s
         browser.get(f"{url}/?ds=remote-file&ds.url={url}/run.mcap&layoutId=patrol"
-                    "&time=1970-01-01T00:00:29.500000000Z")
+                    "&time=1970-01-01T00:00:19.500000000Z")
         deadline = time.monotonic() + LOAD
         text = ""
         while time.monotonic() < deadline:
@@ -129,7 +130,7 @@ def test_the_demo_recording_fills_every_panel_with_no_problem(recording, browser
         browser.save_screenshot(str(tmp_path / "foxglove.png"))
         assert len(motivation_values(text)) == 3, (text[-2000:], tmp_path / "foxglove.png")
         assert "ALARM communication_lost robot2" in text
-        assert re.search(r"\n29\.5 Patrol ALLIANCE ", text), text[-2000:]  # the table, filled
+        assert re.search(r"\n19\.5 Patrol ALLIANCE ", text), text[-2000:]  # the table, filled
         assert "This panel encountered an unexpected error" not in text
         assert browser.execute_script(ROWS_VISIBLE, "who does what (allocation timeline)",
                                       ["robot1", "robot2", "robot3"]) == [True, True, True]
