@@ -7,8 +7,8 @@ Channels, for a recording (McapRecorder) and for the live WebSocket server alike
 * `/world` (`foxglove.SceneUpdate`): walls, each robot as a disc with its heading and id label,
   its sonar beams, and its trail;
 * `/robots/<id>/pose` (`foxglove.PoseInFrame`, frame `world`);
-* `/robots/<id>/task` (JSON: state and task) — what the State Transitions panel draws as the
-  allocation timeline;
+* `/robots/<id>/task` (JSON: state, task, and `activity` — the task while busy, else the
+  state) — what the State Transitions panel draws as the allocation timeline, one row a robot;
 * `/supervisor/state` (JSON: the supervisor snapshot) and `/supervisor/alarms`
   (`foxglove.Log`: each alarm raised or cleared, for the Log panel).
 
@@ -18,8 +18,9 @@ simulated period on simulated time). Every JSON channel has a real JSON Schema (
 SUPERVISOR_SNAPSHOT below), so Foxglove's panels offer their fields.
 
 The scene is built from bus data only (the simulator's `world`, `*/ground_truth`, `*/sonar`), so
-it needs no world file and knows no application. The well-known schemas and their protobuf
-encoding come from the official `foxglove-sdk` package.
+it needs no world file and knows no application — given the application's robots, it draws
+those only (Scene). The well-known schemas and their protobuf encoding come from the official
+`foxglove-sdk` package. docs/foxglove.md says why the channels are as they are.
 """
 
 from __future__ import annotations
