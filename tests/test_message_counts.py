@@ -72,7 +72,8 @@ BURN = "import time\nend = time.monotonic() + 600\nwhile time.monotonic() < end:
 
 
 @pytest.mark.multiprocess
-@pytest.mark.timeout(600)
+@pytest.mark.slow
+@pytest.mark.timeout(900)
 def test_one_seed_twice_beside_two_cpu_burners_gives_one_summary(children, tmp_path):
     """The same seed run twice at --speed 0 with two processes burning both cores: the whole
     summary, bar the wall time and the output folder, is the same."""
