@@ -7,6 +7,9 @@ simulated second) in a fixed simulated time at
 samples it did not write. Baseline in the same run: a raw zenoh-python subscriber counting the
 same samples without converting or writing anything.
 
+First, the conversion every recorded sample goes through (`viewer_json`: samples per second
+to the JSON viewers get, beside msgspec's plain JSON of the same message).
+
 Run: python benchmarks/recorder.py
 """
 
@@ -75,10 +78,41 @@ def run(env: dict, robots: int, seconds: float) -> dict:
                 "written_per_s": round(written / wall), "target": "none dropped at 10 robots"}
 
 
+def conversion(n: int = 100_000) -> list[dict]:
+    """What viewers get of a sample (mrta_zenoh.recording.json_channel: JSON, the header stamp
+    as ROS time), per second, beside msgspec's plain JSON of the same message as the baseline
+    (what the recorder wrote before the stamp became {sec, nsec})."""
+    import msgspec
+
+    from mrta_zenoh import codec
+    from mrta_zenoh.messages import Header, Odometry, Point2D, PointCloud, Pose2D, Twist
+    from mrta_zenoh.recording import json_channel
+    out = []
+    for msg in (Odometry(Header("robot1", 12.34, 5), Pose2D(1.0, 2.0, 0.5), Twist(0.3, 0.1)),
+                PointCloud(Header("robot1", 12.34, 5),
+                           tuple(Point2D(0.1 * i, 0.2) for i in range(16)))):
+        enc = codec.encoding_for(msg.TYPE_NAME)
+        payload = codec.encode(msg)
+        _, viewer = json_channel(enc)
+        _, decode = codec.decoder_for(enc)
+        rates = {}
+        for name, convert in (("baseline", lambda b: msgspec.json.encode(decode(b))),
+                              ("viewer", viewer)):
+            t = time.perf_counter()
+            for _ in range(n):
+                convert(payload)
+            rates[name] = round(n / (time.perf_counter() - t))
+        out.append({"figure": "viewer_json", "type": msg.TYPE_NAME,
+                    "samples_per_s": rates["viewer"], "baseline_per_s": rates["baseline"]})
+    return out
+
+
 def main() -> None:
     if len(sys.argv) > 1 and sys.argv[1] == "--child":
         child_count()
         return
+    for line in conversion():
+        print(json.dumps(line), flush=True)
     env = dict(os.environ, MRTA_RENDEZVOUS=private_rendezvous(), RUST_LOG="error")
     print(json.dumps(run(env, 10, 120.0)), flush=True)
     print(json.dumps(run(env, 1000, 5.0)), flush=True)

@@ -192,6 +192,9 @@ _generic = msgspec.msgpack.Decoder(dict)
 
 
 _decoders_lock = threading.Lock()
+# held by anyone else who makes msgspec build a Struct's type information (a JSON Schema:
+# mrta_zenoh.flat_schema), for the reason struct_decoder gives
+TYPE_INFO_LOCK = _decoders_lock
 
 
 def struct_decoder(cls: type[Message]) -> Callable[[bytes], Any]:

@@ -6,7 +6,8 @@ filter the recording and anyone with msgpack can decode it. Liveliness changes a
 on topics `@liveliness/<key>` as JSON `{"alive": true|false}`.
 
 Log time: wall time (ns since the epoch) by default; in a simulated-time recording
-(`SimLogTime`: `mrta view --sim-time`, the mission runner's recorder, `run_record(sim_time=True)`)
+(`SimLogTime`, mrta_zenoh/sim_log_time.py: `mrta view --sim-time`, the mission runner's recorder,
+`run_record(sim_time=True)`)
 the simulated time of the run as the recorder's `SimClock` follows it, so Foxglove plays a run at
 mission speed whatever `--speed` it ran at. Either way a channel's log times never decrease (MCAP
 readers expect it). The file's `mrta` metadata record says which (`log_time`: `wall` or
@@ -22,6 +23,7 @@ from __future__ import annotations
 import bisect
 import json
 import logging
+import os
 import queue
 import threading
 import time
@@ -35,10 +37,11 @@ from mcap.writer import Writer
 import msgspec
 
 from . import codec, keys
-from .clock import SimClock
 from .codec import DecodeError, type_from_encoding
 from .errors import ConfigError, MrtaRuntimeError
-from .messages import Clock, message_class
+from .flat_schema import from_viewer, message_schema, object_schema, to_viewer
+from .messages import message_class
+from .sim_log_time import NS, RESTART_GAP_NS, SimLogTime
 
 _json = msgspec.json  # lossless for our values: shortest round-trip floats
 
@@ -49,92 +52,60 @@ Record = tuple[str, str, int, bytes]  # (key, encoding, log time ns, payload)
 
 LIVELINESS_SCHEMA = {"title": "liveliness", "type": "object",
                      "properties": {"alive": {"type": "boolean"}}, "required": ["alive"]}
-NS = 1_000_000_000
-RESTART_GAP_NS = NS  # a restarted simulation's log times start this long after the last run's
 HOLD_MAX = 10_000  # samples held for the first clock sample; beyond, written at log time 0
-
-
-class SimLogTime:
-    """Log times in simulated time: nanoseconds of `clock` (a SimClock the recorder follows).
-
-    * Before the first clock sample there is no simulated time: the call returns None and the
-      recorder holds the sample until the first stamped one, then writes it at that sample's
-      log time (the run's first instant). Nothing is stamped with a time it never had, and a
-      recorder that joins a run late does not start its file at 0 with a gap up to the present.
-    * A restarted simulation (the clock adopted a new run, `SimClock.restarts`) starts again
-      from its own stamps; its log times are offset so that they continue RESTART_GAP_NS after
-      the last log time handed out. One file, log times increasing throughout, the runs one
-      after the other, as readers expect; the `clock` channel still holds each run's own
-      stamps, which is what TimeBase maps log times back to.
-    * Log times handed out never decrease (a late or concurrent caller gets the latest one).
-
-    `observe` is to be called with every raw sample before stamping it: a `clock` sample moves
-    the clock first, so it is logged at its own stamp whichever subscription Zenoh served first.
-    """
-
-    def __init__(self, clock: SimClock):
-        self.clock = clock
-        self._lock = threading.Lock()
-        self._restarts = clock.restarts
-        self._offset = 0
-        self._last = 0
-        self._decode = None
-
-    def observe(self, key: str, encoding: str, payload: bytes) -> None:
-        if key != keys.CLOCK:
-            return
-        try:
-            if self._decode is None or self._decode[0] != encoding:
-                self._decode = (encoding, codec.decoder_for(encoding)[1])
-            msg = self._decode[1](payload)
-        except DecodeError:
-            return  # counted by the clock's typed subscriber; it moves nothing here
-        if isinstance(msg, Clock):
-            self.clock.on_clock(msg.stamp, msg.source)
-
-    def __call__(self) -> int | None:
-        clock = self.clock
-        if not clock.started.is_set():
-            return None
-        while True:  # a consistent (restarts, now) pair: a restart changes both
-            restarts = clock.restarts
-            now = clock.now()
-            if clock.restarts == restarts:
-                break
-        t = round(now * NS)
-        with self._lock:
-            if restarts != self._restarts:
-                self._restarts = restarts
-                self._offset = self._last + RESTART_GAP_NS - t
-            out = max(self._last, self._offset + t)
-            self._last = out
-            return out
+# channels (keys) one recording holds; keys come from the network, and a flood of invented
+# ones must not grow the recorder's memory (and the file's summary) for good: samples on keys
+# beyond are counted (`refused`) and not written
+MAX_CHANNELS = 20_000
 
 
 def json_channel(encoding: str) -> tuple[tuple[str, str, bytes], Any] | None:
     """For a sample of our wire format: ((schema name, "jsonschema", schema), payload → JSON
-    bytes); None for anything else. What viewers (Foxglove, Lichtblick) decode."""
+    bytes); None for anything else. What viewers (Foxglove, Lichtblick) decode: the schema is
+    flattened to what their parsers take, a header's stamp written as ROS time
+    (mrta_zenoh.flat_schema)."""
     try:
         type_name = type_from_encoding(encoding)
     except DecodeError:
         return None
     cls = message_class(type_name)
-    schema = msgspec.json.schema(cls) if cls is not None else {"title": type_name, "type": "object"}
+    schema = message_schema(cls) if cls is not None else \
+        json.dumps(object_schema(type_name, "a type this recorder does not know")).encode()
     _, decode = codec.decoder_for(encoding)
-    return (type_name, "jsonschema", json.dumps(schema).encode()), \
-        (lambda payload: _json.encode(decode(payload)))
+    encode = to_viewer(cls) if cls is not None else _json.encode
+    return (type_name, "jsonschema", schema), (lambda payload: encode(decode(payload)))
+
+
+def check_output(path: Path) -> None:
+    """ConfigError (exit 2) up front for an output a recorder could not create: its folder
+    missing, not a folder, or not writable; the path itself a folder."""
+    path = Path(path)
+    folder = path.resolve().parent
+    if not folder.is_dir():
+        raise ConfigError(f"folder {folder} does not exist", file=str(path))
+    if path.is_dir():
+        raise ConfigError("is a folder, not a file", file=str(path))
+    if not os.access(folder, os.W_OK | os.X_OK) or path.exists() and not os.access(path, os.W_OK):
+        raise ConfigError(f"cannot write the recording: folder {folder} is not writable"
+                          if not os.access(folder, os.W_OK | os.X_OK) else
+                          "cannot write the recording: the file is read-only", file=str(path))
 
 
 class McapRecorder:
     """Writes from one thread; bus callbacks only enqueue (they must stay tiny).
 
     Every bus channel is written as Foxglove and Lichtblick read it: JSON messages with a JSON
-    Schema generated from the message definition (msgspec), topic = the Zenoh key. The channel
+    Schema generated from the message definition (msgspec, flattened for the viewers' parsers:
+    mrta_zenoh.flat_schema), topic = the Zenoh key. The channel
     metadata keeps the Zenoh encoding and type name, and msgspec's JSON is lossless for our
     values, so a recording still replays the bus exactly (read_recording turns it back into the
     wire's msgpack). A sample that is not in our wire format, or malformed, is kept as it came
     (message encoding `msgpack` or the raw one): preserved, though no viewer decodes it.
     Derived channels (a scene, a supervisor's state) are added with `add`.
+
+    A file that cannot be written (a full disk, a file size limit, a vanished mount) calls
+    `on_error` once, from the writer thread: `mrta record` and `mrta view` stop then, and
+    `close` raises MrtaRuntimeError (exit 1) saying how much was written and lost.
 
     Log time: `log_time()` when the sample is handed over (its arrival, taken in the caller's
     thread, not when the writer gets to it), for every channel alike: the wall time by default,
@@ -146,7 +117,8 @@ class McapRecorder:
     """
 
     def __init__(self, path: Path, flush_every: float = 1.0,
-                 log_time: Callable[[], int | None] | None = None):
+                 log_time: Callable[[], int | None] | None = None,
+                 on_error: Callable[[], None] | None = None):
         self.path = path
         self.flush_every = flush_every
         self.log_time = log_time or time.time_ns
@@ -157,7 +129,10 @@ class McapRecorder:
             raise ConfigError(f"cannot write the recording: {exc.strerror}", file=str(path)) from None
         self._w = Writer(self._f)
         self._w.start(profile="", library="mrta-zenoh")
-        self._w.add_metadata("mrta", {"log_time": "simulated" if self.simulated else "wall"})
+        meta = {"log_time": "simulated" if self.simulated else "wall"}
+        if self.simulated and log_time.dated:
+            meta["time_origin"] = "run_start"
+        self._w.add_metadata("mrta", meta)
         self._channels: dict[tuple[str, str], tuple[int, Any]] = {}
         self._schemas: dict[tuple[str, str], int] = {}
         self._last: dict[int, int] = {}  # channel id → its last log time
@@ -165,7 +140,9 @@ class McapRecorder:
         self._q: queue.SimpleQueue = queue.SimpleQueue()
         self.count = 0
         self.lost = 0  # samples not written because the file could not be (a full disk)
+        self.refused = 0  # samples on new keys beyond MAX_CHANNELS
         self._error: OSError | None = None
+        self._on_error = on_error
         self._thread = threading.Thread(target=self._run, name="mcap-writer", daemon=True)
         self._thread.start()
 
@@ -189,12 +166,15 @@ class McapRecorder:
             sid = self._schemas[(name, encoding)] = self._w.register_schema(name, encoding, data)
         return sid
 
-    def _channel(self, key: str, encoding) -> tuple[int, Any]:
-        """(channel id, payload converter) for a key and its encoding, registered once."""
+    def _channel(self, key: str, encoding) -> tuple[int, Any] | None:
+        """(channel id, payload converter) for a key and its encoding, registered once; None
+        for a new bus key beyond MAX_CHANNELS."""
         ident = (key, encoding if isinstance(encoding, str) else encoding[1][0])
         entry = self._channels.get(ident)
         if entry is not None:
             return entry
+        if len(self._channels) >= MAX_CHANNELS and isinstance(encoding, str):
+            return None  # derived channels (the recorder's own) are never refused
         if not isinstance(encoding, str):  # a derived channel
             _, (name, schema_enc, data), msg_enc = encoding
             ch = self._w.register_channel(topic=key, message_encoding=msg_enc,
@@ -230,12 +210,23 @@ class McapRecorder:
             held, self._held = self._held, []
             for item in held:
                 self._write(t, *item)
-        ch, convert = self._channel(key, enc)
+        entry = self._channel(key, enc)
+        if entry is None:
+            self.refused += 1
+            if self.refused == 1:
+                log.warning("more than %d keys: samples on new keys are not recorded",
+                            MAX_CHANNELS)
+            return
+        ch, convert = entry
         if convert is not None:
             try:
                 payload = convert(payload)
             except DecodeError:  # malformed: kept as it came, on a channel of its own
-                ch, _ = self._channel(key + "/@malformed", "application/octet-stream")
+                entry = self._channel(key + "/@malformed", "application/octet-stream")
+                if entry is None:
+                    self.refused += 1
+                    return
+                ch = entry[0]
         t = max(t, self._last.get(ch, 0))
         self._last[ch] = t
         self._w.add_message(channel_id=ch, log_time=t, publish_time=t, data=payload,
@@ -265,7 +256,10 @@ class McapRecorder:
             except OSError as exc:  # a full disk, a vanished mount: reported once, at close
                 self._error = exc
                 self.lost += bool(item)
-                log.error("cannot write %s: %s; recording stops", self.path, exc.strerror)
+                log.error("cannot write %s: %s; recording stops", self.path,
+                          exc.strerror or exc)
+                if self._on_error is not None:
+                    self._on_error()  # the recorder stops: it exits 1 when it closes this
 
     def close(self) -> None:
         """Write what is queued, finish the file (its summary and index); once. Samples still
@@ -372,7 +366,7 @@ def _to_wire(type_name: str, data: bytes) -> bytes:
     """A recorded JSON message back to the msgpack the bus carried (lossless for our values)."""
     cls = message_class(type_name)
     try:
-        value = _json.decode(data, type=cls) if cls is not None else _json.decode(data)
+        value = from_viewer(data, cls) if cls is not None else _json.decode(data)
     except (msgspec.ValidationError, msgspec.DecodeError):
         return data  # kept; the decoder downstream reports it
     return codec.encode(value) if cls is not None else codec.encode_struct(value)

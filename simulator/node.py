@@ -137,6 +137,7 @@ class SimNode:
         sim = self.sim
         if barrier is None:
             self.bus.publish(keys.CLOCK, Clock(sim.time, self.run_id), lossy=True)
+        self.publish_world()  # with the first sensor data: a viewer's first scene has walls
         if self.publish_sensors:
             self.publish_all()
         if barrier is not None:

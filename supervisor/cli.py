@@ -217,16 +217,20 @@ class _Hold(logging.Filter):
 @click.option("--output", "-o", type=click.Path(dir_okay=False, path_type=Path),
               help="Also record everything (bus, scene, supervisor) to this MCAP file.")
 @click.option("--sim-time", is_flag=True, help="Follow the simulator's clock.")
+@click.option("--dated", is_flag=True,
+              help="With --sim-time: log times start at the wall-clock time the run's clock "
+                   "was first heard, so viewers show the run's date; durations stay simulated.")
 @click.option("--duration", type=finite_float(min=0, min_open=True),
               help="Stop after this many wall seconds.")
 @bus_options
 def view(app: str | None, port: int, host: str, no_server: bool, output: Path | None,
-         sim_time: bool, duration: float | None, bus_options: BusOptions) -> None:
+         sim_time: bool, dated: bool, duration: float | None, bus_options: BusOptions) -> None:
     """Serve APP's robots, scene and supervisor to Foxglove (ws://HOST:PORT), live."""
-    from .viewer import run_view
+    from .viewer import ViewOptions, run_view
 
     def ready(url):
         if url:
             click.echo(f"Foxglove / Lichtblick: Open connection → {url}", err=True)
-    run_view(app=app, bus_options=bus_options, port=None if no_server else port, host=host,
-             output=output, sim_time=sim_time, duration=duration, on_ready=ready)
+    run_view(ViewOptions(app=app, port=None if no_server else port, host=host, output=output,
+                         sim_time=sim_time, dated=dated, duration=duration),
+             bus_options, on_ready=ready)

@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import contextlib
 import logging
+import math
 import os
 import signal
 import threading
@@ -34,6 +35,8 @@ from dataclasses import dataclass
 from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any, Callable
+
+import msgspec
 
 from mrta_zenoh import keys
 from mrta_zenoh.architectures import CRASH_ENV, Architecture, architecture
@@ -542,8 +545,7 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
         coverage=coverage(intervals, run.app.tasks(), t0, t1),
         # up to the duration asked for: the last instant also holds what processes say as they
         # stop, recorded or not as the shutdown races the recorder
-        messages=message_rates(records, run.arch, max(min(t1, run.options.duration) - t0, 1e-9),
-                               tb),
+        messages=message_rates(records, run.arch, run.options.duration - t0, tb),
         metrics=run.mission.metrics(run, records), failure=report,
         output=str(output), files=[], sections=mission_sections(run, records))
     # what this run wrote: new or changed files (an earlier run's are neither), and the
@@ -599,24 +601,84 @@ def is_traffic(key: str) -> bool:
     return not key.startswith("@") and key not in UNCOUNTED
 
 
+class _Stamp(msgspec.Struct):
+    stamp: float
+
+
+class _Stamped(msgspec.Struct):
+    """Any message's header stamp; the rest of its map is skipped (unknown fields ignored)."""
+
+    header: _Stamp | None = None
+
+
+_read_stamp = msgspec.msgpack.Decoder(_Stamped).decode  # built at import, on one thread
+
+
+NOT_A_MAP = -math.inf  # sent_at of a payload that is no message map: counted by its log time
+
+
+def sent_at(payload: bytes) -> float | None:
+    """The simulated time a sample was sent at, as its sender stamped it; None for a message
+    without a header, NOT_A_MAP for a payload that is not a message."""
+    try:
+        header = _read_stamp(payload).header
+    except (msgspec.DecodeError, msgspec.ValidationError):
+        return NOT_A_MAP
+    if header is None:
+        return None
+    return header.stamp if math.isfinite(header.stamp) else NOT_A_MAP
+
+
 def message_rates(records, arch: Architecture, seconds: float,
                   time_of=None) -> MessageRates:
     """Samples per simulated second on the bus (`is_traffic`); what robots tell
     each other (the architecture's coordination kinds, sub-keys included: MURDOCH's
     `robot1/murdoch/announcement/t1`); and all its namespace's samples (with monitoring).
 
-    With `time_of` (log time → run seconds), only samples of [0, seconds) count: the run's last
-    instant also holds what the processes say as they stop (an agent's last zero velocity),
-    recorded or not as the shutdown races the recorder — counting it made two runs of one seed
-    differ in their rates (and results.csv in its bytes)."""
+    With `time_of` (log time → run seconds), only samples *sent* in [0, seconds) count, so
+    that one seed gives one count whatever the machine's load:
+    * a sample with a header counts by its own stamp — not by its log time, which is the clock
+      the recorder had last heard when it arrived, so that samples at the window's edges moved
+      in or out with the recorder's lag (8 of 20 runs under load differed by −16 to +8);
+    * one without (a robot's Twist on cmd_vel) counts by the next stamped sample its robot's
+      agent sent (its architecture's keys, e.g. the Motivation of the same or the next tick):
+      one sender's samples keep their order on the way and in the file (ties in log time
+      are kept in write order). A command its agent said nothing after — the zero velocity
+      it sends as it stops, recorded or not as the shutdown races the recorder — is not
+      counted;
+    * a headerless sample of no robot, or a payload that is no message, by its log time."""
     total = coordination = namespace = 0
-    for key, _, t, _ in records:
-        if not is_traffic(key) or (time_of is not None and time_of(t) >= seconds - EPSILON):
-            continue
+    waiting: dict[str, list[str]] = {}  # robot → its headerless samples since its last stamp
+
+    def count(key: str) -> None:
+        nonlocal total, coordination, namespace
         total += 1
         if arch.is_namespace_key(key):
             namespace += 1
             coordination += arch.is_coordination_key(key)
+
+    for key, _, t, payload in records:
+        if not is_traffic(key):
+            continue
+        if time_of is None:
+            count(key)
+            continue
+        stamp = sent_at(payload)
+        robot = key.split("/", 1)[0]
+        if stamp is None and "/" in key:
+            waiting.setdefault(robot, []).append(key)
+            continue
+        if stamp is None or stamp == NOT_A_MAP:
+            if time_of(t) < seconds - EPSILON:
+                count(key)
+            continue
+        if arch.is_namespace_key(key):
+            before = waiting.pop(robot, ())
+            if stamp < seconds - EPSILON:
+                for k in before:
+                    count(k)
+        if stamp < seconds - EPSILON:
+            count(key)
     return MessageRates(round(total / seconds, 1), round(coordination / seconds, 1),
                         arch.namespace, round(namespace / seconds, 1), list(arch.coordination),
                         total)

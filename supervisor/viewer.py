@@ -1,6 +1,7 @@
 """`mrta view`: the bus, the scene and the supervisor, served live to Foxglove / Lichtblick over
-the Foxglove WebSocket protocol (foxglove-sdk's server, loopback by default) and/or written to
-an MCAP file with the same channels (supervisor/foxglove.py lists them).
+the Foxglove WebSocket protocol (supervisor/foxglove_server.py: either subprotocol name, latched
+channels; loopback by default) and/or written to an MCAP file with the same channels
+(supervisor/foxglove.py lists them; docs/foxglove.md says why they are as they are).
 
 Time. On the wall clock, log times are wall time and the derived channels (scene, poses,
 supervisor) are refreshed `rate` times a wall second. On simulated time (`--sim-time`: the
@@ -29,22 +30,25 @@ import logging
 import math
 import threading
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
-import foxglove
-
+from mrta_zenoh import codec, keys
+from mrta_zenoh.architectures import architecture
 from mrta_zenoh.bus import Bus, BusOptions, open_bus
 from mrta_zenoh.identity import OBSERVER, check_identity
 from mrta_zenoh.clock import EPSILON, SimClock, WallClock, follow_sim_clock
 from mrta_zenoh.codec import DecodeError
 from mrta_zenoh.errors import ConfigError
-from mrta_zenoh.keys import CLOCK, RECORDER_TOKEN
+from mrta_zenoh.keys import CLOCK, RECORDER_TOKEN, normalize_robot_id
 from mrta_zenoh.lifecycle import stop_on_signals
-from mrta_zenoh.recording import McapRecorder, SimLogTime, json_channel
+from mrta_zenoh.messages import Clock, Odometry, PointCloud, Twist
+from mrta_zenoh.recording import McapRecorder, SimLogTime, check_output, json_channel
 from mrta_zenoh.untrusted import visible
 
 from .api import Refresh, attach, resolve_application
-from .foxglove import FoxgloveOutputs
+from .foxglove import FoxgloveOutputs, derived_channels
+from .foxglove_server import FoxgloveServer
 from .state import Supervisor
 from .tasks import application_watch
 
@@ -92,36 +96,36 @@ def next_tick(now: float, period: float) -> float:
 
 
 class LiveChannels:
-    """foxglove-sdk channels, one per topic, on one context served by one WebSocket server."""
+    """The live channels, one per topic, served by one FoxgloveServer (supervisor/
+    foxglove_server.py: both subprotocol names, latched channels, a slow client costs only
+    itself). `known`: channels advertised before any message (known_channels)."""
 
-    def __init__(self, host: str, port: int):
-        self.context = foxglove.Context()
-        self.server = foxglove.start_server(name="mrta-zenoh", host=host, port=port,
-                                            context=self.context)
+    def __init__(self, host: str, port: int, known=()):
+        self.server = FoxgloveServer(host, port)
         self.host = host
-        self.channels: dict[str, foxglove.Channel] = {}
         self.refused = 0  # samples on keys beyond MAX_LIVE_CHANNELS
-        self._lock = threading.Lock()
+        for topic, schema, encoding in known:
+            self.server.advertise(topic, schema, encoding)
 
     @property
     def url(self) -> str:
-        return f"ws://{self.host}:{self.server.port}"
+        return self.server.url
+
+    @property
+    def channels(self) -> dict:
+        return self.server.by_topic
 
     def emit(self, topic: str, schema: tuple[str, str, bytes], encoding: str, data: bytes,
              t_ns: int) -> None:
-        with self._lock:
-            ch = self.channels.get(topic)
-            if ch is None:
-                name, schema_enc, schema_data = schema
-                ch = self.channels[topic] = foxglove.Channel(
-                    topic, schema=foxglove.Schema(name=name, encoding=schema_enc, data=schema_data),
-                    message_encoding=encoding, context=self.context)
-        ch.log(data, log_time=t_ns)
+        ch = self.server.by_topic.get(topic)
+        if ch is None:
+            ch = self.server.advertise(topic, schema, encoding)
+        self.server.log(ch, data, t_ns)
 
     def emit_bus(self, key: str, schema: tuple[str, str, bytes], data: bytes, t_ns: int) -> None:
         """A bus sample on its key's channel, as JSON; a new key only while there are fewer
         than MAX_LIVE_CHANNELS channels (the derived channels are never refused)."""
-        if key not in self.channels and len(self.channels) >= MAX_LIVE_CHANNELS:
+        if key not in self.server.by_topic and len(self.server.by_topic) >= MAX_LIVE_CHANNELS:
             self.refused += 1
             if self.refused == 1:
                 log.warning("more than %d keys: samples on new keys are not served live "
@@ -130,7 +134,7 @@ class LiveChannels:
         self.emit(key, schema, "json", data, t_ns)
 
     def close(self) -> None:
-        self.server.stop()
+        self.server.close()
 
     def __enter__(self) -> "LiveChannels":
         return self
@@ -139,36 +143,98 @@ class LiveChannels:
         self.close()
 
 
-def run_view(*, app: str | None, bus_options: BusOptions, port: int | None = 8765,
-             host: str = "127.0.0.1", output: Path | None = None, sim_time: bool = False,
-             rate: float = 4.0, duration: float | None = None,
-             stop: threading.Event | None = None, on_ready=None,
-             scene_hz: float = SCENE_HZ, supervisor_hz: float = SUPERVISOR_HZ,
-             bus: Bus | None = None) -> int:
-    """Serve and/or record until `stop` (or `duration` wall seconds). `rate`: derived frames a
-    wall second on the wall clock; `scene_hz`, `supervisor_hz`: per simulated second on
-    simulated time (module docstring). `bus`: an open bus to use instead of opening one from
-    `bus_options` (tests: the in-process bus); it is left open."""
-    if port is None and output is None:
-        raise ConfigError("nothing to do: give a --port to serve, an --output to record, or both")
-    if output is not None and not Path(output).resolve().parent.is_dir():
-        raise ConfigError(f"folder {Path(output).parent} does not exist", file=str(output))
-    if min(rate, scene_hz, supervisor_hz) <= 0:
-        raise ConfigError("frame rates must be positive")
-    application = resolve_application(app) if app else None
+@dataclass(frozen=True)
+class ViewOptions:
+    """What `mrta view` (and the mission's recorder) serves and records, and when.
+
+    `port` None: no server; `output` None: no recording (one of them at least). `rate`:
+    derived frames a wall second on the wall clock; `scene_hz`, `supervisor_hz`: per simulated
+    second on simulated time (module docstring). `dated`: on simulated time, log times from the
+    wall-clock instant the run's clock was first heard (recording.SimLogTime)."""
+
+    app: str | None = None
+    port: int | None = 8765
+    host: str = "127.0.0.1"
+    output: Path | None = None
+    sim_time: bool = False
+    dated: bool = False
+    rate: float = 4.0
+    duration: float | None = None
+    scene_hz: float = SCENE_HZ
+    supervisor_hz: float = SUPERVISOR_HZ
+
+    def check(self) -> None:
+        """ConfigError (exit 2) before anything opens."""
+        if self.port is None and self.output is None:
+            raise ConfigError("nothing to do: give a --port to serve, an --output to record, "
+                              "or both")
+        if self.output is not None:
+            check_output(Path(self.output))
+        if min(self.rate, self.scene_hz, self.supervisor_hz) <= 0:
+            raise ConfigError("frame rates must be positive")
+        if self.dated and not self.sim_time:
+            raise ConfigError("--dated is for --sim-time (wall-time log times are dates already)")
+
+
+def known_channels(app_model) -> list[tuple[str, tuple[str, str, bytes], str]]:
+    """(topic, schema, encoding) of the channels an application's run will have, from its
+    application file and its architecture's contract: each robot's simulator keys and its
+    architecture's (a kind with sub-keys once per task: ALLIANCE's motivation/<task>), and the
+    derived channels. Advertised when the server starts, so a layout finds its topics at once.
+    An architecture with no registered contract (an rqt_mrta file only) adds none of its own."""
+    robots = [normalize_robot_id(r.id) for r in app_model.robots]
+    try:
+        arch = architecture(app_model.architecture)
+    except ConfigError:
+        arch = None
+    out = list(derived_channels(robots))
+
+    def bus(key: str, cls) -> None:
+        conv = json_channel(codec.encoding_for(cls.TYPE_NAME))
+        if conv is not None:
+            out.append((key, conv[0], "json"))
+
+    bus(keys.CLOCK, Clock)
+    for rid in robots:
+        for key, cls in ((keys.ground_truth(rid), Odometry), (keys.odom(rid), Odometry),
+                         (keys.sonar(rid), PointCloud), (keys.cmd_vel(rid), Twist)):
+            bus(key, cls)
+        for kind, cls in (arch.messages.items() if arch is not None else ()):
+            subs = app_model.tasks() if arch.has_subkeys(kind) else [None]
+            for task in subs:
+                bus(arch.key(rid, kind) if task is None else arch.key(rid, kind, task), cls)
+    return out
+
+
+def run_view(options: ViewOptions, bus_options: BusOptions, *,
+             stop: threading.Event | None = None, on_ready=None, bus: Bus | None = None) -> int:
+    """Serve and/or record until `stop` (or `options.duration` wall seconds). `bus`: an open
+    bus to use instead of opening one from `bus_options` (tests: the in-process bus); it is
+    left open."""
+    options.check()
+    application = resolve_application(options.app) if options.app else None
     if bus is None:
         check_identity(bus_options, OBSERVER)
+    sim_time = options.sim_time
     clock = SimClock() if sim_time else WallClock()
-    stamper = SimLogTime(clock) if sim_time else None
+    stamper = SimLogTime(clock, dated=options.dated) if sim_time else None
     log_time = stamper or time.time_ns
     pacer = SimPacer(clock) if sim_time else None
     with stop_on_signals(stop) as stop, \
             (contextlib.nullcontext(bus) if bus is not None else open_bus(bus_options)) as bus, \
             contextlib.ExitStack() as handles:
         # closed in reverse order: subscriptions and tokens, then the recording and the server
-        live = handles.enter_context(LiveChannels(host, port)) if port is not None else None
-        recorder = handles.enter_context(McapRecorder(Path(output), log_time=stamper)) \
-            if output is not None else None
+        robots = [normalize_robot_id(r.id) for r in application[0].robots] \
+            if application is not None else None
+        live = handles.enter_context(LiveChannels(
+            options.host, options.port,
+            known_channels(application[0]) if application is not None else ())) \
+            if options.port is not None else None
+        # a recording that cannot be written stops the view at once (`stop`); closing it
+        # then raises MrtaRuntimeError: exit 1, not a server that runs on recording nothing
+        recorder = handles.enter_context(McapRecorder(Path(options.output), log_time=stamper,
+                                                      on_error=stop.set)) \
+            if options.output is not None else None
         sinks = [s for s in (live.emit if live else None, recorder.add if recorder else None)
                  if s is not None]
 
@@ -176,28 +242,8 @@ def run_view(*, app: str | None, bus_options: BusOptions, port: int | None = 876
             for sink in sinks:
                 sink(topic, schema, enc, data, t_ns)
 
-        outputs = FoxgloveOutputs(emit)
-        converters: dict[str, object] = {}
-
-        def on_raw(sample) -> None:
-            if stamper is not None:
-                stamper.observe(sample.key, sample.encoding, sample.payload)
-            t = log_time()
-            if recorder is not None:
-                recorder.sample(sample.key, sample.encoding, sample.payload, t)
-            if live is not None:
-                conv = converters.get(sample.encoding)
-                if conv is None and len(converters) < 256:
-                    conv = converters[sample.encoding] = json_channel(sample.encoding) or False
-                if conv:
-                    schema, convert = conv
-                    try:  # before simulated time starts: log time 0 (live, nothing to hold)
-                        live.emit_bus(sample.key, schema, convert(sample.payload), t or 0)
-                    except DecodeError:
-                        pass  # counted by the bus's typed subscribers; nothing to show
-            if pacer is not None and sample.key == CLOCK:
-                pacer.poke()
-
+        outputs = FoxgloveOutputs(emit, robots)
+        on_raw = _receiver(stamper, log_time, recorder, live, pacer)
         if sim_time:
             handles.enter_context(follow_sim_clock(bus, clock))
         handles.enter_context(bus.subscribe_raw("**", on_raw))
@@ -222,17 +268,43 @@ def run_view(*, app: str | None, bus_options: BusOptions, port: int | None = 876
         start = time.monotonic()
 
         def over() -> bool:
-            return duration is not None and time.monotonic() - start >= duration
+            return options.duration is not None and time.monotonic() - start >= options.duration
 
         if pacer is None:
-            while not stop.wait(1.0 / rate):
+            while not stop.wait(1.0 / options.rate):
                 outputs.frame(time.time_ns(), sup.snapshot(refresh()) if sup is not None else None)
                 if over():
                     break
         else:
             _sim_frames(clock, stamper, pacer, outputs, sup, refresh, stop, over,
-                        1.0 / scene_hz, 1.0 / supervisor_hz)
+                        1.0 / options.scene_hz, 1.0 / options.supervisor_hz)
     return 0
+
+
+def _receiver(stamper, log_time, recorder, live, pacer):
+    """The raw subscription's callback: stamp, record, serve (as JSON), wake the frame loop."""
+    converters: dict[str, object] = {}
+
+    def on_raw(sample) -> None:
+        if stamper is not None:
+            stamper.observe(sample.key, sample.encoding, sample.payload)
+        t = log_time()
+        if recorder is not None:
+            recorder.sample(sample.key, sample.encoding, sample.payload, t)
+        if live is not None:
+            conv = converters.get(sample.encoding)
+            if conv is None and len(converters) < 256:
+                conv = converters[sample.encoding] = json_channel(sample.encoding) or False
+            if conv:
+                schema, convert = conv
+                try:  # before simulated time starts: log time 0 (live, nothing to hold)
+                    live.emit_bus(sample.key, schema, convert(sample.payload), t or 0)
+                except DecodeError:
+                    pass  # counted by the bus's typed subscribers; nothing to show
+        if pacer is not None and sample.key == CLOCK:
+            pacer.poke()
+
+    return on_raw
 
 
 def _sim_frames(clock: SimClock, stamper: SimLogTime, pacer: SimPacer,

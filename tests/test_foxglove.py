@@ -60,8 +60,9 @@ def test_every_channel_has_a_schema_foxglove_decodes_and_every_json_message_fits
         assert f"/robots/{robot}/pose" in seen and f"/robots/{robot}/task" in seen
     assert any(b"communication_lost robot2" in d for d in seen["/supervisor/alarms"])
     tasks = [json.loads(d) for d in seen["/robots/robot2/task"]]
-    assert {"state": "busy", "task": "border_protection"} in tasks
-    assert tasks[-1]["state"] == "offline"
+    assert {"state": "busy", "task": "border_protection",
+            "activity": "border_protection"} in tasks
+    assert tasks[-1]["state"] == tasks[-1]["activity"] == "offline"
 
 
 def test_a_speed_0_recording_is_in_simulated_time_with_frames_per_simulated_second(recorded):
@@ -145,7 +146,11 @@ def test_replay_feeds_a_live_supervisor_as_the_run_did(recorded, children):
     assert sorted(live_seq) == sorted(file_seq), (live_seq, file_seq)
 
 
-def test_a_websocket_client_sees_the_channels_and_receives_scene_updates(children, tokens):
+def test_a_websocket_client_of_either_generation_sees_the_channels_and_scene_updates(
+        children, tokens):
+    """`mrta view` on its own (no application): a client offering only the old subprotocol
+    name (Foxglove Studio 1.x, Lichtblick before December 2025) and one offering only the new
+    one (foxglove.sdk.v1) each get the channels and a `/world` frame."""
     import websockets
 
     port = free_port()
@@ -155,13 +160,10 @@ def test_a_websocket_client_sees_the_channels_and_receives_scene_updates(childre
     # the WebSocket server's address, logged once it listens (the view declares no token)
     view.wait_stderr(lambda line: f"ws://127.0.0.1:{port}" in line or "Open connection" in line, 60)
 
-    async def client():
-        # foxglove-sdk's server speaks the Foxglove WebSocket protocol under the subprotocol name
-        # foxglove.sdk.v1 (same ops and binary framing as foxglove.websocket.v1)
-        async with websockets.connect(f"ws://127.0.0.1:{port}",
-                                      subprotocols=["foxglove.sdk.v1",
-                                                    "foxglove.websocket.v1"]) as ws:
-            assert ws.subprotocol in ("foxglove.sdk.v1", "foxglove.websocket.v1")
+    async def client(protocol):
+        async with websockets.connect(f"ws://127.0.0.1:{port}", subprotocols=[protocol],
+                                      max_size=None) as ws:
+            assert ws.subprotocol == protocol
             channels = {}
             while not {"/world", "robot1/sonar"} <= set(channels):
                 msg = await asyncio.wait_for(ws.recv(), 30)
@@ -180,10 +182,80 @@ def test_a_websocket_client_sees_the_channels_and_receives_scene_updates(childre
                     assert sub_id == 7
                     return msg[13:], channels
 
-    try:
-        payload, channels = asyncio.run(client())
-    except TimeoutError:  # seen twice in CI beside CPU burners: say what the processes said
-        raise AssertionError(f"no frame within 30 s; view running: {view.running()}\n"
-                             f"view: {view.tail()}\nsim: {sim.tail()}") from None
-    assert b"robot1" in payload and b"walls" in payload
-    assert "robot1/sonar" in channels and channels["robot1/sonar"]["encoding"] == "json"
+    for protocol in ("foxglove.websocket.v1", "foxglove.sdk.v1"):
+        try:
+            payload, channels = asyncio.run(client(protocol))
+        except TimeoutError:  # say what the processes said
+            raise AssertionError(f"{protocol}: no frame within 30 s; view running: "
+                                 f"{view.running()}\nview: {view.tail()}\nsim: {sim.tail()}") \
+                from None
+        assert b"robot1" in payload and b"walls" in payload, protocol
+        assert "robot1/sonar" in channels and channels["robot1/sonar"]["encoding"] == "json"
+
+
+LOW_RATE = ("/supervisor/alarms", "/robots/robot2/task", "world")
+
+
+def test_a_client_that_subscribes_at_once_gets_what_the_recording_holds(tmp_path, children):
+    """`mrta demo --foxglove`: a client connects as soon as the server listens, subscribes to
+    every channel advertised (the application's are advertised at start) and reads until the
+    run ends. Per low-rate channel (alarms, reports, a robot's task, the world), what it got is
+    what the run's recording holds over the same interval — from its first message on, which
+    is the channel's first (latched) — in order; before, it got 1 of 2 alarms and 0 of 1
+    patrol reports."""
+    import websockets
+
+    port = free_port()
+    out = tmp_path / "run"
+    demo = children.mrta("demo", "--duration", "30", "--speed", "0", "--fail", "robot2@18",
+                         "--no-live", "--foxglove", port, "--output", out, name="demo")
+
+    async def client():
+        got: dict[str, list[bytes]] = defaultdict(list)
+        for _ in range(1200):  # the server listens once the recorder starts
+            try:
+                ws = await websockets.connect(f"ws://127.0.0.1:{port}", max_size=None,
+                                              subprotocols=["foxglove.websocket.v1"])
+                break
+            except OSError:
+                await asyncio.sleep(0.05)
+        else:
+            raise AssertionError("the demo's server never listened")
+        topics, subscribed = {}, set()
+        async with ws:
+            try:
+                while True:
+                    msg = await asyncio.wait_for(ws.recv(), 120)
+                    if isinstance(msg, bytes):
+                        sub, = struct.unpack_from("<I", msg, 1)
+                        got[topics[sub]].append(msg[13:])
+                        continue
+                    o = json.loads(msg)
+                    if o.get("op") != "advertise":
+                        continue
+                    new = [c for c in o["channels"] if c["id"] not in subscribed]
+                    topics.update({c["id"]: c["topic"] for c in new})
+                    subscribed.update(c["id"] for c in new)
+                    await ws.send(json.dumps({"op": "subscribe", "subscriptions": [
+                        {"id": c["id"], "channelId": c["id"]} for c in new]}))
+            except websockets.exceptions.ConnectionClosed:
+                return got
+
+    got = asyncio.run(client())
+    assert demo.wait(120) == 0, demo.stderr[-10:]
+    recorded: dict[str, list[bytes]] = defaultdict(list)
+    with open(out / "run.mcap", "rb") as f:
+        for _, channel, message in make_reader(f).iter_messages(log_time_order=False):
+            recorded[channel.topic].append(message.data)
+    reports = sorted(t for t in recorded if t.endswith("/patrol/report"))
+    assert reports and any(b"communication_lost robot2" in d
+                           for d in recorded["/supervisor/alarms"])
+    for topic in (*LOW_RATE, *reports):
+        live, rec = got[topic], recorded[topic]
+        assert live, f"{topic}: nothing live"
+        start = rec.index(live[0])
+        assert live == rec[start:], (topic, len(live), len(rec), start)
+        if topic == "/supervisor/alarms" or topic in reports:
+            assert start == 0, (topic, start)  # subscribed at once: none missed
+
+

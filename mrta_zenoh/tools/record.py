@@ -13,32 +13,37 @@ from ..identity import OBSERVER, check_identity
 from ..yamlfile import plural
 from ..keys import RECORDER_TOKEN, validate_key_expr
 from ..lifecycle import stop_on_signals, wait_for_stop
-from ..recording import McapRecorder, SimLogTime, log
+from ..recording import McapRecorder, SimLogTime, check_output, log
 
 
 def run_record(*, output: Path, key_exprs: list[str], bus_options: BusOptions,
                duration: float | None = None, stop: threading.Event | None = None,
-               sim_time: bool = False, bus: Bus | None = None) -> int:
+               sim_time: bool = False, dated: bool = False, bus: Bus | None = None) -> int:
     """Write every sample on `key_exprs` (and every liveliness change) to `output` until
     `duration` wall seconds pass or `stop` is set; announce the recorder while it runs.
 
     Log times are wall time; with `sim_time`, the simulator's time as this recorder follows it
     (mrta_zenoh.recording.SimLogTime: what `mrta view --sim-time` records too), so the file
-    plays at mission speed whatever speed the run had. `bus`: an open bus to use instead of
-    opening one from `bus_options` (tests: the in-process bus); it is left open."""
+    plays at mission speed whatever speed the run had; `dated`: from the wall-clock instant the
+    run's clock was first heard (SimLogTime). `bus`: an open bus to use instead of opening one
+    from `bus_options` (tests: the in-process bus); it is left open.
+
+    A file that cannot be written (a full disk, a file size limit) stops the recorder at once
+    and raises MrtaRuntimeError (exit 1) once what can be is closed: a recorder that records
+    nothing must not look alive."""
     for k in key_exprs:
         validate_key_expr(k)
-    folder = Path(output).resolve().parent
-    if not folder.is_dir():
-        raise ConfigError(f"folder {folder} does not exist", file=str(output))
+    check_output(Path(output))
+    if dated and not sim_time:
+        raise ConfigError("--dated is for --sim-time (wall-time log times are dates already)")
     if bus is None:
         check_identity(bus_options, OBSERVER)  # before the file and the session
-    stamper = SimLogTime(SimClock()) if sim_time else None
+    stamper = SimLogTime(SimClock(), dated=dated) if sim_time else None
     # the file first: an output that cannot be written is refused before a session opens;
     # closed last (ExitStack order reversed): the token (no longer a recorder), the
     # subscriptions, the session, then the file, finished with everything that arrived
     with stop_on_signals(stop) as stop, \
-            McapRecorder(output, log_time=stamper) as rec, \
+            McapRecorder(output, log_time=stamper, on_error=stop.set) as rec, \
             (contextlib.nullcontext(bus) if bus is not None else open_bus(bus_options)) as bus, \
             contextlib.ExitStack() as handles:
         if stamper is not None:
