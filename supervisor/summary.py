@@ -47,6 +47,14 @@ class FailureReport(msgspec.Struct, forbid_unknown_fields=True, omit_defaults=Tr
     takeover_seconds: float | None = None
     bound_seconds: float | None = None     # the architecture's bound for the robot that took over
     bound_formula: str | None = None
+    # the bound counts from `bound_from` (simulated s; the fault itself unless `bound_from_what`
+    # names another instant: ALLIANCE's last broadcast on the task the taker heard) and rests
+    # on `bound_case` (MURDOCH: the delivery delays against its bid window; no bound_seconds
+    # when the run was outside it); `within_bound`: the takeover was
+    bound_from: float | None = None
+    bound_from_what: str | None = None
+    bound_case: str | None = None
+    within_bound: bool | None = None
 
 
 class MessageRates(msgspec.Struct, forbid_unknown_fields=True):

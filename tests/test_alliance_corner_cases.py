@@ -9,7 +9,6 @@ import logging
 import math
 
 import pytest
-from hypothesis import HealthCheck, given, settings, strategies as st
 
 from mrta_agent.alliance.architecture import ALLIANCE
 from mrta_agent.alliance.high_level import HighLevel
@@ -139,33 +138,8 @@ def test_the_takeover_bound_holds_from_the_last_reception_not_from_the_death():
     assert activated == pytest.approx(4.9)
     bound = 3.0 + (math.ceil(21 / 1.5) + 1) / 10
     assert activated - 0.0 > bound and activated - 0.5 <= bound
-
-
-@settings(max_examples=25, derandomize=True, deadline=None,
-          suppress_health_check=[HealthCheck.too_slow])
-@given(st.lists(st.floats(0.2, 0.5), min_size=8, max_size=64), st.floats(20.0, 40.0),
-       st.integers(0, 2**31 - 1))
-def test_under_adversarial_delays_the_bound_holds_from_the_last_reception(delays, kill_at, seed):
-    # the set-up: ρ=10 Hz, 1 Hz broadcasts, θ=21, δ=1.5, τ=3; every delivery delay
-    # chosen by the adversary in [0.2, 0.5] s
-    spec = Spec(spin=10.0, broadcast=1.0, tau=3.0, theta=21.0, fast=1.5, expected=600.0,
-                yielding=300.0)
-    specs = {f"r{i}": Spec(**{**spec.__dict__, "phase": 0.03 * i}) for i in (1, 2, 3)}
-    sent = iter(range(10**9))
-    net = Network(delay=lambda a, b, t: delays[next(sent) % len(delays)])
-    team = Team(specs, net, seed).run(kill_at)
-    while len(team.holders()) != 1:
-        kill_at += 0.5
-        team.run(kill_at)
-    (victim,) = team.holders()
-    team.kill(victim, kill_at)
-    team.run(kill_at + 20.0)
-    after = next(t0 for t0, _, h in team.intervals(kill_at + 20.0) if t0 >= kill_at and h)
-    bound = spec.takeover_bound()  # 4.5 s
-    last_heard = {r: max(t for t in team.arrivals.get((r, victim), [-1.0]) if t <= after)
-                  for r in specs if r != victim}
-    assert after <= min(last_heard.values()) + bound + 1e-9
-    assert after - kill_at <= bound + max(delays) + 1e-9
+    # under any delivery order, and when a robot had just yielded the task, the bound holds
+    # from the taker's last reception of any broadcast on the task: tests/test_alliance_bounds.py
 
 
 # ---------------------------------------------------------------- 5. clocks

@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from mrta_zenoh.clock import EPSILON
 from mrta_zenoh.limits import COORDINATE, LEVEL, WEIGHT
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, sized_array
 from mrta_agent.runtime.params import SensorParams, StrictMapping, TaskParams, iter_tasks, load_layers_params, load_sensor_topics, open_robot_file, require_task, task_id_of
@@ -164,11 +165,22 @@ def load_params(robot_file, tasks_file, layers_file=None) -> MurdochParams:
     return MurdochParams(robot, tasks, load_layers_params(layers_file), warnings)
 
 
-def takeover_bound(robot: MurdochRobot) -> float:
-    """The longest a task stays unheld after its holder dies, while an auctioneer survives:
-    the lease lapses (lease_timeout after the last renewal), the auctioneer sees it at its next
-    tick and announces, bidders answer at their next tick, the window closes and the award goes
-    out at the tick after, and the winner claims at its next tick: lease + window + 3 ticks.
-    When the dead robot was also the first auctioneer, the next one steps in one
-    reannounce_period later (docs/murdoch.md)."""
-    return robot.lease_timeout + robot.bid_window + 3.0 / robot.spin_rate
+def takeover_bound(robot: MurdochRobot, delay: float = 0.0) -> float:
+    """The longest a task stays unheld after its holder dies, while an auctioneer survives and
+    an idle, capable robot exists, with every delivery delay at most `delay`
+    (docs/murdoch.md): the lease lapses (lease_timeout after the last renewal was heard, up to
+    `delay` after it was sent), the auctioneer sees it at its next tick and announces, bidders
+    answer at their next tick, the window closes and the award goes out at the tick after, and
+    the winner claims at its next tick after hearing it (up to `delay` later):
+    lease + window + 3 ticks + 2·delay. It holds only while `bids_in_time(robot, delay)`.
+    When the dead robot was also the first auctioneer and its token outlives it (frozen, cut
+    off), the next one steps in one reannounce_period later."""
+    return robot.lease_timeout + robot.bid_window + 3.0 / robot.spin_rate + 2.0 * delay
+
+
+def bids_in_time(robot: MurdochRobot, delay: float) -> bool:
+    """Whether every bid reaches its auctioneer before the window closes: the announcement
+    (≤ delay), the bidder's next tick (≤ a tick), the bid (≤ delay), strictly before the tick
+    that closes the window. Otherwise an auction may close without the bid, and the task
+    waits a reannounce_period for the next one — and so on for as long as delays stay long."""
+    return 2.0 * delay + 1.0 / robot.spin_rate < robot.bid_window - EPSILON
