@@ -44,7 +44,8 @@ def robot_doc(skills: dict[str, float], **timing) -> dict:
     return doc
 
 
-def tasks_doc(tasks: list[str], locations: dict[str, tuple[float, float]] | None = None) -> dict:
+def tasks_doc(tasks: list[str], locations: dict[str, tuple[float, float]] | None = None,
+              progress_timeout: float | None = None) -> dict:
     doc = {"tasks": {"size": len(tasks)}}
     for i, t in enumerate(tasks):
         loc = (locations or {}).get(t)
@@ -52,6 +53,8 @@ def tasks_doc(tasks: list[str], locations: dict[str, tuple[float, float]] | None
             "id": t, "name": t, "resources": {"size": 1, "resource0": {"topic_name": "sonar"}},
             "locations": {"size": 1, "location0": {"x": loc[0], "y": loc[1]}} if loc
             else {"size": 0}}
+        if progress_timeout is not None:
+            doc["tasks"][f"task{i}"]["progress_timeout"] = progress_timeout
     return doc
 
 
@@ -84,11 +87,12 @@ class Delays:
 class Team:
     def __init__(self, tmp: Path, skills: dict[str, dict[str, float]], tasks: list[str],
                  locations=None, start: float = 100.0, roster: list[str] | None = None,
-                 delay: Callable[[str, str, int], float] | None = None, **timing):
+                 delay: Callable[[str, str, int], float] | None = None,
+                 progress_timeout: float | None = None, **timing):
         """`delay(receiver, key, seq)`: each coordination message's delivery delay (Delays)."""
         self.net = InProcNetwork()
         self.clock = ManualClock(start)
-        tf = write(tmp / "tasks.yaml", tasks_doc(tasks, locations))
+        tf = write(tmp / "tasks.yaml", tasks_doc(tasks, locations, progress_timeout))
         self.agents: dict[str, Agent] = {}
         self.buses: dict[str, InProcBus] = {}
         self.frozen: set[str] = set()

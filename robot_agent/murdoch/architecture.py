@@ -18,7 +18,7 @@ from ..runtime.host import AgentOptions
 from ..runtime.plugins import Plugins
 from . import params as murdoch_params
 from .agent import MurdochCoordinator
-from .messages import Announcement, Award, Bid, Claim, Release
+from .messages import Announcement, Award, Bid, Claim, Release, Revoke
 
 
 def murdoch_plugins(params: murdoch_params.MurdochParams) -> Plugins:
@@ -38,7 +38,7 @@ class Murdoch(AgentArchitecture):
     param_stem = "murdoch"
     bound_formula = "lease + bid window + 3 ticks + 2 × delay"
     messages = {"announcement": Announcement, "bid": Bid, "award": Award, "claim": Claim,
-                "release": Release}
+                "release": Release, "revoke": Revoke}
     doing_kinds = ("claim", "release")
     doing_stale_after = 2.0  # claims renewed every renewal_period (≤ the lease, 2 s by default)
     logger_name = "mrta.murdoch"

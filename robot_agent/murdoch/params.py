@@ -8,7 +8,7 @@ Robot file (`robotN_murdoch_params.yaml`): timing of the auction and the lease, 
 sensors, and one skill per task the robot can do (its level, and the evaluator that says whether
 the robot can do — and keeps progressing on — the task). Tasks file
 (`tasks_murdoch_params.yaml`): each task's id, name, required resources (sensor topics the robot
-must have fresh), locations (none, or points where it is done) and layers.
+must have fresh), locations (none, or points where it is done), layers and progress timeout.
 """
 
 from __future__ import annotations
@@ -50,6 +50,12 @@ class MurdochRobot:
         return next((s for s in self.skills if s.task_id == task_id), None)
 
 
+# How long a robot may hold a task without finishing it before the task's auctioneer revokes
+# the contract (docs/murdoch.md, "Progress monitoring"): a minute, longer than a point task
+# takes to reach and serve; a task that never ends (patrol's) sets it longer than a run.
+PROGRESS_TIMEOUT = 60.0
+
+
 @dataclass(frozen=True)
 class MurdochTask:
     id: str
@@ -57,6 +63,7 @@ class MurdochTask:
     resources: tuple[str, ...]
     locations: tuple[tuple[float, float], ...]
     layers: TaskParams
+    progress_timeout: float = PROGRESS_TIMEOUT
 
 
 @dataclass
@@ -133,9 +140,10 @@ def load_robot(path: Path | str) -> tuple[MurdochRobot, list[str]]:
 
 
 def load_tasks(path: Path | str) -> dict[str, MurdochTask]:
-    """The tasks file: ALLIANCE's (id, name, layers), plus resources and locations."""
+    """The tasks file: ALLIANCE's (id, name, layers), plus resources, locations and the
+    progress timeout."""
     tasks: dict[str, MurdochTask] = {}
-    for r, layers in iter_tasks(path, frozenset({"resources", "locations"})):
+    for r, layers in iter_tasks(path, frozenset({"resources", "locations", "progress_timeout"})):
         doc, tpath = r.doc, r.path
         resources = []
         if "resources" in r.data:
@@ -148,7 +156,8 @@ def load_tasks(path: Path | str) -> dict[str, MurdochTask]:
                 locations.append((m.get("x", float, within=COORDINATE),
                                   m.get("y", float, within=COORDINATE)))
         tasks[layers.id] = MurdochTask(layers.id, layers.name, tuple(resources),
-                                       tuple(locations), layers)
+                                       tuple(locations), layers,
+                                       r.duration("progress_timeout", PROGRESS_TIMEOUT))
     return tasks
 
 
