@@ -152,7 +152,8 @@ def _bound_note(f) -> str:
         return f" (no bound holds{case})"
     since = ""
     if f.bound_from_what and f.bound_from is not None and f.killed_at is not None:
-        since = f"{f.killed_at + f.takeover_seconds - f.bound_from:.2f} s after {f.bound_from_what}: "
+        after = f.killed_at + f.takeover_seconds - f.bound_from
+        since = f"{after:.2f} s after {f.bound_from_what}: "
     within = f.within_bound if f.within_bound is not None \
         else f.takeover_seconds <= f.bound_seconds  # a summary from before bound_from
     ok = "within" if within else "OVER"

@@ -87,8 +87,8 @@ class Summary(msgspec.Struct, forbid_unknown_fields=True):
     files: list[str]
     metrics: dict[str, Any] = {}   # the application's own (its mission hook)
     failure: FailureReport | None = None
-    # in lockstep a broadcast is heard the step it is sent: the takeover bound, which counts
-    # from the last broadcast received, then counts from the death itself
+    # in lockstep a message counts as heard at its stamp (plus any injected latency), so the
+    # instant a takeover bound counts from (`failure.bound_from`) is exact
     lockstep: bool = True
     # every fault injected, as the spec reads (`failure` is about the first robot's only):
     # `loss:0.2`, `latency:0.3±0.2`, `partition:robot1@5+10,loss:0.2` — or "none"

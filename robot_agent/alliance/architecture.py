@@ -75,8 +75,8 @@ class Alliance(AgentArchitecture):
         return Doing(sender, message.task_id, message.active, message.header.stamp)
 
     def takeover_bound(self, robot_params: Path, task: str) -> float:
-        """τ + ⌈θ / fast_rate⌉ / ρ + one tick: the longest a robot with these parameters takes
-        to pick up `task` once it has stopped hearing about it — counted from its last
+        """τ + ⌈θ / fast_rate⌉ / ρ + one tick: the longest a robot with these parameters
+        takes to pick up `task` once it has stopped hearing about it — counted from its last
         reception of *any* broadcast on the task, from whichever robot (`takeover_check`).
 
         Why that instant: only a reception resets motivation or makes impatience slow, and a

@@ -193,8 +193,7 @@ class Murdoch:
         self.held_until[msg.task_id] = max(others, default=t)
 
     def on_revoke(self, sender: str, msg: Revoke, t: float) -> None:
-        task = self.tasks.get(msg.task_id)
-        if task is None:
+        if msg.task_id not in self.tasks:
             return
         if msg.holder == self.id:
             self._revocations.append((sender, msg))

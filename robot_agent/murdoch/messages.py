@@ -6,8 +6,9 @@ closes the auctioneer publishes an `Award` to the highest bidder; the winner the
 `Claim` (its lease) every renewal period while it works, and publishes a `Release` when it gives
 the task back. A task's auctioneer that sees a contract last longer than the task's
 progress_timeout without the task being done publishes a `Revoke`: every robot then treats the
-task as unheld (and ignores that contract's claims), and the holder gives it back. `Claim` is what the supervisor watches (`header/frame_id`, `task_id`): who is busy
-with what, with the same field names as ALLIANCE's broadcasts.
+task as unheld (and ignores that contract's claims), and the holder gives it back. `Claim` is
+what the supervisor watches (`header/frame_id`, `task_id`): who is busy with what, with the same
+field names as ALLIANCE's broadcasts.
 """
 
 from __future__ import annotations
