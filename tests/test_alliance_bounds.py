@@ -126,6 +126,7 @@ def handovers(draw):
     return team, net, heal, kill_after, deaf, draw(st.integers(0, 2**31 - 1))
 
 
+@pytest.mark.slow  # a property at its full count; the witnesses above stay in the fast tier
 @settings(max_examples=EXAMPLES, derandomize=True, deadline=None,
           suppress_health_check=[HealthCheck.too_slow])
 @given(handovers())

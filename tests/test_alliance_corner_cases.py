@@ -101,6 +101,7 @@ def test_a_later_holder_that_is_not_heard_yields_to_the_earlier_one():
     assert trace[22][0].motivation == 18.0 and trace[23][1][0].kind == "activated"
 
 
+@pytest.mark.slow  # 40 simulated minutes of two agents
 def test_a_one_way_link_no_longer_duplicates_the_task_until_lambda():
     # the situation on the real agents: r2 hears r1, r1 never hears r2. Before this
     # rule both held the task until λ (here 49 % of 20 min duplicated at 10 Hz, 78 % at 1 Hz);

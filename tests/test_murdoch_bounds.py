@@ -46,6 +46,7 @@ def holder_dies(tmp: Path, delays, then=None, **timing) -> tuple[Team, float]:
     return team, died
 
 
+@pytest.mark.slow  # a property at its full count; the cases below stay in the fast tier
 @settings(max_examples=EXAMPLES, derandomize=True, deadline=None,
           suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(st.sampled_from([0.5, 0.8, 1.2]), st.sampled_from([1.5, 2.0, 3.0]), st.data())
