@@ -22,8 +22,9 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from importlib.metadata import entry_points
 from pathlib import Path
-from typing import ClassVar, Iterable
+from typing import Callable, ClassVar, Iterable, Sequence
 
+from .clock import EPSILON
 from .errors import ConfigError
 from .failure import Failure, Faults
 from .keys import first_chunk
@@ -49,6 +50,41 @@ class Doing:
     task: str
     active: bool
     stamp: float
+
+
+@dataclass(frozen=True)
+class Takeover:
+    """One takeover as a run's recording shows it, for `Architecture.takeover_check`: `failed`
+    stopped doing `task` at `failed_at` (its fault began) and `taker` began it at `taken_at`
+    (run seconds, from the robots' own reports)."""
+
+    task: str
+    failed: str
+    failed_at: float
+    taker: str
+    taken_at: float
+    robot_params: Path                 # the taker's parameter file
+    records: Sequence                  # the recording: (key, encoding, log time, payload)
+    time_of: Callable[[int], float]    # a record's log time → run seconds
+    faults: Faults                     # every fault the run injected
+    seed: int                          # the run's seed (the faults' draws derive from it)
+    lockstep: bool                     # in lockstep a message counts as heard at its stamp
+
+
+@dataclass(frozen=True)
+class TakeoverBound:
+    """An architecture's bound on one takeover, in the case the run was in."""
+
+    seconds: float | None   # None: no bound holds in this case (`case` says why)
+    since: float            # the instant it counts from (run seconds)
+    since_what: str = ""    # that instant for people; "" when it is the fault itself
+    case: str = ""          # the condition the bound rests on, as this run met it
+
+    def holds(self, taken_at: float) -> bool | None:
+        """Whether a takeover at `taken_at` is within the bound (None: there is none)."""
+        if self.seconds is None:
+            return None
+        return taken_at - self.since <= self.seconds + EPSILON
 
 
 class Architecture(ABC):
@@ -139,6 +175,13 @@ class Architecture(ABC):
     def takeover_bound(self, robot_params: Path, task: str) -> float:
         """The longest a robot with these parameters takes to pick up `task` after the robot
         doing it stops (seconds of its clock)."""
+
+    def takeover_check(self, takeover: Takeover) -> TakeoverBound:
+        """The bound a run's takeover is checked against, counted from the instant it holds
+        from and with the condition it rests on (what the mission summary reports). Default:
+        `takeover_bound`, counted from the fault, with no condition."""
+        return TakeoverBound(self.takeover_bound(takeover.robot_params, takeover.task),
+                             takeover.failed_at)
 
     # ------------------------------------------------------------ checking files
     def check_files(self, robot_id: str, robot_params: Path, tasks_params: Path,

@@ -39,7 +39,7 @@ from typing import Any, Callable
 import msgspec
 
 from mrta_zenoh import keys
-from mrta_zenoh.architectures import CRASH_ENV, Architecture, architecture
+from mrta_zenoh.architectures import CRASH_ENV, Architecture, Takeover, architecture
 from mrta_zenoh.bus import BusOptions, open_bus
 from mrta_zenoh.bus.options import private_rendezvous
 from mrta_zenoh.clock import EPSILON, SimClock, follow_sim_clock
@@ -512,26 +512,8 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
     who = {rid: [Span(t, round(a, 3), round(b, 3))
                  for t, a, b in sorted(intervals.get(rid, []), key=lambda x: x[1])]
            for rid in run.robots}
-    report = None
-    if failure:
-        report = FailureReport(failure.robot, failed_at, fault=failure.kind)
-        if failed_at is not None:
-            task = next((t for t, a, b in intervals.get(failure.robot, [])
-                         if a <= failed_at <= b + 0.5), None)
-            report.task = task
-            taken = sorted((a, r) for r, iv in intervals.items() if r != failure.robot
-                           for t, a, b in iv if t == task and a >= failed_at - 1e-6) if task else []
-            if taken:
-                t_take, by = taken[0]
-                report.taken_over_by = by
-                report.takeover_seconds = round(t_take - failed_at, 2)
-                if failure.kind != "stall":
-                    # the bound is for silence (a crash, a partition); a stalled robot keeps
-                    # talking, so what detects it is the architecture's own progress check
-                    # (ALLIANCE's φ, the expected_duration it announces) — no bound here
-                    report.bound_seconds = round(run.arch.takeover_bound(run.robot_params(by),
-                                                                         task), 2)
-                    report.bound_formula = run.arch.bound_formula
+    report = takeover_report(run, failure, failed_at, intervals, records, tb) \
+        if failure else None
     given_up, forgiven = lockstep_trouble(records) if run.options.lockstep else (0, 0)
     faults = faults_of(run)
     summary = Summary(
@@ -555,6 +537,43 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
                             if before.get(name) != state} | {"summary.json"})
     write_summary(output / "summary.json", summary)
     return summary
+
+
+def takeover_report(run: MissionRun, failure: Failure, failed_at: float | None,
+                    intervals: dict, records: list, time_of: Callable[[int], float]
+                    ) -> FailureReport:
+    """What became of the failed robot's task: who took it over, when, and against which
+    bound — the architecture's (`Architecture.takeover_check`), counted from the instant it
+    names and in the case the run was in."""
+    report = FailureReport(failure.robot, failed_at, fault=failure.kind)
+    if failed_at is None:
+        return report
+    task = next((t for t, a, b in intervals.get(failure.robot, [])
+                 if a <= failed_at <= b + 0.5), None)
+    report.task = task
+    taken = sorted((a, r) for r, iv in intervals.items() if r != failure.robot
+                   for t, a, b in iv if t == task and a >= failed_at - 1e-6) if task else []
+    if not taken:
+        return report
+    t_take, by = taken[0]
+    report.taken_over_by = by
+    report.takeover_seconds = round(t_take - failed_at, 2)
+    if failure.kind == "stall":
+        # the bound is for silence (a crash, a partition); a stalled robot keeps talking, so
+        # what detects it is the architecture's own progress check (ALLIANCE's φ, MURDOCH's
+        # progress_timeout) — no bound here
+        return report
+    options = run.options
+    bound = run.arch.takeover_check(Takeover(
+        task, failure.robot, failed_at, by, t_take, run.robot_params(by), records, time_of,
+        faults_of(run), options.seed, options.lockstep))
+    report.bound_formula = run.arch.bound_formula
+    report.bound_seconds = None if bound.seconds is None else round(bound.seconds, 2)
+    report.bound_from = round(bound.since, 2)
+    report.bound_from_what = bound.since_what or None
+    report.bound_case = bound.case or None
+    report.within_bound = bound.holds(t_take)
+    return report
 
 
 def lockstep_trouble(records) -> tuple[int, int]:

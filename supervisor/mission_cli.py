@@ -145,6 +145,29 @@ class _LiveView:
 _FAULT_WORDS = {"crash": "killed", "stall": "stalled", "partition": "cut off"}
 
 
+def _bound_note(f) -> str:
+    """The takeover against the architecture's bound, as the summary states it: from which
+    instant it counts (when not the fault itself) and the case the run was in."""
+    if f.bound_formula is None:
+        return ""  # a stall: no bound (the summary says why)
+    # the bound is a crash's: a partitioned robot keeps its token, so it is noticed by its
+    # silence alone, later (docs/murdoch.md, "Timing and the takeover bound")
+    bound = "the crash bound" if f.fault == "partition" else "the bound"
+    case = f", {f.bound_case}" if f.bound_case else ""
+    if f.bound_seconds is None:
+        return f" (no bound holds{case})"
+    since = ""
+    if f.bound_from_what and f.bound_from is not None and f.killed_at is not None:
+        after = f.killed_at + f.takeover_seconds - f.bound_from
+        since = f"{after:.2f} s after {f.bound_from_what}: "
+    within = f.within_bound if f.within_bound is not None \
+        else f.takeover_seconds <= f.bound_seconds  # a summary from before bound_from
+    ok = "within" if within else "OVER"
+    why = (": a partitioned robot keeps its token and is noticed by its silence alone"
+           if f.fault == "partition" and not within else "")
+    return f" ({since}{ok} {bound} {f.bound_formula} = {f.bound_seconds:.2f} s{case}{why})"
+
+
 def print_summary(console: Console, s: Summary, title: str, arch_title: str,
                   extra: list[str]) -> None:
     console.print(Text(f"\n{title} ({arch_title}): {s.duration:.0f} s simulated at speed "
@@ -155,22 +178,10 @@ def print_summary(console: Console, s: Summary, title: str, arch_title: str,
     f = s.failure
     if f:
         what = _FAULT_WORDS.get(f.fault, "killed")
-        if f.takeover_seconds is not None and f.bound_seconds is None:
+        if f.takeover_seconds is not None:
             console.print(f"  {f.robot} {what} at {f.killed_at:.1f} s while doing {f.task}; "
-                          f"{f.taken_over_by} took over after {f.takeover_seconds:.2f} s",
-                          highlight=False)
-        elif f.takeover_seconds is not None:
-            ok = "within" if f.takeover_seconds <= f.bound_seconds else "OVER"
-            # the bound is a crash's: a partitioned robot keeps its token, so it is noticed by
-            # its silence alone, later (docs/murdoch.md, "Timing and the takeover bound")
-            bound = "the crash bound" if f.fault == "partition" else "the bound"
-            console.print(f"  {f.robot} {what} at {f.killed_at:.1f} s while doing {f.task}; "
-                          f"{f.taken_over_by} took over after {f.takeover_seconds:.2f} s "
-                          f"({ok} {bound} {f.bound_formula} = {f.bound_seconds:.2f} s"
-                          + ("" if s.lockstep else " after its last broadcast was received")
-                          + (": a partitioned robot keeps its token and is noticed by its "
-                             "silence alone" if f.fault == "partition" and ok == "OVER" else "")
-                          + ")", highlight=False)
+                          f"{f.taken_over_by} took over after {f.takeover_seconds:.2f} s"
+                          + _bound_note(f), highlight=False)
         else:
             console.print(f"  {f.robot} {what} at {f.killed_at} s; task {f.task} was not taken "
                           "over before the end", highlight=False)

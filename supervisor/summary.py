@@ -68,6 +68,14 @@ class FailureReport(msgspec.Struct, forbid_unknown_fields=True, omit_defaults=Tr
     takeover_seconds: float | None = None
     bound_seconds: float | None = None     # the architecture's bound for the robot that took over
     bound_formula: str | None = None
+    # the bound counts from `bound_from` (simulated s; the fault itself unless `bound_from_what`
+    # names another instant: ALLIANCE's last broadcast on the task the taker heard) and rests
+    # on `bound_case` (MURDOCH: the delivery delays against its bid window; no bound_seconds
+    # when the run was outside it); `within_bound`: the takeover was
+    bound_from: float | None = None
+    bound_from_what: str | None = None
+    bound_case: str | None = None
+    within_bound: bool | None = None
 
 
 class MessageRates(msgspec.Struct, forbid_unknown_fields=True):
@@ -100,8 +108,8 @@ class Summary(msgspec.Struct, forbid_unknown_fields=True):
     files: list[str]
     metrics: dict[str, Any] = {}   # the application's own (its mission hook)
     failure: FailureReport | None = None
-    # in lockstep a broadcast is heard the step it is sent: the takeover bound, which counts
-    # from the last broadcast received, then counts from the death itself
+    # in lockstep a message counts as heard at its stamp (plus any injected latency), so the
+    # instant a takeover bound counts from (`failure.bound_from`) is exact
     lockstep: bool = True
     # every fault injected, as the spec reads (`failure` is about the first robot's only):
     # `loss:0.2`, `latency:0.3±0.2`, `partition:robot1@5+10,loss:0.2` — or "none"

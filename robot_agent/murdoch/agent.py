@@ -47,7 +47,7 @@ class _Readings:
 
 
 class MurdochCoordinator:
-    listens = ("announcement", "bid", "award", "claim", "release")
+    listens = ("announcement", "bid", "award", "claim", "release", "revoke")
 
     def __init__(self, robot_id: str, params: MurdochParams, plugins: Plugins):
         self.robot_id = robot_id
@@ -87,7 +87,8 @@ class MurdochCoordinator:
     def subjects(self, kind: str) -> tuple[str, ...] | None:
         """Sub-keys heard per kind (the runtime subscribes to `*/murdoch/<kind>/<subject>`):
         announcements of the tasks this robot serves, bids addressed to itself; None — awards,
-        claims, releases — every robot's, which every robot needs (docs/murdoch.md)."""
+        claims, releases, revocations — every robot's, which every robot needs
+        (docs/murdoch.md)."""
         if kind == "announcement":
             return self.core.subjects
         if kind == "bid":
