@@ -10,6 +10,7 @@ from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.cli.common import bus_options, finite_float
 from mrta_zenoh.lockstep import DEFAULT_TIMEOUT
 from mrta_zenoh.ros2.types import SONAR_TYPES
+from mrta_zenoh.seeds import SEED_ENV
 
 from .api import SimOptions, run_simulator
 
@@ -23,7 +24,8 @@ from .api import SimOptions, run_simulator
                    "to use the start named like the robot or the next free one. Repeatable.")
 @click.option("--speed", type=finite_float(min=0), default=1.0, show_default=True,
               help="Simulated seconds per wall second; 0 runs as fast as possible.")
-@click.option("--seed", type=int, default=0, show_default=True, help="Seed for sensor noise.")
+@click.option("--seed", type=int, default=0, show_default=True, envvar=SEED_ENV,
+              help=f"The run's master seed (sensor noise). Runners set ${SEED_ENV}.")
 @click.option("--duration", type=finite_float(min=0, min_open=True),
               help="Stop after this many simulated seconds.")
 @click.option("--snapshot", type=click.Path(dir_okay=False, path_type=Path),

@@ -5,10 +5,12 @@ It runs the application package's mission launch file (the simulator and one age
 through the runner `mrta launch` uses, plus a recorder, all as separate processes on a private
 loopback rendezvous; this process is the supervisor. Readiness is read from liveliness tokens
 (each robot's token, the recorder's, the clock source's), never from log lines; the simulator
-itself starts the clock only once every robot is up. It injects the faults (mrta_zenoh/failure.py:
-crash, stall, partition, loss, latency) the way the architecture says (`Architecture.failure_env`:
-exact in lockstep), or SIGKILLs a crashing agent itself when the run is not in lockstep.
-Afterwards it writes, into the output folder, the recording, the allocation timeline, the architecture's own plots, and `summary.json` (summary.py): who did
+itself starts the clock only once every robot is up. Every process of the run gets the run's
+seed ($MRTA_SEED, mrta_zenoh.seeds) and its faults ($MRTA_FAULTS: crash, stall, partition,
+loss, latency — mrta_zenoh.failure, the one fault channel) from this runner's environment, and
+injects its own at their simulated times (exact in lockstep). Afterwards it writes, into the
+output folder, the recording, the allocation timeline, the architecture's own plots, and
+`summary.json` (summary.py): who did
 what, coverage, first full allocation and takeover — all from the robots' own messages in
 simulated time (ground_truth.py), exact to one agent tick — beside the bound the architecture
 states, traffic, and the application's own metrics (its `Mission.metrics` hook).
@@ -36,19 +38,22 @@ from pathlib import Path
 from typing import Any, Callable
 
 from mrta_zenoh import keys
-from mrta_zenoh.architectures import CRASH_ENV, Architecture, architecture
-from mrta_zenoh.bus import BusOptions, open_bus
+from mrta_zenoh.architectures import Architecture, architecture
+from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.bus.options import private_rendezvous
-from mrta_zenoh.clock import EPSILON, SimClock, follow_sim_clock
+from mrta_zenoh.clock import EPSILON, SimClock
 from mrta_zenoh.errors import ConfigError, Interrupted, MrtaRuntimeError
-from mrta_zenoh.failure import Failure, Faults, parse_faults
+from mrta_zenoh.failure import (FAULTS_ENV, RETIRED_CRASH_ENV, Failure, FaultKind, Faults,
+                                fault_env, parse_faults)
 from mrta_zenoh.codec import DecodeError, decode
-from mrta_zenoh.lifecycle import stop_on_signals
+from mrta_zenoh.identity import OBSERVER
 from mrta_zenoh.lockstep import STATUS, LockstepStatus
+from mrta_zenoh.node import Node, NodeTime
 from mrta_zenoh.presence import RobotPresence
 from mrta_zenoh.processes import Child, ProcessGroup, mrta_argv
 from mrta_zenoh.recording import read_recording
-from mrta_zenoh.toolchain.launchfile import LaunchEvaluator, check_executables
+from mrta_zenoh.seeds import SEED_ENV
+from mrta_zenoh.toolchain.launchfile import LaunchEvaluator, NodeSpec, check_executables
 from mrta_zenoh.toolchain.model import Application
 from mrta_zenoh.toolchain.registry import Package, Registry
 from mrta_zenoh.toolchain.runner import start_nodes
@@ -346,21 +351,19 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
     nodes = LaunchEvaluator(lambda name: reg.find(name).path).run(
         run.package.path / "launch" / run.mission.launch, launch_args)
     check_executables(nodes)
+    check_seeds(nodes, options.seed)
     rendezvous = private_rendezvous()
-    env = dict(os.environ, MRTA_RENDEZVOUS=rendezvous, PYTHONUNBUFFERED="1")
+    # every process of the run: the run's seed and exactly the run's faults (none inherited
+    # from this process's own environment), which each injects at its simulated time
+    env = {k: v for k, v in os.environ.items() if k not in (FAULTS_ENV, RETIRED_CRASH_ENV)}
+    env.update(MRTA_RENDEZVOUS=rendezvous, PYTHONUNBUFFERED="1", **{SEED_ENV: str(options.seed)},
+               **fault_env(faults))
     failure = faults.primary
-    crashes = [f for f in faults.failures if f.kind == "crash"]
-    # the agents inject the faults themselves at their simulated times: exact in lockstep, so
-    # a run replays exactly; out of lockstep, this process SIGKILLs the crashing ones (_watch)
-    kill = [] if options.lockstep else crashes
-    if faults:
-        env.update(run.arch.failure_env(faults))
-        if not options.lockstep:
-            env.pop(CRASH_ENV, None)
     failed_at: float | None = None
     t_wall0 = time.monotonic()
-    with stop_on_signals(stop) as stop, ProcessGroup(env) as group, \
-            open_bus(BusOptions(rendezvous=rendezvous)) as bus, contextlib.ExitStack() as live:
+    with Node(BusOptions(rendezvous=rendezvous), OBSERVER, time=NodeTime.SIM, stop=stop) as node, \
+            ProcessGroup(env) as group, contextlib.ExitStack() as live:
+        bus, clock, stop = node.bus, node.clock, node.stop
         ready = live.enter_context(Readiness(bus, run.robots))
         # the recording: the bus, the scene and the supervisor's channels, readable by Foxglove;
         # with a Foxglove port the same channels are also served live
@@ -369,8 +372,6 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
                  else ["--no-server"])
         group.start(mrta_argv(*view), name="record")
         ready.wait(ready.recorder.is_set, "the recorder", group, stop)
-        clock = SimClock()
-        live.enter_context(follow_sim_clock(bus, clock))
         sup = Supervisor(run.arch_model, run.app, 0.0, unattended_after=30.0,
                          duplicate_after=5.0)
         for h in attach(sup, bus, clock):
@@ -381,7 +382,7 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
         sim = next(c for c in children if c not in agents.values())
         ready.wait(ready.robots_up, "the robots' agents", group, stop)
         ready.wait(ready.clock.is_set, "the simulator", group, stop)
-        failed_at = _watch(sim, sup, clock, agents, failure, stop, progress, kill)
+        failed_at = _watch(sim, sup, clock, failure, stop, progress)
         live.close()
         if stop.is_set() or sim.wait(30) in (-signal.SIGINT, 128 + signal.SIGINT):
             # Ctrl-C: the terminal sends SIGINT to the children as well, and the simulator may
@@ -391,7 +392,7 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
         if sim.wait(30) != 0:
             raise MrtaRuntimeError(f"the simulator {sim.describe_exit()}:\n" + sim.tail())
         group.stop_all()
-        crashed = group.failed(ignore=[agents[f.robot].name for f in crashes])
+        crashed = group.failed(ignore=[agents[f.robot].name for f in faults.crashes()])
         if crashed:
             raise MrtaRuntimeError("; ".join(f"{c.name} {c.describe_exit()}"
                                              for c in crashed) + ":\n"
@@ -400,24 +401,33 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
     return run, summary
 
 
-def _watch(sim: Child, sup: Supervisor, clock: SimClock, agents: dict[str, Child],
-           failure: Failure | None, stop: threading.Event, progress: Progress | None,
-           kill: list[Failure]) -> float | None:
-    """Follow the run; SIGKILL the agents in `kill` at their times (out of lockstep: in it
-    they crash themselves, exactly); return when `failure` struck."""
+def check_seeds(nodes: list[NodeSpec], seed: int) -> None:
+    """Every process of a run draws from the run's seed, which this runner hands to all of them
+    ($MRTA_SEED): a launch file that gives a node another one — `--seed` in its args, or a
+    $MRTA_SEED of its own — is refused before anything starts, naming the node."""
+    for n in nodes:
+        given = [a.split("=", 1)[1] for a in n.args if a.startswith("--seed=")]
+        given += [b for a, b in zip(n.args, n.args[1:]) if a == "--seed"]
+        given += [n.env[SEED_ENV]] if SEED_ENV in n.env else []
+        for value in given:
+            if value.strip() != str(seed):
+                raise ConfigError(f"node {n.name} is given seed {value!r}, but the run's seed is "
+                                  f"{seed}: the runner hands every node the run's seed "
+                                  f"(${SEED_ENV}); leave the seed out of the launch file",
+                                  file=n.file or None, line=n.line)
+
+
+def _watch(sim: Child, sup: Supervisor, clock: SimClock, failure: Failure | None,
+           stop: threading.Event, progress: Progress | None) -> float | None:
+    """Follow the run until the simulator ends; return when `failure` struck (each process
+    injects its own faults, at their simulated times)."""
     failed_at = None
-    killed: dict[str, float] = {}
     refresh = Refresh(sup, clock, sim_time=True)
     while sim.running() and not stop.is_set():
         stop.wait(0.25)
         now = refresh()
-        for f in kill:
-            if f.robot not in killed and now >= f.at:
-                agents[f.robot].signal(signal.SIGKILL)
-                killed[f.robot] = now
-                log.info("killed %s at %.1f s", f.robot, now)
         if failure and failed_at is None and now >= failure.at:
-            failed_at = killed.get(failure.robot, failure.at)
+            failed_at = failure.at
         if progress is not None:
             progress(now, sup, failure, failed_at)
     return failed_at
@@ -450,7 +460,7 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
     # the supervisor's view, which lags by its monitors' timeouts
     # a crashed robot's reports end at its crash; a stalled or partitioned one's claims are kept
     # (it may well still say it is on its task: what matters is who took it over, and when)
-    failures = [(failure.robot, failed_at)] if failure and failure.kind == "crash" \
+    failures = [(failure.robot, failed_at)] if failure and failure.kind == FaultKind.CRASH \
         and failed_at is not None else []
     intervals = intervals_from(records, run.arch, t1, run.arch.doing_stale_after, failures)
     plot_timeline(output / "run.mcap", run.app, run.arch_model, output / "timeline.png",
@@ -461,7 +471,7 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
            for rid in run.robots}
     report = None
     if failure:
-        report = FailureReport(failure.robot, failed_at, fault=failure.kind)
+        report = FailureReport(failure.robot, failed_at, fault=str(failure.kind))
         if failed_at is not None:
             task = next((t for t, a, b in intervals.get(failure.robot, [])
                          if a <= failed_at <= b + 0.5), None)
@@ -472,7 +482,7 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
                 t_take, by = taken[0]
                 report.taken_over_by = by
                 report.takeover_seconds = round(t_take - failed_at, 2)
-                if failure.kind != "stall":
+                if failure.kind != FaultKind.STALL:
                     # the bound is for silence (a crash, a partition); a stalled robot keeps
                     # talking, so what detects it is the architecture's own progress check
                     # (ALLIANCE's φ, the expected_duration it announces) — no bound here

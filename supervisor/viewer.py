@@ -33,13 +33,13 @@ from pathlib import Path
 
 import foxglove
 
-from mrta_zenoh.bus import Bus, BusOptions, open_bus
-from mrta_zenoh.identity import OBSERVER, check_identity
-from mrta_zenoh.clock import EPSILON, SimClock, WallClock, follow_sim_clock
+from mrta_zenoh.bus import Bus, BusOptions
+from mrta_zenoh.clock import EPSILON, SimClock
 from mrta_zenoh.codec import DecodeError
 from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.identity import OBSERVER
 from mrta_zenoh.keys import CLOCK, RECORDER_TOKEN
-from mrta_zenoh.lifecycle import stop_on_signals
+from mrta_zenoh.node import Node, NodeTime
 from mrta_zenoh.recording import McapRecorder, SimLogTime, json_channel
 from mrta_zenoh.untrusted import visible
 
@@ -155,15 +155,14 @@ def run_view(*, app: str | None, bus_options: BusOptions, port: int | None = 876
     if min(rate, scene_hz, supervisor_hz) <= 0:
         raise ConfigError("frame rates must be positive")
     application = resolve_application(app) if app else None
-    if bus is None:
-        check_identity(bus_options, OBSERVER)
-    clock = SimClock() if sim_time else WallClock()
+    node = Node(bus_options, OBSERVER, time=NodeTime.SIM if sim_time else NodeTime.WALL,
+                stop=stop, bus=bus)
+    clock = node.clock
     stamper = SimLogTime(clock) if sim_time else None
     log_time = stamper or time.time_ns
     pacer = SimPacer(clock) if sim_time else None
-    with stop_on_signals(stop) as stop, \
-            (contextlib.nullcontext(bus) if bus is not None else open_bus(bus_options)) as bus, \
-            contextlib.ExitStack() as handles:
+    with node, contextlib.ExitStack() as handles:
+        bus, stop = node.bus, node.stop
         # closed in reverse order: subscriptions and tokens, then the recording and the server
         live = handles.enter_context(LiveChannels(host, port)) if port is not None else None
         recorder = handles.enter_context(McapRecorder(Path(output), log_time=stamper)) \
@@ -197,8 +196,6 @@ def run_view(*, app: str | None, bus_options: BusOptions, port: int | None = 876
             if pacer is not None and sample.key == CLOCK:
                 pacer.poke()
 
-        if sim_time:
-            handles.enter_context(follow_sim_clock(bus, clock))
         handles.enter_context(bus.subscribe_raw("**", on_raw))
         if recorder is not None:
             handles.enter_context(bus.watch_liveliness("**", recorder.liveliness))

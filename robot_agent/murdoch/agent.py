@@ -15,6 +15,7 @@ from typing import Iterable
 
 from mrta_zenoh.messages import Odometry
 
+from ..runtime.coordinator import Coordinator
 from ..runtime.loop import Say
 from ..runtime.plugins import Plugins
 from .auction import Change, Murdoch
@@ -45,7 +46,7 @@ class _Readings:
         return (msg.pose.x, msg.pose.y) if isinstance(msg, Odometry) else None
 
 
-class MurdochCoordinator:
+class MurdochCoordinator(Coordinator):
     listens = ("announcement", "bid", "award", "claim", "release")
 
     def __init__(self, robot_id: str, params: MurdochParams, plugins: Plugins):
