@@ -53,7 +53,7 @@ from mrta_zenoh.toolchain.registry import Registry
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, load_yaml, plural
 
 from .mission import MissionOptions, resolve
-from .summary import flat_metrics, read_summary
+from .summary import COMPLETE, INCOMPLETE, flat_metrics, read_summary, run_problem
 
 log = logging.getLogger("mrta.experiment")
 
@@ -291,9 +291,8 @@ def row_for(run: Run, out: Path, wall: float, error: str = "") -> dict:
     summary = read_summary(out / "summary.json")
     if summary.lockstep_exact is False:
         row["status"] = "inexact"
-        row["error"] = (f"lockstep was not exact: {summary.lockstep_given_up} participant(s) "
-                        f"given up, {summary.lockstep_forgiven} claim(s) forgiven — the machine "
-                        "was too busy for the lockstep timeouts (fewer --jobs)")
+        row["error"] = run_problem(summary) + (" (fewer --jobs)" if summary.run_status == COMPLETE
+                                               else "")
     row.update(flat_metrics(summary))
     # counted by the run's own analysis (mission.message_rates), not by reading run.mcap again
     row["messages"] = "" if summary.messages.total is None else summary.messages.total
@@ -408,11 +407,13 @@ class Results:
 
 
 def inexact(out: Path) -> bool:
-    """Whether the run in `out` ended well but its lockstep was not exact (summary.json)."""
+    """Whether the run in `out` wrote a summary that is not exact, or not complete (`mrta demo`
+    then exits 1): summary.json's lockstep_exact and run_status."""
     try:
-        return read_summary(out / "summary.json").lockstep_exact is False
+        summary = read_summary(out / "summary.json")
     except ConfigError:
         return False
+    return summary.lockstep_exact is False or summary.run_status == INCOMPLETE
 
 
 def _run_here(pkg, duration: float, runs: list[Run], output: Path, jobs: int,
@@ -457,7 +458,7 @@ def _collect(active: dict, results: Results, retried: set[int] | None = None,
             continue
         del active[index]
         rc = child.wait(10)
-        if rc == 0 and retried is not None and index not in retried and inexact(out):
+        if retried is not None and index not in retried and inexact(out):
             again.append(run)
             continue
         results.add(run, out, time.monotonic() - t0, "" if rc == 0 else error_of(rc, child.stdout))

@@ -49,7 +49,6 @@ from mrta_zenoh.codec import DecodeError, decode
 from mrta_zenoh.identity import OBSERVER
 from mrta_zenoh.lockstep import STATUS, LockstepStatus
 from mrta_zenoh.node import Node, NodeTime
-from mrta_zenoh.presence import RobotPresence
 from mrta_zenoh.processes import Child, ProcessGroup, mrta_argv
 from mrta_zenoh.recording import read_recording
 from mrta_zenoh.seeds import SEED_ENV
@@ -62,13 +61,13 @@ from mrta_zenoh.yamlfile import did_you_mean
 from .api import Refresh, attach
 from .ground_truth import intervals_from
 from .plots import TimeBase, plot_timeline, replay
+from .run_watch import Readiness, RunWatch, run_status
 from .state import Supervisor
-from .summary import (SECTIONS, Coverage, FailureReport, MessageRates, Span, Summary,
-                      write_summary)
+from .summary import (COMPLETE, SECTIONS, Coverage, Disturbance, FailureReport, MessageRates,
+                      Span, Summary, write_summary)
 
 log = logging.getLogger("mrta.mission")
 MISSIONS_GROUP = "mrta.missions"
-READY_TIMEOUT = 60.0  # wall seconds for every process to come up
 
 
 # ------------------------------------------------------------------ what an application gives
@@ -239,49 +238,6 @@ def failure_of(run: MissionRun) -> Failure | None:
     return faults_of(run).primary
 
 
-# ------------------------------------------------------------------ readiness
-class Readiness:
-    """Who is up, from liveliness tokens: the robots (RobotPresence), the recorder and the clock
-    source (tokens under @mrta/…, which `**` does not match)."""
-
-    def __init__(self, bus, robots: list[str]):
-        self.recorder = threading.Event()
-        self.clock = threading.Event()
-        self._stack = contextlib.ExitStack()
-        self.presence = self._stack.enter_context(RobotPresence(bus, robots))
-        for prefix, event in ((keys.RECORDER_TOKEN, self.recorder),
-                              (keys.CLOCK_SOURCE_TOKEN, self.clock)):
-            self._stack.callback(bus.watch_liveliness(
-                prefix + "/**", lambda k, up, e=event: up and e.set()).close)
-
-    def robots_up(self) -> bool:
-        return self.presence.all_up()
-
-    def wait(self, what: Callable[[], bool], label: str, group: ProcessGroup,
-             stop: threading.Event) -> None:
-        deadline = time.monotonic() + READY_TIMEOUT
-        while not what():
-            if stop.is_set():  # first: after a Ctrl-C, children ended by it did not fail
-                group.interrupted()
-                raise Interrupted()
-            failed = group.failed()
-            if failed:
-                raise MrtaRuntimeError(f"{failed[0].name} failed while starting (it "
-                                       f"{failed[0].describe_exit()}):\n{failed[0].tail()}")
-            if time.monotonic() > deadline:
-                raise MrtaRuntimeError(f"{label} did not come up within {READY_TIMEOUT:.0f} s")
-            stop.wait(0.05)
-
-    def close(self) -> None:
-        self._stack.close()
-
-    def __enter__(self) -> "Readiness":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-
 # ------------------------------------------------------------------ the run
 Progress = Callable[[float, Supervisor, "Failure | None", "float | None"], None]
 
@@ -365,6 +321,8 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
             ProcessGroup(env) as group, contextlib.ExitStack() as live:
         bus, clock, stop = node.bus, node.clock, node.stop
         ready = live.enter_context(Readiness(bus, run.robots))
+        # every process's token from before the first one starts: a loss is a disturbance
+        watch = live.enter_context(RunWatch(bus, run.arch, clock))
         # the recording: the bus, the scene and the supervisor's channels, readable by Foxglove;
         # with a Foxglove port the same channels are also served live
         view = ["view", run.package.name, "--sim-time", "--output", output / "run.mcap"]
@@ -383,6 +341,7 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
         ready.wait(ready.robots_up, "the robots' agents", group, stop)
         ready.wait(ready.clock.is_set, "the simulator", group, stop)
         failed_at = _watch(sim, sup, clock, failure, stop, progress)
+        watch.end()
         live.close()
         if stop.is_set() or sim.wait(30) in (-signal.SIGINT, 128 + signal.SIGINT):
             # Ctrl-C: the terminal sends SIGINT to the children as well, and the simulator may
@@ -392,12 +351,13 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
         if sim.wait(30) != 0:
             raise MrtaRuntimeError(f"the simulator {sim.describe_exit()}:\n" + sim.tail())
         group.stop_all()
+        disturbances = watch.disturbances(agents, {f.robot for f in faults.crashes()})
         crashed = group.failed(ignore=[agents[f.robot].name for f in faults.crashes()])
         if crashed:
             raise MrtaRuntimeError("; ".join(f"{c.name} {c.describe_exit()}"
                                              for c in crashed) + ":\n"
                                    + "\n".join(f"[{c.name}]\n{c.tail(10)}" for c in crashed))
-    summary = analyse(run, failure, failed_at, time.monotonic() - t_wall0, before)
+    summary = analyse(run, failure, failed_at, time.monotonic() - t_wall0, before, disturbances)
     return run, summary
 
 
@@ -447,15 +407,19 @@ def mission_sections(run: MissionRun, records: list) -> dict[str, Any]:
 
 
 def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
-            wall: float, before: dict[str, tuple[int, int, int]] | None = None) -> Summary:
+            wall: float, before: dict[str, tuple[int, int, int]] | None = None,
+            disturbances: list[Disturbance] = ()) -> Summary:
     """The summary of a recorded run, written to summary.json; `before` is the output
-    folder's state before the run (folder_state), so `files` lists what this run wrote."""
+    folder's state before the run (folder_state), so `files` lists what this run wrote;
+    `disturbances`: what the run's processes lost while it was on (run_status.py)."""
     output = run.options.output
     records = read_recording(output / "run.mcap")
     tb = TimeBase(records)
     sup = replay(records, tb, run.app, run.arch_model)
     t0 = 0.0
-    t1 = max((tb(t) for _, _, t, _ in records), default=run.options.duration)
+    recorded_until = max((tb(t) for _, _, t, _ in records), default=None)
+    t1 = run.options.duration if recorded_until is None else recorded_until
+    status = run_status(list(disturbances), recorded_until, run.options.duration)
     # what the robots did, from their own messages in simulated time (ground_truth.py) — not
     # the supervisor's view, which lags by its monitors' timeouts
     # a crashed robot's reports end at its crash; a stalled or partitioned one's claims are kept
@@ -496,8 +460,11 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
         duration=run.options.duration, speed=run.options.speed, seed=run.options.seed,
         wall_seconds=round(wall, 1), robots=run.robots, who_did_what=who,
         lockstep=run.options.lockstep, faults=faults.spec or "none",
-        lockstep_exact=(given_up + forgiven == 0) if run.options.lockstep else None,
-        lockstep_given_up=given_up, lockstep_forgiven=forgiven,
+        lockstep_exact=(given_up + forgiven == 0 and status == COMPLETE)
+        if run.options.lockstep else None,
+        lockstep_given_up=given_up, lockstep_forgiven=forgiven, run_status=status,
+        disturbances=list(disturbances),
+        recorded_until=None if recorded_until is None else round(recorded_until, 3),
         first_full_allocation=first_full_allocation(intervals, run.app.tasks()),
         coverage=coverage(intervals, run.app.tasks(), t0, t1),
         # up to the duration asked for: the last instant also holds what processes say as they
