@@ -16,6 +16,7 @@ from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.clock import Clock, ManualClock, SimClock, WallClock
 from mrta_zenoh.lockstep import LockstepClock
 from mrta_zenoh.messages import Header, Odometry, Pose2D, Twist
+from tests.test_murdoch_subjects import _RecordingBus
 
 
 def test_a_misspelt_hook_is_refused_when_the_class_is_defined():
@@ -42,30 +43,16 @@ def test_the_shipped_coordinators_are_coordinators_and_say_what_they_hear():
     assert MurdochCoordinator.hears_subjects()
 
 
-class _Tally:
-    """A bus that records what an agent declares and watches, and delivers nothing."""
-
-    class Handle:
-        def close(self) -> None:
-            pass
+class _Tally(_RecordingBus):
+    """What an agent declares and watches (tests/test_murdoch_subjects.py), and subscribes to."""
 
     def __init__(self):
-        self.tokens, self.watches, self.subscriptions = [], [], []
+        super().__init__()
+        self.subscriptions = []
 
     def subscribe(self, key_expr, handler, msg_type=None, **kwargs):
         self.subscriptions.append(key_expr)
-        return self.Handle()
-
-    def watch_liveliness(self, key_expr, handler):
-        self.watches.append(key_expr)
-        return self.Handle()
-
-    def declare_token(self, key):
-        self.tokens.append(key)
-        return self.Handle()
-
-    def publish(self, key, message, lossy=False):
-        pass
+        return self._Handle()
 
 
 class Bare(Coordinator):
