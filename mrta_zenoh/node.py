@@ -84,7 +84,7 @@ class Node:
         self.bus_options, self.role, self.name, self.time = bus_options, role, name, time
         self.clock: Clock = (LockstepClock(name) if time is NodeTime.LOCKSTEP
                              else SimClock() if time is NodeTime.SIM else WallClock())
-        self._given_stop, self._given_bus = stop, bus
+        self._given_bus = bus
         self._stack: contextlib.ExitStack | None = None
         self.stop = stop or threading.Event()
         self.bus: Bus | None = bus
@@ -95,7 +95,7 @@ class Node:
 
     def __enter__(self) -> Node:
         with contextlib.ExitStack() as stack:  # a failure half-way closes what was opened
-            self.stop = stack.enter_context(stop_on_signals(self._given_stop))
+            stack.enter_context(stop_on_signals(self.stop))
             self.bus = (self._given_bus if self._given_bus is not None
                         else stack.enter_context(open_bus(self.bus_options)))
             if self.sim_time:

@@ -35,7 +35,7 @@ import time
 from dataclasses import dataclass
 from importlib.metadata import entry_points
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 from mrta_zenoh import keys
 from mrta_zenoh.architectures import Architecture, architecture
@@ -408,10 +408,10 @@ def mission_sections(run: MissionRun, records: list) -> dict[str, Any]:
 
 def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
             wall: float, before: dict[str, tuple[int, int, int]] | None = None,
-            disturbances: list[Disturbance] = ()) -> Summary:
+            disturbances: Sequence[Disturbance] = ()) -> Summary:
     """The summary of a recorded run, written to summary.json; `before` is the output
     folder's state before the run (folder_state), so `files` lists what this run wrote;
-    `disturbances`: what the run's processes lost while it was on (run_status.py)."""
+    `disturbances`: what the run's processes lost while it was on (run_watch.py)."""
     output = run.options.output
     records = read_recording(output / "run.mcap")
     tb = TimeBase(records)

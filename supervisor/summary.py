@@ -49,7 +49,7 @@ class FailureReport(msgspec.Struct, forbid_unknown_fields=True, omit_defaults=Tr
     bound_formula: str | None = None
 
 
-# run_status (supervisor/run_status.py): every process ran throughout and the recording covers
+# run_status (supervisor/run_watch.py): every process ran throughout and the recording covers
 # the mission; a process lost its token while the run was on (stopped or cut off: the run is not
 # what its seed says); the recording does not cover the mission (the figures cover part of it)
 COMPLETE, DISTURBED, INCOMPLETE = "complete", "disturbed", "incomplete"

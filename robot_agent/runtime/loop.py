@@ -126,8 +126,8 @@ class Agent:
 
     # ------------------------------------------------------------ set-up (py_trees' setup)
     def limit_team(self, team: Iterable[str] | None) -> None:
-        """Only these robots (ids as AgentOptions spells them) may join the team; None: anyone holding
-        the architecture's agent token (module docstring). Before `start`."""
+        """Only these robots (ids as AgentOptions spells them) may join the team; None: anyone
+        holding the architecture's agent token (module docstring). Before `start`."""
         self.roster = None if team is None else frozenset([*team, self.robot_id])
 
     def start(self) -> None:
