@@ -142,3 +142,41 @@ def test_the_summary_says_why_in_one_line():
         "at 35 s): the run is not what its seed gives")
     assert "2 participant(s) given up" in run_problem(summary(lockstep_exact=False,
                                                               lockstep_given_up=2))
+
+
+class _Ended:
+    """A run's mission process that has ended with `returncode` (experiment._collect reads it)."""
+
+    def __init__(self, returncode: int, stdout: list[str]):
+        self.returncode, self.stdout = returncode, stdout
+
+    def running(self) -> bool:
+        return False
+
+    def wait(self, timeout) -> int:
+        return self.returncode
+
+
+@pytest.mark.parametrize("status, rc, marked, says", [
+    (DISTURBED, 0, "inexact", "robot1 lost its token at 21.3 s, back at 35 s"),
+    (INCOMPLETE, 1, "failed", "Error: the recording does not cover the whole mission")])
+def test_an_experiment_runs_a_disturbed_or_incomplete_run_again_then_marks_it(
+        tmp_path, status, rc, marked, says):
+    import time
+
+    from mrta_supervisor import experiment
+    from mrta_supervisor.summary import write_summary
+    out = tmp_path / "run000"
+    out.mkdir()
+    write_summary(out / "summary.json", summary(
+        run_status=status, lockstep_exact=False, recorded_until=60.0 if rc == 0 else 43.1,
+        disturbances=[Disturbance("robot1", 21.3, 35.0)] if rc == 0 else
+        [Disturbance(RECORDER, 34.0)]))
+    child = _Ended(rc, [f"Error: {run_problem(summary(run_status=INCOMPLETE))}"] if rc else [])
+    run = experiment.Run(0, 1, "none", ())
+    results = experiment.Results(tmp_path / "results.csv", 1)
+    again = experiment._collect({0: (run, child, time.monotonic(), out)}, results, set())
+    assert again == [run] and results.rows == []  # first time: run again, no row
+    again = experiment._collect({0: (run, child, time.monotonic(), out)}, results, {0})
+    assert again == [] and results.rows[0]["status"] == marked
+    assert says in results.rows[0]["error"]
