@@ -3,13 +3,13 @@ the registry (`mrta.architectures`) that finds the installed ones.
 
 rqt_mrta registered an architecture as a package of XML (its monitors and templates); the tools
 that measure a run need more than that — which command runs a robot, how long a takeover may
-take, who is doing which task *according to the robots themselves*, how to make one fail. Before
-this contract the patrol application imported both architectures' keys, messages and bounds and
-kept a table of them, so a third architecture meant editing the application. Now an architecture
-is one object registered under the entry-point group `mrta.architectures`; the mission runner,
+take, who is doing which task *according to the robots themselves*. An architecture is one
+object registered under the entry-point group `mrta.architectures`; the mission runner,
 `mrta experiment`, the plots and an application's plugins (patrol's ledger) reach it only through
-this class. The core defines the contract and knows no architecture (pluginlib's base class, not
-a plugin).
+this class, so a third architecture needs no edit of any application. The core defines the
+contract and knows no architecture (pluginlib's base class, not a plugin). Faults are not part
+of it: they are injected the same way for every architecture (mrta_zenoh.failure, the fault
+channel, and the agent runtime's driver).
 
 The agent side of an architecture (how its decision logic is built and driven) lives beside the
 agent runtime, `mrta_agent.runtime.architecture.AgentArchitecture`, which extends this class.
@@ -22,19 +22,15 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from importlib.metadata import entry_points
 from pathlib import Path
-from typing import Callable, ClassVar, Iterable, Sequence
+from typing import Callable, ClassVar, Sequence
 
 from .clock import EPSILON
 from .errors import ConfigError
-from .failure import Failure, Faults
+from .failure import Faults
 from .keys import first_chunk
 from .yamlfile import did_you_mean
 
 GROUP = "mrta.architectures"
-CRASH_ENV = "MRTA_CRASH"  # ROBOT@SECONDS[,ROBOT@SECONDS…]: crash-stop fault injection
-# the other faults (stall:, partition:, loss:, latency:; mrta_zenoh/failure.py), which the agent's
-# driver injects (robot_agent/runtime/loop.py)
-FAULTS_ENV = "MRTA_FAULTS"
 # ROBOT,ROBOT,…: an agent's `--team` (robot_agent/runtime/cli.py). Every robot launch file sets
 # it to the application's robots (toolchain/generator.py), so an agent counts only them,
 # whatever architecture it runs (a verb that knows no team ignores it).
@@ -196,24 +192,6 @@ class Architecture(ABC):
         asks for and writes (a section no plugin reads is a warning at every start). Default:
         None, not known — every section of the template is asked for."""
         return None
-
-    # ------------------------------------------------------------ faults
-    def failure_env(self, failures: Iterable[Failure] | Faults) -> dict[str, str]:
-        """Environment for the agents that injects the faults (mrta_zenoh/failure.py): every
-        agent reads $MRTA_CRASH and SIGKILLs itself at its time, and $MRTA_FAULTS for the
-        others (stall, partition, loss, latency), which its driver injects — exact in
-        lockstep, and the same for every architecture built on mrta_agent's runtime."""
-        if isinstance(failures, Faults):
-            crashes = [f.spec for f in failures.failures if f.kind == "crash"]
-            others = [s for s in failures.items() if s not in crashes]
-        else:
-            failures = list(failures)
-            crashes = [f.spec for f in failures if f.kind == "crash"]
-            others = [f.spec for f in failures if f.kind != "crash"]
-        env = {CRASH_ENV: ",".join(crashes)} if crashes else {}
-        if others:
-            env[FAULTS_ENV] = ",".join(others)
-        return env
 
     # ------------------------------------------------------------ optional extras
     def plots(self, recording: Path, robots: list[str], tasks: list[str], output: Path,

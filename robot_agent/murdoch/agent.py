@@ -16,6 +16,7 @@ from typing import Iterable
 from mrta_zenoh.messages import Odometry
 from mrta_zenoh.timetext import at
 
+from ..runtime.coordinator import Coordinator
 from ..runtime.loop import Say
 from ..runtime.plugins import Plugins
 from .auction import Change, Murdoch
@@ -46,7 +47,7 @@ class _Readings:
         return (msg.pose.x, msg.pose.y) if isinstance(msg, Odometry) else None
 
 
-class MurdochCoordinator:
+class MurdochCoordinator(Coordinator):
     listens = ("announcement", "bid", "award", "claim", "release", "revoke")
 
     def __init__(self, robot_id: str, params: MurdochParams, plugins: Plugins):
