@@ -19,6 +19,7 @@ PACKAGES = {
     "mrta_agent.runtime": ROOT / "robot_agent" / "runtime",
     "mrta_agent.alliance": ROOT / "robot_agent" / "alliance",
     "mrta_agent.murdoch": ROOT / "robot_agent" / "murdoch",
+    "mrta_agent.cbba": ROOT / "robot_agent" / "cbba",
     "mrta_simulator": ROOT / "simulator",
     "mrta_supervisor": ROOT / "supervisor",
     "mrta_patrol": ROOT / "configs" / "applications" / "patrol",
@@ -34,6 +35,8 @@ FORBIDDEN = {
                            "mrta_supervisor"} | APPS,
     "mrta_agent.alliance": {"mrta_agent.murdoch", "mrta_simulator", "mrta_supervisor"} | APPS,
     "mrta_agent.murdoch": {"mrta_agent.alliance", "mrta_simulator", "mrta_supervisor"} | APPS,
+    "mrta_agent.cbba": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_simulator",
+                        "mrta_supervisor"} | APPS,
     "mrta_simulator": {"mrta_agent", "mrta_supervisor"} | APPS,
     "mrta_supervisor": {"mrta_agent", "mrta_simulator"} | APPS,
     # an application reaches an architecture only through its registered contract
