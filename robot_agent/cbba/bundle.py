@@ -161,9 +161,8 @@ class Cbba:
             self._mark_done(j)
         theirs = {j: View(w, y) for j, w, y in msg.winners}
         s_k = dict(msg.stamps)
-        known = msg.header.stamp + self.lookahead
-        for j, task in enumerate(self.problem.tasks):
-            if j in self.done or task.arrival > known:  # a task the sender cannot know yet
+        for j in range(len(self.problem.tasks)):
+            if j in self.done:
                 continue
             sender_view = self._view(theirs.get(j, View(NONE, 0.0)))
             action = resolve(self.i, k, sender_view, View(self.z[j], self.y[j]), s_k,
