@@ -10,6 +10,7 @@ origin), so every round scores the same instance.
 
 from __future__ import annotations
 
+import time
 from typing import Callable, Mapping
 
 from mrta_zenoh.messages import Header
@@ -31,11 +32,14 @@ def state(team: Mapping[str, Cbba]) -> tuple:
 
 
 def run_rounds(team: Mapping[str, Cbba], neighbours: Neighbours = full, max_rounds: int = 10_000,
-               start: int = 1, quiet: int | None = None) -> int:
+               start: int = 1, quiet: int | None = None,
+               timings: list[tuple[int, str, float]] | None = None) -> int:
     """Run rounds `start`, `start` + 1, … until `quiet` rounds in a row change nothing (default:
     as many as robots, more than the network's diameter: time stamps, which some rows of Table 1
     compare, need that long to travel), at most `max_rounds` of them. Returns the last round that
-    changed something (`start` − 1 if none did). RuntimeError if the team did not settle."""
+    changed something (`start` − 1 if none did). RuntimeError if the team did not settle.
+    `timings`, if given, gets (round, robot, seconds) of each robot's iteration: the messages
+    it heard and its tick (benchmarks/cbba.py)."""
     quiet = len(team) if quiet is None else quiet
     seq = {r: 0 for r in team}
     inbox: dict[str, list] = {r: [] for r in team}
@@ -44,10 +48,14 @@ def run_rounds(team: Mapping[str, Cbba], neighbours: Neighbours = full, max_roun
         before = state(team)
         outbox = []
         for robot, logic in sorted(team.items()):
+            began = time.perf_counter()
             for kind, message in inbox[robot]:
                 logic.hear(kind, message.header.frame_id, message, float(rnd))
             inbox[robot] = []
-            for out in logic.tick(float(rnd)):
+            said = logic.tick(float(rnd))
+            if timings is not None:
+                timings.append((rnd, robot, time.perf_counter() - began))
+            for out in said:
                 seq[robot] += 1
                 header = Header(robot, float(rnd), seq[robot])
                 outbox.append((robot, out.kind, MESSAGES[out.kind](header, *out.fields)))
