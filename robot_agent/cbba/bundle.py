@@ -79,6 +79,7 @@ class Cbba:
         self.problem = problem
         self.id = robot_id
         self.i = problem.robot_index(robot_id)
+        self.index = {r.id: k for k, r in enumerate(problem.robots)}  # robot id → its index
         self.discount, self.bundle_limit, self.lookahead = discount, bundle_limit, lookahead
         self.diminishing, self.recheck, self.comm_range = diminishing, recheck, comm_range
         self.resend_period = resend_period
@@ -124,11 +125,8 @@ class Cbba:
         leaves can no longer serve what it won, so its wins are reset here, and every message
         that still names it as a winner reads as "none" (`_view`): relayed old news cannot bring
         its wins back."""
-        try:
-            k = self.problem.robot_index(robot)
-        except KeyError:
-            return
-        if k == self.i:
+        k = self.index.get(robot)
+        if k is None or k == self.i:
             return
         if alive:
             self.departed.discard(k)
@@ -141,9 +139,8 @@ class Cbba:
     def hear(self, kind: str, sender: str, msg: Bids, at: float) -> bool:
         """Apply a teammate's Bids (Table 1 per task, then the time stamps); False when it is
         malformed (an index outside the instance) and was dropped whole."""
-        try:
-            k = self.problem.robot_index(sender)
-        except KeyError:
+        k = self.index.get(sender)
+        if k is None:
             return False
         if kind != "bids" or not isinstance(msg, Bids) or k == self.i or not self._valid(msg):
             return False

@@ -66,6 +66,7 @@ class Ssi:
         self.problem = problem
         self.id = robot_id
         self.i = problem.robot_index(robot_id)
+        self.index = {r.id: k for k, r in enumerate(problem.robots)}  # robot id → its index
         self.lookahead, self.resend_period, self.join_wait = lookahead, resend_period, join_wait
         self.rank = ranks([r.id for r in problem.robots])
         self.task_rank = ranks([t.id for t in problem.tasks])
@@ -109,11 +110,8 @@ class Ssi:
 
     # ------------------------------------------------------------------ what was heard
     def teammate(self, robot: str, alive: bool) -> None:
-        try:
-            k = self.problem.robot_index(robot)
-        except KeyError:
-            return
-        if k == self.i:
+        k = self.index.get(robot)
+        if k is None or k == self.i:
             return
         if alive:
             self.alive.add(k)
@@ -125,9 +123,8 @@ class Ssi:
     def hear(self, kind: str, sender: str, msg: Round | Bid, at: float) -> bool:
         """Take a teammate's Round or Bid; False when it is malformed (an index outside the
         instance) and was dropped whole."""
-        try:
-            k = self.problem.robot_index(sender)
-        except KeyError:
+        k = self.index.get(sender)
+        if k is None:
             return False
         if k == self.i:
             return False
