@@ -16,6 +16,7 @@ from mrta_agent.cbba.table import NONE
 from mrta_zenoh.codec import decode, encode
 from mrta_zenoh.messages import Header
 from mrta_zenoh.planning import Problem, Robot, Task
+from mrta_zenoh.planning.insertion import Origin
 from tests.logic_team import LogicTeam
 
 
@@ -102,6 +103,19 @@ def test_a_served_task_leaves_every_bundle_for_good_and_the_route_starts_there()
         assert first in logic.done and first not in logic.bundle
         assert served not in logic.winners()
     assert team["r1"].active_task != served
+
+
+def test_relocating_counts_every_score_from_the_new_origin():
+    p = Problem((Robot("r", (0.0, 0.0), 1.0),), (Task("a", (3.0, 4.0)), Task("b", (6.0, 8.0))))
+    logic = Cbba(p, "r", bundle_limit=1)
+    logic.tick(0.0)
+    assert logic.bundle == [0] and logic.y[0] == 0.95 ** 5
+    logic.relocate(Origin(None, 40.0))  # idle at its start until 40 s
+    logic.tick(40.0)
+    assert logic.y[0] == 0.95 ** 5  # its bid stands: still the greedy choice
+    logic.bundle_limit = 2
+    logic.tick(40.1)
+    assert logic.bundle == [0, 1] and logic.y[1] == pytest.approx(0.95 ** 50)  # 40 + 5 + 5
 
 
 def test_a_team_ticking_in_virtual_time_under_loss_still_ends_conflict_free():

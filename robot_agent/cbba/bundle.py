@@ -182,11 +182,17 @@ class Cbba:
             self.bundle.remove(j)
         if j in self.path:
             self.path.remove(j)
-        self._levels = None  # a new origin: every score changes
         self.z[j] = self.i
         self.done.add(j)
-        self.origin = Origin(j, at)
+        self.relocate(Origin(j, at))
         self.position = self.problem.tasks[j].position
+
+    def relocate(self, origin: Origin) -> None:
+        """The robot's route now begins at `origin` — say an idle robot whose plan still starts
+        in the past, or one held up on its way: every score is counted from there (bids already
+        in the bundle stand until the re-check finds the bundle no longer greedy)."""
+        self.origin = origin
+        self._levels = None
         self.changed = True
 
     # ------------------------------------------------------------------ one iteration
