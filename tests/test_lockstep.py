@@ -88,6 +88,7 @@ def test_a_killed_participant_is_no_longer_waited_for_and_its_task_is_taken_over
     assert not any("no longer waited for" in line for line in sim.stderr)  # death ≠ hang
 
 
+@pytest.mark.slow
 def test_a_hung_participant_is_reported_and_after_the_limit_no_longer_waited_for(children):
     sim, agents = start(children, "robot1", "robot2", timeout="2")
     agents["robot1"].wait_stderr(lambda line: "activated" in line, 60)

@@ -122,6 +122,7 @@ def test_a_replay_that_falls_behind_slips_instead_of_bursting(monkeypatch):
         assert (a1 - a0) / 4.0 <= (w1 - w0) + MAX_LAG / 4.0 + 1e-9
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 def test_supervise_follows_a_fast_replay_to_its_end_and_stops_there(children, tmp_path):
     """`mrta replay --speed 4 --clock` of a recording made at speed 2 beside `mrta supervise
