@@ -84,11 +84,6 @@ def ground_truth(robot_id: str) -> str:
     return f"{robot_id}/ground_truth"
 
 
-def robot_tokens(robot_id: str) -> str:
-    """Liveliness expression meaning 'any process of this robot is alive' (docs/architecture.md)."""
-    return f"{robot_id}/**"
-
-
 def first_chunk(key: str) -> str:
     return key.split("/", 1)[0]
 
@@ -143,13 +138,3 @@ def _compiled(expr: str):
         else:
             parts.append(re.escape(chunk) + "/")
     return re.compile("".join(parts), re.DOTALL).fullmatch
-
-
-def with_namespace(namespace: str, key: str) -> str:
-    return f"{namespace}/{key}" if namespace else key
-
-
-def strip_namespace(namespace: str, key: str) -> str:
-    if namespace and key.startswith(namespace + "/"):
-        return key[len(namespace) + 1:]
-    return key

@@ -161,7 +161,6 @@ class SensorWire:
             layouts.append(lay)
             templates.append(lay.template(rid))
         size = max(map(len, templates)) if templates else 0
-        self._size = size
         self._buf = np.zeros((self.n, size), dtype=np.uint8)
         for i, template in enumerate(templates):
             self._buf[i, :len(template)] = np.frombuffer(template, dtype=np.uint8)

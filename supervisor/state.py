@@ -34,7 +34,7 @@ from .drivers import Ros2Drivers
 from .entities import Allocations, RobotInfo, TaskInfo
 from .holders import History, SampleHolder, StateChange
 from .intake import Ids, Intake
-from .monitors import ROLES, Monitor, group_reader, monitors_of  # noqa: F401 (the public names)
+from .monitors import Monitor, monitors_of
 from .strangers import MAX_NAME, MAX_STRANGER_TOKENS, MAX_UNKNOWN, Strangers
 from .tasks import TaskStatus, TaskWatch
 

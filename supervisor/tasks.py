@@ -22,8 +22,6 @@ from typing import Any, Literal
 from mrta_zenoh.toolchain.model import ApplicationFile
 from mrta_zenoh.toolchain.registry import Registry
 
-TASK_STATES = ("done", "waiting")
-
 
 @dataclass(frozen=True)
 class TaskStatus:

@@ -57,7 +57,6 @@ class LockstepClock(SimClock):
         self.run: str | None = None           # the lockstep run whose steps move time
         self.rejected_steps = Rejections(f"step for {_printable(participant)}")
         self.step_rivals: set[str] = set()
-        self._bus = None
         self.counts = None                    # the bus's lockstep counts, once joined
         self._books: Books | None = None
         self._table = KeyTable()              # the run's keys, as its steps name them
@@ -86,7 +85,6 @@ class LockstepClock(SimClock):
     def join(self, bus) -> contextlib.ExitStack:
         """Count traffic, follow steps, and announce the participant; returns the handles as
         one ExitStack (closing it leaves the barrier)."""
-        self._bus = bus
         # while steps are pending, every received sample may be the one they wait for
         counts = self.counts = bus.enable_counting(self._release)
         self._books = Books(counts, self._wall)

@@ -253,7 +253,6 @@ class HighLevel:
         self.rho = params.spin_rate
         self.exact_rho = exact(params.spin_rate)
         self.tau = params.timeout_duration
-        self.tick_period = 1.0 / params.spin_rate
         self.max_expected = params.max_expected_duration
         # Sensory feedback is held for this long; after that the set is inapplicable.
         self.feedback_timeout = feedback_timeout if feedback_timeout is not None else max(

@@ -249,10 +249,6 @@ def aliases() -> dict[str, str]:
     return out
 
 
-def known_plugins(kind: str) -> list[str]:
-    return sorted(plugin_entry_points(GROUPS[kind]))
-
-
 def load_plugin(kind: str, name: str, where: str = "") -> type:
     """The class for a plugin name (entry point, alias or `module:Class`); ConfigError naming
     `where` (file:line) and the known names otherwise."""
