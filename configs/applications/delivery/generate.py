@@ -9,8 +9,8 @@ instance as its `Delivery` section), `launch/delivery_sim.launch` (the simulator
 instance's starts, and one agent per robot of the instance) and, in the ALLIANCE package,
 `worlds/delivery.yaml` (the instance's room and walls, the world the simulator loads by name)
 are written beside them. The Python modules of
-`mrta_delivery` are not touched. tests/test_delivery_config.py checks that the shipped packages
-are exactly what this writes.
+`mrta_delivery` are not touched. tests/test_delivery.py checks that the shipped packages are
+exactly what this writes.
 
 How the instance becomes each architecture's parameters (docs/delivery.md):
 
