@@ -118,10 +118,10 @@ def matches(expr: str, key: str) -> bool:
 
     As in Zenoh, a wildcard never matches a chunk that starts with `@` (a verbatim chunk).
 
-    Each expression is compiled once to a regular expression (issue #27: a lockstep agent
-    matches each of its subscriptions against the run's ≈ 1,100 keys when it learns them, and
-    a chunk-by-chunk match in Python made that most of an agent's first simulated second with
-    100 robots); tests/test_options.py checks it against the chunk-by-chunk rule."""
+    Each expression is compiled once to a regular expression (a lockstep agent matches each
+    of its subscriptions against the run's ≈ 1,100 keys when it learns them, and a
+    chunk-by-chunk match in Python would make that most of an agent's first simulated second
+    with 100 robots); tests/test_options.py checks it against the chunk-by-chunk rule."""
     return _compiled(expr)(key + "/") is not None
 
 

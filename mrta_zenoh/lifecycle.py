@@ -96,9 +96,9 @@ def wait_for_stop(stop: threading.Event, timeout: float | None = None) -> bool:
     does not block it — after SIGSTOP/SIGCONT (the signal pending while the process was
     stopped) it usually lands on one of Zenoh's threads. Python then only flags it, and runs
     the handler (which sets `stop`) when the main thread next executes bytecode: a main thread
-    blocked in a wait without a timeout never does, so `mrta record` ignored Ctrl-C for good
-    and its file was never finished (issue #23: 5 of 6 hung). Waking every POLL seconds lets
-    the handler run."""
+    blocked in a wait without a timeout never does, so `mrta record` would ignore Ctrl-C for
+    good and never finish its file (5 of 6 stopped-and-resumed recorders did). Waking every
+    POLL seconds lets the handler run."""
     deadline = None if timeout is None else time.monotonic() + timeout
     while True:
         remaining = POLL if deadline is None else min(POLL, deadline - time.monotonic())

@@ -37,7 +37,7 @@ BUMPER_EVERY = 10
 # it goes out once a sensor period, at every step where the barrier stops and at the step after
 # it, not at every physics step: 100 agents each took 50 clock samples a simulated second for
 # nothing (5,000 Python callbacks, and as many deliveries by the router), about 17 % of what
-# each heard (issue #27). The step after a stop: a recorder on simulated time (SimLogTime) logs
+# each heard. The step after a stop: a recorder on simulated time (SimLogTime) logs
 # a sample at the latest clock it has heard, and what the agents said at a stop can reach it
 # after the next clock — were that the next sensor period, a run's last words before its end
 # would be logged at the end and fall out of its message counts (two runs of one seed then
@@ -185,7 +185,7 @@ class SimNode:
         simulation's arrays (simulator/wire.py) and sent as one batch; a ROS 2 robot's sonar
         and odometry go to its driver instead (as message objects).
 
-        Why a bumper goes out on change (issue #27): at 1,000 robots the four samples of every
+        Why a bumper goes out on change: at 1,000 robots the four samples of every
         robot are 40,000 puts a simulated second, and the puts, not the physics, set the pace.
         A bumper is an event stream (kobuki's BumperEvent is sent on change only) whose
         `collisions` is a running count, so a consumer that misses a sample (best effort) has

@@ -1,4 +1,4 @@
-"""Sensor samples written straight from the simulation's arrays (issue #27).
+"""Sensor samples written straight from the simulation's arrays.
 
 At 1,000 robots the simulator sends 40,000 samples per simulated second; building a PointCloud,
 two Odometry and a Bumper per robot and encoding them cost more than the physics. The bytes on

@@ -134,8 +134,8 @@ class LiveScreen:
     """The live view on a terminal, drawn whole on the alternate screen at each refresh, as
     `top` does: a resized terminal or a view that grows or narrows leaves nothing stale (drawn
     in place, rich moves the cursor up by the height it last drew, which a terminal that
-    rewrapped the old lines, or any line written meanwhile, makes wrong — stale headers piled
-    up). Once it is gone its last picture is printed, as an in-place view would have left it.
+    rewrapped the old lines, or any line written meanwhile, makes wrong — stale headers would
+    pile up). Once it is gone its last picture is printed, as an in-place view would have left it.
     Log lines written while it shows would land across it, so they are held and shown in
     the view's last lines instead, then written out in full once it is gone; the
     supervisor's own alarm lines are not written at all — the view shows the alarms.

@@ -10,7 +10,7 @@ The two names carry the same protocol (Foxglove's own stance, and Lichtblick's c
 accepted the new name by adding it to a list), so this server accepts both, on one port, with
 the same channels and messages.
 
-What it adds over foxglove-sdk's server, each for a reason the issue measured:
+What it adds over foxglove-sdk's server, each for a measured reason:
 
 * **Latched channels.** The latest message of every channel is kept, and a client that
   subscribes gets it at once, as a ROS user expects of a latched topic: an alarm, a report or

@@ -1,4 +1,4 @@
-"""One error hierarchy and a clean CLI layer (issue 21).
+"""One error hierarchy and a clean CLI layer.
 
 * Below the command line nothing imports click or mrta_zenoh.cli, prints or exits: library
   code raises, and the CLI layer — mrta_zenoh/cli/ and the verb modules listed here — shows.

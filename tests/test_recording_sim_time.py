@@ -1,4 +1,4 @@
-"""Recordings in simulated time (issue 22): log time = the simulator's time as the recorder's
+"""Recordings in simulated time: log time = the simulator's time as the recorder's
 SimClock follows it, held before the first clock sample, runs laid end to end across a
 simulator restart, log times never decreasing per channel; the viewer's derived channels
 sampled per simulated period, driven by the clock samples (not a wall timer) and skipped,

@@ -1,5 +1,5 @@
 """The allocation timeline draws what the robots said they did — the summary's ground truth —
-not the supervisor's lagging view (issue 37 points 2 and 12): robot3's report ends where the
+not the supervisor's lagging view: robot3's report ends where the
 summary says, one run gives one picture whatever the recorder's timing, the legend lists
 tasks in natural order and `offline` only when a robot was."""
 

@@ -77,7 +77,7 @@ MALFORMED = [
     (ARCH.format(robots="<busy_robots><topic><name>k</name><type>t</type><field>f</field>"
                         "<timeout>-1</timeout></topic></busy_robots>", param=OK_PARAM), 5,
      "<timeout> must be between 0.001 and 86400 s"),
-    # finite but absurd: `mrta supervise --once` never returned (issue #23)
+    # finite but absurd: `mrta supervise --once` never returned
     (ARCH.format(robots="<busy_robots><topic><name>k</name><type>t</type><field>f</field>"
                         "<timeout>1e308</timeout></topic></busy_robots>", param=OK_PARAM), 5,
      "(a millisecond to a day), got 1e+308"),
@@ -171,8 +171,8 @@ def test_a_good_application_still_validates(tmp_path):
 
 
 def test_app_validate_reads_every_robots_files_as_its_agent_would(tmp_path):
-    """An application used to validate and then have every agent refuse its files at launch:
-    `mrta app validate` now runs the architecture's own check (Architecture.check_files)."""
+    """An application must not validate and then have every agent refuse its files at launch:
+    `mrta app validate` runs the architecture's own check (Architecture.check_files)."""
     import shutil
 
     from click.testing import CliRunner

@@ -12,8 +12,8 @@ hands the sample to the matching subscriptions of this bus itself, synchronously
 returns — as InProcBus does, which every unit test runs on. Zenoh would hand them over on a
 callback thread instead: a thread hop, a wrapper object and a decode per sample (a patrol agent
 hears its own motivation feed 30 times a simulated second; with 100 agents on 2 cores the agents
-took 1.60 cores per simulated second instead of 1.65, issue #27), and an order against the
-process's other work that depended on scheduling.
+took 1.60 cores per simulated second instead of 1.65), and an order against the process's
+other work that would depend on scheduling.
 """
 
 from __future__ import annotations

@@ -69,7 +69,7 @@ class LockstepClock(SimClock):
         self._claims: Claims | None = None    # the pending step's
         self._pending_wall = 0.0
         # the pending step's keys found missing at the last look (None: look at all of them):
-        # each sample received while a step is pending looks again, at these only (issue #27)
+        # each sample received while a step is pending looks again, at these only
         self._still_missing: list[str] | None = None
         self._new_run = False                 # the pending step opens a new run
         self._refused: Step | None = None     # a new run's step refused while the old one lives

@@ -16,18 +16,18 @@ Attachments are strict both ways (mrta_zenoh.ros2.attachment); a sample that can
 or converted is counted and dropped. The bridge holds `@mrta/ros2_bridge/<robot>` while it runs
 — never a `robotN/**` token, so a bridge alone never makes a robot look online.
 
-Limits (issue #23; docs/ros2.md, "Limits"), so one ROS 2 publisher cannot take the bridge down:
+Limits (docs/ros2.md, "Limits"), so one ROS 2 publisher cannot take the bridge down:
 
 * a sample larger than its cap is dropped before it is decoded (`oversized` in the
   subscription's counts): odometry 16 KiB (a real one is 724 bytes), sonar 64 KiB by default
-  (`--max-sonar-bytes`; a PointCloud of ≈ 5,400 points, 5 ms to convert). Before, a 1M-point
-  cloud twice a second held a core at 100 % and grew the bridge from 58 to 409 MB;
+  (`--max-sonar-bytes`; a PointCloud of ≈ 5,400 points, 5 ms to convert); uncapped, a 1M-point
+  cloud twice a second holds a core at 100 % and grows the bridge from 58 to 409 MB;
 * a message is checked as every receiver on our bus will check it (the strict codec: finite
-  floats, field types) before it is published: NaN odometry used to be forwarded and then
-  dropped by every receiver; now it is dropped here, once, and counted (`non-finite`);
+  floats, field types) before it is published: NaN odometry is dropped here, once, and
+  counted (`non-finite`), not forwarded for every receiver to drop;
 * `--mirror` publishes only the bridged robots' own keys and at most MAX_MIRRORED ROS 2 topics
   per robot; when full, a new key takes the place of one silent for MIRROR_IDLE seconds, or is
-  dropped and counted (`mirror limit`). Before, 2,920 invented keys made 2,923 topics.
+  dropped and counted (`mirror limit`) — otherwise 2,920 invented keys make 2,923 topics.
 """
 
 from __future__ import annotations

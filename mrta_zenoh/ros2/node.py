@@ -2,8 +2,8 @@
 subscription its own token, its data key and — for publishers — an attachment on every sample.
 
 QoS as rmw_zenoh's `rmw_publisher_data.cpp` sets it: Zenoh's BLOCK congestion control only for
-RELIABLE + KEEP_ALL, DROP for everything else — reliable KEEP_LAST too (it used to BLOCK, so a
-stalled robot link could hold the bridge up). The GID in every attachment is the one rmw_zenoh
+RELIABLE + KEEP_ALL, DROP for everything else — reliable KEEP_LAST too (with BLOCK a stalled
+robot link could hold the bridge up). The GID in every attachment is the one rmw_zenoh
 derives from the publisher's liveliness token (names.gid_of), so `ros2 topic info -v` and the
 samples agree.
 

@@ -21,8 +21,8 @@ recording, the recorded run's speed times it for a wall-time one — and holds
 trusts the replay at its own pace, not at the recorded run's, and sees the run end when the
 replay is over (`mrta supervise --sim-time --duration N` stops there).
 
-A recording is input like any other, and may be crafted (issue #23: a topic `a//b`, a
-liveliness payload `[1]`, log times 0 and 2⁶⁴−1 made tracebacks or a 31-year wait). So the
+A recording is input like any other, and may be crafted (a topic `a//b`, a liveliness
+payload `[1]`, log times 0 and 2⁶⁴−1 would make tracebacks or a 31-year wait). So the
 plan (`plan_replay`) is made before any session opens, and:
 
 * a record whose topic is not a concrete key Zenoh accepts (an empty chunk, a wildcard, a
