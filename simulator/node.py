@@ -16,6 +16,7 @@ import numpy as np
 from mrta_zenoh import keys
 from mrta_zenoh.bus import Bus
 from mrta_zenoh.clock import CEILING, EPSILON
+from mrta_zenoh.lifecycle import Closing
 from mrta_zenoh.lockstep import Barrier
 from mrta_zenoh.messages import Clock, Header, Twist
 
@@ -61,7 +62,7 @@ class RunStats:
         return self.sim_time / self.wall_time if self.wall_time > 0 else float("inf")
 
 
-class SimNode:
+class SimNode(Closing):
     """Runs a Simulation against a bus. `speed`: 1 real time, k faster, 0 as fast as possible
     (at most CEILING× real time: what followers accept, mrta_zenoh.clock)."""
 
@@ -233,9 +234,4 @@ class SimNode:
         if self.ros2 is not None:
             self.ros2.close()
 
-    def __enter__(self) -> "SimNode":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 

@@ -26,6 +26,7 @@ from rich.text import Text
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.cli.common import bus_options, finite_float
 from mrta_zenoh.cli.common import console as make_console
+from mrta_zenoh.lifecycle import Closing
 from mrta_zenoh.untrusted import visible
 
 from .alarms import ALARM_LOG
@@ -130,7 +131,7 @@ class ChangeLines:
                                highlight=False)
 
 
-class LiveScreen:
+class LiveScreen(Closing):
     """The live view on a terminal, drawn whole on the alternate screen at each refresh, as
     `top` does: a resized terminal or a view that grows or narrows leaves nothing stale (drawn
     in place, rich moves the cursor up by the height it last drew, which a terminal that
@@ -161,12 +162,6 @@ class LiveScreen:
         logs = [Text(visible(line), style="dim") for line in self.held[-self.KEEP:]]
         self.last = renderable
         self.live.update(Group(renderable, *logs), refresh=True)
-
-    def __enter__(self) -> "LiveScreen":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def close(self) -> None:
         if self.live is not None:

@@ -28,7 +28,7 @@ import zenoh
 from .. import codec
 from ..errors import ConfigError, MrtaRuntimeError
 from ..keys import matches
-from ..lifecycle import wait_for_stop
+from ..lifecycle import Closing, wait_for_stop
 from .base import Batch, Bus, LivelinessWatch, Sample, Subscription, Token
 from .options import BusOptions, session_configs
 from ..messages import GenericMessage, Message
@@ -422,7 +422,7 @@ class _ZenohBatch(Batch):
         self._hand_over(payloads, rows)
 
 
-class Closable:
+class Closable(Closing):
     """A declared Zenoh entity, undeclared once by close() — or on leaving a `with` block, like
     every other handle the bus gives out (AttachedPublisher included)."""
 
@@ -433,12 +433,6 @@ class Closable:
         if self._native is not None:
             self._native.undeclare()
             self._native = None
-
-    def __enter__(self) -> "Closable":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 class AttachedPublisher(Closable):

@@ -19,6 +19,7 @@ import msgspec
 
 from ..clock import EPSILON, _printable
 from ..keys import CLOCK_SOURCE_TOKEN
+from ..lifecycle import Closing
 from .books import Books
 from .ledger import Ledger
 from .protocol import (BARRIER, DEFAULT_TIMEOUT, DONE, MAX_KEYS, MAX_NAMES, NEXT_HORIZON,
@@ -27,7 +28,7 @@ from .protocol import (BARRIER, DEFAULT_TIMEOUT, DONE, MAX_KEYS, MAX_NAMES, NEXT
 from .table import Claims, KeyTable, count_of
 
 
-class Barrier:
+class Barrier(Closing):
     """The simulator's side: whom to wait for, and waiting. A context manager: leaving it
     withdraws the barrier's token and subscriptions (close()).
 
@@ -367,8 +368,3 @@ class Barrier:
             h.close()
         self.counts.close()
 
-    def __enter__(self) -> "Barrier":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

@@ -43,7 +43,7 @@ from ..bus import BusOptions
 from ..errors import ConfigError
 from ..keys import ROS2_BRIDGE_TOKEN, cmd_vel, normalize_robot_id, odom, sonar, validate_key_expr
 from ..identity import BRIDGE, bridge_node_name
-from ..lifecycle import wait_for_stop
+from ..lifecycle import Closing, wait_for_stop
 from ..messages import Message, Twist
 from ..node import Node
 from ..yamlfile import plural
@@ -95,7 +95,7 @@ class BridgeStats:
         table[key] = table.get(key, 0) + 1
 
 
-class Bridge:
+class Bridge(Closing):
     """The mapping for a set of robots, on an open ZenohBus; close() undeclares everything."""
 
     def __init__(self, bus, links: list[RobotLink], *, domain: int = 0, distro: str = "jazzy",
@@ -248,12 +248,6 @@ class Bridge:
             h.close()
         self._closing.clear()
         self.node.close()
-
-    def __enter__(self) -> "Bridge":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 def run_bridge(*, links: list[RobotLink], bus_options: BusOptions, domain: int = 0,
