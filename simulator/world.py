@@ -37,7 +37,7 @@ import numpy as np
 
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.limits import COORDINATE
-from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, load_yaml
+from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, load_yaml, read_bounded
 
 
 @dataclass(frozen=True)
@@ -95,10 +95,7 @@ def load_world(path: Path | str) -> World:
 # ------------------------------------------------------------------------ MobileSim .map
 
 def load_mobilesim_map(path: Path) -> World:
-    try:
-        text = path.read_text(encoding="latin-1")
-    except OSError as exc:
-        raise ConfigError(f"cannot read: {exc.strerror}", file=str(path)) from None
+    text = read_bounded(path, "a MobileSim map").decode("latin-1")
     lines = text.splitlines()
     if not lines or not lines[0].strip().startswith("2D-Map"):
         raise ConfigError("not a MobileSim map: the first line must be '2D-Map'", file=str(path),
