@@ -28,6 +28,7 @@ How the instance becomes each architecture's parameters (docs/delivery.md):
 from __future__ import annotations
 
 import dataclasses
+import json
 import random
 from pathlib import Path
 
@@ -166,7 +167,8 @@ def layers_yaml(params: DeliveryParams, stem: str) -> bytes:
 
 
 def world_yaml(params: DeliveryParams) -> bytes:
-    """The simulator's world (docs/worlds.md): the instance's room and walls."""
+    """The simulator's world (docs/worlds.md): the instance's room and walls, and its tasks as
+    markers (the snapshot, world.png, marks where they are)."""
     w, h = params.world.size
     room = [[-w / 2, -h / 2], [w / 2, -h / 2], [w / 2, h / 2], [-w / 2, h / 2]]
     head = (f"# The delivery world: a {w:g} m × {h:g} m room"
@@ -176,6 +178,10 @@ def world_yaml(params: DeliveryParams) -> bytes:
             "# Starts come from the instance (the launch file's --robot options).\n")
     lines = ["name: delivery", "walls:", f"  - polygon: {flow(room)}"]
     lines += [f"  - segment: {flow(list(map(float, wall)))}" for wall in params.world.walls]
+    if params.tasks:
+        lines.append("markers:")
+        lines += [f"  {json.dumps(tid)}: {flow(list(map(float, t.position)))}"  # "1" stays text
+                  for tid, t in params.tasks.items()]
     return (head + "\n".join(lines) + "\n").encode()
 
 
