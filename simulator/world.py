@@ -1,4 +1,4 @@
-"""Worlds: static walls, named start poses and an optional border, in metres.
+"""Worlds: static walls, named start poses, an optional border and named markers, in metres.
 
 The border is a closed polygon inside the world that means nothing to the physics: it is there
 for whoever needs an outline of the world (an application's boundary to follow or to protect,
