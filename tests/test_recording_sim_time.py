@@ -21,9 +21,8 @@ from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.clock import SimClock
 from mrta_zenoh.keys import CLOCK, CLOCK_SOURCE_TOKEN
 from mrta_zenoh.messages import Clock, Header, Odometry, Pose2D, Twist
-from mrta_zenoh.recording import (
-    HOLD_MAX, NS, RESTART_GAP_NS, McapRecorder, SimLogTime, read_recording,
-)
+from mrta_zenoh.recording import HOLD_MAX, McapRecorder, read_recording
+from mrta_zenoh.sim_log_time import NS, RESTART_GAP_NS, SimLogTime
 from mrta_supervisor import viewer
 from mrta_supervisor.foxglove import FoxgloveOutputs
 from mrta_simulator.messages import Segment, World
