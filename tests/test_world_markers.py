@@ -33,11 +33,14 @@ def test_a_world_files_markers_are_marked_on_the_snapshot(tmp_path, monkeypatch)
         drawn["points"] = {(float(x), float(y)) for line in ax.lines
                            if line.get_marker() == "x"
                            for x, y in zip(line.get_xdata(), line.get_ydata())}
+        # above the robots' discs: a robot standing on its task must not hide the mark
+        drawn["above"] = min(line.get_zorder() for line in ax.lines if line.get_marker() == "x") \
+            > max(p.get_zorder() for p in ax.patches)
 
     monkeypatch.setattr(snapshot, "save_figure", capture)
-    sim = Simulation(world, {"robot1": Pose(-3.0, 0.0, 0.0)})
+    sim = Simulation(world, {"robot1": Pose(1.5, -2.0, 0.0)})  # on t1
     snapshot.save_snapshot(sim, tmp_path / "world.png")
-    assert drawn["points"] == {(1.5, -2.0), (0.0, 3.0)}
+    assert drawn["points"] == {(1.5, -2.0), (0.0, 3.0)} and drawn["above"]
     assert drawn["texts"]["t1"] == (1.5, -2.0) and drawn["texts"]["7"] == (0.0, 3.0)
 
 
