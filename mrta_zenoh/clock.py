@@ -13,6 +13,8 @@ import os
 import threading
 import time
 
+from .keys import CLOCK_SOURCE_ENDED
+
 log = logging.getLogger("mrta.clock")
 EPSILON = 1e-9  # simulated times this close are the same instant (sums of 0.02 s steps drift)
 # The creep bound (SimClock): simulated seconds per wall second a run may advance, at most its
@@ -135,6 +137,7 @@ class SimClock(ManualClock):
         self._source_alive = True
         self._tracking = False          # follow_sim_clock reports the sources' tokens
         self._live: set[str] = set()    # runs whose @mrta/clock_source/<run> token lives
+        self._announced: set[str] = set()  # runs whose source announced their end
         self._rate: float | None = None
         self._budget = max_jump
         self._budget_wall = self._last_wall
@@ -211,8 +214,14 @@ class SimClock(ManualClock):
                         _printable(source), _printable(self.source or ""), _printable(source))
 
     def on_source(self, run: str, alive: bool) -> None:
-        """A clock source's token appeared or vanished (follow_sim_clock)."""
+        """A clock source's token appeared or vanished (follow_sim_clock); `<run>/ended`: that
+        run's source announced its end."""
+        run, _, suffix = run.partition("/")
         with self._cond:
+            if suffix:
+                if suffix == CLOCK_SOURCE_ENDED and alive and len(self._announced) < MAX_RIVALS:
+                    self._announced.add(run)
+                return
             self._tracking = True
             if alive:
                 if len(self._live) < MAX_RIVALS:
@@ -246,11 +255,14 @@ class SimClock(ManualClock):
             self._source_alive = False
 
     def ended(self) -> bool:
-        """The adopted run is over: its source's `@mrta/clock_source/<run>` token is gone (the
-        simulator exited, a replay finished) and no other run was adopted since. A run that
-        never held a token (a ROS-style publisher) never ends this way: it may only pause."""
+        """The adopted run is over: its source announced the end (`<run>/ended`) and its
+        `@mrta/clock_source/<run>` token is gone (the simulator finished, a replay played its
+        last sample), and no other run was adopted since. A source whose token went without
+        the announcement died (`lost`): that is a fault, not an end. A run that never held a
+        token (a ROS-style publisher) never ends this way: it may only pause."""
         with self._cond:
-            return self.started.is_set() and not self._source_alive
+            return (self.started.is_set() and not self._source_alive
+                    and self.source in self._announced)
 
     def stalled(self, wall_seconds: float) -> bool:
         """No accepted sample for `wall_seconds` of wall time (only meaningful once started)."""

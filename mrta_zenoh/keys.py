@@ -20,6 +20,9 @@ from .errors import ConfigError
 
 CLOCK = "clock"
 CLOCK_SOURCE_TOKEN = "@mrta/clock_source"       # held by whoever publishes `clock`
+# `<CLOCK_SOURCE_TOKEN>/<run>/ENDED`: declared by a source that ends its run on purpose, before
+# its tokens go — a source whose token goes without it died (SimClock.ended / lost)
+CLOCK_SOURCE_ENDED = "ended"
 RECORDER_TOKEN = "@mrta/recorder"               # prefix; one token per recorder process
 ROS2_BRIDGE_TOKEN = "@mrta/ros2_bridge"         # prefix; /<robot>, held while it bridges
 ALL_CMD_VEL = "*/cmd_vel"

@@ -39,7 +39,6 @@ from .bus import Bus, BusOptions, open_bus
 from .clock import Clock, SimClock, WallClock, follow_sim_clock
 from .identity import check_identity
 from .lifecycle import stop_on_signals
-from .lockstep import LockstepClock
 
 
 class NodeTime(str, enum.Enum):
@@ -82,7 +81,7 @@ class Node:
         if bus is None:
             check_identity(bus_options, role, name, tuple(robots))
         self.bus_options, self.role, self.name, self.time = bus_options, role, name, time
-        self.clock: Clock = (LockstepClock(name) if time is NodeTime.LOCKSTEP
+        self.clock: Clock = (_lockstep_clock(name) if time is NodeTime.LOCKSTEP
                              else SimClock() if time is NodeTime.SIM else WallClock())
         self._given_bus = bus
         self._stack: contextlib.ExitStack | None = None
@@ -130,3 +129,11 @@ class Node:
             if self.stop.is_set():
                 return False
         return True
+
+
+def _lockstep_clock(name: str) -> Clock:
+    """A participant's clock, its module loaded only by a participant: an observer (supervisor,
+    recorder) starts a node too and must not load the participant's books (the lockstep
+    package's own lazy loading, mrta_zenoh.lockstep)."""
+    from .lockstep.participant import LockstepClock
+    return LockstepClock(name)

@@ -208,6 +208,10 @@ def run_simulator(options: SimOptions, bus_options: BusOptions,
                  f", lockstep with {plural(len(barrier.participants), 'participant')}"
                  if barrier is not None else "")
         stats = node.run(stop, o.duration, barrier)
+        # the run ends on purpose (its duration, a stop): said before its tokens go, so that
+        # followers tell an end from a death (mrta_zenoh.clock.SimClock.ended)
+        resources.enter_context(bus.declare_token(
+            f"{keys.CLOCK_SOURCE_TOKEN}/{run_id}/{keys.CLOCK_SOURCE_ENDED}"))
     log.info("done: %.1f s simulated in %.1f s (%.1f× real time), %d commands",
              stats.sim_time, stats.wall_time, stats.real_time_factor, stats.commands)
     return stats

@@ -1,9 +1,9 @@
 """Fixtures, and the tiers: a test that starts a process or opens a Zenoh session must be marked
 `multiprocess` (pyproject.toml), so `pytest -m "not multiprocess"` — the fast tier — never depends
-on real networking; an unmarked one fails, saying so. The fast tier also leaves out the in-process
-tests marked `slow` (Hypothesis properties at their full example counts, long simulations), so it
-stays under a minute; they run in the full run (`pytest`), or alone with
-`pytest -m "slow and not multiprocess"` (an expression that names `slow` keeps them)."""
+on real networking; an unmarked one fails, saying so. The fast tier, like the CI tier (`pytest`,
+pyproject.toml's addopts), leaves out the tests marked `slow`, so it stays under a minute; they
+run in the whole suite (`pytest -m "not browser"`), or alone with `pytest -m slow` (an expression
+that names `slow` keeps them)."""
 
 import subprocess
 

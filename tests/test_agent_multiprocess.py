@@ -61,6 +61,7 @@ def test_each_task_gets_one_robot_and_a_killed_robots_task_is_taken_over(childre
     assert any("activated A (threshold reached)" in line for line in agents["robot3"].stderr)
 
 
+@pytest.mark.slow
 def test_agent_stops_the_robot_and_exits_within_one_second_on_sigterm(children, tokens,
                                                                         tmp_path):
     tf = write(tmp_path / "tasks.yaml", tasks_yaml(["A"]))

@@ -45,6 +45,7 @@ costs = st.tuples(st.integers(1, 5), st.integers(1, 5)).flatmap(
     .map(lambda xs: np.array(xs, dtype=float).reshape(nm)))
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(costs)
 def test_the_optimum_equals_brute_force(cost):

@@ -201,6 +201,7 @@ def test_the_driver_runs_a_third_architecture_and_its_standby_takes_over(fixed):
     assert took is not None and 2.0 < took - last_word <= bound + 1e-9
 
 
+@pytest.mark.slow
 def test_the_driver_drops_forgers_and_strangers_and_counts_them(fixed):
     bus, clock, agents = fixed_team(fixed)
     from fixed_arch import DoingMsg
@@ -211,6 +212,7 @@ def test_the_driver_drops_forgers_and_strangers_and_counts_them(fixed):
     assert "border_protection" not in agents["robot3"].coordinator.heard
 
 
+@pytest.mark.slow
 def test_decision_history_and_inbox_are_bounded():
     """A robot runs for days: what the agent keeps for inspection must not grow for ever."""
     from mrta_agent.alliance.agent import HISTORY
@@ -263,6 +265,7 @@ def test_plugins_registered_under_the_legacy_group_are_still_found(tmp_path, mon
     assert load_plugin("layer", "patrol/wander").__name__ == "Wander"  # the current group
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 def test_mrta_demo_runs_the_patrol_mission_under_the_test_architecture(children, tmp_path):
     """The contract is enough: nothing outside tests/ knows `fixed`."""

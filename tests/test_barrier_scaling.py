@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import threading
 import time
+import pytest
 
 from hypothesis import HealthCheck, given, settings, strategies as st
 
@@ -92,6 +93,7 @@ ops = st.lists(st.one_of(
     st.tuples(st.just("step"),)), max_size=60)
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(ops)
 def test_sent_and_due_are_what_a_full_recount_gives(history):

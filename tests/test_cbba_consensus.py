@@ -61,6 +61,7 @@ def diameter(ids, edge) -> int:
 
 
 # ------------------------------------------------------------------ the guarantees
+@pytest.mark.slow
 def test_converged_cbba_is_the_sequential_greedy_assignment_and_paths():
     rng = random.Random(400)
     for _ in range(120):

@@ -291,6 +291,7 @@ def test_log_lines_show_control_characters_escaped():
         == "INFO m: tab\\x09here é"
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 def test_setup_logging_installs_the_escaping_formatter():
     code = ("import logging; from mrta_zenoh.cli.common import setup_logging; setup_logging(); "

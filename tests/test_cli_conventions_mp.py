@@ -25,6 +25,7 @@ def agent_args(robot: str = "robot1") -> list:
             "--layers-params", CONFIG / "layers_alliance_params.yaml"]
 
 
+@pytest.mark.slow
 def test_ctrl_c_of_an_agent_exits_130(children, tokens):
     """Not 0: a script must tell an interrupted agent from one that ended."""
     agent = children.mrta(*agent_args(), name="agent")
@@ -33,6 +34,7 @@ def test_ctrl_c_of_an_agent_exits_130(children, tokens):
     assert agent.wait(20) == 130, agent.tail(10)
 
 
+@pytest.mark.slow
 def test_sigterm_of_an_agent_is_a_clean_stop(children, tokens):
     agent = children.mrta(*agent_args(), name="agent")
     tokens.wait("robot1/alliance/agent", 60, agent)
@@ -56,6 +58,7 @@ def test_ctrl_c_of_the_demo_exits_130_whatever_its_children_did(children, tmp_pa
     assert demo.stderr[-1] == "Aborted!", demo.stderr
 
 
+@pytest.mark.slow
 def test_supervise_into_a_pipe_writes_each_change_at_once_with_times_from_its_start(children):
     """Into a pipe rich's live table wrote nothing until the end; times were epoch seconds."""
     sup = children.mrta("supervise", "patrol", name="supervise")
@@ -68,6 +71,7 @@ def test_supervise_into_a_pipe_writes_each_change_at_once_with_times_from_its_st
     assert sup.wait(15) == 0
 
 
+@pytest.mark.slow
 def test_supervise_json_names_its_clocks(children):
     sup = children.mrta("supervise", "patrol", "--json", name="supervise")
     snap = sup.wait_json(lambda s: "robots" in s, 30)

@@ -89,6 +89,7 @@ def cli_violations(source: str, rel: Path) -> list[str]:
     return out
 
 
+@pytest.mark.slow
 def test_nothing_below_the_cli_imports_it_prints_or_exits():
     bad = [v for f in library_modules()
            for v in cli_violations(f.read_text(encoding="utf-8"), f.relative_to(ROOT))]
@@ -215,6 +216,7 @@ def test_a_bad_config_through_mrta_agent_exits_2_with_one_line_naming_the_file(t
     assert len(lines) == 1 and lines[0].startswith(f"Error: {robot}:"), res.output
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 def test_a_bad_config_through_a_launch_file_node_exits_2_with_the_same_line(tmp_path):
     args, robot = bad_agent_args(tmp_path)
@@ -228,6 +230,7 @@ def test_a_bad_config_through_a_launch_file_node_exits_2_with_the_same_line(tmp_
     assert unknown.returncode == 2 and "no executable registered" in unknown.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 def test_a_runtime_failure_through_a_launch_file_node_exits_1(tmp_path):
     """The recorder cannot listen where another process already does: a runtime failure."""

@@ -89,6 +89,7 @@ def test_a_ros2_robots_own_agent_commands_are_counted_not_warned_about(caplog):
     assert [r.levelno for r in caplog.records if "robot2" in r.getMessage()] == [logging.DEBUG]
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 def test_one_robot_was_expected(tmp_path):
     """`mrta sim --lockstep --wait-robots` with no agent exits 1 saying why, in English."""

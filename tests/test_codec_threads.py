@@ -49,6 +49,7 @@ print("ok")
 """
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 def test_eight_threads_building_a_new_types_decoder_at_once_do_not_crash():
     proc = subprocess.run([sys.executable, "-c", CHILD], capture_output=True, text=True,

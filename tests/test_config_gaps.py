@@ -179,6 +179,7 @@ def test_snapshot_into_a_missing_folder_fails_before_the_run(tmp_path):
                          "--snapshot", tmp_path / "missing" / "w.png"), "missing", "does not exist")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("target", [
     # an existing folder it cannot write in: found only once the bus is open (mrta record
     # opens the session before the file), so this case opens a real Zenoh session

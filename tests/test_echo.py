@@ -39,6 +39,7 @@ def test_echo_prints_typed_samples_from_another_process_and_survives_a_malformed
     assert "not msgpack" in warnings[0] and "missing field" in warnings[1]
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 def test_echo_field(children):
     echo, rc = run_pair(children, [KEY, "--field", "/header/frame_id", "--count", "2"],
@@ -47,6 +48,7 @@ def test_echo_field(children):
     assert echo.stdout == [f"{KEY}: robot1", f"{KEY}: robot1"]
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 def test_echo_takes_a_ros_topic_name_and_a_dotted_field(children):
     """As a ROS 2 user types them: both were refused (exit 2)."""
@@ -56,6 +58,7 @@ def test_echo_takes_a_ros_topic_name_and_a_dotted_field(children):
     assert echo.stdout == [f"{KEY}: robot1"]
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 def test_echo_human_format(children):
     echo, rc = run_pair(children, [KEY, "--count", "1"], ["irc:robot1:wander"])
@@ -64,6 +67,7 @@ def test_echo_human_format(children):
     assert "task_id: wander" in echo.stdout
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 def test_echo_exits_promptly_on_sigterm(children, tokens):
     echo = children.mrta("echo", "nothing/**", name="echo")
@@ -97,6 +101,7 @@ def test_invalid_zenoh_config_file_exits_2(tmp_path):
     assert result.exit_code == 2 and str(bad) in result.output
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 def test_router_relays_between_a_client_and_a_peer(children):
     router = children.mrta("router", "--listen", children.rendezvous, name="router")
@@ -238,6 +243,7 @@ def _data(leaf, keys):
         st.lists(inner, max_size=4), st.dictionaries(keys, inner, max_size=4)), max_leaves=20)
 
 
+@pytest.mark.slow
 @settings(max_examples=100, deadline=None)
 @given(st.dictionaries(_FIELD, _data(_MESSAGE_LEAF, _FIELD), max_size=5))
 def test_yaml_of_message_shaped_data_is_pyyamls_text(value):

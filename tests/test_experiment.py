@@ -58,6 +58,7 @@ def test_a_failed_runs_error_names_the_process_and_its_exit_code_even_under_a_lo
     assert cell.startswith("exit 1: Error: record exited with code 1:") and "line 11" in cell
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 @pytest.mark.timeout(150)
 def test_ctrl_c_keeps_exactly_the_finished_runs(children, tmp_path):

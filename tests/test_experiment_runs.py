@@ -93,6 +93,7 @@ def test_the_bar_shows_the_total_from_the_start(monkeypatch):
     assert "0/12" in out.getvalue() and "0/?" not in out.getvalue()
 
 
+@pytest.mark.slow
 def test_pictures_are_drawn_by_the_first_run_of_each_cell_and_none_with_no_plots(
         tmp_path, missions):
     experiment.run_experiment(file=exp_file(tmp_path, "[1, 2, 3]"), output=tmp_path / "o",
@@ -124,6 +125,7 @@ def bca_half_width(n: int) -> float:
     return (ci.high - ci.low) / 2
 
 
+@pytest.mark.slow
 def test_until_ci_adds_blocks_of_seeds_to_every_cell_until_the_interval_is_narrow(
         tmp_path, missions):
     target = 0.12
@@ -182,6 +184,7 @@ def test_an_application_metric_not_measured_is_refused_after_the_first_block(tmp
     assert len(rows(tmp_path / "o")) == 4  # what ran is kept
 
 
+@pytest.mark.slow
 def test_every_row_names_the_parameters_of_its_cell(tmp_path, missions):
     """Under another architecture the application is still the file's (patrol, not the package
     patrol_murdoch): runs of one application under two architectures pair as one instance."""
@@ -225,6 +228,7 @@ def test_the_backends_share_the_run_helpers_without_an_import_circle():
     assert {"experiment_file", "experiment_runs"} <= imports("experiment_dask")
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 @pytest.mark.timeout(240)
 def test_a_demo_without_plots_draws_no_picture_and_measures_the_same(children, tmp_path):

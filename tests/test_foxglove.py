@@ -38,6 +38,7 @@ def recorded(tmp_path_factory):
     return out
 
 
+@pytest.mark.slow
 def test_every_channel_has_a_schema_foxglove_decodes_and_every_json_message_fits_it(recorded):
     seen, schemas = {}, {}
     with open(recorded / "run.mcap", "rb") as f:
@@ -65,6 +66,7 @@ def test_every_channel_has_a_schema_foxglove_decodes_and_every_json_message_fits
     assert tasks[-1]["state"] == tasks[-1]["activity"] == "offline"
 
 
+@pytest.mark.slow
 def test_a_speed_0_recording_is_in_simulated_time_with_frames_per_simulated_second(recorded):
     """The 30 s mission ran in a few wall seconds; its file spans the 30 simulated seconds, so
     Foxglove plays it at mission speed; every channel's log times are in order; /world and the
@@ -96,6 +98,7 @@ def test_a_speed_0_recording_is_in_simulated_time_with_frames_per_simulated_seco
         assert gap <= period + 0.01, (topic, gap, counts)
 
 
+@pytest.mark.slow
 def test_the_recording_still_replays_the_bus_exactly(recorded):
     """JSON in the file, the wire's msgpack out: typed decoding of every bus record works."""
     from mrta_zenoh import codec
@@ -106,6 +109,7 @@ def test_the_recording_still_replays_the_bus_exactly(recorded):
             codec.decode(codec.type_from_encoding(enc), payload)
 
 
+@pytest.mark.slow
 def test_replay_feeds_a_live_supervisor_as_the_run_did(recorded, children):
     """The supervisor on the replayed bus (on the replayed clock) sees what the run's summary
     says happened, and the same allocations as the supervisor reading the file."""
@@ -196,6 +200,7 @@ def test_a_websocket_client_of_either_generation_sees_the_channels_and_scene_upd
 LOW_RATE = ("/supervisor/alarms", "/robots/robot2/task", "world")
 
 
+@pytest.mark.slow
 def test_a_client_that_subscribes_at_once_gets_what_the_recording_holds(tmp_path, children):
     """`mrta demo --foxglove`: a client connects as soon as the server listens, subscribes to
     every channel advertised (the application's are advertised at start) and reads until the

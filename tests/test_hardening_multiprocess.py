@@ -16,6 +16,7 @@ pytestmark = pytest.mark.multiprocess
 CONFIG = PATROL / "config"
 
 
+@pytest.mark.slow
 def test_a_stopped_observer_does_not_stall_the_simulator(children, tokens):
     """A Ctrl-Z'd `mrta echo '**'` must not hold `mrta sim --speed 0`: sensor data and the
     clock are lossy streams, so the simulator never waits for a stopped reader."""
@@ -54,6 +55,7 @@ def forged_clock(children, stamp):
     pub.wait_json(lambda o: "done" in o, 30)
 
 
+@pytest.mark.slow
 def test_forged_clock_samples_neither_stop_nor_melt_the_fleet(children, tokens):
     sim = children.mrta("sim", "--world", "patrol", "--robot", "robot1", "--speed", "2", name="sim")
     tokens.wait("@mrta/clock_source/*", 60, sim)
@@ -98,6 +100,7 @@ def test_a_restarted_simulator_is_followed_and_a_dead_one_is_reported(children, 
     assert busy["time"] < stopped["time"]
 
 
+@pytest.mark.slow
 def test_a_killed_recorder_leaves_a_file_that_plots(children, tokens, tmp_path):
     out = tmp_path / "run.mcap"
     rec = children.mrta("record", "-o", out, name="record")

@@ -54,12 +54,14 @@ def probe(tmp_path_factory):
     return json.loads(out.stdout)
 
 
+@pytest.mark.slow
 def test_supervisord_and_our_supervisor_import_side_by_side(probe):
     assert Path(probe["supervisor"]) == Path(probe["supervisor_dist"])  # supervisord's file
     assert Path(probe["supervisor"]).parent != ROOT / "supervisor"
     assert Path(probe["mrta_supervisor"]).name == "state.py"
 
 
+@pytest.mark.slow
 def test_our_distribution_provides_only_mrta_import_names(probe):
     assert probe["top_level"], "no top_level.txt in the installed mrta-zenoh"
     assert all(name.startswith("mrta_") for name in probe["top_level"]), probe["top_level"]
@@ -68,6 +70,7 @@ def test_our_distribution_provides_only_mrta_import_names(probe):
     assert probe["owners"]["supervisor"] == ["supervisor"]
 
 
+@pytest.mark.slow
 def test_the_repository_folder_names_are_not_importable_from_elsewhere(probe):
     specs = probe["specs"]
     assert specs["simulator"] is None and specs["robot_agent"] is None, specs

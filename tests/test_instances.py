@@ -74,6 +74,7 @@ def test_generated_points_are_in_the_room_clear_of_walls_and_arrivals_are_poisso
     assert set(needs) <= {"", "lift"} and 0 < needs.count("lift") < 60
 
 
+@pytest.mark.slow
 def test_show_gives_sizes_costs_and_the_optimum_brute_force_agrees_with(tmp_path):
     f = generated(tmp_path, "i.yaml", "--robots", "2", "--tasks", "4", "--walls", "1",
                   "--seed", "3")
@@ -121,6 +122,7 @@ def test_a_bad_instance_exits_2_naming_file_line_and_key(tmp_path, text, line, k
                      first[0]), first[0]
 
 
+@pytest.mark.slow
 def test_a_bad_instance_given_to_demo_exits_2_before_anything_starts(tmp_path):
     f = tmp_path / "bad.yaml"
     f.write_text(BAD[0][0])

@@ -190,6 +190,7 @@ def node_pid(launcher, word: str, timeout: float = 30) -> int:
     raise AssertionError(f"no child running {word}")
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 def test_running_nodes_a_failure_is_reported_and_output_is_prefixed(children, tmp_path):
     """The broken agent is not required: it is reported and the launch goes on; the
@@ -212,6 +213,7 @@ def test_running_nodes_a_failure_is_reported_and_output_is_prefixed(children, tm
     assert err[-1] == "Error: 1 node failed: broken exited with code 2", err
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 @pytest.mark.timeout(120)
 def test_a_required_node_killed_with_sigkill_is_reported_and_stops_the_launch(children, tokens,
@@ -232,6 +234,7 @@ def test_a_required_node_killed_with_sigkill_is_reported_and_stops_the_launch(ch
     assert err[-1] == "Error: 1 node failed: sim killed by SIGKILL", err
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 @pytest.mark.timeout(120)
 def test_a_node_killed_with_sigkill_is_reported_and_the_others_keep_running(children, tokens,
@@ -251,6 +254,7 @@ def test_a_node_killed_with_sigkill_is_reported_and_the_others_keep_running(chil
     assert "[sim] stopped" in launcher.stderr, launcher.stderr
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 def test_ctrl_c_stops_every_node(children, tokens, tmp_path):
     """As a terminal does: SIGINT to the node and to the launch at once. The node's end is

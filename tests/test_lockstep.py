@@ -88,6 +88,7 @@ def test_a_killed_participant_is_no_longer_waited_for_and_its_task_is_taken_over
     assert not any("no longer waited for" in line for line in sim.stderr)  # death ≠ hang
 
 
+@pytest.mark.slow
 def test_a_hung_participant_is_reported_and_after_the_limit_no_longer_waited_for(children):
     sim, agents = start(children, "robot1", "robot2", timeout="2")
     agents["robot1"].wait_stderr(lambda line: "activated" in line, 60)
@@ -106,21 +107,27 @@ def test_a_hung_participant_is_reported_and_after_the_limit_no_longer_waited_for
 PROBE = """
 import sys
 import {modules}
+from mrta_zenoh.bus import BusOptions
+from mrta_zenoh.bus.inproc import InProcBus
+from mrta_zenoh.node import Node, NodeTime
+# the node each process starts (an agent's in lockstep, an observer's on simulated time)
+Node(BusOptions(), "{role}", name="robot1", time=NodeTime.{time}, bus=InProcBus())
 print(",".join(sorted(m for m in sys.modules if m.startswith("mrta_zenoh.lockstep."))))
 """
 
 
-@pytest.mark.parametrize("modules, loaded", [
+@pytest.mark.parametrize("modules, role, time, loaded", [
     # an agent: its clock and books, never the simulator's barrier
-    ("mrta_agent.runtime.host, mrta_agent.alliance.cli",
+    ("mrta_agent.runtime.host, mrta_agent.alliance.cli", "robot", "LOCKSTEP",
      "mrta_zenoh.lockstep.books,mrta_zenoh.lockstep.participant,mrta_zenoh.lockstep.protocol,"
      "mrta_zenoh.lockstep.sequence,mrta_zenoh.lockstep.table"),
     # observers and the access-control generator: the protocol only
-    ("mrta_supervisor.api, mrta_supervisor.mission, mrta_zenoh.secure",
+    ("mrta_supervisor.api, mrta_supervisor.mission, mrta_zenoh.secure", "observer", "SIM",
      "mrta_zenoh.lockstep.protocol"),
 ])
-def test_each_process_loads_only_the_lockstep_it_needs(modules, loaded):
-    out = subprocess.run([sys.executable, "-c", PROBE.format(modules=modules)],
+def test_each_process_loads_only_the_lockstep_it_needs(modules, role, time, loaded):
+    out = subprocess.run([sys.executable, "-c", PROBE.format(modules=modules, role=role,
+                                                               time=time)],
                          capture_output=True, text=True, timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == loaded

@@ -61,6 +61,7 @@ def test_one_forged_step_moves_no_agent(children, tokens):
     assert agent_time(children, "robot1") < before["time"] + 60
 
 
+@pytest.mark.slow
 def test_a_ghost_stepdone_freezes_nobody(children, tokens):
     s, agents, sup, run = lockstep_fleet(children, tokens)
     forge(children, "ghost", run)                 # 10⁹ samples claimed, by no participant
@@ -72,6 +73,7 @@ def test_a_ghost_stepdone_freezes_nobody(children, tokens):
     assert after
 
 
+@pytest.mark.slow
 def test_clock_creep_is_bounded_by_the_runs_speed(children, tokens):
     s = sim(children, ["robot1"], "--speed", "2")
     run = tokens.wait("@mrta/clock_source/*", 60, s).rsplit("/", 1)[-1]
@@ -91,6 +93,7 @@ def test_clock_creep_is_bounded_by_the_runs_speed(children, tokens):
     assert later
 
 
+@pytest.mark.slow
 def test_lockstep_after_a_simulator_restart_runs_at_full_speed(children, tokens):
     s, agents, sup, run = lockstep_fleet(children, tokens)
     sup.wait_json(lambda o: o["time"] > 20.0, 60)  # well past where the new run starts
@@ -112,6 +115,7 @@ def test_lockstep_after_a_simulator_restart_runs_at_full_speed(children, tokens)
     assert busy["time"] < 20.0
 
 
+@pytest.mark.slow
 def test_a_stopped_agent_rejoins_the_current_step(children, tokens):
     s, agents, sup, run = lockstep_fleet(children, tokens, ("robot1", "robot2"))
     agents["robot2"].wait_stderr(lambda line: "activated" in line, 60)
@@ -137,6 +141,7 @@ def test_a_stopped_agent_rejoins_the_current_step(children, tokens):
     assert later
 
 
+@pytest.mark.slow
 def test_lockstep_with_robots_expected_and_no_participant_is_an_error(children):
     s = sim(children, ["robot1"], "--lockstep", "--wait-robots", "1")
     assert s.wait(60) == 1
@@ -162,6 +167,7 @@ def goes_on(s, sup, robot="robot1", children=None, seconds=5.0):
     assert not any("no longer waited for" in line for line in s.stderr), s.tail()
 
 
+@pytest.mark.slow
 def test_a_copied_step_numbered_a_billion_stops_nobody(children, tokens):
     """Before: every agent refused every real step afterwards ("step 63 after step
     1000000000"), and the simulator gave them up after 30 s and ran on alone."""
@@ -172,6 +178,7 @@ def test_a_copied_step_numbered_a_billion_stops_nobody(children, tokens):
     goes_on(s, sup, children=children)
 
 
+@pytest.mark.slow
 def test_an_old_whole_step_replayed_as_the_next_one_heals(children, tokens):
     """The danger: all agents stuck — the forged number shadowing the real next step, and
     the replayed table making every later step unreadable."""
@@ -182,6 +189,7 @@ def test_an_old_whole_step_replayed_as_the_next_one_heals(children, tokens):
     assert not any("did not finish" in line for line in s.stderr), s.tail()
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("keys, chars", [(4096, 0), (4000, 1024)])
 def test_a_participant_claiming_thousands_of_keys_freezes_nobody(children, tokens, keys, chars):
     """Before: every Step counted the claimant's keys (4,096 of them, or 4,000 of 1 KB: a Step
@@ -196,6 +204,7 @@ def test_a_participant_claiming_thousands_of_keys_freezes_nobody(children, token
         agents["robot1"].tail()
 
 
+@pytest.mark.slow
 def test_a_claim_that_keeps_descending_pauses_the_run_once(children, tokens):
     """A claim lowered by 1 every 5.2 s withdraws each forgiveness; were the fleet paused
     again each time it would run at 6 % of its speed (8 pauses in 45 s). One pause per

@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from hypothesis import HealthCheck, given, settings, strategies as st
 
+import pytest
+
 from mrta_zenoh.bus.inproc import InProcBus
 from mrta_zenoh.keys import matches
 from mrta_zenoh.lockstep import Books, Claims, KeyTable, Step
@@ -57,6 +59,7 @@ op = st.one_of(
 )
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(st.lists(op, max_size=40))
 def test_the_books_give_what_the_rule_gives_key_by_key(history):
@@ -106,6 +109,7 @@ sim_step = st.tuples(st.just("step"), st.integers(0, 3), st.booleans(), st.boole
 forgery = st.tuples(st.just("forge"), st.integers(0, 3), st.booleans())
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(st.lists(st.one_of(sim_step, sim_step, forgery), max_size=30))
 def test_a_participants_key_table_is_the_simulators_whenever_it_takes_a_step(history):

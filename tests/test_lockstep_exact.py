@@ -10,6 +10,7 @@ import contextlib
 import logging
 import threading
 import time
+import pytest
 
 from mrta_zenoh import codec
 from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
@@ -147,6 +148,7 @@ def alliance_agent(team=None):
     return agent, bus, clock
 
 
+@pytest.mark.slow
 def test_in_lockstep_what_is_due_comes_in_time_sender_key_and_sequence_order():
     """Not in arrival order: the network picks that, even for one teammate's messages on two
     keys, and it changed which bid an injected loss drew (docs/delivery.md, Reproducibility)."""
@@ -168,6 +170,7 @@ def test_in_lockstep_what_is_due_comes_in_time_sender_key_and_sequence_order():
     agent.shutdown()
 
 
+@pytest.mark.slow
 def test_an_agent_in_lockstep_waits_for_its_roster_before_its_first_tick():
     agent, bus, clock = alliance_agent(team=("robot1", "robot2", "robot3"))
     stop = threading.Event()

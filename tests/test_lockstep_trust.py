@@ -4,6 +4,7 @@ probe measured on a real fleet; tests/test_lockstep_attacks.py replays them with
 
 import threading
 import time
+import pytest
 
 from hypothesis import given, settings
 from hypothesis import strategies as st
@@ -299,6 +300,7 @@ def test_speed_zero_is_bounded_by_the_ceiling():
     assert c.now() <= 0.02 + c.max_jump + CEILING * 1.0 + 1e-6
 
 
+@pytest.mark.slow
 @settings(max_examples=200, derandomize=True, deadline=None)
 @given(st.lists(st.tuples(st.floats(0, 0.5), st.floats(-50, 1e6)), max_size=60),
        st.sampled_from([0.5, 1.0, 2.0, 10.0, 0.0]))

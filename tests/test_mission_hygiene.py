@@ -59,6 +59,7 @@ def test_an_output_folder_in_use_is_refused_and_freed_when_its_run_ends(tmp_path
         pass
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 @pytest.mark.timeout(150)
 def test_a_second_demo_in_the_same_folder_is_refused(children, tmp_path):
@@ -91,6 +92,7 @@ def test_a_second_demo_in_the_same_folder_is_refused(children, tmp_path):
     assert first.stdout[1].startswith("Patrol mission (ALLIANCE): 8 s simulated"), first.stdout
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 @pytest.mark.timeout(120)
 def test_kill_9_of_the_demo_leaves_no_process_behind(children, tmp_path):

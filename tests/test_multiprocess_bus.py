@@ -37,6 +37,7 @@ def test_three_processes_exchange_typed_messages_in_any_start_order(children, to
         procs[n].wait_json(sees_all(NAMES), 20)
 
 
+@pytest.mark.slow
 def test_rest_keep_talking_when_the_rendezvous_exits_and_a_newcomer_takes_over(children, tokens):
     procs = start(children, ["A", "B", "C"], tokens)  # A started first: it holds the rendezvous
     for n in NAMES:

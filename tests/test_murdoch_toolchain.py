@@ -3,6 +3,7 @@ taxonomy filter, its patrol application generated from an answers file and accep
 `mrta app validate`, its launch files resolved to `mrta murdoch` processes."""
 
 import json
+import pytest
 
 from click.testing import CliRunner
 
@@ -28,6 +29,7 @@ def test_arch_list_by_taxonomy_lists_both_architectures():
     assert run("arch", "validate", "murdoch").exit_code == 0
 
 
+@pytest.mark.slow
 def test_the_answers_generate_the_shipped_application_which_validates(tmp_path):
     res = run("app", "new", "--answers", str(ANSWERS), "--output", str(tmp_path))
     assert res.exit_code == 0, res.output

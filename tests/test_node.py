@@ -114,6 +114,7 @@ with Node(BusOptions(), "observer", bus=InProcBus()):
 """
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 def test_a_segfault_prints_the_stack_of_every_thread_to_stderr():
     """Every process enables faulthandler, so a crash in a C extension leaves its

@@ -37,6 +37,7 @@ def raw_controls(lines):
     return [line for line in lines if "\x1b" in line or "\x07" in line]
 
 
+@pytest.mark.slow
 def test_forged_tokens_keys_and_names_neither_stop_nor_blind_the_observers(children, tokens,
                                                                            tmp_path):
     sup = children.mrta("supervise", "patrol", "--json", "--rate", "10", name="supervise")
@@ -97,6 +98,7 @@ def test_forged_tokens_keys_and_names_neither_stop_nor_blind_the_observers(child
     assert any("\\x1b]0;pwned" in line for line in sup.stderr)  # logged, escaped
 
 
+@pytest.mark.slow
 def test_robots_outside_the_team_cannot_hold_it_back(children, tokens, tmp_path):
     """robot7–9 hold agent tokens and claim the task (expected 1000 s): an agent that believed
     them would wait ~1000 s at the slow rate. With `--team` it ignores them and takes the task

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import gc
 import tracemalloc
+import pytest
 
 from mrta_zenoh.messages import Header, Odometry, Point2D, PointCloud, Pose2D, Twist
 from mrta_zenoh.recording import McapRecorder, read_recording
@@ -68,6 +69,7 @@ def test_a_sonar_with_too_many_points_is_drawn_bounded():
     assert len(frame(scene)) < 10_000
 
 
+@pytest.mark.slow
 def test_memory_is_flat_after_a_flood():
     """A second burst of 30,000 samples from new strangers leaves the outputs' memory where the
     first one left it (tracemalloc: Python allocations the outputs hold)."""

@@ -127,6 +127,7 @@ def test_the_graph_is_linear_in_the_tokens():
     assert large <= 5 * small, (small, large)
 
 
+@pytest.mark.slow
 def test_twenty_thousand_tokens_cost_bounded_memory():
     import tracemalloc
     app, arch = resolve_application("patrol")

@@ -145,6 +145,7 @@ def _chunk_match(pat: list[str], parts: list[str]) -> bool:
 _CHUNKS = st.sampled_from(["a", "b", "@a", "a.b", "(", "robot1", "x*y"])
 
 
+@pytest.mark.slow
 @settings(max_examples=300, derandomize=True, deadline=None)
 @given(st.lists(st.one_of(_CHUNKS, st.sampled_from(["*", "**"])), min_size=1, max_size=5),
        st.lists(_CHUNKS, min_size=1, max_size=6))

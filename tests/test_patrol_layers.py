@@ -32,6 +32,7 @@ def test_wander_moves_through_open_space_without_a_collision_for_120_s():
         assert sim.distance[0] > 30.0  # it keeps moving (0.5 m/s cruise, slower near walls)
 
 
+@pytest.mark.slow
 def test_wander_avoids_other_robots_too():
     sim = Simulation(WORLD, {"robot1": WORLD.starts["robot1"], "robot4": WORLD.starts["robot4"],
                              "robot2": WORLD.starts["robot2"]}, seed=3)

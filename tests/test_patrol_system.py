@@ -99,6 +99,7 @@ def test_same_seed_same_allocations_at_speed_1_and_10(children, tmp_path):
         assert abs(a[k] - b[k]) <= 0.1 + 0.02 + 1e-9, (k, a[k], b[k])
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("seed", [0, 5])
 def test_separate_terminals_in_any_order(children, tmp_path, seed):
     commands = {

@@ -115,6 +115,7 @@ def test_best_found_equals_the_exact_value_on_an_easy_case(objective):
     assert found.value == pytest.approx(reference(p, objective).value)
 
 
+@pytest.mark.slow
 def test_the_routing_search_is_deterministic_and_keeps_capabilities():
     p = random_problem(7, robots=4, tasks=14)
     a = reference(p, "flowtime", solutions=300)

@@ -17,6 +17,7 @@ from tests.helpers import Child
 pytestmark = pytest.mark.multiprocess
 
 
+@pytest.mark.slow
 def test_a_read_only_folder_is_exit_2_up_front_in_one_line(children):
     folder = tempfile.mkdtemp(prefix="mrta-ro-")
     try:
@@ -34,6 +35,7 @@ def test_a_read_only_folder_is_exit_2_up_front_in_one_line(children):
         shutil.rmtree(folder, ignore_errors=True)
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(180)
 def test_a_full_disk_stops_the_recorder_at_once_with_exit_1(children, tokens, tmp_path):
     sim = children.mrta("sim", "--world", "patrol", "--robot", "robot1", "--robot", "robot2",

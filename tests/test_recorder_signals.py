@@ -22,6 +22,7 @@ def wait_until(condition, timeout: float, what: str) -> None:
         time.sleep(0.05)
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(120)
 def test_a_recorder_signalled_while_stopped_finishes_its_file(children, tokens, tmp_path):
     robot = children.python("fake_robot.py", "robot1", "wander", name="robot1")

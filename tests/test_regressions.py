@@ -255,6 +255,7 @@ def test_no_other_module_parses_msgspecs_error_text():
 
 # -------------------------------------------------------------- 5. one liveliness prefix
 
+@pytest.mark.slow
 def test_the_liveliness_prefix_is_written_once():
     from mrta_zenoh.keys import LIVELINESS_PREFIX
 
@@ -267,6 +268,7 @@ def test_the_liveliness_prefix_is_written_once():
 
 # ------------------------------------------------------------ 6. one time tolerance
 
+@pytest.mark.slow
 def test_time_comparisons_use_the_clocks_epsilon():
     """`t <= stamp + 1e-9`: a time tolerance written out instead of clock.EPSILON. A literal
     elsewhere (a wall's length, nanoseconds to seconds, a division guard) means something else."""

@@ -130,6 +130,7 @@ def test_comparisons_are_paired_by_seed_with_wilcoxon_holm_a12_and_improvement(t
     assert "Lower is better: A12 below 0.5 favours the other." in md
 
 
+@pytest.mark.slow
 def test_the_same_results_give_the_same_report(tmp_path):
     a, b = write(tmp_path / "a", rows()), write(tmp_path / "b", rows())
     for folder in (a, b):
@@ -138,6 +139,7 @@ def test_the_same_results_give_the_same_report(tmp_path):
         assert (a / name).read_bytes() == (b / name).read_bytes(), name
 
 
+@pytest.mark.slow
 def test_instances_make_a_two_level_bootstrap_and_team_sizes_a_plot(tmp_path):
     data = []
     for arch, inst, seed in itertools.product(("alliance", "murdoch"), ("i1", "i2", "i3"),
@@ -158,6 +160,7 @@ def test_instances_make_a_two_level_bootstrap_and_team_sizes_a_plot(tmp_path):
     assert (folder / "team_size_metrics.makespan.png").stat().st_size > 5_000
 
 
+@pytest.mark.slow
 def test_profiles_are_drawn_for_a_metric_whose_direction_the_mission_declares(tmp_path):
     folder = write(tmp_path / "r", rows())
     assert report(folder, "--metrics", "metrics.makespan").exit_code == 0

@@ -193,6 +193,7 @@ def rss_mb(pid: int) -> float:
         return next(int(line.split()[1]) for line in f if line.startswith("VmRSS")) / 1024
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 @pytest.mark.timeout(240)
 def test_a_flood_of_huge_clouds_neither_grows_the_bridge_nor_stops_its_sonar(children, tokens):

@@ -28,6 +28,7 @@ def _wait(predicate, timeout=30.0):
     return True
 
 
+@pytest.mark.slow
 def test_a_late_transient_local_subscription_gets_the_last_depth_samples():
     types = Ros2Types("jazzy")
     end = f"tcp/127.0.0.1:{free_port()}"

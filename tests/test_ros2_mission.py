@@ -17,6 +17,7 @@ CONFIG = CONFIGS / "applications" / "patrol" / "config"
 ROBOTS = ("robot1", "robot2", "robot3")
 
 
+@pytest.mark.slow
 def test_patrol_with_a_ros2_robot_allocates_every_task_and_survives_its_agent(children):
     children.mrta("sim", "--world", "patrol", *(a for r in ROBOTS for a in ("--robot", r)),
                   "--ros2", "robot2", "--speed", "2", "--wait-robots", "60", name="sim")

@@ -37,6 +37,7 @@ def sdk(children, msgs, *args):
                            name=f"sdk {args[0]}")
 
 
+@pytest.mark.slow
 def test_our_twist_reaches_the_sdk_with_strict_attachments(network, msgs):
     children, bridge = network
     listener = sdk(children, msgs, "sub-twist", f"/{ROBOT}/cmd_vel")
@@ -80,6 +81,7 @@ def test_our_twist_reaches_the_sdk_with_strict_attachments(network, msgs):
     assert cmd["publishers"] == 1 and cmd["subscriptions"] == 1
 
 
+@pytest.mark.slow
 def test_the_sdk_odometry_arrives_on_our_key_and_unattached_samples_are_dropped(network, msgs):
     children, bridge = network
     echo = children.mrta("echo", f"{ROBOT}/odom", "--json", name="echo")
@@ -106,6 +108,7 @@ def test_the_sdk_odometry_arrives_on_our_key_and_unattached_samples_are_dropped(
     assert any("early-Jazzy" in line for line in bridge.stderr)
 
 
+@pytest.mark.slow
 def test_the_sdk_lists_our_bridge_topics_from_our_tokens(network, msgs):
     children, _ = network
     lister = sdk(children, msgs, "topic-list",
@@ -117,6 +120,7 @@ def test_the_sdk_lists_our_bridge_topics_from_our_tokens(network, msgs):
     assert topics[f"/{ROBOT}/sonar"] == ["sensor_msgs/msg/PointCloud"]
 
 
+@pytest.mark.slow
 def test_a_robot_whose_ros2_driver_node_disappears_is_shown_offline(network, msgs):
     """The supervisor reads the ROS 2 graph: robot1's agent is up (its token), its driver is a
     ROS 2 node in /robot1 (the SDK), and a bridge drives robot1 (its token). Kill the driver:
@@ -140,6 +144,7 @@ def test_a_robot_whose_ros2_driver_node_disappears_is_shown_offline(network, msg
         {k: a[k] for k in ("kind", "subject")} for a in down["alarms"]]
 
 
+@pytest.mark.slow
 def test_a_robot_whose_bridge_dies_is_shown_offline_with_bridge_lost(network, msgs):
     """The driver lives on, the bridge is killed: the agent's commands reach nothing, so
     robot1 is offline with `bridge_lost` (not online and idle, with no alarm)."""

@@ -16,6 +16,7 @@ pytestmark = pytest.mark.multiprocess
 ROBOT = "robot1"
 
 
+@pytest.mark.slow
 def test_cmd_vel_odom_and_sonar_flow_through_a_router_that_does_not_broker(children, tmp_path):
     port = free_port()
     robot_router = f"tcp/127.0.0.1:{port}"

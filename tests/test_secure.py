@@ -118,6 +118,7 @@ def test_robots_speak_only_for_themselves_and_observers_only_listen(fleet, child
     assert "robot3/cmd_vel/token" not in tokens          # …and observers declare none
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 def test_a_process_without_a_fleet_certificate_cannot_join(fleet, tmp_path, children):
     folder, endpoint = fleet
@@ -293,6 +294,7 @@ def test_a_failed_replacement_puts_every_old_file_back(tmp_path, monkeypatch):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fleet"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("args,text", [
     (["--bridge", "robot9"], "not a --robot"),
     (["--bridge", "b=robot1,robot1"], "given twice"),
@@ -323,6 +325,7 @@ def test_a_process_with_another_identity_s_certificate_is_refused(tmp_path, conf
     assert f"{config}.json5" in str(err.value)
 
 
+@pytest.mark.slow
 def test_the_right_certificate_or_an_open_bus_passes_and_a_missing_one_says_root(tmp_path):
     secure.init(tmp_path / "f", ["robot1"], ["supervisor"], bridges=["b=robot1"],
                 root=str(tmp_path / "elsewhere"))
@@ -365,6 +368,7 @@ def can_join(children, config: Path, name: str) -> bool:
     return code == 0
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 def test_a_robot_certificate_cannot_pose_as_the_router(tmp_path, children):
     """A client-only certificate (extended key usage clientAuth) is refused as a server even
@@ -384,6 +388,7 @@ def test_a_robot_certificate_cannot_pose_as_the_router(tmp_path, children):
         router.stop()
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 def test_clients_verify_the_router_s_name(tmp_path, children):
     """The router's certificate names `localhost` (the endpoint given): reached as 127.0.0.1,
@@ -401,6 +406,7 @@ def test_clients_verify_the_router_s_name(tmp_path, children):
     assert not can_join(children, by_ip, "by address")
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("command,config", [
     (["agent", "robot1", "--robot-params", "{cfg}/robot1_alliance_params.yaml",
       "--tasks-params", "{cfg}/tasks_alliance_params.yaml"], "robot2"),

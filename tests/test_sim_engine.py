@@ -106,6 +106,7 @@ def test_watchdog_stops_a_robot_whose_commands_stop():
         0.5 * M.watchdog + 0.5 ** 2 / (2 * M.linear_accel), abs=0.03)
 
 
+@pytest.mark.slow
 def test_same_seed_and_commands_give_the_same_run_and_another_seed_other_noise():
     def run(seed):
         sim = Simulation(BOX, {"a": Pose(0, 0, 0), "b": Pose.from_degrees(3, 1, 180), "c": Pose.from_degrees(-3, 2, 45)},

@@ -12,6 +12,7 @@ pytestmark = pytest.mark.multiprocess
 M = RobotModel()
 
 
+@pytest.mark.slow
 def test_sim_process_moves_a_robot_on_command_and_its_watchdog_stops_it(children, tokens,
                                                                          tmp_path):
     snap = tmp_path / "world.png"

@@ -261,6 +261,7 @@ def test_a_batch_on_the_inproc_bus_counts_and_delivers_like_publish():
     bus.close()
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 def test_a_batch_on_zenoh_arrives_with_each_keys_encoding_and_is_counted():
     from mrta_zenoh.bus import BusOptions, open_bus

@@ -9,6 +9,7 @@ edge. Any pair the culling wrongly dropped would show up as a reading that is to
 """
 
 import math
+import pytest
 
 import numpy as np
 from hypothesis import HealthCheck, given, settings, strategies as st
@@ -65,6 +66,7 @@ wall = st.tuples(coord, coord, coord, coord).filter(
     lambda w: math.hypot(w[2] - w[0], w[3] - w[1]) > 0.05)
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(st.lists(robot, min_size=1, max_size=5), st.lists(wall, min_size=0, max_size=4))
 def test_cones_equal_the_brute_force(robots, walls):

@@ -47,6 +47,7 @@ def test_a_cell_figures_by_their_definitions_and_missing_values_apart():
     assert d.t_half_width == pytest.approx(scipy.stats.t.ppf(0.975, 7) * sd / math.sqrt(8))
 
 
+@pytest.mark.slow
 def test_the_two_level_bootstrap_covers_a_known_mean_about_95_percent_of_the_time():
     """Synthetic experiments: 20 instances, each with its own mean around 5 (sd 1), 3 seeds each
     around it (sd 1). The interval over instances then seeds holds 5 in ≈ 95 % of them —

@@ -80,6 +80,7 @@ def test_supervise_json_busy_idle_offline_then_sigkill_is_offline_fast(children,
     assert any("tasks recorded for robot1: wander" in line for line in bad.stderr)
 
 
+@pytest.mark.slow
 def test_supervise_once_prints_one_snapshot_and_exits(children, tokens):
     r2 = children.python("fake_robot.py", "robot2", "report", name="robot2")
     tokens.wait("robot2/alliance/agent", 20, r2)

@@ -4,11 +4,13 @@ show."""
 from __future__ import annotations
 
 import csv
+import pytest
 
 from mrta_supervisor import report, report_plots
 from mrta_supervisor.results import read_results
 
 
+@pytest.mark.slow
 def test_the_coverage_legend_hides_no_bar(tmp_path, monkeypatch):
     """Patrol's wander is covered ≈ 99 % of a run: its bar reaches the top, so a legend
     inside the axes would hide it."""

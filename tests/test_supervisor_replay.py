@@ -83,10 +83,14 @@ def test_each_recorded_run_gets_its_own_id_and_token(tmp_path):
             rec.sample(CLOCK, CLOCK_ENC, codec.encode(Clock(stamp, run)), (i + 1) * NS)
         rec.sample("robot1/odom", "application/octet-stream", b"x", 9 * NS)
     plan = announce_runs(plan_replay(read_recording(path), clock=True), 2.0, False)
-    kinds = [("up" if s.alive else "down") if s.alive is not None else s.key
+    kinds = [("end " if s.key.endswith("/ended") else "")
+             + (("up" if s.alive else "down") if s.alive is not None else s.key)
              for s in plan.steps]
-    assert kinds == ["up", CLOCK, CLOCK, "down", "up", CLOCK, CLOCK, "down", "robot1/odom"]
-    ids = [s.key.rsplit("/", 1)[1] for s in plan.steps if s.alive]
+    # each run's end announced before its token goes (followers see an end, not a death)
+    assert kinds == ["up", CLOCK, CLOCK, "end up", "down", "end down",
+                     "up", CLOCK, CLOCK, "end up", "down", "end down", "robot1/odom"]
+    ids = [s.key.rsplit("/", 1)[1] for s in plan.steps
+           if s.alive and not s.key.endswith("/ended")]
     assert len(set(ids)) == 2 and [run_speed(i) for i in ids] == [2.0, 0.0]
     stamps = [codec.decode(Clock.TYPE_NAME, s.payload) for s in plan.steps if s.key == CLOCK]
     assert [(c.stamp, c.source) for c in stamps] == [(1.0, ids[0]), (2.0, ids[0]),
@@ -118,6 +122,7 @@ def test_a_replay_that_falls_behind_slips_instead_of_bursting(monkeypatch):
         assert (a1 - a0) / 4.0 <= (w1 - w0) + MAX_LAG / 4.0 + 1e-9
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 def test_supervise_follows_a_fast_replay_to_its_end_and_stops_there(children, tmp_path):
     """`mrta replay --speed 4 --clock` of a recording made at speed 2 beside `mrta supervise

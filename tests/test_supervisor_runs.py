@@ -135,8 +135,9 @@ def test_deliverys_watch_says_delivered_tasks_are_done_and_late_ones_waiting():
 
 
 def test_the_end_of_a_run_raises_no_clock_stopped(patrol):
-    """The simulator exits at its duration (its clock source token goes first): no alarm,
-    robots keep the state the run left them in, the snapshot says the run ended."""
+    """The simulator exits at its duration (it announces the end, then its clock source token
+    goes first): no alarm, robots keep the state the run left them in, the snapshot says the
+    run ended. A simulator killed (its token gone unannounced) or hung is a stopped clock."""
     app, arch = patrol
     wall = FakeWall()
     clock = SimClock(wall=wall)
@@ -146,6 +147,7 @@ def test_the_end_of_a_run_raises_no_clock_stopped(patrol):
     refresh = Refresh(sup, clock, sim_time=True)
     sup.on_liveliness("robot1/alliance/agent", True, 60.0)
     irc(sup, "robot1", "wander", 60.0)
+    clock.on_source("run-a-x2/ended", True)  # it ends on purpose
     clock.on_source("run-a-x2", False)  # the simulator's token is gone
     assert clock.ended()
     wall.t = 10 * CLOCK_STALL
@@ -165,6 +167,20 @@ def test_the_end_of_a_run_raises_no_clock_stopped(patrol):
     wall.t += 10 * CLOCK_STALL
     Refresh(sup2, clock2, sim_time=True)()
     assert not clock2.ended() and ("clock_stopped", "clock") in alarms_of(sup2, 30.0)
+    # a simulator killed: its token goes with no end announced — alarmed, robots unknown
+    clock3 = SimClock(wall=wall)
+    clock3.on_source("run-c-x2", True)
+    clock3.on_clock(30.0, "run-c-x2")
+    sup3 = Supervisor(arch, app, 30.0)
+    sup3.on_liveliness("robot1/alliance/agent", True, 30.0)
+    clock3.on_source("run-c-x2/ended", False)  # an end token of another kind counts for nothing
+    clock3.on_source("run-c-x2", False)
+    wall.t += 10 * CLOCK_STALL
+    Refresh(sup3, clock3, sim_time=True)()
+    snap = sup3.snapshot(30.0)
+    assert not clock3.ended() and not snap["run_ended"]
+    assert ("clock_stopped", "clock") in alarms_of(sup3, 30.0)
+    assert snap["robots"][0]["state"] == "unknown"
 
 
 def test_a_restarted_simulator_starts_the_picture_afresh(patrol):
@@ -230,6 +246,7 @@ def test_robots_going_right_after_the_clock_source_raise_no_alarm(patrol):
     sup = Supervisor(arch, app, 40.0)
     Refresh(sup, clock, sim_time=True)()
     sup.on_liveliness("robot1/alliance/agent", True, 40.0)
+    clock.on_source("run-a-x4/ended", True)
     clock.on_source("run-a-x4", False)
     sup.on_liveliness("robot1/alliance/agent", False, 40.0)  # no refresh in between
     snap = sup.snapshot(40.0)

@@ -80,6 +80,7 @@ def panels(monkeypatch):
     return seen
 
 
+@pytest.mark.slow
 def test_the_timeline_ends_robot3s_report_where_the_robots_said(tmp_path, panels):
     app, arch = resolve_application("patrol")
     rec = tmp_path / "run.mcap"
@@ -95,6 +96,7 @@ def test_the_timeline_ends_robot3s_report_where_the_robots_said(tmp_path, panels
     assert panels["legend"] == ["border_protection", "report", "wander"]  # nobody offline
 
 
+@pytest.mark.slow
 def test_one_run_gives_one_picture_whatever_the_recorders_timing(tmp_path):
     app, arch = resolve_application("patrol")
     doing = {"robot1": [("wander", 0.4, 30.0)],

@@ -62,6 +62,7 @@ def test_books_memory_follows_the_subscriptions():
         assert books.missing(step) == {}
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 @pytest.mark.timeout(170)
 def test_n_generated_robots_run_in_lockstep_and_every_agent_joins(children, tmp_path):

@@ -34,6 +34,7 @@ def ping_children(children, ping_site):
     return children
 
 
+@pytest.mark.slow
 def test_its_application_is_listed_and_valid(ping_children):
     apps = ping_children.mrta("app", "list", "--json", name="app list")
     assert apps.wait(60) == 0, apps.stderr
@@ -41,6 +42,7 @@ def test_its_application_is_listed_and_valid(ping_children):
     assert found and '"alliance"' in found[0] and "robot2" in found[0]
 
 
+@pytest.mark.slow
 def test_an_agent_runs_its_layer_and_echo_decodes_its_message_by_type(ping_children):
     site = ping_children.env["PYTHONPATH"].split(os.pathsep)[0]
     config = os.path.join(site, "ping_app", "config")

@@ -42,6 +42,7 @@ def run(*args, env=None, input=None):
     return CliRunner().invoke(cli, list(args), env=env, input=input)
 
 
+@pytest.mark.slow
 def test_wizard_with_scripted_keystrokes_writes_a_package_the_tools_accept(tmp_path):
     res = run("app", "new", "--output", str(tmp_path), input="\n".join(WIZARD_KEYS) + "\n")
     assert res.exit_code == 0, res.output
@@ -51,6 +52,7 @@ def test_wizard_with_scripted_keystrokes_writes_a_package_the_tools_accept(tmp_p
     check_generated_package(pkg, {"robot1": ["wander"], "robot2": ["wander", "report"]})
 
 
+@pytest.mark.slow
 def test_answers_file_writes_the_same_package_without_prompts(tmp_path):
     res = run("app", "new", "--answers", str(PATROL_ANSWERS), "--output", str(tmp_path))
     assert res.exit_code == 0, res.output
@@ -83,6 +85,7 @@ def check_generated_package(pkg: Path, robots: dict):
                    in x for x in lines)
 
 
+@pytest.mark.slow
 def test_existing_folder_is_kept_without_force_and_replaced_with_it(tmp_path):
     (tmp_path / "patrol").mkdir()
     (tmp_path / "patrol" / "mine.txt").write_text("keep me")
@@ -122,6 +125,7 @@ BAD_ANSWERS = [
 ]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("changes,message", BAD_ANSWERS, ids=[b[1] for b in BAD_ANSWERS])
 def test_bad_answers_exit_2_with_the_message_and_write_nothing(tmp_path, changes, message):
     f = tmp_path / "answers.yaml"
@@ -153,6 +157,7 @@ def test_registry_on_mrta_package_path_shadows_and_reports(reference):
     assert res.exit_code == 0 and "alliance_test/rqt_mrta.xml does not exist" in res.output
 
 
+@pytest.mark.slow
 @pytest.mark.multiprocess
 def test_an_installed_distribution_adds_an_architecture_through_its_entry_point(tmp_path):
     site = tmp_path / "site"

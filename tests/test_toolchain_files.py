@@ -170,6 +170,7 @@ def test_a_good_application_still_validates(tmp_path):
     assert res.exit_code == 0, res.output
 
 
+@pytest.mark.slow
 def test_app_validate_reads_every_robots_files_as_its_agent_would(tmp_path):
     """An application must not validate and then have every agent refuse its files at launch:
     `mrta app validate` runs the architecture's own check (Architecture.check_files)."""

@@ -6,6 +6,7 @@ layer sections no plugin of the application reads are neither asked for nor writ
 from __future__ import annotations
 
 import yaml
+import pytest
 from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
@@ -64,6 +65,7 @@ def test_answers_with_a_misspelt_task_in_the_tasks_file_say_which_ids_are_right(
                    "the robots were given wander, border_protection, report")
 
 
+@pytest.mark.slow
 def test_answers_with_an_unknown_sensor_plugin_are_refused_at_its_line(tmp_path):
     def typo(d):
         d["configs"]["alliance_params"]["robot2"]["sensors"] = [
@@ -105,6 +107,7 @@ WANDER_ONLY = [
 ]
 
 
+@pytest.mark.slow
 def test_the_wizard_asks_again_for_a_refused_file_and_only_for_the_layers_read(tmp_path):
     res = run("app", "new", "--output", tmp_path, input="\n".join(WANDER_ONLY) + "\n")
     assert res.exit_code == 0, res.output

@@ -50,7 +50,8 @@ from ..clock import run_id, run_speed
 from ..errors import ConfigError
 from ..messages import Clock
 from ..yamlfile import plural
-from ..keys import CLOCK, CLOCK_SOURCE_TOKEN, LIVELINESS_PREFIX, matches, validate_key_expr
+from ..keys import (CLOCK, CLOCK_SOURCE_ENDED, CLOCK_SOURCE_TOKEN, LIVELINESS_PREFIX, matches,
+                    validate_key_expr)
 from ..lifecycle import stop_on_signals
 from ..limits import RUN_DURATION
 from ..recording import Record, read_recording
@@ -180,7 +181,11 @@ def announce_runs(plan: Plan, speed: float, simulated: bool) -> Plan:
         steps.append(replace(step, payload=codec.encode(Clock(msg.stamp, new))))
         last[new] = len(steps) - 1
     for new, i in sorted(last.items(), key=lambda kv: -kv[1]):  # from the end: indexes hold
-        steps.insert(i + 1, Step(steps[i].at, f"{CLOCK_SOURCE_TOKEN}/{new}", alive=False))
+        # the run's end announced before its token goes: its followers see an end, not a death
+        ended = f"{CLOCK_SOURCE_TOKEN}/{new}/{CLOCK_SOURCE_ENDED}"
+        steps[i + 1:i + 1] = [Step(steps[i].at, ended, alive=True),
+                              Step(steps[i].at, f"{CLOCK_SOURCE_TOKEN}/{new}", alive=False),
+                              Step(steps[i].at, ended, alive=False)]
     plan.steps = steps
     return plan
 
