@@ -78,6 +78,7 @@ def test_an_interrupted_drain_ends_at_once(monkeypatch, tmp_path):
 
 
 @pytest.mark.multiprocess
+@pytest.mark.slow  # 10–20 s of wall time; the order above (puts, drain, close) is in the CI tier
 def test_a_recorder_gets_every_sample_of_a_replay_as_fast_as_possible(children, tokens,
                                                                        tmp_path):
     """`mrta replay --speed 0` of 20,000 samples beside `mrta record`: the recording holds all
