@@ -39,7 +39,7 @@ HEAVY = ("numpy", "matplotlib", "rich", "foxglove", "rosbags", "cryptography")
 
 
 def tick_cost() -> None:
-    """tick() alone (what it costs follows the teammates heard since the last tick, issue #27)
+    """tick() alone (what it costs follows the teammates heard since the last tick)
     and on_broadcast() per message, timed apart; the baseline is the same tick, nobody heard."""
     from mrta_agent.alliance.high_level import HighLevel
     from mrta_agent.alliance.params import BehaviourSetParams, RobotParams

@@ -1,4 +1,4 @@
-"""ALLIANCE vs MURDOCH, the study of issue #25: `python benchmarks/compare_architectures.py`.
+"""ALLIANCE vs MURDOCH, the comparison study: `python benchmarks/compare_architectures.py`.
 
 Runs `mrta experiment` once per mission × architecture — missions `patrol` and `delivery`,
 architectures `alliance` and `murdoch` — over the same seeds and the same fault models, lockstep
@@ -57,7 +57,7 @@ from mrta_supervisor.results import write_csv  # noqa: E402
 
 ARCHITECTURES = {"ALLIANCE": "alliance", "MURDOCH": "murdoch"}  # title → mrta.architectures
 BASELINE = "murdoch"  # paired differences read ALLIANCE − MURDOCH
-# the same message budget and the same silence (issue #25): ALLIANCE's heartbeat against
+# the same message budget and the same silence: ALLIANCE's heartbeat against
 # MURDOCH's lease renewal, τ against the lease
 MATCHED = {"alliance": {"robot*.broadcast_rate": 2.0, "robot*.timeout_duration": 2.0},
            "murdoch": {"robot*.renewal_period": 0.5, "robot*.lease_timeout": 2.0}}

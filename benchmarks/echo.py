@@ -5,8 +5,9 @@ A recording of N samples (odometry and 8-point sonar clouds of ten robots, 1 ms 
 loop, mrta_zenoh.tools.replay) — as fast as the replayer publishes — while `mrta echo '**'`
 (YAML, and `--json`; output into a file, as `mrta record` writes into one) and `mrta record`
 listen on the same private rendezvous. The replayer keeps its session open until the listeners
-are done: `mrta replay` itself closes it after the last put, and on a loaded machine Zenoh then
-drops what its queues still held (16,040 of 20,001 samples reached a recorder alone). Prints one JSON line
+are done: closing it right after the last put drops what Zenoh's queues still hold (16,040 of
+20,001 samples reached a recorder alone on a loaded machine), which `mrta replay` answers with a
+bounded linger (replay.DRAIN), not a wait for the listeners. Prints one JSON line
 per listener: samples it received of those replayed (echo: samples printed; record: samples in
 its file), what echo said it dropped, the rate — samples handled per wall second from the
 start of the replay until the listener had handled the last one (echo: printed `bench/end`;

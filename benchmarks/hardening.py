@@ -119,7 +119,7 @@ def supervisor_flood(env: dict, rate: float, seconds: float) -> dict:
 def sim_run(env: dict, stopped_observer: bool) -> tuple[float, float]:
     """(wall seconds of the simulation loop as the simulator reports it, wall seconds from
     start to exit). With `stopped_observer`, an `mrta echo '**'` joins once the simulator runs
-    and is SIGSTOPped — the case where publishers that wait used to hold the world."""
+    and is SIGSTOPped — a publisher that waited for it would hold the world."""
     with ProcessGroup(env) as group:
         t0 = time.monotonic()
         sim = group.start(mrta_argv("sim", "--world", "patrol", "--robot", "robot1",

@@ -13,7 +13,7 @@ Prints one JSON line per figure:
   experiment_20_runs    20 patrol runs (60 s each) through `mrta experiment --jobs 2`, against
                         20 × the wall time of one run measured in the same run
   lockstep_attack       what one forger costs a lockstep fleet on an open bus (2 agents, speed
-                        4; the forgers of tests/procs/lockstep_forger.py, issue 42): the longest
+                        4; the forgers of tests/procs/lockstep_forger.py): the longest
                         wall-time pause of an agent's own time (the gap between two of its
                         motivation samples) in the 25 s after the forgery began, against the
                         longest in the 10 s before it, in the same run; and the forgiveness

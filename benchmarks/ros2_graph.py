@@ -6,7 +6,7 @@ to `Supervisor.on_ros2_token`, as the liveliness watch would hand them over.
     python benchmarks/ros2_graph.py [--tokens 20000] [--budget 120]
 
 One JSON line per figure. `--budget` stops the feed after that many seconds (the figure then
-says how many tokens it reached): the old graph was quadratic.
+says how many tokens it reached), so a graph whose cost grew quadratically would still end.
 """
 
 from __future__ import annotations

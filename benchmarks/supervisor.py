@@ -34,11 +34,11 @@ IRC_KEY = "{}/alliance/inter_robot_communication"
 def patrol():
     """The patrol application's monitors, with the 1,000 robots the publisher speaks for (robots
     outside the application would only raise `unknown_robot` alarms)."""
-    from mrta_zenoh.toolchain.model import Application, RobotEntry
+    from mrta_zenoh.toolchain.model import ApplicationFile, RobotEntry
     from mrta_supervisor.api import resolve_application
     app, arch = resolve_application("patrol")
     robots = [RobotEntry(f"robot{i}", app.tasks()) for i in range(1000)]
-    return Application(app.architecture, app.name, robots), arch
+    return ApplicationFile(app.architecture, app.name, robots), arch
 
 
 # ----------------------------------------------------------------------------- child roles

@@ -1,4 +1,4 @@
-"""Swarm benchmark: N agents plus the simulator in lockstep on one machine (issue #27).
+"""Swarm benchmark: N agents plus the simulator in lockstep on one machine.
 
 A patrol-like application with N robots (the patrol tasks wander / border protection / report,
 each robot given the parameters of patrol's robot ((k - 1) mod 3) + 1) is generated into a

@@ -98,9 +98,9 @@ class Architecture(ABC):
     messages: ClassVar[dict[str, type]]  # kind → message type, published on robotN/<ns>/<kind>[/…]
     doing_kinds: ClassVar[tuple[str, ...]]  # the kinds `doing` reads
     # The kinds robots tell each other — coordination proper, what a study counts as its cost
-    # (issue #25) — a subset of `messages`; None: every kind. What an architecture publishes
-    # for people and tools to watch (ALLIANCE's Motivation and SensoryFeedback panels) is bus
-    # traffic, not coordination: counting it made ALLIANCE look 40 times as chatty as it is.
+    # — a subset of `messages`; None: every kind. What an architecture publishes for people
+    # and tools to watch (ALLIANCE's Motivation and SensoryFeedback panels) is bus traffic,
+    # not coordination: counting it would make ALLIANCE look 40 times as chatty as it is.
     coordination_kinds: ClassVar[tuple[str, ...] | None] = None
     # a robot on a task repeats so at least this often (seconds of its clock): a report not
     # repeated for longer means it stopped without saying so (it died)

@@ -259,12 +259,3 @@ def translate(exc: Exception, type_name: str) -> DecodeError:
 def decode(type_name: str, payload: bytes) -> Message | GenericMessage:
     """Strictly decode a payload of the named type; unknown types become GenericMessage."""
     return decoder_for(encoding_for(type_name))[1](payload)
-
-
-def from_dict(cls: type[Message], data: Any) -> Message:
-    """Build a message from a plain map with the same strict checks as decoding."""
-    struct_decoder(cls)  # the type's information built once, under the lock (see there)
-    try:
-        return msgspec.convert(data, cls, strict=True)
-    except msgspec.ValidationError as exc:
-        raise _translate(exc, cls.TYPE_NAME) from None

@@ -55,8 +55,8 @@ from .timetext import at
 from .yamlfile import did_you_mean
 
 FAULTS_ENV = "MRTA_FAULTS"  # the run's fault spec, for every process of the run (fault_env)
-# No longer read: every fault, crashes included, goes through FAULTS_ENV. Set, it is refused
-# (plan_from_env) rather than ignored, so a script that still sets it does not run faultless.
+# Not read: every fault, crashes included, goes through FAULTS_ENV. Set, it is refused
+# (plan_from_env) rather than ignored, so a script written for it does not run faultless.
 RETIRED_CRASH_ENV = "MRTA_CRASH"
 
 

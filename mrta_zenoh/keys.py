@@ -87,11 +87,6 @@ def ground_truth(robot_id: str) -> str:
     return f"{robot_id}/ground_truth"
 
 
-def robot_tokens(robot_id: str) -> str:
-    """Liveliness expression meaning 'any process of this robot is alive' (docs/architecture.md)."""
-    return f"{robot_id}/**"
-
-
 def first_chunk(key: str) -> str:
     return key.split("/", 1)[0]
 
@@ -126,10 +121,10 @@ def matches(expr: str, key: str) -> bool:
 
     As in Zenoh, a wildcard never matches a chunk that starts with `@` (a verbatim chunk).
 
-    Each expression is compiled once to a regular expression (issue #27: a lockstep agent
-    matches each of its subscriptions against the run's ≈ 1,100 keys when it learns them, and
-    a chunk-by-chunk match in Python made that most of an agent's first simulated second with
-    100 robots); tests/test_options.py checks it against the chunk-by-chunk rule."""
+    Each expression is compiled once to a regular expression (a lockstep agent matches each
+    of its subscriptions against the run's ≈ 1,100 keys when it learns them, and a
+    chunk-by-chunk match in Python would make that most of an agent's first simulated second
+    with 100 robots); tests/test_options.py checks it against the chunk-by-chunk rule."""
     return _compiled(expr)(key + "/") is not None
 
 
@@ -146,13 +141,3 @@ def _compiled(expr: str):
         else:
             parts.append(re.escape(chunk) + "/")
     return re.compile("".join(parts), re.DOTALL).fullmatch
-
-
-def with_namespace(namespace: str, key: str) -> str:
-    return f"{namespace}/{key}" if namespace else key
-
-
-def strip_namespace(namespace: str, key: str) -> str:
-    if namespace and key.startswith(namespace + "/"):
-        return key[len(namespace) + 1:]
-    return key

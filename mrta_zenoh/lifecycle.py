@@ -1,4 +1,5 @@
-"""Clean shutdown on SIGINT / SIGTERM, and children that do not outlive their parent.
+"""Clean shutdown on SIGINT / SIGTERM, children that do not outlive their parent, and
+resources closed by leaving their `with` blocks (Closing).
 
 A signal only sets an event; the tool's main loop sees it and leaves its `with` blocks, which
 undeclare everything and close the Zenoh session. Closing from inside a signal handler, or not
@@ -13,11 +14,30 @@ import os
 import signal
 import threading
 import time
-from typing import Iterator
+from typing import Iterator, TypeVar
 
 log = logging.getLogger("mrta.lifecycle")
+_C = TypeVar("_C", bound="Closing")
 PARENT_ENV = "MRTA_PARENT_PID"  # set by mrta_zenoh.processes for every child it starts
 _received: list[int] = []  # the signals stop_on_signals handled in this process, in order
+
+
+class Closing:
+    """A resource that `close()` releases, used in a `with` block: `__enter__` returns it,
+    `__exit__` closes it — contextlib.closing as a base class, so that every resource of the
+    project (the bus and its handles, recorders, the barrier, servers, watches) is a context
+    manager the same way."""
+
+    __slots__ = ()
+
+    def close(self) -> None:
+        raise NotImplementedError(f"{type(self).__name__} must define close()")
+
+    def __enter__(self: _C) -> _C:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
 
 
 def interrupted_by_user() -> bool:
@@ -96,9 +116,9 @@ def wait_for_stop(stop: threading.Event, timeout: float | None = None) -> bool:
     does not block it — after SIGSTOP/SIGCONT (the signal pending while the process was
     stopped) it usually lands on one of Zenoh's threads. Python then only flags it, and runs
     the handler (which sets `stop`) when the main thread next executes bytecode: a main thread
-    blocked in a wait without a timeout never does, so `mrta record` ignored Ctrl-C for good
-    and its file was never finished (issue #23: 5 of 6 hung). Waking every POLL seconds lets
-    the handler run."""
+    blocked in a wait without a timeout never does, so `mrta record` would ignore Ctrl-C for
+    good and never finish its file (5 of 6 stopped-and-resumed recorders did). Waking every
+    POLL seconds lets the handler run."""
     deadline = None if timeout is None else time.monotonic() + timeout
     while True:
         remaining = POLL if deadline is None else min(POLL, deadline - time.monotonic())

@@ -2,7 +2,7 @@
 
 Finite is not enough: a `timeout_duration` of 1e308 s, a wall at x = 1e308 m, a monitor
 `<timeout>` of 1e308 or an experiment `duration: 1e308` are all finite, and each either hangs a
-process for good or overflows the arithmetic downstream (issue #23). Every file reader and the
+process for good or overflows the arithmetic downstream. Every file reader and the
 validators check values against the one table below, so a value the runtime would refuse is
 refused by `mrta arch validate` / `mrta app validate` too, with the file, the line and the range.
 

@@ -172,10 +172,6 @@ def fields_of(cls: type[Message]) -> dict[str, tuple[str, type | None]]:
     return out
 
 
-def type_name_of(msg: Message | GenericMessage) -> str:
-    return msg.type_name if type(msg) is GenericMessage else msg.TYPE_NAME
-
-
 def is_message(value: Any) -> bool:
     return isinstance(value, (Message, GenericMessage))
 

@@ -9,9 +9,10 @@ from __future__ import annotations
 import threading
 
 from .keys import first_chunk
+from .lifecycle import Closing
 
 
-class RobotPresence:
+class RobotPresence(Closing):
     def __init__(self, bus, robot_ids: list[str]):
         self._tokens: dict[str, set[str]] = {r: set() for r in robot_ids}
         self._lock = threading.Lock()
@@ -37,8 +38,3 @@ class RobotPresence:
     def close(self) -> None:
         self._watch.close()
 
-    def __enter__(self) -> "RobotPresence":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

@@ -40,8 +40,9 @@ from . import codec, keys
 from .codec import DecodeError, type_from_encoding
 from .errors import ConfigError, MrtaRuntimeError
 from .flat_schema import from_viewer, message_schema, object_schema, to_viewer
+from .lifecycle import Closing
 from .messages import message_class
-from .sim_log_time import NS, RESTART_GAP_NS, SimLogTime  # noqa: F401 (re-exported)
+from .sim_log_time import SimLogTime
 
 _json = msgspec.json  # lossless for our values: shortest round-trip floats
 
@@ -91,7 +92,7 @@ def check_output(path: Path) -> None:
                           "cannot write the recording: the file is read-only", file=str(path))
 
 
-class McapRecorder:
+class McapRecorder(Closing):
     """Writes from one thread; bus callbacks only enqueue (they must stay tiny).
 
     Every bus channel is written as Foxglove and Lichtblick read it: JSON messages with a JSON
@@ -285,12 +286,6 @@ class McapRecorder:
             raise MrtaRuntimeError(f"cannot write the recording {self.path}: "
                                    f"{self._error.strerror or self._error} "
                                    f"({self.count} samples written, {self.lost} lost)")
-
-    def __enter__(self) -> "McapRecorder":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 class Recovered(list):

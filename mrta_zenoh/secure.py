@@ -20,7 +20,7 @@ fails. Roles (docs/security.md has the table and what each rule stops):
   may not publish.
 * anything without a certificate signed by the CA cannot even connect.
 
-Departures from the first version (issue #23): certificates say which role they are for (OU),
+Beyond a plain mTLS set-up: certificates say which role they are for (OU),
 only the router's certificate may serve TLS (the others are client-only: extended key usage
 `clientAuth`, no host names), and clients verify the router's name; paths in the configs are
 under `--root` (default: the folder's absolute path), so a copied folder still works; `--force`

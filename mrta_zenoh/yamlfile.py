@@ -159,20 +159,27 @@ class _AliasLoader(_StrictLoader):
     allow_aliases = True
 
 
-def load_yaml(path: Path | str, aliases: bool = False) -> YamlDoc:
-    """A YAML file with line numbers per key; ConfigError (file, line) for anything malformed —
-    duplicate or non-text keys, characters YAML forbids (NUL), integers too long, dates, tags
-    beyond plain data — and aliases unless `aliases` (answers files use them to share a block;
-    each node is then walked once)."""
-    path = Path(path)
+def read_bounded(path: Path, what: str) -> bytes:
+    """The bytes of `path`, read no further than MAX_BYTES: a larger file (a log or an image
+    given by mistake) is a ConfigError naming the file, not a reader stuck on it."""
     try:
         with path.open("rb") as f:
             raw = f.read(MAX_BYTES + 1)
     except OSError as exc:
         raise ConfigError(f"cannot read: {exc.strerror}", file=str(path)) from None
     if len(raw) > MAX_BYTES:
-        raise ConfigError(f"larger than {MAX_BYTES // (1024 * 1024)} MiB: not a parameter file",
+        raise ConfigError(f"larger than {MAX_BYTES // (1024 * 1024)} MiB: not {what}",
                           file=str(path))
+    return raw
+
+
+def load_yaml(path: Path | str, aliases: bool = False) -> YamlDoc:
+    """A YAML file with line numbers per key; ConfigError (file, line) for anything malformed —
+    duplicate or non-text keys, characters YAML forbids (NUL), integers too long, dates, tags
+    beyond plain data — and aliases unless `aliases` (answers files use them to share a block;
+    each node is then walked once)."""
+    path = Path(path)
+    raw = read_bounded(path, "a parameter file")
     try:
         text = raw.decode("utf-8")
     except UnicodeDecodeError as exc:

@@ -16,6 +16,7 @@ import numpy as np
 from mrta_zenoh import keys
 from mrta_zenoh.bus import Bus
 from mrta_zenoh.clock import CEILING, EPSILON
+from mrta_zenoh.lifecycle import Closing
 from mrta_zenoh.lockstep import Barrier
 from mrta_zenoh.messages import Clock, Header, Twist
 
@@ -37,7 +38,7 @@ BUMPER_EVERY = 10
 # it goes out once a sensor period, at every step where the barrier stops and at the step after
 # it, not at every physics step: 100 agents each took 50 clock samples a simulated second for
 # nothing (5,000 Python callbacks, and as many deliveries by the router), about 17 % of what
-# each heard (issue #27). The step after a stop: a recorder on simulated time (SimLogTime) logs
+# each heard. The step after a stop: a recorder on simulated time (SimLogTime) logs
 # a sample at the latest clock it has heard, and what the agents said at a stop can reach it
 # after the next clock — were that the next sensor period, a run's last words before its end
 # would be logged at the end and fall out of its message counts (two runs of one seed then
@@ -61,7 +62,7 @@ class RunStats:
         return self.sim_time / self.wall_time if self.wall_time > 0 else float("inf")
 
 
-class SimNode:
+class SimNode(Closing):
     """Runs a Simulation against a bus. `speed`: 1 real time, k faster, 0 as fast as possible
     (at most CEILING× real time: what followers accept, mrta_zenoh.clock)."""
 
@@ -185,7 +186,7 @@ class SimNode:
         simulation's arrays (simulator/wire.py) and sent as one batch; a ROS 2 robot's sonar
         and odometry go to its driver instead (as message objects).
 
-        Why a bumper goes out on change (issue #27): at 1,000 robots the four samples of every
+        Why a bumper goes out on change: at 1,000 robots the four samples of every
         robot are 40,000 puts a simulated second, and the puts, not the physics, set the pace.
         A bumper is an event stream (kobuki's BumperEvent is sent on change only) whose
         `collisions` is a running count, so a consumer that misses a sample (best effort) has
@@ -233,9 +234,4 @@ class SimNode:
         if self.ros2 is not None:
             self.ros2.close()
 
-    def __enter__(self) -> "SimNode":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 

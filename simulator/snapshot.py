@@ -1,5 +1,5 @@
-"""A picture of the world: walls, its border (if it has one), robots with heading, sonar beams
-and trails.
+"""A picture of the world: walls, its border and markers (if it has them), robots with heading,
+sonar beams and trails.
 
 Users would rather look than read: one PNG answers "where did the robots go and what did they see".
 """
@@ -38,6 +38,10 @@ def save_snapshot(sim: Simulation, path: Path | str, title: str | None = None,
         if sim.world.border is not None:
             b = np.vstack([sim.world.border, sim.world.border[:1]])
             ax.plot(b[:, 0], b[:, 1], "--", color="tab:orange", lw=1, label="border")
+        for name, (mx, my) in sim.world.markers.items():  # above the robots: one may sit on it
+            ax.plot(mx, my, "x", color="tab:red", ms=8, mew=2, zorder=5)
+            ax.annotate(name, (mx, my), xytext=(6, -12), textcoords="offset points", fontsize=9,
+                        color="tab:red", weight="bold", zorder=5)
         colors = plt.cm.tab10(np.arange(len(sim.ids)) % 10)
         if sim.trails is not None and len(sim.trails) > 1:
             trail = np.stack(sim.trails)  # (T, N, 2)

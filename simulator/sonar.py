@@ -8,13 +8,13 @@ lies on a cone edge or a segment end. A single centre ray would miss a robot 2 m
 beams, which no real sonar does. Ranges beyond `max_range` come back as `inf` (no echo); noise
 and clipping are the caller's job so this stays a pure geometry function tests check exactly.
 
-Why it scales (issue #27): the exact cone test is the expensive part, so it runs only on
+Why it scales: the exact cone test is the expensive part, so it runs only on
 (transducer, shape) pairs that a cheap, conservative test cannot rule out. Walls are culled per
 robot (a wall farther than the sonar's reach from a robot's transducers cannot echo), robots
 by a k-d tree of neighbours within reach (scipy's cKDTree) and then per transducer by bearing
 (a disc outside the cone's angular window, widened by the transducer's offset from the robot's
 centre, cannot be inside it). Culling never changes a reading: every pair it keeps is computed
-exactly as before, and every pair it drops has no point inside the cone within range
+exactly as without it, and every pair it drops has no point inside the cone within range
 (tests/test_sonar.py checks both against brute force).
 """
 

@@ -1,4 +1,4 @@
-"""Sensor samples written straight from the simulation's arrays (issue #27).
+"""Sensor samples written straight from the simulation's arrays.
 
 At 1,000 robots the simulator sends 40,000 samples per simulated second; building a PointCloud,
 two Odometry and a Bumper per robot and encoding them cost more than the physics. The bytes on
@@ -161,7 +161,6 @@ class SensorWire:
             layouts.append(lay)
             templates.append(lay.template(rid))
         size = max(map(len, templates)) if templates else 0
-        self._size = size
         self._buf = np.zeros((self.n, size), dtype=np.uint8)
         for i, template in enumerate(templates):
             self._buf[i, :len(template)] = np.frombuffer(template, dtype=np.uint8)

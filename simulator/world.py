@@ -1,4 +1,4 @@
-"""Worlds: static walls, named start poses and an optional border, in metres.
+"""Worlds: static walls, named start poses, an optional border and named markers, in metres.
 
 The border is a closed polygon inside the world that means nothing to the physics: it is there
 for whoever needs an outline of the world (an application's boundary to follow or to protect,
@@ -16,6 +16,8 @@ Two file formats load into the same `World`:
       robots:                                 # named start poses: x, y, theta in degrees
         robot1: [-10.0, 0.0, 0]
       border: [[x, y], ...]                   # optional closed polygon inside the world
+      markers:                                # optional named points the snapshot marks
+        t1: [x, y]
 
 * **MobileSim `.map`** (the original's maps): the `LINES` section (x1 y1 x2 y2 in millimetres) and
   `Cairn: RobotHome x y theta` start poses (named home0, home1, … in file order). Other sections
@@ -37,7 +39,7 @@ import numpy as np
 
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.limits import COORDINATE
-from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, load_yaml
+from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, load_yaml, read_bounded
 
 
 @dataclass(frozen=True)
@@ -57,6 +59,9 @@ class World:
     walls: np.ndarray  # (W, 4): x1, y1, x2, y2 in metres
     starts: dict[str, Pose] = field(default_factory=dict)
     border: np.ndarray | None = None  # (B, 2) closed polygon, or None
+    # named points the snapshot marks (an application's places: delivery's tasks); like the
+    # border they mean nothing to the physics, and the simulator knows no application by them
+    markers: dict[str, tuple[float, float]] = field(default_factory=dict)
     source: str = ""
     notes: list[str] = field(default_factory=list)
 
@@ -95,10 +100,7 @@ def load_world(path: Path | str) -> World:
 # ------------------------------------------------------------------------ MobileSim .map
 
 def load_mobilesim_map(path: Path) -> World:
-    try:
-        text = path.read_text(encoding="latin-1")
-    except OSError as exc:
-        raise ConfigError(f"cannot read: {exc.strerror}", file=str(path)) from None
+    text = read_bounded(path, "a MobileSim map").decode("latin-1")
     lines = text.splitlines()
     if not lines or not lines[0].strip().startswith("2D-Map"):
         raise ConfigError("not a MobileSim map: the first line must be '2D-Map'", file=str(path),
@@ -185,7 +187,7 @@ def _number(text: str, path: Path, line: int) -> float:
 
 # ------------------------------------------------------------------------------- YAML
 
-_TOP_KEYS = ("name", "walls", "robots", "border")
+_TOP_KEYS = ("name", "walls", "robots", "border", "markers")
 _WALL_KINDS = ("segment", "polygon", "polyline")
 
 
@@ -227,8 +229,15 @@ def load_yaml_world(path: Path) -> World:
     border = None
     if doc.data.get("border") is not None:
         border = np.array(_points(doc, ("border",), doc.data["border"], 3), dtype=float)
+    markers: dict[str, tuple[float, float]] = {}
+    raw_markers = doc.data.get("markers") or {}
+    if not isinstance(raw_markers, dict):
+        raise doc.error(("markers",), "'markers' maps a name to [x, y]")
+    for name, value in raw_markers.items():
+        x, y = _numbers(doc, ("markers", name), value, 2)
+        markers[str(name)] = (x, y)
     return World(name=str(doc.data.get("name") or path.stem), walls=_walls_array(walls),
-                 starts=starts, border=border, source=str(path))
+                 starts=starts, border=border, markers=markers, source=str(path))
 
 
 def _numbers(doc: YamlDoc, where: tuple, value, n: int, coordinates: int | None = None

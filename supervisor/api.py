@@ -18,7 +18,7 @@ from mrta_zenoh.identity import OBSERVER
 from mrta_zenoh.keys import ROS2_BRIDGE_TOKEN
 from mrta_zenoh.lockstep import STATUS, LockstepStatus
 from mrta_zenoh.node import Node, NodeTime
-from mrta_zenoh.toolchain.model import Application, Architecture
+from mrta_zenoh.toolchain.model import ApplicationFile, ArchitectureFile
 from mrta_zenoh.toolchain.registry import Registry
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
 
@@ -34,8 +34,8 @@ def to_json(snapshot: dict) -> str:
     return jsonsafe.dumps(snapshot, nonfinite=lambda _: None)
 
 
-def resolve_application(spec: str | None,
-                        registry: Registry | None = None) -> tuple[Application, Architecture]:
+def resolve_application(spec: str | None, registry: Registry | None = None,
+                        ) -> tuple[ApplicationFile, ArchitectureFile]:
     """An application by name (registry) or by path, and the architecture it names. No name
     (None) means the only registered application: the framework knows none by name, and with
     several a guess would silently read the wrong monitors."""
@@ -47,7 +47,7 @@ def resolve_application(spec: str | None,
         path = path / "rqt_mrta.xml"
     if path.suffix == ".xml" and path.is_file():
         app = load_rqt_mrta(path)
-        if not isinstance(app, Application):
+        if not isinstance(app, ApplicationFile):
             raise ConfigError("not an application file", file=str(path))
     else:
         _, app = reg.application(spec)

@@ -26,6 +26,7 @@ from rich.text import Text
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.cli.common import bus_options, finite_float
 from mrta_zenoh.cli.common import console as make_console
+from mrta_zenoh.lifecycle import Closing
 from mrta_zenoh.untrusted import visible
 
 from .alarms import ALARM_LOG
@@ -130,12 +131,12 @@ class ChangeLines:
                                highlight=False)
 
 
-class LiveScreen:
+class LiveScreen(Closing):
     """The live view on a terminal, drawn whole on the alternate screen at each refresh, as
     `top` does: a resized terminal or a view that grows or narrows leaves nothing stale (drawn
     in place, rich moves the cursor up by the height it last drew, which a terminal that
-    rewrapped the old lines, or any line written meanwhile, makes wrong — stale headers piled
-    up). Once it is gone its last picture is printed, as an in-place view would have left it.
+    rewrapped the old lines, or any line written meanwhile, makes wrong — stale headers would
+    pile up). Once it is gone its last picture is printed, as an in-place view would have left it.
     Log lines written while it shows would land across it, so they are held and shown in
     the view's last lines instead, then written out in full once it is gone; the
     supervisor's own alarm lines are not written at all — the view shows the alarms.
@@ -161,12 +162,6 @@ class LiveScreen:
         logs = [Text(visible(line), style="dim") for line in self.held[-self.KEEP:]]
         self.last = renderable
         self.live.update(Group(renderable, *logs), refresh=True)
-
-    def __enter__(self) -> "LiveScreen":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def close(self) -> None:
         if self.live is not None:

@@ -120,7 +120,7 @@ WALLS_WAIT_NS = 1_000_000_000  # a scene frame waits this long (log time) for th
 GREY, BLUE, ORANGE, WHITE, YELLOW = (
     Color(r=.6, g=.6, b=.6, a=1), Color(r=.2, g=.5, b=1, a=1), Color(r=1, g=.6, b=.1, a=.8),
     Color(r=1, g=1, b=1, a=1), Color(r=1, g=.85, b=.1, a=1))
-ROBOT_RADIUS = 0.25  # m, a Pioneer 3-DX (DESIGN.md)
+ROBOT_RADIUS = 0.25  # m, a Pioneer 3-DX body as drawn (the simulator models 0.26: sonars included)
 # A robot's name: in metres (not scale-invariant pixels, whose box covered the robot and its
 # heading at a world-wide zoom), centred above the disc with a gap, so it is beside the robot
 # at every zoom

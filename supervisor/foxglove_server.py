@@ -10,7 +10,7 @@ The two names carry the same protocol (Foxglove's own stance, and Lichtblick's c
 accepted the new name by adding it to a list), so this server accepts both, on one port, with
 the same channels and messages.
 
-What it adds over foxglove-sdk's server, each for a reason the issue measured:
+What it adds over foxglove-sdk's server, each for a measured reason:
 
 * **Latched channels.** The latest message of every channel is kept, and a client that
   subscribes gets it at once, as a ROS user expects of a latched topic: an alarm, a report or
@@ -44,6 +44,8 @@ from dataclasses import dataclass, field
 
 from websockets.asyncio.server import ServerConnection, serve
 from websockets.exceptions import ConnectionClosed
+
+from mrta_zenoh.lifecycle import Closing
 
 log = logging.getLogger("mrta.view")
 
@@ -97,7 +99,7 @@ class Client:
         return True
 
 
-class FoxgloveServer:
+class FoxgloveServer(Closing):
     """Serves channels to Foxglove / Lichtblick clients; a context manager (stops on exit)."""
 
     def __init__(self, host: str = "127.0.0.1", port: int = 8765, name: str = "mrta-zenoh"):
@@ -158,12 +160,6 @@ class FoxgloveServer:
         if self._stopped is not None and self._thread.is_alive():
             self._call(self._stopped.set)
         self._thread.join(10)
-
-    def __enter__(self) -> "FoxgloveServer":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     # ------------------------------------------------------------------ the loop's side
     def _call(self, fn, *args) -> None:

@@ -56,7 +56,7 @@ from mrta_zenoh.processes import Child, ProcessGroup, mrta_argv
 from mrta_zenoh.recording import read_recording
 from mrta_zenoh.seeds import SEED_ENV
 from mrta_zenoh.toolchain.launchfile import LaunchEvaluator, NodeSpec, check_executables
-from mrta_zenoh.toolchain.model import Application
+from mrta_zenoh.toolchain.model import ApplicationFile
 from mrta_zenoh.toolchain.registry import Package, Registry
 from mrta_zenoh.toolchain.runner import start_nodes
 from mrta_zenoh.yamlfile import did_you_mean
@@ -157,7 +157,7 @@ class MissionRun:
 
     mission: Mission
     package: Package
-    app: Application
+    app: ApplicationFile
     arch: Architecture
     arch_model: Any
     robots: list[str]

@@ -16,7 +16,7 @@ import operator
 from dataclasses import dataclass
 
 from mrta_zenoh.fieldpath import FieldPath
-from mrta_zenoh.toolchain.model import Architecture, Topic
+from mrta_zenoh.toolchain.model import ArchitectureFile, Topic
 
 ROLES = ("busy_robots", "idle_robots", "incoming_tasks", "allocated_tasks")
 
@@ -47,7 +47,7 @@ def group_reader(monitors: list[Monitor]):
     return r
 
 
-def monitors_of(arch: Architecture) -> list[Monitor]:
+def monitors_of(arch: ArchitectureFile) -> list[Monitor]:
     out = []
     for role in ROLES:
         t = getattr(arch, role)

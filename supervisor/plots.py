@@ -29,7 +29,7 @@ from mrta_zenoh.architectures import architecture, architecture_names  # noqa: E
 from mrta_zenoh.errors import ConfigError  # noqa: E402
 from mrta_zenoh.files import save_figure  # noqa: E402
 from mrta_zenoh.recording import TimeBase, read_recording  # noqa: E402
-from mrta_zenoh.toolchain.model import Application, Architecture  # noqa: E402
+from mrta_zenoh.toolchain.model import ApplicationFile, ArchitectureFile  # noqa: E402
 
 from .ground_truth import intervals_from  # noqa: E402
 from .state import Supervisor  # noqa: E402
@@ -49,7 +49,7 @@ class Panel:
     offline: Spans = field(default_factory=dict)
 
 
-def replay(records, tb: TimeBase, app: Application, arch: Architecture,
+def replay(records, tb: TimeBase, app: ApplicationFile, arch: ArchitectureFile,
            watch: TaskWatch | None = None) -> Supervisor:
     """Feed a recording through a Supervisor, in recorded order, on recorded time."""
     start = tb(records[0][2]) if records else 0.0
@@ -176,7 +176,7 @@ def natural(text: str) -> list:
     return [int(p) if p.isdigit() else p for p in re.split(r"(\d+)", text)]
 
 
-def draw_timeline(output: Path, app: Application, panels: list[Panel],
+def draw_timeline(output: Path, app: ApplicationFile, panels: list[Panel],
                   span: tuple[float, float], xlabel: str) -> Path:
     """Panels of rows (one per robot) of task bars, offline periods hatched, one legend."""
     robots = [keys.normalize_robot_id(r.id) for r in app.robots]
@@ -226,7 +226,7 @@ ROBOTS_TITLE = "what the robots said they did (the summary's ground truth)"
 SUPERVISOR_TITLE = "what the supervisor showed (lags by its monitors' timeouts)"
 
 
-def plot_timeline(recording: Path, app: Application, arch: Architecture, output: Path,
+def plot_timeline(recording: Path, app: ApplicationFile, arch: ArchitectureFile, output: Path,
                   view: str = "robots", watch: TaskWatch | None = None) -> Path:
     """`mrta plot timeline`: the robots' own account (`view` robots), the supervisor's
     (supervisor), or both, one above the other."""

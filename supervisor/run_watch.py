@@ -39,6 +39,7 @@ from mrta_zenoh import keys
 from mrta_zenoh.architectures import Architecture
 from mrta_zenoh.clock import Clock
 from mrta_zenoh.errors import Interrupted, MrtaRuntimeError
+from mrta_zenoh.lifecycle import Closing
 from mrta_zenoh.lockstep import PARTICIPANT
 from mrta_zenoh.presence import RobotPresence
 from mrta_zenoh.processes import Child, ProcessGroup
@@ -51,7 +52,7 @@ SIMULATOR = "simulator"
 END_SLACK = 1.0  # simulated s: a recording that ends earlier than this before the end is cut
 
 
-class Readiness:
+class Readiness(Closing):
     """Who is up, from liveliness tokens: the robots (RobotPresence), the recorder and the clock
     source (tokens under @mrta/…, which `**` does not match)."""
 
@@ -86,14 +87,8 @@ class Readiness:
     def close(self) -> None:
         self._stack.close()
 
-    def __enter__(self) -> "Readiness":
-        return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-
-class RunWatch:
+class RunWatch(Closing):
     """The tokens of a run's processes, watched from the runner from before the first process
     starts until `end()` (the simulator's process ended): each loss and return, in the runner's
     simulated time. A context manager (closes the watches)."""
@@ -152,12 +147,6 @@ class RunWatch:
     def close(self) -> None:
         for w in self._watches:
             w.close()
-
-    def __enter__(self) -> RunWatch:
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 def _last_chunk(key: str) -> str:

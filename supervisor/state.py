@@ -27,14 +27,14 @@ from typing import Any, Callable
 
 from mrta_zenoh import keys
 from mrta_zenoh.ros2.graph import Ros2Graph
-from mrta_zenoh.toolchain.model import Application, Architecture
+from mrta_zenoh.toolchain.model import ApplicationFile, ArchitectureFile
 
 from .alarms import Alarms, LockstepAlarms
 from .drivers import Ros2Drivers
 from .entities import Allocations, RobotInfo, TaskInfo
 from .holders import History, SampleHolder, StateChange
 from .intake import Ids, Intake
-from .monitors import ROLES, Monitor, group_reader, monitors_of  # noqa: F401 (the public names)
+from .monitors import Monitor, monitors_of
 from .strangers import MAX_NAME, MAX_STRANGER_TOKENS, MAX_UNKNOWN, Strangers
 from .tasks import TaskStatus, TaskWatch
 
@@ -46,7 +46,7 @@ class Supervisor:
     MAX_STRANGER_TOKENS = MAX_STRANGER_TOKENS
     MAX_NAME = MAX_NAME
 
-    def __init__(self, arch: Architecture, app: Application, now: float = 0.0,
+    def __init__(self, arch: ArchitectureFile, app: ApplicationFile, now: float = 0.0,
                  unattended_after: float = 30.0, duplicate_after: float = 5.0,
                  quiet: bool = False, unknown_expiry: float = 30.0, ros2_domain: int = 0,
                  watch: TaskWatch | None = None):

@@ -19,10 +19,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from mrta_zenoh.toolchain.model import Application
+from mrta_zenoh.toolchain.model import ApplicationFile
 from mrta_zenoh.toolchain.registry import Registry
-
-TASK_STATES = ("done", "waiting")
 
 
 @dataclass(frozen=True)
@@ -50,7 +48,7 @@ class TaskWatch:
         return None
 
 
-def application_watch(app: Application, registry: Registry | None = None) -> TaskWatch | None:
+def application_watch(app: ApplicationFile, registry: Registry | None = None) -> TaskWatch | None:
     """The TaskWatch of the application package `app` was loaded from, from its mission hook
     (the mission registered for it or for a package it depends on, as `mrta demo` finds it);
     None when it has no mission, or its mission watches nothing — then every task always

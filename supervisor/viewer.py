@@ -41,6 +41,7 @@ from mrta_zenoh.codec import DecodeError
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.identity import OBSERVER
 from mrta_zenoh.keys import CLOCK, RECORDER_TOKEN, normalize_robot_id
+from mrta_zenoh.lifecycle import Closing
 from mrta_zenoh.messages import Clock, Odometry, PointCloud, Twist
 from mrta_zenoh.node import Node, NodeTime
 from mrta_zenoh.recording import McapRecorder, SimLogTime, check_output, json_channel
@@ -95,7 +96,7 @@ def next_tick(now: float, period: float) -> float:
     return (math.floor(now / period + EPSILON) + 1) * period
 
 
-class LiveChannels:
+class LiveChannels(Closing):
     """The live channels, one per topic, served by one FoxgloveServer (supervisor/
     foxglove_server.py: both subprotocol names, latched channels, a slow client costs only
     itself). `known`: channels advertised before any message (known_channels)."""
@@ -135,12 +136,6 @@ class LiveChannels:
 
     def close(self) -> None:
         self.server.close()
-
-    def __enter__(self) -> "LiveChannels":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 @dataclass(frozen=True)

@@ -65,7 +65,7 @@ Deliberate choices, where appendix E or the original C++ (reference/) leave room
     under a permanent one-way link duplication falls to about
     (ψ + 2τ + 2/broadcast_rate) / (that + φ + ⌈θ/δ_fast⌉/ρ) of the time (measured on the
     team harness: 32–38 % where the rule-less version held 49–78 %).
-    Limits — the no-gap guarantee for two-way links now rests on delivery delays under τ
+    Limits — the no-gap guarantee for two-way links rests on delivery delays under τ
     and, for each pair, either the earlier robot's ψ not longer than the later's, or its ψ +
     τ + a tick + the largest delay shorter than the expected_duration it announces (then its
     φ running out proves it would have yielded). Outside these, both may stop at once and
@@ -148,7 +148,7 @@ class OtherRobot:
             self.phi_from = self.first_heard
 
     def started(self) -> float:
-        """The start used to order this robot against others (its own report if it has one)."""
+        """The start that orders this robot against others (its own report if it has one)."""
         return self.active_since if self.active_since != UNKNOWN else self.first_heard
 
 

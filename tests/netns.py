@@ -13,6 +13,7 @@ import subprocess
 import sys
 
 from mrta_zenoh.bus import BusOptions
+from mrta_zenoh.lifecycle import Closing
 from tests.helpers import Child, Tokens, free_port
 from tests.test_network_faults import NO_GOSSIP, Fleet
 
@@ -23,7 +24,7 @@ def sh(*args: str) -> None:
     subprocess.run(args, check=True, capture_output=True, timeout=30)
 
 
-class NamespaceFleet(Fleet):
+class NamespaceFleet(Fleet, Closing):
     def __init__(self, children, tmp_path, robots: dict, tasks):
         import json
 
@@ -102,8 +103,3 @@ class NamespaceFleet(Fleet):
             subprocess.run(["ip", "netns", "del", ns], capture_output=True, timeout=30)
         self._made.clear()
 
-    def __enter__(self) -> "NamespaceFleet":
-        return self
-
-    def __exit__(self, *exc) -> None:
-        self.close()

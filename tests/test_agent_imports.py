@@ -1,4 +1,4 @@
-"""An agent process loads only what a robot needs (issue #27): no numpy unless a plugin draws
+"""An agent process loads only what a robot needs: no numpy unless a plugin draws
 random numbers, and none of the observers' libraries (plotting, Foxglove, ROS 2 bags, rich,
 certificates) at all. Checked in a fresh interpreter, where `sys.modules` tells the truth."""
 

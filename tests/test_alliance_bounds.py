@@ -31,7 +31,7 @@ from tests.alliance_team import Network, Spec, Team
 
 EXAMPLES = int(os.environ.get("MRTA_PROPERTY_EXAMPLES", "30"))  # more on demand
 # ρ=10 Hz, τ=3, θ=21, δ_fast=1.5 → 14 ticks: bound 3 + (14 + 1)/10 = 4.5 s
-ISSUE = Spec(spin=10.0, broadcast=1.0, tau=3.0, theta=21.0, fast=1.5, expected=600.0,
+CASE = Spec(spin=10.0, broadcast=1.0, tau=3.0, theta=21.0, fast=1.5, expected=600.0,
              yielding=1.0)
 
 
@@ -69,13 +69,13 @@ def check_bound_from_last_reception(team: Team, victim: str, kill_at: float, end
 
 
 def test_real_agents_yield_then_the_holder_dies_and_a_survivor_misses_its_last_broadcast():
-    """The issue's case on the agents `mrta agent` runs: r2 is cut off until 20 s (so r1 and
+    """The case on the agents `mrta agent` runs: r2 is cut off until 20 s (so r1 and
     r2 both take the task); r2's first broadcast after the cut reaches r1 a second late, so
     r1 broadcasts once more before yielding to it; r2's next broadcast is lost to r3, and r2
     dies. r3 takes over more than the bound after r2's last broadcast it heard, and within
     the bound of r1's, the last on the task it heard."""
-    specs = {"r1": ISSUE, "r2": dataclasses.replace(ISSUE, phase=0.05),
-             "r3": dataclasses.replace(ISSUE, phase=0.02)}
+    specs = {"r1": CASE, "r2": dataclasses.replace(CASE, phase=0.05),
+             "r3": dataclasses.replace(CASE, phase=0.02)}
 
     def delay(sender, receiver, t):
         return 1.0 if (sender, receiver) == ("r2", "r1") and 20.0 <= t < 21.0 else 0.005
@@ -89,9 +89,9 @@ def test_real_agents_yield_then_the_holder_dies_and_a_survivor_misses_its_last_b
     team.kill("r2", 21.5)
     team.run(40.0)
     after, from_victim = check_bound_from_last_reception(team, "r2", 21.5, 40.0)
-    bound = ISSUE.takeover_bound()
+    bound = CASE.takeover_bound()
     assert "r3" in takeovers(team, "r2", 21.5, 40.0)[1]
-    assert after - from_victim["r3"] > bound  # the old instant: over
+    assert after - from_victim["r3"] > bound  # counted from the victim's last broadcast: over
 
 
 @st.composite

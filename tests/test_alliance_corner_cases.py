@@ -1,4 +1,4 @@
-"""ALLIANCE's and MURDOCH's corner cases (issue #24), on virtual time, against ticks computed by
+"""ALLIANCE's and MURDOCH's corner cases, on virtual time, against ticks computed by
 hand in the comments: an activation heard again after a long silence, exact impatience, one-way
 links, the takeover bound under delivery delays, unsynchronised clocks, an auctioneer's unclaimed
 winners, and the rate limit of the agent's warnings about dropped messages."""
@@ -102,10 +102,10 @@ def test_a_later_holder_that_is_not_heard_yields_to_the_earlier_one():
 
 
 @pytest.mark.slow  # 40 simulated minutes of two agents
-def test_a_one_way_link_no_longer_duplicates_the_task_until_lambda():
-    # the issue's situation on the real agents: r2 hears r1, r1 never hears r2. Before this
-    # rule both held the task until λ (here 49 % of 20 min duplicated at 10 Hz, 78 % at 1 Hz);
-    # now about (ψ + 2τ + 2 s) / (ψ + 2τ + 2 s + φ + θ/δ/ρ) — measured 32 % and 38 %.
+def test_a_one_way_link_does_not_duplicate_the_task_until_lambda():
+    # on the real agents: r2 hears r1, r1 never hears r2. Without the one-way-link rule both
+    # hold the task until λ (here 49 % of 20 min duplicated at 10 Hz, 78 % at 1 Hz); with it
+    # about (ψ + 2τ + 2 s) / (ψ + 2τ + 2 s + φ + θ/δ/ρ) — measured 32 % and 38 %.
     for spec, most in ((Spec(spin=10, broadcast=1, tau=3, theta=20, fast=2, expected=60,
                              yielding=30, giving_up=120), 0.36),
                        (Spec(spin=1, broadcast=1, tau=2, theta=10, fast=5, expected=20,

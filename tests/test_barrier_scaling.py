@@ -1,4 +1,4 @@
-"""The lockstep barrier's per-step work at 100 participants (issue #27): answers no longer wake
+"""The lockstep barrier's per-step work at 100 participants: answers no longer wake
 the simulator's wait one by one (each wake rescanned every participant), and what the next step
 requires (`sent`) and whether a step is due are kept up to date instead of recomputed from every
 participant's StepDone. No timing: wake-ups are counted, and the incremental state is compared
@@ -60,7 +60,7 @@ def wakeups_for_one_step(n: int) -> int:
 
 def test_answers_wake_the_simulator_once_per_step_not_once_per_participant():
     # the last answer wakes it (and that answer's count, once taken into account): the same
-    # with 10 participants as with 100; before, every answer and every count woke it
+    # with 10 participants as with 100, not every answer and every count
     assert wakeups_for_one_step(10) == wakeups_for_one_step(100) <= 2
 
 

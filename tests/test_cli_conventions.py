@@ -1,5 +1,4 @@
-"""The command line behaves like its neighbours (issue 24, "Processes" and "CLI conventions"),
-on pure logic: how a child's end is named and judged, roslaunch's policy for nodes that end,
+"""The command line behaves like its neighbours, on pure logic: how a child's end is named and judged, roslaunch's policy for nodes that end,
 Ctrl-C → 130, "did you mean" for commands, help texts, JSON numbers, field paths and topic
 names as ROS users type them, relative times, and log lines that cannot drive a terminal."""
 
@@ -181,7 +180,7 @@ def _stopped_by(sig: int) -> None:
 
 
 def test_a_run_ended_by_ctrl_c_exits_130_and_one_ended_by_sigterm_exits_0():
-    """Ctrl-C used to exit 0 for the agent (it shuts down cleanly, then returns)."""
+    """Ctrl-C exits 130 even though the agent shuts down cleanly and returns."""
     assert run(_stopped_by, [str(int(signal.SIGINT))]) == 130
     assert run(_stopped_by, [str(int(signal.SIGTERM))]) == 0
 

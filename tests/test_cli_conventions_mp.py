@@ -1,4 +1,4 @@
-"""The command line's conventions checked on real processes (issue 24): Ctrl-C exits 130 (the
+"""The command line's conventions checked on real processes: Ctrl-C exits 130 (the
 agent, the demo), `mrta supervise` into a pipe writes as it goes, with times from its start
 and JSON that names its clocks."""
 
@@ -27,7 +27,7 @@ def agent_args(robot: str = "robot1") -> list:
 
 @pytest.mark.slow
 def test_ctrl_c_of_an_agent_exits_130(children, tokens):
-    """It used to exit 0: a script could not tell an interrupted agent from one that ended."""
+    """Not 0: a script must tell an interrupted agent from one that ended."""
     agent = children.mrta(*agent_args(), name="agent")
     tokens.wait("robot1/alliance/agent", 60, agent)
     agent.signal(signal.SIGINT)
@@ -45,8 +45,8 @@ def test_sigterm_of_an_agent_is_a_clean_stop(children, tokens):
 @pytest.mark.timeout(150)
 def test_ctrl_c_of_the_demo_exits_130_whatever_its_children_did(children, tmp_path):
     """A terminal's Ctrl-C reaches the demo's children too, and the simulator may end by it
-    before the demo handles its own SIGINT: that used to be "the simulator failed" (exit 1),
-    or a finished run (exit 0). It is the mission's interruption: 130."""
+    before the demo handles its own SIGINT: that is neither "the simulator failed" (exit 1)
+    nor a finished run (exit 0), but the mission's interruption: 130."""
     demo = children.mrta("demo", "--duration", "600", "--speed", "1", "--no-live",
                          "--output", tmp_path / "out", name="demo")
     demo.wait_line(lambda line: line.startswith("t="), 90)  # the mission runs

@@ -1,4 +1,4 @@
-"""`mrta --help` lists every command without importing any (issue 37 point 12): its lines come
+"""`mrta --help` lists every command without importing any: its lines come
 from mrta_zenoh.cli.main.SHORT_HELP, which these tests keep equal to the real commands'. And help
 texts agree with the defaults beside them."""
 

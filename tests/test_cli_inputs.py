@@ -1,5 +1,5 @@
 """Options a user mistypes are usage errors — exit 2, the option and the value named — before
-anything starts (issue 37 point 5, issue 42 point 9): seeds outside 0 … 2^63 − 1, and output
+anything starts: seeds outside 0 … 2^63 − 1, and output
 paths no run could write (`/proc/x`, `/dev/null/x`, a folder nobody may write in)."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""One error hierarchy and a clean CLI layer (issue 21).
+"""One error hierarchy and a clean CLI layer.
 
 * Below the command line nothing imports click or mrta_zenoh.cli, prints or exits: library
   code raises, and the CLI layer — mrta_zenoh/cli/ and the verb modules listed here — shows.
@@ -43,11 +43,6 @@ VERB_MODULES = {
     "supervisor/experiment_cli.py",     # mrta experiment
     "configs/applications/delivery/generate_cli.py",  # python -m mrta_delivery.generate_cli
 }
-# Programs still below the CLI layer while their owner moves them (issue 21); each entry goes
-# when its file does.
-PENDING = {
-    "mrta_zenoh/tools/mission.py": "moves to mrta_zenoh/cli/mission.py",
-}
 
 
 def library_modules() -> list[Path]:
@@ -55,7 +50,7 @@ def library_modules() -> list[Path]:
     for root in SOURCES:
         for f in sorted(root.rglob("*.py")):
             rel = f.relative_to(ROOT).as_posix()
-            if CLI_PACKAGE in f.parents or rel in VERB_MODULES or rel in PENDING:
+            if CLI_PACKAGE in f.parents or rel in VERB_MODULES:
                 continue
             out.append(f)
     return out

@@ -1,4 +1,4 @@
-"""The command line's rough edges (issue 37, point 12): agents on wall time logged raw epoch
+"""The command line's rough edges: agents on wall time logged raw epoch
 stamps, "1 robot were expected", `mrta sim --ros2` warned about its own agent's commands, and a
 `.mrta-run.lock` stayed in every output folder after a run."""
 

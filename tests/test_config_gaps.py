@@ -68,7 +68,7 @@ ROBOT = [
     ("spin_rate 1e-9", {"spin_rate": 1e-9}, "spin_rate", "between"),
     ("τ shorter than a tick", {"spin_rate": 1.0, "timeout_duration": 0.4}, "timeout_duration",
      "tick period"),
-    # finite but absurd (issue #23): each is refused with the line and the range
+    # finite but absurd: each is refused with the line and the range
     ("timeout 1e308", {"timeout_duration": 1e308}, "timeout_duration",
      "must be between 0.001 and 86400 s (a millisecond to a day), got 1e+308"),
     ("buffer_horizon 1e308", {"buffer_horizon": 1e308}, "buffer_horizon", "and 86400 s"),
@@ -142,7 +142,7 @@ WORLDS = [
      "  robot1: [.inf, 0, 0]\n", "w.yaml:5", "finite"),
     ("map NaN", "w.map", "2D-Map\nLINES\n0 0 nan 100\n", "w.map:3", "finite"),
     ("map inf home", "w.map", "2D-Map\nCairn: RobotHome inf 0 0\n", "w.map:2", "RobotHome"),
-    # finite but absurd (issue #23): a wall at 1e308 m overflowed the ray caster
+    # finite but absurd: a wall at 1e308 m overflowed the ray caster
     ("yaml wall 1e308", "w.yaml", "name: w\nwalls:\n  - segment: [0, 0, 1.0e+308, 1]\n",
      "w.yaml:3", "a coordinate must be between -10000 and 10000 m"),
     ("yaml border far", "w.yaml", "name: w\nwalls:\n  - segment: [0, 0, 1, 1]\n"

@@ -78,8 +78,8 @@ def test_the_same_seed_gives_the_same_allocation(children, tmp_path):
     assert [(e.task, e.robot) for e in la] == [(e.task, e.robot) for e in lb]
     assert len(la) >= 4
     # Exactly the same times: in lockstep the simulator waits until every robot's agent is a
-    # participant before step 0 (an agent that joined a step late used to start its ticks at
-    # t = 0.1 instead of 0 in one run of two, shifting its activations by a tick)
+    # participant before step 0 (an agent that joined a step late would start its ticks at
+    # t = 0.1 instead of 0, shifting its activations by a tick)
     assert la == lb
     assert a["who_did_what"] == b["who_did_what"]
     for k in ("completed", "achieved_cost", "optimal_cost", "optimality", "makespan"):

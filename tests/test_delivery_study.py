@@ -1,4 +1,4 @@
-"""The delivery study end to end (issue #25): an online instance generated, run under both
+"""The delivery study end to end: an online instance generated, run under both
 architectures, its summary carrying the offline optimum with hindsight and no task started
 before it arrived; and the same seed giving a byte-identical results.csv (the wall time
 aside)."""

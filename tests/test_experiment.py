@@ -18,7 +18,7 @@ from tests.helpers import kill_descendant
 @pytest.mark.timeout(900)
 def test_a_tiny_matrix_gives_one_row_per_run_and_records_a_failed_run(children, tmp_path):
     f = tmp_path / "exp.yaml"
-    # every value is valid (an absurd one is refused before any run now): the failed run is
+    # every value is valid (an absurd one is refused before any run): the failed run is
     # one whose mission process this test kills
     f.write_text("application: patrol\nduration: 30\nseeds: [1, 2]\nfailures: [robot2@18]\n"
                  "overrides:\n  robot2.spin_rate: [10, 5]\n")
@@ -128,11 +128,11 @@ def test_an_override_changes_the_files_of_that_run_only(tmp_path):
 @pytest.mark.parametrize("text,where,what", [
     ("application: patrol\nduration: 10\nseeds: [1]\nfailure: [none]\n", ":4", "did you mean 'failures'"),
     ("application: patrol\nduration: -1\nseeds: [1]\n", ":2", "between 0.001 and 604800 s"),
-    # finite but absurd: the run never ended (issue #23)
+    # finite but absurd: the run never ended
     ("application: patrol\nduration: 1.0e+308\nseeds: [1]\n", ":2",
      "must be between 0.001 and 604800 s (a millisecond to a week), got 1e+308"),
     ("application: patrol\nduration: 10\nseeds: [1, -3]\n", ":3", "seeds[1]: must be between 0"),
-    # a failure of a robot the application does not have: every run used to fail the same way
+    # a failure of a robot the application does not have: refused up front, or every run fails
     ("application: patrol\nduration: 10\nseeds: [1]\nfailures: [none, robot9@5]\n", ":4",
      "robot9 is not one of the application's robots (robot1, robot2, robot3)"),
     ("application: patrol\nduration: 10\nseeds: [1]\nfailures: [robot2@50]\n", ":4",
@@ -144,7 +144,7 @@ def test_an_override_changes_the_files_of_that_run_only(tmp_path):
     ("application: patrol\nduration: 10\nseeds: [1, x]\n", ":3", "seeds[1]"),
     ("application: patrol\nduration: 10\nseeds: [1]\nfailures: [robot2 at 5]\n", ":4",
      "ROBOT@SECONDS"),
-    # accepted here once, then refused by the mission in every run: one grammar now
+    # refused here, not by the mission in every run: one grammar
     ("application: patrol\nduration: 10\nseeds: [1]\nfailures: [none, robot2@0]\n", ":4",
      "seconds > 0"),
     ("application: patrol\nduration: 10\n", "exp.yaml", "missing mandatory key 'seeds'"),

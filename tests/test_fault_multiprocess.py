@@ -4,8 +4,11 @@ stalls (alive, still broadcasting or renewing its lease, no progress).
 ALLIANCE: patrol's tasks announce φ (task_expected_duration) = 600 s, longer than a test run,
 so the run uses a package copy (as `mrta experiment`'s overrides do) with wander's φ at 30 s:
 robot3, idle once its report is done, grows impatient with the stalled robot1 once φ has run out
-and takes wander over. MURDOCH: the stalled robot keeps renewing its lease, so nobody ever
-re-auctions its task — the departure the fault exists to show (docs/delivery.md)."""
+and takes wander over. MURDOCH: the stalled robot keeps renewing its lease, so its task is
+re-auctioned only once its auctioneer revokes the contract past the task's `progress_timeout`
+(docs/murdoch.md, "Progress monitoring") — 600 s for patrol's wander and border protection,
+so it keeps its task through this 60 s run (tests/test_murdoch_progress.py checks the
+revocation)."""
 
 from __future__ import annotations
 
@@ -76,7 +79,7 @@ def test_murdoch_keeps_a_stalled_robots_lease_alive(children, tmp_path):
     f = s["failure"]
     print(json.dumps(f))
     assert (f["robot"], f["killed_at"]) == ("robot1", STALL_AT) and f["task"]
-    assert "taken_over_by" not in f  # its renewals keep the lease: nobody re-auctions it
+    assert "taken_over_by" not in f  # renewed, and revoked only past its 600 s progress_timeout
     spans = [x for r, xs in s["who_did_what"].items() for x in xs if x["task"] == f["task"]]
     assert {x["task"] for x in s["who_did_what"]["robot1"]} == {f["task"]}
     assert len(spans) == 1 and spans[0]["to"] == pytest.approx(60.0, abs=1.0)

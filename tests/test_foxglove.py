@@ -206,8 +206,8 @@ def test_a_client_that_subscribes_at_once_gets_what_the_recording_holds(tmp_path
     every channel advertised (the application's are advertised at start) and reads until the
     run ends. Per low-rate channel (alarms, reports, a robot's task, the world), what it got is
     what the run's recording holds over the same interval — from its first message on, which
-    is the channel's first (latched) — in order; before, it got 1 of 2 alarms and 0 of 1
-    patrol reports."""
+    is the channel's first (latched) — in order, not 1 of 2 alarms and 0 of 1 patrol
+    reports."""
     import websockets
 
     port = free_port()

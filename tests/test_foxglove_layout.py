@@ -1,4 +1,4 @@
-"""The patrol layout for Foxglove / Lichtblick (issue 38.4): every panel's title where both apps
+"""The patrol layout for Foxglove / Lichtblick: every panel's title where both apps
 read it, legends beside the data rather than over it, one State Transitions row per robot (every
 row visible at 1600×1000), and every topic and field it names one the run has."""
 

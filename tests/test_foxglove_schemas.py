@@ -1,5 +1,5 @@
 """Every JSON Schema a recording or a live channel carries is one Foxglove Studio's and
-Lichtblick's parsers take (issue 38.1). Both apps read a channel's JSON Schema with their own
+Lichtblick's parsers take. Both apps read a channel's JSON Schema with their own
 `parseJsonSchema` (packages/mcap-support in foxglove/studio and in lichtblick-suite/lichtblick),
 not with a JSON Schema library; `lint` below restates its rules, where the two differ the
 stricter one (Lichtblick has no `oneOf` enums), independently of mrta_zenoh.flat_schema:

@@ -1,5 +1,5 @@
 """The live Foxglove server (supervisor/foxglove_server.py), in-process on loopback: both
-generations of clients connect (issue 38.2), a late subscriber gets the latest message of every
+generations of clients connect, a late subscriber gets the latest message of every
 channel (38.3), and a client that does not read costs only itself (42.5)."""
 
 from __future__ import annotations

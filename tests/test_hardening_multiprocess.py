@@ -18,8 +18,8 @@ CONFIG = PATROL / "config"
 
 @pytest.mark.slow
 def test_a_stopped_observer_does_not_stall_the_simulator(children, tokens):
-    """A Ctrl-Z'd `mrta echo '**'` used to hold `mrta sim --speed 0` for seconds: sensor data
-    and the clock are lossy streams now, so the simulator never waits for a stopped reader."""
+    """A Ctrl-Z'd `mrta echo '**'` must not hold `mrta sim --speed 0`: sensor data and the
+    clock are lossy streams, so the simulator never waits for a stopped reader."""
     probe = children.python("clock_gaps.py", name="probe")
     tokens.wait("@mrta/test/clock_gaps", 30, probe)
     sim = children.mrta("sim", "--world", "patrol", "--robot", "robot1", "--robot", "robot2",

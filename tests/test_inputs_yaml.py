@@ -1,5 +1,5 @@
 """Hostile YAML in every file a user hands us — parameter, world, experiment, answers files:
-one line naming the file and the line, exit 2; never a traceback (issue 42, point 9).
+one line naming the file and the line, exit 2; never a traceback.
 
 What YAML can say beyond plain data (complex keys, dates, sets, binary, integers longer than
 Python converts, characters it forbids) is refused by the one loader, mrta_zenoh.yamlfile, and a

@@ -218,7 +218,7 @@ def test_running_nodes_a_failure_is_reported_and_output_is_prefixed(children, tm
 @pytest.mark.timeout(120)
 def test_a_required_node_killed_with_sigkill_is_reported_and_stops_the_launch(children, tokens,
                                                                                tmp_path):
-    """kill -9 of the simulator used to go unnoticed: nothing said, nothing stopped."""
+    """kill -9 of the simulator must not go unnoticed: it is said, and the launch stops."""
     f = write(tmp_path, f"""<launch>
       <node name="sim" pkg="simulator" type="sim" required="true"
             args="--world patrol --robot robot1"/>

@@ -1,5 +1,5 @@
 """Lockstep and the clock under attack and faults, with real processes on one loopback
-rendezvous (issue 23, item 1): a forged step, a ghost StepDone, clock creep, a simulator
+rendezvous: a forged step, a ghost StepDone, clock creep, a simulator
 restarted under lockstep, a stopped agent, and lockstep with no participant. The pure logic is
 unit-tested in tests/test_lockstep_trust.py."""
 
@@ -106,7 +106,7 @@ def test_lockstep_after_a_simulator_restart_runs_at_full_speed(children, tokens)
     agents["robot1"].wait_stderr(lambda line: "new simulation run" in line, 60)
     restarted = sup.wait_json(lambda o: o["time"] < 10.0, 60)
     # at speed 4, 8 simulated seconds take 2 s of wall time; with every step waiting a
-    # timeout (the old defect) they took minutes
+    # timeout they would take minutes
     sup.wait_json(lambda o: restarted["time"] + 8.0 < o["time"] < 20.0, 30)
     assert time.monotonic() - t0 < 25
     assert not any("did not finish" in line for line in s2.stderr), s2.tail()
@@ -149,7 +149,7 @@ def test_lockstep_with_robots_expected_and_no_participant_is_an_error(children):
         s.tail()
 
 
-# ------------------------------------------------ issue 42: one forged sample, one claimant
+# ------------------------------------------------ one forged sample, one claimant
 
 def forger(children, *args):
     """A forger started, and ready (its first line printed)."""
@@ -180,8 +180,8 @@ def test_a_copied_step_numbered_a_billion_stops_nobody(children, tokens):
 
 @pytest.mark.slow
 def test_an_old_whole_step_replayed_as_the_next_one_heals(children, tokens):
-    """Before: all agents stuck for the 50 s watched — the forged number shadowed the real
-    next step, and the old table made every later step unreadable."""
+    """The danger: all agents stuck — the forged number shadowing the real next step, and
+    the replayed table making every later step unreadable."""
     s, agents, sup, run = lockstep_fleet(children, tokens)
     replayed = forger(children, "replay", run, "3").wait_json(lambda o: "replayed" in o, 60)
     assert replayed["as_step"] > replayed["replayed"] and replayed["keys"] > 0
@@ -206,9 +206,9 @@ def test_a_participant_claiming_thousands_of_keys_freezes_nobody(children, token
 
 @pytest.mark.slow
 def test_a_claim_that_keeps_descending_pauses_the_run_once(children, tokens):
-    """Before: a claim lowered by 1 every 5.2 s withdrew each forgiveness and paused the fleet
-    again (8 pauses in 45 s, the fleet at 6 % of its speed). Now one pause per claimant per
-    FORGIVE_WINDOW: the run's status counts one forgiveness."""
+    """A claim lowered by 1 every 5.2 s withdraws each forgiveness; were the fleet paused
+    again each time it would run at 6 % of its speed (8 pauses in 45 s). One pause per
+    claimant per FORGIVE_WINDOW: the run's status counts one forgiveness."""
     s, agents, sup, run = lockstep_fleet(children, tokens)
     status = children.mrta("echo", "lockstep/status", "--json", name="status")
     f = forger(children, "descend", run, "22")

@@ -1,4 +1,4 @@
-"""Lockstep's books (issue #27): what a participant still waits for is found per subscription
+"""Lockstep's books: what a participant still waits for is found per subscription
 in C over the run's key table, and Python sees only the keys that lag. The answer must be exactly what the rule gives
 key by key — every key a Step or this bus's own sends name, every subscription matching it, its
 offset — on random histories of subscriptions coming and going, samples counted, claims, own

@@ -1,6 +1,6 @@
-"""A busy machine must not change what a lockstep run does (issue #25's study, "a run must not
-fail because the machine is busy"): a slow participant — one that holds its token but takes
-longer than the old 2.5 s timeout to answer, as a CPU-starved agent does under load 30+ — is
+"""A busy machine must not change what a lockstep run does (a study's run must not fail
+because the machine is busy): a slow participant — one that holds its token but takes longer
+than REPORT_AFTER (2.5 s) to answer, as a CPU-starved agent does under load 30+ — is
 reported and still waited for; only one silent for the whole timeout is given up, and then the
 run says it was not exact (summary.json `lockstep_exact`), and `mrta experiment` runs it again.
 
@@ -71,7 +71,7 @@ def test_a_slow_participant_is_waited_for_and_a_hung_one_makes_the_run_inexact(c
         stepped = in_thread(lambda: barrier.wait(0.0, stop))
         wait_for(clock.started.is_set)           # the participant has step 0, and says nothing
         wait_for(lambda: barrier._stamp is not None)  # the barrier waits: its clock started
-        wall.t += REPORT_AFTER + 1.0              # the old timeout (2.5 s) is long past
+        wall.t += REPORT_AFTER + 1.0              # REPORT_AFTER (2.5 s) is long past
         wait_for(lambda: "still waited for" in caplog.text)
         assert not stepped.is_set() and barrier.unresponsive == set()
         answered = in_thread(lambda: clock.sleep_until(0.1, stop))  # it answers at last
@@ -219,8 +219,8 @@ def test_what_a_participant_forgave_reaches_the_simulators_status():
 
 def test_a_participant_waits_for_its_own_samples_to_reach_its_own_subscriptions():
     """Zenoh hands a session's own samples to its subscribers on another thread: a robot's
-    report heard back by its own ReportDue reached it a tick apart in two runs of one seed.
-    The books now count what this bus sent on a key its own subscriptions count, as a claim."""
+    report heard back by its own ReportDue could reach it a tick apart in two runs of one seed.
+    The books count what this bus sent on a key its own subscriptions count, as a claim."""
     from mrta_zenoh.lockstep import Books, Claims, KeyTable
 
     net = InProcNetwork()

@@ -1,4 +1,4 @@
-"""Lockstep heals from any single forged sample (issue 42): each forgery a hostile probe sent on
+"""Lockstep heals from any single forged sample: each forgery a hostile probe sent on
 an open bus, on the in-process bus with a hand-moved wall clock, so a bound in wall seconds is
 checked by how far the wall clock had to be moved — not by how long the machine took.
 tests/test_lockstep_attacks.py replays them with processes."""
@@ -46,9 +46,9 @@ def test_a_copied_step_numbered_a_billion_is_not_believed():
 
 def test_an_old_whole_step_replayed_as_the_next_one_is_resynchronised_at_once():
     """The probe: an old whole-table Step, its digest genuine, numbered current + 1 — it
-    shadowed the real next step (dropped as a duplicate) and left the participant with the old
-    table; every agent stuck for the 50 s watched. Now the real step contradicts it, the
-    participant asks, and the barrier's whole step puts it right."""
+    would shadow the real next step (dropped as a duplicate) and leave the participant with
+    the old table, every agent stuck. The real step contradicts it, the participant asks, and
+    the barrier's whole step puts it right."""
     f = Fleet()
     try:
         f.advance(0.1)
@@ -160,9 +160,9 @@ def let_go(f, on, step=0.25):
 
 
 def test_a_descending_claim_pauses_the_run_once_per_window():
-    """The probe: a claim under a real participant's name lowered by 1 every 5.2 s withdrew
-    each forgiveness and paused the fleet again — 8 pauses in 45 s. Now the first costs
-    count_wait; within FORGIVE_WINDOW the claimant's unmet claims are forgiven at once."""
+    """The probe: a claim under a real participant's name lowered by 1 every 5.2 s withdraws
+    each forgiveness, and would pause the fleet again each time — 8 pauses in 45 s. The first
+    costs count_wait; within FORGIVE_WINDOW the claimant's unmet claims are forgiven at once."""
     f = Fleet(timeout=10.0)
     relay = Relay(f)
     try:

@@ -1,4 +1,4 @@
-"""Lockstep and the clock trust only their source (issue 23, item 1): the pure logic on the
+"""Lockstep and the clock trust only their source: the pure logic on the
 in-process bus, with a hand-moved wall clock. Each test is one attack or fault an independent
 probe measured on a real fleet; tests/test_lockstep_attacks.py replays them with processes."""
 
@@ -320,7 +320,7 @@ def test_no_sequence_of_samples_with_the_real_run_id_outruns_wall_time(samples, 
 
 
 def test_a_newcomer_passes_over_steps_until_it_has_the_whole_key_table():
-    """Steps carry only the keys new since the previous one (issue #27): a participant that
+    """Steps carry only the keys new since the previous one: a participant that
     joins mid-run passes them over until the simulator, seeing its token, sends the whole
     table — then counts by the same table as the simulator and runs in step."""
     f = Fleet()

@@ -1,4 +1,4 @@
-"""`messages` and every count in results.csv are reproducible for one seed (issue 42.4): a
+"""`messages` and every count in results.csv are reproducible for one seed: a
 sample counts when it was *sent* in the mission's window — by its header stamp, or, for a
 robot's headerless command, by the next stamped sample of its agent — not when the recorder
 heard it. The expected counts are written out by hand from that definition."""

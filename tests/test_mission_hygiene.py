@@ -41,7 +41,8 @@ def alive(pid: int) -> bool:
 
 
 def test_the_default_failure_fits_the_duration():
-    """`mrta demo --duration 20` used to exit 2: the default failure was at 30 s."""
+    """The default failure scales with the duration: at a fixed 30 s, `mrta demo --duration 20`
+    would exit 2."""
     for duration, spec in ((20.0, "robot2@10"), (60.0, "robot2@30"), (7.0, "robot2@3.5")):
         f = failure_of(resolve(MissionOptions(duration=duration)))
         assert (f.robot, f.at, f.spec) == ("robot2", float(spec.split("@")[1]), spec)

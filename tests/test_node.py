@@ -117,7 +117,7 @@ with Node(BusOptions(), "observer", bus=InProcBus()):
 @pytest.mark.slow
 @pytest.mark.multiprocess
 def test_a_segfault_prints_the_stack_of_every_thread_to_stderr():
-    """issue 42.6: every process enables faulthandler, so a crash in a C extension leaves its
+    """Every process enables faulthandler, so a crash in a C extension leaves its
     Python stack in the run's log instead of a bare `killed by SIGSEGV`."""
     out = subprocess.run([sys.executable, "-c", PROBE], capture_output=True, text=True,
                          timeout=60)

@@ -1,4 +1,4 @@
-"""Issue 23, items 2 and 3, against real processes: a `mrta supervise` subprocess, `--once`,
+"""Observers under attack, against real processes: a `mrta supervise` subprocess, `--once`,
 `mrta view` and `mrta ros2 graph` while a forger session (the test's own, on the children's
 free loopback port) declares invalid ROS 2 tokens, a fake driver node, a robot outside the
 application, a type name and a participant name holding terminal escapes; and an agent with

@@ -1,8 +1,8 @@
-"""Bounded observers (issue 42.5): `mrta view` and the recorder keep per-robot state only for
+"""Bounded observers: `mrta view` and the recorder keep per-robot state only for
 the application's robots, a scene frame's size does not grow with what others publish, memory
 is flat after a flood, and keys invented by the thousand cannot grow a recording's channels.
-The issue's numbers: 10,000 unknown robots, one burst of 30,000 ground-truth/sonar samples, left
-the view at +58 MB for good and every `/world` frame at about 2 MB. In-process, manual inputs;
+The flood: 10,000 unknown robots, one burst of 30,000 ground-truth/sonar samples — unbounded, it
+leaves the view at +58 MB for good and every `/world` frame at about 2 MB. In-process, manual inputs;
 the server side (a client never disconnected by another's flood) is in
 tests/test_foxglove_server.py."""
 

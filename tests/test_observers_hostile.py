@@ -1,4 +1,4 @@
-"""Observers survive any input, and the team is known (issue 23, items 2 and 3): the pure state
+"""Observers survive any input, and the team is known: the pure state
 on a manual clock and the in-process bus. The same attacks against real processes are in
 tests/test_observers_attack.py."""
 
@@ -29,7 +29,7 @@ from mrta_supervisor.state import Supervisor
 from mrta_supervisor.view import render
 from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
 
-BAD_TOKEN = "@ros2_lv/0/abcd/2/2/NN/%/%a-b/node"  # the issue's: namespace /a-b is no ROS name
+BAD_TOKEN = "@ros2_lv/0/abcd/2/2/NN/%/%a-b/node"  # namespace /a-b is no ROS name
 HASH = "RIHS01_" + "0" * 64
 IRC = "alliance_msgs/InterRobotCommunication"
 ESC = "\x1b]0;pwned\x07\x1b[2J"  # set the title, clear the screen
@@ -103,8 +103,8 @@ def test_the_graph_is_bounded_the_overflow_counted_and_alarmed():
 
 def test_the_graph_is_linear_in_the_tokens():
     """Work per token must not grow with the graph: Python-level calls (a deterministic
-    measure, whatever the machine's speed) for 4× the tokens stay within 5× — the old graph
-    rescanned every entity per token (16×)."""
+    measure, whatever the machine's speed) for 4× the tokens stay within 5× — a graph that
+    rescanned every entity per token would take 16×."""
     app, arch = resolve_application("patrol")
 
     def calls(n):
@@ -205,7 +205,7 @@ BRIDGE = "@mrta/ros2_bridge/robot2"
 
 
 def test_a_fake_node_of_a_robot_nobody_bridges_changes_nothing(sup):
-    """The issue's attack: `/robot1/fake_driver` declared for 2 s left robot1 offline with
+    """The attack: `/robot1/fake_driver` declared for 2 s must not leave robot1 offline with
     `driver_lost` for good."""
     sup.on_liveliness("robot1/alliance/agent", True, 0.0)
     fake = names.node_token(0, "zz", 1, "/robot1", "fake_driver")
@@ -311,7 +311,7 @@ def make_agent(tmp_path, team=None):
 
 
 def stranger_claims(agent, bus, clock, ticks):
-    """robot9 holds an agent token and claims the task every tick (the issue's robot7–9)."""
+    """robot9 holds an agent token and claims the task every tick (a forged teammate)."""
     for _ in range(ticks):
         now = clock.now()
         bus.publish(keys.odom("robot1"), Odometry(Header("robot1", now, 0), Pose2D(0.0, 0.0, 0.0),

@@ -121,8 +121,8 @@ def test_shutdown_closes_every_subscription_a_plugin_opened(ctx):
 
 
 def test_the_ledger_counts_only_teammates_and_finite_distances(ctx):
-    """A NaN odometry sample used to poison every later report; a forged robot9 used to appear
-    in reports. A robot now logs its own work from its own odometry and doing feed (issue #27):
+    """A NaN odometry sample must not poison later reports, nor a forged robot9 appear in
+    them. A robot logs its own work from its own odometry and doing feed:
     another robot's odometry or feed, and a sample on its key claiming another robot, add
     nothing; teammates' work comes only in their logs (tests/test_patrol_ledger.py)."""
     import msgpack
@@ -186,7 +186,7 @@ def test_the_ledger_counts_only_teammates_and_finite_distances(ctx):
     ("Report", "log_period", "3600.0", "<= 60.0"),
 ])
 def test_absurd_layer_parameters_are_refused_with_their_line(tmp_path, section, key, value, text):
-    """Finite but absurd values (issue #23) get the file, the line and the bound."""
+    """Finite but absurd values get the file, the line and the bound."""
     from mrta_agent.runtime.params import load_layers_params
     from mrta_patrol.layers import BorderParams, WanderParams
     from mrta_zenoh.errors import ConfigError

@@ -1,4 +1,4 @@
-"""The patrol ledger fed by each robot's own log (issue #27): a robot subscribes to its own
+"""The patrol ledger fed by each robot's own log: a robot subscribes to its own
 odometry and its own part of the architecture's doing feed, publishes its log once per period
 whether or not its report behaviour is active, and merges its teammates' latest logs."""
 
@@ -95,8 +95,8 @@ def top(t):  # along the top wall, the other way
 
 
 def test_the_ledger_subscribes_to_its_own_robots_feeds_and_the_logs_only(team):
-    """N² traffic came from every robot hearing every robot's odometry and doing feed: the
-    ledger now hears its own robot's, and the teammates' logs."""
+    """Every robot hearing every robot's odometry and doing feed is N² traffic: the ledger
+    hears its own robot's, and the teammates' logs."""
     make, clock, _, _ = team
     r1 = make("robot1")
     assert sorted(s.key_expr for s in r1.bus._subs) == [

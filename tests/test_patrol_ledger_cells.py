@@ -1,4 +1,4 @@
-"""The patrol ledger's border cells (issue #27): a position is compared with the cells of the
+"""The patrol ledger's border cells: a position is compared with the cells of the
 grid buckets around it, not with every cell — and must visit exactly the cells the loop over
 every cell visits, wherever the robot and whatever the border (fixed seed)."""
 

@@ -1,4 +1,4 @@
-"""The README's examples are what the commands print (issue 24): every output sample in the
+"""The README's examples are what the commands print: every output sample in the
 README that starts with `$ mrta …` is run and compared, line by line, with what it prints.
 
 In a sample, `…` on a line of its own skips any number of lines, and `…` inside a line
@@ -69,7 +69,7 @@ def test_the_readme_has_its_samples():
 
 
 def test_the_comparison_catches_what_the_readme_got_wrong():
-    """The old MURDOCH sample: `mrta demo --architecture murdoch` (speed 2.0) shown with
+    """A wrong MURDOCH sample: `mrta demo --architecture murdoch` (speed 2.0) shown with
     `speed max`; and a line the command wraps in two."""
     got = ["Patrol mission (MURDOCH): 60 s simulated at speed max in 8 s",
            "  robot2 killed at 30.0 s; robot3 took over after 2.30 s (within the bound 2.80 s)"]

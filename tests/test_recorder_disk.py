@@ -1,7 +1,7 @@
-"""`mrta record` when its file cannot be written (issue 42.10): into a read-only folder it exits
+"""`mrta record` when its file cannot be written: into a read-only folder it exits
 2 up front, with one line; when the disk fills while it records (here a file size limit,
 RLIMIT_FSIZE, through `prlimit`: no mount needed) it exits 1 at once, saying how much it wrote
-— before, it logged "recording stops" and ran on, recording nothing, until signalled."""
+— not "recording stops" and running on, recording nothing, until signalled."""
 
 from __future__ import annotations
 

@@ -1,6 +1,6 @@
 """`mrta record` finishes its file on SIGINT and SIGTERM, also when the signal came while the
-process was stopped (SIGSTOP … SIGCONT): issue #23 measured 5 of 6 recorders hanging for good,
-their file never finished. Real processes on loopback."""
+process was stopped (SIGSTOP … SIGCONT), when a recorder blocked in a wait would hang for good,
+its file never finished. Real processes on loopback."""
 
 import signal
 import time

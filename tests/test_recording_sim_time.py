@@ -1,4 +1,4 @@
-"""Recordings in simulated time (issue 22): log time = the simulator's time as the recorder's
+"""Recordings in simulated time: log time = the simulator's time as the recorder's
 SimClock follows it, held before the first clock sample, runs laid end to end across a
 simulator restart, log times never decreasing per channel; the viewer's derived channels
 sampled per simulated period, driven by the clock samples (not a wall timer) and skipped,
@@ -21,9 +21,8 @@ from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.clock import SimClock
 from mrta_zenoh.keys import CLOCK, CLOCK_SOURCE_TOKEN
 from mrta_zenoh.messages import Clock, Header, Odometry, Pose2D, Twist
-from mrta_zenoh.recording import (
-    HOLD_MAX, NS, RESTART_GAP_NS, McapRecorder, SimLogTime, read_recording,
-)
+from mrta_zenoh.recording import HOLD_MAX, McapRecorder, read_recording
+from mrta_zenoh.sim_log_time import NS, RESTART_GAP_NS, SimLogTime
 from mrta_supervisor import viewer
 from mrta_supervisor.foxglove import FoxgloveOutputs
 from mrta_simulator.messages import Segment, World

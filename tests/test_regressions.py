@@ -1,4 +1,4 @@
-"""Regression tests for issue 21's bugs, each failing on the code before its fix.
+"""Regression tests, each failing on the code without its fix.
 
 Some are about behaviour (a duplicate config id accepted, a race in the message registry, a
 failed write that lost the old files); others guard a single definition against a second copy
@@ -85,8 +85,8 @@ def test_two_configs_with_one_id_are_refused_at_the_second(tmp_path, second):
 
 def test_concurrent_first_decodes_all_get_the_type_registered_by_entry_point(monkeypatch):
     """Five threads decode a type only an entry point registers, while the loading is slow:
-    every one gets the typed class, none GenericMessage (the old flag said "loaded" as soon as
-    loading began, so the others saw a partial registry)."""
+    every one gets the typed class, none GenericMessage (a flag saying "loaded" as soon as
+    loading began would show the others a partial registry)."""
     name = "regress_msgs/OnlyByEntryPoint"
     monkeypatch.setattr(messages, "_REGISTRY", dict(messages._REGISTRY))
     monkeypatch.setattr(messages, "_entry_points_loaded", False)
@@ -120,7 +120,7 @@ def test_concurrent_first_decodes_all_get_the_type_registered_by_entry_point(mon
     others = [threading.Thread(target=decode) for _ in range(4)]
     for t in others:
         t.start()
-    time.sleep(0.3)  # the others are now inside the first decode too (old code: done, generic)
+    time.sleep(0.3)  # the others are inside the first decode too (a flag set early: generic)
     go.set()
     for t in [first, *others]:
         t.join(10)
@@ -132,8 +132,8 @@ def test_concurrent_first_decodes_all_get_the_type_registered_by_entry_point(mon
 # ----------------------------------------------------------------- 3. one atomic writer
 
 def test_a_file_named_like_a_temporary_is_left_alone(tmp_path):
-    """The old writers used `<name>.tmp` as their temporary: a user's file of that name was
-    overwritten, then renamed away."""
+    """A writer using `<name>.tmp` as its temporary would overwrite a user's file of that name,
+    then rename it away."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -176,16 +176,13 @@ def test_write_folder_writes_everything_or_nothing(tmp_path):
     assert sorted(p.name for p in dest.iterdir()) == ["c.txt"]
 
 
-# The experiment runner is being rewritten elsewhere (issue 21; it moved from mrta_zenoh/tools/):
-# drop it from here once its CSV goes through mrta_zenoh.files.
-PENDING_WRITERS: set[str] = set()
 RENAMES_A_TEMPORARY = re.compile(r"os\.replace\(|os\.rename\(|\.rename\(|mkdtemp\(|mkstemp\(|"
                                  r"NamedTemporaryFile\(|\btmp\w*\.replace\(")
 
 
 def test_only_the_files_module_moves_temporaries_into_place():
     bad = [f"{rel}:{n}: {line.strip()}"
-           for f, rel in source_files() if rel not in PENDING_WRITERS | {"mrta_zenoh/files.py"}
+           for f, rel in source_files() if rel != "mrta_zenoh/files.py"
            for n, line in enumerate(f.read_text(encoding="utf-8").splitlines(), 1)
            if RENAMES_A_TEMPORARY.search(line)]
     assert not bad, "write through mrta_zenoh.files instead:\n" + "\n".join(bad)
@@ -232,8 +229,8 @@ def test_validation_fault_knows_a_non_finite_float():
 
 
 def test_a_bad_parameter_in_a_list_is_reported_on_its_own_line(tmp_path):
-    """Both readers of msgspec's text now share its path, list indices as numbers: the
-    parameter files' reader kept them as strings, so the line fell back to the list's."""
+    """Both readers of msgspec's text share its path, list indices as numbers: kept as
+    strings by the parameter files' reader, the line would fall back to the list's."""
     from mrta_zenoh.yamlfile import load_yaml
 
     f = tmp_path / "p.yaml"
@@ -338,7 +335,8 @@ def test_an_unregistered_simulator_role_is_a_config_error(tmp_path, monkeypatch)
 
 def test_the_simulator_registers_its_own_keys(tmp_path):
     """Through the installed entry point: the simulator's rules are the keys it publishes —
-    now with `world`, which the hand-written list had missed (a secured viewer had no walls)."""
+    `world` included, which a hand-written list could miss (a secured viewer would have no
+    walls)."""
     secure.init(tmp_path / "f", ["robot1"], [])
     router = json.loads((tmp_path / "f" / "router.json5").read_text())
     rules = [r for r in router["access_control"]["rules"] if r["id"].startswith("simulator:")]

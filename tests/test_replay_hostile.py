@@ -1,6 +1,6 @@
-"""`mrta replay` on crafted recordings: never a traceback, never an endless wait (issue #23:
-a topic `a//b`, a liveliness payload `[1]`, log times 0 and 2⁶⁴−1 made tracebacks or a 31-year
-wait). The replay is planned before a session opens (tools/replay.plan_replay), so the timing
+"""`mrta replay` on crafted recordings: never a traceback, never an endless wait (a
+topic `a//b`, a liveliness payload `[1]`, log times 0 and 2⁶⁴−1 could make tracebacks or a
+31-year wait). The replay is planned before a session opens (tools/replay.plan_replay), so the timing
 is checked without waiting and the rest on the in-process bus."""
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""The ROS 2 bridge's limits (issue #23, item 4), on an in-process bus with a stand-in for
+"""The ROS 2 bridge's limits, on an in-process bus with a stand-in for
 rmw_zenoh's side (deterministic, no Zenoh): non-finite values are dropped and counted, an
 oversized sample is dropped before it is decoded, and `--mirror` makes a bounded number of ROS 2
 topics from the bridged robots' keys only."""

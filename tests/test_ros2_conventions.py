@@ -1,4 +1,4 @@
-"""rmw_zenoh's conventions beyond the wire format (issue #26), in-process: depth 42 both ways,
+"""rmw_zenoh's conventions beyond the wire format, in-process: depth 42 both ways,
 action and service tokens in the graph, GIDs derived from tokens as rmw_zenoh derives them, DROP
 unless RELIABLE + KEEP_ALL, ROS_DOMAIN_ID and client mode in `mrta ros2`, and `bridge_lost`."""
 
@@ -140,7 +140,7 @@ def test_samples_carry_the_gid_of_their_publishers_token(types):
 
 
 @pytest.mark.parametrize("qos, lossy", [
-    (Qos(RELIABLE, VOLATILE, KEEP_LAST, 10), True),   # DROP: used to BLOCK
+    (Qos(RELIABLE, VOLATILE, KEEP_LAST, 10), True),   # DROP, as rmw_zenoh: not BLOCK
     (Qos(BEST_EFFORT, VOLATILE, KEEP_LAST, 5), True),
     (Qos(BEST_EFFORT, VOLATILE, KEEP_ALL, 5), True),
     (Qos(RELIABLE, VOLATILE, KEEP_ALL, 5), False),  # BLOCK only here

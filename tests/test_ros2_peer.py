@@ -125,7 +125,7 @@ def test_a_robot_whose_ros2_driver_node_disappears_is_shown_offline(network, msg
     """The supervisor reads the ROS 2 graph: robot1's agent is up (its token), its driver is a
     ROS 2 node in /robot1 (the SDK), and a bridge drives robot1 (its token). Kill the driver:
     robot1 goes offline with `driver_lost`, although its agent still runs — it can no longer
-    move anything. (Without a bridge, a node in /robot1 is nobody's driver: issue #23.)"""
+    move anything. (Without a bridge, a node in /robot1 is nobody's driver.)"""
     children, _ = network
     children.python("fake_robot.py", "robot1", "wander", name="agent1")
     driver = sdk(children, msgs, "driver", "/robot1")
@@ -146,8 +146,8 @@ def test_a_robot_whose_ros2_driver_node_disappears_is_shown_offline(network, msg
 
 @pytest.mark.slow
 def test_a_robot_whose_bridge_dies_is_shown_offline_with_bridge_lost(network, msgs):
-    """The driver lives on, the bridge is killed: the agent's commands now reach nothing, so
-    robot1 is offline with `bridge_lost` (it used to stay online, idle, with no alarm)."""
+    """The driver lives on, the bridge is killed: the agent's commands reach nothing, so
+    robot1 is offline with `bridge_lost` (not online and idle, with no alarm)."""
     children, bridge = network
     children.python("fake_robot.py", "robot1", "wander", name="agent1")
     sdk(children, msgs, "driver", "/robot1")

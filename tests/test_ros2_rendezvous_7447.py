@@ -1,4 +1,4 @@
-"""The default rendezvous on a robot host, where rmw_zenohd holds 7447 (issue #26): a port held
+"""The default rendezvous on a robot host, where rmw_zenohd holds 7447: a port held
 by something that is not ours moves our rendezvous to the next free (or ours) port, with a
 warning; a port held by one of ours is joined as before. DEFAULT_RENDEZVOUS is pointed at a free
 port of this test, never at 7447."""

@@ -1,4 +1,4 @@
-"""Through a robot's rmw_zenohd, with the bridge's default options (issue #26).
+"""Through a robot's rmw_zenohd, with the bridge's default options.
 
 A robot runs rmw_zenohd — a router that does not broker between peers — and its nodes listen on
 the robot's localhost only, so from another host nobody reaches them directly. Here: a router

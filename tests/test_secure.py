@@ -416,8 +416,8 @@ def test_clients_verify_the_router_s_name(tmp_path, children):
     (["view", "patrol", "--no-server", "--output", "{tmp}/x.mcap", "--duration", "1"], "robot2"),
 ])
 def test_every_process_refuses_a_certificate_that_is_not_its_own(tmp_path, command, config):
-    """Muted without a word was the old failure: the router drops what the certificate may not
-    say. Each process checks before its bus opens (and before any file is written)."""
+    """Without the check a process is muted without a word: the router drops what the
+    certificate may not say. Each process checks before its bus opens (and before any file is written)."""
     secure.init(tmp_path / "f", ["robot1", "robot2"], ["supervisor"])
     cfg = ROOT / "configs" / "applications" / "patrol" / "config"
     args = [a.format(cfg=cfg, tmp=tmp_path) for a in command]
@@ -429,8 +429,8 @@ def test_every_process_refuses_a_certificate_that_is_not_its_own(tmp_path, comma
 
 
 def test_force_removes_the_previous_fleets_files_and_nothing_else(tmp_path):
-    """robot1's certificate from an earlier fleet, signed by a CA that no longer exists, used to
-    stay beside the new fleet; files secure init never wrote stay whatever happens."""
+    """robot1's certificate from an earlier fleet, signed by a CA that no longer exists, must
+    not stay beside the new fleet; files secure init never wrote stay whatever happens."""
     folder = tmp_path / "f"
     secure.init(folder, ["robot1"], ["sup"])
     (folder / "mine.txt").write_text("keep me")

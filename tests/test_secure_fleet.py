@@ -1,7 +1,7 @@
-"""A secured fleet runs every feature (issue #23, item 5 and 8): the lockstep mission through a
+"""A secured fleet runs every feature: the lockstep mission through a
 router with mutual TLS and default-deny access control gives, bit for bit, the run an open bus
 gives — the simulator's steps, status and world, the agents' StepDone and participant tokens,
-the recorder's token all pass; before, the ACL denied them and lockstep ran with 0
+the recorder's token all pass; an ACL denying them would run lockstep with 0
 participants without a word."""
 
 import signal

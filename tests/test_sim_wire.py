@@ -2,7 +2,7 @@
 contract: byte for byte what `codec.encode` gives for the message objects, on the same keys, in
 the same order, with the same encodings — for random states (signed zeros, huge and tiny floats,
 ids of every length, no sonar and many), for a real simulation on the in-process bus against the
-old per-robot path kept here as the reference, and through a real Zenoh session's batch."""
+per-robot message-object path kept here as the reference, and through a real Zenoh session's batch."""
 
 from __future__ import annotations
 
@@ -40,16 +40,16 @@ ID_CHARS = st.characters(min_codepoint=0x21, max_codepoint=0x2FF,
                          blacklist_characters="/*$#?@")
 
 
-def old_messages(rid, t, points, odom, twist, pose, vel, stalled, contact, collisions):
-    """The per-robot objects the simulator used to build (simulator/node.py before issue #27)."""
+def object_messages(rid, t, points, odom, twist, pose, vel, stalled, contact, collisions):
+    """A robot's samples as message objects: the straightforward way, the wire's reference."""
     return (PointCloud(Header(f"{rid}/sonar", t, 0), tuple(Point2D(x, y) for x, y in points)),
             Odometry(Header(f"{rid}/odom", t, 0), Pose2D(*odom), Twist(*twist)),
             Odometry(Header("world", t, 0), Pose2D(*pose), Twist(*vel)),
             Bumper(Header(rid, t, 0), stalled, contact, collisions))
 
 
-def old_publish_all(node: SimNode) -> None:
-    """The old path, verbatim but for names: message objects per robot, Bus.publish each."""
+def object_publish_all(node: SimNode) -> None:
+    """The message-object path: message objects per robot, Bus.publish each."""
     sim = node.sim
     t = sim.time
     reading = sim.sonar()
@@ -59,7 +59,7 @@ def old_publish_all(node: SimNode) -> None:
     stalled, contacts = sim.stalled.tolist(), (sim.contacts > 0).tolist()
     collisions = sim.collisions.tolist()
     for i, rid in enumerate(sim.ids):
-        cloud, odometry, truth, bump = old_messages(rid, t, pts[i], odom[i], twist[i], pose[i],
+        cloud, odometry, truth, bump = object_messages(rid, t, pts[i], odom[i], twist[i], pose[i],
                                                     vel[i], stalled[i], contacts[i],
                                                     collisions[i])
         if rid in node._ros2_ids:
@@ -108,7 +108,7 @@ def test_fast_bytes_are_codec_encode_of_the_messages(state):
         got = wire.encode(**p)
         want_keys, want_encs, want = [], [], []
         for i, rid in enumerate(ids):
-            msgs = old_messages(rid, p["t"], p["points"][i].tolist(), p["odom"][i].tolist(),
+            msgs = object_messages(rid, p["t"], p["points"][i].tolist(), p["odom"][i].tolist(),
                                 p["odom_twist"][i].tolist(), p["pose"][i].tolist(),
                                 p["vel"][i].tolist(), bool(p["stalled"][i]),
                                 bool(p["contact"][i]), int(p["collisions"][i]))
@@ -201,7 +201,7 @@ def record(publish_all, ros2=(), rear_sonars=False):
 
 
 def bumpers_on_change(samples):
-    """The old path's samples with the bumper rule applied (simulator/node.py, BUMPER_EVERY):
+    """The message-object path's samples with the bumper rule applied (simulator/node.py, BUMPER_EVERY):
     a robot's bumper goes out when (stalled, contact, collisions) differs from the last one it
     sent, and every robot's at each whole simulated second. Worked out here from the decoded
     samples, independently of the node's arrays."""
@@ -220,9 +220,9 @@ def bumpers_on_change(samples):
 
 
 @pytest.mark.parametrize("ros2, rear", [((), False), (("robot22",), False), ((), True)])
-def test_simnode_sends_what_the_old_path_sent(ros2, rear):
+def test_simnode_sends_what_the_message_object_path_sends(ros2, rear):
     new, new_ros2, collisions = record(None, ros2, rear)
-    every, old_ros2, _ = record(old_publish_all, ros2, rear)
+    every, old_ros2, _ = record(object_publish_all, ros2, rear)
     old = bumpers_on_change(every)
     assert any(c > 0 for c in collisions)  # the run did exercise contacts
     assert len(new) == len(old) > 0

@@ -98,3 +98,16 @@ def test_robots_take_named_then_free_start_poses():
     assert poses["robot2"] == w.starts["robot2"] and poses["x"] == w.starts["robot1"]
     assert poses["y"] == w.starts["robot3"]  # next free start not claimed by name
     assert poses["z"] == Pose(1.0, 2.0, 0.0)
+
+
+def test_a_map_over_8_mib_exits_2_naming_the_file(tmp_path):
+    """A valid map past the bound the YAML files have (yamlfile.MAX_BYTES) is refused unread,
+    not parsed into 800,000 walls."""
+    f = tmp_path / "huge.map"
+    f.write_text("2D-Map\nLINES\n" + "0 0 1000 0\n" * 800_000)
+    assert f.stat().st_size > 8 * 1024 * 1024
+    with pytest.raises(ConfigError) as err:
+        load_world(f)
+    assert "larger than 8 MiB" in str(err.value) and str(f) in str(err.value)
+    res = CliRunner().invoke(cli, ["sim", "--world", str(f), "--robot", "r1=0,0,0"])
+    assert res.exit_code == 2 and str(f) in res.output and "Traceback" not in res.output

@@ -1,4 +1,4 @@
-"""A normal `mrta demo` prints no WARNING (issue 37 point 1): delivered tasks are `done`, not
+"""A normal `mrta demo` prints no WARNING: delivered tasks are `done`, not
 unattended, and the end of the run is no stopped clock."""
 
 import json

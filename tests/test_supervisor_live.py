@@ -1,4 +1,4 @@
-"""What the live views leave on a terminal (issue 37 point 6), read back through a terminal
+"""What the live views leave on a terminal, read back through a terminal
 emulator (pyte): log lines written while the view runs do not land across it, and neither a
 view that changes shape nor a resized terminal leaves a stale header behind."""
 

@@ -1,4 +1,4 @@
-"""Pictures a user reads beside the summary (issue 37 point 12): nothing in them hides what they
+"""Pictures a user reads beside the summary: nothing in them hides what they
 show."""
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ from mrta_supervisor.results import read_results
 
 @pytest.mark.slow
 def test_the_coverage_legend_hides_no_bar(tmp_path, monkeypatch):
-    """Patrol's wander is covered ≈ 99 % of a run: its bar reaches the top, where the legend
-    used to sit."""
+    """Patrol's wander is covered ≈ 99 % of a run: its bar reaches the top, so a legend
+    inside the axes would hide it."""
     figures = {}
     save = report_plots.save_figure
 

@@ -1,4 +1,4 @@
-"""A replay's clock, followed as a simulator's is (issue 37 point 3): `mrta replay --clock`
+"""A replay's clock, followed as a simulator's is: `mrta replay --clock`
 announces each recorded run under an id naming the replay's own pace and holds its clock-source
 token while it plays it, so a follower's creep bound trusts it at that pace, and sees the run
 end when the replay is over."""

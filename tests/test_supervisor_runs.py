@@ -1,5 +1,5 @@
 """The supervisor across a run's life, on a manual clock: tasks the application says are done
-or not due yet, the end of a run, a restarted simulator (issue 37 points 1 and 4)."""
+or not due yet, the end of a run, a restarted simulator."""
 
 from __future__ import annotations
 

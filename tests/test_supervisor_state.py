@@ -10,7 +10,7 @@ from mrta_zenoh.clock import ManualClock, SimClock
 from mrta_zenoh.messages import GenericMessage, Header, Twist
 from mrta_agent.alliance.messages import InterRobotCommunication
 from tests.helpers import ALLIANCE_ARCH
-from mrta_zenoh.toolchain.model import Application, RobotEntry
+from mrta_zenoh.toolchain.model import ApplicationFile, RobotEntry
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
 from mrta_supervisor.api import CLOCK_STALL, Refresh, attach, resolve_application
 from mrta_supervisor.holders import SampleHolder
@@ -222,8 +222,8 @@ OTHER_ARCH = textwrap.dedent("""\
 def test_a_different_architecture_drives_the_same_supervisor_over_a_bus(tmp_path):
     (tmp_path / "arch.xml").write_text(OTHER_ARCH)
     arch = load_rqt_mrta(tmp_path / "arch.xml")
-    app = Application("market", "Warehouse", [RobotEntry("amr1", ["pick", "drop"]),
-                                              RobotEntry("amr2", ["pick", "drop"])])
+    app = ApplicationFile("market", "Warehouse", [RobotEntry("amr1", ["pick", "drop"]),
+                                                  RobotEntry("amr2", ["pick", "drop"])])
     clock = ManualClock(0.0)
     net = InProcNetwork()
     with InProcBus(net) as watcher, InProcBus(net) as fleet:
@@ -257,7 +257,7 @@ def test_ros_style_names_become_key_expressions():
 
 def test_our_architecture_file_is_what_the_supervisor_reads():
     arch = load_rqt_mrta(ALLIANCE_ARCH / "rqt_mrta.xml")
-    sup = Supervisor(arch, Application("alliance", "x", [RobotEntry("r1", ["t"])]), 0.0)
+    sup = Supervisor(arch, ApplicationFile("alliance", "x", [RobotEntry("r1", ["t"])]), 0.0)
     assert {m.role for m in sup.monitors} == {"busy_robots", "allocated_tasks"}
 
 
@@ -269,9 +269,9 @@ def test_live_view_fits_80_by_24_with_ten_robots(patrol):
     from mrta_supervisor.view import render
 
     app, arch = patrol
-    app = Application(app.architecture, app.name,
-                      [RobotEntry(f"robot{i}", ["wander", "border_protection", "report"])
-                       for i in range(1, 11)])
+    app = ApplicationFile(app.architecture, app.name,
+                          [RobotEntry(f"robot{i}", ["wander", "border_protection", "report"])
+                           for i in range(1, 11)])
     sup = Supervisor(arch, app, 0.0, unattended_after=1.0)
     for i in range(1, 11):
         sup.on_liveliness(f"robot{i}/alliance/agent", True, 0.0)

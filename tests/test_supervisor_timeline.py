@@ -1,5 +1,5 @@
 """The allocation timeline draws what the robots said they did — the summary's ground truth —
-not the supervisor's lagging view (issue 37 points 2 and 12): robot3's report ends where the
+not the supervisor's lagging view: robot3's report ends where the
 summary says, one run gives one picture whatever the recorder's timing, the legend lists
 tasks in natural order and `offline` only when a robot was."""
 
@@ -13,7 +13,7 @@ from mrta_zenoh.clock import SimClock
 from mrta_zenoh.keys import CLOCK
 from mrta_zenoh.messages import Clock, Header
 from mrta_zenoh.recording import McapRecorder, SimLogTime
-from mrta_zenoh.toolchain.model import Application, RobotEntry
+from mrta_zenoh.toolchain.model import ApplicationFile, RobotEntry
 from mrta_supervisor import plots
 from mrta_supervisor.api import resolve_application
 
@@ -111,8 +111,8 @@ def test_the_legend_lists_tasks_in_natural_order_and_offline_only_when_a_robot_w
         tmp_path, panels):
     _, arch = resolve_application("patrol")
     tasks = ["t1", "t2", "t4", "t3", "t10"]  # the application's (first-seen) order
-    app = Application("alliance", "Delivery", [RobotEntry("robot1", tasks),
-                                               RobotEntry("robot2", tasks)])
+    app = ApplicationFile("alliance", "Delivery", [RobotEntry("robot1", tasks),
+                                                   RobotEntry("robot2", tasks)])
     rec = tmp_path / "d.mcap"
     record(rec, {"robot1": [("t4", 0.5, 5.0)], "robot2": [("t3", 0.5, 9.0)]}, 10.0,
            gone={"robot2": 9.0})
@@ -126,7 +126,7 @@ def test_an_architecture_without_a_contract_asks_for_the_supervisors_view(tmp_pa
     from mrta_zenoh.errors import ConfigError
 
     app, arch = resolve_application("patrol")
-    app = Application("no_such_arch", "X", app.robots)
+    app = ApplicationFile("no_such_arch", "X", app.robots)
     rec = tmp_path / "r.mcap"
     record(rec, {"robot1": [("wander", 0.4, 3.0)]}, 3.0)
     with pytest.raises(ConfigError, match="--view supervisor"):

@@ -1,6 +1,6 @@
 """A generated N-robot application (benchmarks/swarm.py: patrol's tasks, N robots, made through
 the toolchain's build_application) runs in lockstep with every agent joining the barrier from
-step 0, and the lockstep books' memory of which subscriptions count a key (issue #27) follows
+step 0, and the lockstep books' memory of which subscriptions count a key follows
 the bus's subscriptions."""
 
 import importlib.util

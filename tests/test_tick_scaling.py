@@ -1,4 +1,4 @@
-"""HighLevel.tick's work follows the teammates that changed, not all heard (issue #27), and the
+"""HighLevel.tick's work follows the teammates that changed, not all heard, and the
 incremental bookkeeping decides exactly what a rescan of every record decides.
 
 No timing: the work is counted (`HighLevel.visits`, the records a tick looked at), and the

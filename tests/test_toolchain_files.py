@@ -6,7 +6,7 @@ from click.testing import CliRunner
 from mrta_zenoh.cli.main import cli
 from mrta_zenoh.errors import ConfigError
 from tests.helpers import ALLIANCE_ARCH, ROOT
-from mrta_zenoh.toolchain.model import Application, Architecture, Array, Param, Params
+from mrta_zenoh.toolchain.model import ApplicationFile, ArchitectureFile, Array, Param, Params
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta, to_xml
 from tests.helpers import REFERENCE
 
@@ -27,14 +27,14 @@ def test_reference_file_loads_and_round_trips(reference, tmp_path, rel):
 
 def test_reference_models_hold_what_the_files_say(reference):
     arch = load_rqt_mrta(REFERENCE / "alliance/rqt_mrta.xml")
-    assert isinstance(arch, Architecture) and arch.taxonomy == "ST-SR-IA"
+    assert isinstance(arch, ArchitectureFile) and arch.taxonomy == "ST-SR-IA"
     assert arch.busy_robots.field == "header/frame_id" and arch.allocated_tasks.timeout == 0.5
     robot = arch.config("alliance_params")
     sensors = next(c for c in robot.children if c.name == "sensors")
     assert isinstance(sensors, Params) and isinstance(sensors.children[1], Array)
     assert sensors.children[0].value == "@array_size@"
     app = load_rqt_mrta(REFERENCE / "dissertation_examples/b_app_config-rqt_mrta.xml")
-    assert isinstance(app, Application) and app.name == "Patrulha na UNIFEI"
+    assert isinstance(app, ApplicationFile) and app.name == "Patrulha na UNIFEI"
     assert [r.id for r in app.robots] == ["/robot1", "/robot2", "/robot3"]
     assert app.tasks() == ["wander", "border_protection", "report"]
     assert len(app.configs) == 5 and len(app.launches) == 3
@@ -77,7 +77,7 @@ MALFORMED = [
     (ARCH.format(robots="<busy_robots><topic><name>k</name><type>t</type><field>f</field>"
                         "<timeout>-1</timeout></topic></busy_robots>", param=OK_PARAM), 5,
      "<timeout> must be between 0.001 and 86400 s"),
-    # finite but absurd: `mrta supervise --once` never returned (issue #23)
+    # finite but absurd: `mrta supervise --once` never returned
     (ARCH.format(robots="<busy_robots><topic><name>k</name><type>t</type><field>f</field>"
                         "<timeout>1e308</timeout></topic></busy_robots>", param=OK_PARAM), 5,
      "(a millisecond to a day), got 1e+308"),
@@ -172,8 +172,8 @@ def test_a_good_application_still_validates(tmp_path):
 
 @pytest.mark.slow
 def test_app_validate_reads_every_robots_files_as_its_agent_would(tmp_path):
-    """An application used to validate and then have every agent refuse its files at launch:
-    `mrta app validate` now runs the architecture's own check (Architecture.check_files)."""
+    """An application must not validate and then have every agent refuse its files at launch:
+    `mrta app validate` runs the architecture's own check (Architecture.check_files)."""
     import shutil
 
     from click.testing import CliRunner

@@ -1,4 +1,4 @@
-"""`mrta app new` never writes what `mrta app validate` refuses (issue 37, point 8): the files
+"""`mrta app new` never writes what `mrta app validate` refuses: the files
 are read by the architecture before any is written; the wizard asks again for the answers behind
 a refused file, an answers file is refused at its line; empty mandatory answers are told why;
 layer sections no plugin of the application reads are neither asked for nor written."""

@@ -1,4 +1,4 @@
-"""The channels `mrta view APP` advertises before any message (issue 38.3): what the layout's
+"""The channels `mrta view APP` advertises before any message: what the layout's
 panels name is there as soon as a client connects."""
 
 from mrta_supervisor.api import resolve_application

@@ -1,4 +1,4 @@
-"""A process's own samples reach its own subscriptions in-process (ZenohBus, issue #27): before
+"""A process's own samples reach its own subscriptions in-process (ZenohBus): before
 publish() returns, once each — never a second time from Zenoh — decoded and counted as samples
 from the network are; other sessions still get them over the network. Real sessions on
 loopback, in the test process."""

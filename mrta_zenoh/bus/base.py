@@ -18,6 +18,7 @@ import msgspec
 from .. import codec
 from ..errors import MrtaRuntimeError
 from ..keys import validate_key_expr
+from ..lifecycle import Closing
 from ..messages import GenericMessage, Message
 from .counts import Counts
 
@@ -77,7 +78,7 @@ class _RateLimitedWarning:
         log.warning("%s (%d so far on %s)", text, count, where)
 
 
-class Subscription:
+class Subscription(Closing):
     """A declared interest in a key expression.
 
     Delivery modes: a handler called on the network thread (keep it tiny), a handler called from
@@ -245,12 +246,6 @@ class Subscription:
         self.bus._undeclare(self)
         self.bus._forget(self.bus._subs, self)
 
-    def __enter__(self) -> "Subscription":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
 
 class Batch:
     """A fixed list of keys whose pre-encoded samples go out together (Bus.declare_batch): a
@@ -286,7 +281,7 @@ class Batch:
             raise MrtaRuntimeError("publishing a batch on a closed bus")
 
 
-class LivelinessWatch:
+class LivelinessWatch(Closing):
     """Reports tokens appearing and disappearing under a key expression: on_change(key, alive)."""
 
     def __init__(self, bus: "Bus", key_expr: str, on_change: Callable[[str, bool], None]):
@@ -310,14 +305,8 @@ class LivelinessWatch:
             self.bus._undeclare_watch(self)
             self.bus._forget(self.bus._watches, self)
 
-    def __enter__(self) -> "LivelinessWatch":
-        return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-
-class Token:
+class Token(Closing):
     def __init__(self, bus: "Bus", key: str):
         self.bus = bus
         self.key = key
@@ -330,14 +319,8 @@ class Token:
             self.bus._undeclare_token(self)
             self.bus._forget(self.bus._tokens, self)
 
-    def __enter__(self) -> "Token":
-        return self
 
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-
-class Bus:
+class Bus(Closing):
     """Publish typed messages, subscribe by key expression, and track liveliness.
 
     `namespace` prefixes every key on the wire (like ROS_DOMAIN_ID) and is stripped from the keys
@@ -446,12 +429,6 @@ class Bus:
     @property
     def closed(self) -> bool:
         return self._closed
-
-    def __enter__(self) -> "Bus":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
     def enable_counting(self, on_counted: Callable[[], None] | None = None) -> Counts:
         """Count, for lockstep, the samples this bus publishes and those its subscriptions take

@@ -14,6 +14,8 @@ from __future__ import annotations
 import collections
 from typing import Callable
 
+from ..lifecycle import Closing
+
 
 def _nothing() -> None:
     pass
@@ -32,7 +34,7 @@ class Tally:
         self.counted = counted
 
 
-class Counts:
+class Counts(Closing):
     """A bus's counts, read by lockstep. `sent[key]`: samples this bus published on `key` (keys
     starting with `@` — lockstep's own traffic — are not counted); `tallies()`: the counting
     subscriptions as they are now (decoded ones: raw subscriptions count nothing)."""
@@ -67,8 +69,3 @@ class Counts:
         """Stop counting on the bus (its owner is done with it)."""
         self._bus._stop_counting(self)
 
-    def __enter__(self) -> "Counts":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

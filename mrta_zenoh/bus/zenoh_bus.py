@@ -12,8 +12,8 @@ hands the sample to the matching subscriptions of this bus itself, synchronously
 returns — as InProcBus does, which every unit test runs on. Zenoh would hand them over on a
 callback thread instead: a thread hop, a wrapper object and a decode per sample (a patrol agent
 hears its own motivation feed 30 times a simulated second; with 100 agents on 2 cores the agents
-took 1.60 cores per simulated second instead of 1.65, issue #27), and an order against the
-process's other work that depended on scheduling.
+took 1.60 cores per simulated second instead of 1.65), and an order against the process's
+other work that would depend on scheduling.
 """
 
 from __future__ import annotations
@@ -28,7 +28,7 @@ import zenoh
 from .. import codec
 from ..errors import ConfigError, MrtaRuntimeError
 from ..keys import matches
-from ..lifecycle import wait_for_stop
+from ..lifecycle import Closing, wait_for_stop
 from .base import Batch, Bus, LivelinessWatch, Sample, Subscription, Token
 from .options import BusOptions, session_configs
 from ..messages import GenericMessage, Message
@@ -422,7 +422,7 @@ class _ZenohBatch(Batch):
         self._hand_over(payloads, rows)
 
 
-class Closable:
+class Closable(Closing):
     """A declared Zenoh entity, undeclared once by close() — or on leaving a `with` block, like
     every other handle the bus gives out (AttachedPublisher included)."""
 
@@ -433,12 +433,6 @@ class Closable:
         if self._native is not None:
             self._native.undeclare()
             self._native = None
-
-    def __enter__(self) -> "Closable":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 class AttachedPublisher(Closable):

@@ -9,8 +9,9 @@ every verb to print one line each cost 1.3–1.5 s of CPU; a third party's comma
 is imported to show its line).
 
 This is also the one place where the library's errors become exit codes (docs/architecture.md,
-"exit codes"): `run` is how every program of the project ends — the `mrta` group, a launch
-file's node (mrta_zenoh.cli.run_node) and an experiment's mission (mrta_zenoh.cli.mission) — so
+"Exit codes"): `run` is how every program of the project ends — the `mrta` group (an
+experiment's runs too: each is an `mrta demo` child), a launch file's node
+(mrta_zenoh.cli.run_node) and an application's own script (mrta_delivery.generate_cli) — so
 an error means the same one line and the same exit code whichever way a verb was started, and
 verbs need no wrapper of their own.
 """

@@ -6,7 +6,7 @@ Two conventions of ROS 2 users, kept by every command here:
 * `--connect` without `--mode` means client mode: a robot runs rmw_zenohd, a router that does
   not broker between peers (`peers_failover_brokering: false`) while its nodes listen on the
   robot's localhost only — a peer connected to it hears nothing of them (0 samples, 0 tokens,
-  measured), a client gets everything routed. `--mode peer` keeps the old behaviour.
+  measured), a client gets everything routed. `--mode peer` with `--connect` is a peer still.
 
 `--namespace` is the bus namespace, as in every other command; the robot's ROS 2 namespace is
 `--ros-namespace`.

@@ -14,7 +14,7 @@ from ..lifecycle import interrupted_by_user, stop_on_signals
 from ..toolchain.checks import PackageRefused, check_package_files, check_robot_files
 from ..toolchain.generator import build_application, load_answers, restrict_layers, write_package
 from ..toolchain.launchfile import LaunchEvaluator, check_executables
-from ..toolchain.model import Application, Architecture, Array, Param, Params
+from ..toolchain.model import ApplicationFile, ArchitectureFile, Array, Param, Params
 from ..toolchain.registry import Registry, matches_taxonomy, taxonomy_value
 from ..toolchain.runner import command_for, run_nodes
 from ..toolchain.wizard import InvalidAnswer, ask_again, collect, summary
@@ -68,8 +68,8 @@ def _show_params(children, indent: int) -> list[str]:
     return out
 
 
-def _describe(model: Architecture | Application) -> list[str]:
-    if isinstance(model, Architecture):
+def _describe(model: ArchitectureFile | ApplicationFile) -> list[str]:
+    if isinstance(model, ArchitectureFile):
         lines = [f"architecture {model.name} [{model.taxonomy}]"]
         for label in ("busy_robots", "idle_robots", "incoming_tasks", "allocated_tasks"):
             t = getattr(model, label)
@@ -98,6 +98,9 @@ def arch_show(name: str) -> None:
     click.echo("\n".join(_describe(a)))
 
 
+_KIND = {ArchitectureFile: "architecture", ApplicationFile: "application"}
+
+
 def _validate(path: Path, kind: type) -> None:
     """PATH is an rqt_mrta.xml file, a package folder holding one, or a registered package's
     name. An application's architecture must also be registered: a package naming an
@@ -110,13 +113,13 @@ def _validate(path: Path, kind: type) -> None:
             path = reg.find(path.name).path / "rqt_mrta.xml"
     model = load_rqt_mrta(path)
     if not isinstance(model, kind):
-        raise ConfigError(f"this is an {type(model).__name__.lower()} file, not an "
-                          f"{kind.__name__.lower()} file", file=str(path))
+        raise ConfigError(f"this is an {_KIND[type(model)]} file, not an {_KIND[kind]} file",
+                          file=str(path))
     checked = []
-    if isinstance(model, Application):
+    if isinstance(model, ApplicationFile):
         Registry().architecture_of(model)
         checked = check_robot_files(path.parent, model)
-    click.echo(f"{path}: valid {kind.__name__.lower()} {model.name!r}"
+    click.echo(f"{path}: valid {_KIND[kind]} {model.name!r}"
                + (f" (the parameter files of {plural(len(checked), 'robot')} checked)"
                   if checked else ""))
 
@@ -126,7 +129,7 @@ def _validate(path: Path, kind: type) -> None:
 def arch_validate(path: Path) -> None:
     """Check an architecture (file, package folder or package name); exit 2 naming file, line
     and element on the first error."""
-    _validate(path, Architecture)
+    _validate(path, ArchitectureFile)
 
 
 @click.group()
@@ -164,7 +167,7 @@ def app_show(name: str) -> None:
 def app_validate(path: Path) -> None:
     """Check an application (file, package folder or package name); exit 2 naming file, line
     and element on the first error."""
-    _validate(path, Application)
+    _validate(path, ApplicationFile)
 
 
 @app.command("new")

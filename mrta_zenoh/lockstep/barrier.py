@@ -19,6 +19,7 @@ import msgspec
 
 from ..clock import EPSILON, _printable
 from ..keys import CLOCK_SOURCE_TOKEN
+from ..lifecycle import Closing
 from .books import Books
 from .ledger import Ledger
 from .protocol import (BARRIER, DEFAULT_TIMEOUT, DONE, MAX_KEYS, MAX_NAMES, NEXT_HORIZON,
@@ -27,14 +28,14 @@ from .protocol import (BARRIER, DEFAULT_TIMEOUT, DONE, MAX_KEYS, MAX_NAMES, NEXT
 from .table import Claims, KeyTable, count_of
 
 
-class Barrier:
+class Barrier(Closing):
     """The simulator's side: whom to wait for, and waiting. A context manager: leaving it
     withdraws the barrier's token and subscriptions (close()).
 
-    Cost per step (issue #27: 100 participants answering every step): an answer updates who
-    is still waited for, the per-key claims and the due cache in O(its own keys); only the
-    last answer (then the counts it waits for) wakes wait(). Before, every answer and every
-    counted sample woke it and each wake rescanned every participant's StepDone."""
+    Cost per step (100 participants answering every step): an answer updates who is still
+    waited for, the per-key claims and the due cache in O(its own keys); only the last answer
+    (then the counts it waits for) wakes wait() — waking on every answer and every counted
+    sample, each wake rescanning every participant's StepDone, would be quadratic."""
 
     def __init__(self, bus, run_id: str, timeout: float = DEFAULT_TIMEOUT,
                  wall=time.monotonic):
@@ -64,7 +65,7 @@ class Barrier:
         self._republish = False
         self._back: set[str] = set()  # given up, and answering again
         # Kept up to date as StepDones arrive, so a step costs one look per answer, not a scan
-        # of every participant per answer (issue #27: 100 participants answering every step)
+        # of every participant per answer (100 participants answer every step)
         self._stamp: float | None = None  # the step wait() is waiting on
         self._waiting: set[str] = set()   # participants it still waits for
         self._due_at: float | None = None  # due() before this stamp is False (None: unknown)
@@ -367,8 +368,3 @@ class Barrier:
             h.close()
         self.counts.close()
 
-    def __enter__(self) -> "Barrier":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

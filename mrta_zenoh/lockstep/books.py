@@ -33,10 +33,10 @@ class Books:
     is inexact anyway: for that window this process does not wait for that claimant's samples
     in flight either.
 
-    Cost (issue #27). A step claims every key of the run — with 100 robots about 1,100 — and a
+    Cost. A step claims every key of the run — with 100 robots about 1,100 — and a
     participant looks at its claims once per step; most keys are none of its subscriptions',
     and of those that are (a teammate's broadcast, its log) few changed since the last step. A
-    loop over its few hundred keys in Python was half of a patrol agent's CPU with 100 agents on
+    loop over its few hundred keys in Python is half of a patrol agent's CPU with 100 agents on
     2 cores (py-spy, GIL samples; caches are cold with 100 processes). So which subscriptions
     count a key is worked out once per key (again when the bus's subscriptions change), and
     which table indices each subscription counts once per table entry; claims and counts are
@@ -113,7 +113,7 @@ class Books:
         it sent, heard back by its own subscriptions (a robot's ReportDue hearing its own
         report): were they handed over on another thread, the tick that first sees one would
         depend on thread scheduling — two runs of one seed ended robot3's report 0.1 s apart
-        under load when Zenoh delivered them. ZenohBus now hands them over before publish()
+        under load when Zenoh delivered them. ZenohBus hands them over before publish()
         returns, so this wait is met at once there; it stays for a bus that does not (the
         Bus contract does not promise it). `keys`: look only at
         these (those found missing before: counts only grow, so the others still have

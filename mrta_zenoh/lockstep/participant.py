@@ -57,7 +57,6 @@ class LockstepClock(SimClock):
         self.run: str | None = None           # the lockstep run whose steps move time
         self.rejected_steps = Rejections(f"step for {_printable(participant)}")
         self.step_rivals: set[str] = set()
-        self._bus = None
         self.counts = None                    # the bus's lockstep counts, once joined
         self._books: Books | None = None
         self._table = KeyTable()              # the run's keys, as its steps name them
@@ -70,7 +69,7 @@ class LockstepClock(SimClock):
         self._claims: Claims | None = None    # the pending step's
         self._pending_wall = 0.0
         # the pending step's keys found missing at the last look (None: look at all of them):
-        # each sample received while a step is pending looks again, at these only (issue #27)
+        # each sample received while a step is pending looks again, at these only
         self._still_missing: list[str] | None = None
         self._new_run = False                 # the pending step opens a new run
         self._refused: Step | None = None     # a new run's step refused while the old one lives
@@ -86,7 +85,6 @@ class LockstepClock(SimClock):
     def join(self, bus) -> contextlib.ExitStack:
         """Count traffic, follow steps, and announce the participant; returns the handles as
         one ExitStack (closing it leaves the barrier)."""
-        self._bus = bus
         # while steps are pending, every received sample may be the one they wait for
         counts = self.counts = bus.enable_counting(self._release)
         self._books = Books(counts, self._wall)

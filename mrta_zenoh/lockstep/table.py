@@ -17,8 +17,8 @@ class KeyTable:
     """The keys a run's claims count, in the order the simulator first claimed them.
 
     A Step carries its claims as counts by index in this table, and only the keys new since the
-    previous step (issue #27: with 100 robots a Step named about 1,100 keys, and each of 100
-    participants decoded every name at every step). The table only grows within a run (the
+    previous step (with 100 robots a Step would name about 1,100 keys, and each of 100
+    participants decode every name at every step). The table only grows within a run (the
     simulator starts a new one, sent whole, when it passes MAX_KEYS); `digest` (BLAKE2b of the
     keys, each ended by a newline — a CRC would be forged by anybody) lets a participant check
     that its copy is the simulator's: one that missed a step, or took a forged one, passes steps

@@ -54,9 +54,6 @@ class Assignment:
     pairs: tuple[tuple[int, int], ...]
     cost: float
 
-    def by_task(self) -> dict[int, int]:
-        return {j: i for i, j in self.pairs}
-
 
 def assignment_cost(cost: np.ndarray, pairs: Sequence[tuple[int, int]]) -> float:
     return float(sum(cost[i, j] for i, j in pairs))

@@ -140,8 +140,3 @@ def solve_exact(problem: Problem, objective: Objective | str) -> Exact:
     value, routes = g[full]
     return Exact(value if n else 0.0, {i: routes.get(i, []) for i in range(m)})
 
-
-def exact_work(problem: Problem) -> float:
-    """A size measure of the recursion (robots · 3ⁿ): what `exact_limit` bounds."""
-    return len(problem.robots) * 3.0 ** len(problem.tasks)
-

@@ -16,18 +16,18 @@ Attachments are strict both ways (mrta_zenoh.ros2.attachment); a sample that can
 or converted is counted and dropped. The bridge holds `@mrta/ros2_bridge/<robot>` while it runs
 — never a `robotN/**` token, so a bridge alone never makes a robot look online.
 
-Limits (issue #23; docs/ros2.md, "Limits"), so one ROS 2 publisher cannot take the bridge down:
+Limits (docs/ros2.md, "Limits"), so one ROS 2 publisher cannot take the bridge down:
 
 * a sample larger than its cap is dropped before it is decoded (`oversized` in the
   subscription's counts): odometry 16 KiB (a real one is 724 bytes), sonar 64 KiB by default
-  (`--max-sonar-bytes`; a PointCloud of ≈ 5,400 points, 5 ms to convert). Before, a 1M-point
-  cloud twice a second held a core at 100 % and grew the bridge from 58 to 409 MB;
+  (`--max-sonar-bytes`; a PointCloud of ≈ 5,400 points, 5 ms to convert); uncapped, a 1M-point
+  cloud twice a second holds a core at 100 % and grows the bridge from 58 to 409 MB;
 * a message is checked as every receiver on our bus will check it (the strict codec: finite
-  floats, field types) before it is published: NaN odometry used to be forwarded and then
-  dropped by every receiver; now it is dropped here, once, and counted (`non-finite`);
+  floats, field types) before it is published: NaN odometry is dropped here, once, and
+  counted (`non-finite`), not forwarded for every receiver to drop;
 * `--mirror` publishes only the bridged robots' own keys and at most MAX_MIRRORED ROS 2 topics
   per robot; when full, a new key takes the place of one silent for MIRROR_IDLE seconds, or is
-  dropped and counted (`mirror limit`). Before, 2,920 invented keys made 2,923 topics.
+  dropped and counted (`mirror limit`) — otherwise 2,920 invented keys make 2,923 topics.
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ from ..bus import BusOptions
 from ..errors import ConfigError
 from ..keys import ROS2_BRIDGE_TOKEN, cmd_vel, normalize_robot_id, odom, sonar, validate_key_expr
 from ..identity import BRIDGE, bridge_node_name
-from ..lifecycle import wait_for_stop
+from ..lifecycle import Closing, wait_for_stop
 from ..messages import Message, Twist
 from ..node import Node
 from ..yamlfile import plural
@@ -95,7 +95,7 @@ class BridgeStats:
         table[key] = table.get(key, 0) + 1
 
 
-class Bridge:
+class Bridge(Closing):
     """The mapping for a set of robots, on an open ZenohBus; close() undeclares everything."""
 
     def __init__(self, bus, links: list[RobotLink], *, domain: int = 0, distro: str = "jazzy",
@@ -248,12 +248,6 @@ class Bridge:
             h.close()
         self._closing.clear()
         self.node.close()
-
-    def __enter__(self) -> "Bridge":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
 
 
 def run_bridge(*, links: list[RobotLink], bus_options: BusOptions, domain: int = 0,

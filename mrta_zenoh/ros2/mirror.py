@@ -3,7 +3,7 @@ team's coordination (`mrta ros2 bridge --mirror`).
 
 An architecture registers a list of Mirror under the `mrta.ros2.mirrors` entry-point group; the
 core knows none of them (ALLIANCE registers InterRobotCommunication and Motivation with the
-original alliance_msgs definitions, robot_agent/ros2.py).
+original alliance_msgs definitions, robot_agent/alliance/ros2.py).
 """
 
 from __future__ import annotations

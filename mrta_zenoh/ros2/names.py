@@ -11,7 +11,7 @@
   volatile, keep-last, depth 42 (`RMW_ZENOH_DEFAULT_HISTORY_DEPTH`) — both ways: reliable depth
   10 is `::,10:,:,:,,`, depth 42 is `::,:,:,:,,`, and an empty depth reads as 42, not 0.
 * Types: `msg`, `srv` and `action` (an action's topics and services carry types such as
-  `pkg::action::dds_::Fibonacci_FeedbackMessage_`; they used to be refused as invalid).
+  `pkg::action::dds_::Fibonacci_FeedbackMessage_`, valid names, not to be refused).
 * GID: rmw_zenoh derives an entity's GID from its token — XXH3-128 of the whole key, low 64
   bits then high 64 bits, little-endian (`Entity::Entity`) — and sends it in every attachment;
   `ros2 topic info -v` shows it. We compute it the same way (`gid_of`), not at random.

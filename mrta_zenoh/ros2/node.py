@@ -2,8 +2,8 @@
 subscription its own token, its data key and — for publishers — an attachment on every sample.
 
 QoS as rmw_zenoh's `rmw_publisher_data.cpp` sets it: Zenoh's BLOCK congestion control only for
-RELIABLE + KEEP_ALL, DROP for everything else — reliable KEEP_LAST too (it used to BLOCK, so a
-stalled robot link could hold the bridge up). The GID in every attachment is the one rmw_zenoh
+RELIABLE + KEEP_ALL, DROP for everything else — reliable KEEP_LAST too (with BLOCK a stalled
+robot link could hold the bridge up). The GID in every attachment is the one rmw_zenoh
 derives from the publisher's liveliness token (names.gid_of), so `ros2 topic info -v` and the
 samples agree.
 
@@ -34,6 +34,7 @@ import time
 from typing import Any, Callable
 
 from ..bus.zenoh_bus import AttachedPublisher, Closable, ZenohBus
+from ..lifecycle import Closing
 from . import names
 from .attachment import Attachment, AttachmentError, Stamper
 from .names import KEEP_ALL, RELIABLE, TRANSIENT_LOCAL, Qos
@@ -164,7 +165,7 @@ class Ros2Subscription:
         self._sub.close()
 
 
-class Ros2Node:
+class Ros2Node(Closing):
     def __init__(self, bus: ZenohBus, types: Ros2Types, *, name: str, namespace: str = "/",
                  domain: int = 0, enclave: str = ""):
         if not 0 <= domain <= 232:
@@ -211,8 +212,3 @@ class Ros2Node:
         self._entities.clear()
         self._token.close()
 
-    def __enter__(self) -> "Ros2Node":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()

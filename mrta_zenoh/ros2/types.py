@@ -2,7 +2,7 @@
 between our messages and ROS 2's.
 
 rosbags ships the message stores of every ROS 2 distro, serializes CDR (3–9× faster than pycdr2)
-and computes REP-2011 type hashes, which match the published ones (tests/test_ros2_types.py).
+and computes REP-2011 type hashes, which match the published ones (tests/test_ros2_wire.py).
 Humble predates type hashes: rmw_zenoh's Humble build writes `TypeHashNotSupported` instead.
 Architectures add their own types through `mrta.ros2.mirrors` (their `.msg` definitions are
 registered into the same store).

@@ -20,7 +20,7 @@ from ..architectures import architecture, architecture_names
 from ..errors import ConfigError
 from ..keys import normalize_robot_id
 from ..yamlfile import YamlDoc, load_yaml
-from .model import Application
+from .model import ApplicationFile
 
 
 class PackageRefused(ConfigError):
@@ -34,7 +34,7 @@ class PackageRefused(ConfigError):
         self.generated = generated
 
 
-def contract_of(app: Application) -> Contract:
+def contract_of(app: ApplicationFile) -> Contract:
     try:
         return architecture(app.architecture)
     except ConfigError as exc:  # an rqt_mrta package whose contract nobody registered
@@ -42,7 +42,7 @@ def contract_of(app: Application) -> Contract:
                           element="<architecture>") from None
 
 
-def check_robot_files(package: Path, app: Application) -> list[str]:
+def check_robot_files(package: Path, app: ApplicationFile) -> list[str]:
     """The robots whose files were checked (those whose parameter file the package holds,
     under the names `mrta app new` writes); the first bad file raises its ConfigError."""
     arch = contract_of(app)
@@ -60,7 +60,7 @@ def check_robot_files(package: Path, app: Application) -> list[str]:
     return checked
 
 
-def checkable(app: Application) -> bool:
+def checkable(app: ApplicationFile) -> bool:
     """Whether the application's architecture has a registered contract to check files with
     (an rqt_mrta package alone describes an architecture but runs nothing)."""
     return app.architecture in architecture_names()
@@ -77,14 +77,14 @@ def scratch_package(files: dict[str, bytes]) -> Iterator[Path]:
         yield root
 
 
-def layers_config_id(app: Application) -> str | None:
+def layers_config_id(app: ApplicationFile) -> str | None:
     """The id of the layers file's config template (`layers_<stem>_params`), None when the
     architecture has no contract."""
     return f"layers_{architecture(app.architecture).param_stem}_params" if checkable(app) \
         else None
 
 
-def read_layer_sections(files: dict[str, bytes], app: Application) -> frozenset[str] | None:
+def read_layer_sections(files: dict[str, bytes], app: ApplicationFile) -> frozenset[str] | None:
     """The sections of the layers file that some robot's plugins read, from the package's
     robot and tasks files; None when the architecture cannot say."""
     if not checkable(app):
@@ -107,7 +107,7 @@ def read_layer_sections(files: dict[str, bytes], app: Application) -> frozenset[
     return frozenset(read)
 
 
-def check_package_files(files: dict[str, bytes], app: Application,
+def check_package_files(files: dict[str, bytes], app: ApplicationFile,
                         answers: YamlDoc | None = None) -> bool:
     """The files `mrta app new` is about to write, checked as `mrta app validate` checks a
     package (check_robot_files) before any is written; False when the architecture has no

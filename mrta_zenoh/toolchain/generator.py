@@ -20,8 +20,8 @@ from ..files import write_folder
 from ..keys import KeyExprError, is_id, normalize_robot_id
 from ..yamlfile import YamlDoc, did_you_mean, load_yaml
 from .checks import layers_config_id, read_layer_sections
-from .model import (Application, Architecture, Config, Launch, LaunchArg, LaunchInclude, Params,
-                    RobotEntry)
+from .model import (ApplicationFile, ArchitectureFile, Config, Launch, LaunchArg, LaunchInclude,
+                    Params, RobotEntry)
 from .registry import Package
 from .templates import instantiate, to_data
 from .xmlio import to_xml
@@ -119,8 +119,8 @@ def _where_to_path(where: str) -> tuple:
     return tuple(p for p in parts if p != "")
 
 
-def build_application(arch_pkg: Package, arch: Architecture, a: Answers,
-                      doc: YamlDoc | None = None) -> tuple[Application, dict[str, bytes]]:
+def build_application(arch_pkg: Package, arch: ArchitectureFile, a: Answers,
+                      doc: YamlDoc | None = None) -> tuple[ApplicationFile, dict[str, bytes]]:
     """The application model and every file of its package (relative path → bytes)."""
     check_general(a)
     configs: list[Config] = []
@@ -164,18 +164,19 @@ def build_application(arch_pkg: Package, arch: Architecture, a: Answers,
             launches.append(la)
             files[f"launch/{la.id}.launch"] = _launch_xml(la, list(a.robots))
         files[f"launch/{a.package}.launch"] = _launch_all(a.package, launches)
-    app = Application(arch_pkg.name, a.name, [RobotEntry(r, list(t)) for r, t in a.robots.items()],
-                      configs, launches)
+    app = ApplicationFile(arch_pkg.name, a.name,
+                          [RobotEntry(r, list(t)) for r, t in a.robots.items()], configs, launches)
     files["rqt_mrta.xml"] = to_xml(app)
     files["package.xml"] = _package_xml(a, arch_pkg.name)
     return app, files
 
 
-def _stub(arch_pkg: Package, a: Answers) -> Application:
-    return Application(arch_pkg.name, a.name, [RobotEntry(r, list(t)) for r, t in a.robots.items()])
+def _stub(arch_pkg: Package, a: Answers) -> ApplicationFile:
+    return ApplicationFile(arch_pkg.name, a.name,
+                           [RobotEntry(r, list(t)) for r, t in a.robots.items()])
 
 
-def without_layers(arch_pkg: Package, arch: Architecture, a: Answers,
+def without_layers(arch_pkg: Package, arch: ArchitectureFile, a: Answers,
                    doc: YamlDoc | None = None) -> tuple[str | None, dict[str, bytes]]:
     """The layers file's config id (None when the architecture has no contract) and the
     package's files without it: the robots' and the tasks' files say which plugins run."""
@@ -187,8 +188,8 @@ def without_layers(arch_pkg: Package, arch: Architecture, a: Answers,
     return layers_id, files
 
 
-def restrict_layers(arch_pkg: Package, arch: Architecture, a: Answers,
-                    doc: YamlDoc | None = None) -> Architecture:
+def restrict_layers(arch_pkg: Package, arch: ArchitectureFile, a: Answers,
+                    doc: YamlDoc | None = None) -> ArchitectureFile:
     """`arch` with its layers-file template holding only the sections some robot's plugins
     read (Architecture.layer_sections, from the robot and tasks files these answers make) or
     that the answers set: a patrol without a border task is not asked for, and does not get,
@@ -220,7 +221,7 @@ def _subst(text: str | None, robot_id: str, package: str) -> str | None:
     return text.replace("@robot_id@", robot_id).replace("@package@", package)
 
 
-def _yaml(cfg: Config, a: Answers, arch: Architecture) -> bytes:
+def _yaml(cfg: Config, a: Answers, arch: ArchitectureFile) -> bytes:
     head = (f"# {cfg.id}: written by `mrta app new` for application {a.name!r} "
             f"({arch.name} architecture)\n")
     return (head + yaml.safe_dump(to_data(cfg), sort_keys=False, allow_unicode=True)).encode()

@@ -100,7 +100,10 @@ class Topic:
 
 
 @dataclass
-class Architecture:
+class ArchitectureFile:
+    """An rqt_mrta architecture file (appendix A) as read: taxonomy, monitors, templates. Not the
+    runtime contract an architecture registers (`mrta_zenoh.architectures.Architecture`)."""
+
     name: str
     robots_type: str
     tasks_type: str
@@ -134,7 +137,10 @@ class RobotEntry:
 
 
 @dataclass
-class Application:
+class ApplicationFile:
+    """An rqt_mrta application file (appendix B): the architecture package it is configured for,
+    its robots and their tasks, the filled configs and launches."""
+
     architecture: str
     name: str
     robots: list[RobotEntry] = field(default_factory=list)

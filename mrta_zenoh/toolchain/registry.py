@@ -26,7 +26,7 @@ from pathlib import Path
 
 from ..errors import ConfigError
 from ..yamlfile import did_you_mean
-from .model import ALLOCATION_TYPES, ROBOT_TYPES, TASK_TYPES, Application, Architecture
+from .model import ALLOCATION_TYPES, ROBOT_TYPES, TASK_TYPES, ApplicationFile, ArchitectureFile
 from .xmlio import load_rqt_mrta, parse_xml_file
 
 ENTRY_POINT_GROUP = "mrta.packages"
@@ -146,7 +146,7 @@ class Registry:
                               + " (packages come from MRTA_PACKAGE_PATH and entry points)")
         return pkg
 
-    def _models(self, attr: str) -> list[tuple[Package, Architecture | Application]]:
+    def _models(self, attr: str) -> list[tuple[Package, ArchitectureFile | ApplicationFile]]:
         out = []
         for pkg in self.packages.values():
             f = getattr(pkg, f"{attr}_file")
@@ -162,11 +162,11 @@ class Registry:
                 self.problems.append(str(exc))
         return out
 
-    def architectures(self) -> list[tuple[Package, Architecture]]:
-        return [(p, m) for p, m in self._models("architecture") if isinstance(m, Architecture)]
+    def architectures(self) -> list[tuple[Package, ArchitectureFile]]:
+        return [(p, m) for p, m in self._models("architecture") if isinstance(m, ArchitectureFile)]
 
-    def applications(self) -> list[tuple[Package, Application]]:
-        return [(p, m) for p, m in self._models("application") if isinstance(m, Application)]
+    def applications(self) -> list[tuple[Package, ApplicationFile]]:
+        return [(p, m) for p, m in self._models("application") if isinstance(m, ApplicationFile)]
 
     def _named(self, name: str, kind: str, items: list) -> tuple[Package, object]:
         for pkg, model in items:
@@ -201,13 +201,13 @@ class Registry:
                               + f" (registered: {', '.join(sorted(worlds)) or 'none'})")
         return worlds[name]
 
-    def architecture(self, name: str) -> tuple[Package, Architecture]:
+    def architecture(self, name: str) -> tuple[Package, ArchitectureFile]:
         return self._named(name, "architecture", self.architectures())
 
-    def application(self, name: str) -> tuple[Package, Application]:
+    def application(self, name: str) -> tuple[Package, ApplicationFile]:
         return self._named(name, "application", self.applications())
 
-    def architecture_of(self, app: Application) -> tuple[Package, Architecture]:
+    def architecture_of(self, app: ApplicationFile) -> tuple[Package, ArchitectureFile]:
         """The architecture an application names; unknown, a ConfigError at its
         `<architecture>` element (file and line), not a bare "unknown architecture"."""
         try:
@@ -240,7 +240,7 @@ def taxonomy_value(axis: str, value: str) -> str:
     return code
 
 
-def matches_taxonomy(arch: Architecture, robots: str | None, tasks: str | None,
+def matches_taxonomy(arch: ArchitectureFile, robots: str | None, tasks: str | None,
                      allocations: str | None) -> bool:
     return ((robots is None or arch.robots_type == robots)
             and (tasks is None or arch.tasks_type == tasks)

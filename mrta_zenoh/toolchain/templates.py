@@ -58,10 +58,6 @@ def convert(type_: str | None, value: Any, where: str) -> Any:
     raise ConfigError(f"{where}: unknown type {type_!r}")
 
 
-def _size_param(children: list[Node]) -> Param | None:
-    return next((c for c in children if isinstance(c, Param) and c.name == "size"), None)
-
-
 def _uses_task_id(node: Node) -> bool:
     if isinstance(node, Param):
         return node.value == TASK_PLACEHOLDER

@@ -22,7 +22,7 @@ from ..keys import is_id
 from .checks import PackageRefused, check_package_files, layers_config_id
 from .generator import (EMAIL, PACKAGE_NAME, VERSION, Answers, restrict_layers,
                         without_layers)
-from .model import Application, Architecture, Node, Param, Params, RobotEntry
+from .model import ApplicationFile, ArchitectureFile, Node, Param, Params, RobotEntry
 from .registry import Package, Registry, matches_taxonomy, taxonomy_value
 from .templates import ARRAY_SIZE, MAX_ITEMS, TASK_PLACEHOLDER, convert
 
@@ -90,7 +90,7 @@ def _csv(value: str) -> list[str]:
     return [v.strip() for v in value.split(",") if v.strip()]
 
 
-def collect(registry: Registry, ui: Prompter) -> tuple[Answers, Package, Architecture]:
+def collect(registry: Registry, ui: Prompter) -> tuple[Answers, Package, ArchitectureFile]:
     """Ask everything an application package needs, through `ui`; checking and writing are
     the generator's (shared with `--answers`)."""
     ui.step("1/5 General data")
@@ -127,7 +127,7 @@ def collect(registry: Registry, ui: Prompter) -> tuple[Answers, Package, Archite
     for i, (p, a) in enumerate(shown, 1):
         ui.say(f"  {i}. {p.name}: {a.name} [{a.taxonomy}]")
 
-    def pick(v: str) -> tuple[Package, Architecture]:
+    def pick(v: str) -> tuple[Package, ArchitectureFile]:
         v = v.strip()
         if v.isdigit() and 1 <= int(v) <= len(shown):
             return shown[int(v) - 1]
@@ -172,7 +172,7 @@ def collect(registry: Registry, ui: Prompter) -> tuple[Answers, Package, Archite
     return answers, arch_pkg, arch
 
 
-def _until_accepted(ui: Prompter, arch_pkg: Package, arch: Architecture,
+def _until_accepted(ui: Prompter, arch_pkg: Package, arch: ArchitectureFile,
                     answers: Answers) -> None:
     """The robots' and tasks' files, checked by the architecture, asked for again until it
     accepts them: which layer sections to ask for is known only from files it accepts."""
@@ -186,12 +186,12 @@ def _until_accepted(ui: Prompter, arch_pkg: Package, arch: Architecture,
             ask_again(ui, answers, arch, exc.generated)
 
 
-def _application(arch_pkg: Package, answers: Answers) -> Application:
-    return Application(arch_pkg.name, answers.name,
-                       [RobotEntry(r, t) for r, t in answers.robots.items()])
+def _application(arch_pkg: Package, answers: Answers) -> ApplicationFile:
+    return ApplicationFile(arch_pkg.name, answers.name,
+                           [RobotEntry(r, t) for r, t in answers.robots.items()])
 
 
-def _ask_config(ui: Prompter, answers: Answers, arch: Architecture, config_id: str,
+def _ask_config(ui: Prompter, answers: Answers, arch: ArchitectureFile, config_id: str,
                 previous: dict, robot: str | None = None) -> None:
     """The answers for one config template into `answers.configs` — every robot's, or only
     `robot`'s, for the per-robot one — offering `previous` answers as defaults."""
@@ -207,7 +207,7 @@ def _ask_config(ui: Prompter, answers: Answers, arch: Architecture, config_id: s
         answers.configs[c.id] = _ask_children(ui, c.children, c.id, None, previous)
 
 
-def ask_again(ui: Prompter, answers: Answers, arch: Architecture, generated: str) -> None:
+def ask_again(ui: Prompter, answers: Answers, arch: ArchitectureFile, generated: str) -> None:
     """The answers behind the generated file `generated` (config/robot1_alliance_params.yaml),
     asked for once more with the earlier ones as defaults: the architecture refused the file."""
     stem = generated.rsplit("/", 1)[-1].removesuffix(".yaml")
@@ -279,7 +279,7 @@ def _ask_param(ui: Prompter, p: Param, path: str, previous: Any = None) -> Any:
     return ui.ask(f"{path} [{p.type or 'string'}]{help_}", proc, default=default)
 
 
-def summary(answers: Answers, arch: Architecture, files: dict[str, bytes], dest) -> str:
+def summary(answers: Answers, arch: ArchitectureFile, files: dict[str, bytes], dest) -> str:
     lines = [f"Application {answers.name!r} ({arch.name}, {arch.taxonomy}) → {dest}",
              "Robots: " + "; ".join(f"{r}: {', '.join(t)}" for r, t in answers.robots.items()),
              "Files:"]

@@ -23,8 +23,8 @@ from ..keys import normalize_robot_id, task_chunk
 from ..limits import DURATION, QUEUE_SIZE
 from ..yamlfile import did_you_mean
 from .model import (
-    ALLOCATION_TYPES, PARAM_TYPES, ROBOT_TYPES, TASK_TYPES, Application, Architecture, Array,
-    Config, Launch, LaunchArg, LaunchInclude, Node, Param, Params, RobotEntry, Topic,
+    ALLOCATION_TYPES, PARAM_TYPES, ROBOT_TYPES, TASK_TYPES, ApplicationFile, ArchitectureFile,
+    Array, Config, Launch, LaunchArg, LaunchInclude, Node, Param, Params, RobotEntry, Topic,
 )
 
 _INDEXED = re.compile(r"^([a-z_]+?)_(\d+)$")
@@ -236,7 +236,7 @@ def parse_xml_file(path: Path):
                           file=str(path), line=line) from None  # libxml2's can span lines
 
 
-def load_rqt_mrta(path: Path | str) -> Architecture | Application:
+def load_rqt_mrta(path: Path | str) -> ArchitectureFile | ApplicationFile:
     """An rqt_mrta.xml file: an architecture (appendix A) or an application (appendix B)."""
     path = Path(path)
     root = parse_xml_file(path)
@@ -263,13 +263,13 @@ def load_rqt_mrta(path: Path | str) -> Architecture | Application:
     return _application(r, app_el, configs, launches, path)
 
 
-def _architecture(r: _Reader, el, configs, launches, widgets, path) -> Architecture:
+def _architecture(r: _Reader, el, configs, launches, widgets, path) -> ArchitectureFile:
     r.children(el, ("name", "robots", "tasks", "allocations"))
     robots, tasks, allocs = r.one(el, "robots"), r.one(el, "tasks"), r.one(el, "allocations")
     r.children(robots, ("type", "busy_robots", "idle_robots", "config_id", "launch_id"))
     r.children(tasks, ("type", "incoming_tasks"))
     r.children(allocs, ("type", "allocated_tasks"))
-    arch = Architecture(
+    arch = ArchitectureFile(
         name=r.text(el, "name"),
         robots_type=r.choice(robots, "type", ROBOT_TYPES),
         tasks_type=r.choice(tasks, "type", TASK_TYPES),
@@ -290,7 +290,7 @@ def _architecture(r: _Reader, el, configs, launches, widgets, path) -> Architect
     return arch
 
 
-def _application(r: _Reader, el, configs, launches, path) -> Application:
+def _application(r: _Reader, el, configs, launches, path) -> ApplicationFile:
     r.children(el, ("architecture", "name", "robots"))
     robots = []
     first_line: dict[str, int] = {}
@@ -321,8 +321,9 @@ def _application(r: _Reader, el, configs, launches, path) -> Application:
                                   f"{first_line[rid]})")
             first_line[rid] = rb.sourceline
             robots.append(RobotEntry(raw, tasks))
-    return Application(r.text(el, "architecture"), r.text(el, "name"), robots, configs, launches,
-                       source=str(path), architecture_line=r.one(el, "architecture").sourceline)
+    return ApplicationFile(r.text(el, "architecture"), r.text(el, "name"), robots, configs,
+                           launches, source=str(path),
+                           architecture_line=r.one(el, "architecture").sourceline)
 
 
 # -------------------------------------------------------------------------------- writing
@@ -388,9 +389,9 @@ def _write_common(root, configs: list[Config], launches: list[Launch]) -> None:
                             _sub(ae, "default", a.default)
 
 
-def to_xml(model: Architecture | Application) -> bytes:
+def to_xml(model: ArchitectureFile | ApplicationFile) -> bytes:
     root = etree.Element("rqt_mrta")
-    if isinstance(model, Architecture):
+    if isinstance(model, ArchitectureFile):
         a = _sub(root, "architecture")
         _sub(a, "name", model.name)
         rb = _sub(a, "robots")

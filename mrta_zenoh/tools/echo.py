@@ -3,8 +3,8 @@ api. The verb prints the lines; this module formats them and says what it could 
 
 Keeping up: the network thread only queues each raw sample (a bounded queue of MAX_PENDING);
 this thread decodes, formats (mrta_zenoh.tools.sample_text) and hands over whatever has queued,
-many samples per write. Before, a queue of 1,000 decoded samples fed yaml.safe_dump one sample
-at a time, and a replay at full speed printed one sample in six — silently. What a burst beyond
+many samples per write: decoding on the network thread and feeding yaml.safe_dump one sample
+at a time, a replay at full speed printed one sample in six — silently. What a burst beyond
 the queue costs is said: the samples dropped, once a second while it lasts and in all at the
 end (benchmarks/echo.py measures echo beside `mrta record`).
 """

@@ -21,8 +21,8 @@ recording, the recorded run's speed times it for a wall-time one — and holds
 trusts the replay at its own pace, not at the recorded run's, and sees the run end when the
 replay is over (`mrta supervise --sim-time --duration N` stops there).
 
-A recording is input like any other, and may be crafted (issue #23: a topic `a//b`, a
-liveliness payload `[1]`, log times 0 and 2⁶⁴−1 made tracebacks or a 31-year wait). So the
+A recording is input like any other, and may be crafted (a topic `a//b`, a liveliness
+payload `[1]`, log times 0 and 2⁶⁴−1 would make tracebacks or a 31-year wait). So the
 plan (`plan_replay`) is made before any session opens, and:
 
 * a record whose topic is not a concrete key Zenoh accepts (an empty chunk, a wildcard, a
@@ -61,6 +61,12 @@ log = logging.getLogger("mrta.replay")
 
 MAX_GAP = 60.0  # seconds of the recording: the longest silence replayed as it was
 MAX_LAG = 1.0   # seconds of the recording a replay may fall behind before it slips
+# Wall seconds a replay keeps its session open after its last put. Closing a session drops
+# what its queues (and the listeners' socket buffers) still hold — a recorder beside a replay
+# at --speed 0 of 20,000 samples received 5,918 — and zenoh-python offers no flush and no
+# delivery confirmation from a plain subscriber, so the replay lingers: a listener keeping
+# up at a tenth of its idle rate (≈ 30 µs a sample) drains a 20,000-sample backlog in it.
+DRAIN = 2.0
 NS = 1_000_000_000
 
 
@@ -234,8 +240,9 @@ def run_replay(*, recording: Path, bus_options: BusOptions, speed: float = 1.0,
                stop: threading.Event | None = None, bus: Bus | None = None) -> int:
     """Publish every recorded sample (matching `key_expr`) at its recorded pace × `speed`
     (0: as fast as possible), silences longer than `max_gap` s shortened to it; returns how
-    many samples went out. Everything is checked and planned before a session opens. `bus`:
-    an open bus to use instead of opening one (tests: the in-process bus); it is left open."""
+    many samples went out. Everything is checked and planned before a session opens; a session
+    of its own is closed DRAIN seconds after the last put (or at once on `stop`). `bus`: an
+    open bus to use instead of opening one (tests: the in-process bus); it is left open."""
     validate_key_expr(key_expr)
     if speed < 0:
         raise ConfigError(f"--speed must be ≥ 0, got {speed}")
@@ -263,5 +270,6 @@ def run_replay(*, recording: Path, bus_options: BusOptions, speed: float = 1.0,
             with open_bus(bus_options) as own:
                 wait_for_stop(stop, 0.5)  # subscribers already running are reached (discovery)
                 sent = execute(plan, own, speed, stop)
+                wait_for_stop(stop, DRAIN)  # what is queued leaves before the session closes
     log.info("replayed %s from %s", plural(sent, "sample"), recording)
     return sent

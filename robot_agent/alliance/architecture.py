@@ -36,7 +36,7 @@ def alliance_plugins(params: AgentParams) -> Plugins:
                    params.tasks, params.layers)
 
 
-class Alliance(AgentArchitecture):
+class AllianceArchitecture(AgentArchitecture):
     name = "alliance"
     title = "ALLIANCE"
     namespace = "alliance"
@@ -149,4 +149,4 @@ class Alliance(AgentArchitecture):
         return written
 
 
-ALLIANCE = Alliance()
+ALLIANCE = AllianceArchitecture()

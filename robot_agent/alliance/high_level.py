@@ -60,7 +60,7 @@ Deliberate choices, where appendix E or the original C++ (reference/) leave room
     under a permanent one-way link duplication falls to about
     (ψ + 2τ + 2/broadcast_rate) / (that + φ + ⌈θ/δ_fast⌉/ρ) of the time (measured on the
     team harness: 32–38 % where the rule-less version held 49–78 %).
-    Limits — the no-gap guarantee for two-way links now rests on delivery delays under τ
+    Limits — the no-gap guarantee for two-way links rests on delivery delays under τ
     and, for each pair, either the earlier robot's ψ not longer than the later's, or its ψ +
     τ + a tick + the largest delay shorter than the expected_duration it announces (then its
     φ running out proves it would have yielded). Outside these, both may stop at once and
@@ -91,7 +91,7 @@ Deliberate choices, where appendix E or the original C++ (reference/) leave room
     broadcast on the task (`on_broadcast`'s `now`), whoever sent it: freshness lasts τ from
     there, and a robot that had just yielded the task keeps impatience slow as long as the
     dead holder does. Not from the death: a yield in flight adds a delivery delay per hop.
-  * Cost (issue #27): a tick looks only at the teammates heard since the last tick and those
+  * Cost: a tick looks only at the teammates heard since the last tick and those
     whose status changes with time by then (freshness, φ, the one-way-link delays: a heap of
     wake-up times), plus every record of a set whose activation changed; per-task aggregates
     (fresh, later holders, the longest φ among the fresh — the smallest slow rate) stand for
@@ -155,7 +155,7 @@ class OtherRobot:
             self.phi_from = self.first_heard
 
     def started(self) -> float:
-        """The start used to order this robot against others (its own report if it has one)."""
+        """The start that orders this robot against others (its own report if it has one)."""
         return self.active_since if self.active_since != UNKNOWN else self.first_heard
 
 
@@ -253,7 +253,6 @@ class HighLevel:
         self.rho = params.spin_rate
         self.exact_rho = exact(params.spin_rate)
         self.tau = params.timeout_duration
-        self.tick_period = 1.0 / params.spin_rate
         self.max_expected = params.max_expected_duration
         # Sensory feedback is held for this long; after that the set is inapplicable.
         self.feedback_timeout = feedback_timeout if feedback_timeout is not None else max(

@@ -12,7 +12,7 @@ class InterRobotCommunication(Message):
 
     `active_since` (our addition; optional on the wire, -1 = not reported): when the sender's
     current activation began, on its clock — what lets two robots on one task agree on which
-    one yields (robot_agent/high_level.py)."""
+    one yields (high_level.py)."""
 
     header: Header
     task_id: str

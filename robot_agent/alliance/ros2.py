@@ -3,7 +3,7 @@ and Motivation with the original alliance_msgs definitions (adrianohrl/alliance,
 alliance_msgs/msg/*.msg), ported to ROS 2 the way ROS 2 ports ROS 1 messages — `Header`
 becomes `std_msgs/Header` (no seq), `duration` becomes `builtin_interfaces/Duration`. The
 original's field spelling `aplicable` is kept, so a ROS 2 tool reading the original definitions
-reads ours. Our `active_since` (our addition, robot_agent/messages.py) is not part of them.
+reads ours. Our `active_since` (our addition, messages.py) is not part of them.
 """
 
 from __future__ import annotations

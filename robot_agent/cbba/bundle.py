@@ -258,7 +258,7 @@ class Cbba:
         task it would no longer pick at its place (another task became free meanwhile, and
         scores more), the bundle goes as if outbid. The paper's proof that CBBA ends as SGA
         does relies on this; its bundle construction alone keeps a task added while a better
-        one seemed taken (docs/cbba.md, "Stale bundles")."""
+        one seemed taken (docs/cbba.md, "The re-check")."""
         levels = self._scores(candidates)
         free = set(candidates)
         for k, held in enumerate(self.bundle):

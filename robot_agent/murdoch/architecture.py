@@ -29,7 +29,7 @@ def murdoch_plugins(params: murdoch_params.MurdochParams) -> Plugins:
 SUBJECT_KINDS = ("announcement", "bid")  # published under a sub-key (agent.subjects)
 
 
-class Murdoch(AgentArchitecture):
+class MurdochArchitecture(AgentArchitecture):
     name = "murdoch"
     title = "MURDOCH"
     namespace = "murdoch"
@@ -113,4 +113,4 @@ class Murdoch(AgentArchitecture):
         return worst
 
 
-MURDOCH = Murdoch()
+MURDOCH = MurdochArchitecture()

@@ -19,7 +19,6 @@ from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, get_path, load_yaml, size
 
 
 NUMBER = (int, float)
-MIN_RATE, MAX_RATE = RATE.low, RATE.high  # Hz: below, a tick every 100 s; above, a busy loop
 
 
 @dataclass(frozen=True)

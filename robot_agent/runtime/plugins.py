@@ -117,8 +117,8 @@ class Plugin:
     sections: ClassVar[dict[str, type]] = {}
     # True: it draws from ctx.rng. The robot's stream (and numpy, ≈ 35 ms and 14 MB) is then
     # made when the plugins are set up, before the run's first step, not at the first draw
-    # inside a tick: 100 lockstep agents importing numpy in their first simulated second ran
-    # that second at 0.22× real time (issue #27), and a real robot's first command would wait
+    # inside a tick: 100 lockstep agents importing numpy in their first simulated second run
+    # that second at 0.22× real time, and a real robot's first command would wait
     # for the import. A plugin that never draws leaves numpy unloaded.
     draws: ClassVar[bool] = False
 
@@ -247,10 +247,6 @@ def aliases() -> dict[str, str]:
             raise ConfigError(f"alias entry point {ep.name!r} ({ep.value}) is not a dict")
         out.update(table)
     return out
-
-
-def known_plugins(kind: str) -> list[str]:
-    return sorted(plugin_entry_points(GROUPS[kind]))
 
 
 def load_plugin(kind: str, name: str, where: str = "") -> type:

@@ -1,4 +1,4 @@
-"""The demo's recording in Foxglove Studio 1.48, in a real browser (issue 38.5): Debian's
+"""The demo's recording in Foxglove Studio 1.48, in a real browser: Debian's
 chromium and chromium-driver, driven by selenium, open `run.mcap` in Foxglove Studio
 (`@foxglove/studio-base@1.48.0`'s prebuilt bundle with React 17, tests/browser/host) with the
 patrol layout, and find no problem listed, data in the three motivation plots (their legends

@@ -9,8 +9,8 @@ instance as its `Delivery` section), `launch/delivery_sim.launch` (the simulator
 instance's starts, and one agent per robot of the instance) and, in the ALLIANCE package,
 `worlds/delivery.yaml` (the instance's room and walls, the world the simulator loads by name)
 are written beside them. The Python modules of
-`mrta_delivery` are not touched. tests/test_delivery_config.py checks that the shipped packages
-are exactly what this writes.
+`mrta_delivery` are not touched. tests/test_delivery.py checks that the shipped packages are
+exactly what this writes.
 
 How the instance becomes each architecture's parameters (docs/delivery.md):
 
@@ -28,6 +28,7 @@ How the instance becomes each architecture's parameters (docs/delivery.md):
 from __future__ import annotations
 
 import dataclasses
+import json
 import random
 from pathlib import Path
 
@@ -166,7 +167,8 @@ def layers_yaml(params: DeliveryParams, stem: str) -> bytes:
 
 
 def world_yaml(params: DeliveryParams) -> bytes:
-    """The simulator's world (docs/worlds.md): the instance's room and walls."""
+    """The simulator's world (docs/worlds.md): the instance's room and walls, and its tasks as
+    markers (the snapshot, world.png, marks where they are)."""
     w, h = params.world.size
     room = [[-w / 2, -h / 2], [w / 2, -h / 2], [w / 2, h / 2], [-w / 2, h / 2]]
     head = (f"# The delivery world: a {w:g} m × {h:g} m room"
@@ -176,6 +178,10 @@ def world_yaml(params: DeliveryParams) -> bytes:
             "# Starts come from the instance (the launch file's --robot options).\n")
     lines = ["name: delivery", "walls:", f"  - polygon: {flow(room)}"]
     lines += [f"  - segment: {flow(list(map(float, wall)))}" for wall in params.world.walls]
+    if params.tasks:
+        lines.append("markers:")
+        lines += [f"  {json.dumps(tid)}: {flow(list(map(float, t.position)))}"  # "1" stays text
+                  for tid, t in params.tasks.items()]
     return (head + "\n".join(lines) + "\n").encode()
 
 

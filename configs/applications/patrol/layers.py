@@ -37,8 +37,8 @@ from .ledger import PatrolLedger
 NO_ECHO = 4.85  # m from the robot centre: beyond this a point is the sensor's "no echo"
 
 
-# Sane ranges for the layers' parameters (issue #23: a finite but absurd value — a speed of
-# 1e308 — used to be accepted); a value outside is refused with its file, line and range.
+# Sane ranges for the layers' parameters (finite is not enough: a speed of 1e308 is finite); a
+# value outside is refused with its file, line and range.
 Speed = Annotated[float, msgspec.Meta(gt=0.0, le=10.0, description="m/s")]
 Distance = Annotated[float, msgspec.Meta(gt=0.0, le=100.0, description="m")]
 TurnRate = Annotated[float, msgspec.Meta(gt=0.0, le=20.0, description="rad/s")]
@@ -82,7 +82,7 @@ class ReportParams(msgspec.Struct, forbid_unknown_fields=True):
     speed: Speed = 0.5
     period: Period = 60.0
     # the robot's own log goes to its teammates this often: a teammate's part of a report is
-    # up to this old, and the team's ledger traffic is N² logs per log_period (issue #27)
+    # up to this old, and the team's ledger traffic is N² logs per log_period
     log_period: LogPeriod = 1.0
 
 

@@ -7,12 +7,12 @@ whether or not its report behaviour is active. A report is its own log merged wi
 log of each teammate. Each robot's log is authoritative for itself; a teammate's part of a
 report is up to one log period old.
 
-Why (issue #27): the ledger used to rebuild every teammate's work from their raw feeds — every
-robot's odometry at 10 Hz and every robot's architecture feed at every tick — and ran the
-border-cell loop on each odometry sample: N² samples per sensor period, and in lockstep every
+Why each robot logs for itself: rebuilding every teammate's work from their raw feeds — every
+robot's odometry at 10 Hz and every robot's architecture feed at every tick — and running the
+border-cell loop on each odometry sample is N² samples per sensor period, and in lockstep every
 agent must take them all before its next step (100 robots: 0.17× real time instead of 1.26×).
-Now the team's traffic for the ledger is N² small messages per log period, and the cell loop
-runs on the robot's own odometry only.
+This way the team's traffic for the ledger is N² small messages per log period, and the cell
+loop runs on the robot's own odometry only.
 
 Only *teammates'* logs count: robots whose agent holds its liveliness token (read through the
 architecture contract, mrta_zenoh.architectures, so the ledger names no architecture), heard on
@@ -80,8 +80,8 @@ def _perimeter_distance(border: tuple[float, float, float, float], x: float, y: 
 class CellGrid:
     """Border cells bucketed on a grid of side 2 × reach, so that a position is compared with
     the cells of the 3 × 3 buckets around it — every cell within `reach` is among them, with
-    room to spare for rounding — instead of with all of them (issue #27: a hall for 100 robots
-    has ≈ 250 cells, and the loop over them was most of an agent's odometry callback). The
+    room to spare for rounding — instead of with all of them (a hall for 100 robots has ≈ 250
+    cells, and a loop over them all would be most of an agent's odometry callback). The
     distance test itself is the same, so the cells visited are exactly those of the loop over
     every cell (tests/test_patrol_ledger_cells.py)."""
 

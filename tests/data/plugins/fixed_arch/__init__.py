@@ -69,7 +69,7 @@ class FixedCoordinator(Coordinator):
         return [Say("doing", (self.active_task,))]
 
 
-class Fixed(AgentArchitecture):
+class FixedArchitecture(AgentArchitecture):
     name = "fixed"
     title = "FIXED"
     namespace = "fixed"
@@ -115,5 +115,5 @@ class Fixed(AgentArchitecture):
         return timeout + period + 1.0 / spin
 
 
-FIXED = Fixed()
+FIXED = FixedArchitecture()
 agent = agent_command(FIXED, "Run ROBOT_ID's fixed-assignment agent (a test architecture).")
