@@ -26,7 +26,7 @@ from mrta_supervisor.tasks import TaskStatus, TaskWatch
 from mrta_supervisor.summary import SummarySections
 
 from .generate import derive
-from .instance import DeliveryParams, load_document
+from .instance import DeliveryParams, RobotSpec, TaskSpec, WorldSpec, load_document
 from .keys import ALL_DONE
 from .messages import TaskEvent
 from .metrics import RunAnalysis, analyse, instance_json
@@ -51,13 +51,20 @@ class TaskEntry(_Section):
     capability: str
 
 
-class InstanceSection(_Section):
-    """The instance a run served (metrics.instance_json): robots, tasks, the cost matrix."""
+class InstanceSection(_Section, omit_defaults=True):
+    """The instance a run served (metrics.instance_json): the instance document — robots and
+    tasks by id, the world, its name — plus the cost matrix, so `--instance summary.json`
+    runs it again. A schema-2 summary listed robots and tasks as entries with an `id`, and
+    had no world or name: it still reads, and is written back as it was."""
 
-    robots: list[RobotEntry]
-    tasks: list[TaskEntry]
+    robots: list[RobotEntry] | dict[str, RobotSpec]
+    tasks: list[TaskEntry] | dict[str, TaskSpec]
     cost: list[list[float | None]]   # cost[i][j]: robot i's travel time to task j (None: cannot)
     cost_model: str
+    application: str = ""
+    world: WorldSpec | None = None
+    name: str = ""
+    generator: dict[str, Any] = {}
 
 
 class AllocationEntry(_Section):
