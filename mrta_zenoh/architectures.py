@@ -3,13 +3,13 @@ the registry (`mrta.architectures`) that finds the installed ones.
 
 rqt_mrta registered an architecture as a package of XML (its monitors and templates); the tools
 that measure a run need more than that — which command runs a robot, how long a takeover may
-take, who is doing which task *according to the robots themselves*, how to make one fail. Before
-this contract the patrol application imported both architectures' keys, messages and bounds and
-kept a table of them, so a third architecture meant editing the application. Now an architecture
-is one object registered under the entry-point group `mrta.architectures`; the mission runner,
+take, who is doing which task *according to the robots themselves*. An architecture is one
+object registered under the entry-point group `mrta.architectures`; the mission runner,
 `mrta experiment`, the plots and an application's plugins (patrol's ledger) reach it only through
-this class. The core defines the contract and knows no architecture (pluginlib's base class, not
-a plugin).
+this class, so a third architecture needs no edit of any application. The core defines the
+contract and knows no architecture (pluginlib's base class, not a plugin). Faults are not part
+of it: they are injected the same way for every architecture (mrta_zenoh.failure, the fault
+channel, and the agent runtime's driver).
 
 The agent side of an architecture (how its decision logic is built and driven) lives beside the
 agent runtime, `mrta_agent.runtime.architecture.AgentArchitecture`, which extends this class.
@@ -22,18 +22,15 @@ from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from importlib.metadata import entry_points
 from pathlib import Path
-from typing import ClassVar, Iterable
+from typing import Callable, ClassVar, Sequence
 
+from .clock import EPSILON
 from .errors import ConfigError
-from .failure import Failure, Faults
+from .failure import Faults
 from .keys import first_chunk
 from .yamlfile import did_you_mean
 
 GROUP = "mrta.architectures"
-CRASH_ENV = "MRTA_CRASH"  # ROBOT@SECONDS[,ROBOT@SECONDS…]: crash-stop fault injection
-# the other faults (stall:, partition:, loss:, latency:; mrta_zenoh/failure.py), which the agent's
-# driver injects (robot_agent/runtime/loop.py)
-FAULTS_ENV = "MRTA_FAULTS"
 # ROBOT,ROBOT,…: an agent's `--team` (robot_agent/runtime/cli.py). Every robot launch file sets
 # it to the application's robots (toolchain/generator.py), so an agent counts only them,
 # whatever architecture it runs (a verb that knows no team ignores it).
@@ -49,6 +46,41 @@ class Doing:
     task: str
     active: bool
     stamp: float
+
+
+@dataclass(frozen=True)
+class Takeover:
+    """One takeover as a run's recording shows it, for `Architecture.takeover_check`: `failed`
+    stopped doing `task` at `failed_at` (its fault began) and `taker` began it at `taken_at`
+    (run seconds, from the robots' own reports)."""
+
+    task: str
+    failed: str
+    failed_at: float
+    taker: str
+    taken_at: float
+    robot_params: Path                 # the taker's parameter file
+    records: Sequence                  # the recording: (key, encoding, log time, payload)
+    time_of: Callable[[int], float]    # a record's log time → run seconds
+    faults: Faults                     # every fault the run injected
+    seed: int                          # the run's seed (the faults' draws derive from it)
+    lockstep: bool                     # in lockstep a message counts as heard at its stamp
+
+
+@dataclass(frozen=True)
+class TakeoverBound:
+    """An architecture's bound on one takeover, in the case the run was in."""
+
+    seconds: float | None   # None: no bound holds in this case (`case` says why)
+    since: float            # the instant it counts from (run seconds)
+    since_what: str = ""    # that instant for people; "" when it is the fault itself
+    case: str = ""          # the condition the bound rests on, as this run met it
+
+    def holds(self, taken_at: float) -> bool | None:
+        """Whether a takeover at `taken_at` is within the bound (None: there is none)."""
+        if self.seconds is None:
+            return None
+        return taken_at - self.since <= self.seconds + EPSILON
 
 
 class Architecture(ABC):
@@ -140,6 +172,13 @@ class Architecture(ABC):
         """The longest a robot with these parameters takes to pick up `task` after the robot
         doing it stops (seconds of its clock)."""
 
+    def takeover_check(self, takeover: Takeover) -> TakeoverBound:
+        """The bound a run's takeover is checked against, counted from the instant it holds
+        from and with the condition it rests on (what the mission summary reports). Default:
+        `takeover_bound`, counted from the fault, with no condition."""
+        return TakeoverBound(self.takeover_bound(takeover.robot_params, takeover.task),
+                             takeover.failed_at)
+
     # ------------------------------------------------------------ checking files
     def check_files(self, robot_id: str, robot_params: Path, tasks_params: Path,
                     layers_params: Path | None = None) -> None:
@@ -153,24 +192,6 @@ class Architecture(ABC):
         asks for and writes (a section no plugin reads is a warning at every start). Default:
         None, not known — every section of the template is asked for."""
         return None
-
-    # ------------------------------------------------------------ faults
-    def failure_env(self, failures: Iterable[Failure] | Faults) -> dict[str, str]:
-        """Environment for the agents that injects the faults (mrta_zenoh/failure.py): every
-        agent reads $MRTA_CRASH and SIGKILLs itself at its time, and $MRTA_FAULTS for the
-        others (stall, partition, loss, latency), which its driver injects — exact in
-        lockstep, and the same for every architecture built on mrta_agent's runtime."""
-        if isinstance(failures, Faults):
-            crashes = [f.spec for f in failures.failures if f.kind == "crash"]
-            others = [s for s in failures.items() if s not in crashes]
-        else:
-            failures = list(failures)
-            crashes = [f.spec for f in failures if f.kind == "crash"]
-            others = [f.spec for f in failures if f.kind != "crash"]
-        env = {CRASH_ENV: ",".join(crashes)} if crashes else {}
-        if others:
-            env[FAULTS_ENV] = ",".join(others)
-        return env
 
     # ------------------------------------------------------------ optional extras
     def plots(self, recording: Path, robots: list[str], tasks: list[str], output: Path,

@@ -12,7 +12,6 @@ import math
 import os
 import threading
 import time
-from typing import Protocol
 
 log = logging.getLogger("mrta.clock")
 EPSILON = 1e-9  # simulated times this close are the same instant (sums of 0.02 s steps drift)
@@ -25,15 +24,30 @@ CEILING = 1000.0
 MAX_RIVALS = 64  # a flood of forged source tokens costs a bounded amount of memory
 
 
-class Clock(Protocol):
+class Clock:
+    """What logic may ask of time, whatever keeps it. A base class with defaults (py_trees'
+    `Behaviour` style): a capability is asked (`in_lockstep()`, `restarts`), never probed for,
+    so a clock that lacks one answers with the default instead of a typo silently disabling it."""
+
+    # how often time restarted (a new simulation run moved now() backwards): a loop that sees it
+    # change starts afresh. Wall and manual time never restart.
+    restarts: int = 0
+
     def now(self) -> float:
         """Seconds. Wall clock: epoch seconds; simulation: simulated seconds since start."""
+        raise NotImplementedError
 
     def sleep_until(self, t: float, stop: threading.Event | None = None) -> bool:
         """Block until now() ≥ t; return False if `stop` was set first."""
+        raise NotImplementedError
+
+    def in_lockstep(self) -> bool:
+        """Whether time moves in lockstep now (mrta_zenoh.lockstep): every participant shares
+        one simulated time, so a message counts as heard at its own stamp."""
+        return False
 
 
-class WallClock:
+class WallClock(Clock):
     now = staticmethod(time.time)  # a C call: read once per sample on receive paths
 
     def sleep_until(self, t: float, stop: threading.Event | None = None) -> bool:
@@ -47,7 +61,7 @@ class WallClock:
                 return False
 
 
-class ManualClock:
+class ManualClock(Clock):
     """Time moves only when a test calls advance(); sleepers wake when it passes their target."""
 
     def __init__(self, start: float = 0.0):

@@ -1,14 +1,16 @@
-"""The fault grammar: which faults a run injects, and when (simulated seconds).
+"""The fault channel: which faults a run injects, and when (simulated seconds).
 
-One grammar for every hop the spec makes: an experiment's `failures` list, a mission's `--fail`,
-the agent's `$MRTA_CRASH` and `$MRTA_FAULTS`. Each used to parse crash specs its own way (a
-regular expression, `float()` with a bound, `float()` without), so an experiment accepted
-`robot2@0`, which the demo then refused in every run. The strictest is kept: a robot is an id
-as keys carry it (`keys.ID_PATTERN`), a number a plain decimal (no sign, no exponent).
+One grammar, one parser (`parse_faults`) and one environment variable (`$MRTA_FAULTS`,
+FAULTS_ENV) for every fault kind and every hop: an experiment's `failures` list, a mission's
+`--fail`, the environment the mission runner gives every process of the run (`fault_env`),
+and what each process takes from it (`plan_from_env`: its own part, as a `FaultPlan`). The
+agent's `--crash-at S` is shorthand for a crash item naming itself. The strictest reading is
+the only one: a robot is an id as keys carry it (`keys.ID_PATTERN`), a number a plain decimal
+(no sign, no exponent), so a spec accepted at one hop is never refused at the next.
 
 A spec is a comma-separated list of items (docs/delivery.md, "Fault grammar"):
 
-* `ROBOT@T` (or `crash:ROBOT@T`): crash-stop at T — the agent SIGKILLs itself;
+* `ROBOT@T` (or `crash:ROBOT@T`): crash-stop at T — the process SIGKILLs itself;
 * `stall:ROBOT@T`: alive but stuck from T on — it keeps its liveliness token and keeps sending
   what its decision logic says (ALLIANCE's heartbeats, MURDOCH's lease renewals), but its
   layers stop commanding motion, so it makes no progress on its task;
@@ -19,49 +21,100 @@ A spec is a comma-separated list of items (docs/delivery.md, "Fault grammar"):
 * `latency:MEAN±JITTER` (ASCII `MEAN+-JITTER`; `latency:MEAN` alone: no jitter): each
   coordination message is heard MEAN ± JITTER seconds (uniform, seeded) after it was sent.
 
-At most one fault per robot, one `loss`, one `latency`. The channel faults act on the
-receiver, per message, from a hash of (seed, receiver, key, sequence number) rather than a
-shared random stream: the draw does not depend on the order messages happen to arrive in, so
-a lockstep run replays exactly. Departure from a real network: liveliness tokens are never
-lost, delayed or cut (a partitioned robot's token stays): the team notices a partition by
-silence (ALLIANCE's τ, MURDOCH's lease), which keeps it exact in simulated time.
+Two forms: a *subject* kind strikes one process (`kind:SUBJECT@T`, `+D` for a duration), a
+*channel* kind sets one value for the run (`kind:VALUE`). At most one fault per subject, one
+item of each channel kind. Adding a kind (docs/architecture.md, "Adding a fault kind"): a
+`FaultKind` member and its `SYNTAX` row; for a channel kind a field of `Faults` named like the
+kind and a value parser in `_VALUES`; then a field of `FaultPlan` and the place that acts on it.
+
+The channel faults act on the receiver, per message, from `seeds.uniform` of (seed, kind,
+receiver, key, sequence number) rather than a shared random stream: the draw does not depend on
+the order messages happen to arrive in, so a lockstep run replays exactly. Departure from a real
+network: liveliness tokens are never lost, delayed or cut (a partitioned robot's token stays):
+the team notices a partition by silence (ALLIANCE's τ, MURDOCH's lease), which keeps it exact
+in simulated time.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import enum
+import logging
+import os
 import re
+import signal
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Callable, NamedTuple
 
+from .errors import ConfigError
 from .keys import ID_PATTERN
 from .limits import RUN_DURATION
+from .seeds import uniform
+from .timetext import at
 from .yamlfile import did_you_mean
 
-_NUM = r"\d+(?:\.\d+)?"
-_SPEC = re.compile(rf"^({ID_PATTERN})@({_NUM})$")
-_PARTITION = re.compile(rf"^({ID_PATTERN})@({_NUM})\+({_NUM})$")
-_LATENCY = re.compile(rf"^({_NUM})(?:(?:±|\+-)({_NUM}))?$")
-_PROBABILITY = re.compile(rf"^{_NUM}$")
-USAGE = "ROBOT@SECONDS, e.g. robot2@30"
-KINDS = ("crash", "stall", "partition", "loss", "latency")
+FAULTS_ENV = "MRTA_FAULTS"  # the run's fault spec, for every process of the run (fault_env)
+# No longer read: every fault, crashes included, goes through FAULTS_ENV. Set, it is refused
+# (plan_from_env) rather than ignored, so a script that still sets it does not run faultless.
+RETIRED_CRASH_ENV = "MRTA_CRASH"
+
+
+class FaultKind(str, enum.Enum):
+    CRASH = "crash"
+    STALL = "stall"
+    PARTITION = "partition"
+    LOSS = "loss"
+    LATENCY = "latency"
+
+    def __str__(self) -> str:
+        return self.value
+
+
+class Syntax(NamedTuple):
+    """How a kind is written: `usage` (in errors), whether it strikes one subject
+    (`kind:SUBJECT@T`) and whether it lasts (`+D`)."""
+
+    usage: str
+    subject: bool
+    lasts: bool = False
+
+
+SYNTAX: dict[FaultKind, Syntax] = {
+    FaultKind.CRASH: Syntax("ROBOT@SECONDS, e.g. robot2@30", True),
+    FaultKind.STALL: Syntax("stall:ROBOT@SECONDS, e.g. stall:robot2@30", True),
+    FaultKind.PARTITION: Syntax("partition:ROBOT@SECONDS+SECONDS, e.g. partition:robot2@30+10",
+                                True, lasts=True),
+    FaultKind.LOSS: Syntax("loss:P with 0 < P < 1, e.g. loss:0.1", False),
+    FaultKind.LATENCY: Syntax("latency:MEAN±JITTER (seconds; ASCII +- also), e.g. "
+                              "latency:0.2±0.1", False),
+}
+KINDS = tuple(k.value for k in FaultKind)
+USAGE = SYNTAX[FaultKind.CRASH].usage
 GRAMMAR = ("a comma-separated list of ROBOT@T (crash), stall:ROBOT@T, partition:ROBOT@T+D, "
            "loss:P, latency:MEAN±JITTER, e.g. stall:robot2@30,loss:0.1")
-ROBOT_KINDS = ("crash", "stall", "partition")
+
+_NUM = r"\d+(?:\.\d+)?"
+_AT = re.compile(rf"^({ID_PATTERN})@({_NUM})(?:\+({_NUM}))?$")
+_LATENCY = re.compile(rf"^({_NUM})(?:(?:±|\+-)({_NUM}))?$")
+_PROBABILITY = re.compile(rf"^{_NUM}$")
 
 
 class Failure(NamedTuple):
-    """A fault of one robot: `kind` crash, stall or partition (for `duration` seconds)."""
+    """A fault of one subject (a robot): `kind` crash, stall or partition (for `duration`
+    seconds) from `at`."""
 
     robot: str
     at: float
     spec: str  # as written: what is passed on, so the next hop reads exactly the same value
-    kind: str = "crash"
+    kind: FaultKind = FaultKind.CRASH
     duration: float = 0.0
 
 
 @dataclass(frozen=True)
 class Faults:
-    """A parsed spec: the robots' faults, in the order written, and the channel's."""
+    """A parsed spec: the subjects' faults, in the order written, and the channel's values
+    (one field per channel kind, named like it)."""
 
     failures: tuple[Failure, ...] = ()
     loss: float = 0.0
@@ -70,7 +123,7 @@ class Faults:
 
     @property
     def primary(self) -> Failure | None:
-        """The robot fault a run's failure report is about: the first one written."""
+        """The subject fault a run's failure report is about: the first one written."""
         return self.failures[0] if self.failures else None
 
     def __bool__(self) -> bool:
@@ -80,12 +133,28 @@ class Faults:
         """The spec's items as written."""
         return [s for s in self.spec.split(",") if s]
 
+    def of(self, subject: str) -> Failure | None:
+        """The fault of `subject`, if any (at most one each)."""
+        return next((f for f in self.failures if f.robot == subject), None)
+
+    def crashes(self) -> list[Failure]:
+        return [f for f in self.failures if f.kind == FaultKind.CRASH]
+
+    def adding(self, failure: Failure) -> Faults:
+        """These faults and one more subject fault (`--crash-at`: a crash of the process
+        itself); ValueError if its subject already has one."""
+        if self.of(failure.robot) is not None:
+            raise ValueError(f"{failure.spec}: {failure.robot} already has a fault "
+                             f"({self.of(failure.robot).spec}; one per robot)")
+        return dataclasses.replace(self, failures=self.failures + (failure,),
+                                   spec=",".join([*self.items(), failure.spec]))
+
 
 def failure_problem(failure: Failure, robots, duration: float) -> str | None:
     """Why `failure` cannot happen in a run of `robots` lasting `duration` simulated seconds
     (a robot the application does not have, a time at or after the end), or None. One check
-    for every hop: an experiment's `failures` (at load, naming the line: before, every run
-    failed the same way), the mission's `--fail`."""
+    for every hop: an experiment's `failures` (at load, naming the line), the mission's
+    `--fail`."""
     robots = list(robots)
     if failure.robot not in robots:
         return (f"{failure.spec}: {failure.robot} is not one of the application's robots "
@@ -96,7 +165,7 @@ def failure_problem(failure: Failure, robots, duration: float) -> str | None:
 
 
 def faults_problem(faults: Faults, robots, duration: float) -> str | None:
-    """`failure_problem` for each robot fault of a spec."""
+    """`failure_problem` for each subject fault of a spec."""
     robots = list(robots)
     for f in faults.failures:
         problem = failure_problem(f, robots, duration)
@@ -112,24 +181,57 @@ def _seconds(text: str, value: str, what: str) -> float:
     return float(value)
 
 
-def parse_failure(text: str) -> Failure:
-    """One robot fault: ROBOT@T (crash), crash:ROBOT@T, stall:ROBOT@T or
-    partition:ROBOT@T+D, with T > 0 and D > 0; ValueError (saying what is expected) otherwise."""
-    kind, sep, rest = text.partition(":")
+def _kind(text: str) -> tuple[FaultKind, str, bool]:
+    """An item's kind, the rest of it, and whether the kind was written (`ROBOT@T` is a crash)."""
+    name, sep, rest = text.partition(":")
     if not sep:
-        kind, rest = "crash", text
-    if kind not in ROBOT_KINDS:
+        return FaultKind.CRASH, text, False
+    try:
+        return FaultKind(name), rest, True
+    except ValueError:
+        raise ValueError(f"{text!r:.80}: expected {GRAMMAR}" + did_you_mean(name, KINDS)) \
+            from None
+
+
+def parse_failure(text: str) -> Failure:
+    """One subject fault: ROBOT@T (crash), crash:ROBOT@T, stall:ROBOT@T or
+    partition:ROBOT@T+D, with T > 0 and D > 0; ValueError (saying what is expected) otherwise."""
+    kind, rest, written = _kind(text)
+    syntax = SYNTAX[kind]
+    if not syntax.subject:
         raise ValueError(f"{text!r:.80}: expected {USAGE} (seconds > 0), or stall:ROBOT@T, "
-                         "partition:ROBOT@T+D" + did_you_mean(kind, KINDS))
-    m = (_PARTITION if kind == "partition" else _SPEC).match(rest)
-    if m is None or float(m[2]) <= 0 or (kind == "partition" and float(m[3]) <= 0):
-        usage = "partition:ROBOT@SECONDS+SECONDS, e.g. partition:robot2@30+10" \
-            if kind == "partition" else USAGE if not sep else \
-            f"{kind}:ROBOT@SECONDS, e.g. {kind}:robot2@30"
+                         "partition:ROBOT@T+D")
+    m = _AT.match(rest)
+    if m is None or (m[3] is not None) != syntax.lasts or float(m[2]) <= 0 \
+            or (syntax.lasts and float(m[3]) <= 0):
+        usage = syntax.usage if written or kind is not FaultKind.CRASH else USAGE
         raise ValueError(f"{text!r:.80}: expected {usage} (seconds > 0)")
     at = _seconds(text, m[2], "time")
-    duration = _seconds(text, m[3], "duration") if kind == "partition" else 0.0
+    duration = _seconds(text, m[3], "duration") if syntax.lasts else 0.0
     return Failure(m[1], at, text, kind, duration)
+
+
+def _loss(item: str, rest: str) -> float:
+    if not _PROBABILITY.match(rest) or not 0 < float(rest) < 1:
+        raise ValueError(f"{item!r:.80}: expected {SYNTAX[FaultKind.LOSS].usage}")
+    return float(rest)
+
+
+def _latency(item: str, rest: str) -> tuple[float, float]:
+    m = _LATENCY.match(rest)
+    if m is None:
+        raise ValueError(f"{item!r:.80}: expected {SYNTAX[FaultKind.LATENCY].usage}")
+    mean = _seconds(item, m[1], "mean")
+    jitter = _seconds(item, m[2], "jitter") if m[2] and float(m[2]) else 0.0
+    if jitter > mean or mean <= 0:
+        raise ValueError(f"{item!r:.80}: the mean must be > 0 and the jitter at most the mean "
+                         "(no message is heard before it is sent)")
+    return mean, jitter
+
+
+# channel kind → its value's parser; the value goes to the `Faults` field of the kind's name
+_VALUES: dict[FaultKind, Callable[[str, str], object]] = {FaultKind.LOSS: _loss,
+                                                         FaultKind.LATENCY: _latency}
 
 
 def parse_faults(text: str) -> Faults:
@@ -138,52 +240,47 @@ def parse_faults(text: str) -> Faults:
     if not text.strip() or any(not s for s in items):
         raise ValueError(f"{text!r:.80}: expected {GRAMMAR}")
     failures: list[Failure] = []
-    loss, latency = 0.0, None
-    seen: set[str] = set()
+    values: dict[str, object] = {}
     for item in items:
-        kind, sep, rest = item.partition(":")
-        if sep and kind in ("loss", "latency"):
-            if kind in seen:
+        kind, rest, _ = _kind(item)
+        if not SYNTAX[kind].subject:
+            if kind.value in values:
                 raise ValueError(f"{text!r:.80}: {kind} given twice")
-            seen.add(kind)
-            if kind == "loss":
-                if not _PROBABILITY.match(rest) or not 0 < float(rest) < 1:
-                    raise ValueError(f"{item!r:.80}: expected loss:P with 0 < P < 1, e.g. "
-                                     "loss:0.1")
-                loss = float(rest)
-            else:
-                m = _LATENCY.match(rest)
-                if m is None:
-                    raise ValueError(f"{item!r:.80}: expected latency:MEAN±JITTER (seconds; "
-                                     "ASCII +- also), e.g. latency:0.2±0.1")
-                mean = _seconds(item, m[1], "mean")
-                jitter = _seconds(item, m[2], "jitter") if m[2] and float(m[2]) else 0.0
-                if jitter > mean or mean <= 0:
-                    raise ValueError(f"{item!r:.80}: the mean must be > 0 and the jitter at most "
-                                     "the mean (no message is heard before it is sent)")
-                latency = (mean, jitter)
+            values[kind.value] = _VALUES[kind](item, rest)
             continue
         failure = parse_failure(item)
         if any(f.robot == failure.robot for f in failures):
             raise ValueError(f"{text!r:.80}: {failure.robot} has two faults (one per robot)")
         failures.append(failure)
-    return Faults(tuple(failures), loss, latency, ",".join(items))
+    return Faults(tuple(failures), spec=",".join(items), **values)
 
 
-def _uniform(*parts: object) -> float:
-    """A number in [0, 1) from `parts` alone: the same parts, the same number, in any process.
-    hashlib is imported here, not at the top: it loads OpenSSL (≈ 3 MB of every agent's RSS,
-    issue #27), and only a run with loss or latency draws."""
-    import hashlib
+def fault_env(faults: Faults) -> dict[str, str]:
+    """The environment that hands `faults` to every process of a run: the whole spec, in one
+    variable, whatever the kinds — each process takes its own part (`plan_from_env`)."""
+    return {FAULTS_ENV: faults.spec} if faults else {}
 
-    digest = hashlib.blake2b("\0".join(map(str, parts)).encode(), digest_size=8).digest()
-    return int.from_bytes(digest, "big") / 2.0 ** 64
+
+def faults_from_env(environ: Mapping[str, str] | None = None) -> Faults:
+    """$MRTA_FAULTS parsed (empty if unset); a bad one is a ConfigError, before any bus opens."""
+    environ = os.environ if environ is None else environ
+    if environ.get(RETIRED_CRASH_ENV):
+        raise ConfigError(f"${RETIRED_CRASH_ENV} is not read: every fault, crashes included, "
+                          f"goes through ${FAULTS_ENV} (e.g. {FAULTS_ENV}="
+                          f"{environ[RETIRED_CRASH_ENV]})")
+    text = environ.get(FAULTS_ENV, "")
+    if not text:
+        return Faults()
+    try:
+        return parse_faults(text)
+    except ValueError as exc:
+        raise ConfigError(f"${FAULTS_ENV}: {exc}") from None
 
 
 @dataclass(frozen=True)
 class FaultPlan:
-    """What one robot's agent injects besides a crash: pure, so tests drive it on a manual
-    clock. `lost` and `delay` are per received message, keyed by its key and sequence."""
+    """What one process injects into itself: pure, so tests drive it on a manual clock.
+    `lost` and `delay` are per received message, keyed by its key and sequence number."""
 
     robot: str
     seed: int = 0
@@ -191,6 +288,10 @@ class FaultPlan:
     partitions: tuple[tuple[float, float], ...] = ()  # (from, until) simulated seconds
     loss: float = 0.0
     latency: tuple[float, float] | None = None
+    crash_at: float | None = None
+
+    def crashed(self, now: float) -> bool:
+        return self.crash_at is not None and now >= self.crash_at
 
     def stalled(self, now: float) -> bool:
         return self.stall_at is not None and now >= self.stall_at
@@ -199,13 +300,13 @@ class FaultPlan:
         return any(a <= t < b for a, b in self.partitions)
 
     def lost(self, key: str, seq: int) -> bool:
-        return self.loss > 0 and _uniform(self.seed, "loss", self.robot, key, seq) < self.loss
+        return self.loss > 0 and uniform(self.seed, "loss", self.robot, key, seq) < self.loss
 
     def delay(self, key: str, seq: int) -> float:
         if self.latency is None:
             return 0.0
         mean, jitter = self.latency
-        u = _uniform(self.seed, "latency", self.robot, key, seq)
+        u = uniform(self.seed, "latency", self.robot, key, seq)
         return mean + jitter * (2.0 * u - 1.0)
 
     @property
@@ -214,12 +315,34 @@ class FaultPlan:
         return self.loss > 0 or self.latency is not None or bool(self.partitions)
 
 
-def plan_for(faults: Faults, robot: str, seed: int) -> FaultPlan | None:
-    """This robot's part of `faults` (crashes aside: $MRTA_CRASH), or None if nothing."""
-    stall = next((f.at for f in faults.failures if f.robot == robot and f.kind == "stall"), None)
-    cuts = tuple((f.at, f.at + f.duration) for f in faults.failures
-                 if f.robot == robot and f.kind == "partition")
-    if stall is None and not cuts and faults.loss == 0 and faults.latency is None:
+def plan_for(faults: Faults, subject: str, seed: int) -> FaultPlan | None:
+    """`subject`'s part of `faults` (its own fault, and the channel's), or None if nothing."""
+    own = faults.of(subject)
+    kind = FaultKind(own.kind) if own is not None else None
+    stall = own.at if kind is FaultKind.STALL else None
+    crash = own.at if kind is FaultKind.CRASH else None
+    cuts = ((own.at, own.at + own.duration),) if kind is FaultKind.PARTITION else ()
+    if own is None and faults.loss == 0 and faults.latency is None:
         return None
-    return FaultPlan(robot, seed, stall, cuts, faults.loss, faults.latency)
+    return FaultPlan(subject, seed, stall, cuts, faults.loss, faults.latency, crash)
 
+
+def plan_from_env(subject: str, seed: int, crash_at: float | None = None,
+                  environ: Mapping[str, str] | None = None) -> FaultPlan | None:
+    """What process `subject` injects into itself in run `seed`: its part of $MRTA_FAULTS, and
+    `crash_at` (`--crash-at`, shorthand for a crash item naming it). ConfigError on a bad spec
+    or a second fault for it, before any bus opens."""
+    faults = faults_from_env(environ)
+    if crash_at is not None:
+        try:
+            faults = faults.adding(Failure(subject, crash_at, f"crash:{subject}@{crash_at:g}"))
+        except ValueError as exc:
+            raise ConfigError(f"--crash-at and ${FAULTS_ENV}: {exc}") from None
+    return plan_for(faults, subject, seed)
+
+
+def crash_now(subject: str, now: float, log: logging.Logger) -> None:
+    """The crash itself: SIGKILL, no shutdown, no goodbye — its token goes with its session."""
+    log.warning("%s: crashing %s as asked (fault injection)", subject, at(now))
+    logging.shutdown()
+    os.kill(os.getpid(), signal.SIGKILL)

@@ -41,7 +41,7 @@ from .codec import DecodeError, type_from_encoding
 from .errors import ConfigError, MrtaRuntimeError
 from .flat_schema import from_viewer, message_schema, object_schema, to_viewer
 from .messages import message_class
-from .sim_log_time import NS, RESTART_GAP_NS, SimLogTime
+from .sim_log_time import NS, RESTART_GAP_NS, SimLogTime  # noqa: F401 (re-exported)
 
 _json = msgspec.json  # lossless for our values: shortest round-trip floats
 

@@ -11,13 +11,12 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from mrta_zenoh import keys
-from mrta_zenoh.bus import BusOptions, open_bus
+from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.clock import run_id as new_run_id
 from mrta_zenoh.errors import ConfigError, MrtaRuntimeError
-from mrta_zenoh.identity import check_identity
-from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.limits import COORDINATE
 from mrta_zenoh.lockstep import DEFAULT_TIMEOUT, PARTICIPANT, Barrier
+from mrta_zenoh.node import Node
 from mrta_zenoh.presence import RobotPresence
 from mrta_zenoh.ros2.types import SONAR_TYPES
 from mrta_zenoh.toolchain.registry import Registry
@@ -159,10 +158,9 @@ def run_simulator(options: SimOptions, bus_options: BusOptions,
                      record_trails=o.snapshot is not None)
     # tells followers a restarted simulator from this run, and the speed that bounds its time
     run_id = new_run_id(o.speed)
-    check_identity(bus_options, SIMULATOR_ROLE)  # a certificate not the simulator's: refused
-    with contextlib.ExitStack() as resources:
-        stop = resources.enter_context(stop_on_signals(stop))
-        bus = resources.enter_context(open_bus(bus_options))
+    node = Node(bus_options, SIMULATOR_ROLE, stop=stop)  # a certificate not the simulator's: refused
+    with node, contextlib.ExitStack() as resources:
+        bus, stop = node.bus, node.stop
         # lockstep counts the commands it receives from the start: an agent waiting for the
         # run may already have sent some (its clock watchdog's stop), and claims them
         barrier = resources.enter_context(Barrier(bus, run_id, o.lockstep_timeout)) \

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-from pathlib import Path
 
 import click
 
@@ -10,6 +9,7 @@ from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.cli.common import SEED_TYPE, OutputPath, bus_options, finite_float
 from mrta_zenoh.lockstep import DEFAULT_TIMEOUT
 from mrta_zenoh.ros2.types import SONAR_TYPES
+from mrta_zenoh.seeds import SEED_ENV
 
 from .api import SimOptions, run_simulator
 
@@ -23,8 +23,8 @@ from .api import SimOptions, run_simulator
                    "to use the start named like the robot or the next free one. Repeatable.")
 @click.option("--speed", type=finite_float(min=0), default=1.0, show_default=True,
               help="Simulated seconds per wall second; 0 runs as fast as possible.")
-@click.option("--seed", type=SEED_TYPE, default=0, show_default=True,
-              help="Seed for sensor noise, 0 to 2^63 − 1.")
+@click.option("--seed", type=SEED_TYPE, default=0, show_default=True, envvar=SEED_ENV,
+              help=f"The run's master seed (sensor noise), 0 to 2^63 − 1. Runners set ${SEED_ENV}.")
 @click.option("--duration", type=finite_float(min=0, min_open=True),
               help="Stop after this many simulated seconds.")
 @click.option("--snapshot", type=OutputPath(folder=False),

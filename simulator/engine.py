@@ -19,6 +19,8 @@ import numpy as np
 import pymunk
 import pymunk.batch as batch
 
+from mrta_zenoh.seeds import generator
+
 from .robot_model import RobotModel
 from .sonar import ray_robots, ray_walls, sonar_origins
 from .world import Pose, World
@@ -50,7 +52,8 @@ class Simulation:
         self.model = model or RobotModel()
         self.ids = list(robots)
         self.index = {rid: i for i, rid in enumerate(self.ids)}
-        self.rng = np.random.default_rng(seed)
+        # the world's noise: the run's root stream (mrta_zenoh.seeds, the one derivation)
+        self.rng = generator(seed)
         self.sonars = self.model.sonar_poses()
         self.time = 0.0
         self.steps = 0

@@ -3,7 +3,6 @@
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import threading
 import time
@@ -13,13 +12,12 @@ from pathlib import Path
 from typing import Callable
 
 from mrta_zenoh import jsonsafe
-from mrta_zenoh.bus import Bus, BusOptions, open_bus
-from mrta_zenoh.identity import OBSERVER, check_identity
-from mrta_zenoh.clock import SimClock, WallClock, follow_sim_clock
+from mrta_zenoh.bus import Bus, BusOptions
 from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.identity import OBSERVER
 from mrta_zenoh.keys import ROS2_BRIDGE_TOKEN
-from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.lockstep import STATUS, LockstepStatus
+from mrta_zenoh.node import Node, NodeTime
 from mrta_zenoh.toolchain.model import Application, Architecture
 from mrta_zenoh.toolchain.registry import Registry
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
@@ -156,19 +154,15 @@ def run_supervise(options: SuperviseOptions, bus_options: BusOptions,
     monitors' timeouts. The supervisor never prints: the verb shows the snapshots."""
     o = options
     app, arch = resolve_application(o.app)
-    check_identity(bus_options, OBSERVER)
-    clock = SimClock() if o.sim_time else WallClock()
-    with stop_on_signals(stop) as stop, open_bus(bus_options) as bus, \
-            contextlib.ExitStack() as handles:
-        if o.sim_time:
-            handles.enter_context(follow_sim_clock(bus, clock))
-            while not clock.started.wait(0.1):
-                if stop.is_set():
-                    return 0
+    with Node(bus_options, OBSERVER, time=NodeTime.SIM if o.sim_time else NodeTime.WALL,
+              stop=stop) as node:
+        bus, clock, stop = node.bus, node.clock, node.stop
+        if not node.wait_for_clock():
+            return 0
         sup = Supervisor(arch, app, clock.now(), o.unattended_after, o.duplicate_after,
                          ros2_domain=o.ros2_domain, watch=application_watch(app))
         for h in attach(sup, bus, clock):
-            handles.callback(h.close)
+            node.hold(h)
         wall_start = time.monotonic()
         settle = max([m.topic.timeout for m in sup.monitors] + [1.0])
         refresh = Refresh(sup, clock, o.sim_time)

@@ -307,7 +307,7 @@ def _collect(active: dict, results: Results, retried: set[int] | None = None,
             continue
         del active[index]
         rc = child.wait(10)
-        if rc == 0 and retried is not None and index not in retried and inexact(out):
+        if retried is not None and index not in retried and inexact(out):
             again.append(run)
             continue
         results.add(run, out, time.monotonic() - t0, "" if rc == 0 else error_of(rc, child.stdout))

@@ -108,7 +108,8 @@ def report_options(f):
     return f
 
 
-@click.group(cls=ExperimentGroup, invoke_without_command=False, no_args_is_help=True)
+@click.group(cls=ExperimentGroup, invoke_without_command=False, no_args_is_help=True,
+             short_help="Run an experiment file's matrix of runs, or rebuild its report.")
 def experiment() -> None:
     """Run an experiment file's matrix of runs and summarise it (`mrta experiment FILE.yaml
     [OPTIONS]`, the `run` command: `mrta experiment run --help` lists its options), or rebuild

@@ -18,7 +18,7 @@ from mrta_zenoh.processes import ProcessGroup, mrta_argv
 
 from .experiment_file import Run
 from .results import COVERAGE, write_csv
-from .summary import flat_metrics, read_summary
+from .summary import COMPLETE, INCOMPLETE, flat_metrics, read_summary, run_problem
 
 
 @dataclass(frozen=True)
@@ -124,9 +124,8 @@ def row_for(run: Run, out: Path, wall: float, error: str = "",
     summary = read_summary(out / "summary.json")
     if summary.lockstep_exact is False:
         row["status"] = "inexact"
-        row["error"] = (f"lockstep was not exact: {summary.lockstep_given_up} participant(s) "
-                        f"given up, {summary.lockstep_forgiven} claim(s) forgiven — the machine "
-                        "was too busy for the lockstep timeouts (fewer --jobs)")
+        row["error"] = run_problem(summary) + (" (fewer --jobs)" if summary.run_status == COMPLETE
+                                               else "")
     measured = flat_metrics(summary)
     if run.instance is not None:
         measured = {k: v for k, v in measured.items() if not k.endswith(COVERAGE)}
@@ -138,11 +137,13 @@ def row_for(run: Run, out: Path, wall: float, error: str = "",
 
 
 def inexact(out: Path) -> bool:
-    """Whether the run in `out` ended well but its lockstep was not exact (summary.json)."""
+    """Whether the run in `out` wrote a summary that is not exact, or not complete (`mrta demo`
+    then exits 1): summary.json's lockstep_exact and run_status."""
     try:
-        return read_summary(out / "summary.json").lockstep_exact is False
+        summary = read_summary(out / "summary.json")
     except ConfigError:
         return False
+    return summary.lockstep_exact is False or summary.run_status == INCOMPLETE
 
 
 def prepare_output(output: Path) -> None:

@@ -5,10 +5,12 @@ It runs the application package's mission launch file (the simulator and one age
 through the runner `mrta launch` uses, plus a recorder, all as separate processes on a private
 loopback rendezvous; this process is the supervisor. Readiness is read from liveliness tokens
 (each robot's token, the recorder's, the clock source's), never from log lines; the simulator
-itself starts the clock only once every robot is up. It injects the faults (mrta_zenoh/failure.py:
-crash, stall, partition, loss, latency) the way the architecture says (`Architecture.failure_env`:
-exact in lockstep), or SIGKILLs a crashing agent itself when the run is not in lockstep.
-Afterwards it writes, into the output folder, the recording, the allocation timeline, the architecture's own plots, and `summary.json` (summary.py): who did
+itself starts the clock only once every robot is up. Every process of the run gets the run's
+seed ($MRTA_SEED, mrta_zenoh.seeds) and its faults ($MRTA_FAULTS: crash, stall, partition,
+loss, latency — mrta_zenoh.failure, the one fault channel) from this runner's environment, and
+injects its own at their simulated times (exact in lockstep). Afterwards it writes, into the
+output folder, the recording, the allocation timeline, the architecture's own plots, and
+`summary.json` (summary.py): who did
 what, coverage, first full allocation and takeover — all from the robots' own messages in
 simulated time (ground_truth.py), exact to one agent tick — beside the bound the architecture
 states, traffic, and the application's own metrics (its `Mission.metrics` hook).
@@ -34,24 +36,26 @@ import time
 from dataclasses import dataclass
 from importlib.metadata import entry_points
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any, Callable, Sequence
 
 import msgspec
 
 from mrta_zenoh import keys
-from mrta_zenoh.architectures import CRASH_ENV, Architecture, architecture
-from mrta_zenoh.bus import BusOptions, open_bus
+from mrta_zenoh.architectures import Architecture, Takeover, architecture
+from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.bus.options import private_rendezvous
-from mrta_zenoh.clock import EPSILON, SimClock, follow_sim_clock
+from mrta_zenoh.clock import EPSILON, SimClock
 from mrta_zenoh.errors import ConfigError, Interrupted, MrtaRuntimeError
-from mrta_zenoh.failure import Failure, Faults, parse_faults
+from mrta_zenoh.failure import (FAULTS_ENV, RETIRED_CRASH_ENV, Failure, FaultKind, Faults,
+                                fault_env, parse_faults)
 from mrta_zenoh.codec import DecodeError, decode
-from mrta_zenoh.lifecycle import stop_on_signals
+from mrta_zenoh.identity import OBSERVER
 from mrta_zenoh.lockstep import STATUS, LockstepStatus
-from mrta_zenoh.presence import RobotPresence
+from mrta_zenoh.node import Node, NodeTime
 from mrta_zenoh.processes import Child, ProcessGroup, mrta_argv
 from mrta_zenoh.recording import read_recording
-from mrta_zenoh.toolchain.launchfile import LaunchEvaluator, check_executables
+from mrta_zenoh.seeds import SEED_ENV
+from mrta_zenoh.toolchain.launchfile import LaunchEvaluator, NodeSpec, check_executables
 from mrta_zenoh.toolchain.model import Application
 from mrta_zenoh.toolchain.registry import Package, Registry
 from mrta_zenoh.toolchain.runner import start_nodes
@@ -60,14 +64,14 @@ from mrta_zenoh.yamlfile import did_you_mean
 from .api import Refresh, attach
 from .ground_truth import intervals_from
 from .plots import ROBOTS_TITLE, Panel, TimeBase, draw_timeline
+from .run_watch import Readiness, RunWatch, run_status
 from .state import Supervisor
 from .tasks import TaskWatch
-from .summary import (Coverage, FailureReport, MessageRates, Span, Summary, checked_sections,
-                      write_summary)
+from .summary import (COMPLETE, Coverage, Disturbance, FailureReport, MessageRates, Span, Summary,
+                      checked_sections, write_summary)
 
 log = logging.getLogger("mrta.mission")
 MISSIONS_GROUP = "mrta.missions"
-READY_TIMEOUT = 60.0  # wall seconds for every process to come up
 
 
 # ------------------------------------------------------------------ what an application gives
@@ -264,49 +268,6 @@ def failure_of(run: MissionRun) -> Failure | None:
     return faults_of(run).primary
 
 
-# ------------------------------------------------------------------ readiness
-class Readiness:
-    """Who is up, from liveliness tokens: the robots (RobotPresence), the recorder and the clock
-    source (tokens under @mrta/…, which `**` does not match)."""
-
-    def __init__(self, bus, robots: list[str]):
-        self.recorder = threading.Event()
-        self.clock = threading.Event()
-        self._stack = contextlib.ExitStack()
-        self.presence = self._stack.enter_context(RobotPresence(bus, robots))
-        for prefix, event in ((keys.RECORDER_TOKEN, self.recorder),
-                              (keys.CLOCK_SOURCE_TOKEN, self.clock)):
-            self._stack.callback(bus.watch_liveliness(
-                prefix + "/**", lambda k, up, e=event: up and e.set()).close)
-
-    def robots_up(self) -> bool:
-        return self.presence.all_up()
-
-    def wait(self, what: Callable[[], bool], label: str, group: ProcessGroup,
-             stop: threading.Event) -> None:
-        deadline = time.monotonic() + READY_TIMEOUT
-        while not what():
-            if stop.is_set():  # first: after a Ctrl-C, children ended by it did not fail
-                group.interrupted()
-                raise Interrupted()
-            failed = group.failed()
-            if failed:
-                raise MrtaRuntimeError(f"{failed[0].name} failed while starting (it "
-                                       f"{failed[0].describe_exit()}):\n{failed[0].tail()}")
-            if time.monotonic() > deadline:
-                raise MrtaRuntimeError(f"{label} did not come up within {READY_TIMEOUT:.0f} s")
-            stop.wait(0.05)
-
-    def close(self) -> None:
-        self._stack.close()
-
-    def __enter__(self) -> "Readiness":
-        return self
-
-    def __exit__(self, *exc: object) -> None:
-        self.close()
-
-
 # ------------------------------------------------------------------ the run
 Progress = Callable[[float, Supervisor, "Failure | None", "float | None"], None]
 
@@ -397,25 +358,25 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
     nodes = LaunchEvaluator(lambda name: reg.find(name).path).run(
         run.package.path / "launch" / run.mission.launch, launch_args)
     check_executables(nodes)
+    check_seeds(nodes, options.seed)
     rendezvous = private_rendezvous()
-    env = dict(os.environ, MRTA_RENDEZVOUS=rendezvous, PYTHONUNBUFFERED="1")
+    # every process of the run: the run's seed and exactly the run's faults (none inherited
+    # from this process's own environment), which each injects at its simulated time
+    env = {k: v for k, v in os.environ.items() if k not in (FAULTS_ENV, RETIRED_CRASH_ENV)}
+    env.update(MRTA_RENDEZVOUS=rendezvous, PYTHONUNBUFFERED="1", **{SEED_ENV: str(options.seed)},
+               **fault_env(faults))
     if options.instance is not None:  # the children find the run's own packages first
         env["MRTA_PACKAGE_PATH"] = os.pathsep.join(map(str, [instance_folder(options)]
                                                        + reg_path()))
     failure = faults.primary
-    crashes = [f for f in faults.failures if f.kind == "crash"]
-    # the agents inject the faults themselves at their simulated times: exact in lockstep, so
-    # a run replays exactly; out of lockstep, this process SIGKILLs the crashing ones (_watch)
-    kill = [] if options.lockstep else crashes
-    if faults:
-        env.update(run.arch.failure_env(faults))
-        if not options.lockstep:
-            env.pop(CRASH_ENV, None)
     failed_at: float | None = None
     t_wall0 = time.monotonic()
-    with stop_on_signals(stop) as stop, ProcessGroup(env) as group, \
-            open_bus(BusOptions(rendezvous=rendezvous)) as bus, contextlib.ExitStack() as live:
+    with Node(BusOptions(rendezvous=rendezvous), OBSERVER, time=NodeTime.SIM, stop=stop) as node, \
+            ProcessGroup(env) as group, contextlib.ExitStack() as live:
+        bus, clock, stop = node.bus, node.clock, node.stop
         ready = live.enter_context(Readiness(bus, run.robots))
+        # every process's token from before the first one starts: a loss is a disturbance
+        watch = live.enter_context(RunWatch(bus, run.arch, clock))
         # the recording: the bus, the scene and the supervisor's channels, readable by Foxglove;
         # with a Foxglove port the same channels are also served live
         view = ["view", run.package.name, "--sim-time", "--output", output / "run.mcap"]
@@ -423,8 +384,6 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
                  else ["--no-server"])
         group.start(mrta_argv(*view), name="record")
         ready.wait(ready.recorder.is_set, "the recorder", group, stop)
-        clock = SimClock()
-        live.enter_context(follow_sim_clock(bus, clock))
         sup = Supervisor(run.arch_model, run.app, 0.0, unattended_after=30.0,
                          duplicate_after=5.0, watch=run.mission.task_watch(run))
         for h in attach(sup, bus, clock):
@@ -435,7 +394,8 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
         sim = next(c for c in children if c not in agents.values())
         ready.wait(ready.robots_up, "the robots' agents", group, stop)
         ready.wait(ready.clock.is_set, "the simulator", group, stop)
-        failed_at = _watch(sim, sup, clock, agents, failure, stop, progress, kill)
+        failed_at = _watch(sim, sup, clock, failure, stop, progress)
+        watch.end()
         live.close()
         if stop.is_set() or sim.wait(30) in (-signal.SIGINT, 128 + signal.SIGINT):
             # Ctrl-C: the terminal sends SIGINT to the children as well, and the simulator may
@@ -445,33 +405,43 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
         if sim.wait(30) != 0:
             raise MrtaRuntimeError(f"the simulator {sim.describe_exit()}:\n" + sim.tail())
         group.stop_all()
-        crashed = group.failed(ignore=[agents[f.robot].name for f in crashes])
+        disturbances = watch.disturbances(agents, {f.robot for f in faults.crashes()})
+        crashed = group.failed(ignore=[agents[f.robot].name for f in faults.crashes()])
         if crashed:
             raise MrtaRuntimeError("; ".join(f"{c.name} {c.describe_exit()}"
                                              for c in crashed) + ":\n"
                                    + "\n".join(f"[{c.name}]\n{c.tail(10)}" for c in crashed))
-    summary = analyse(run, failure, failed_at, time.monotonic() - t_wall0, before)
+    summary = analyse(run, failure, failed_at, time.monotonic() - t_wall0, before, disturbances)
     return run, summary
 
 
-def _watch(sim: Child, sup: Supervisor, clock: SimClock, agents: dict[str, Child],
-           failure: Failure | None, stop: threading.Event, progress: Progress | None,
-           kill: list[Failure]) -> float | None:
-    """Follow the run; SIGKILL the agents in `kill` at their times (out of lockstep: in it
-    they crash themselves, exactly); return when `failure` struck."""
+def check_seeds(nodes: list[NodeSpec], seed: int) -> None:
+    """Every process of a run draws from the run's seed, which this runner hands to all of them
+    ($MRTA_SEED): a launch file that gives a node another one — `--seed` in its args, or a
+    $MRTA_SEED of its own — is refused before anything starts, naming the node."""
+    for n in nodes:
+        given = [a.split("=", 1)[1] for a in n.args if a.startswith("--seed=")]
+        given += [b for a, b in zip(n.args, n.args[1:]) if a == "--seed"]
+        given += [n.env[SEED_ENV]] if SEED_ENV in n.env else []
+        for value in given:
+            if value.strip() != str(seed):
+                raise ConfigError(f"node {n.name} is given seed {value!r}, but the run's seed is "
+                                  f"{seed}: the runner hands every node the run's seed "
+                                  f"(${SEED_ENV}); leave the seed out of the launch file",
+                                  file=n.file or None, line=n.line)
+
+
+def _watch(sim: Child, sup: Supervisor, clock: SimClock, failure: Failure | None,
+           stop: threading.Event, progress: Progress | None) -> float | None:
+    """Follow the run until the simulator ends; return when `failure` struck (each process
+    injects its own faults, at their simulated times)."""
     failed_at = None
-    killed: dict[str, float] = {}
     refresh = Refresh(sup, clock, sim_time=True)
     while sim.running() and not stop.is_set():
         stop.wait(0.25)
         now = refresh()
-        for f in kill:
-            if f.robot not in killed and now >= f.at:
-                agents[f.robot].signal(signal.SIGKILL)
-                killed[f.robot] = now
-                log.info("killed %s at %.1f s", f.robot, now)
         if failure and failed_at is None and now >= failure.at:
-            failed_at = killed.get(failure.robot, failure.at)
+            failed_at = failure.at
         if progress is not None:
             progress(now, sup, failure, failed_at)
     return failed_at
@@ -486,19 +456,23 @@ def mission_sections(run: MissionRun, records: list) -> Any:
 
 
 def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
-            wall: float, before: dict[str, tuple[int, int, int]] | None = None) -> Summary:
+            wall: float, before: dict[str, tuple[int, int, int]] | None = None,
+            disturbances: Sequence[Disturbance] = ()) -> Summary:
     """The summary of a recorded run, written to summary.json; `before` is the output
-    folder's state before the run (folder_state), so `files` lists what this run wrote."""
+    folder's state before the run (folder_state), so `files` lists what this run wrote;
+    `disturbances`: what the run's processes lost while it was on (run_watch.py)."""
     output = run.options.output
     records = read_recording(output / "run.mcap")
     tb = TimeBase(records)
     t0 = 0.0
-    t1 = max((tb(t) for _, _, t, _ in records), default=run.options.duration)
+    recorded_until = max((tb(t) for _, _, t, _ in records), default=None)
+    t1 = run.options.duration if recorded_until is None else recorded_until
+    status = run_status(list(disturbances), recorded_until, run.options.duration)
     # what the robots did, from their own messages in simulated time (ground_truth.py) — not
     # the supervisor's view, which lags by its monitors' timeouts
     # a crashed robot's reports end at its crash; a stalled or partitioned one's claims are kept
     # (it may well still say it is on its task: what matters is who took it over, and when)
-    failures = [(failure.robot, failed_at)] if failure and failure.kind == "crash" \
+    failures = [(failure.robot, failed_at)] if failure and failure.kind == FaultKind.CRASH \
         and failed_at is not None else []
     intervals = intervals_from(records, run.arch, t1, run.arch.doing_stale_after, failures)
     if run.options.plots:
@@ -512,26 +486,8 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
     who = {rid: [Span(t, round(a, 3), round(b, 3))
                  for t, a, b in sorted(intervals.get(rid, []), key=lambda x: x[1])]
            for rid in run.robots}
-    report = None
-    if failure:
-        report = FailureReport(failure.robot, failed_at, fault=failure.kind)
-        if failed_at is not None:
-            task = next((t for t, a, b in intervals.get(failure.robot, [])
-                         if a <= failed_at <= b + 0.5), None)
-            report.task = task
-            taken = sorted((a, r) for r, iv in intervals.items() if r != failure.robot
-                           for t, a, b in iv if t == task and a >= failed_at - 1e-6) if task else []
-            if taken:
-                t_take, by = taken[0]
-                report.taken_over_by = by
-                report.takeover_seconds = round(t_take - failed_at, 2)
-                if failure.kind != "stall":
-                    # the bound is for silence (a crash, a partition); a stalled robot keeps
-                    # talking, so what detects it is the architecture's own progress check
-                    # (ALLIANCE's φ, the expected_duration it announces) — no bound here
-                    report.bound_seconds = round(run.arch.takeover_bound(run.robot_params(by),
-                                                                         task), 2)
-                    report.bound_formula = run.arch.bound_formula
+    report = takeover_report(run, failure, failed_at, intervals, records, tb) \
+        if failure else None
     given_up, forgiven = lockstep_trouble(records) if run.options.lockstep else (0, 0)
     faults = faults_of(run)
     summary = Summary(
@@ -539,8 +495,11 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
         duration=run.options.duration, speed=run.options.speed, seed=run.options.seed,
         wall_seconds=round(wall, 1), robots=run.robots, who_did_what=who,
         lockstep=run.options.lockstep, faults=faults.spec or "none",
-        lockstep_exact=(given_up + forgiven == 0) if run.options.lockstep else None,
-        lockstep_given_up=given_up, lockstep_forgiven=forgiven,
+        lockstep_exact=(given_up + forgiven == 0 and status == COMPLETE)
+        if run.options.lockstep else None,
+        lockstep_given_up=given_up, lockstep_forgiven=forgiven, run_status=status,
+        disturbances=list(disturbances),
+        recorded_until=None if recorded_until is None else round(recorded_until, 3),
         first_full_allocation=first_full_allocation(intervals, run.app.tasks()),
         coverage=coverage(intervals, run.app.tasks(), t0, t1),
         # up to the duration asked for: the last instant also holds what processes say as they
@@ -555,6 +514,43 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
                             if before.get(name) != state} | {"summary.json"})
     write_summary(output / "summary.json", summary)
     return summary
+
+
+def takeover_report(run: MissionRun, failure: Failure, failed_at: float | None,
+                    intervals: dict, records: list, time_of: Callable[[int], float]
+                    ) -> FailureReport:
+    """What became of the failed robot's task: who took it over, when, and against which
+    bound — the architecture's (`Architecture.takeover_check`), counted from the instant it
+    names and in the case the run was in."""
+    report = FailureReport(failure.robot, failed_at, fault=str(failure.kind))
+    if failed_at is None:
+        return report
+    task = next((t for t, a, b in intervals.get(failure.robot, [])
+                 if a <= failed_at <= b + 0.5), None)
+    report.task = task
+    taken = sorted((a, r) for r, iv in intervals.items() if r != failure.robot
+                   for t, a, b in iv if t == task and a >= failed_at - 1e-6) if task else []
+    if not taken:
+        return report
+    t_take, by = taken[0]
+    report.taken_over_by = by
+    report.takeover_seconds = round(t_take - failed_at, 2)
+    if failure.kind == FaultKind.STALL:
+        # the bound is for silence (a crash, a partition); a stalled robot keeps talking, so
+        # what detects it is the architecture's own progress check (ALLIANCE's φ, MURDOCH's
+        # progress_timeout) — no bound here
+        return report
+    options = run.options
+    bound = run.arch.takeover_check(Takeover(
+        task, failure.robot, failed_at, by, t_take, run.robot_params(by), records, time_of,
+        faults_of(run), options.seed, options.lockstep))
+    report.bound_formula = run.arch.bound_formula
+    report.bound_seconds = None if bound.seconds is None else round(bound.seconds, 2)
+    report.bound_from = round(bound.since, 2)
+    report.bound_from_what = bound.since_what or None
+    report.bound_case = bound.case or None
+    report.within_bound = bound.holds(t_take)
+    return report
 
 
 def lockstep_trouble(records) -> tuple[int, int]:

@@ -19,10 +19,12 @@ from rich.text import Text
 
 from mrta_zenoh.cli.common import console as make_console
 from mrta_zenoh.cli.common import SEED_TYPE, OutputPath, finite_float, verbosity
+from mrta_zenoh.errors import MrtaRuntimeError
+from mrta_zenoh.failure import FaultKind
 
 from .cli import LiveScreen, quiet_alarms, state_line
 from .mission import MissionOptions, run_mission
-from .summary import Summary
+from .summary import COMPLETE, INCOMPLETE, Summary, run_problem
 from .view import render
 
 
@@ -84,6 +86,9 @@ def demo(live: bool | None, **kwargs) -> None:
     if quiet > -2:
         print_summary(console, summary, run.mission.title, run.arch.title,
                       run.mission.describe(summary.metrics))
+    if summary.run_status == INCOMPLETE:  # the figures cover part of the mission only
+        raise MrtaRuntimeError(f"{run_problem(summary)}; {summary.output}/summary.json says "
+                               "what happened")
 
 
 class _Silent:
@@ -128,8 +133,7 @@ class _LiveView:
 
     def __call__(self, now: float, sup, failure, failed_at: float | None) -> None:
         o = self.options
-        what = {"stall": "stalled", "partition": "cut off"}.get(failure.kind, "killed") \
-            if failure is not None else ""
+        what = _FAULT_WORDS.get(failure.kind, str(failure.kind)) if failure is not None else ""
         fail = "" if failure is None else (
             f" · {failure.robot} {what} at {failed_at:.1f} s" if failed_at is not None
             else f" · {failure.spec} at {failure.at:g} s")
@@ -142,7 +146,31 @@ class _LiveView:
         self.screen.close()
 
 
-_FAULT_WORDS = {"crash": "killed", "stall": "stalled", "partition": "cut off"}
+_FAULT_WORDS = {FaultKind.CRASH: "killed", FaultKind.STALL: "stalled",
+                FaultKind.PARTITION: "cut off"}
+
+
+def _bound_note(f) -> str:
+    """The takeover against the architecture's bound, as the summary states it: from which
+    instant it counts (when not the fault itself) and the case the run was in."""
+    if f.bound_formula is None:
+        return ""  # a stall: no bound (the summary says why)
+    # the bound is a crash's: a partitioned robot keeps its token, so it is noticed by its
+    # silence alone, later (docs/murdoch.md, "Timing and the takeover bound")
+    bound = "the crash bound" if f.fault == "partition" else "the bound"
+    case = f", {f.bound_case}" if f.bound_case else ""
+    if f.bound_seconds is None:
+        return f" (no bound holds{case})"
+    since = ""
+    if f.bound_from_what and f.bound_from is not None and f.killed_at is not None:
+        after = f.killed_at + f.takeover_seconds - f.bound_from
+        since = f"{after:.2f} s after {f.bound_from_what}: "
+    within = f.within_bound if f.within_bound is not None \
+        else f.takeover_seconds <= f.bound_seconds  # a summary from before bound_from
+    ok = "within" if within else "OVER"
+    why = (": a partitioned robot keeps its token and is noticed by its silence alone"
+           if f.fault == "partition" and not within else "")
+    return f" ({since}{ok} {bound} {f.bound_formula} = {f.bound_seconds:.2f} s{case}{why})"
 
 
 def print_summary(console: Console, s: Summary, title: str, arch_title: str,
@@ -154,23 +182,11 @@ def print_summary(console: Console, s: Summary, title: str, arch_title: str,
         console.print(f"  {rid}: {txt}", highlight=False)
     f = s.failure
     if f:
-        what = _FAULT_WORDS.get(f.fault, "killed")
-        if f.takeover_seconds is not None and f.bound_seconds is None:
+        what = _FAULT_WORDS.get(f.fault, f.fault)
+        if f.takeover_seconds is not None:
             console.print(f"  {f.robot} {what} at {f.killed_at:.1f} s while doing {f.task}; "
-                          f"{f.taken_over_by} took over after {f.takeover_seconds:.2f} s",
-                          highlight=False)
-        elif f.takeover_seconds is not None:
-            ok = "within" if f.takeover_seconds <= f.bound_seconds else "OVER"
-            # the bound is a crash's: a partitioned robot keeps its token, so it is noticed by
-            # its silence alone, later (docs/murdoch.md, "Timing and the takeover bound")
-            bound = "the crash bound" if f.fault == "partition" else "the bound"
-            console.print(f"  {f.robot} {what} at {f.killed_at:.1f} s while doing {f.task}; "
-                          f"{f.taken_over_by} took over after {f.takeover_seconds:.2f} s "
-                          f"({ok} {bound} {f.bound_formula} = {f.bound_seconds:.2f} s"
-                          + ("" if s.lockstep else " after its last broadcast was received")
-                          + (": a partitioned robot keeps its token and is noticed by its "
-                             "silence alone" if f.fault == "partition" and ok == "OVER" else "")
-                          + ")", highlight=False)
+                          f"{f.taken_over_by} took over after {f.takeover_seconds:.2f} s"
+                          + _bound_note(f), highlight=False)
         else:
             console.print(f"  {f.robot} {what} at {f.killed_at} s; task {f.task} was not taken "
                           "over before the end", highlight=False)
@@ -179,9 +195,9 @@ def print_summary(console: Console, s: Summary, title: str, arch_title: str,
                       f"more than one {c.more_than_one:.0%}", highlight=False)
     for line in extra:
         console.print(f"  {line}", highlight=False)
-    if s.lockstep_exact is False:
-        console.print(f"  lockstep was NOT exact: {s.lockstep_given_up} participant(s) given up, "
-                      f"{s.lockstep_forgiven} claim(s) forgiven — the machine was too busy for "
-                      "the lockstep timeouts; this run may not replay", style="yellow",
-                      highlight=False)
+    problem = run_problem(s)
+    if problem is not None:
+        console.print(f"  NOT EXACT: {problem}" + ("; this run may not replay"
+                                                    if s.run_status == COMPLETE else ""),
+                      style="yellow", highlight=False)
     console.print(f"  files in {s.output}: {', '.join(s.files)}", highlight=False)

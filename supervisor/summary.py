@@ -68,6 +68,30 @@ class FailureReport(msgspec.Struct, forbid_unknown_fields=True, omit_defaults=Tr
     takeover_seconds: float | None = None
     bound_seconds: float | None = None     # the architecture's bound for the robot that took over
     bound_formula: str | None = None
+    # the bound counts from `bound_from` (simulated s; the fault itself unless `bound_from_what`
+    # names another instant: ALLIANCE's last broadcast on the task the taker heard) and rests
+    # on `bound_case` (MURDOCH: the delivery delays against its bid window; no bound_seconds
+    # when the run was outside it); `within_bound`: the takeover was
+    bound_from: float | None = None
+    bound_from_what: str | None = None
+    bound_case: str | None = None
+    within_bound: bool | None = None
+
+
+# run_status (supervisor/run_watch.py): every process ran throughout and the recording covers
+# the mission; a process lost its token while the run was on (stopped or cut off: the run is not
+# what its seed says); the recording does not cover the mission (the figures cover part of it)
+COMPLETE, DISTURBED, INCOMPLETE = "complete", "disturbed", "incomplete"
+
+
+class Disturbance(msgspec.Struct, forbid_unknown_fields=True, omit_defaults=True):
+    """A process of the run whose liveliness token went while the run was on (not a crash the
+    run injected): `process` a robot id, a lockstep participant's name, `recorder` or
+    `simulator`; `lost_at` / `back_at` in simulated seconds (back_at None: not before the end)."""
+
+    process: str
+    lost_at: float
+    back_at: float | None = None
 
 
 class MessageRates(msgspec.Struct, forbid_unknown_fields=True):
@@ -100,8 +124,8 @@ class Summary(msgspec.Struct, forbid_unknown_fields=True):
     files: list[str]
     metrics: dict[str, Any] = {}   # the application's own (its mission hook)
     failure: FailureReport | None = None
-    # in lockstep a broadcast is heard the step it is sent: the takeover bound, which counts
-    # from the last broadcast received, then counts from the death itself
+    # in lockstep a message counts as heard at its stamp (plus any injected latency), so the
+    # instant a takeover bound counts from (`failure.bound_from`) is exact
     lockstep: bool = True
     # every fault injected, as the spec reads (`failure` is about the first robot's only):
     # `loss:0.2`, `latency:0.3±0.2`, `partition:robot1@5+10,loss:0.2` — or "none"
@@ -113,6 +137,10 @@ class Summary(msgspec.Struct, forbid_unknown_fields=True):
     lockstep_exact: bool | None = None
     lockstep_given_up: int = 0   # participants given up, over the run
     lockstep_forgiven: int = 0   # claims forgiven, over the run
+    # complete, disturbed or incomplete (COMPLETE…): a disturbed or incomplete run is not exact
+    run_status: str = COMPLETE
+    disturbances: list[Disturbance] = []
+    recorded_until: float | None = None  # the recording's last simulated second
     schema: int = SCHEMA
     # the application's own sections (its Mission's `summary_sections` type): written at the
     # top level of summary.json, not under this name (write_summary / read_summary)
@@ -232,6 +260,27 @@ def read_summary(path: Path) -> Summary:
             raise ConfigError(f"mission {summary.mission!r}'s sections: {exc}",
                               file=str(path)) from None
     return summary
+
+
+def run_problem(summary: Summary) -> str | None:
+    """Why a run's figures are not those of its seed, in one line (None: they are): what the
+    printed summary, `mrta demo`'s exit and `mrta experiment`'s rows say."""
+    lost = "; ".join(f"{d.process} lost its token at {d.lost_at:g} s"
+                     + (f", back at {d.back_at:g} s" if d.back_at is not None else "")
+                     for d in summary.disturbances)
+    if summary.run_status == INCOMPLETE:
+        until = ("it is empty" if summary.recorded_until is None
+                 else f"it ends at {summary.recorded_until:g} s of {summary.duration:g} s")
+        return (f"the recording does not cover the whole mission ({until}"
+                + (f"; {lost}" if lost else "") + ")")
+    if summary.run_status == DISTURBED:
+        return (f"a process of the run was stopped or cut off ({lost}): the run is not what "
+                "its seed gives")
+    if summary.lockstep_exact is False:
+        return (f"lockstep was not exact: {summary.lockstep_given_up} participant(s) given up, "
+                f"{summary.lockstep_forgiven} claim(s) forgiven — the machine was too busy for "
+                "the lockstep timeouts")
+    return None
 
 
 def flat_metrics(summary: Summary) -> dict[str, Any]:

@@ -35,14 +35,14 @@ from pathlib import Path
 
 from mrta_zenoh import codec, keys
 from mrta_zenoh.architectures import architecture
-from mrta_zenoh.bus import Bus, BusOptions, open_bus
-from mrta_zenoh.identity import OBSERVER, check_identity
-from mrta_zenoh.clock import EPSILON, SimClock, WallClock, follow_sim_clock
+from mrta_zenoh.bus import Bus, BusOptions
+from mrta_zenoh.clock import EPSILON, SimClock
 from mrta_zenoh.codec import DecodeError
 from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.identity import OBSERVER
 from mrta_zenoh.keys import CLOCK, RECORDER_TOKEN, normalize_robot_id
-from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.messages import Clock, Odometry, PointCloud, Twist
+from mrta_zenoh.node import Node, NodeTime
 from mrta_zenoh.recording import McapRecorder, SimLogTime, check_output, json_channel
 from mrta_zenoh.untrusted import visible
 
@@ -213,16 +213,15 @@ def run_view(options: ViewOptions, bus_options: BusOptions, *,
     left open."""
     options.check()
     application = resolve_application(options.app) if options.app else None
-    if bus is None:
-        check_identity(bus_options, OBSERVER)
     sim_time = options.sim_time
-    clock = SimClock() if sim_time else WallClock()
+    node = Node(bus_options, OBSERVER, time=NodeTime.SIM if sim_time else NodeTime.WALL,
+                stop=stop, bus=bus)
+    clock = node.clock
     stamper = SimLogTime(clock, dated=options.dated) if sim_time else None
     log_time = stamper or time.time_ns
     pacer = SimPacer(clock) if sim_time else None
-    with stop_on_signals(stop) as stop, \
-            (contextlib.nullcontext(bus) if bus is not None else open_bus(bus_options)) as bus, \
-            contextlib.ExitStack() as handles:
+    with node, contextlib.ExitStack() as handles:
+        bus, stop = node.bus, node.stop
         # closed in reverse order: subscriptions and tokens, then the recording and the server
         robots = [normalize_robot_id(r.id) for r in application[0].robots] \
             if application is not None else None
@@ -244,8 +243,6 @@ def run_view(options: ViewOptions, bus_options: BusOptions, *,
 
         outputs = FoxgloveOutputs(emit, robots)
         on_raw = _receiver(stamper, log_time, recorder, live, pacer)
-        if sim_time:
-            handles.enter_context(follow_sim_clock(bus, clock))
         handles.enter_context(bus.subscribe_raw("**", on_raw))
         if recorder is not None:
             handles.enter_context(bus.watch_liveliness("**", recorder.liveliness))

@@ -45,8 +45,10 @@ class Spec:
     phase: float = 0.0
 
     def params(self, name: str) -> RobotParams:
+        # the evaluator by module:Class, not by registered name: a name is looked up among
+        # every installed package's entry points, and the properties build hundreds of agents
         bs = BehaviourSetParams(TASK, self.expected, self.theta, self.yielding, self.giving_up,
-                                self.fast, "alliance/updated_sensory", ())
+                                self.fast, "mrta_agent.runtime.builtin:UpdatedSensory", ())
         return RobotParams(name, self.spin, self.broadcast, self.tau, 10.0, (), (bs,))
 
     @property
@@ -54,9 +56,9 @@ class Spec:
         return 1.0 / self.spin
 
     def takeover_bound(self) -> float:
-        """τ + ⌈θ/δ_fast⌉/ρ + one tick (ALLIANCE.takeover_bound), counted from the dead
-        robot's last broadcast as received. θ and δ_fast as the decimals they are (the
-        strategies draw θ / ticks, which the agent adds up exactly)."""
+        """τ + ⌈θ/δ_fast⌉/ρ + one tick (ALLIANCE.takeover_bound), counted from the taker's
+        last reception of any broadcast on the task. θ and δ_fast as the decimals they are
+        (the strategies draw θ / ticks, which the agent adds up exactly)."""
         ticks = math.ceil(Fraction(repr(self.theta)) / Fraction(repr(self.fast)))
         return self.tau + (ticks + 1) / self.spin
 
@@ -71,6 +73,9 @@ class Network:
     # delivery delay of one broadcast (sender, receiver, send time) → seconds; replaces
     # latency + jitter when given (an adversary choosing each delay)
     delay: Callable[[str, str, float], float] | None = None
+    # whether one broadcast (sender, receiver, send time) is lost, besides `loss` (an
+    # adversary choosing which)
+    lose: Callable[[str, str, float], bool] | None = None
 
     def cut(self, a: str, b: str, t: float) -> bool:
         """Is the link a–b down at time t (one side inside a cut group, the other outside)?"""
@@ -125,7 +130,7 @@ class Robot:
 
 def make_agent(name: str, spec: Spec, bus: HarnessBus, clock: ManualClock) -> Agent:
     params = AgentParams(spec.params(name), {TASK: TaskParams(TASK, TASK, ())})
-    plugins = alliance_plugins(params)  # the behaviour set's evaluator: updated_sensory
+    plugins = alliance_plugins(params)  # the behaviour set's evaluator: UpdatedSensory
     prepared = Prepared(name, params, plugins, spec.spin, spec.spin, "team harness")
     agent = ALLIANCE.agent(prepared, bus, clock)
     agent.start()
@@ -205,7 +210,8 @@ class Team:
                 continue
             if (other, sender) in self.net.deaf:
                 continue  # a one-way link: never heard (not a loss: no bound is skipped for it)
-            lost = self.net.cut(sender, other, self.now) or self.rng.random() < self.net.loss
+            lost = self.net.cut(sender, other, self.now) or self.rng.random() < self.net.loss \
+                or (self.net.lose is not None and self.net.lose(sender, other, self.now))
             if lost:
                 self.losses.setdefault(frozenset((sender, other)), []).append(self.now)
                 continue
@@ -215,6 +221,26 @@ class Team:
                 arrival = self.now + self.net.latency + self.rng.uniform(0.0, self.net.jitter)
             self.arrivals.setdefault((other, sender), []).append(arrival)
             self._push(arrival, "deliver", (other, sample))
+
+    def drop_in_flight(self, sender: str, receiver: str) -> int:
+        """Lose every broadcast from `sender` to `receiver` still on its way (an adversary
+        acting at this instant); how many."""
+        keep, dropped = [], []
+        for ev in self.events:
+            t, _, kind, data = ev
+            if kind == "deliver" and data[0] == receiver and \
+                    data[1].message.header.frame_id == sender:
+                dropped.append(t)
+            else:
+                keep.append(ev)
+        if dropped:
+            heapq.heapify(keep)
+            self.events = keep
+            arrivals = self.arrivals[(receiver, sender)]
+            for t in dropped:
+                arrivals.remove(t)
+            self.losses.setdefault(frozenset((sender, receiver)), []).append(self.now)
+        return len(dropped)
 
     # ---------------------------------------------------------------- what happened
     def intervals(self, end: float) -> list[tuple[float, float, frozenset]]:
@@ -231,6 +257,13 @@ class Team:
             if b > a and not h:
                 worst = max(worst, b - a)
         return worst
+
+    def last_heard(self, receiver: str, until: float) -> float | None:
+        """When `receiver` last received a teammate's broadcast (any sender) at or before
+        `until`; None if never."""
+        times = [t for (r, _), arrivals in self.arrivals.items() if r == receiver
+                 for t in arrivals if t <= until]
+        return max(times, default=None)
 
     def first_heard(self, receiver: str, sender: str, after: float) -> float:
         arrivals = sorted(self.arrivals.get((receiver, sender), ()))

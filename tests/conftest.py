@@ -1,6 +1,9 @@
-"""Fixtures, and the tiers' guard: a test that starts a process or opens a Zenoh session must be
-marked `multiprocess` (pyproject.toml), so `pytest -m "not multiprocess"` stays fast and never
-depends on real networking; an unmarked one fails, saying so."""
+"""Fixtures, and the tiers: a test that starts a process or opens a Zenoh session must be marked
+`multiprocess` (pyproject.toml), so `pytest -m "not multiprocess"` — the fast tier — never depends
+on real networking; an unmarked one fails, saying so. The fast tier also leaves out the in-process
+tests marked `slow` (Hypothesis properties at their full example counts, long simulations), so it
+stays under a minute; they run in the full run (`pytest`), or alone with
+`pytest -m "slow and not multiprocess"` (an expression that names `slow` keeps them)."""
 
 import subprocess
 
@@ -12,6 +15,16 @@ from tests.helpers import REFERENCE, Children, Tokens
 class UnmarkedMultiprocess(BaseException):
     """Raised where an unmarked test starts a process or opens a Zenoh session. A BaseException,
     so code that turns errors into exit codes (`except Exception`) does not hide it."""
+
+
+def pytest_collection_modifyitems(config, items):
+    expr = config.option.markexpr or ""
+    if "not multiprocess" not in expr or "slow" in expr:
+        return
+    fast = [item for item in items if item.get_closest_marker("slow") is None]
+    if len(fast) < len(items):
+        config.hook.pytest_deselected(items=[i for i in items if i not in fast])
+        items[:] = fast
 
 
 @pytest.hookimpl(hookwrapper=True)

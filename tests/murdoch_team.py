@@ -5,6 +5,7 @@ so their token goes as a process exit takes it) or frozen (still "alive", never 
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 
@@ -22,22 +23,29 @@ TIMING = {"spin_rate": 10.0, "bid_window": 0.5, "renewal_period": 0.5, "lease_ti
           "reannounce_period": 2.0, "give_up_delay": 3.0}
 
 
+# plugins by module:Class, not by registered name (alliance/odometry, …): a name is looked up
+# among every installed package's entry points, and the properties build hundreds of agents
+ODOMETRY = "mrta_agent.runtime.builtin:OdometrySensor"
+POINT_CLOUD = "mrta_agent.runtime.builtin:PointCloudSensor"
+UPDATED_SENSORY = "mrta_agent.runtime.builtin:UpdatedSensory"
+
+
 def robot_doc(skills: dict[str, float], **timing) -> dict:
     doc = {"name": "test robot", **TIMING, **timing, "pose_topic": "odom",
            "utility": {"skill_weight": 1.0, "distance_weight": 0.1},
            "sensors": {"size": 2}, "skills": {"size": len(skills)}}
-    for i, (t, plugin) in enumerate((("odom", "alliance/odometry"),
-                                     ("sonar", "alliance/point_cloud"))):
+    for i, (t, plugin) in enumerate((("odom", ODOMETRY), ("sonar", POINT_CLOUD))):
         doc["sensors"][f"sensor{i}"] = {"plugin_name": plugin, "topic_name": t,
                                         "timeout_duration": 1.0}
     for i, (task, level) in enumerate(skills.items()):
         doc["skills"][f"skill{i}"] = {"task_id": task, "level": level, "progress": {
-            "plugin_name": "alliance/updated_sensory",
+            "plugin_name": UPDATED_SENSORY,
             "sensors": {"size": 1, "sensor0": {"topic_name": "sonar"}}}}
     return doc
 
 
-def tasks_doc(tasks: list[str], locations: dict[str, tuple[float, float]] | None = None) -> dict:
+def tasks_doc(tasks: list[str], locations: dict[str, tuple[float, float]] | None = None,
+              progress_timeout: float | None = None) -> dict:
     doc = {"tasks": {"size": len(tasks)}}
     for i, t in enumerate(tasks):
         loc = (locations or {}).get(t)
@@ -45,16 +53,46 @@ def tasks_doc(tasks: list[str], locations: dict[str, tuple[float, float]] | None
             "id": t, "name": t, "resources": {"size": 1, "resource0": {"topic_name": "sonar"}},
             "locations": {"size": 1, "location0": {"x": loc[0], "y": loc[1]}} if loc
             else {"size": 0}}
+        if progress_timeout is not None:
+            doc["tasks"][f"task{i}"]["progress_timeout"] = progress_timeout
     return doc
+
+
+class Delays:
+    """Delivery delays an adversary chooses, message by message, fed to the agent driver's own
+    latency path (`Agent.faults`: a message is heard `delay` after it was sent and handled at
+    the first tick at or after that — later messages may overtake it). Nothing is lost."""
+
+    channel = True
+    latency = (0.0, 0.0)  # set: the driver holds each message until its time
+    loss = 0.0
+    partitions = ()
+
+    def __init__(self, robot: str, choose: Callable[[str, str, int], float]):
+        self.robot, self.choose = robot, choose
+
+    def delay(self, key: str, seq: int) -> float:
+        return self.choose(self.robot, key, seq)
+
+    def lost(self, key: str, seq: int) -> bool:
+        return False
+
+    def cut_off(self, t: float) -> bool:
+        return False
+
+    def stalled(self, now: float) -> bool:
+        return False
 
 
 class Team:
     def __init__(self, tmp: Path, skills: dict[str, dict[str, float]], tasks: list[str],
                  locations=None, start: float = 100.0, roster: list[str] | None = None,
-                 **timing):
+                 delay: Callable[[str, str, int], float] | None = None,
+                 progress_timeout: float | None = None, **timing):
+        """`delay(receiver, key, seq)`: each coordination message's delivery delay (Delays)."""
         self.net = InProcNetwork()
         self.clock = ManualClock(start)
-        tf = write(tmp / "tasks.yaml", tasks_doc(tasks, locations))
+        tf = write(tmp / "tasks.yaml", tasks_doc(tasks, locations, progress_timeout))
         self.agents: dict[str, Agent] = {}
         self.buses: dict[str, InProcBus] = {}
         self.frozen: set[str] = set()
@@ -71,6 +109,8 @@ class Team:
             agent = MURDOCH.agent(MURDOCH.prepare(AgentOptions(rid, rf, tf)), bus, self.clock,
                                   np.random.default_rng(1))
             agent.limit_team(roster)  # None: anyone holding a token joins
+            if delay is not None:
+                agent.faults = Delays(rid, delay)
             agent.start()
             agent.declare_alive()
             self.agents[rid], self.buses[rid] = agent, bus

@@ -3,7 +3,8 @@ parameters, random start phases (or identical robots in phase), latency, jitter 
 broadcast period, loss, deaths and partitions. Each invariant carries its bound.
 
 CI runs a fixed seed and a bounded number of examples; `MRTA_PROPERTY_EXAMPLES=2000 pytest
-tests/test_alliance_properties.py` runs more on demand.
+tests/test_alliance_properties.py` runs more on demand. Marked `slow`: the full run's, not the
+fast tier's (pyproject.toml).
 """
 
 from __future__ import annotations
@@ -12,9 +13,12 @@ import dataclasses
 import math
 import os
 
+import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from tests.alliance_team import Network, Spec, Team
+
+pytestmark = pytest.mark.slow  # 20 s of CPU at these example counts: not in the fast tier
 
 EXAMPLES = int(os.environ.get("MRTA_PROPERTY_EXAMPLES", "30"))
 SETTINGS = settings(max_examples=EXAMPLES, derandomize=True, deadline=None,

@@ -11,7 +11,7 @@ from mrta_simulator.messages import Bumper, Segment, World
 from mrta_patrol.messages import PatrolLog, Report, TaskTime
 from mrta_delivery.messages import TaskEvent
 from mrta_zenoh.lockstep import LockstepStatus, Step, StepDone
-from mrta_agent.murdoch.messages import Announcement, Award, Bid, Claim, Release
+from mrta_agent.murdoch.messages import Announcement, Award, Bid, Claim, Release, Revoke
 
 EXAMPLES = [
     Header("robot1", 12.5, 7),
@@ -40,6 +40,7 @@ EXAMPLES = [
     Award(Header("robot1", 3.5, 2), 7, "report", "robot3", 0.84),
     Claim(Header("robot3", 3.6, 1), "report", 3.6, 2.0),
     Release(Header("robot3", 20.0, 9), "report", "no progress for 3.0 s"),
+    Revoke(Header("robot1", 61.0, 1), "t1", "robot3", 0.5, "no progress in 60 s"),
 ]
 
 

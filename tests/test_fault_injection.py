@@ -2,22 +2,24 @@
 the agents through the environment, and the agent driver injecting each fault on a manual
 clock — a stall, a partition, seeded loss and latency — for every architecture alike."""
 
+import dataclasses
+
 import numpy as np
 import pytest
 
 from mrta_agent.alliance.architecture import ALLIANCE
 from mrta_agent.alliance.messages import InterRobotCommunication
-from mrta_agent.runtime.host import AgentOptions, crash_time, fault_plan
+from mrta_agent.runtime.host import AgentOptions
 from mrta_agent.runtime.plugins import Layer
 from mrta_supervisor.experiment import _failure_problem
 from mrta_supervisor.mission import parse_fail
 from mrta_zenoh import keys
-from mrta_zenoh.architectures import CRASH_ENV, FAULTS_ENV
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.clock import ManualClock
 from mrta_zenoh.errors import ConfigError
-from mrta_zenoh.failure import (Failure, FaultPlan, Faults, faults_problem, parse_faults,
-                                plan_for)
+from mrta_zenoh.failure import (FAULTS_ENV, SYNTAX, Failure, FaultKind, FaultPlan, Faults,
+                                fault_env, faults_problem, parse_faults, plan_for,
+                                plan_from_env)
 from mrta_zenoh.messages import Header, Odometry, PointCloud, Pose2D, Twist
 from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
 
@@ -45,16 +47,15 @@ def test_every_fault_kind_parses_and_combines():
     ("latency:fast", "latency:MEAN±JITTER"), ("loss:0.1,loss:0.2", "loss given twice"),
     ("robot2@3,stall:robot2@4", "robot2 has two faults"), ("robot2@3,,loss:0.1", "comma"),
     ("", "comma")])
-def test_bad_specs_say_what_is_expected_at_every_hop(spec, says, monkeypatch):
+def test_bad_specs_say_what_is_expected_at_every_hop(spec, says):
     with pytest.raises(ValueError, match=says):
         parse_faults(spec)
     if spec:
         assert _failure_problem(spec)  # an experiment's `failures` entry: refused at load
         with pytest.raises(ConfigError, match="--fail"):
             parse_fail(spec)
-        monkeypatch.setenv(FAULTS_ENV, spec)
         with pytest.raises(ConfigError, match=f"\\${FAULTS_ENV}"):
-            fault_plan("robot2", 0)
+            plan_from_env("robot2", 0, environ={FAULTS_ENV: spec})
 
 
 def test_robot_faults_are_checked_against_the_run():
@@ -64,23 +65,38 @@ def test_robot_faults_are_checked_against_the_run():
     assert "not before the end" in faults_problem(parse_faults("stall:robot1@60"), robots, 60)
 
 
-def test_failure_env_splits_crashes_from_what_the_driver_injects(monkeypatch):
-    faults = parse_faults("robot1@20,stall:robot2@30,loss:0.25,latency:0.1±0.05")
-    env = ALLIANCE.failure_env(faults)
-    assert env == {CRASH_ENV: "robot1@20",
-                   FAULTS_ENV: "stall:robot2@30,loss:0.25,latency:0.1±0.05"}
-    assert ALLIANCE.failure_env(faults.failures) == {CRASH_ENV: "robot1@20",
-                                                     FAULTS_ENV: "stall:robot2@30"}
-    for k, v in env.items():
-        monkeypatch.setenv(k, v)
-    assert crash_time("robot1", None) == 20.0 and crash_time("robot2", None) is None
-    assert fault_plan("robot2", 7) == FaultPlan("robot2", 7, 30.0, (), 0.25, (0.1, 0.05))
-    assert fault_plan("robot1", 7) == FaultPlan("robot1", 7, None, (), 0.25, (0.1, 0.05))
-    monkeypatch.setenv(FAULTS_ENV, "robot3@5")  # a crash there is honoured, not ignored
-    assert crash_time("robot3", None) == 5.0
-    monkeypatch.delenv(FAULTS_ENV)
-    monkeypatch.delenv(CRASH_ENV)
-    assert fault_plan("robot1", 7) is None
+def test_one_variable_carries_every_kind_and_each_process_takes_its_part():
+    spec = "robot1@20,stall:robot2@30,loss:0.25,latency:0.1±0.05"
+    faults = parse_faults(spec)
+    env = fault_env(faults)
+    assert env == {FAULTS_ENV: spec}  # one channel: crashes travel with the rest
+    assert fault_env(Faults()) == {}
+    assert plan_from_env("robot1", 7, environ=env) == FaultPlan(
+        "robot1", 7, None, (), 0.25, (0.1, 0.05), crash_at=20.0)
+    assert plan_from_env("robot2", 7, environ=env) == FaultPlan(
+        "robot2", 7, 30.0, (), 0.25, (0.1, 0.05))
+    assert plan_from_env("robot3", 7, environ=env) == FaultPlan(  # the channel's part only
+        "robot3", 7, None, (), 0.25, (0.1, 0.05))
+    assert plan_from_env("robot1", 7, environ={}) is None
+    # a subject need not be a robot: a process of any name takes its own crash the same way
+    assert plan_from_env("dispatcher", 1, environ={FAULTS_ENV: "crash:dispatcher@4"}
+                         ).crash_at == 4.0
+
+
+def test_every_kind_is_written_read_and_carried_the_same_way():
+    """What adding a kind takes (docs/architecture.md, "Adding a fault kind"): each kind has its
+    syntax; a channel kind a field of Faults named like it and a FaultPlan field."""
+    plan_fields = {f.name for f in dataclasses.fields(FaultPlan)}
+    for kind in FaultKind:
+        syntax = SYNTAX[kind]
+        if syntax.subject:
+            assert parse_faults(syntax.usage.split("e.g. ")[1]).failures[0].kind is kind
+        else:
+            example = syntax.usage.split("e.g. ")[1]
+            value = getattr(parse_faults(example), kind.value)
+            assert value and kind.value in plan_fields
+            assert getattr(plan_for(parse_faults(example), "robot1", 0), kind.value) == value
+    assert [str(k) for k in FaultKind] == ["crash", "stall", "partition", "loss", "latency"]
 
 
 # ------------------------------------------------------------------ seeded channel faults
@@ -239,3 +255,32 @@ def test_a_fail_spec_may_carry_spaces_around_it():
     """`--fail ' none '` said "expected …; or none" — rejecting none while suggesting it."""
     assert parse_fail(" none ") is None and parse_fail("NONE") is None
     assert parse_fail(" loss:0.2 ").spec == "loss:0.2"
+
+
+def test_a_crash_strikes_at_the_first_wake_up_at_or_after_its_time(tmp_path, monkeypatch):
+    """The driver kills its own process (SIGKILL: no shutdown, no goodbye) at its first wake-up
+    at or after the crash time, before that tick says anything."""
+    import os
+    import signal
+
+    from mrta_zenoh import failure
+
+    class Killed(Exception):
+        pass
+
+    killed = []
+
+    def kill(pid, sig):
+        killed.append((pid, sig))
+        raise Killed
+
+    monkeypatch.setattr(failure.os, "kill", kill)
+    monkeypatch.setattr(failure.logging, "shutdown", lambda: None)  # pytest's handlers stay
+    agent, bus, clock = make(tmp_path, FaultPlan("robot1", crash_at=1.25))
+    irc = recorder(bus, ALLIANCE.key("robot1", IRC))
+    with pytest.raises(Killed):
+        run(agent, bus, clock, 5.0)
+    assert killed == [(os.getpid(), signal.SIGKILL)]
+    assert clock.now() == pytest.approx(1.3)  # the first 10 Hz wake-up at or after 1.25
+    stamps = [s.message.header.stamp for s in irc]
+    assert stamps and max(stamps) < 1.25  # it broadcast until then, and not at its last wake

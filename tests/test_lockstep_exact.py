@@ -153,8 +153,7 @@ def test_in_lockstep_what_is_due_comes_in_time_sender_key_and_sequence_order():
     from mrta_agent.alliance.messages import InterRobotCommunication
     from mrta_zenoh.messages import Header
     agent, bus, clock = alliance_agent()
-    clock.lockstep = threading.Event()
-    clock.lockstep.set()
+    clock.in_lockstep = lambda: True
     tokens = [bus.declare_token(f"{r}/alliance/agent") for r in ("robot2", "robot3")]
     key = "{}/alliance/inter_robot_communication"
     for sender, stamp, seq in (("robot3", 0.1, 1), ("robot2", 0.1, 2), ("robot3", 0.0, 1),
@@ -174,13 +173,12 @@ def test_an_agent_in_lockstep_waits_for_its_roster_before_its_first_tick():
     stop = threading.Event()
     two = bus.declare_token("robot2/alliance/agent")
     assert agent.await_team(stop, limit=5.0) == []            # out of lockstep: no waiting
-    clock.lockstep = threading.Event()
-    clock.lockstep.set()
+    clock.in_lockstep = lambda: True
     assert agent.await_team(stop, limit=0.05) == ["robot3"]   # bounded: says who is missing
     three = bus.declare_token("robot3/alliance/agent")
     assert agent.await_team(stop, limit=5.0) == []
     free, _, free_clock = alliance_agent()                    # no roster: nobody to wait for
-    free_clock.lockstep = clock.lockstep
+    free_clock.in_lockstep = clock.in_lockstep
     assert free.await_team(stop, limit=5.0) == []
     for h in (two, three):
         h.close()

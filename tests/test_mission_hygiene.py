@@ -112,3 +112,42 @@ def test_kill_9_of_the_demo_leaves_no_process_behind(children, tmp_path):
     for p in left:  # ours to end, by PID, so nothing outlives the test even if it fails
         os.kill(p, signal.SIGKILL)
     assert not left, f"{len(left)} of {len(kids)} children outlived a kill -9 of the demo"
+
+
+@pytest.mark.parametrize("package", ["patrol", "patrol_murdoch", "delivery", "delivery_murdoch"])
+def test_every_node_of_a_mission_gets_the_runs_seed_from_the_runner_not_from_its_args(package):
+    """The seed reaches every process as $MRTA_SEED (the runner's environment, and the launch
+    file's own `<env>` for `mrta launch … seed:=S`), never as `--seed` text a node could lack."""
+    from mrta_zenoh.seeds import SEED_ENV
+    from mrta_zenoh.toolchain.launchfile import LaunchEvaluator
+    from mrta_zenoh.toolchain.registry import Registry
+
+    from mrta_supervisor.mission import check_seeds
+
+    reg = Registry()
+    launch = reg.find(package).path / "launch" / ("patrol_sim.launch" if "patrol" in package
+                                                  else "delivery_sim.launch")
+    nodes = LaunchEvaluator(lambda n: reg.find(n).path).run(launch, {"seed": "7"})
+    assert len(nodes) >= 4
+    for n in nodes:
+        assert "--seed" not in " ".join(n.args), n.name
+        assert n.env[SEED_ENV] == "7", n.name
+    check_seeds(nodes, 7)
+    with pytest.raises(ConfigError, match=f"node {nodes[0].name} is given seed '7', but the "
+                                          "run's seed is 3"):
+        check_seeds(nodes, 3)
+
+
+def test_a_node_given_another_seed_by_its_launch_file_is_refused():
+    from mrta_supervisor.mission import check_seeds
+    from mrta_zenoh.toolchain.launchfile import NodeSpec
+
+    def node(*args, **env):
+        return NodeSpec("robot1/alliance", "robot_agent", "agent", list(args), env=env,
+                        file="x.launch", line=4)
+
+    check_seeds([node("robot1", "--sim-time"), node("--seed", "3"), node("--seed=3")], 3)
+    for bad in (node("robot1", "--seed", "0"), node("--seed=0"), node(MRTA_SEED="0")):
+        with pytest.raises(ConfigError, match="x.launch:4: node robot1/alliance is given seed "
+                                              "'0', but the run's seed is 3"):
+            check_seeds([bad], 3)

@@ -93,3 +93,37 @@ def test_mrta_demo_under_murdoch_writes_the_same_summary_fields_as_alliance(chil
         assert (out / name).stat().st_size > 5_000, name
     assert not list(out.glob("motivation_*.png"))  # ALLIANCE's panels: nothing to plot
     assert any("took over after" in line for line in demo.stdout)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+def test_a_stalled_winners_task_is_revoked_and_delivered_by_another_robot(children, tmp_path):
+    """delivery under MURDOCH, robot1 stalled at 5 s on t1 (lift): it keeps renewing its lease
+    and never delivers. t1's other server, robot3 (lift, idle), revokes the contract once it
+    has heard it claimed for the task's progress_timeout, and wins the auction that follows."""
+    from mrta_agent.murdoch.params import load_tasks
+    from mrta_zenoh.codec import decode, type_from_encoding
+    from mrta_zenoh.recording import read_recording
+    out = tmp_path / "stall"
+    demo = children.mrta("-q", "demo", "--application", "delivery", "--architecture", "murdoch",
+                         "--fail", "stall:robot1@5", "--duration", "100", "--speed", "0",
+                         "--no-live", "--output", str(out), name="demo")
+    assert demo.wait(240) == 0, demo.stderr[-20:] + demo.stdout[-20:]
+    s = json.loads((out / "summary.json").read_text())
+    f = s["failure"]
+    assert (f["robot"], f["fault"], f["task"], f["taken_over_by"]) == \
+        ("robot1", "stall", "t1", "robot3")
+    timeout = load_tasks(CONFIGS / "applications" / "delivery_murdoch" / "config"
+                         / "tasks_murdoch_params.yaml")["t1"].progress_timeout
+    (held,) = [x for x in s["who_did_what"]["robot1"] if x["task"] == "t1"]
+    # revoked at the claim's first hearing + progress_timeout, released a tick later
+    assert held["from"] + timeout <= held["to"] <= held["from"] + timeout + 0.2
+    # re-auctioned at once: announced, the window (0.5 s), the award, robot3's claim
+    (took,) = [x for x in s["who_did_what"]["robot3"] if x["task"] == "t1"]
+    assert held["to"] < took["from"] <= held["to"] + 1.0
+    t1 = [a for a in s["allocation"] if a["task"] == "t1"]
+    assert [a["robot"] for a in t1] == ["robot1", "robot3"] and t1[1]["done_at"] is not None
+    assert t1[0]["done_at"] is None and s["metrics"]["completed"] == 4
+    revokes = [decode(type_from_encoding(enc), p) for key, enc, _, p
+               in read_recording(out / "run.mcap") if key == "robot3/murdoch/revoke"]
+    assert [(r.task_id, r.holder) for r in revokes] == [("t1", "robot1")]

@@ -22,6 +22,7 @@ from tests.layer_harness import LayerRun, typed_sections
 WORLD = load_world(PATROL_WORLD)
 
 
+@pytest.mark.slow
 def test_wander_moves_through_open_space_without_a_collision_for_120_s():
     for seed in (0, 1):
         sim = Simulation(WORLD, {"robot1": WORLD.starts["robot1"]}, seed=seed)
@@ -43,6 +44,7 @@ def _wall_distance(x, y):
     return min(x + 20, 20 - x, y + 6, 6 - y)
 
 
+@pytest.mark.slow
 def test_border_protection_keeps_its_distance_and_goes_round_the_perimeter():
     sim = Simulation(WORLD, {"robot2": WORLD.starts["robot2"]}, seed=1, record_trails=True)
     run = LayerRun(sim, "robot2", BorderProtection)

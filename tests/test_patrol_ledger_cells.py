@@ -4,6 +4,7 @@ every cell visits, wherever the robot and whatever the border (fixed seed)."""
 
 import math
 
+import pytest
 from hypothesis import given, settings, strategies as st
 
 from mrta_patrol.ledger import CellGrid, PatrolLedger, rectangle_cells
@@ -18,6 +19,7 @@ def every_cell(cells, mask, x, y, reach):
     return mask
 
 
+@pytest.mark.slow
 @settings(max_examples=300, derandomize=True, deadline=None)
 @given(coord, coord, st.floats(0.5, 40.0), st.floats(0.5, 30.0),
        st.lists(st.tuples(coord, coord), min_size=1, max_size=20), st.integers(0, 2**64))

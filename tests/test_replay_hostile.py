@@ -106,6 +106,7 @@ ITEM = st.tuples(
     TIMES, PAYLOADS)
 
 
+@pytest.mark.slow
 @settings(max_examples=150, derandomize=True, deadline=None,
           suppress_health_check=[HealthCheck.function_scoped_fixture,
                                  HealthCheck.too_slow])

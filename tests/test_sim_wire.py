@@ -98,6 +98,7 @@ def states(draw):
     return ids, k, omit, periods
 
 
+@pytest.mark.slow
 @SETTINGS
 @given(states())
 def test_fast_bytes_are_codec_encode_of_the_messages(state):

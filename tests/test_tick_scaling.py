@@ -11,6 +11,7 @@ from __future__ import annotations
 import os
 from dataclasses import astuple
 
+import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from robot_agent.alliance.high_level import UNKNOWN, HighLevel
@@ -100,6 +101,7 @@ def histories(draw):
     return p, steps
 
 
+@pytest.mark.slow  # 11 s of CPU at 60 examples: the full run's, not the fast tier's
 @SETTINGS
 @given(histories())
 def test_the_incremental_tick_decides_what_the_rescan_decides(history):

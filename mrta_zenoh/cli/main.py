@@ -97,7 +97,7 @@ SHORT_HELP = {
         "A mission end to end: simulator, agents and supervisor, then a summary.",
     "mrta_zenoh.cli.echo:echo": "!Print the samples on a key expression or ROS topic.",
     "mrta_supervisor.experiment_cli:experiment":
-        "Run the matrix of FILE (seeds × failures × parameter overrides) and summarise it.",
+        "!Run an experiment file's matrix of runs, or rebuild its report.",
     "mrta_zenoh.cli.instance:instance":
         "Problem instances: generate them, look at them, check them (`mrta demo --instance`).",
     "mrta_zenoh.cli.toolchain:launch":

@@ -80,6 +80,9 @@ class LockstepClock(SimClock):
         self._publish_done: Callable[..., None] | None = None
         self.forgiven = 0  # claims forgiven in this run (a new run starts again)
 
+    def in_lockstep(self) -> bool:
+        return self.lockstep.is_set()
+
     def join(self, bus) -> contextlib.ExitStack:
         """Count traffic, follow steps, and announce the participant; returns the handles as
         one ExitStack (closing it leaves the barrier)."""

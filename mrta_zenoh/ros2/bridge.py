@@ -39,12 +39,13 @@ from dataclasses import dataclass, field
 from typing import Callable
 
 from .. import codec
-from ..bus import BusOptions, open_bus
+from ..bus import BusOptions
 from ..errors import ConfigError
 from ..keys import ROS2_BRIDGE_TOKEN, cmd_vel, normalize_robot_id, odom, sonar, validate_key_expr
-from ..lifecycle import stop_on_signals, wait_for_stop
+from ..identity import BRIDGE, bridge_node_name
+from ..lifecycle import wait_for_stop
 from ..messages import Message, Twist
-from ..identity import BRIDGE, bridge_node_name, check_identity
+from ..node import Node
 from ..yamlfile import plural
 from . import names
 from .mirror import Mirror, definitions, registered_mirrors
@@ -266,12 +267,11 @@ def run_bridge(*, links: list[RobotLink], bus_options: BusOptions, domain: int =
     robots = [link.robot for link in links]
     if len(set(robots)) != len(robots):
         raise ConfigError("a robot is given twice")
-    check_identity(bus_options, BRIDGE, robots=robots)
-    with stop_on_signals(stop) as stop, open_bus(bus_options) as bus, \
-            Bridge(bus, links, domain=domain, distro=distro, mirror=mirror,
+    with Node(bus_options, BRIDGE, robots=robots, stop=stop) as node, \
+            Bridge(node.bus, links, domain=domain, distro=distro, mirror=mirror,
                    max_sonar_bytes=max_sonar_bytes) as bridge:
         log.info("ready: ROS 2 domain %d (%s), %s", domain, distro, ", ".join(robots))
-        wait_for_stop(stop)  # in slices: a signal taken by a Zenoh thread is still seen
+        wait_for_stop(node.stop)  # in slices: a signal taken by a Zenoh thread is still seen
         counts = bridge.subscription_counts()
     log.info("done: to ROS 2 %s; from ROS 2 %s; dropped %s; subscriptions %s",
              bridge.stats.to_ros, bridge.stats.from_ros, bridge.stats.dropped, counts)

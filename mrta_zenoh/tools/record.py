@@ -6,14 +6,14 @@ import contextlib
 import threading
 from pathlib import Path
 
-from ..bus import Bus, BusOptions, open_bus
-from ..clock import SimClock, follow_sim_clock
+from ..bus import Bus, BusOptions
 from ..errors import ConfigError
-from ..identity import OBSERVER, check_identity
-from ..yamlfile import plural
+from ..identity import OBSERVER
 from ..keys import RECORDER_TOKEN, validate_key_expr
-from ..lifecycle import stop_on_signals, wait_for_stop
+from ..lifecycle import wait_for_stop
+from ..node import Node, NodeTime
 from ..recording import McapRecorder, SimLogTime, check_output, log
+from ..yamlfile import plural
 
 
 def run_record(*, output: Path, key_exprs: list[str], bus_options: BusOptions,
@@ -36,19 +36,17 @@ def run_record(*, output: Path, key_exprs: list[str], bus_options: BusOptions,
     check_output(Path(output))
     if dated and not sim_time:
         raise ConfigError("--dated is for --sim-time (wall-time log times are dates already)")
-    if bus is None:
-        check_identity(bus_options, OBSERVER)  # before the file and the session
-    stamper = SimLogTime(SimClock(), dated=dated) if sim_time else None
-    # the file first: an output that cannot be written is refused before a session opens;
-    # closed last (ExitStack order reversed): the token (no longer a recorder), the
-    # subscriptions, the session, then the file, finished with everything that arrived
-    with stop_on_signals(stop) as stop, \
-            McapRecorder(output, log_time=stamper, on_error=stop.set) as rec, \
-            (contextlib.nullcontext(bus) if bus is not None else open_bus(bus_options)) as bus, \
+    # the identity first (Node), then the file: an output that cannot be written is refused
+    # before a session opens; closed last (ExitStack order reversed): the token (no longer a
+    # recorder), the subscriptions, the session, then the file, finished with everything that
+    # arrived
+    node = Node(bus_options, OBSERVER, time=NodeTime.SIM if sim_time else NodeTime.WALL,
+                stop=stop, bus=bus)
+    stamper = SimLogTime(node.clock, dated=dated) if sim_time else None
+    with McapRecorder(output, log_time=stamper, on_error=node.stop.set) as rec, node, \
             contextlib.ExitStack() as handles:
+        bus, stop = node.bus, node.stop
         if stamper is not None:
-            handles.enter_context(follow_sim_clock(bus, stamper.clock))
-
             def on_raw(s) -> None:
                 stamper.observe(s.key, s.encoding, s.payload)  # a clock sample: its own stamp
                 rec.sample(s.key, s.encoding, s.payload)

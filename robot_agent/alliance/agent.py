@@ -17,6 +17,7 @@ from mrta_zenoh.clock import EPSILON
 from mrta_zenoh.keys import task_chunk
 from mrta_zenoh.timetext import at
 
+from ..runtime.coordinator import Coordinator
 from ..runtime.loop import Say
 from ..runtime.plugins import Plugins
 from .high_level import HighLevel, TaskSwitch
@@ -26,7 +27,7 @@ log = logging.getLogger("mrta.agent")
 HISTORY = 256  # decisions kept for inspection (tests, a debugger): bounded, a robot runs for days
 
 
-class AllianceCoordinator:
+class AllianceCoordinator(Coordinator):
     listens = ("inter_robot_communication",)
 
     def __init__(self, robot_id: str, params: AgentParams, plugins: Plugins):

@@ -11,9 +11,12 @@ from __future__ import annotations
 import math
 from pathlib import Path
 
-from mrta_zenoh.architectures import Doing
+from mrta_zenoh.architectures import Doing, Takeover, TakeoverBound
 from mrta_zenoh.clock import Clock
+from mrta_zenoh.codec import DecodeError, decode
 from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.failure import plan_for
+from mrta_zenoh.keys import first_chunk
 from mrta_zenoh.yamlfile import plural
 
 from ..runtime.architecture import AgentArchitecture, Prepared
@@ -40,8 +43,7 @@ class Alliance(AgentArchitecture):
     executable = "robot_agent/agent"
     command = "agent"
     param_stem = "alliance"
-    # from the dead robot's last broadcast as received; from its death add the largest
-    # delivery delay (none in lockstep, where a broadcast counts as heard at its own stamp)
+    # from the taker's last reception of any broadcast on the task (takeover_check)
     bound_formula = "τ + (⌈θ/fast⌉ + 1)/ρ"
     messages = {"inter_robot_communication": InterRobotCommunication,
                 "motivation": Motivation, "sensory_feedback": SensoryFeedback}
@@ -73,23 +75,62 @@ class Alliance(AgentArchitecture):
         return Doing(sender, message.task_id, message.active, message.header.stamp)
 
     def takeover_bound(self, robot_params: Path, task: str) -> float:
-        """τ + ⌈θ / fast_rate⌉ / ρ + one tick: the longest a robot with these parameters takes
-        to pick up `task` after the robot doing it dies, counted from the dead robot's last
-        broadcast *as this robot received it*: that broadcast keeps it fresh for τ, then
-        impatience grows at fast_rate per tick from 0 (at worst) to θ, on ticks.
+        """τ + ⌈θ / fast_rate⌉ / ρ + one tick: the longest a robot with these parameters
+        takes to pick up `task` once it has stopped hearing about it — counted from its last
+        reception of *any* broadcast on the task, from whichever robot (`takeover_check`).
 
-        Counted from the death, add the largest delivery delay: a broadcast sent just before
-        dying and delivered d seconds later keeps the robot fresh until d + τ after (measured:
-        4.55–4.85 s against 4.50 s with 0.2–0.5 s delays). In lockstep a broadcast counts as
-        heard at its own stamp, so there the bound holds from the death. ⌈θ/fast_rate⌉ is
-        exact (the decimals as written: θ=2.1, fast_rate=0.7 → 3 ticks, where floats say 4),
-        as the high level's motivation is."""
+        Why that instant: only a reception resets motivation or makes impatience slow, and a
+        record stays fresh for τ after it; past that, impatience is fast_rate per tick from at
+        least 0, so the set crosses θ within ⌈θ/fast_rate⌉ ticks of the first tick after. The
+        dead robot's last broadcast is not enough: a survivor that missed it while still
+        hearing a robot that had just yielded the task (the yielded robot broadcast until its
+        yield) stays slow until τ after *that* robot's last broadcast. Conditions: the taker
+        is idle, the task applicable to it, and no other of its sets crosses its threshold
+        first. ⌈θ/fast_rate⌉ is exact (the decimals as written: θ=2.1, fast_rate=0.7 → 3
+        ticks, where floats say 4), as the high level's motivation is."""
         robot, _ = load_robot_params(robot_params)
         for bs in robot.behaviour_sets:
             if bs.task_id == task:
                 ticks = math.ceil(exact(bs.threshold) / exact(bs.fast_rate))
                 return float(exact(robot.timeout_duration) + (ticks + 1) / exact(robot.spin_rate))
         raise ConfigError(f"no behaviour set for task {task!r}", file=str(robot_params))
+
+    def takeover_check(self, t: Takeover) -> TakeoverBound:
+        """`takeover_bound`, counted from the taker's last reception, before it took the task,
+        of a broadcast on the task from any other robot. In lockstep a broadcast is heard at
+        its stamp, plus the latency the run injected, unless the run's loss or a partition
+        took it — the driver's own seeded draws (mrta_zenoh.failure.FaultPlan), made again
+        here — so the instant is exact. Out of lockstep the recorder's reception stands for
+        the taker's (both on the same loopback). A taker that heard nobody: from the fault."""
+        bound = self.takeover_bound(t.robot_params, t.task)
+        plan = plan_for(t.faults, t.taker, t.seed)
+        last: tuple[float, str] | None = None
+        for key, _enc, logged, payload in t.records:
+            sender = first_chunk(key)
+            if sender == t.taker or key != self.key(sender, "inter_robot_communication"):
+                continue
+            try:
+                msg = decode(InterRobotCommunication.TYPE_NAME, payload)
+            except DecodeError:
+                continue
+            if msg.task_id != t.task or msg.header.frame_id.strip("/") != sender:
+                continue
+            seq = msg.header.seq
+            if plan is not None and plan.lost(key, seq):
+                continue
+            heard = (msg.header.stamp if t.lockstep else t.time_of(logged)) \
+                + (plan.delay(key, seq) if plan is not None else 0.0)
+            if (plan is not None and plan.cut_off(heard)) or heard > t.taken_at:
+                continue
+            if last is None or heard > last[0]:
+                last = (heard, sender)
+        if last is None:
+            return TakeoverBound(bound, t.failed_at, "", f"{t.taker} heard no broadcast on "
+                                 f"{t.task}: counted from the fault")
+        heard, sender = last
+        how = "" if t.lockstep else " (by the recorder)"
+        return TakeoverBound(bound, heard, f"{sender}'s broadcast heard at {heard:.2f} s{how}, "
+                                           f"the last on {t.task} it heard")
 
     def plots(self, recording: Path, robots: list[str], tasks: list[str], output: Path,
               records: list | None = None) -> list[str]:

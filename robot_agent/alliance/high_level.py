@@ -87,10 +87,10 @@ Deliberate choices, where appendix E or the original C++ (reference/) leave room
     resumed robot's by more than the time between their activations, the replacement looks
     earlier and is the one that yields. Both still agree on who yields (they compare the same
     two numbers), so there is neither a gap nor a lasting duplicate, only the wrong robot kept.
-  * The takeover bound (architecture.py) counts from the dead robot's last broadcast as
-    *received* (`on_broadcast`'s `now`): its freshness lasts τ from there. Measured from its
-    death, add the largest delivery delay (in lockstep a broadcast counts as heard at its own
-    stamp, so none).
+  * The takeover bound (architecture.py) counts from the taker's last reception of any
+    broadcast on the task (`on_broadcast`'s `now`), whoever sent it: freshness lasts τ from
+    there, and a robot that had just yielded the task keeps impatience slow as long as the
+    dead holder does. Not from the death: a yield in flight adds a delivery delay per hop.
   * Cost (issue #27): a tick looks only at the teammates heard since the last tick and those
     whose status changes with time by then (freshness, φ, the one-way-link delays: a heap of
     wake-up times), plus every record of a set whose activation changed; per-task aggregates

@@ -16,6 +16,7 @@ from typing import Iterable
 from mrta_zenoh.messages import Odometry
 from mrta_zenoh.timetext import at
 
+from ..runtime.coordinator import Coordinator
 from ..runtime.loop import Say
 from ..runtime.plugins import Plugins
 from .auction import Change, Murdoch
@@ -46,8 +47,8 @@ class _Readings:
         return (msg.pose.x, msg.pose.y) if isinstance(msg, Odometry) else None
 
 
-class MurdochCoordinator:
-    listens = ("announcement", "bid", "award", "claim", "release")
+class MurdochCoordinator(Coordinator):
+    listens = ("announcement", "bid", "award", "claim", "release", "revoke")
 
     def __init__(self, robot_id: str, params: MurdochParams, plugins: Plugins):
         self.robot_id = robot_id
@@ -87,7 +88,8 @@ class MurdochCoordinator:
     def subjects(self, kind: str) -> tuple[str, ...] | None:
         """Sub-keys heard per kind (the runtime subscribes to `*/murdoch/<kind>/<subject>`):
         announcements of the tasks this robot serves, bids addressed to itself; None — awards,
-        claims, releases — every robot's, which every robot needs (docs/murdoch.md)."""
+        claims, releases, revocations — every robot's, which every robot needs
+        (docs/murdoch.md)."""
         if kind == "announcement":
             return self.core.subjects
         if kind == "bid":

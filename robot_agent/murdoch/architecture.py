@@ -9,15 +9,16 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from mrta_zenoh.architectures import Doing
+from mrta_zenoh.architectures import Doing, Takeover, TakeoverBound
 from mrta_zenoh.clock import Clock
+from mrta_zenoh.codec import DecodeError, decode, type_from_encoding
 
 from ..runtime.architecture import AgentArchitecture, Prepared
 from ..runtime.host import AgentOptions
 from ..runtime.plugins import Plugins
 from . import params as murdoch_params
 from .agent import MurdochCoordinator
-from .messages import Announcement, Award, Bid, Claim, Release
+from .messages import Announcement, Award, Bid, Claim, Release, Revoke
 
 
 def murdoch_plugins(params: murdoch_params.MurdochParams) -> Plugins:
@@ -35,9 +36,9 @@ class Murdoch(AgentArchitecture):
     executable = "murdoch/agent"
     command = "murdoch"
     param_stem = "murdoch"
-    bound_formula = "lease + bid window + 3 ticks"
+    bound_formula = "lease + bid window + 3 ticks + 2 × delay"
     messages = {"announcement": Announcement, "bid": Bid, "award": Award, "claim": Claim,
-                "release": Release}
+                "release": Release, "revoke": Revoke}
     doing_kinds = ("claim", "release")
     doing_stale_after = 2.0  # claims renewed every renewal_period (≤ the lease, 2 s by default)
     logger_name = "mrta.murdoch"
@@ -66,9 +67,50 @@ class Murdoch(AgentArchitecture):
         return None
 
     def takeover_bound(self, robot_params: Path, task: str) -> float:
-        """lease + bid window + 3 ticks (params.takeover_bound); the same for every task."""
+        """lease + bid window + 3 ticks (params.takeover_bound): the bound with no delivery
+        delay; the same for every task. `takeover_check` adds the delay term and its
+        condition."""
         robot, _ = murdoch_params.load_robot(robot_params)
         return murdoch_params.takeover_bound(robot)
+
+    def takeover_check(self, t: Takeover) -> TakeoverBound:
+        """params.takeover_bound with the run's largest delivery delay D, from the fault: in
+        lockstep the latency the run injected (its mean + jitter), out of lockstep that plus
+        the largest delay the recorder saw on MURDOCH's messages. It holds only while
+        2·D + a tick < the bid window — a bid heard after its window closes is dropped and the
+        task waits a reannounce_period for another auction — and with no loss, for the same
+        reason (docs/murdoch.md, "Timing and the takeover bound")."""
+        robot, _ = murdoch_params.load_robot(t.robot_params)
+        delay = t.faults.latency[0] + t.faults.latency[1] if t.faults.latency else 0.0
+        seen = "" if t.lockstep else " (as the recorder saw it)"
+        if not t.lockstep:
+            delay += self.observed_delay(t)
+        tick, window = 1.0 / robot.spin_rate, robot.bid_window
+        if t.faults.loss > 0:
+            return TakeoverBound(None, t.failed_at, case=(
+                f"with loss {t.faults.loss:g}: a lost announcement, bid or award costs a "
+                "reannounce_period"))
+        case = (f"for a largest delivery delay of {delay:.2f} s{seen}: 2 × delay + a tick = "
+                f"{2 * delay + tick:.2f} s")
+        if not murdoch_params.bids_in_time(robot, delay):
+            return TakeoverBound(None, t.failed_at, case=(
+                f"{case} ≥ the bid window {window:.2f} s: a bid may be heard after its window, "
+                "and another auction starts"))
+        return TakeoverBound(murdoch_params.takeover_bound(robot, delay), t.failed_at,
+                             case=f"{case} < the bid window {window:.2f} s")
+
+    def observed_delay(self, t: Takeover) -> float:
+        """The largest (reception by the recorder − stamp) over MURDOCH's messages."""
+        worst = 0.0
+        for key, enc, logged, payload in t.records:
+            if not self.is_coordination_key(key):
+                continue
+            try:
+                msg = decode(type_from_encoding(enc), payload)
+            except DecodeError:
+                continue
+            worst = max(worst, t.time_of(logged) - msg.header.stamp)
+        return worst
 
 
 MURDOCH = Murdoch()

@@ -29,6 +29,15 @@ The protocol (Gerkey & Matarić 2002; docs/murdoch.md):
   step in, in turn, when it dies or is cut off. Gerkey's MURDOCH let the task's introducer be
   its auctioneer; in a team with no introducer this rule is what keeps allocation going when
   any robot is lost.
+* **Progress monitoring** (Gerkey & Matarić's auctioneer watching its contracts). A lease
+  says the holder is alive, not that the task advances: a robot that keeps renewing but makes
+  no progress (a stall) would hold its task for ever. So the task's auctioneer — ranked as for
+  announcements, among the live robots that serve it other than the holder — revokes a
+  contract it has heard claimed for longer than the task's progress_timeout (the task not done:
+  a holder whose progress evaluator says it is done releases it), rank k after k more
+  reannounce_periods unless a revocation came first. Every robot then ignores that contract's
+  claims and counts the task unheld (so it is auctioned again), bars the holder from it for a
+  progress_timeout, and the holder gives it back.
 * **Two holders** (two auctioneers on either side of a healed partition): the earlier
   (since, id) keeps the task, the other releases it. Both compare the same reported numbers.
 """
@@ -41,7 +50,7 @@ from typing import NamedTuple, Protocol
 
 from mrta_zenoh.clock import EPSILON
 
-from .messages import Announcement, Award, Bid, Claim, Release
+from .messages import Announcement, Award, Bid, Claim, Release, Revoke
 from .params import MurdochRobot, MurdochTask
 
 
@@ -111,6 +120,11 @@ class Murdoch:
         self.stalled_since: float | None = None
         self.cooldown: dict[str, float] = {}
         self.start: float | None = None
+        # progress monitoring: task → holder → (since, first heard) of the contract it claims;
+        # task → holder → (since, barred until) of the last contract revoked
+        self.contracts: dict[str, dict[str, tuple[float, float]]] = {t: {} for t in tasks}
+        self.revoked: dict[str, dict[str, tuple[float, float]]] = {t: {} for t in tasks}
+        self._revocations: list[tuple[str, Revoke]] = []  # of this robot's own contract
 
     # ------------------------------------------------------------------ what was heard
     def on_teammate(self, robot: str, alive: bool) -> None:
@@ -158,6 +172,11 @@ class Murdoch:
     def on_claim(self, sender: str, msg: Claim, t: float) -> None:
         if msg.task_id not in self.tasks or sender == self.id:
             return
+        if self.revoked[msg.task_id].get(sender, (None,))[0] == msg.since:
+            return  # a contract its auctioneer ended: the claim says nothing any more
+        contract = self.contracts[msg.task_id].get(sender)
+        if contract is None or contract[0] != msg.since:
+            self.contracts[msg.task_id][sender] = (msg.since, t)
         lease = Lease(msg.since, t, min(msg.lease, 10 * self.p.lease_timeout))
         self.leases[msg.task_id][sender] = lease
         self.awarded.pop(sender, None)  # its lease says it is busy from now on
@@ -173,6 +192,33 @@ class Murdoch:
                   if lease.expiry() >= t]
         self.held_until[msg.task_id] = max(others, default=t)
 
+    def on_revoke(self, sender: str, msg: Revoke, t: float) -> None:
+        if msg.task_id not in self.tasks:
+            return
+        if msg.holder == self.id:
+            self._revocations.append((sender, msg))
+        else:
+            self._end_contract(msg.task_id, msg.holder, msg.since, t)
+
+    def _end_contract(self, task: str, holder: str, since: float, t: float) -> None:
+        """`holder`'s contract for `task` (claimed `since`) is over: its claims are ignored,
+        it may not win the task for a progress_timeout, and the task is unheld unless someone
+        else holds it."""
+        self.revoked[task][holder] = (since, t + self.tasks[task].progress_timeout)
+        if self.contracts[task].get(holder, (None,))[0] == since:
+            del self.contracts[task][holder]
+        lease = self.leases[task].get(holder)
+        if lease is not None and lease.since == since:
+            del self.leases[task][holder]
+        if self.awarded.get(holder, (None,))[0] == task:
+            del self.awarded[holder]
+        self.held_until[task] = max((x.expiry() for x in self.leases[task].values()
+                                     if x.expiry() >= t), default=t)
+
+    def barred(self, task: str, robot: str, now: float) -> bool:
+        """Whether `robot` may not win `task` now: its contract for it was revoked lately."""
+        return self.revoked[task].get(robot, (0.0, -math.inf))[1] > now
+
     # ------------------------------------------------------------------ one tick
     def tick(self, now: float, readings: Readings) -> tuple[list[Out], list[Change]]:
         if self.start is None:
@@ -181,7 +227,9 @@ class Murdoch:
         changes: list[Change] = []
         self._expire(now)
         self._take_awards(now, out, changes)
+        self._take_revocations(now, out, changes)
         self._keep_or_release(now, readings, out, changes)
+        self._monitor(now, out)
         self._bid(now, readings, out)
         self._close_auctions(now, readings, out, changes)
         self._announce(now, readings, out)
@@ -235,6 +283,33 @@ class Murdoch:
             elif award.task_id != self.task:
                 out.append(Out("release", (award.task_id, f"busy with {self.task}")))
 
+    def _take_revocations(self, now: float, out: list[Out], changes: list[Change]) -> None:
+        revocations, self._revocations = self._revocations, []
+        for auctioneer, msg in revocations:
+            if self.task == msg.task_id and self.since == msg.since:
+                timeout = self.tasks[msg.task_id].progress_timeout
+                self.cooldown[msg.task_id] = now + timeout
+                self._release(f"revoked by {auctioneer}: not done within its progress_timeout "
+                              f"{timeout:g} s", now, out, changes)
+
+    def _monitor(self, now: float, out: list[Out]) -> None:
+        """Revoke the contracts of the tasks this robot serves that have run past their
+        progress_timeout (module docstring): rank k among the task's other live servers waits
+        k more reannounce_periods, so a revocation heard meanwhile makes it unnecessary."""
+        for task in self.subjects:
+            contracts = self.contracts[task]
+            timeout = self.tasks[task].progress_timeout
+            for holder, (since, first) in sorted(contracts.items()):
+                if holder not in self.leases[task]:
+                    continue  # lapsed: the lease rule auctions it
+                monitors = sorted(((self.servers[task] & self.teammates) | {self.id}) - {holder})
+                wait = monitors.index(self.id) * self.p.reannounce_period
+                if now - first < timeout + wait - EPSILON:
+                    continue
+                reason = f"no progress: held {now - first:.1f} s, progress_timeout {timeout:g} s"
+                out.append(Out("revoke", (task, holder, since, reason)))
+                self._end_contract(task, holder, since, now)
+
     def _keep_or_release(self, now: float, readings: Readings, out: list[Out],
                          changes: list[Change]) -> None:
         if self.task is None:
@@ -283,7 +358,7 @@ class Murdoch:
             busy.add(self.id)
         candidates = sorted((-u, robot, a.task_id, a.number) for a in closed
                             if self._unheld(a.task_id, now) for robot, u in a.bids.items()
-                            if robot not in busy)
+                            if robot not in busy and not self.barred(a.task_id, robot, now))
         done_tasks: set[str] = set()
         for neg_u, robot, task, number in candidates:
             if task in done_tasks or robot in busy:

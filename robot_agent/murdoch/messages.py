@@ -4,8 +4,11 @@ A task's life: an auctioneer publishes an `Announcement` (task, required resourc
 window); every idle robot able to do it answers with a `Bid` (its utility); when the window
 closes the auctioneer publishes an `Award` to the highest bidder; the winner then renews a
 `Claim` (its lease) every renewal period while it works, and publishes a `Release` when it gives
-the task back. `Claim` is what the supervisor watches (`header/frame_id`, `task_id`): who is busy
-with what, with the same field names as ALLIANCE's broadcasts.
+the task back. A task's auctioneer that sees a contract last longer than the task's
+progress_timeout without the task being done publishes a `Revoke`: every robot then treats the
+task as unheld (and ignores that contract's claims), and the holder gives it back. `Claim` is
+what the supervisor watches (`header/frame_id`, `task_id`): who is busy with what, with the same
+field names as ALLIANCE's broadcasts.
 """
 
 from __future__ import annotations
@@ -57,4 +60,16 @@ class Claim(Message):
 class Release(Message):
     header: Header
     task_id: str
+    reason: str
+
+
+@message("murdoch_msgs/Revoke")
+class Revoke(Message):
+    """"`holder`'s contract for `task_id`, the one it claims `since`, is over": its auctioneer
+    saw no progress (the task not done) within the task's progress_timeout."""
+
+    header: Header
+    task_id: str
+    holder: str
+    since: Finite
     reason: str

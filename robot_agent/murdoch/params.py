@@ -8,7 +8,7 @@ Robot file (`robotN_murdoch_params.yaml`): timing of the auction and the lease, 
 sensors, and one skill per task the robot can do (its level, and the evaluator that says whether
 the robot can do — and keeps progressing on — the task). Tasks file
 (`tasks_murdoch_params.yaml`): each task's id, name, required resources (sensor topics the robot
-must have fresh), locations (none, or points where it is done) and layers.
+must have fresh), locations (none, or points where it is done), layers and progress timeout.
 """
 
 from __future__ import annotations
@@ -16,6 +16,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from mrta_zenoh.clock import EPSILON
 from mrta_zenoh.limits import COORDINATE, LEVEL, WEIGHT
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, sized_array
 from mrta_agent.runtime.params import SensorParams, StrictMapping, TaskParams, iter_tasks, load_layers_params, load_sensor_topics, open_robot_file, require_task, task_id_of
@@ -49,6 +50,12 @@ class MurdochRobot:
         return next((s for s in self.skills if s.task_id == task_id), None)
 
 
+# How long a robot may hold a task without finishing it before the task's auctioneer revokes
+# the contract (docs/murdoch.md, "Progress monitoring"): a minute, longer than a point task
+# takes to reach and serve; a task that never ends (patrol's) sets it longer than a run.
+PROGRESS_TIMEOUT = 60.0
+
+
 @dataclass(frozen=True)
 class MurdochTask:
     id: str
@@ -56,6 +63,7 @@ class MurdochTask:
     resources: tuple[str, ...]
     locations: tuple[tuple[float, float], ...]
     layers: TaskParams
+    progress_timeout: float = PROGRESS_TIMEOUT
 
 
 @dataclass
@@ -132,9 +140,10 @@ def load_robot(path: Path | str) -> tuple[MurdochRobot, list[str]]:
 
 
 def load_tasks(path: Path | str) -> dict[str, MurdochTask]:
-    """The tasks file: ALLIANCE's (id, name, layers), plus resources and locations."""
+    """The tasks file: ALLIANCE's (id, name, layers), plus resources, locations and the
+    progress timeout."""
     tasks: dict[str, MurdochTask] = {}
-    for r, layers in iter_tasks(path, frozenset({"resources", "locations"})):
+    for r, layers in iter_tasks(path, frozenset({"resources", "locations", "progress_timeout"})):
         doc, tpath = r.doc, r.path
         resources = []
         if "resources" in r.data:
@@ -147,7 +156,8 @@ def load_tasks(path: Path | str) -> dict[str, MurdochTask]:
                 locations.append((m.get("x", float, within=COORDINATE),
                                   m.get("y", float, within=COORDINATE)))
         tasks[layers.id] = MurdochTask(layers.id, layers.name, tuple(resources),
-                                       tuple(locations), layers)
+                                       tuple(locations), layers,
+                                       r.duration("progress_timeout", PROGRESS_TIMEOUT))
     return tasks
 
 
@@ -164,11 +174,22 @@ def load_params(robot_file, tasks_file, layers_file=None) -> MurdochParams:
     return MurdochParams(robot, tasks, load_layers_params(layers_file), warnings)
 
 
-def takeover_bound(robot: MurdochRobot) -> float:
-    """The longest a task stays unheld after its holder dies, while an auctioneer survives:
-    the lease lapses (lease_timeout after the last renewal), the auctioneer sees it at its next
-    tick and announces, bidders answer at their next tick, the window closes and the award goes
-    out at the tick after, and the winner claims at its next tick: lease + window + 3 ticks.
-    When the dead robot was also the first auctioneer, the next one steps in one
-    reannounce_period later (docs/murdoch.md)."""
-    return robot.lease_timeout + robot.bid_window + 3.0 / robot.spin_rate
+def takeover_bound(robot: MurdochRobot, delay: float = 0.0) -> float:
+    """The longest a task stays unheld after its holder dies, while an auctioneer survives and
+    an idle, capable robot exists, with every delivery delay at most `delay`
+    (docs/murdoch.md): the lease lapses (lease_timeout after the last renewal was heard, up to
+    `delay` after it was sent), the auctioneer sees it at its next tick and announces, bidders
+    answer at their next tick, the window closes and the award goes out at the tick after, and
+    the winner claims at its next tick after hearing it (up to `delay` later):
+    lease + window + 3 ticks + 2·delay. It holds only while `bids_in_time(robot, delay)`.
+    When the dead robot was also the first auctioneer and its token outlives it (frozen, cut
+    off), the next one steps in one reannounce_period later."""
+    return robot.lease_timeout + robot.bid_window + 3.0 / robot.spin_rate + 2.0 * delay
+
+
+def bids_in_time(robot: MurdochRobot, delay: float) -> bool:
+    """Whether every bid reaches its auctioneer before the window closes: the announcement
+    (≤ delay), the bidder's next tick (≤ a tick), the bid (≤ delay), strictly before the tick
+    that closes the window. Otherwise an auction may close without the bid, and the task
+    waits a reannounce_period for the next one — and so on for as long as delays stay long."""
+    return 2.0 * delay + 1.0 / robot.spin_rate < robot.bid_window - EPSILON

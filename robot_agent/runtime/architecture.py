@@ -22,7 +22,8 @@ from mrta_zenoh.bus import Bus
 from mrta_zenoh.clock import Clock
 
 from .host import AgentOptions, host
-from .loop import Agent, Coordinator
+from .coordinator import Coordinator
+from .loop import Agent
 from .plugins import Plugins
 
 if TYPE_CHECKING:

@@ -11,14 +11,17 @@ import click
 from mrta_zenoh.architectures import TEAM_ENV
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.cli.common import SEED_TYPE, bus_options, finite_float
+from mrta_zenoh.failure import FAULTS_ENV
 from mrta_zenoh.keys import KeyExprError, normalize_robot_id
+from mrta_zenoh.seeds import SEED_ENV
 
 from .architecture import AgentArchitecture
 from .host import AgentOptions
 
 
 def _team(ctx: click.Context, param: click.Parameter, value: str | None) -> tuple[str, ...] | None:
-    """`robot1,robot2,…` → ids; empty or absent → None (the open team)."""
+    """`robot1,robot2,…` → ids; empty or absent → None (the open team). A bad id is a usage
+    error naming the option."""
     if value is None or not value.strip():
         return None
     try:
@@ -47,9 +50,10 @@ def agent_command(arch: AgentArchitecture, help: str) -> click.Command:
                      help=f"Parameters for the layer plugins (layers_{stem}_params.yaml)."),
         click.option("--sim-time", is_flag=True,
                      help="Follow the simulator's clock instead of wall time."),
-        click.option("--seed", type=SEED_TYPE, default=0, show_default=True,
+        click.option("--seed", type=SEED_TYPE, default=0, show_default=True, envvar=SEED_ENV,
                      help="The run's master seed, 0 to 2^63 − 1; this robot's stream is "
-                          "derived from it and its id."),
+                          f"derived from it and its id. Runners set ${SEED_ENV} for every "
+                          "process of a run."),
         click.option("--duration", type=finite_float(min=0, min_open=True),
                      help="Stop after this many seconds (of the agent's clock)."),
         click.option("--team", metavar="ROBOT,ROBOT,…", envvar=TEAM_ENV, callback=_team,
@@ -57,10 +61,11 @@ def agent_command(arch: AgentArchitecture, help: str) -> click.Command:
                           f"launch files set ${TEAM_ENV}). Others holding an agent token are "
                           "ignored and counted. Not given or empty: anyone holding one."),
         click.option("--crash-at", type=finite_float(min=0), metavar="SECONDS",
-                     help="Fault injection: SIGKILL itself when its clock reaches SECONDS "
-                          "(also $MRTA_CRASH=ROBOT@SECONDS,…). Exact in lockstep: "
-                          "experiments replay it. Other faults (stall, partition, loss, "
-                          "latency) come from $MRTA_FAULTS (docs/delivery.md, Fault grammar)."),
+                     help="Fault injection: SIGKILL itself when its clock reaches SECONDS; "
+                          f"shorthand for crash:ROBOT_ID@SECONDS in ${FAULTS_ENV}, which "
+                          "carries every fault of a run (crash, stall, partition, loss, "
+                          "latency: docs/delivery.md, Fault grammar). Exact in lockstep: "
+                          "experiments replay it."),
         bus_options,
     ]):
         command = option(command)

@@ -35,23 +35,22 @@ from __future__ import annotations
 
 import collections
 import logging
-import os
-import signal
 import threading
 import time
-from typing import TYPE_CHECKING, Callable, Iterable, Iterator, NamedTuple, Protocol
+from typing import TYPE_CHECKING, Callable, Iterable, Iterator
 
 from mrta_zenoh.architectures import Architecture
 from mrta_zenoh.bus import Bus, Sample
 from mrta_zenoh.clock import EPSILON, Clock
 from mrta_zenoh.errors import ConfigError
-from mrta_zenoh.failure import FaultPlan
-from mrta_zenoh.keys import first_chunk, normalize_robot_id
+from mrta_zenoh.failure import FaultPlan, crash_now
+from mrta_zenoh.keys import first_chunk
 from mrta_zenoh.messages import Header
 from mrta_zenoh.seeds import robot_rng
 from mrta_zenoh.timetext import at
 from mrta_zenoh.untrusted import visible
 
+from .coordinator import Coordinator, Say
 from .plugins import AgentContext, Layer, Plugins
 
 if TYPE_CHECKING:
@@ -67,55 +66,12 @@ SUBJECT = "subject"  # subject tokens: robotN/<namespace>/subject/<subject> (nev
 DROP_LOG_PERIOD = 10.0  # wall seconds between two log lines about the same kind of drop
 
 
-class Say(NamedTuple):
-    """One message the decision logic wants sent: its kind (a key chunk under the
-    architecture's namespace, with an optional sub-key), the fields after the header, and
-    whether it may be dropped under pressure (monitoring) or must arrive (coordination)."""
-
-    kind: str
-    fields: tuple
-    subkey: str | None = None
-    lossy: bool = False
-
-
-class Coordinator(Protocol):
-    """An architecture's decision logic for one robot, driven by `Agent`.
-
-    `listens`: the message kinds it hears from teammates; by default every robot's message of
-    each kind (`Architecture.every`). A coordinator may also define `subjects(kind)`: the
-    sub-keys of `kind` it hears (`*/<namespace>/<kind>/<subject>` for each), or None for every
-    one — MURDOCH hears only the announcements of the tasks it serves and the bids addressed to
-    it. `hear` gets each one from a teammate
-    (sender checked) at the time it counts as heard, and says whether it accepted it. `tick` is
-    the decision step: what to send. `active_task` is the task whose layers run.
-
-    Optionally, `advertises`: subjects this robot tells its teammates about with a liveliness
-    token each (`robotN/<namespace>/subject/<subject>`, declared just before its agent token),
-    and `teammate_subject(robot, subject, alive)`: a teammate's subject came or went — told at
-    the decision step, like `teammate`, for teammates only: a subject counts while both its token
-    and the robot's agent token live, and goes when either goes. MURDOCH advertises the tasks a
-    robot serves, so the auctioneer of a task is ranked among the robots that serve it.
-    ALLIANCE defines neither: no token, no watch."""
-
-    listens: tuple[str, ...]
-
-    @property
-    def active_task(self) -> str | None: ...
-
-    def hear(self, kind: str, sender: str, message, at: float) -> bool: ...
-
-    def teammate(self, robot: str, alive: bool) -> None: ...
-
-    def tick(self, now: float) -> Iterable[Say]: ...
-
-
 class Agent:
     """One robot's agent: `architecture` says which keys and messages, `make_coordinator` builds
     the decision logic (again when time restarts), `plugins` are the robot's sensors, evaluators
     and layers."""
 
-    crash_at: float | None = None  # fault injection: SIGKILL itself at this time
-    faults: FaultPlan | None = None  # fault injection: stall, partition, loss, latency
+    faults: FaultPlan | None = None  # fault injection: crash, stall, partition, loss, latency
     stalled = False  # the stall fault struck: the layers no longer run
     roster: frozenset[str] | None = None  # the only robots that may join the team (limit_team)
 
@@ -123,7 +79,7 @@ class Agent:
                  make_coordinator: Callable[[], Coordinator], bus: Bus, clock: Clock,
                  rng: np.random.Generator | None, plugins: Plugins, spin_rate: float,
                  control_rate: float, logger: logging.Logger = log):
-        self.robot_id = normalize_robot_id(robot_id)
+        self.robot_id = robot_id  # as AgentOptions spelled it, once: `/robot1` is robot1 there
         self.architecture = architecture
         self.bus = bus
         self.clock = clock
@@ -171,10 +127,9 @@ class Agent:
 
     # ------------------------------------------------------------ set-up (py_trees' setup)
     def limit_team(self, team: Iterable[str] | None) -> None:
-        """Only these robots (ids, `/robot1` accepted) may join the team; None: anyone holding
-        the architecture's agent token (module docstring). Before `start`."""
-        self.roster = None if team is None else frozenset(
-            [normalize_robot_id(r) for r in team] + [self.robot_id])
+        """Only these robots (ids as AgentOptions spells them) may join the team; None: anyone
+        holding the architecture's agent token (module docstring). Before `start`."""
+        self.roster = None if team is None else frozenset([*team, self.robot_id])
 
     def start(self) -> None:
         """Plugins subscribe, then the agent listens to its teammates and their tokens."""
@@ -189,7 +144,7 @@ class Agent:
         # subjects first: each watch asks for the tokens already there, and a teammate answers
         # the two questions in order on one link — so, as its subject tokens were declared
         # before its agent token, one that has the agent token has its subjects (await_team)
-        if hasattr(self.coordinator, "teammate_subject"):
+        if self.coordinator.hears_subjects():
             self._handles.append(self.bus.watch_liveliness(arch.key("*", SUBJECT, "*"),
                                                            self._on_subject_token))
         self._handles.append(self.bus.watch_liveliness(arch.agent_tokens, self._on_token))
@@ -198,8 +153,7 @@ class Agent:
         """The key expressions the agent subscribes to for `kind`: every robot's, or only the
         coordinator's subjects (`Coordinator`). Read once at start: a coordinator rebuilt when
         time restarts has the same parameters, hence the same subjects."""
-        subjects_of = getattr(self.coordinator, "subjects", None)
-        subjects = subjects_of(kind) if subjects_of is not None else None
+        subjects = self.coordinator.subjects(kind)
         if subjects is None:
             return [self.architecture.every(kind)]
         return [self.architecture.key("*", kind, self._chunk(subject, kind))
@@ -214,8 +168,7 @@ class Agent:
     def advertised(self) -> tuple[str, ...]:
         """The subjects the coordinator advertises (`Coordinator.advertises`), checked: each
         becomes one key chunk of a token."""
-        subjects = tuple(getattr(self.coordinator, "advertises", ()))
-        return tuple(self._chunk(s, "advertises") for s in subjects)
+        return tuple(self._chunk(s, "advertises") for s in self.coordinator.advertises)
 
     def declare_alive(self) -> None:
         """Last step of start-up: alive means ready (docs/zenoh.md, the start-up race) — every
@@ -319,8 +272,7 @@ class Agent:
 
     # ------------------------------------------------------------ the inbox
     def in_lockstep(self) -> bool:
-        flag = getattr(self.clock, "lockstep", None)
-        return flag is not None and flag.is_set()
+        return self.clock.in_lockstep()
 
     def heard_at(self, stamp: float) -> float:
         """When a message stamped `stamp` counts as heard: in lockstep every robot shares one
@@ -396,8 +348,6 @@ class Agent:
             (held.add if alive else held.discard)(subject)
             if not held:
                 del self._subject_tokens[robot]
-        if not hasattr(self.coordinator, "teammate_subject"):
-            return
         for robot in sorted(robots):
             want = self._subject_tokens.get(robot, set()) if robot in self.team else set()
             told = self._told_subjects.get(robot, set())
@@ -508,21 +458,18 @@ class Agent:
         high_period, ctrl_period = self.high_period, self.ctrl_period
         now = self.clock.now()
         next_high, next_ctrl, last_ctrl = now, now, now
-        epoch = getattr(self.clock, "restarts", 0)
+        epoch = self.clock.restarts
         while True:
             t = min(next_high, next_ctrl)
             if until is not None and t > until:
                 return
             yield t
             now = self.clock.now()
-            if self.crash_at is not None and now >= self.crash_at:
-                self.log.warning("%s: crashing %s as asked (fault injection)",
-                                 self.robot_id, at(now))
-                logging.shutdown()
-                os.kill(os.getpid(), signal.SIGKILL)  # no shutdown, no goodbye: a real crash
+            if self.faults is not None and self.faults.crashed(now):
+                crash_now(self.robot_id, now, self.log)  # a real crash: no shutdown, no goodbye
             if self.faults is not None and not self.stalled and self.faults.stalled(now):
                 self.stall(now)
-            if getattr(self.clock, "restarts", 0) != epoch:
+            if self.clock.restarts != epoch:
                 epoch = self.clock.restarts
                 self.restart(now)
                 next_high, next_ctrl, last_ctrl = now, now, now

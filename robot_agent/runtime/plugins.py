@@ -145,9 +145,8 @@ def heard_at(clock: Clock, msg: Message) -> float:
     """When a sample counts as heard. In lockstep, simulated time is shared: the sample's own
     stamp is exact, whatever step the participant's clock shows when it arrives; otherwise,
     the clock's time of arrival."""
-    lockstep = getattr(clock, "lockstep", None)
-    header = getattr(msg, "header", None)
-    if lockstep is not None and lockstep.is_set() and header is not None:
+    header = getattr(msg, "header", None)  # a sensor may take any type (Sensor.message_type)
+    if header is not None and clock.in_lockstep():
         return header.stamp
     return clock.now()
 

@@ -32,11 +32,11 @@ import random
 from pathlib import Path
 
 import msgspec
-import yaml
 
 from mrta_zenoh.architectures import TEAM_ENV
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.files import write_folder, write_text
+from mrta_zenoh.seeds import SEED_ENV
 from mrta_zenoh.toolchain.generator import Answers, build_application
 from mrta_zenoh.toolchain.registry import Registry
 
@@ -194,9 +194,12 @@ def sim_launch(params: DeliveryParams, package: str, arch_pkg: str, stem: str) -
         "  <!-- the application's robots: the only teammates its agents count (their team "
         "option) -->",
         f'  <env name="{TEAM_ENV}" value="{",".join(params.robots)}"/>',
+        "  <!-- the run's seed, for every node of it (their seed option; a node started by the "
+        "mission runner gets it from the runner too) -->",
+        f'  <env name="{SEED_ENV}" value="$(arg seed)"/>',
         "  <!-- the simulator is required: the launch ends when it does -->",
         '  <node name="sim" pkg="simulator" type="sim" required="true"',
-        f'        args="--world delivery {starts} --speed $(arg speed) --seed $(arg seed) '
+        f'        args="--world delivery {starts} --speed $(arg speed) '
         '--wait-robots 60 $(arg sim_args)"/>']
     for rid in params.robots:
         lines += [
@@ -205,7 +208,7 @@ def sim_launch(params: DeliveryParams, package: str, arch_pkg: str, stem: str) -
             f'    <arg name="robot_params" value="$(find {package})/config/{rid}_{stem}_params.yaml"/>',
             f'    <arg name="tasks_params" value="$(find {package})/config/tasks_{stem}_params.yaml"/>',
             f'    <arg name="layers_params" value="$(find {package})/config/layers_{stem}_params.yaml"/>',
-            '    <arg name="agent_args" value="--sim-time --seed $(arg seed)"/>',
+            '    <arg name="agent_args" value="--sim-time"/>',
             "  </include>"]
     lines.append("</launch>")
     return ("\n".join(lines) + "\n").encode()

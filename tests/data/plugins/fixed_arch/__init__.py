@@ -20,7 +20,7 @@ from mrta_zenoh.messages import Header, Message, message
 from mrta_agent.runtime.architecture import AgentArchitecture, Prepared
 from mrta_agent.runtime.cli import agent_command
 from mrta_agent.runtime.host import AgentOptions
-from mrta_agent.runtime.loop import Say
+from mrta_agent.runtime.coordinator import Coordinator, Say
 from mrta_agent.runtime.params import (load_layers_params, load_tasks_params,
                                        open_robot_file, require_task, task_id_of)
 from mrta_agent.runtime.plugins import EvaluatorSpec, Plugins
@@ -34,7 +34,7 @@ class DoingMsg(Message):
     task_id: str
 
 
-class FixedCoordinator:
+class FixedCoordinator(Coordinator):
     listens = ("doing",)
 
     def __init__(self, robot_id: str, task: str, standby: str | None, period: float,

@@ -1,0 +1,90 @@
+"""What an architecture gives the agent driver: its decision logic for one robot (`Coordinator`)
+and what that logic says (`Say`).
+
+`Coordinator` is a base class with a no-op default for every hook, as py_trees' `Behaviour` is:
+the driver calls every hook on every coordinator, so a capability an architecture does not use
+costs it nothing, and one it does use is never found by probing. A subclass whose public name
+is one edit away from a hook's (`teammate_subjects`) is refused when its class is defined: with
+probing, such a typo silently disabled the feature.
+"""
+
+from __future__ import annotations
+
+import difflib
+from typing import ClassVar, Iterable, NamedTuple
+
+
+class Say(NamedTuple):
+    """One message the decision logic wants sent: its kind (a key chunk under the
+    architecture's namespace, with an optional sub-key), the fields after the header, and
+    whether it may be dropped under pressure (monitoring) or must arrive (coordination)."""
+
+    kind: str
+    fields: tuple
+    subkey: str | None = None
+    lossy: bool = False
+
+
+class Coordinator:
+    """An architecture's decision logic for one robot, driven by `mrta_agent.runtime.loop.Agent`.
+
+    * `listens`: the message kinds it hears from teammates; `subjects(kind)`: the sub-keys of
+      `kind` it hears (`*/<namespace>/<kind>/<subject>` for each), or None (the default) for
+      every robot's — MURDOCH hears only the announcements of the tasks it serves and the bids
+      addressed to it;
+    * `hear`: one message from a teammate (sender checked) at the time it counts as heard;
+      whether it accepted it;
+    * `teammate(robot, alive)`: a teammate's agent token came or went;
+    * `advertises`: subjects this robot tells its teammates about with a liveliness token each
+      (`robotN/<namespace>/subject/<subject>`, declared just before its agent token), and
+      `teammate_subject(robot, subject, alive)`: a teammate's subject came or went — told at the
+      decision step, like `teammate`, for teammates only: a subject counts while both its token
+      and the robot's agent token live. MURDOCH advertises the tasks a robot serves, so the
+      auctioneer of a task is ranked among the robots that serve it; ALLIANCE advertises none;
+    * `tick(now)`: the decision step, what to send;
+    * `active_task`: the task whose layers run (None: none).
+    """
+
+    listens: ClassVar[tuple[str, ...]] = ()
+    HOOKS: ClassVar[tuple[str, ...]] = ("listens", "subjects", "hear", "teammate", "advertises",
+                                        "teammate_subject", "tick", "active_task",
+                                        "hears_subjects")
+
+    def __init_subclass__(cls, **kwargs) -> None:
+        super().__init_subclass__(**kwargs)
+        for name in vars(cls):
+            if name.startswith("_") or name in Coordinator.HOOKS:
+                continue
+            close = difflib.get_close_matches(name, Coordinator.HOOKS, n=1, cutoff=0.85)
+            if close:
+                raise TypeError(f"{cls.__qualname__}.{name}: not a Coordinator hook — did you "
+                                f"mean {close[0]!r}? (the driver would never call it)")
+
+    @classmethod
+    def hears_subjects(cls) -> bool:
+        """Whether it overrides `teammate_subject`: only then does the driver watch teammates'
+        subject tokens (one watch per agent, which ALLIANCE, advertising none, does without)."""
+        return cls.teammate_subject is not Coordinator.teammate_subject
+
+    @property
+    def active_task(self) -> str | None:
+        return None
+
+    @property
+    def advertises(self) -> tuple[str, ...]:
+        return ()
+
+    def subjects(self, kind: str) -> tuple[str, ...] | None:
+        return None
+
+    def hear(self, kind: str, sender: str, message, at: float) -> bool:
+        return False
+
+    def teammate(self, robot: str, alive: bool) -> None:
+        pass
+
+    def teammate_subject(self, robot: str, subject: str, alive: bool) -> None:
+        pass
+
+    def tick(self, now: float) -> Iterable[Say]:
+        return ()

@@ -1,0 +1,179 @@
+"""A mission run's processes as the runner watches them: who is up (`Readiness`, from
+liveliness tokens, never from log lines) and whether the run is what its seed says and its
+summary covers all of it (`RunWatch`).
+
+A run is *disturbed* when a process of the run lost its liveliness token while the run was on —
+stopped (SIGSTOP, a debugger, a laptop's lid) past the Zenoh lease of 3 s, or cut off from the
+bus — other than a crash the run injected: lockstep no longer waits for a participant without a
+token, so the run went on without it, and its outcome depends on when the process was stopped,
+not on the seed. It is *incomplete* when its recording does not cover the whole mission: the
+recorder lost its session (what was published meanwhile never reached the file), or the file
+ends before the mission's duration. Either way the summary is not that of the run the seed
+describes: `summary.json` says what happened (`run_status`, `disturbances`, `recorded_until`),
+lockstep runs are not called exact, `mrta demo` exits 1 on an incomplete summary, and
+`mrta experiment` runs such a run again.
+
+Whose tokens: each robot's agent token (the architecture's `agent_tokens`), every lockstep
+participant's (agents, and any other participant: a dispatcher), the recorder's and the
+simulator's clock source — a process is up while any of its tokens lives. What is no
+disturbance: the final loss of a crash target whose process died by a SIGKILL this runner did
+not send (the crash itself), and the simulator's token going at the end of its run (the runner
+checks that it then exits cleanly).
+
+Not seen here: a process stopped for less than the lease keeps its session. In lockstep a
+stopped agent or simulator is waited for, so the run is unchanged; a recorder stopped that
+briefly holds the publishers of reliable keys back and loses nothing of them, but may miss
+best-effort samples (the clock, ALLIANCE's sensory feedback) — which would change the summary's
+message counts without being reported.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import signal
+import threading
+import time
+from typing import Callable
+
+from mrta_zenoh import keys
+from mrta_zenoh.architectures import Architecture
+from mrta_zenoh.clock import Clock
+from mrta_zenoh.errors import Interrupted, MrtaRuntimeError
+from mrta_zenoh.lockstep import PARTICIPANT
+from mrta_zenoh.presence import RobotPresence
+from mrta_zenoh.processes import Child, ProcessGroup
+
+from .summary import COMPLETE, DISTURBED, INCOMPLETE, Disturbance
+
+READY_TIMEOUT = 60.0  # wall seconds for every process to come up
+RECORDER = "recorder"
+SIMULATOR = "simulator"
+END_SLACK = 1.0  # simulated s: a recording that ends earlier than this before the end is cut
+
+
+class Readiness:
+    """Who is up, from liveliness tokens: the robots (RobotPresence), the recorder and the clock
+    source (tokens under @mrta/…, which `**` does not match)."""
+
+    def __init__(self, bus, robots: list[str]):
+        self.recorder = threading.Event()
+        self.clock = threading.Event()
+        self._stack = contextlib.ExitStack()
+        self.presence = self._stack.enter_context(RobotPresence(bus, robots))
+        for prefix, event in ((keys.RECORDER_TOKEN, self.recorder),
+                              (keys.CLOCK_SOURCE_TOKEN, self.clock)):
+            self._stack.callback(bus.watch_liveliness(
+                prefix + "/**", lambda k, up, e=event: up and e.set()).close)
+
+    def robots_up(self) -> bool:
+        return self.presence.all_up()
+
+    def wait(self, what: Callable[[], bool], label: str, group: ProcessGroup,
+             stop: threading.Event) -> None:
+        deadline = time.monotonic() + READY_TIMEOUT
+        while not what():
+            if stop.is_set():  # first: after a Ctrl-C, children ended by it did not fail
+                group.interrupted()
+                raise Interrupted()
+            failed = group.failed()
+            if failed:
+                raise MrtaRuntimeError(f"{failed[0].name} failed while starting (it "
+                                       f"{failed[0].describe_exit()}):\n{failed[0].tail()}")
+            if time.monotonic() > deadline:
+                raise MrtaRuntimeError(f"{label} did not come up within {READY_TIMEOUT:.0f} s")
+            stop.wait(0.05)
+
+    def close(self) -> None:
+        self._stack.close()
+
+    def __enter__(self) -> "Readiness":
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+class RunWatch:
+    """The tokens of a run's processes, watched from the runner from before the first process
+    starts until `end()` (the simulator's process ended): each loss and return, in the runner's
+    simulated time. A context manager (closes the watches)."""
+
+    def __init__(self, bus, arch: Architecture, clock: Clock) -> None:
+        self._clock = clock
+        self._lock = threading.Lock()
+        self._judging = True
+        self._held: dict[str, set[str]] = {}
+        self._events: dict[str, list[list[float | None]]] = {}
+        naming = ((arch.agent_tokens, keys.first_chunk),
+                  (f"{PARTICIPANT}/*", _last_chunk),
+                  (f"{keys.RECORDER_TOKEN}/*", lambda _: RECORDER),
+                  (f"{keys.CLOCK_SOURCE_TOKEN}/*", lambda _: SIMULATOR))
+        self._watches = [bus.watch_liveliness(expr, lambda key, alive, name=name:
+                                              self._on_token(name(key), key, alive))
+                         for expr, name in naming]
+
+    def _on_token(self, process: str, key: str, alive: bool) -> None:
+        now = self._clock.now()
+        with self._lock:
+            if not self._judging:
+                return
+            held = self._held.setdefault(process, set())
+            was_up = bool(held)
+            (held.add if alive else held.discard)(key)
+            events = self._events.setdefault(process, [])
+            if was_up and not held:
+                events.append([now, None])
+            elif held and not was_up and events and events[-1][1] is None:
+                events[-1][1] = now
+
+    def end(self) -> None:
+        """The run is over: what goes from now on is its processes ending."""
+        with self._lock:
+            self._judging = False
+
+    def disturbances(self, children: dict[str, Child],
+                     crashes: set[str] = frozenset()) -> list[Disturbance]:
+        """Every loss that was no crash the run injected nor the simulator's end (module
+        docstring). `children`: the processes by name (robot ids for agents), to tell a crash
+        target that crashed itself from one that was stopped."""
+        out = []
+        with self._lock:
+            events = {p: [list(e) for e in es] for p, es in self._events.items()}
+        for process, lost in sorted(events.items()):
+            for i, (lost_at, back_at) in enumerate(lost):
+                final = back_at is None and i == len(lost) - 1
+                if final and (process == SIMULATOR or (
+                        process in crashes and crashed_itself(children.get(process)))):
+                    continue
+                out.append(Disturbance(process, round(lost_at, 2),
+                                       None if back_at is None else round(back_at, 2)))
+        return out
+
+    def close(self) -> None:
+        for w in self._watches:
+            w.close()
+
+    def __enter__(self) -> RunWatch:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+def _last_chunk(key: str) -> str:
+    return key.rsplit("/", 1)[-1]
+
+
+def crashed_itself(child: Child | None) -> bool:
+    """Ended by a SIGKILL nobody here sent: the crash a fault injected (mrta_zenoh.failure)."""
+    return (child is not None and child.returncode == -signal.SIGKILL
+            and signal.SIGKILL not in child.signalled)
+
+
+def run_status(disturbances: list[Disturbance], recorded_until: float | None,
+               duration: float) -> str:
+    """complete, disturbed or incomplete (module docstring)."""
+    if recorded_until is None or recorded_until < duration - END_SLACK or any(
+            d.process == RECORDER for d in disturbances):
+        return INCOMPLETE
+    return DISTURBED if disturbances else COMPLETE

@@ -1,0 +1,104 @@
+"""MURDOCH's progress monitoring: a robot that keeps renewing its lease but does not finish its
+task within the task's progress_timeout loses it — its auctioneer (ranked among the task's
+other servers) revokes the contract, the task is auctioned again, and the holder gives it back
+and may not win it again for a progress_timeout. Real agents on the in-process bus and a manual
+clock (tests/murdoch_team.py), the ticks computed by hand in the comments."""
+
+from __future__ import annotations
+
+import pytest
+
+from mrta_agent.murdoch.auction import Murdoch
+from mrta_agent.murdoch.messages import Claim, Revoke
+from mrta_agent.murdoch.params import PROGRESS_TIMEOUT, load_params
+from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.messages import Header
+from tests.alliance_fixtures import write
+from tests.murdoch_team import Team, robot_doc, tasks_doc
+
+
+def sent(team: Team, kind: str, after: float = 0.0) -> list[tuple[float, str]]:
+    return [(round(s.message.header.stamp, 2), s.key.split("/")[0])
+            for s in team.messages(kind) if s.message.header.stamp >= after]
+
+
+def test_a_holder_that_keeps_renewing_without_finishing_loses_its_task(tmp_path):
+    # progress_timeout 5 s. t=100.0: robot1 (rank 0) announces a, bids 1.0 itself; robot2
+    # bids 0.5. 100.5: robot1 wins its own auction and claims (since 100.5); robot2 hears the
+    # claim at 100.5. robot1 renews for ever, never finishing: robot2, the task's only other
+    # server, revokes at 100.5 + 5 = 105.5. robot1 hears it at 105.6, gives a back and may
+    # not bid for it until 110.6; 105.7: a is unheld, robot1 (rank 0) announces it; robot2
+    # bids; 106.2 the window closes: robot2 wins and claims.
+    team = Team(tmp_path, {"robot1": {"a": 1.0}, "robot2": {"a": 0.5}}, ["a"],
+                progress_timeout=5.0)
+    team.until(lambda: team.holders("a") == ["robot1"])
+    took = team.until(lambda: team.holders("a") == ["robot2"])
+    assert team.clock.now() == pytest.approx(106.3)  # the step after robot2's tick at 106.2
+    assert sent(team, "revoke") == [(105.5, "robot2")]
+    (revoke,) = team.messages("revoke")
+    assert (revoke.message.holder, revoke.message.since) == ("robot1", pytest.approx(100.5))
+    assert [(t, r) for t, r in sent(team, "release")] == [(105.6, "robot1")]
+    assert sent(team, "announcement", after=101.0) == [(105.7, "robot1")]
+    assert [s.message.winner for s in team.messages("award")] == ["robot1", "robot2"]
+    assert took == pytest.approx(5.7)
+    reason = team.agents["robot1"].coordinator.history[-1][1].reason
+    assert reason.startswith("revoked by robot2")
+    # the contract robot2 now holds is watched too: at 106.2 + 5 it is revoked in turn, and
+    # robot1, barred from a until 110.6, may have it back
+    team.until(lambda: team.holders("a") == ["robot1"], limit=10.0)
+    assert sent(team, "revoke", after=106.0) == [(111.2, "robot1")]
+    assert sent(team, "bid", after=111.0) == []  # robot2, revoked, does not bid for it again
+
+
+def test_a_frozen_monitor_is_stood_in_for_one_reannounce_period_per_rank(tmp_path):
+    # robot2 (the first of a's other servers) is frozen — alive, silent — so robot3, of rank
+    # 1 among them, revokes one reannounce_period (2 s) later: 100.5 + 5 + 2 = 107.5
+    team = Team(tmp_path, {"robot1": {"a": 1.0}, "robot2": {"a": 0.5}, "robot3": {"a": 0.4}},
+                ["a"], progress_timeout=5.0)
+    team.until(lambda: team.holders("a") == ["robot1"])
+    team.frozen.add("robot2")
+    team.until(lambda: team.holders("a") == ["robot3"])
+    assert sent(team, "revoke") == [(107.5, "robot3")]
+
+
+def test_no_revocation_while_the_task_is_done_within_its_timeout(tmp_path):
+    # the default timeout (60 s) is longer than these 30 s: robot1 keeps a, nobody revokes
+    team = Team(tmp_path, {"robot1": {"a": 1.0}, "robot2": {"a": 0.5}}, ["a"])
+    assert team.agents["robot2"].coordinator.core.tasks["a"].progress_timeout == \
+        PROGRESS_TIMEOUT == 60.0
+    team.step(300)
+    assert team.holders("a") == ["robot1"] and not team.messages("revoke")
+
+
+class _Able:
+    def fresh(self, topic, now): return True
+    def applicable(self, task, now): return True
+    def pose(self): return None
+
+
+def test_a_revoked_contracts_claims_are_ignored_and_its_holder_barred(tmp_path):
+    """A holder too stuck to hear the revocation goes on claiming the old contract: nobody
+    counts it, and an auctioneer does not award the task back to it while it is barred."""
+    params = load_params(write(tmp_path / "r.yaml", robot_doc({"a": 1.0})),
+                         write(tmp_path / "t.yaml", tasks_doc(["a"], progress_timeout=5.0)))
+    core = Murdoch("robot3", params.robot, params.tasks)
+    for r in ("robot1", "robot2"):
+        core.on_teammate(r, True)
+        core.on_subject(r, "a", True)
+    core.on_claim("robot1", Claim(Header("robot1", 10.0, 1), "a", 10.0, 2.0), 10.0)
+    core.on_revoke("robot2", Revoke(Header("robot2", 15.0, 1), "a", "robot1", 10.0, "x"), 15.0)
+    core.on_claim("robot1", Claim(Header("robot1", 15.5, 2), "a", 10.0, 2.0), 15.5)
+    assert "robot1" not in core.leases["a"] and core.held_until["a"] == 15.0
+    assert core.barred("a", "robot1", 19.9) and not core.barred("a", "robot1", 20.1)
+    # a new contract of the same robot (a later since) counts again
+    core.on_claim("robot1", Claim(Header("robot1", 30.0, 3), "a", 29.5, 2.0), 30.0)
+    assert core.leases["a"]["robot1"].since == 29.5
+
+
+def test_a_bad_progress_timeout_names_file_line_and_key(tmp_path):
+    doc = tasks_doc(["a"], progress_timeout=-1.0)
+    f = write(tmp_path / "t.yaml", doc)
+    with pytest.raises(ConfigError) as err:
+        load_params(write(tmp_path / "r.yaml", robot_doc({"a": 1.0})), f)
+    assert "progress_timeout" in str(err.value) and str(f) in str(err.value)
+    assert err.value.line is not None

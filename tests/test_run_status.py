@@ -1,0 +1,182 @@
+"""An honest run status (supervisor/run_watch.py): a process of the run that lost its token
+while the run was on — other than an injected crash, or the simulator ending its run — makes
+the run disturbed; a recorder that lost its session, or a recording that ends early, makes it
+incomplete. Pure parts on the in-process bus and a manual clock; the real processes, stopped
+with SIGSTOP, in tests/test_run_status_multiprocess.py."""
+
+from __future__ import annotations
+
+import signal
+from types import SimpleNamespace
+
+import pytest
+
+from mrta_agent.alliance.architecture import ALLIANCE
+from mrta_supervisor.run_watch import RECORDER, SIMULATOR, RunWatch, run_status
+from mrta_supervisor.summary import (COMPLETE, DISTURBED, INCOMPLETE, Disturbance, Summary,
+                                     run_problem)
+from mrta_zenoh.bus import InProcBus
+from mrta_zenoh.bus.inproc import InProcNetwork
+from mrta_zenoh.clock import ManualClock
+from mrta_zenoh.keys import CLOCK_SOURCE_TOKEN, RECORDER_TOKEN
+from mrta_zenoh.lockstep import PARTICIPANT
+
+CRASHED = SimpleNamespace(returncode=-signal.SIGKILL, signalled=set())       # killed itself
+KILLED_BY_US = SimpleNamespace(returncode=-signal.SIGKILL, signalled={signal.SIGKILL})
+STOPPED = SimpleNamespace(returncode=0, signalled={signal.SIGINT})
+
+
+class Run:
+    """The tokens a mission's processes hold, on one in-process network."""
+
+    def __init__(self):
+        self.net = InProcNetwork()
+        self.clock = ManualClock(0.0)
+        self.watch = RunWatch(InProcBus(self.net), ALLIANCE, self.clock)
+        self.tokens: dict[str, list] = {}
+
+    def up(self, process: str, *keys: str) -> None:
+        bus = InProcBus(self.net)
+        self.tokens[process] = [bus.declare_token(k) for k in keys]
+
+    def down(self, process: str, at: float) -> None:
+        self.clock.set(at)
+        for t in self.tokens.pop(process):
+            t.close()
+
+    def start(self) -> None:
+        for r in ("robot1", "robot2"):
+            self.up(r, f"{r}/alliance/agent", f"{PARTICIPANT}/{r}")
+        self.up(RECORDER, f"{RECORDER_TOKEN}/abc")
+        self.up(SIMULATOR, f"{CLOCK_SOURCE_TOKEN}/1234-x0")
+
+
+def test_a_quiet_run_with_an_injected_crash_is_undisturbed():
+    run = Run()
+    run.start()
+    run.down("robot2", 30.0)                      # the crash the run injected
+    run.down(SIMULATOR, 60.0)                     # the simulator ends its run
+    run.watch.end()
+    run.down("robot1", 60.5)                      # the runner stops the rest
+    run.down(RECORDER, 60.5)
+    assert run.watch.disturbances({"robot2": CRASHED}, {"robot2"}) == []
+
+
+def test_a_token_lost_and_back_is_a_disturbance_even_for_a_crash_target():
+    run = Run()
+    run.start()
+    run.down("robot1", 21.3)                      # stopped past the lease …
+    run.clock.set(35.0)
+    run.up("robot1", "robot1/alliance/agent", f"{PARTICIPANT}/robot1")  # … and resumed
+    run.down("robot2", 12.0)
+    run.clock.set(14.0)
+    run.up("robot2", "robot2/alliance/agent")
+    run.down("robot2", 30.0)                      # then its crash
+    run.watch.end()
+    assert run.watch.disturbances({"robot2": CRASHED}, {"robot2"}) == [
+        Disturbance("robot1", 21.3, 35.0), Disturbance("robot2", 12.0, 14.0)]
+
+
+def test_a_final_loss_is_a_crash_only_if_the_process_killed_itself():
+    for child, crashes, expected in ((CRASHED, {"robot2"}, []),
+                                     (KILLED_BY_US, {"robot2"}, [Disturbance("robot2", 30.0)]),
+                                     (STOPPED, {"robot2"}, [Disturbance("robot2", 30.0)]),
+                                     (CRASHED, set(), [Disturbance("robot2", 30.0)])):
+        run = Run()
+        run.start()
+        run.down("robot2", 30.0)
+        run.watch.end()
+        assert run.watch.disturbances({"robot2": child}, crashes) == expected
+
+
+def test_the_recorder_or_the_simulator_losing_its_session_is_seen():
+    run = Run()
+    run.start()
+    run.down(RECORDER, 34.0)
+    run.down(SIMULATOR, 40.0)
+    run.clock.set(52.0)
+    run.up(SIMULATOR, f"{CLOCK_SOURCE_TOKEN}/1234-x0")  # the simulator was stopped: back
+    run.watch.end()
+    d = run.watch.disturbances({}, set())
+    assert d == [Disturbance(RECORDER, 34.0), Disturbance(SIMULATOR, 40.0, 52.0)]
+    assert run_status(d, 60.0, 60.0) == INCOMPLETE  # the recorder's gap is lost for good
+    assert run_status(d[1:], 60.0, 60.0) == DISTURBED
+
+
+def test_what_goes_after_the_end_or_before_it_came_is_not_counted():
+    run = Run()
+    run.up("robot1", "robot1/alliance/agent")
+    run.watch.end()
+    run.down("robot1", 70.0)
+    assert run.watch.disturbances({}, set()) == []
+    run.watch.close()
+
+
+@pytest.mark.parametrize("recorded_until, status", [(60.0, COMPLETE), (59.2, COMPLETE),
+                                                    (58.9, INCOMPLETE), (34.0, INCOMPLETE),
+                                                    (None, INCOMPLETE)])
+def test_a_recording_that_ends_early_or_holds_nothing_is_incomplete(recorded_until, status):
+    assert run_status([], recorded_until, 60.0) == status
+
+
+def summary(**fields) -> Summary:
+    from mrta_supervisor.summary import MessageRates
+    return Summary(mission="patrol", application="patrol", architecture="alliance",
+                   duration=60.0, speed=0.0, seed=0, wall_seconds=1.0, robots=["robot1"],
+                   who_did_what={}, first_full_allocation=None, coverage={},
+                   messages=MessageRates(0.0, 0.0, "alliance"), output="out", files=[],
+                   **fields)
+
+
+def test_the_summary_says_why_in_one_line():
+    assert run_problem(summary(lockstep_exact=True)) is None
+    assert run_problem(summary(run_status=INCOMPLETE, recorded_until=43.1,
+                               disturbances=[Disturbance(RECORDER, 34.0)])) == (
+        "the recording does not cover the whole mission (it ends at 43.1 s of 60 s; recorder "
+        "lost its token at 34 s)")
+    assert run_problem(summary(run_status=INCOMPLETE)) == (
+        "the recording does not cover the whole mission (it is empty)")
+    assert run_problem(summary(run_status=DISTURBED, lockstep_exact=False,
+                               disturbances=[Disturbance("robot1", 21.3, 35.0)])) == (
+        "a process of the run was stopped or cut off (robot1 lost its token at 21.3 s, back "
+        "at 35 s): the run is not what its seed gives")
+    assert "2 participant(s) given up" in run_problem(summary(lockstep_exact=False,
+                                                              lockstep_given_up=2))
+
+
+class _Ended:
+    """A run's mission process that has ended with `returncode` (experiment._collect reads it)."""
+
+    def __init__(self, returncode: int, stdout: list[str]):
+        self.returncode, self.stdout = returncode, stdout
+
+    def running(self) -> bool:
+        return False
+
+    def wait(self, timeout) -> int:
+        return self.returncode
+
+
+@pytest.mark.parametrize("status, rc, marked, says", [
+    (DISTURBED, 0, "inexact", "robot1 lost its token at 21.3 s, back at 35 s"),
+    (INCOMPLETE, 1, "failed", "Error: the recording does not cover the whole mission")])
+def test_an_experiment_runs_a_disturbed_or_incomplete_run_again_then_marks_it(
+        tmp_path, status, rc, marked, says):
+    import time
+
+    from mrta_supervisor import experiment
+    from mrta_supervisor.summary import write_summary
+    out = tmp_path / "run000"
+    out.mkdir()
+    write_summary(out / "summary.json", summary(
+        run_status=status, lockstep_exact=False, recorded_until=60.0 if rc == 0 else 43.1,
+        disturbances=[Disturbance("robot1", 21.3, 35.0)] if rc == 0 else
+        [Disturbance(RECORDER, 34.0)]))
+    child = _Ended(rc, [f"Error: {run_problem(summary(run_status=INCOMPLETE))}"] if rc else [])
+    run = experiment.Run(0, 1, "none", ())
+    results = experiment.Results(tmp_path / "results.csv", 1)
+    again = experiment._collect({0: (run, child, time.monotonic(), out)}, results, set())
+    assert again == [run] and results.rows == []  # first time: run again, no row
+    again = experiment._collect({0: (run, child, time.monotonic(), out)}, results, {0})
+    assert again == [] and results.rows[0]["status"] == marked
+    assert says in results.rows[0]["error"]

@@ -1,0 +1,89 @@
+"""An honest run status, with real processes: `mrta demo` in lockstep while one of its processes
+is stopped (SIGSTOP) longer than the Zenoh lease (3 s), then resumed.
+
+* the recorder: what was published while its session was down never reaches the file — the
+  summary says `incomplete`, names the recorder, and `mrta demo` exits 1;
+* robot1's agent: its participant token goes, so the simulator runs on without it — the summary
+  is complete but `disturbed`, names robot1 with when it went and came back, and the run is
+  not called exact (an experiment runs it again)."""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import time
+from pathlib import Path
+
+import pytest
+
+from tests.helpers import descendants
+
+pytestmark = [pytest.mark.multiprocess, pytest.mark.slow]
+
+STOP_FOR = 6.0  # wall s: twice the 3 s lease, so its token surely goes (nothing is timed by it)
+
+
+def find(pid: int, *needles: str) -> int:
+    """The process below `pid` whose command line holds every one of `needles`."""
+    deadline = time.monotonic() + 60
+    while time.monotonic() < deadline:
+        for d in descendants(pid):
+            try:
+                argv = Path(f"/proc/{d}/cmdline").read_bytes().decode(errors="replace").split("\0")
+            except OSError:
+                continue
+            if all(n in argv for n in needles):
+                return d
+        time.sleep(0.2)
+    raise AssertionError(f"no process {needles} below {pid}")
+
+
+def stop_for_a_while(demo, victim: int) -> None:
+    """Once the mission's simulated time passed 10 s (its progress lines), SIGSTOP `victim`
+    for STOP_FOR wall seconds, then SIGCONT it (always: nothing is left stopped)."""
+    demo.wait_line(lambda line: line.startswith("t=") and float(line[2:].split("s")[0]) >= 10,
+                   120)
+    os.kill(victim, signal.SIGSTOP)
+    try:
+        time.sleep(STOP_FOR)  # the fault itself: a stop longer than the lease
+    finally:
+        os.kill(victim, signal.SIGCONT)
+
+
+def run_demo(children, out: Path, stopping: tuple[str, ...]):
+    demo = children.mrta("demo", "--duration", "40", "--speed", "1", "--fail", "none",
+                         "--no-live", "--output", str(out), name="demo")
+    stop_for_a_while(demo, find(demo.proc.pid, *stopping))
+    return demo
+
+
+@pytest.mark.timeout(300)
+def test_a_recorder_stopped_past_its_lease_makes_the_summary_incomplete_and_the_demo_fail(
+        children, tmp_path):
+    demo = run_demo(children, tmp_path / "out", ("view", "--output"))
+    assert demo.wait(240) == 1, demo.tail(30)
+    s = json.loads((tmp_path / "out" / "summary.json").read_text())  # written all the same
+    print(json.dumps({k: s[k] for k in ("run_status", "disturbances", "recorded_until")}))
+    assert s["run_status"] == "incomplete" and s["lockstep_exact"] is False
+    (lost,) = [d for d in s["disturbances"] if d["process"] == "recorder"]
+    assert 10.0 <= lost["lost_at"] <= 40.0
+    assert not [d for d in s["disturbances"] if d["process"] != "recorder"]  # the rest ran on
+    assert any(line.startswith("  NOT EXACT: the recording does not cover the whole mission")
+               for line in demo.stdout), demo.stdout
+    assert any("Error: the recording does not cover the whole mission" in line
+               for line in demo.stderr), demo.stderr
+
+
+@pytest.mark.timeout(300)
+def test_an_agent_stopped_past_its_lease_makes_the_run_disturbed_not_exact(children, tmp_path):
+    demo = run_demo(children, tmp_path / "out", ("robot_agent/agent", "robot1"))
+    assert demo.wait(240) == 0, demo.tail(30)  # the summary covers the whole mission
+    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+    print(json.dumps({k: s[k] for k in ("run_status", "disturbances", "recorded_until")}))
+    assert s["run_status"] == "disturbed" and s["lockstep_exact"] is False
+    assert s["recorded_until"] == pytest.approx(40.0, abs=1.0)
+    (lost,) = s["disturbances"]
+    assert lost["process"] == "robot1" and 10.0 <= lost["lost_at"] < lost["back_at"] <= 40.0
+    assert any(line.startswith("  NOT EXACT: a process of the run was stopped or cut off "
+                               "(robot1 lost its token at") for line in demo.stdout), demo.stdout
