@@ -14,6 +14,7 @@ from pathlib import Path
 from typing import Any
 
 from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.failure import ROLES
 from mrta_zenoh.processes import ProcessGroup, mrta_argv
 
 from .experiment_file import Run
@@ -129,7 +130,10 @@ def row_for(run: Run, out: Path, wall: float, error: str = "",
     measured = flat_metrics(summary)
     if run.instance is not None:
         measured = {k: v for k, v in measured.items() if not k.endswith(COVERAGE)}
-    row["failed_robot"] = summary.failure.robot if summary.failure is not None else ""
+    # the robot its fault struck: what a role (@first, @random) resolved to; blank when none
+    # was struck (no fault, or an @first with nobody assigned before its time)
+    f = summary.failure
+    row["failed_robot"] = f.robot if f is not None and f.robot not in ROLES else ""
     row.update(measured)
     # counted by the run's own analysis (mission.message_rates), not by reading run.mcap again
     row["messages"] = "" if summary.messages.total is None else summary.messages.total
