@@ -7,8 +7,11 @@ recorder) on one private loopback rendezvous: they must all be on one machine. T
 as a child of the worker, in a scratch folder under the worker's local directory, and returns
 the exit code, the end of the output and the run folder's files as bytes (a few MB: run.mcap,
 pictures, summary.json); the client writes them into OUTPUT/runNNN and makes the row the same
-way the local backend does (experiment_runs.row_for), so the same seeds give the same rows. Workers
-need mrta-zenoh and the application's packages installed, as the client has.
+way the local backend does (experiment_runs.row_for), so the same seeds give the same rows. A run
+of an instance (an experiment's `instances:` block) carries its instance file's bytes in the task:
+the worker writes its own copy beside the run folder and hands it to `mrta demo --instance`, so
+a worker on another machine needs no shared file system. Workers need mrta-zenoh and the
+application's packages installed, as the client has.
 
 How many runs a worker takes at once: every task asks for the Dask resource `runs=1`, and a
 worker offers as many as it has room for, `dask worker ADDR --nthreads 1 --resources runs=1`
