@@ -14,7 +14,7 @@ from mrta_zenoh.cli.common import SEED_TYPE
 from mrta_zenoh.cli.main import cli
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.files import check_writable
-from mrta_zenoh.seeds import robot_seed_sequence
+from mrta_zenoh.seeds import seed_sequence
 from tests.helpers import PATROL, free_port
 
 CONFIG = PATROL / "config"
@@ -57,7 +57,7 @@ def test_the_ends_of_the_range_are_seeds_numpy_takes():
     for text in ("0", str(2**63 - 1), " 7 "):
         seed = SEED_TYPE.convert(text, None, None)
         assert seed == int(text)
-        robot_seed_sequence(seed, "robot1").generate_state(1)
+        seed_sequence(seed, "robot1").generate_state(1)
 
 
 UNWRITABLE = [

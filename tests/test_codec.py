@@ -12,6 +12,8 @@ from mrta_patrol.messages import PatrolLog, Report, TaskTime
 from mrta_delivery.messages import TaskEvent
 from mrta_zenoh.lockstep import LockstepStatus, Step, StepDone
 from mrta_agent.murdoch.messages import Announcement, Award, Bid, Claim, Release, Revoke
+from mrta_agent.ssi.messages import Bid as SsiBid, Round
+from mrta_agent.cbba.messages import Bids
 
 EXAMPLES = [
     Header("robot1", 12.5, 7),
@@ -41,6 +43,9 @@ EXAMPLES = [
     Claim(Header("robot3", 3.6, 1), "report", 3.6, 2.0),
     Release(Header("robot3", 20.0, 9), "report", "no progress for 3.0 s"),
     Revoke(Header("robot1", 61.0, 1), "t1", "robot3", 0.5, "no progress in 60 s"),
+    Round(Header("robot1", 4.0, 5), 3, (1, -1, -2, -3), 0, 2.5),
+    SsiBid(Header("robot2", 4.1, 2), "robot1", 3, 1, 4.0, (3,)),
+    Bids(Header("robot2", 4.1, 9), ((0, 1, 0.75),), ((0, 4.0), (1, 4.1)), (3,), 1.5, -2.0),
 ]
 
 

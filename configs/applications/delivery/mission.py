@@ -26,7 +26,7 @@ from mrta_supervisor.tasks import TaskStatus, TaskWatch
 from mrta_supervisor.summary import SummarySections
 
 from .generate import derive
-from .instance import DeliveryParams, RobotSpec, TaskSpec, WorldSpec, load_document
+from .instance import DeliveryParams, InstanceDoc, load_document
 from .keys import ALL_DONE
 from .messages import TaskEvent
 from .metrics import RunAnalysis, analyse, instance_json
@@ -51,20 +51,13 @@ class TaskEntry(_Section):
     capability: str
 
 
-class InstanceSection(_Section, omit_defaults=True):
-    """The instance a run served (metrics.instance_json): the instance document — robots and
-    tasks by id, the world, its name — plus the cost matrix, so `--instance summary.json`
-    runs it again. A schema-2 summary listed robots and tasks as entries with an `id`, and
-    had no world or name: it still reads, and is written back as it was."""
+class LegacyInstance(_Section):
+    """A schema-2 summary's instance (robots and tasks as lists), still read back."""
 
-    robots: list[RobotEntry] | dict[str, RobotSpec]
-    tasks: list[TaskEntry] | dict[str, TaskSpec]
+    robots: list[RobotEntry]
+    tasks: list[TaskEntry]
     cost: list[list[float | None]]   # cost[i][j]: robot i's travel time to task j (None: cannot)
     cost_model: str
-    application: str = ""
-    world: WorldSpec | None = None
-    name: str = ""
-    generator: dict[str, Any] = {}
 
 
 class AllocationEntry(_Section):
@@ -78,8 +71,21 @@ class AllocationEntry(_Section):
 
 
 class DeliverySections(SummarySections):
-    instance: InstanceSection
+    """`instance` is the instance document (metrics.instance_json: fed back as `--instance` it
+    gives the same run) with the cost matrix and its model; a schema-2 summary's lists are
+    read too."""
+
+    instance: dict[str, Any]
     allocation: list[AllocationEntry]
+
+    def __post_init__(self) -> None:
+        try:
+            msgspec.convert(self.instance, InstanceDoc)
+        except msgspec.ValidationError as current:
+            try:
+                msgspec.convert(self.instance, LegacyInstance)
+            except msgspec.ValidationError:
+                raise ValueError(f"instance: {current}") from None
 
 
 def run_instance(run: MissionRun) -> DeliveryParams:
