@@ -2,7 +2,8 @@
 and MURDOCH × 1 seed, with faults that name robots by role, run twice — the same rows but wall
 time; `@random` the same robot for an instance under both architectures, `@first` the robot the
 robots' own reports show first on a task (the summary's who_did_what, read here, not the
-announcements the agents resolved it from), and that robot stood still from the stall on."""
+announcements the agents resolved it from), and that robot stood still from the stall on; the
+rows' reference values are each instance's optimum, found here by brute force."""
 
 from __future__ import annotations
 
@@ -99,3 +100,12 @@ def test_the_same_file_twice_gives_the_same_rows_and_roles_resolve_the_same(chil
         late = [(x, y) for t, x, y in poses(run, first) if t >= STALL_AT + 1.0]
         assert late and max(math.dist(late[0], p) for p in late) < 0.01, first
     assert all(len(v) == 1 for v in random_robot.values()), random_robot
+    # the reference value of each objective, from the instance file: brute force here
+    from mrta_delivery.instance import load_document
+    from tests.test_planning_reference import brute_force
+    for r in a:
+        problem = load_document(tmp_path / "a" / "instances" / f"{r['instance']}.yaml").problem()
+        for objective in ("minsum", "makespan", "flowtime"):
+            assert float(r[f"metrics.reference_{objective}"]) == \
+                pytest.approx(brute_force(problem, objective), abs=1e-3), (objective, r)
+        assert r["metrics.reference_proven_optimal"] == "True"
