@@ -43,7 +43,7 @@ N = 10  # robots and tasks. At 20 the recorder falls behind on a loaded machine 
 def test_a_generated_n_robot_delivery_run_completes_in_lockstep(children, tmp_path):
     """`mrta demo --instance` with a generated 10-robot, 10-task instance at `--speed 0`: every
     robot of the instance runs (its own agent, in the summary), the mission ends with an exact
-    lockstep record and a complete recording, and deliveries happen."""
+    lockstep record and a complete recording, and tasks are assigned."""
     from mrta_delivery.instance import load_document
 
     file = tmp_path / "team.yaml"
