@@ -201,6 +201,10 @@ def plot(lines: list[dict], path: Path) -> None:
     right.axhline(45.0, color="grey", linewidth=0.8, linestyle=":", label="45 MB target at 50")
     right.set(xscale="log", xlabel="robots", ylabel="MB per agent", title="agent memory")
     right.legend(fontsize=8)
+    ns = sorted({d["robots"] for d in runs + alone})
+    for ax in (left, right):
+        ax.set_xticks(ns, [str(n) for n in ns])
+        ax.minorticks_off()
     fig.tight_layout()
     fig.savefig(path)
     plt.close(fig)
