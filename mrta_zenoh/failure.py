@@ -22,7 +22,11 @@ A spec is a comma-separated list of items (docs/delivery.md, "Fault grammar"):
   coordination message is heard MEAN ± JITTER seconds (uniform, seeded) after it was sent.
 
 Two forms: a *subject* kind strikes one process (`kind:SUBJECT@T`, `+D` for a duration), a
-*channel* kind sets one value for the run (`kind:VALUE`). At most one fault per subject, one
+*channel* kind sets one value for the run (`kind:VALUE`). A subject is a robot's id or a *role*,
+for specs that must work on any team (an experiment over instances of several sizes):
+`@first` — the robot first assigned any task before T, resolved during the run by the agents
+themselves (exact in lockstep) — and `@random` — a robot drawn from the instance's own stream,
+resolved by the runner before the run (mrta_zenoh/fault_roles.py). At most one fault per subject, one
 item of each channel kind. Adding a kind (docs/architecture.md, "Adding a fault kind"): a
 `FaultKind` member and its `SYNTAX` row; for a channel kind a field of `Faults` named like the
 kind and a value parser in `_VALUES`; then a field of `FaultPlan` and the place that acts on it.
@@ -52,7 +56,7 @@ from .keys import ID_PATTERN
 from .limits import RUN_DURATION
 from .seeds import uniform
 from .timetext import at
-from .yamlfile import did_you_mean
+from .yamlfile import did_you_mean, plural
 
 FAULTS_ENV = "MRTA_FAULTS"  # the run's fault spec, for every process of the run (fault_env)
 # Not read: every fault, crashes included, goes through FAULTS_ENV. Set, it is refused
@@ -95,7 +99,9 @@ GRAMMAR = ("a comma-separated list of ROBOT@T (crash), stall:ROBOT@T, partition:
            "loss:P, latency:MEAN±JITTER, e.g. stall:robot2@30,loss:0.1")
 
 _NUM = r"\d+(?:\.\d+)?"
-_AT = re.compile(rf"^({ID_PATTERN})@({_NUM})(?:\+({_NUM}))?$")
+FIRST, RANDOM = "@first", "@random"
+ROLES = (FIRST, RANDOM)  # subjects that name a robot by role (module docstring)
+_AT = re.compile(rf"^({ID_PATTERN}|{FIRST}|{RANDOM})@({_NUM})(?:\+({_NUM}))?$")
 _LATENCY = re.compile(rf"^({_NUM})(?:(?:±|\+-)({_NUM}))?$")
 _PROBABILITY = re.compile(rf"^{_NUM}$")
 
@@ -156,7 +162,7 @@ def failure_problem(failure: Failure, robots, duration: float) -> str | None:
     for every hop: an experiment's `failures` (at load, naming the line), the mission's
     `--fail`."""
     robots = list(robots)
-    if failure.robot not in robots:
+    if failure.robot not in robots and failure.robot not in ROLES:
         return (f"{failure.spec}: {failure.robot} is not one of the application's robots "
                 f"({', '.join(robots) or 'none'})" + did_you_mean(failure.robot, robots))
     if failure.at >= duration:
@@ -171,6 +177,12 @@ def faults_problem(faults: Faults, robots, duration: float) -> str | None:
         problem = failure_problem(f, robots, duration)
         if problem is not None:
             return problem
+    named = [f.robot for f in faults.failures if f.robot not in ROLES]
+    roles = [f for f in faults.failures if f.robot in ROLES]
+    if roles and len(robots) - len(named) < len(roles):
+        return (f"{roles[0].spec}: a role names a robot no other item names, and "
+                f"{plural(len(robots), 'robot')} leave {len(robots) - len(named)} for "
+                f"{plural(len(roles), 'role')}")
     return None
 
 
@@ -289,6 +301,20 @@ class FaultPlan:
     loss: float = 0.0
     latency: tuple[float, float] | None = None
     crash_at: float | None = None
+    # an `@first` fault not resolved yet: the agent resolves it at its time, from who was
+    # assigned first among the robots no item names (`taken`), and then strikes or drops it
+    first: Failure | None = None
+    taken: frozenset[str] = frozenset()
+
+    def struck(self, failure: Failure) -> FaultPlan:
+        """This plan with `failure` (a role's, once resolved to this subject) its own."""
+        kind = FaultKind(failure.kind)
+        return dataclasses.replace(
+            self, first=None,
+            crash_at=failure.at if kind is FaultKind.CRASH else self.crash_at,
+            stall_at=failure.at if kind is FaultKind.STALL else self.stall_at,
+            partitions=self.partitions + (((failure.at, failure.at + failure.duration),)
+                                          if kind is FaultKind.PARTITION else ()))
 
     def crashed(self, now: float) -> bool:
         return self.crash_at is not None and now >= self.crash_at
@@ -316,15 +342,21 @@ class FaultPlan:
 
 
 def plan_for(faults: Faults, subject: str, seed: int) -> FaultPlan | None:
-    """`subject`'s part of `faults` (its own fault, and the channel's), or None if nothing."""
+    """`subject`'s part of `faults` (its own fault, the channel's, and an `@first` it may turn
+    out to be — not if an item names it), or None if nothing. `@random` is the runner's to
+    resolve before the run: one left here is refused (ValueError)."""
+    if faults.of(RANDOM) is not None:
+        raise ValueError(f"{faults.of(RANDOM).spec}: {RANDOM} is drawn by the runner before "
+                         "the run (mrta demo, mrta experiment): give the robot's id")
     own = faults.of(subject)
-    kind = FaultKind(own.kind) if own is not None else None
-    stall = own.at if kind is FaultKind.STALL else None
-    crash = own.at if kind is FaultKind.CRASH else None
-    cuts = ((own.at, own.at + own.duration),) if kind is FaultKind.PARTITION else ()
-    if own is None and faults.loss == 0 and faults.latency is None:
+    first = faults.of(FIRST) if own is None else None
+    if own is None and first is None and faults.loss == 0 and faults.latency is None:
         return None
-    return FaultPlan(subject, seed, stall, cuts, faults.loss, faults.latency, crash)
+    taken = frozenset(f.robot for f in faults.failures if f.robot not in ROLES) \
+        if first is not None else frozenset()
+    plan = FaultPlan(subject, seed, loss=faults.loss, latency=faults.latency, first=first,
+                     taken=taken)
+    return plan.struck(own) if own is not None else plan
 
 
 def plan_from_env(subject: str, seed: int, crash_at: float | None = None,
@@ -338,7 +370,10 @@ def plan_from_env(subject: str, seed: int, crash_at: float | None = None,
             faults = faults.adding(Failure(subject, crash_at, f"crash:{subject}@{crash_at:g}"))
         except ValueError as exc:
             raise ConfigError(f"--crash-at and ${FAULTS_ENV}: {exc}") from None
-    return plan_for(faults, subject, seed)
+    try:
+        return plan_for(faults, subject, seed)
+    except ValueError as exc:
+        raise ConfigError(f"${FAULTS_ENV}: {exc}") from None
 
 
 def crash_now(subject: str, now: float, log: logging.Logger) -> None:

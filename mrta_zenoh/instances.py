@@ -43,6 +43,15 @@ class InstanceKind:
         """What results carry for this instance (never a path)."""
         return ""
 
+    def robots(self, doc: Any) -> list[str]:
+        """The robot ids a run of this instance starts, in the document's order (an
+        experiment's `n_robots`, and whom its faults may name)."""
+        raise NotImplementedError
+
+    def tasks(self, doc: Any) -> list[str]:
+        """The task ids, in the document's order (an experiment's `n_tasks`)."""
+        raise NotImplementedError
+
     def describe(self, doc: Any, *, exact_limit: int, time_limit: float,
                  solutions: int) -> dict[str, Any]:
         """What `mrta instance show` prints (JSON values): sizes, costs, reference values."""

@@ -39,6 +39,7 @@ from pathlib import Path
 from typing import Any
 
 from mrta_zenoh.errors import ConfigError, Interrupted
+from mrta_zenoh.instances import kinds as instance_kinds
 from mrta_zenoh.keys import normalize_robot_id
 from mrta_zenoh.limits import MAX_RUNS
 from mrta_zenoh.processes import ProcessGroup
@@ -49,7 +50,8 @@ from . import experiment_dask
 from .experiment_file import (Experiment, Run, _failure_problem, load_experiment)  # noqa: F401
 from .experiment_runs import (Context, Results, error_of, inexact, package_copy,
                               prepare_output, start_run)
-from .mission import MissionOptions, resolve
+from .experiment_instances import prepare as prepare_instances
+from .mission import MissionOptions, MissionRun, resolve
 from .report import Options, build
 from .report_md import Precision, write_report
 from .results import COVERAGE, MEASURES, kind, read_results
@@ -96,8 +98,50 @@ def check_overrides(exp: Experiment, pkg_path: Path, arch, robots: list[str]) ->
                                      layers if layers.is_file() else None)
             except ConfigError as exc:
                 what = f"{exc.element}: {exc.detail}" if exc.element else exc.detail
+                under = f" under {arch.name}" if exp.spec.architectures else ""
                 raise exp.error(("overrides", key),
-                                f"override {key} = {value!r}: {what}") from None
+                                f"override {key} = {value!r}{under}: {what}") from None
+
+
+def resolve_all(exp: Experiment) -> dict[str | None, MissionRun]:
+    """The application package, mission and architecture of every value of the architecture
+    axis (None: the file's one), each refused at its line when nothing runs the application
+    under it."""
+    out = {}
+    for i, name in enumerate(exp.architectures):
+        options = MissionOptions(application=exp.spec.application,
+                                 architecture=name if name is not None
+                                 else exp.spec.architecture)
+        try:
+            out[name] = resolve(options, Registry())
+        except ConfigError as exc:
+            if name is None:
+                raise
+            raise exp.error(("architectures", i), f"architectures[{i}]: {exc.detail}") from None
+    return out
+
+
+def prepare_experiment(exp: Experiment, output: Path) -> tuple[Experiment, dict]:
+    """Everything checked before the first run, and the instances made into OUTPUT: the
+    experiment with its instances, and the run set-up of each architecture."""
+    resolved = resolve_all(exp)
+    first = next(iter(resolved.values()))
+    mission = first.mission.name
+    if exp.spec.instances is not None and mission not in instance_kinds():
+        raise exp.error(("instances",), f"instances: the {mission!r} mission reads no "
+                        "instance files (applications that do: "
+                        f"{', '.join(sorted(instance_kinds())) or 'none'})")
+    if exp.spec.instances is None:
+        exp.check_team(len(first.app.robots), first.app.name)
+    prepare_output(output)
+    if exp.spec.instances is not None:
+        exp = exp.with_instances(prepare_instances(exp.spec.instances, mission,
+                                                   exp.file.parent, output, exp.doc))
+    for run in resolved.values():
+        robots = [normalize_robot_id(r.id) for r in run.app.robots]
+        exp.check_against(robots)
+        check_overrides(exp, run.package.path, run.arch, robots)
+    return exp, resolved
 
 
 def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
@@ -117,24 +161,20 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
         experiment_dask.require_distributed()  # before anything is written
     exp = load_experiment(file)
     exp.check_runs(max_runs)
-    resolved = resolve(MissionOptions(application=exp.spec.application,
-                                      architecture=exp.spec.architecture), Registry())
-    pkg, app = resolved.package, resolved.app
-    exp.check_team(len(app.robots), app.name)
-    robots = [normalize_robot_id(r.id) for r in app.robots]
-    exp.check_against(robots)
-    check_overrides(exp, pkg.path, resolved.arch, robots)
-    prepare_output(output)
+    exp, resolved = prepare_experiment(exp, output)
     stop = stop or threading.Event()
     runs = exp.runs()
     pictures = {next(r.index for r in runs if r.cell == c) for c in exp.cells()} if plots \
         else set()
     # the application as the file names it, not the package configured for the architecture
     # (patrol_murdoch): runs of one application under two architectures are of one instance
-    context = Context(resolved.mission.name, exp.spec.application, resolved.arch.name,
-                      exp.spec.duration)
+    first = next(iter(resolved.values()))
+    context = Context(first.mission.name, exp.spec.application,
+                      "" if exp.spec.architectures else first.arch.name, exp.spec.duration)
     results = Results(output / "results.csv", len(runs), progress, context)
-    backend = _Backend(pkg, exp.spec.duration, output, jobs, scheduler, stop, results, pictures)
+    packages = {name: run.package for name, run in resolved.items()}
+    backend = _Backend(packages, exp.spec.duration, output, jobs, scheduler, stop, results,
+                       pictures)
     backend.run(runs)
     precision = None
     if until:
@@ -202,12 +242,12 @@ def missed_targets(results: Path, until: dict[str, float], report: Options = Opt
 
 class _Backend:
     """Where runs go: this machine (`jobs` at once) or a Dask cluster; each run's row is added
-    to `results` as it ends."""
+    to `results` as it ends. `packages`: the application package of each architecture."""
 
-    def __init__(self, pkg, duration: float, output: Path, jobs: int | None,
+    def __init__(self, packages: dict, duration: float, output: Path, jobs: int | None,
                  scheduler: str | None, stop: threading.Event, results: Results,
                  pictures: set[int]):
-        self.pkg, self.duration, self.output = pkg, duration, output
+        self.packages, self.duration, self.output = packages, duration, output
         self.jobs = max(1, jobs or os.cpu_count() or 1)
         self.scheduler, self.stop, self.results, self.pictures = scheduler, stop, results, pictures
 
@@ -215,16 +255,16 @@ class _Backend:
         if self.stop.is_set():
             return
         if self.scheduler is not None:
-            experiment_dask.run_on_cluster(self.scheduler, package=self.pkg,
+            experiment_dask.run_on_cluster(self.scheduler, packages=self.packages,
                                            duration=self.duration, runs=runs,
                                            output=self.output, stop=self.stop,
                                            results=self.results, pictures=self.pictures)
         else:
-            _run_here(self.pkg, self.duration, runs, self.output, self.jobs, self.stop,
+            _run_here(self.packages, self.duration, runs, self.output, self.jobs, self.stop,
                       self.results, self.pictures)
 
 
-def _run_here(pkg, duration: float, runs: list[Run], output: Path, jobs: int,
+def _run_here(packages: dict, duration: float, runs: list[Run], output: Path, jobs: int,
               stop: threading.Event, results: Results, pictures: set[int] = frozenset()
               ) -> None:
     """The runs as child processes of this one, `jobs` at once. A run whose lockstep was not
@@ -242,7 +282,8 @@ def _run_here(pkg, duration: float, runs: list[Run], output: Path, jobs: int,
                 if out.exists():
                     shutil.rmtree(out)
                 out.mkdir(parents=True)
-                child = start_run(group, pkg, duration, run, out, run.index in pictures)
+                child = start_run(group, packages[run.architecture], duration, run, out,
+                                  run.index in pictures)
                 active[run.index] = (run, child, time.monotonic(), out)
             for run in _collect(active, results, retried):
                 retried.add(run.index)

@@ -7,8 +7,11 @@ recorder) on one private loopback rendezvous: they must all be on one machine. T
 as a child of the worker, in a scratch folder under the worker's local directory, and returns
 the exit code, the end of the output and the run folder's files as bytes (a few MB: run.mcap,
 pictures, summary.json); the client writes them into OUTPUT/runNNN and makes the row the same
-way the local backend does (experiment_runs.row_for), so the same seeds give the same rows. Workers
-need mrta-zenoh and the application's packages installed, as the client has.
+way the local backend does (experiment_runs.row_for), so the same seeds give the same rows. A run
+of an instance (an experiment's `instances:` block) carries its instance file's bytes in the task:
+the worker writes its own copy beside the run folder and hands it to `mrta demo --instance`, so
+a worker on another machine needs no shared file system. Workers need mrta-zenoh and the
+application's packages installed, as the client has.
 
 How many runs a worker takes at once: every task asks for the Dask resource `runs=1`, and a
 worker offers as many as it has room for, `dask worker ADDR --nthreads 1 --resources runs=1`
@@ -79,13 +82,15 @@ def require_distributed() -> Any:
 # ------------------------------------------------------------------ on the worker
 @dataclass(frozen=True)
 class RunTask:
-    """One run, as sent to a worker: what `demo_args` needs, and the stop event's name."""
+    """One run, as sent to a worker: what `demo_args` needs, the stop event's name, and the
+    run's instance file as bytes (a worker may be another machine: it writes its own copy)."""
 
     package: str
     duration: float
     run: Run
     stop_event: str
     plots: bool = True
+    instance: bytes | None = None
 
 
 @dataclass
@@ -120,9 +125,13 @@ def run_task(task: RunTask) -> RunResult:
         out.mkdir()
         t0 = time.monotonic()
         stopped = False
+        instance = None
+        if task.instance is not None:  # beside the run folder, not in it: not sent back
+            instance = Path(tmp) / task.run.instance.path.name
+            instance.write_bytes(task.instance)
         with ProcessGroup() as group:
             child = start_run(group, Registry().find(task.package), task.duration, task.run,
-                              out, task.plots)
+                              out, task.plots, instance)
             while child.running():
                 if stop.wait(POLL):
                     stopped = True
@@ -193,18 +202,22 @@ def check_workers(client, address: str) -> None:
                           f"`dask worker {address} --nthreads 1 --resources {RESOURCE}=1`")
 
 
-def run_on_cluster(address: str, *, package, duration: float, runs: list[Run], output: Path,
-                   stop: threading.Event, results: Results, pictures: set[int] = frozenset(),
+def run_on_cluster(address: str, *, packages: dict, duration: float, runs: list[Run],
+                   output: Path, stop: threading.Event, results: Results,
+                   pictures: set[int] = frozenset(),
                    connect_timeout: float = CONNECT_TIMEOUT) -> None:
     """Every run as a task on the cluster at `address`; each run's folder and row as soon as it
-    ends (the runs in `pictures` draw theirs). On `stop`: the runs that had finished cleanly are
-    kept, the others stopped."""
+    ends (the runs in `pictures` draw theirs). `packages`: the application package of each
+    architecture of the runs. On `stop`: the runs that had finished cleanly are kept, the
+    others stopped."""
     distributed = require_distributed()
     # fail here, as the local backend would at that run, rather than once per run on workers
-    combos = {run.overrides for run in runs if run.overrides}
-    for overrides in combos:
+    combos = {(run.architecture, run.overrides) for run in runs if run.overrides}
+    for arch, overrides in combos:
         with tempfile.TemporaryDirectory(prefix="mrta-overrides-") as tmp:
-            package_copy(package.path, Path(tmp), overrides)
+            package_copy(packages[arch].path, Path(tmp), overrides)
+    texts = {run.instance.path: run.instance.path.read_bytes()
+             for run in runs if run.instance is not None}
     try:
         client = distributed.Client(address, timeout=connect_timeout, set_as_default=False)
     except (OSError, TimeoutError) as exc:
@@ -215,7 +228,9 @@ def run_on_cluster(address: str, *, package, duration: float, runs: list[Run], o
         event = f"mrta-experiment-stop-{token}"
         futures = {}
         for run in runs:
-            task = RunTask(package.name, duration, run, event, run.index in pictures)
+            task = RunTask(packages[run.architecture].name, duration, run, event,
+                           run.index in pictures,
+                           texts[run.instance.path] if run.instance is not None else None)
             future = client.submit(run_task, task, key=f"mrta-run{run.index:03d}-{token}",
                                    resources={RESOURCE: 1}, retries=RETRIES)
             futures[future] = run

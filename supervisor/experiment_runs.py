@@ -14,10 +14,11 @@ from pathlib import Path
 from typing import Any
 
 from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.failure import ROLES
 from mrta_zenoh.processes import ProcessGroup, mrta_argv
 
 from .experiment_file import Run
-from .results import write_csv
+from .results import COVERAGE, write_csv
 from .summary import COMPLETE, INCOMPLETE, flat_metrics, read_summary, run_problem
 
 
@@ -67,25 +68,30 @@ def package_copy(pkg_path: Path, dest: Path, overrides: tuple[tuple[str, Any], .
     return target
 
 
-def demo_args(package: str, duration: float, run: Run, out: Path, plots: bool = True
-              ) -> list[str]:
+def demo_args(package: str, duration: float, run: Run, out: Path, plots: bool = True,
+              instance: Path | None = None) -> list[str]:
     """`mrta ARGS…` for one run, whichever backend starts it: one spelling, so both run
     exactly the same mission. Without `plots` the run draws no picture (its recording and
-    summary are the same: pictures are drawn from them)."""
-    return ["-q", "demo", "--application", package, "--duration", str(duration), "--speed",
-            "0", "--fail", run.failure, "--seed", str(run.seed), "--output", str(out),
-            "--no-live"] + ([] if plots else ["--no-plots"])
+    summary are the same: pictures are drawn from them). `instance`: the run's instance file
+    as this machine has it (a Dask worker writes its own copy)."""
+    return (["-q", "demo", "--application", package, "--duration", str(duration), "--speed",
+             "0", "--fail", run.failure, "--seed", str(run.seed), "--output", str(out),
+             "--no-live"] + ([] if plots else ["--no-plots"])
+            + ([] if instance is None else ["--instance", str(instance)]))
 
 
 def start_run(group: ProcessGroup, package, duration: float, run: Run, out: Path,
-              plots: bool = True):
+              plots: bool = True, instance: Path | None = None):
     """One run's mission as a child of `group`, writing into `out` (which exists): with its own
-    copy of the application package when the run overrides parameters."""
+    copy of the application package when the run overrides parameters, and its instance file
+    (`instance`, default: the one in the experiment's output folder)."""
     env = {}
     if run.overrides:
         package_copy(package.path, out / "package", run.overrides)
         env["MRTA_PACKAGE_PATH"] = str(out / "package")
-    return group.start(mrta_argv(*demo_args(package.name, duration, run, out, plots)),
+    if instance is None and run.instance is not None:
+        instance = run.instance.path
+    return group.start(mrta_argv(*demo_args(package.name, duration, run, out, plots, instance)),
                        name=f"run{run.index:03d}", env=env, merge_stderr=True)
 
 
@@ -99,9 +105,17 @@ def error_of(returncode: int, lines: list[str]) -> str:
 
 def row_for(run: Run, out: Path, wall: float, error: str = "",
             context: Context = Context()) -> dict:
-    """The run's row: bookkeeping, the parameters of its cell, then what it measured."""
+    """The run's row: bookkeeping, the parameters of its cell (its instance's name and sizes
+    with an instances block), then what it measured. A run of an instance leaves out coverage
+    per task: task ids are the instance's own (t1 of one instance is not t1 of another), and
+    a 100-task instance would add 300 columns no cell shares."""
     row: dict[str, Any] = {"run": run.index, "config": run.config, "seed": run.seed}
     row.update(context.columns())
+    if run.architecture is not None:
+        row["architecture"] = run.architecture
+    if run.instance is not None:
+        row.update({"instance": run.instance.name, "n_robots": run.instance.n_robots,
+                    "n_tasks": run.instance.n_tasks})
     row["failure"] = run.failure
     row.update({k: v for k, v in run.overrides})
     row.update({"status": "failed" if error else "ok", "error": error,
@@ -113,7 +127,14 @@ def row_for(run: Run, out: Path, wall: float, error: str = "",
         row["status"] = "inexact"
         row["error"] = run_problem(summary) + (" (fewer --jobs)" if summary.run_status == COMPLETE
                                                else "")
-    row.update(flat_metrics(summary))
+    measured = flat_metrics(summary)
+    if run.instance is not None:
+        measured = {k: v for k, v in measured.items() if not k.endswith(COVERAGE)}
+    # the robot its fault struck: what a role (@first, @random) resolved to; blank when none
+    # was struck (no fault, or an @first with nobody assigned before its time)
+    f = summary.failure
+    row["failed_robot"] = f.robot if f is not None and f.robot not in ROLES else ""
+    row.update(measured)
     # counted by the run's own analysis (mission.message_rates), not by reading run.mcap again
     row["messages"] = "" if summary.messages.total is None else summary.messages.total
     return row

@@ -46,8 +46,8 @@ from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.bus.options import private_rendezvous
 from mrta_zenoh.clock import EPSILON, SimClock
 from mrta_zenoh.errors import ConfigError, Interrupted, MrtaRuntimeError
-from mrta_zenoh.failure import (FAULTS_ENV, RETIRED_CRASH_ENV, Failure, FaultKind, Faults,
-                                fault_env, parse_faults)
+from mrta_zenoh.failure import (FAULTS_ENV, RETIRED_CRASH_ENV, ROLES, Failure, FaultKind,
+                                Faults, fault_env, parse_faults)
 from mrta_zenoh.codec import DecodeError, decode
 from mrta_zenoh.identity import OBSERVER
 from mrta_zenoh.lockstep import STATUS, LockstepStatus
@@ -64,7 +64,8 @@ from mrta_zenoh.yamlfile import did_you_mean
 from .api import Refresh, attach
 from .ground_truth import intervals_from
 from .plots import ROBOTS_TITLE, Panel, TimeBase, draw_timeline
-from .run_watch import Readiness, RunWatch, run_status
+from . import roles
+from .run_watch import Readiness, RunWatch, crashed_itself, run_status
 from .state import Supervisor
 from .tasks import TaskWatch
 from .summary import (COMPLETE, Coverage, Disturbance, FailureReport, MessageRates, Span, Summary,
@@ -254,7 +255,7 @@ def faults_of(run: MissionRun) -> Faults:
     if faults is None:
         return Faults()
     for f in faults.failures:
-        if f.robot not in run.robots:
+        if f.robot not in run.robots and f.robot not in ROLES:
             raise ConfigError(f"--fail {spec}: {f.robot} is not one of {', '.join(run.robots)}")
         if f.at >= run.options.duration:
             raise ConfigError(f"--fail {f.spec}: {f.at:g} s is not before the end "
@@ -288,7 +289,8 @@ def run_mission(options: MissionOptions, *, stop: threading.Event | None = None,
             reg = Registry([instance_folder(options)] + reg_path())
             run = resolve(options, reg)
             faults = faults_of(run)  # against the instance's robots
-        return _run_in(run, faults, reg, stop, progress, folder_state(options.output))
+        run = roles.with_random_drawn(run, faults)  # from the instance's own numbers
+        return _run_in(run, faults_of(run), reg, stop, progress, folder_state(options.output))
 
 
 def reg_path() -> list[Path]:
@@ -405,8 +407,9 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
         if sim.wait(30) != 0:
             raise MrtaRuntimeError(f"the simulator {sim.describe_exit()}:\n" + sim.tail())
         group.stop_all()
-        disturbances = watch.disturbances(agents, {f.robot for f in faults.crashes()})
-        crashed = group.failed(ignore=[agents[f.robot].name for f in faults.crashes()])
+        targets = roles.crash_targets(faults, {r: crashed_itself(c) for r, c in agents.items()})
+        disturbances = watch.disturbances(agents, targets)
+        crashed = group.failed(ignore=[agents[r].name for r in targets])
         if crashed:
             raise MrtaRuntimeError("; ".join(f"{c.name} {c.describe_exit()}"
                                              for c in crashed) + ":\n"
@@ -468,6 +471,9 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
     recorded_until = max((tb(t) for _, _, t, _ in records), default=None)
     t1 = run.options.duration if recorded_until is None else recorded_until
     status = run_status(list(disturbances), recorded_until, run.options.duration)
+    role, failure = failure, roles.struck(failure, faults_of(run), records)
+    if role is not None and failure is None:  # an @first fault that struck nobody
+        failed_at = None
     # what the robots did, from their own messages in simulated time (ground_truth.py) — not
     # the supervisor's view, which lags by its monitors' timeouts
     # a crashed robot's reports end at its crash; a stalled or partitioned one's claims are kept
@@ -488,6 +494,9 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
            for rid in run.robots}
     report = takeover_report(run, failure, failed_at, intervals, records, tb) \
         if failure else None
+    if role is not None and role.robot != (failure.robot if failure else None):
+        report = report or FailureReport(role.robot, None, fault=str(role.kind))
+        report.role = role.robot
     given_up, forgiven = lockstep_trouble(records) if run.options.lockstep else (0, 0)
     faults = faults_of(run)
     summary = Summary(

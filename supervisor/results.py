@@ -2,11 +2,12 @@
 by the report (report.py) — the report is made from this file alone.
 
 A row holds the run's bookkeeping (`run`, `config`, `seed`, `status`, `error`,
-`wall_seconds`), every parameter that defines its cell (`mission`, `application`,
-`architecture`, `duration`, `failure`, one column per parameter override; `instance`,
-`n_robots`, `n_tasks` where an experiment has them), and what the run measured
-(summary.flat_metrics: the takeover, coverage per task, traffic, the application's
-`metrics.*`). Which column is which is decided by name alone (`kind`), so a file from another
+`wall_seconds`, `taken_over_by`, `failed_robot` — the robot its fault struck, which a fault
+naming a role, `@first` or `@random`, resolves per run), every parameter that defines its cell
+(`mission`, `application`, `architecture`, `duration`, `instance`, `n_robots`, `n_tasks` — the
+last three with an `instances:` block — `failure`, one column per parameter override), and
+what the run measured (summary.flat_metrics: the takeover, coverage per task — not for runs of
+instances, whose task ids are their own — traffic, the application's `metrics.*`). Which column is which is decided by name alone (`kind`), so a file from another
 version, or rows of several experiments put together, read the same way: a measured column is
 one of the framework's own or ends in a coverage share or starts with `metrics.`; bookkeeping
 is the fixed list; every other column is a parameter. An override whose key would read as a
@@ -25,7 +26,8 @@ from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.files import write_atomically
 from mrta_zenoh.yamlfile import did_you_mean
 
-BOOKKEEPING = ("run", "config", "seed", "status", "error", "wall_seconds", "taken_over_by")
+BOOKKEEPING = ("run", "config", "seed", "status", "error", "wall_seconds", "taken_over_by",
+               "failed_robot")
 MEASURES = ("takeover_seconds", "first_full_allocation", "messages", "messages_per_second",
             "coordination_messages_per_second", "namespace_messages_per_second")
 COVERAGE = (".exactly_one", ".none", ".more_than_one")

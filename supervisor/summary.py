@@ -60,7 +60,7 @@ class Coverage(msgspec.Struct, forbid_unknown_fields=True):
 
 
 class FailureReport(msgspec.Struct, forbid_unknown_fields=True, omit_defaults=True):
-    robot: str
+    robot: str                             # the robot struck (the role, if it struck nobody)
     killed_at: float | None = None         # when the fault began (a crash, a stall, a cut)
     fault: str = "crash"                   # crash, stall or partition (mrta_zenoh.failure)
     task: str | None = None                # what it was doing
@@ -76,6 +76,8 @@ class FailureReport(msgspec.Struct, forbid_unknown_fields=True, omit_defaults=Tr
     bound_from_what: str | None = None
     bound_case: str | None = None
     within_bound: bool | None = None
+    # the role the fault named the robot by (`@first`: mrta_zenoh/fault_roles.py), when it did
+    role: str | None = None
 
 
 # run_status (supervisor/run_watch.py): every process ran throughout and the recording covers

@@ -67,6 +67,7 @@ class Delays:
     latency = (0.0, 0.0)  # set: the driver holds each message until its time
     loss = 0.0
     partitions = ()
+    first = None  # no fault names a robot by role
 
     def __init__(self, robot: str, choose: Callable[[str, str, int], float]):
         self.robot, self.choose = robot, choose

@@ -14,11 +14,13 @@ from mrta_zenoh.lockstep import LockstepStatus, Step, StepDone
 from mrta_agent.murdoch.messages import Announcement, Award, Bid, Claim, Release, Revoke
 from mrta_agent.ssi.messages import Bid as SsiBid, Round
 from mrta_agent.cbba.messages import Bids
+from mrta_zenoh.fault_roles import Assigned
 
 EXAMPLES = [
     Header("robot1", 12.5, 7),
     TaskEvent(Header("robot1", 1.0, 1), "t1", "done"),
     Clock(3.25),
+    Assigned(Header("robot2", 4.5, 1), "t3"),
     Pose2D(1.0, -2.0, math.pi / 3),
     Twist(0.4, -0.2),
     Odometry(Header("robot2", 1.0, 1), Pose2D(1.0, 2.0, 0.5), Twist(0.1, 0.2)),

@@ -304,7 +304,7 @@ def test_an_unreachable_scheduler_is_a_runtime_error(tmp_path):
     pytest.importorskip("distributed")
     address = f"tcp://127.0.0.1:{free_port()}"  # nothing listens there
     with pytest.raises(MrtaRuntimeError, match=f"cannot reach the Dask scheduler at {address}"):
-        run_on_cluster(address, package=None, duration=1.0, runs=[], output=tmp_path,
+        run_on_cluster(address, packages={}, duration=1.0, runs=[], output=tmp_path,
                        stop=threading.Event(), results=Results(tmp_path / "r.csv", 0),
                        connect_timeout=1.0)
 

@@ -186,6 +186,33 @@ def test_the_cluster_gives_the_rows_of_the_local_backend(cluster, children, tmp_
 
 
 @pytest.mark.timeout(1200)
+def test_a_matrix_of_instances_and_architectures_gives_the_rows_of_the_local_backend(
+        cluster, children, tmp_path):
+    """The workers get each run's instance file with the task (they may be other machines):
+    the rows are the local backend's, but wall time."""
+    cluster.start(workers=2)
+    f = tmp_path / "exp.yaml"
+    f.write_text("application: delivery\nduration: 12\nseeds: [1]\n"
+                 "architectures: [alliance, murdoch]\nfailures: [\"stall:@first@3\"]\n"
+                 "instances:\n  generator: delivery\n  robots: [3]\n  seed: 4\n")
+    for where, how in (("remote", ["--scheduler", cluster.address]), ("local", ["--jobs", "2"])):
+        run = children.mrta("experiment", f, "--output", tmp_path / where, "--no-plots", *how,
+                            name=where)
+        assert run.wait(600) == 0, run.tail(20) + cluster.log("scheduler")
+    a, b = rows_of(tmp_path / "remote" / "results.csv"), rows_of(tmp_path / "local" / "results.csv")
+    assert len(a) == 2 and list(a[0]) == list(b[0])
+    assert [{k: v for k, v in r.items() if k != "wall_seconds"} for r in a] == \
+        [{k: v for k, v in r.items() if k != "wall_seconds"} for r in b]
+    assert [(r["architecture"], r["instance"], r["status"]) for r in a] == [
+        ("alliance", "delivery-r3-t3-4", "ok"), ("murdoch", "delivery-r3-t3-4", "ok")]
+    assert all(r["failed_robot"] for r in a)  # @first resolved on the workers as here
+    for r in a:
+        summary = json.loads((tmp_path / "remote" / f"run{int(r['run']):03d}" / "summary.json")
+                             .read_text())
+        assert summary["instance"]["name"] == "delivery-r3-t3-4"
+
+
+@pytest.mark.timeout(1200)
 def test_a_run_whose_worker_is_killed_runs_again_elsewhere_and_its_processes_end(
         cluster, children, tmp_path):
     cluster.start(workers=2)

@@ -251,10 +251,14 @@ def base_config(mode: str) -> dict[str, Any]:
         # (SIGSTOP) otherwise holds session.close() for 10 s
         # data queue 16 batches per link (default 2): bursts from a simulator at full speed are
         # absorbed instead of dropped for a subscriber that keeps up on average (a recorder)
+        # shared memory off: with it, a process's first sample over 3 kB maps a 16 MB pool of
+        # its own, all of it resident — an agent of a 20-robot team sends such samples, so
+        # 16 MB more per agent (benchmarks/team_sizes.py), for a copy saved on a few kB
         "transport": {"link": {"tx": {"lease": 3000, "queue": {
             "size": {"data": 16},
             "congestion_control": {"drop": {"wait_before_drop": 1}}}}},
-            "unicast": {"open_timeout": 2000, "accept_timeout": 2000}},
+            "unicast": {"open_timeout": 2000, "accept_timeout": 2000},
+            "shared_memory": {"enabled": False}},
     }
 
 

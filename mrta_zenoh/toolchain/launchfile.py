@@ -28,7 +28,6 @@ from typing import Callable
 
 from ..errors import ConfigError
 from ..yamlfile import did_you_mean
-from .xmlio import parse_xml_file
 
 EXECUTABLES_GROUP = "mrta.executables"
 MAX_DEPTH = 16        # includes within includes (the shipped missions nest 2 deep)
@@ -163,6 +162,10 @@ class LaunchEvaluator:
             raise ConfigError("launch file includes itself", file=str(path))
         root = self._parsed.get(resolved)
         if root is None:
+            # imported here: every node process (run_node) imports this module for
+            # executables() alone, and lxml costs each of a 100-robot team ≈ 3 MB and 0.05 s
+            from .xmlio import parse_xml_file
+
             root = self._parsed[resolved] = parse_xml_file(path)
         if root.tag != "launch":
             raise self._err(path, root, "the root element must be <launch>")

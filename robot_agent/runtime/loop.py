@@ -25,7 +25,9 @@ what every architecture needs and none should write twice:
 * fault injection (mrta_zenoh/failure.py), here because this is the one place every
   architecture's messages go out and come in, and its layers run: a crash (SIGKILL), a stall
   (the layers stop, the decision logic and its messages go on), a partition (nothing sent,
-  nothing heard for a while), loss and latency of received coordination messages.
+  nothing heard for a while), loss and latency of received coordination messages; and a
+  fault naming a robot by role, `@first`, resolved here at its time from the team's
+  announcements of their first assignments (mrta_zenoh/fault_roles.py: exact in lockstep).
 
 An architecture supplies a `Coordinator` (its decision logic for one robot) through
 `mrta_agent.runtime.architecture.AgentArchitecture`.
@@ -34,6 +36,7 @@ An architecture supplies a `Coordinator` (its decision logic for one robot) thro
 from __future__ import annotations
 
 import collections
+import dataclasses
 import logging
 import threading
 import time
@@ -44,6 +47,7 @@ from mrta_zenoh.bus import Bus, Sample
 from mrta_zenoh.clock import EPSILON, Clock
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.failure import FaultPlan, crash_now
+from mrta_zenoh.fault_roles import EVERY_ASSIGNED, Assigned, assigned_key, first_assigned
 from mrta_zenoh.keys import first_chunk
 from mrta_zenoh.messages import Header
 from mrta_zenoh.seeds import robot_rng
@@ -124,6 +128,12 @@ class Agent:
         self._told_subjects: dict[str, set[str]] = {}
         self._handles: list = []  # subscriptions and the agent's token, closed at shutdown
         self._layers_task: str | None = None
+        # an @first fault: the team's first assignments heard (robot → stamp; callbacks write,
+        # under _token_lock), whether this robot announced its own, and the plan as given (a
+        # restart of time resolves it again)
+        self._assigned: dict[str, float] = {}
+        self._announced = False
+        self._given_faults: FaultPlan | None = None
 
     # ------------------------------------------------------------ set-up (py_trees' setup)
     def limit_team(self, team: Iterable[str] | None) -> None:
@@ -135,6 +145,10 @@ class Agent:
         """Plugins subscribe, then the agent listens to its teammates and their tokens."""
         self.advertised()  # a bad subject is a configuration error before anything starts
         self.plugins.setup(self.ctx)
+        self._given_faults = self.faults
+        if self.faults is not None and self.faults.first is not None:
+            self._handles.append(self.bus.subscribe(EVERY_ASSIGNED, self._on_assigned,
+                                                    msg_type=Assigned))
         arch = self.architecture
         for kind in self.coordinator.listens:
             for key_expr in self.listen_keys(kind):
@@ -238,6 +252,41 @@ class Agent:
                 self._subject_seen.discard(pair)
             self._subject_changes[pair] = alive
 
+    def _on_assigned(self, sample: Sample) -> None:
+        """A robot's first assignment (its own included): recorded for an @first fault. Only
+        the earliest of a robot counts, from a sender its key and header agree on and, with a
+        roster, on the team."""
+        sender = first_chunk(sample.key)
+        msg = sample.message
+        if msg.header.frame_id.strip("/") != sender or (self.roster is not None
+                                                         and sender not in self.roster):
+            return
+        with self._token_lock:
+            if len(self._assigned) < MAX_TOKENS or sender in self._assigned:
+                self._assigned[sender] = min(self._assigned.get(sender, msg.header.stamp),
+                                             msg.header.stamp)
+
+    def _announce(self, now: float) -> None:
+        """With an @first fault in the run, say once when this robot first holds a task."""
+        if self._announced or self._given_faults is None or self._given_faults.first is None \
+                or self.coordinator.active_task is None:
+            return
+        self._announced = True
+        self.bus.publish(assigned_key(self.robot_id),
+                         Assigned(Header(self.robot_id, now, 1), self.coordinator.active_task))
+
+    def resolve_first(self, now: float) -> None:
+        """The @first fault's time has come: strike it if this robot was first assigned
+        (fault_roles.first_assigned over what was heard stamped before it), else drop it."""
+        plan = self.faults
+        with self._token_lock:
+            heard = dict(self._assigned)
+        who = first_assigned(heard, plan.first.at, plan.taken)
+        self.log.info("%s: %s at t=%.2f is %s", self.robot_id, plan.first.spec, now,
+                      who or "nobody (no robot was assigned before)")
+        self.faults = (plan.struck(plan.first) if who == self.robot_id
+                       else dataclasses.replace(plan, first=None))
+
     def _on_message(self, kind: str, sample: Sample) -> None:
         sender = first_chunk(sample.key)
         msg = sample.message
@@ -338,6 +387,7 @@ class Agent:
         for say in self.coordinator.tick(now):
             self.send(say, now)
         self.switch_layers(self.coordinator.active_task, now)
+        self._announce(now)
 
     def _apply_subjects(self, robots: set[str], changes: dict[tuple[str, str], bool]) -> None:
         """Tell the coordinator what changed of its teammates' subjects: a subject counts while
@@ -422,6 +472,10 @@ class Agent:
         for sensor in self.plugins.sensors.values():
             sensor.forget()
         self._inbox.clear()
+        self.faults = self._given_faults  # an @first fault is resolved again in the new run
+        with self._token_lock:
+            self._assigned.clear()
+        self._announced = False
         self.coordinator = self._make_coordinator()
         for robot in sorted(self.team):
             self.coordinator.teammate(robot, True)
@@ -465,6 +519,9 @@ class Agent:
                 return
             yield t
             now = self.clock.now()
+            if self.faults is not None and self.faults.first is not None \
+                    and now >= self.faults.first.at:
+                self.resolve_first(now)
             if self.faults is not None and self.faults.crashed(now):
                 crash_now(self.robot_id, now, self.log)  # a real crash: no shutdown, no goodbye
             if self.faults is not None and not self.stalled and self.faults.stalled(now):

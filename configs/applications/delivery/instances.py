@@ -68,6 +68,12 @@ class DeliveryKind(InstanceKind):
     def name(self, doc: InstanceDoc) -> str:
         return doc.name
 
+    def robots(self, doc: InstanceDoc) -> list[str]:
+        return list(doc.robots)
+
+    def tasks(self, doc: InstanceDoc) -> list[str]:
+        return list(doc.tasks)
+
     def describe(self, doc: InstanceDoc, *, exact_limit: int, time_limit: float,
                  solutions: int) -> dict[str, Any]:
         return describe(doc, exact_limit=exact_limit, time_limit=time_limit,

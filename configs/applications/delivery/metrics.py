@@ -9,7 +9,9 @@
   achieved cost (Σ cost of the *first* assignment of each task), the optimal cost (scipy's
   linear_sum_assignment on the instance's cost matrix: travel times along the paths robots
   drive, around the walls when there are any) and their ratio, optimality; MURDOCH's greedy
-  rule on the same instance as a second reference.
+  rule on the same instance as a second reference; and the instance's reference value of each
+  time-extended objective (`reference_minsum`, `reference_makespan`, `reference_flowtime`,
+  `reference_proven_optimal`: docs/delivery.md, Reference values).
 """
 
 from __future__ import annotations
@@ -162,7 +164,29 @@ def analyse(records: list, arch: Architecture, params: DeliveryParams,
     instance = params.problem()
     log = allocation_log(records, arch, instance, end)
     distance = paths(records, {r.id for r in instance.robots})
-    return RunAnalysis(params, instance, log, measure(instance, log, distance))
+    return RunAnalysis(params, instance, log,
+                       {**measure(instance, log, distance), **references(instance)})
+
+
+REFERENCE_SOLUTIONS = 100  # the routing search's budget past the exact limit (deterministic)
+
+
+def references(instance: Problem) -> dict[str, Any]:
+    """The instance's reference value for each objective (mrta_zenoh.planning.reference:
+    exact — proven optimal — up to its task limit, OR-Tools' best found above), as
+    `reference_<objective>`, and whether all are proven optimal. The search is bounded by a
+    number of solutions, not a time (1–3 s for 10–20 tasks, ≈ 25 s for 100 robots × 100 tasks
+    on a 2-core machine): the same instance gives the same values anywhere. Its time cap is
+    only a safety net; a value it cut short is not reported (it would depend on the machine)."""
+    from mrta_zenoh.planning.reference import reference
+    out: dict[str, Any] = {}
+    proven = True
+    for objective in ("minsum", "makespan", "flowtime"):
+        ref = reference(instance, objective, solutions=REFERENCE_SOLUTIONS, time_limit=300.0)
+        out[f"reference_{objective}"] = None if ref.capped else round(ref.value, 3)
+        proven = proven and ref.proven_optimal
+    out["reference_proven_optimal"] = proven
+    return out
 
 
 def instance_json(params: DeliveryParams, instance: Problem) -> dict[str, Any]:
