@@ -212,6 +212,14 @@ class Supervisor:
         t.until = None if status.seconds is None else now + status.seconds
         self._reassess_task(t, now)
 
+    def all_done(self) -> bool:
+        """Whether the application said every task is done for good (its TaskWatch: a
+        delivered task; not patrol's report, done only until its next period): the mission
+        runner then ends the run."""
+        with self._lock:
+            tasks = [t for t in self.tasks.values() if t.known]
+            return bool(tasks) and all(t.status == "done" and t.until is None for t in tasks)
+
     def on_clock(self, stopped: bool, now: float, ended: bool = False) -> None:
         """The simulation clock stopped (or came back): robots are `unknown` meanwhile. A run
         that `ended` (its source is gone) raises nothing: the picture stays as it left it."""
