@@ -32,7 +32,7 @@ from mrta_supervisor.tasks import TaskStatus, TaskWatch
 from mrta_supervisor.summary import SummarySections
 
 from .generate import derive
-from .instance import DeliveryParams, load_document
+from .instance import DeliveryParams, InstanceDoc, load_document
 from .keys import ALL_DONE
 from .messages import TaskEvent
 from .metrics import RunAnalysis, analyse, done_at, instance_json
@@ -57,8 +57,8 @@ class TaskEntry(_Section):
     capability: str
 
 
-class InstanceSection(_Section):
-    """The instance a run served (metrics.instance_json): robots, tasks, the cost matrix."""
+class LegacyInstance(_Section):
+    """A schema-2 summary's instance (robots and tasks as lists), still read back."""
 
     robots: list[RobotEntry]
     tasks: list[TaskEntry]
@@ -107,10 +107,23 @@ class OverlapEntry(_Section):
 
 
 class DeliverySections(SummarySections):
-    instance: InstanceSection
+    """`instance` is the instance document (metrics.instance_json: fed back as `--instance` it
+    gives the same run) with the cost matrix and its model; a schema-2 summary's lists are
+    read too."""
+
+    instance: dict[str, Any]
     allocation: list[AllocationEntry]
     objectives: ObjectivesSection | None = None
     overlaps: list[OverlapEntry] = []
+
+    def __post_init__(self) -> None:
+        try:
+            msgspec.convert(self.instance, InstanceDoc)
+        except msgspec.ValidationError as current:
+            try:
+                msgspec.convert(self.instance, LegacyInstance)
+            except msgspec.ValidationError:
+                raise ValueError(f"instance: {current}") from None
 
 
 def run_instance(run: MissionRun) -> DeliveryParams:
