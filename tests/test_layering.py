@@ -20,6 +20,8 @@ PACKAGES = {
     "mrta_agent.alliance": ROOT / "robot_agent" / "alliance",
     "mrta_agent.murdoch": ROOT / "robot_agent" / "murdoch",
     "mrta_agent.central": ROOT / "robot_agent" / "central",
+    "mrta_agent.ssi": ROOT / "robot_agent" / "ssi",
+    "mrta_agent.cbba": ROOT / "robot_agent" / "cbba",
     "mrta_simulator": ROOT / "simulator",
     "mrta_supervisor": ROOT / "supervisor",
     "mrta_patrol": ROOT / "configs" / "applications" / "patrol",
@@ -33,6 +35,7 @@ APPS = {"mrta_patrol", "mrta_patrol_murdoch", "mrta_delivery", "mrta_delivery_mu
 FORBIDDEN = {
     "mrta_zenoh": {"mrta_agent", "mrta_simulator", "mrta_supervisor"} | APPS,
     "mrta_agent.runtime": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_agent.central",
+                           "mrta_agent.ssi", "mrta_agent.cbba",
                            "mrta_simulator", "mrta_supervisor"} | APPS,
     "mrta_agent.alliance": {"mrta_agent.murdoch", "mrta_agent.central", "mrta_simulator",
                             "mrta_supervisor"} | APPS,
@@ -40,6 +43,10 @@ FORBIDDEN = {
                            "mrta_supervisor"} | APPS,
     "mrta_agent.central": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_simulator",
                            "mrta_supervisor"} | APPS,
+    "mrta_agent.ssi": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_agent.cbba",
+                       "mrta_agent.central", "mrta_simulator", "mrta_supervisor"} | APPS,
+    "mrta_agent.cbba": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_agent.ssi",
+                        "mrta_agent.central", "mrta_simulator", "mrta_supervisor"} | APPS,
     "mrta_simulator": {"mrta_agent", "mrta_supervisor"} | APPS,
     "mrta_supervisor": {"mrta_agent", "mrta_simulator"} | APPS,
     # an application reaches an architecture only through its registered contract

@@ -1,0 +1,336 @@
+"""CBBA for one robot, as pure logic on an injected time (like MURDOCH's auction.Murdoch):
+messages heard go in through `hear`, teammates coming and going through `teammate`, and
+`tick(now)` runs one iteration — consensus already applied, release of outbid tasks, bundle
+construction — and returns what to send. No bus, no clock, no threads.
+
+The algorithm (Choi, Brunet & How 2009; docs/cbba.md):
+
+* **State.** Per task j: the winning bid y_j and winner z_j as this robot believes them; per
+  robot m: the time stamp s_m of the latest information from m; the *bundle* (tasks in the order
+  they were added) and the *path* (the same tasks in the order they will be served).
+* **Bundle construction** (§IV-A, Algorithm 3). While the bundle holds fewer than L_t tasks:
+  for every known, unserved task j this robot can serve and does not hold, c_j = the largest
+  increase of the path's score over every place j can go (`DiscountedRoute.insertion`; score
+  Σ λ^start · reward), lowered to the least it was on any earlier stage of the bundle (below).
+  Keep the tasks where c_j outbids y_j (c_j > y_j, or equal and this robot has the lower id),
+  add the best (ties: lower task id) at the end of the bundle and at its best place in the path
+  (ties: earliest place), and set y_j = c_j, z_j = this robot.
+* **Consensus** (§IV-B, Table 1 in table.py) on every message heard, then the time stamps:
+  s_k = when k's message was heard, s_m = max(s_m, k's s_m) for every other m.
+* **Release** (eq. 11): if another robot now holds a task of the bundle, that task and every
+  task added after it leave the bundle and the path, and those later ones are reset (y = 0,
+  z = none) unless someone else holds them already: their scores counted on the lost task.
+
+Departures from the paper, each for a reason given in docs/cbba.md:
+
+* the marginal score is lowered to its least over the bundle's prefixes, so that it diminishes
+  as the bundle grows (the paper's guarantees assume it does; this score does not always —
+  where it does, the least is the paper's value);
+* the *re-check*: after the release, a bundle that is no longer the greedy sequence of what the
+  robot knows now is released from its first task the robot would not pick today (a task
+  added while a better one looked taken); without it, CBBA can settle elsewhere than SGA;
+* a robot that leaves the team (its token goes) has its wins reset and is treated as "none"
+  wherever a message still names it; served tasks are final; a message older than the latest
+  one heard from its sender is superseded; an optional communication range (`position` is
+  where this robot is: its route's origin until the runtime tells it better).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+from mrta_zenoh.planning import Problem
+from mrta_zenoh.planning.insertion import (DiscountedRoute, Origin, prefix_scores, ranks,
+                                           travel_times)
+
+from .messages import Bids
+from .table import NONE, RESET, UPDATE, View, higher, resolve
+
+
+class Out(NamedTuple):
+    """A message to publish: its kind (a key chunk) and the fields after its header."""
+
+    kind: str
+    fields: tuple
+
+
+class Cbba:
+    """One robot's CBBA. `problem` is the instance every robot reads; `discount` λ per second;
+    `bundle_limit` L_t (None: unlimited); a task is known from `lookahead` seconds before its
+    arrival (0: from its arrival; math.inf: all from the start); `diminishing`: bid the
+    marginal score made diminishing, `recheck`: release a bundle that is no longer the greedy
+    one (module docstring; False, False: the paper's rules); `comm_range`: messages from
+    robots farther than this are not heard (None: every one); `resend_period`: the state is
+    sent when it changes and at least this often (0: every tick, as in the paper's synchronous
+    rounds); `origin`: where and when the robot's route begins."""
+
+    listens = ("bids",)
+
+    def __init__(self, problem: Problem, robot_id: str, *, discount: float = 0.95,
+                 bundle_limit: int | None = None, lookahead: float = 0.0,
+                 diminishing: bool = True, recheck: bool = True,
+                 comm_range: float | None = None, resend_period: float = 1.0,
+                 origin: Origin = Origin()):
+        if not 0.0 < discount <= 1.0:
+            raise ValueError(f"the discount λ must be in (0, 1], got {discount!r}")
+        if bundle_limit is not None and bundle_limit < 1:
+            raise ValueError(f"the bundle limit must be ≥ 1, got {bundle_limit!r}")
+        self.problem = problem
+        self.id = robot_id
+        self.i = problem.robot_index(robot_id)
+        self.index = {r.id: k for k, r in enumerate(problem.robots)}  # robot id → its index
+        self.discount, self.bundle_limit, self.lookahead = discount, bundle_limit, lookahead
+        self.diminishing, self.recheck, self.comm_range = diminishing, recheck, comm_range
+        self.resend_period = resend_period
+        self.rank = ranks([r.id for r in problem.robots])
+        self.task_rank = ranks([t.id for t in problem.tasks])
+        self.times = travel_times(problem, self.i)
+        n_tasks = len(problem.tasks)
+        self.y = [0.0] * n_tasks
+        self.z = [NONE] * n_tasks
+        self.stamps: dict[int, float] = {}
+        self.bundle: list[int] = []
+        self.path: list[int] = []
+        self.done: set[int] = set()
+        self.departed: set[int] = set()
+        self.origin = origin
+        self.position = (problem.robots[self.i].start if origin.task is None
+                         else problem.tasks[origin.task].position)
+        self.latest: dict[int, float] = {}  # sender → stamp of its latest message applied
+        self.changed = True  # something to tell: the first tick always speaks
+        self.last_sent = -math.inf
+        self._levels: list[dict[int, tuple[float, int]]] | None = None  # `_scores`
+        self.superseded = 0
+        self.out_of_range = 0
+
+    # ------------------------------------------------------------------ what it tells the runtime
+    @property
+    def active_task(self) -> str | None:
+        """The first task of the path: the one to work on now."""
+        return self.problem.tasks[self.path[0]].id if self.path else None
+
+    def winners(self) -> dict[str, str]:
+        """Task id → winner id, as this robot believes it (served tasks excluded)."""
+        p = self.problem
+        return {p.tasks[j].id: p.robots[w].id for j, w in enumerate(self.z)
+                if w != NONE and j not in self.done}
+
+    def route(self) -> list[str]:
+        return [self.problem.tasks[j].id for j in self.path]
+
+    # ------------------------------------------------------------------ what was heard
+    def teammate(self, robot: str, alive: bool) -> None:
+        """A robot joined or left the team (its agent token). The paper's team is fixed; one that
+        leaves can no longer serve what it won, so its wins are reset here, and every message
+        that still names it as a winner reads as "none" (`_view`): relayed old news cannot bring
+        its wins back."""
+        k = self.index.get(robot)
+        if k is None or k == self.i:
+            return
+        if alive:
+            self.departed.discard(k)
+            return
+        self.departed.add(k)
+        for j, w in enumerate(self.z):
+            if w == k and j not in self.done:
+                self._set(j, NONE, 0.0)
+
+    def hear(self, kind: str, sender: str, msg: Bids, at: float) -> bool:
+        """Apply a teammate's Bids (Table 1 per task, then the time stamps); False when it is
+        malformed (an index outside the instance) and was dropped whole."""
+        k = self.index.get(sender)
+        if k is None:
+            return False
+        if kind != "bids" or not isinstance(msg, Bids) or k == self.i or not self._valid(msg):
+            return False
+        if k in self.departed:
+            return True
+        if (self.comm_range is not None
+                and math.dist(self.position, (msg.x, msg.y)) > self.comm_range):
+            self.out_of_range += 1
+            return True
+        if msg.header.stamp < self.latest.get(k, -math.inf):
+            self.superseded += 1  # delivered out of order: a later one was applied already
+            return True
+        self.latest[k] = msg.header.stamp
+        for j in msg.done:
+            self._mark_done(j)
+        theirs = {j: View(w, y) for j, w, y in msg.winners}
+        s_k = dict(msg.stamps)
+        for j in range(len(self.problem.tasks)):
+            if j in self.done:
+                continue
+            sender_view = self._view(theirs.get(j, View(NONE, 0.0)))
+            action = resolve(self.i, k, sender_view, View(self.z[j], self.y[j]), s_k,
+                             self.stamps, self.rank).action
+            if action == UPDATE:
+                self._set(j, sender_view.winner, sender_view.bid)
+            elif action == RESET:
+                self._set(j, NONE, 0.0)
+        self.stamps[k] = max(self.stamps.get(k, -math.inf), at)
+        for m, t in s_k.items():
+            if m != self.i and t > self.stamps.get(m, -math.inf):
+                self.stamps[m] = t
+        return True
+
+    def served(self, task_id: str, at: float) -> None:
+        """This robot finished serving `task_id` at `at`: it leaves bundle and path for good, and
+        the route now begins there and then."""
+        j = self.problem.task_index(task_id)
+        if j in self.bundle:
+            self.bundle.remove(j)
+        if j in self.path:
+            self.path.remove(j)
+        self.z[j] = self.i
+        self.done.add(j)
+        self.relocate(Origin(j, at))
+        self.position = self.problem.tasks[j].position
+
+    def relocate(self, origin: Origin) -> None:
+        """The robot's route now begins at `origin` — say an idle robot whose plan still starts
+        in the past, or one held up on its way: every score is counted from there (bids already
+        in the bundle stand until the re-check finds the bundle no longer greedy)."""
+        self.origin = origin
+        self._levels = None
+        self.changed = True
+
+    # ------------------------------------------------------------------ one iteration
+    def tick(self, now: float) -> list[Out]:
+        candidates = self._candidates(now)
+        self._release()
+        if self.recheck:
+            self._recheck(candidates)
+        self._build(candidates)
+        if not self.changed and now - self.last_sent < self.resend_period:
+            return []
+        self.changed, self.last_sent = False, now
+        self.stamps[self.i] = now
+        winners = tuple((j, w, self.y[j]) for j, w in enumerate(self.z)
+                        if w != NONE and j not in self.done)
+        stamps = tuple(sorted((m, t) for m, t in self.stamps.items() if m not in self.departed))
+        return [Out("bids", (winners, stamps, tuple(sorted(self.done)), *self.position))]
+
+    def _candidates(self, now: float) -> list[int]:
+        """The tasks this robot may bid on: known by now, unserved, within its capabilities."""
+        known = now + self.lookahead
+        p = self.problem
+        return [j for j, task in enumerate(p.tasks)
+                if j not in self.done and task.arrival <= known and p.capable(self.i, j)]
+
+    def _release(self) -> None:
+        """Eq. 11: the first bundle task someone else now holds goes, with every later one."""
+        lost = next((n for n, j in enumerate(self.bundle) if self.z[j] != self.i), None)
+        if lost is not None:
+            self._release_from(lost)
+
+    def _release_from(self, n: int) -> None:
+        """The bundle's n-th task (from 0) and every later one leave the bundle and the path;
+        those this robot still holds are reset (the later ones' scores counted on the lost one;
+        the n-th one itself when the re-check, not an outbid, released it)."""
+        for j in self.bundle[n:]:
+            if self.z[j] == self.i and j not in self.done:
+                self._set(j, NONE, 0.0)
+        gone = set(self.bundle[n:])
+        del self.bundle[n:]
+        self.path = [j for j in self.path if j not in gone]
+        if self._levels is not None:
+            del self._levels[n + 1:]  # the shorter bundle's levels stay what they were
+
+    def _pick(self, level: dict[int, tuple[float, int]], candidates: set[int],
+              own: int | None = None) -> tuple[float, int, int] | None:
+        """The greedy choice on one level: the candidate whose score outbids what this robot
+        knows of it (a task it holds itself, `own` or later in its bundle, counts as free), the
+        largest score first, then the lower task id: (score, task, place)."""
+        best = None
+        for j, (score, where) in level.items():
+            if j not in candidates or score <= 0:
+                continue
+            if j != own and self.z[j] != self.i and not higher(
+                    View(self.i, score), View(self.z[j], self.y[j]), self.rank):
+                continue
+            if best is None or (score, -self.task_rank[j]) > (best[0], -self.task_rank[best[1]]):
+                best = (score, j, where)
+        return best
+
+    def _recheck(self, candidates: list[int]) -> None:
+        """The bundle must be the greedy sequence of what this robot knows now: from the first
+        task it would no longer pick at its place (another task became free meanwhile, and
+        scores more), the bundle goes as if outbid. The paper's proof that CBBA ends as SGA
+        does relies on this; its bundle construction alone keeps a task added while a better
+        one seemed taken (docs/cbba.md, "Stale bundles")."""
+        levels = self._scores(candidates)
+        free = set(candidates)
+        for k, held in enumerate(self.bundle):
+            best = self._pick(levels[k], free, own=held)
+            if best is None or best[1] != held:
+                self._release_from(k)
+                return
+
+    def _build(self, candidates: list[int]) -> None:
+        """Algorithm 3: add the greedy choice at the end of the bundle and at its place in the
+        path until none is left or the bundle holds L_t tasks."""
+        levels = self._scores(candidates)
+        free = set(candidates)
+        while self.bundle_limit is None or len(self.bundle) < self.bundle_limit:
+            best = self._pick(levels[-1], {j for j in free if self.z[j] != self.i})
+            if best is None:
+                return
+            score, j, where = best
+            self.bundle.append(j)
+            self.path.insert(where, j)
+            self._set(j, self.i, score)
+            levels.append(self._next_level(levels[-1], j))
+
+    def _next_level(self, last: dict[int, tuple[float, int]],
+                    added: int) -> dict[int, tuple[float, int]]:
+        """The scores on the bundle just grown by `added` (its path already holds it)."""
+        route = DiscountedRoute(self.problem, self.i, self.path, self.discount, self.origin,
+                                self.times)
+        level = {}
+        for j, (floor, _) in last.items():
+            if j != added:
+                score, where = route.insertion(j)
+                level[j] = (min(floor, score) if self.diminishing else score, where)
+        return level
+
+    def _scores(self, candidates: list[int]) -> list[dict[int, tuple[float, int]]]:
+        """`prefix_scores` of the bundle, kept while bundle, path and origin change only by
+        `_release_from` and `_build`, completed for candidates it lacks."""
+        if self._levels is None:
+            self._levels = [{} for _ in range(len(self.bundle) + 1)]
+        have = self._levels[0].keys()
+        missing = [j for j in candidates if j not in have]
+        if missing:
+            more = prefix_scores(self.problem, self.i, self.bundle, self.path, missing,
+                                 self.discount, self.origin, self.diminishing, self.times)
+            for level, extra in zip(self._levels, more):
+                level.update(extra)
+        return self._levels
+
+    # ------------------------------------------------------------------ helpers
+    def _set(self, j: int, winner: int, bid: float) -> None:
+        if (self.z[j], self.y[j]) != (winner, bid):
+            self.z[j], self.y[j] = winner, bid
+            self.changed = True
+
+    def _view(self, view: View) -> View:
+        """A winner that left the team reads as none."""
+        return View(NONE, 0.0) if view.winner in self.departed else view
+
+    def _mark_done(self, j: int) -> None:
+        """Another robot served j: served tasks are final. If this robot still held it (two
+        robots served one task before agreeing), it goes like an outbid one, with every task
+        added after it."""
+        if j in self.done:
+            return
+        self.done.add(j)
+        self.changed = True
+        if j in self.bundle:
+            self._release_from(self.bundle.index(j))
+
+    def _valid(self, msg: Bids) -> bool:
+        n_robots, n_tasks = len(self.problem.robots), len(self.problem.tasks)
+        return (all(0 <= j < n_tasks and 0 <= w < n_robots for j, w, _ in msg.winners)
+                and all(0 <= m < n_robots for m, _ in msg.stamps)
+                and all(0 <= j < n_tasks for j in msg.done))

@@ -1,0 +1,280 @@
+"""SSI for one robot, as pure logic on an injected time (like MURDOCH's auction.Murdoch):
+messages heard go in through `hear`, teammates through `teammate`, and `tick(now)` returns what
+to send. No bus, no clock, no threads.
+
+The auction (Lagoudakis et al. 2005; Koenig, Tovey et al. 2006; docs/ssi.md):
+
+* **A round.** Every robot bids on its best open task: the one whose cheapest insertion into its
+  own path adds the least travel time (the MinSum rule; `minsum_insertion`, no re-ordering of
+  the rest). The lowest bid wins that one task, which the winner inserts there. Ties: the lower
+  robot id, then the lower task id, then the earlier place. A robot bids only on tasks it has
+  the capability for; one with nothing to bid on says so (task −1).
+* **Rounds** go on while some open task has a bidder. A task that arrives (is known from
+  `lookahead` seconds before its arrival) opens at the next round; the unserved tasks of a
+  robot that leaves the team (its token goes) are opened again; a served task is DONE for good.
+* **Who clears.** The lowest-id live robot is the auctioneer: it opens each round with a Round
+  (every task's state), waits for a Bid from every live teammate for that round — and, for
+  `join_wait` seconds after its first tick, from every robot of the instance not known gone —
+  awards the best, and opens the next round. Every Round is answered, with a bid or with "no
+  bid" (task −1), which is also its acknowledgement: the auctioneer repeats a Round every
+  `resend_period` until every robot it waits for has answered it (the last one too, so nobody
+  misses an award), and answers a bid for an earlier round with its current Round; a bidder
+  answers each Round it hears (only the auctioneer keeps time) and repeats only the report of
+  tasks it served until a Round shows them DONE. When the auctioneer goes, the next lowest id
+  takes over from the last Round it heard, opening a new round (docs/ssi.md says why one
+  auctioneer and what a takeover can lose).
+"""
+
+from __future__ import annotations
+
+import math
+from typing import NamedTuple
+
+from mrta_zenoh.planning import Problem
+from mrta_zenoh.planning.insertion import Origin, minsum_insertion, ranks
+
+from .messages import DONE, OPEN, UNKNOWN, Bid, Round
+
+
+class Out(NamedTuple):
+    """A message to publish: its kind (a key chunk), the fields after its header, and the
+    sub-key it goes to (a bid: its auctioneer's id)."""
+
+    kind: str
+    fields: tuple
+    subject: str | None = None
+
+
+class Award(NamedTuple):
+    round: int
+    task: int
+    robot: int
+    cost: float
+
+
+class Ssi:
+    """One robot's SSI. `problem` is the instance every robot reads; a task is known from
+    `lookahead` seconds before its arrival (math.inf: all from the start); `resend_period`: how
+    often a Round still missing bids, or an unacknowledged report of served tasks, is
+    repeated; `join_wait`: how long the first auctioneer waits for robots of the instance it
+    has not seen yet; `origin`: where and when this robot's path begins."""
+
+    listens = ("round", "bid")
+
+    def __init__(self, problem: Problem, robot_id: str, *, lookahead: float = 0.0,
+                 resend_period: float = 0.5, join_wait: float = 1.0, origin: Origin = Origin()):
+        self.problem = problem
+        self.id = robot_id
+        self.i = problem.robot_index(robot_id)
+        self.index = {r.id: k for k, r in enumerate(problem.robots)}  # robot id → its index
+        self.lookahead, self.resend_period, self.join_wait = lookahead, resend_period, join_wait
+        self.rank = ranks([r.id for r in problem.robots])
+        self.task_rank = ranks([t.id for t in problem.tasks])
+        self.alive: set[int] = set()      # teammates whose token lives
+        self.gone: set[int] = set()       # teammates whose token went
+        # the shared state, as the last Round heard (or made) says
+        self.round = 0
+        self.round_from: int | None = None
+        self.owners = [UNKNOWN] * len(problem.tasks)
+        self.awards: list[Award] = []
+        # this robot's own path
+        self.path: list[int] = []
+        self.origin = origin
+        self.unacked: set[int] = set()    # served, not yet DONE in a Round heard
+        self.answer_due = False           # a Round heard, not answered yet
+        self.last_bid = -math.inf
+        # the auctioneer's side
+        self.leading = False
+        self.started: float | None = None
+        self.bids: dict[int, tuple[int, float]] = {}
+        self.reported: set[int] = set()   # served tasks heard of, to show DONE
+        self.lagging = False
+        self.last_round = -math.inf
+
+    # ------------------------------------------------------------------ what it tells the runtime
+    @property
+    def active_task(self) -> str | None:
+        return self.problem.tasks[self.path[0]].id if self.path else None
+
+    def route(self) -> list[str]:
+        return [self.problem.tasks[j].id for j in self.path]
+
+    def winners(self) -> dict[str, str]:
+        """Task id → the robot it was awarded to (served ones included), as this robot knows."""
+        p = self.problem
+        return {p.tasks[j].id: p.robots[w].id for j, w in enumerate(self.owners) if w >= 0}
+
+    def auctioneer(self) -> int:
+        """The lowest-id robot among the live teammates and this one."""
+        return min(self.alive | {self.i}, key=lambda k: self.rank[k])
+
+    # ------------------------------------------------------------------ what was heard
+    def teammate(self, robot: str, alive: bool) -> None:
+        k = self.index.get(robot)
+        if k is None or k == self.i:
+            return
+        if alive:
+            self.alive.add(k)
+            self.gone.discard(k)
+        else:
+            self.alive.discard(k)
+            self.gone.add(k)
+
+    def hear(self, kind: str, sender: str, msg: Round | Bid, at: float) -> bool:
+        """Take a teammate's Round or Bid; False when it is malformed (an index outside the
+        instance) and was dropped whole."""
+        k = self.index.get(sender)
+        if k is None:
+            return False
+        if k == self.i:
+            return False
+        if kind == "round" and isinstance(msg, Round):
+            return self._on_round(k, msg)
+        if kind == "bid" and isinstance(msg, Bid):
+            return self._on_bid(k, msg)
+        return False
+
+    def _on_round(self, k: int, msg: Round) -> bool:
+        n_robots, n_tasks = len(self.problem.robots), len(self.problem.tasks)
+        if (len(msg.owners) != n_tasks or not all(DONE <= w < n_robots for w in msg.owners)
+                or not -1 <= msg.award < n_tasks):
+            return False
+        if k != self.auctioneer():
+            return True  # not (or no longer) the auctioneer this robot follows
+        if k == self.round_from and msg.round < self.round:
+            return True  # an older Round, delivered late
+        self._adopt(k, msg.round, list(msg.owners), msg.award, msg.cost)
+        self.answer_due = True
+        return True
+
+    def _on_bid(self, k: int, msg: Bid) -> bool:
+        n_tasks = len(self.problem.tasks)
+        if not -1 <= msg.task < n_tasks or not all(0 <= j < n_tasks for j in msg.served):
+            return False
+        if msg.auctioneer != self.id:
+            return True
+        self.reported.update(msg.served)
+        if not self.leading or msg.round > self.round:
+            return True
+        if msg.round < self.round:
+            self.lagging = True  # it missed the current Round: send it again
+        else:
+            self.bids[k] = (msg.task, msg.cost)
+        return True
+
+    def served(self, task_id: str, at: float) -> None:
+        """This robot finished serving `task_id` at `at`: it leaves the path, which now begins
+        there and then, and the auctioneer is told until its Rounds show it DONE."""
+        j = self.problem.task_index(task_id)
+        if j in self.path:
+            self.path.remove(j)
+        self.origin = Origin(j, at)
+        self.unacked.add(j)
+        self.reported.add(j)
+
+    # ------------------------------------------------------------------ the shared state
+    def _adopt(self, announcer: int, number: int, owners: list[int], award: int,
+               cost: float) -> None:
+        """Take a Round: tasks no longer this robot's leave its path; tasks newly its own go in
+        at their cheapest place — the round's award first, any other (a Round missed) in task
+        id order."""
+        mine = {j for j, w in enumerate(owners) if w == self.i}
+        self.path = [j for j in self.path if j in mine]
+        new = sorted(mine - set(self.path) - self.unacked - {award},
+                     key=lambda j: self.task_rank[j])
+        if award in mine and award not in self.path and award not in self.unacked:
+            new.insert(0, award)
+        for j in new:
+            _, where = minsum_insertion(self.problem, self.i, self.path, j, self.origin.task)
+            self.path.insert(where, j)
+        if award >= 0 and owners[award] >= 0 and (not self.awards
+                                                  or self.awards[-1].round != number):
+            self.awards.append(Award(number, award, owners[award], cost))
+        self.round, self.round_from, self.owners = number, announcer, owners
+        self.unacked = {j for j in self.unacked if owners[j] != DONE}
+
+    def best_bid(self) -> tuple[int, float]:
+        """(task, added travel time) of this robot's cheapest open task; (−1, 0) if none."""
+        best = None
+        for j, w in enumerate(self.owners):
+            if w != OPEN or not self.problem.capable(self.i, j):
+                continue
+            cost, _ = minsum_insertion(self.problem, self.i, self.path, j, self.origin.task)
+            if best is None or (cost, self.task_rank[j]) < (best[1], self.task_rank[best[0]]):
+                best = (j, cost)
+        return best if best is not None else (-1, 0.0)
+
+    # ------------------------------------------------------------------ one tick
+    def tick(self, now: float) -> list[Out]:
+        if self.started is None:
+            self.started = now
+        out: list[Out] = []
+        if self.auctioneer() == self.i:
+            out += self._lead(now)
+        else:
+            self.leading = False
+        out += self._bid(now)
+        return out
+
+    def _expected(self, now: float) -> set[int]:
+        """Whose bids a round waits for: the live teammates and this robot; during `join_wait`
+        also every robot of the instance not known to have gone."""
+        if now < self.started + self.join_wait:
+            return set(range(len(self.problem.robots))) - self.gone
+        return self.alive | {self.i}
+
+    def _lead(self, now: float) -> list[Out]:
+        owners = list(self.owners)
+        reopened = not self.leading  # a new auctioneer opens a round of its own
+        self.leading = True
+        acked = False
+        for j in self.reported:
+            if owners[j] != DONE:
+                owners[j], acked = DONE, True
+        self.reported = set()
+        for j, task in enumerate(self.problem.tasks):
+            if owners[j] == UNKNOWN and task.arrival <= now + self.lookahead:
+                owners[j], reopened = OPEN, True
+            elif owners[j] >= 0 and owners[j] != self.i and owners[j] not in self.alive:
+                owners[j], reopened = OPEN, True  # its robot left before serving it
+        award, cost = -1, 0.0
+        self.bids[self.i] = self.best_bid()
+        expected = self._expected(now)
+        missing = expected - self.bids.keys()  # a bid is also the Round's acknowledgement
+        if not reopened and OPEN in owners and not missing:
+            # a bid from a robot that left meanwhile does not count
+            best = min(((c, self.rank[r], self.task_rank[j], r, j)
+                        for r, (j, c) in self.bids.items()
+                        if r in expected and j >= 0 and owners[j] == OPEN), default=None)
+            if best is not None:
+                cost, _, _, winner, award = best
+                owners[award] = winner
+        if reopened or award >= 0:
+            self.bids = {}
+            self._adopt(self.i, self.round + 1, owners, award, cost)
+        elif acked:
+            self._adopt(self.i, self.round, owners, -1, 0.0)
+        elif not ((missing or self.lagging) and now - self.last_round >= self.resend_period):
+            return []
+        self.lagging = False
+        self.last_round = now
+        last = self.awards[-1] if self.awards and self.awards[-1].round == self.round else None
+        return [Out("round", (self.round, tuple(self.owners), last.task if last else -1,
+                              last.cost if last else 0.0))]
+
+    def _bid(self, now: float) -> list[Out]:
+        """The answer to each Round heard from the auctioneer — a bid, or task −1 when nothing
+        is open: either way its acknowledgement (the auctioneer repeats a Round until every
+        robot answered it, so a lost Round or a lost bid costs one resend_period) — and the
+        served tasks it has not yet shown DONE, every resend_period until it does."""
+        if self.leading or self.round_from is None:
+            return []
+        target = self.auctioneer()
+        if target != self.round_from:
+            return []  # a new auctioneer: its first Round comes
+        if not (self.answer_due or (self.unacked and now - self.last_bid >= self.resend_period)):
+            return []
+        self.answer_due, self.last_bid = False, now
+        task, cost = self.best_bid() if OPEN in self.owners else (-1, 0.0)
+        name = self.problem.robots[target].id
+        return [Out("bid", (name, self.round, task, cost, tuple(sorted(self.unacked))), name)]

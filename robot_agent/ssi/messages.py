@@ -1,0 +1,43 @@
+"""ssi_msgs: SSI's rounds on the bus (docs/ssi.md).
+
+The auctioneer (the lowest-id live robot) publishes a `Round`: its number and the state of every
+task, which is all a bidder needs; each robot answers with a `Bid` addressed to it (its key's
+sub-key) for that round. Tasks and robots are named by their index in the instance every robot
+reads (tasks and robots in file order), so a round is one small number per task.
+"""
+
+from __future__ import annotations
+
+from mrta_zenoh.messages import Finite, Header, Message, message
+
+OPEN, UNKNOWN, DONE = -1, -2, -3  # a task's state in Round.owners besides its owner's index
+
+
+@message("ssi_msgs/Round")
+class Round(Message):
+    """`owners[j]`: the index of the robot task j was awarded to, or OPEN (to bid on), UNKNOWN
+    (not arrived yet) or DONE (served); `award`: the task this round's opening awarded (its
+    winner is its owner; −1: none) and `cost` its winning bid."""
+
+    header: Header
+    round: int
+    owners: tuple[int, ...]
+    award: int
+    cost: Finite
+
+
+@message("ssi_msgs/Bid")
+class Bid(Message):
+    """A robot's bid in `round` of `auctioneer`'s: what adding `task` to its path costs (task −1:
+    nothing it can serve is open), and the tasks it served that the last Round it heard did not
+    yet show DONE (so a task served just before its server died is not auctioned again)."""
+
+    header: Header
+    auctioneer: str
+    round: int
+    task: int
+    cost: Finite
+    served: tuple[int, ...]
+
+
+MESSAGES = {"round": Round, "bid": Bid}
