@@ -68,6 +68,9 @@ class DispatcherParams:
     solutions: int = SOLUTIONS
     time_limit: float = TIME_LIMIT
 
+    def __post_init__(self) -> None:
+        object.__setattr__(self, "objective", Objective(self.objective))  # "minsum" as well
+
 
 ROBOT_KEYS = {"name", "spin_rate", "control_rate", "report_period", "lease", "pose_topic",
               "sensors", "tasks"}
