@@ -14,8 +14,11 @@ import random
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
+from mrta_agent.central.dispatcher import Dispatcher
+from mrta_agent.central.messages import Progress
 from mrta_agent.central.params import DispatcherParams
 from mrta_zenoh.failure import FaultPlan
+from mrta_zenoh.messages import Header
 from mrta_zenoh.planning import Problem, Robot, Task
 from tests.central_team import Team
 
@@ -219,3 +222,37 @@ def test_no_task_is_ever_executed_by_two_robots(seed, robots, tasks, fault, loss
     team.until(team.all_served, limit=600)
     assert not team.simultaneous()
     assert sorted(team.served_tasks()) == sorted(t.id for t in problem.tasks)
+
+
+# ------------------------------------------------------------------ the grant rule, message by message
+def progress(task: str, queue: tuple[str, ...], version: int, x: float, served=()) -> Progress:
+    return Progress(Header("", 0.0, 0), task, "", queue, tuple(served), version, x, 0.0, 0.0)
+
+
+def queues(out) -> dict[str, tuple[str, ...]]:
+    return {s.fields[0]: s.fields[2] for s in out if s.kind == "queue"}
+
+
+def test_a_task_another_robot_may_still_serve_is_not_granted_until_it_lets_go():
+    d = Dispatcher(SQUARE, DispatcherParams(progress_timeout=5.0))
+    d.teammate("robot1", True)
+    d.teammate("robot2", True)
+    sent = queues(d.tick(0.0))
+    assert sent == {"robot1": ("t1", "t2", "t4"), "robot2": ("t3",)}
+    v1 = d.sent["robot1"].version
+    # robot1 sets off to t1 and never moves again; robot2 serves t3 and stays idle there
+    d.hear("progress", "robot1", progress("t1", ("t1", "t2", "t4"), v1, 0.0), 0.1)
+    d.hear("progress", "robot2", progress("", (), d.sent["robot2"].version, 9.0, ["t3"]), 3.0)
+    now = 0.2
+    while d.robots["robot1"].lost is None:
+        d.hear("progress", "robot1", progress("t1", ("t1", "t2", "t4"), v1, 0.0), now)
+        out = d.tick(now)
+        now = round(now + 0.1, 1)
+    assert d.robots["robot1"].lost == "stalled"
+    assert d.plan["robot2"] == ["t4", "t2", "t1"]           # re-planned onto robot2 (at 9 m) ...
+    assert queues(out).get("robot1") == ()
+    assert not d.queue_for("robot2")                        # ... not granted: robot1 holds them
+    d.hear("progress", "robot1", progress("t1", ("t1",), v1, 0.0), now)  # it lets go of t2, t4
+    assert d.queue_for("robot2") == ("t4", "t2")            # cut before t1: robot1 is on it
+    d.hear("progress", "robot1", progress("", (), d.sent["robot1"].version, 0.0), now)
+    assert d.queue_for("robot2") == ("t4", "t2", "t1")
