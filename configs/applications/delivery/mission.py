@@ -125,15 +125,6 @@ class DeliverySections(SummarySections):
             except msgspec.ValidationError:
                 raise ValueError(f"instance: {current}") from None
 
-    def __post_init__(self) -> None:
-        try:
-            msgspec.convert(self.instance, InstanceDoc)
-        except msgspec.ValidationError as current:
-            try:
-                msgspec.convert(self.instance, LegacyInstance)
-            except msgspec.ValidationError:
-                raise ValueError(f"instance: {current}") from None
-
 
 def run_instance(run: MissionRun) -> DeliveryParams:
     doc = load_layers_params(run.layers_params)
