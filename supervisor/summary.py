@@ -105,7 +105,7 @@ class MessageRates(msgspec.Struct, forbid_unknown_fields=True):
     namespace_per_second: float | None = None   # None: a summary written before it was counted
     coordination_kinds: list[str] = []
     total: int | None = None  # the samples counted (results.csv's `messages`); None: older summary
-    by_kind: dict[str, int] = {}  # coordination samples of each kind (results: coordination.<kind>)
+    by_kind: dict[str, int] = {}  # coordination samples of each kind (results: messages.<kind>)
 
 
 class Decisions(msgspec.Struct, forbid_unknown_fields=True):
@@ -318,7 +318,7 @@ def flat_metrics(summary: Summary) -> dict[str, Any]:
     row["namespace_messages_per_second"] = ("" if summary.messages.namespace_per_second is None
                                             else summary.messages.namespace_per_second)
     for kind, count in summary.messages.by_kind.items():
-        row[f"coordination.{kind}"] = count
+        row[f"messages.{kind}"] = count
     row["ended_at"] = "" if summary.ended_at is None else summary.ended_at
     d = summary.decisions
     row["decisions"] = "" if d is None else d.count
