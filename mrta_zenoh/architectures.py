@@ -27,7 +27,7 @@ from typing import Callable, ClassVar, Sequence
 from .clock import EPSILON
 from .errors import ConfigError
 from .failure import Faults
-from .keys import first_chunk
+from .keys import NODE_TOKEN, first_chunk
 from .yamlfile import did_you_mean
 
 GROUP = "mrta.architectures"
@@ -40,12 +40,28 @@ TEAM_ENV = "MRTA_TEAM"
 @dataclass(frozen=True)
 class Doing:
     """One report read from an architecture's own wire message: at `stamp` (the sender's clock:
-    simulated time in simulated runs), `robot` was on `task` (active) or was not (inactive)."""
+    simulated time in simulated runs), `robot` was on `task` (active) or was not (inactive).
+    An architecture whose robots hold queues (routes of tasks served one after another) also
+    says the tasks queued behind it (`queue`, the robot's whole queue as it held it then);
+    None: it keeps no queue (a robot is assigned what it is on)."""
 
     robot: str
     task: str
     active: bool
     stamp: float
+    queue: tuple[str, ...] | None = None
+
+
+@dataclass(frozen=True)
+class Decision:
+    """One allocation decision as an architecture's own message records it: when (`stamp`,
+    the decider's clock), by whom, and how long its computation took (`ms`, the machine's
+    time: a measurement, never a criterion)."""
+
+    decider: str
+    stamp: float
+    ms: float
+    objective: str | None = None  # the objective it optimised (planning.schedule.Objective)
 
 
 @dataclass(frozen=True)
@@ -105,6 +121,15 @@ class Architecture(ABC):
     # a robot on a task repeats so at least this often (seconds of its clock): a report not
     # repeated for longer means it stopped without saying so (it died)
     doing_stale_after: ClassVar[float] = 2.0
+    # the processes of a run that are neither robot nor observer (central's dispatcher): each
+    # declares `process_token(name)` once ready, robots take its messages as a teammate's, and
+    # a run's faults may name it (`crash:dispatcher@T`). Default: none
+    processes: ClassVar[tuple[str, ...]] = ()
+    # the objective it optimises (planning.schedule.Objective's value: minsum, makespan,
+    # flowtime), which a run's summary names; None: it states none (ALLIANCE, MURDOCH)
+    objective: ClassVar[str | None] = None
+    # the kinds `decision` reads: messages that record an allocation decision. Default: none
+    decision_kinds: ClassVar[tuple[str, ...]] = ()
 
     # ------------------------------------------------------------ keys
     def key(self, robot_id: str, kind: str, *rest: str) -> str:
@@ -127,6 +152,11 @@ class Architecture(ABC):
     def agent_tokens(self) -> str:
         """Every robot's agent token: `*/alliance/agent`."""
         return f"*/{self.namespace}/agent"
+
+    def process_token(self, name: str) -> str:
+        """The liveliness token process `name` (one of `processes`) declares once ready:
+        `@mrta/node/<name>` — under `@`, so no robot watch takes it for a robot."""
+        return f"{NODE_TOKEN}/{name}"
 
     @property
     def coordination(self) -> tuple[str, ...]:
@@ -165,6 +195,15 @@ class Architecture(ABC):
     @abstractmethod
     def doing(self, sender: str, key: str, message: object) -> Doing | None:
         """What a sample of the feed says `sender` is doing (None: nothing about tasks)."""
+
+    def decision_feed(self) -> list[tuple[str, type]]:
+        """(key expression, message type) pairs to subscribe to for `decision`."""
+        return [(self.every(kind), self.messages[kind]) for kind in self.decision_kinds]
+
+    def decision(self, sender: str, key: str, message: object) -> Decision | None:
+        """The allocation decision a sample of `decision_feed` records (None: none). Default:
+        none — an architecture whose decisions leave no record of their computation time."""
+        return None
 
     # ------------------------------------------------------------ what a run is measured against
     @abstractmethod

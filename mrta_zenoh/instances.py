@@ -57,6 +57,13 @@ class InstanceKind:
         """What `mrta instance show` prints (JSON values): sizes, costs, reference values."""
         return {}
 
+    def problem(self, doc: Any) -> Any:
+        """The planning problem the document poses (`mrta_zenoh.planning.Problem`: robots,
+        point tasks, travel times), for a planner that runs beside the robots (central's
+        dispatcher). Default: ConfigError — this application's instances pose none."""
+        raise ConfigError(f"{self.application or 'this application'}'s instances pose no "
+                          "planning problem (robots and point tasks) a dispatcher could solve")
+
 
 class InstanceGenerator:
     """A registered generator: `name`, the `kind` of document it writes, its `Params`."""
@@ -130,6 +137,12 @@ def load(path: Path, application: str | None = None) -> Loaded:
     kind = kind_of(path, application)
     doc = kind.load(path)
     return Loaded(path, kind, doc, kind.name(doc))
+
+
+def problem(path: Path, application: str | None = None) -> Any:
+    """The planning problem of an instance file (InstanceKind.problem), checked as `load`."""
+    loaded = load(path, application)
+    return loaded.kind.problem(loaded.doc)
 
 
 def show(path: Path, application: str | None = None, *, exact_limit: int = 10,

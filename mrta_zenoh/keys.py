@@ -25,6 +25,9 @@ CLOCK_SOURCE_TOKEN = "@mrta/clock_source"       # held by whoever publishes `clo
 CLOCK_SOURCE_ENDED = "ended"
 RECORDER_TOKEN = "@mrta/recorder"               # prefix; one token per recorder process
 ROS2_BRIDGE_TOKEN = "@mrta/ros2_bridge"         # prefix; /<robot>, held while it bridges
+# prefix; /<name>: a process of a run that is neither robot nor observer (a task dispatcher),
+# held while it is ready. Under `@`, so no robot watch (`**`) takes it for a robot
+NODE_TOKEN = "@mrta/node"
 ALL_CMD_VEL = "*/cmd_vel"
 # A recording's topic for a liveliness token's changes: `@liveliness/<token key>`. Not a key on
 # the bus — recordings, replay and plots share it, so it is written here once.

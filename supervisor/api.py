@@ -15,7 +15,7 @@ from mrta_zenoh import jsonsafe
 from mrta_zenoh.bus import Bus, BusOptions
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.identity import OBSERVER
-from mrta_zenoh.keys import ROS2_BRIDGE_TOKEN
+from mrta_zenoh.keys import NODE_TOKEN, ROS2_BRIDGE_TOKEN
 from mrta_zenoh.lockstep import STATUS, LockstepStatus
 from mrta_zenoh.node import Node, NodeTime
 from mrta_zenoh.toolchain.model import ApplicationFile, ArchitectureFile
@@ -86,6 +86,9 @@ def attach(sup: Supervisor, bus: Bus, clock) -> list:
         k, alive, clock.now())))
     handles.append(bus.watch_liveliness(f"{ROS2_BRIDGE_TOKEN}/*", lambda k, alive:
                                         sup.on_bridge_token(k, alive, clock.now())))
+    # processes that are neither robot nor observer (central's dispatcher)
+    handles.append(bus.watch_liveliness(f"{NODE_TOKEN}/*", lambda k, alive:
+                                        sup.on_process_token(k, alive, clock.now())))
     handles.append(bus.subscribe(STATUS, lambda s: sup.on_lockstep(
         s.message.unresponsive, clock.now(), s.message.rivals, s.message.dropped),
         msg_type=LockstepStatus))

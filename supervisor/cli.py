@@ -110,8 +110,10 @@ def relative(snap: dict, origin: float) -> dict:
 
 def state_line(snap: dict) -> str:
     """Robots, tasks held and alarms in one line, for logs and pipes (ids escaped)."""
-    robots = "  ".join(f"{r['id']}:{r['state']}" + (f"/{r['task']}" if r["task"] else "")
-                       for r in snap["robots"])
+    robots = "  ".join([f"{r['id']}:{r['state']}" + (f"/{r['task']}" if r["task"] else "")
+                        for r in snap["robots"]]
+                       + [f"{p['id']}:{'online' if p['online'] else 'offline'}"
+                          for p in snap.get("processes", ())])
     alarms = ", ".join(f"{a['kind']} {a['subject']}" for a in snap["alarms"])
     return visible(robots + (f"  alarms: {alarms}" if alarms else ""))
 

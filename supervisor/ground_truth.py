@@ -18,12 +18,16 @@ it was on.
 
 from __future__ import annotations
 
+import statistics
 from dataclasses import dataclass, field
 from typing import Iterable
 
 from mrta_zenoh.architectures import Architecture, Doing
+from mrta_zenoh.clock import EPSILON
 from mrta_zenoh.codec import DecodeError, decode, type_from_encoding
-from mrta_zenoh.keys import matches
+from mrta_zenoh.keys import first_chunk, matches
+
+from .summary import Decisions
 
 Interval = tuple[str, float, float]  # (task, start, end)
 
@@ -109,3 +113,90 @@ def intervals_from(records: Iterable, arch: Architecture, end: float, stale_afte
     for robot, at in failed.items():
         truth.fail(robot, at)
     return truth.finish(end)
+
+
+@dataclass
+class Stretch:
+    """One stretch a robot held a task: it entered the robot's queue at `assigned_at`, the
+    robot set off to it at `started_at` (None: it never did), and it left the robot at
+    `ended_at` (served, given back, or the robot stopped)."""
+
+    robot: str
+    task: str
+    assigned_at: float
+    started_at: float | None
+    ended_at: float
+
+
+def stretches_from(records: Iterable, arch: Architecture, end: float, stale_after: float,
+                   failures: Iterable[tuple[str, float]] = ()) -> list[Stretch]:
+    """Every stretch of every robot, in order of assignment. An architecture whose robots hold
+    queues (Doing.queue) is read queue by queue: a task is the robot's from the first report
+    that queues it until the first that does not (or the robot's failure, or its silence past
+    `stale_after`). One without queues is assigned what it is on: its stretches are its
+    intervals (`intervals_from`), set off to at once."""
+    docs = reports(records, arch)
+    if not any(d.queue is not None for d in docs):
+        held = intervals_from(records, arch, end, stale_after, failures)
+        return sorted((Stretch(robot, task, a, a, b) for robot, spans in held.items()
+                       for task, a, b in spans), key=lambda s: (s.assigned_at, s.robot))
+    failed = dict(failures)
+    out: list[Stretch] = []
+    held: dict[str, dict[str, Stretch]] = {}
+    last: dict[str, float] = {}
+
+    def close(robot: str, at: float, keep: frozenset[str] = frozenset()) -> None:
+        for task in [t for t in held.get(robot, {}) if t not in keep]:
+            s = held[robot].pop(task)
+            s.ended_at = max(at, s.assigned_at)
+            out.append(s)
+
+    for d in docs:
+        if d.robot in failed and d.stamp > failed[d.robot]:
+            continue
+        if d.robot in last and d.stamp - last[d.robot] > stale_after:
+            close(d.robot, last[d.robot])
+        last[d.robot] = d.stamp
+        present = list(d.queue or ()) + ([d.task] if d.active and d.task not in (d.queue or ())
+                                         else [])
+        close(d.robot, d.stamp, frozenset(present))
+        mine = held.setdefault(d.robot, {})
+        for task in present:
+            if task not in mine:
+                mine[task] = Stretch(d.robot, task, d.stamp, None, d.stamp)
+        if d.active and mine[d.task].started_at is None:
+            mine[d.task].started_at = d.stamp
+    for robot in list(held):
+        at = failed.get(robot)
+        if at is None:
+            at = end if end - last.get(robot, end) <= stale_after else last[robot]
+        close(robot, at)
+    return sorted(out, key=lambda s: (s.assigned_at, s.robot, s.task))
+
+
+def decisions(records, arch: Architecture, end: float) -> Decisions | None:
+    """The allocation decisions the architecture's own messages record up to `end`
+    (Architecture.decision): how many, and their computation time (median and largest, ms of
+    the machine). None: the architecture records none (ALLIANCE's and MURDOCH's decisions
+    are spread over every robot's ticks and leave no record of their cost)."""
+    feed = [expr for expr, _ in arch.decision_feed()]
+    if not feed:
+        return None
+    found = []
+    for key, enc, _t, payload in records:
+        if not any(matches(expr, key) for expr in feed):
+            continue
+        try:
+            msg = decode(type_from_encoding(enc), payload)
+        except DecodeError:
+            continue
+        header = getattr(msg, "header", None)
+        if header is None or header.frame_id.strip("/") != first_chunk(key):
+            continue
+        d = arch.decision(first_chunk(key), key, msg)
+        if d is not None and d.stamp <= end + EPSILON:
+            found.append(d)
+    times = sorted(d.ms for d in found)
+    objectives = sorted({d.objective for d in found if d.objective})
+    return Decisions(len(found), round(statistics.median(times), 3) if times else None,
+                     round(times[-1], 3) if times else None, ", ".join(objectives) or None)

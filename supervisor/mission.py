@@ -62,7 +62,7 @@ from mrta_zenoh.toolchain.runner import start_nodes
 from mrta_zenoh.yamlfile import did_you_mean
 
 from .api import Refresh, attach
-from .ground_truth import intervals_from
+from .ground_truth import decisions, intervals_from
 from .plots import ROBOTS_TITLE, Panel, TimeBase, draw_timeline
 from . import roles
 from .run_watch import Readiness, RunWatch, crashed_itself, run_status
@@ -123,8 +123,16 @@ class Mission:
 
     def task_watch(self, run: "MissionRun") -> "TaskWatch | None":
         """What tells the supervisor a task is done or not due yet (supervisor/tasks.py), so
-        that it raises no `task_unattended` for it. Default: none — every task always needs
-        a robot."""
+        that it raises no `task_unattended` for it. It also ends a run early: once it says
+        every task is done for good, the runner stops the simulator (END_MARGIN later) rather
+        than run to the duration. Default: none — every task always needs a robot."""
+        return None
+
+    def ended_at(self, run: "MissionRun", records: list) -> float | None:
+        """When the mission's work was over, in simulated seconds, from the recording (a point
+        task mission: the last completion); None: it ran to the duration. The summary's
+        figures — coverage, traffic, who did what — cover the run up to then, so they do not
+        depend on how soon after it the runner stopped the simulator."""
         return None
 
 
@@ -254,9 +262,10 @@ def faults_of(run: MissionRun) -> Faults:
     faults = parse_fail(spec)
     if faults is None:
         return Faults()
+    subjects = [*run.robots, *run.arch.processes]  # robots, and the architecture's processes
     for f in faults.failures:
-        if f.robot not in run.robots and f.robot not in ROLES:
-            raise ConfigError(f"--fail {spec}: {f.robot} is not one of {', '.join(run.robots)}")
+        if f.robot not in subjects and f.robot not in ROLES:
+            raise ConfigError(f"--fail {spec}: {f.robot} is not one of {', '.join(subjects)}")
         if f.at >= run.options.duration:
             raise ConfigError(f"--fail {f.spec}: {f.at:g} s is not before the end "
                               f"({run.options.duration:g} s): pick an earlier time or a longer "
@@ -393,7 +402,9 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
         children = start_nodes(group, nodes)
         agents = {rid: next(c for c in children if c.name.startswith(rid + "/"))
                   for rid in run.robots}
-        sim = next(c for c in children if c not in agents.values())
+        # the architecture's own processes (a dispatcher), by name: fault subjects as robots are
+        named = {**agents, **{c.name: c for c in children if c.name in run.arch.processes}}
+        sim = next(c for c, n in zip(children, nodes) if n.required)  # the launch's end
         ready.wait(ready.robots_up, "the robots' agents", group, stop)
         ready.wait(ready.clock.is_set, "the simulator", group, stop)
         failed_at = _watch(sim, sup, clock, failure, stop, progress)
@@ -407,9 +418,11 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
         if sim.wait(30) != 0:
             raise MrtaRuntimeError(f"the simulator {sim.describe_exit()}:\n" + sim.tail())
         group.stop_all()
+        # the crashed subjects: those named (robots, the architecture's processes) and, for an
+        # @first crash, the robot that crashed itself
         targets = roles.crash_targets(faults, {r: crashed_itself(c) for r, c in agents.items()})
-        disturbances = watch.disturbances(agents, targets)
-        crashed = group.failed(ignore=[agents[r].name for r in targets])
+        disturbances = watch.disturbances(named, targets)
+        crashed = group.failed(ignore=[named[t].name for t in targets if t in named])
         if crashed:
             raise MrtaRuntimeError("; ".join(f"{c.name} {c.describe_exit()}"
                                              for c in crashed) + ":\n"
@@ -434,11 +447,17 @@ def check_seeds(nodes: list[NodeSpec], seed: int) -> None:
                                   file=n.file or None, line=n.line)
 
 
+END_MARGIN = 1.0  # simulated s the simulator runs on after every task is done: the recording
+                  # then covers the end (run_watch.END_SLACK), however late the runner saw it
+
+
 def _watch(sim: Child, sup: Supervisor, clock: SimClock, failure: Failure | None,
            stop: threading.Event, progress: Progress | None) -> float | None:
-    """Follow the run until the simulator ends; return when `failure` struck (each process
-    injects its own faults, at their simulated times)."""
+    """Follow the run until the simulator ends — at its duration, or stopped here END_MARGIN
+    after the application's task watch said every task is done (Mission.task_watch); return
+    when `failure` struck (each process injects its own faults, at their simulated times)."""
     failed_at = None
+    all_done: float | None = None
     refresh = Refresh(sup, clock, sim_time=True)
     while sim.running() and not stop.is_set():
         stop.wait(0.25)
@@ -447,6 +466,13 @@ def _watch(sim: Child, sup: Supervisor, clock: SimClock, failure: Failure | None
             failed_at = failure.at
         if progress is not None:
             progress(now, sup, failure, failed_at)
+        if all_done is None and sup.all_done():
+            all_done = now
+        if all_done is not None and now >= all_done + END_MARGIN:
+            log.info("every task is done (the mission's task watch): ending the run at t=%.1f",
+                     now)
+            sim.signal(signal.SIGTERM)
+            all_done = math.inf  # asked once
     return failed_at
 
 
@@ -469,8 +495,13 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
     tb = TimeBase(records)
     t0 = 0.0
     recorded_until = max((tb(t) for _, _, t, _ in records), default=None)
-    t1 = run.options.duration if recorded_until is None else recorded_until
-    status = run_status(list(disturbances), recorded_until, run.options.duration)
+    # a run ends at its duration, or when the mission's work was over (Mission.ended_at): its
+    # figures cover it up to then
+    ended_at = run.mission.ended_at(run, records)
+    end = run.options.duration if ended_at is None else min(ended_at, run.options.duration)
+    t1 = (run.options.duration if recorded_until is None else recorded_until) \
+        if ended_at is None else end
+    status = run_status(list(disturbances), recorded_until, end)
     role, failure = failure, roles.struck(failure, faults_of(run), records)
     if role is not None and failure is None:  # an @first fault that struck nobody
         failed_at = None
@@ -486,8 +517,8 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
         # gives one picture (a crash's time is exact in lockstep; the recorded liveliness is not)
         draw_timeline(output / "timeline.png", run.app,
                       [Panel(ROBOTS_TITLE, intervals,
-                             {r: [(at, run.options.duration)] for r, at in failures})],
-                      (t0, run.options.duration), tb.label)
+                             {r: [(at, end)] for r, at in failures if r in run.robots})],
+                      (t0, end), tb.label)
         run.arch.plots(output / "run.mcap", run.robots, run.app.tasks(), output, records)
     who = {rid: [Span(t, round(a, 3), round(b, 3))
                  for t, a, b in sorted(intervals.get(rid, []), key=lambda x: x[1])]
@@ -513,7 +544,9 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
         coverage=coverage(intervals, run.app.tasks(), t0, t1),
         # up to the duration asked for: the last instant also holds what processes say as they
         # stop, recorded or not as the shutdown races the recorder
-        messages=message_rates(records, run.arch, run.options.duration - t0, tb),
+        messages=message_rates(records, run.arch, end - t0, tb),
+        ended_at=None if ended_at is None else round(end, 3),
+        decisions=decisions(records, run.arch, end),
         metrics=run.mission.metrics(run, records), failure=report,
         output=str(output), files=[], sections=mission_sections(run, records))
     # what this run wrote: new or changed files (an earlier run's are neither), and the
@@ -653,6 +686,7 @@ def message_rates(records, arch: Architecture, seconds: float,
       counted;
     * a headerless sample of no robot, or a payload that is no message, by its log time."""
     total = coordination = namespace = 0
+    by_kind = dict.fromkeys(arch.coordination, 0)
     waiting: dict[str, list[str]] = {}  # robot → its headerless samples since its last stamp
 
     def count(key: str) -> None:
@@ -660,7 +694,9 @@ def message_rates(records, arch: Architecture, seconds: float,
         total += 1
         if arch.is_namespace_key(key):
             namespace += 1
-            coordination += arch.is_coordination_key(key)
+            if arch.is_coordination_key(key):
+                coordination += 1
+                by_kind[key.split("/")[2]] += 1
 
     for key, _, t, payload in records:
         if not is_traffic(key):
@@ -686,7 +722,8 @@ def message_rates(records, arch: Architecture, seconds: float,
             count(key)
     return MessageRates(round(total / seconds, 1), round(coordination / seconds, 1),
                         arch.namespace, round(namespace / seconds, 1), list(arch.coordination),
-                        total)
+                        total, by_kind)
+
 
 
 def first_full_allocation(intervals: dict, tasks) -> float | None:

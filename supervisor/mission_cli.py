@@ -175,7 +175,9 @@ def _bound_note(f) -> str:
 
 def print_summary(console: Console, s: Summary, title: str, arch_title: str,
                   extra: list[str]) -> None:
-    console.print(Text(f"\n{title} ({arch_title}): {s.duration:.0f} s simulated at speed "
+    simulated = (f"{s.duration:.0f} s simulated" if s.ended_at is None else
+                 f"{s.ended_at:.1f} s simulated (every task done; --duration {s.duration:g})")
+    console.print(Text(f"\n{title} ({arch_title}): {simulated} at speed "
                        f"{s.speed or 'max'} in {s.wall_seconds:.0f} s", style="bold"))
     for rid, spans in s.who_did_what.items():
         txt = ", ".join(f"{x.task} {x.start:.1f}–{x.end:.1f} s" for x in spans) or "idle"
@@ -187,6 +189,9 @@ def print_summary(console: Console, s: Summary, title: str, arch_title: str,
             console.print(f"  {f.robot} {what} at {f.killed_at:.1f} s while doing {f.task}; "
                           f"{f.taken_over_by} took over after {f.takeover_seconds:.2f} s"
                           + _bound_note(f), highlight=False)
+        elif f.task is None:
+            console.print(f"  {f.robot} {what} at {f.killed_at} s (it held no task)",
+                          highlight=False)
         else:
             console.print(f"  {f.robot} {what} at {f.killed_at} s; task {f.task} was not taken "
                           "over before the end", highlight=False)
@@ -195,6 +200,11 @@ def print_summary(console: Console, s: Summary, title: str, arch_title: str,
                       f"more than one {c.more_than_one:.0%}", highlight=False)
     for line in extra:
         console.print(f"  {line}", highlight=False)
+    d = s.decisions
+    if d is not None and d.count:
+        console.print(f"  {d.count} allocation decisions ({d.objective or 'no objective'}): "
+                      f"computation median {d.median_ms:g} ms, max {d.max_ms:g} ms",
+                      highlight=False)
     problem = run_problem(s)
     if problem is not None:
         console.print(f"  NOT EXACT: {problem}" + ("; this run may not replay"

@@ -38,7 +38,9 @@ COVERAGE_BETTER = {".exactly_one": stats.HIGHER, ".none": stats.LOWER,
                    ".more_than_one": stats.LOWER}
 # measured, but not what a table is for by default (redundant shares, raw counts, references)
 NOT_BY_DEFAULT = (".none", ".more_than_one")
-NOT_BY_DEFAULT_NAMES = ("messages", "messages_per_second", "namespace_messages_per_second")
+NOT_BY_DEFAULT_NAMES = ("messages", "messages_per_second", "namespace_messages_per_second",
+                        "decisions")
+NOT_BY_DEFAULT_PREFIXES = (REFERENCE, "messages.")  # references; counts of each message kind
 
 
 @dataclass(frozen=True)
@@ -122,7 +124,7 @@ def default_metrics(table: ResultsTable) -> list[str]:
     out = []
     for c in table.columns:
         if kind(c) != "measure" or c.endswith(NOT_BY_DEFAULT) or c in NOT_BY_DEFAULT_NAMES \
-                or c.startswith(REFERENCE):
+                or c.startswith(NOT_BY_DEFAULT_PREFIXES):
             continue
         if any(_is_number(r.get(c, "")) for r in table.ok()):
             out.append(c)

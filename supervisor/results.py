@@ -7,9 +7,12 @@ naming a role, `@first` or `@random`, resolves per run), every parameter that de
 (`mission`, `application`, `architecture`, `duration`, `instance`, `n_robots`, `n_tasks` — the
 last three with an `instances:` block — `failure`, one column per parameter override), and
 what the run measured (summary.flat_metrics: the takeover, coverage per task — not for runs of
-instances, whose task ids are their own — traffic, the application's `metrics.*`). Which column is which is decided by name alone (`kind`), so a file from another
+instances, whose task ids are their own — traffic and its coordination kinds' `messages.*`,
+when the run ended, the decisions and their computation time, the application's `metrics.*`).
+Which column is which is decided by name alone (`kind`), so a file from another
 version, or rows of several experiments put together, read the same way: a measured column is
-one of the framework's own or ends in a coverage share or starts with `metrics.`; bookkeeping
+one of the framework's own or ends in a coverage share or starts with `metrics.` or
+`messages.`; bookkeeping
 is the fixed list; every other column is a parameter. An override whose key would read as a
 measure is refused by the experiment file (experiment_file.py), so the split is exact.
 """
@@ -29,9 +32,11 @@ from mrta_zenoh.yamlfile import did_you_mean
 BOOKKEEPING = ("run", "config", "seed", "status", "error", "wall_seconds", "taken_over_by",
                "failed_robot")
 MEASURES = ("takeover_seconds", "first_full_allocation", "messages", "messages_per_second",
-            "coordination_messages_per_second", "namespace_messages_per_second")
+            "coordination_messages_per_second", "namespace_messages_per_second", "ended_at",
+            "decisions", "decision_ms_median", "decision_ms_max")
 COVERAGE = (".exactly_one", ".none", ".more_than_one")
 APPLICATION_PREFIX = "metrics."
+MESSAGES_PREFIX = "messages."  # coordination messages of each kind (summary.flat_metrics)
 INSTANCE, SEED, STATUS, OK = "instance", "seed", "status", "ok"
 REQUIRED = (SEED, STATUS)
 
@@ -40,7 +45,8 @@ def kind(column: str) -> str:
     """"bookkeeping", "measure" or "parameter" (see the module's docstring)."""
     if column in BOOKKEEPING:
         return "bookkeeping"
-    if column in MEASURES or column.endswith(COVERAGE) or column.startswith(APPLICATION_PREFIX):
+    if column in MEASURES or column.endswith(COVERAGE) \
+            or column.startswith((APPLICATION_PREFIX, MESSAGES_PREFIX)):
         return "measure"
     return "parameter"
 
@@ -49,7 +55,8 @@ def measure_problem(key: str) -> str | None:
     """Why an override key would be read back as a measure (None: it would not)."""
     if kind(key) != "parameter":
         return (f"{key!r} would read as a measured column of results.csv (a name ending in "
-                f"{', '.join(COVERAGE)} or starting with {APPLICATION_PREFIX!r}, or a "
+                f"{', '.join(COVERAGE)} or starting with {APPLICATION_PREFIX!r} or "
+                f"{MESSAGES_PREFIX!r}, or a "
                 "framework column)")
     return None
 

@@ -12,6 +12,9 @@ lockstep simulator's reports: alarms.py.
   driver or its bridge is gone (drivers.py).
 * A task the application says is done, or not due yet (its mission hook's TaskWatch,
   tasks.py), is `done` / `waiting` and raises no `task_unattended` alarm.
+* A process of the run that is neither robot nor observer (central's dispatcher) is shown by
+  its token (`@mrta/node/<name>`): online while it lives, `process_lost` when it goes while the
+  run is on.
 * On simulation time, while the clock is stopped (`clock_stopped`) robots are `unknown`: their
   held states are stale, not busy. Once the run has ended (its clock source's token is gone:
   the simulator exited) the picture stays as the run left it, with no alarm — its processes
@@ -69,6 +72,7 @@ class Supervisor:
         self.drivers = Ros2Drivers(Ros2Graph(ros2_domain), self._alarms)
         self.robots: dict[str, RobotInfo] = {}
         self.tasks: dict[str, TaskInfo] = {}
+        self.processes: dict[str, dict] = {}  # name → {"online", "since"} (MAX_UNKNOWN at most)
         ids = Ids()
         self.strangers = Strangers(self._alarms, self.counts, unknown_expiry, ids)
         self.intake = Intake(ids, self.robots, self.counts, self.strangers, self._apply,
@@ -212,6 +216,14 @@ class Supervisor:
         t.until = None if status.seconds is None else now + status.seconds
         self._reassess_task(t, now)
 
+    def all_done(self) -> bool:
+        """Whether the application said every task is done for good (its TaskWatch: a
+        delivered task; not patrol's report, done only until its next period): the mission
+        runner then ends the run."""
+        with self._lock:
+            tasks = [t for t in self.tasks.values() if t.known]
+            return bool(tasks) and all(t.status == "done" and t.until is None for t in tasks)
+
     def on_clock(self, stopped: bool, now: float, ended: bool = False) -> None:
         """The simulation clock stopped (or came back): robots are `unknown` meanwhile. A run
         that `ended` (its source is gone) raises nothing: the picture stays as it left it."""
@@ -282,6 +294,24 @@ class Supervisor:
                     for tid in self.held.drop_robot(r.id):
                         self._reassess_task(self.tasks[tid], now)
             self._reassess_robot(r, now)
+
+    def on_process_token(self, key: str, alive: bool, now: float) -> None:
+        """`@mrta/node/<name>`: a process of the run that is neither robot nor observer."""
+        name = self.intake.ids(key.rsplit("/", 1)[-1])
+        with self._lock:
+            if name is None or (name not in self.processes
+                                and len(self.processes) >= MAX_UNKNOWN):
+                self.counts["bad_keys"] += 1
+                return
+            if self.processes.get(name, {}).get("online") != alive:
+                self.history.add(StateChange(now, "process", name,
+                                             "online" if not alive else "offline",
+                                             "online" if alive else "offline"))
+                self.processes[name] = {"online": alive, "since": now}
+            if alive:
+                self._alarms.clear("process_lost", name, now)
+            elif not self.run_ended and not self.source_gone():
+                self._alarms.raise_("process_lost", name, now)
 
     def on_ros2_token(self, key: str, alive: bool, now: float) -> None:
         """A token of the ROS 2 graph (`@ros2_lv/<domain>/…`): the graph takes it in O(1),
@@ -405,8 +435,10 @@ class Supervisor:
                                "online": self._online(r), "since": r.since})
             tasks = [{"id": t.id, "state": t.state, "robots": list(t.robots), "since": t.since}
                      for t in self.tasks.values()]
+            processes = [{"id": name, **p} for name, p in sorted(self.processes.items())]
             return {"time": now, "application": self.app.name, "architecture": self.arch.name,
-                    "robots": robots, "tasks": tasks, "alarms": self._alarms.to_json(),
+                    "robots": robots, "tasks": tasks, "processes": processes,
+                    "alarms": self._alarms.to_json(),
                     "run_ended": self.run_ended, "ros2": self.ros2.snapshot(),
                     "transitions": [t.to_json() for t in self.history.recent(transitions)],
                     "counts": dict(self.counts)}

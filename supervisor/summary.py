@@ -107,6 +107,18 @@ class MessageRates(msgspec.Struct, forbid_unknown_fields=True):
     namespace_per_second: float | None = None   # None: a summary written before it was counted
     coordination_kinds: list[str] = []
     total: int | None = None  # the samples counted (results.csv's `messages`); None: older summary
+    by_kind: dict[str, int] = {}  # coordination samples of each kind (results: messages.<kind>)
+
+
+class Decisions(msgspec.Struct, forbid_unknown_fields=True):
+    """The allocation decisions an architecture's messages record (Architecture.decision): how
+    many, their computation time — the machine's, like `wall_seconds`: the one part of a
+    lockstep run its seed does not fix — and the objective they optimised."""
+
+    count: int
+    median_ms: float | None
+    max_ms: float | None
+    objective: str | None = None
 
 
 class Summary(msgspec.Struct, forbid_unknown_fields=True):
@@ -143,6 +155,10 @@ class Summary(msgspec.Struct, forbid_unknown_fields=True):
     run_status: str = COMPLETE
     disturbances: list[Disturbance] = []
     recorded_until: float | None = None  # the recording's last simulated second
+    # when the mission's work was over (every task done: Mission.ended_at), before the
+    # duration: the figures cover the run up to then; None: it ran to its duration
+    ended_at: float | None = None
+    decisions: Decisions | None = None   # None: the architecture records none
     schema: int = SCHEMA
     # the application's own sections (its Mission's `summary_sections` type): written at the
     # top level of summary.json, not under this name (write_summary / read_summary)
@@ -303,6 +319,13 @@ def flat_metrics(summary: Summary) -> dict[str, Any]:
     row["coordination_messages_per_second"] = summary.messages.coordination_per_second
     row["namespace_messages_per_second"] = ("" if summary.messages.namespace_per_second is None
                                             else summary.messages.namespace_per_second)
+    for kind, count in summary.messages.by_kind.items():
+        row[f"messages.{kind}"] = count
+    row["ended_at"] = "" if summary.ended_at is None else summary.ended_at
+    d = summary.decisions
+    row["decisions"] = "" if d is None else d.count
+    row["decision_ms_median"] = "" if d is None or d.median_ms is None else d.median_ms
+    row["decision_ms_max"] = "" if d is None or d.max_ms is None else d.max_ms
     for name, value in summary.metrics.items():
         if isinstance(value, (int, float, str, bool)):
             row[f"metrics.{name}"] = value

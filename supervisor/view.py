@@ -52,6 +52,13 @@ def render(snap: dict, width: int = 120) -> Group:
         parts: list = [top]
     else:
         parts = [robots, tasks]
+    if snap.get("processes"):
+        line = Text("processes: ", style="bold")
+        for p in snap["processes"]:
+            line.append(plain(p["id"]))
+            line.append(Text(" online  " if p["online"] else " offline  ",
+                             style="green" if p["online"] else "bold red"))
+        parts.append(line)
     for a in snap["alarms"][-3:]:
         line = Text("ALARM ", style="bold red")
         line.append(plain(f"{a['kind']} {a['subject']} since {a['since']:.1f}s"))

@@ -36,6 +36,7 @@ VERB_MODULES = {
     "robot_agent/alliance/cli.py",      # mrta agent
     "robot_agent/alliance/plot_cli.py",  # mrta plot motivation
     "robot_agent/murdoch/cli.py",       # mrta murdoch
+    "robot_agent/central/cli.py",       # mrta central, mrta dispatcher
     "simulator/cli.py",                 # mrta sim
     "supervisor/cli.py",                # mrta supervise, mrta view
     "supervisor/plot_cli.py",           # mrta plot, mrta plot timeline

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import math
 
+import msgspec
 import numpy as np
 import pytest
 
@@ -72,12 +73,19 @@ def test_task_open_follows_arrival_capability_completion_and_sensors():
     assert not ev1.is_applicable(1.0)
 
 
-def test_a_robot_that_delivered_serves_no_other_task():
+def test_a_robot_that_delivered_serves_another_task_up_to_the_instances_cap():
+    """Time-extended assignment: a robot that delivered serves another task; an instance's
+    max_tasks_per_robot caps how many (1: instantaneous assignment)."""
     net, clock = InProcNetwork(), ManualClock(1.0)
     ev, _ = evaluator("t4", "robot1", net, clock)
     assert ev.is_applicable(1.0)
     done(InProcBus(net), "robot1", "t1")
-    assert not ev.is_applicable(1.0)
+    assert ev.is_applicable(1.0)              # unlimited by default
+    for cap, applicable in ((1, False), (2, True)):
+        capped = msgspec.structs.replace(load_instance(), max_tasks_per_robot=cap)
+        ev.ctx.sections[("Delivery", DeliveryParams)] = capped
+        ev.setup(ev.ctx)
+        assert ev.is_applicable(1.0) is applicable, cap
 
 
 def test_deliver_drives_to_its_task_serves_it_and_tells_the_team(monkeypatch):
@@ -119,21 +127,25 @@ def test_metrics_count_the_first_assignment_and_handovers():
     log = [Entry("t1", "robot3", 1.0, 5.0), Entry("t1", "robot1", 6.0, 20.0, 15.0, 19.0),
            Entry("t2", "robot2", 1.0, 12.0, 10.0, 13.0), Entry("t3", "robot4", 1.0, 14.0, 9.0, 14.0),
            Entry("t4", "robot5", 1.0, 15.0, 12.0, 15.0)]
+    for e, reached in zip(log[1:], (15.0, 10.0, 9.0, 12.0)):
+        e.reached_at = reached
     m = measure(inst, log, {"robot1": 3.0, "robot2": 4.0})
     cost = ia_costs(inst)
     achieved = cost[2, 0] + cost[1, 1] + cost[3, 2] + cost[4, 3]  # t1's first holder: robot3
     assert m["achieved_cost"] == pytest.approx(achieved, abs=1e-3)
-    assert m["optimality"] == pytest.approx(m["optimal_cost"] / achieved, abs=1e-4)
-    assert 0 < m["optimality"] <= 1
+    assert m["ia_optimality"] == pytest.approx(m["optimal_cost"] / achieved, abs=1e-4)
+    assert 0 < m["ia_optimality"] <= 1
     assert (m["completed"], m["handovers"], m["makespan"], m["total_distance"]) == (4, 1, 19.0, 7.0)
     assert m["mean_waiting_time"] == pytest.approx((15 + 10 + 9 + 12) / 4)
+    assert m["overlaps"] == 0  # robot3 gave t1 up (5.0) before robot1 took it (6.0)
     partial = measure(inst, log[:2], {})
-    assert partial["optimality"] is None and partial["makespan"] is None
+    assert partial["ia_optimality"] is None and partial["makespan"] is None
 
 
 def test_the_shipped_packages_are_what_the_generator_writes():
-    files = all_files(load_instance(INSTANCE), "delivery", "delivery_murdoch")
+    files = all_files(load_instance(INSTANCE))
     assert "delivery/worlds/delivery.yaml" in files
+    assert {"delivery_central/config/instance.yaml", "delivery_central_answers.yaml"} <= set(files)
     for rel, data in files.items():
         assert (CONFIGS / "applications" / rel).read_bytes() == data, rel
 

@@ -19,6 +19,7 @@ PACKAGES = {
     "mrta_agent.runtime": ROOT / "robot_agent" / "runtime",
     "mrta_agent.alliance": ROOT / "robot_agent" / "alliance",
     "mrta_agent.murdoch": ROOT / "robot_agent" / "murdoch",
+    "mrta_agent.central": ROOT / "robot_agent" / "central",
     "mrta_agent.ssi": ROOT / "robot_agent" / "ssi",
     "mrta_agent.cbba": ROOT / "robot_agent" / "cbba",
     "mrta_simulator": ROOT / "simulator",
@@ -27,33 +28,42 @@ PACKAGES = {
     "mrta_patrol_murdoch": ROOT / "configs" / "applications" / "patrol_murdoch",
     "mrta_delivery": ROOT / "configs" / "applications" / "delivery",
     "mrta_delivery_murdoch": ROOT / "configs" / "applications" / "delivery_murdoch",
+    "mrta_delivery_central": ROOT / "configs" / "applications" / "delivery_central",
 }
 APPS = {"mrta_patrol", "mrta_patrol_murdoch", "mrta_delivery", "mrta_delivery_murdoch",
-        "ping_app"}
+        "mrta_delivery_central", "ping_app"}
 FORBIDDEN = {
     "mrta_zenoh": {"mrta_agent", "mrta_simulator", "mrta_supervisor"} | APPS,
-    "mrta_agent.runtime": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_simulator",
+    "mrta_agent.runtime": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_agent.central",
+                           "mrta_agent.ssi", "mrta_agent.cbba",
+                           "mrta_simulator", "mrta_supervisor"} | APPS,
+    "mrta_agent.alliance": {"mrta_agent.murdoch", "mrta_agent.central", "mrta_simulator",
+                            "mrta_supervisor"} | APPS,
+    "mrta_agent.murdoch": {"mrta_agent.alliance", "mrta_agent.central", "mrta_simulator",
                            "mrta_supervisor"} | APPS,
-    "mrta_agent.alliance": {"mrta_agent.murdoch", "mrta_simulator", "mrta_supervisor"} | APPS,
-    "mrta_agent.murdoch": {"mrta_agent.alliance", "mrta_simulator", "mrta_supervisor"} | APPS,
+    "mrta_agent.central": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_simulator",
+                           "mrta_supervisor"} | APPS,
     "mrta_agent.ssi": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_agent.cbba",
-                       "mrta_simulator", "mrta_supervisor"} | APPS,
+                       "mrta_agent.central", "mrta_simulator", "mrta_supervisor"} | APPS,
     "mrta_agent.cbba": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_agent.ssi",
-                        "mrta_simulator", "mrta_supervisor"} | APPS,
+                        "mrta_agent.central", "mrta_simulator", "mrta_supervisor"} | APPS,
     "mrta_simulator": {"mrta_agent", "mrta_supervisor"} | APPS,
     "mrta_supervisor": {"mrta_agent", "mrta_simulator"} | APPS,
     # an application reaches an architecture only through its registered contract
     "mrta_patrol": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_patrol_murdoch"},
     "mrta_patrol_murdoch": {"mrta_zenoh", "mrta_agent", "mrta_simulator", "mrta_supervisor",
                             "mrta_patrol"},  # holds no code at all
-    "mrta_delivery": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_delivery_murdoch",
-                      "mrta_patrol"},
+    "mrta_delivery": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_agent.central",
+                      "mrta_delivery_murdoch", "mrta_delivery_central", "mrta_patrol"},
     "mrta_delivery_murdoch": {"mrta_zenoh", "mrta_agent", "mrta_simulator", "mrta_supervisor",
+                              "mrta_delivery"},  # holds no code at all
+    "mrta_delivery_central": {"mrta_zenoh", "mrta_agent", "mrta_simulator", "mrta_supervisor",
                               "mrta_delivery"},  # holds no code at all
 }
 # the top-level import names the wheel installs: none may be another PyPI project's
 TOP_LEVEL = {"mrta_zenoh", "mrta_agent", "mrta_simulator", "mrta_supervisor", "mrta_patrol",
-             "mrta_patrol_murdoch", "mrta_delivery", "mrta_delivery_murdoch"}
+             "mrta_patrol_murdoch", "mrta_delivery", "mrta_delivery_murdoch",
+             "mrta_delivery_central"}
 
 
 def module_of(path: Path, package: str) -> str:
@@ -117,7 +127,8 @@ def test_the_framework_has_no_patrol_specific_code():
     core never mention the patrol application's plugins, messages or keys (docstrings aside)."""
     bad = []
     for package in ("mrta_zenoh", "mrta_agent.runtime", "mrta_agent.alliance",
-                    "mrta_agent.murdoch", "mrta_simulator", "mrta_supervisor"):
+                    "mrta_agent.murdoch", "mrta_agent.central", "mrta_simulator",
+                    "mrta_supervisor"):
         for f in sorted(PACKAGES[package].rglob("*.py")):
             tree = ast.parse(f.read_text(encoding="utf-8"))
             docstrings = {id(n.body[0].value) for n in ast.walk(tree)

@@ -105,6 +105,13 @@ SHORT_HELP = {
         "Run a launch file: `mrta launch PACKAGE FILE.launch [name:=value …]` or a path.",
     "mrta_agent.murdoch.cli:murdoch":
         "Run ROBOT_ID's MURDOCH agent: auctions, leases, sensors, evaluators and layers.",
+    "mrta_agent.central.cli:central":
+        "Run ROBOT_ID's central agent: serve the queue the dispatcher sends, report progress "
+        "(sensors, evaluators and layers as every agent).",
+    "mrta_agent.central.cli:dispatcher":
+        "Run central's dispatcher: it re-solves the problem at each arrival, completion or "
+        "robot loss and sends each robot its queue (docs/central.md). Its faults come from "
+        "$MRTA_FAULTS, e.g. crash:dispatcher@T.",
     "mrta_supervisor.plot_cli:plot":
         "Plots from a recording made with `mrta record` (or `mrta demo`).",
     "mrta_zenoh.cli.record:record":

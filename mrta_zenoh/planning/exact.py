@@ -52,7 +52,7 @@ def _extend(problem: Problem, i: int, label: _Label | None, j: int,
             objective: Objective) -> _Label:
     leg = problem.travel(i, None if label is None else label.task, j)
     task = problem.tasks[j]
-    now = 0.0 if label is None else label.time
+    now = problem.robots[i].ready if label is None else label.time
     end = max(now + leg, task.arrival) + task.service
     before = 0.0 if label is None else label.value
     value = (before + leg if objective is Objective.MINSUM
@@ -82,13 +82,16 @@ def best_alone(problem: Problem, i: int, objective: Objective) -> dict[int, _Lab
     """Robot i's best label for every non-empty set of tasks it can serve (bit mask → label)."""
     n = len(problem.tasks)
     able = sum(1 << j for j in range(n) if problem.capable(i, j))
+    cap = problem.robots[i].capacity
+    if cap == 0:
+        return {}
     states: dict[tuple[int, int], list[_Label]] = {}
     for j in _bits(able):
         states[(1 << j, j)] = [_extend(problem, i, None, j, objective)]
     # masks in increasing order: every state's predecessors are complete before it is extended
     for mask in range(1, 1 << n):
-        if mask & ~able:
-            continue
+        if mask & ~able or (cap is not None and mask.bit_count() >= cap):
+            continue  # not its to serve, or full: nothing more is added to it
         for last in _bits(mask):
             for label in states.get((mask, last), ()):
                 for j in _bits(able & ~mask):
@@ -137,6 +140,8 @@ def solve_exact(problem: Problem, objective: Objective | str) -> Exact:
                         nxt[key] = (total, {**routes, i: label.route()})
                 sub = (sub - 1) & rest
         g = nxt
+    if full not in g:
+        raise ConfigError("the robots' capacities (max tasks per robot) cannot serve every task")
     value, routes = g[full]
     return Exact(value if n else 0.0, {i: routes.get(i, []) for i in range(m)})
 

@@ -30,6 +30,10 @@ class Robot:
     start: Point
     speed: float                          # m/s: the speed it drives at (its commanded cap)
     capabilities: frozenset[str] = frozenset()
+    # when it leaves its start (s): 0 for a fresh robot; a re-planning dispatcher gives a robot
+    # the completion of the tasks it is committed to, its start being the last of them
+    ready: float = 0.0
+    capacity: int | None = None           # tasks it may serve at most (None: unlimited)
 
 
 @dataclass(frozen=True)
@@ -66,6 +70,10 @@ class Problem:
             if not (math.isfinite(r.speed) and r.speed > 0):
                 raise ConfigError(f"robot {r.id}: speed must be a finite number > 0, "
                                   f"got {r.speed!r}")
+            if not (math.isfinite(r.ready) and r.ready >= 0):
+                raise ConfigError(f"robot {r.id}: ready must be ≥ 0, got {r.ready!r}")
+            if r.capacity is not None and r.capacity < 0:
+                raise ConfigError(f"robot {r.id}: capacity must be ≥ 0, got {r.capacity!r}")
         for t in self.tasks:
             for name in ("arrival", "service"):
                 value = getattr(t, name)

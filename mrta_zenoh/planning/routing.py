@@ -83,10 +83,19 @@ def solve_routing(problem: Problem, objective: Objective | str, *, solutions: in
                                               for a in nodes]) for t in travel]
     for i in range(m):
         routing.SetArcCostEvaluatorOfVehicle(travel_cb[i], i)
+    ready = [round(r.ready * SCALE) for r in problem.robots]
     horizon = (sum(max(map(max, t)) for t in travel) + sum(service_ms(a) for a in nodes)
-               + round(max(t.arrival for t in problem.tasks) * SCALE)) * 2 + 1
-    routing.AddDimensionWithVehicleTransits(time_cb, horizon, horizon, True, "time")
+               + round(max(t.arrival for t in problem.tasks) * SCALE) + max(ready)) * 2 + 1
+    routing.AddDimensionWithVehicleTransits(time_cb, horizon, horizon, False, "time")
     clock = routing.GetDimensionOrDie("time")
+    for i in range(m):  # a robot leaves its start at its ready time (0 for a fresh one)
+        clock.CumulVar(routing.Start(i)).SetValue(ready[i])
+    if any(r.capacity is not None for r in problem.robots):
+        count = routing.RegisterUnaryTransitCallback(
+            lambda index: 1 if task_of(manager.IndexToNode(index)) is not None else 0)
+        routing.AddDimensionWithVehicleCapacity(
+            count, 0, [n if r.capacity is None else r.capacity for r in problem.robots], True,
+            "tasks")
     for j, task in enumerate(problem.tasks):
         index = manager.NodeToIndex(m + j)
         clock.CumulVar(index).SetMin(round(task.arrival * SCALE))

@@ -46,9 +46,10 @@ class Visit:
 
 
 def route_visits(problem: Problem, i: int, route: Sequence[int]) -> list[Visit]:
-    """The timing of robot i serving `route` (task indices) in order, from its start at 0."""
+    """The timing of robot i serving `route` (task indices) in order, from its start at its
+    `ready` time (0 unless a planner re-solving mid-run set it)."""
     visits: list[Visit] = []
-    now, at = 0.0, None
+    now, at = problem.robots[i].ready, None
     for j in route:
         leg = problem.travel(i, at, j)
         reach = now + leg
@@ -77,11 +78,16 @@ class Evaluation:
 
 
 def check_routes(problem: Problem, routes: Mapping[int, Sequence[int]]) -> None:
-    """ConfigError unless every task appears at most once, on a robot able to serve it."""
+    """ConfigError unless every task appears at most once, on a robot able to serve it, and no
+    robot serves more than its capacity."""
     seen: dict[int, int] = {}
     for i, route in routes.items():
         if not 0 <= i < len(problem.robots):
             raise ConfigError(f"routes name robot index {i}, not in the instance")
+        cap = problem.robots[i].capacity
+        if cap is not None and len(route) > cap:
+            raise ConfigError(f"robot {problem.robots[i].id} serves {len(route)} tasks, more "
+                              f"than its {cap}")
         for j in route:
             if not 0 <= j < len(problem.tasks):
                 raise ConfigError(f"robot {problem.robots[i].id}'s route names task index {j}")

@@ -66,6 +66,7 @@ class HostedAgent(Protocol):
     log: logging.Logger
     faults: FaultPlan | None
     ctx: object
+    is_process: bool  # one of the architecture's processes (a dispatcher), not a robot
 
     def limit_team(self, team) -> None: ...
     def start(self) -> None: ...
@@ -77,17 +78,20 @@ class HostedAgent(Protocol):
 
 def host(make_agent: Callable[[Bus, Clock, np.random.Generator], HostedAgent],
          options: AgentOptions, *, warnings: list[str], describe: str,
-         stop: threading.Event | None = None, logger: logging.Logger = log) -> int:
+         stop: threading.Event | None = None, logger: logging.Logger = log,
+         role: str = ROBOT) -> int:
     """Say the parameter warnings, start the node (on simulation time a lockstep participant
     named after the robot), build the agent with its random stream (from the run's seed and
     its id), declare it alive once it is ready, run until stopped — or until it crashes itself
-    at its fault's time — then shut it down."""
+    at its fault's time — then shut it down. `role`: a robot's, or that of a process the
+    architecture runs beside its robots (central's dispatcher: `options.robot_id` is then its
+    name), hosted the same way."""
     robot_id, sim_time = options.robot_id, options.sim_time
     # a bad $MRTA_FAULTS (or a second fault for this robot) is bad input: before the bus
     faults = plan_from_env(robot_id, options.seed, options.crash_at)
     for w in warnings:
         logger.warning("%s", w)
-    node = Node(options.bus_options, ROBOT, name=robot_id, stop=stop,
+    node = Node(options.bus_options, role, name=robot_id, stop=stop,
                 time=NodeTime.LOCKSTEP if sim_time else NodeTime.WALL)
     with node:
         agent = make_agent(node.bus, node.clock, robot_rng(options.seed, robot_id))
@@ -131,7 +135,8 @@ def _clock_watchdog(agent: HostedAgent, clock: SimClock, stop: threading.Event) 
                 agent.log.warning("%s: the simulation clock stopped at t=%.2f (no sample for "
                                   "%.0f s): robot stopped until it comes back", agent.robot_id,
                                   clock.now(), CLOCK_WATCHDOG)
-                agent.ctx.publish_cmd(0.0, 0.0)
+                if not agent.is_process:  # a dispatcher has no body to stop
+                    agent.ctx.publish_cmd(0.0, 0.0)
         elif stopped:
             stopped = False
             agent.log.warning("%s: the simulation clock is back at t=%.2f", agent.robot_id,

@@ -139,7 +139,10 @@ class Agent:
     def limit_team(self, team: Iterable[str] | None) -> None:
         """Only these robots (ids as AgentOptions spells them) may join the team; None: anyone
         holding the architecture's agent token (module docstring). Before `start`."""
-        self.roster = None if team is None else frozenset([*team, self.robot_id])
+        # the architecture's own processes (a dispatcher) are on every team: they join it
+        # through their process token, never as robots
+        self.roster = None if team is None else frozenset(
+            [*team, self.robot_id, *self.architecture.processes])
 
     def start(self) -> None:
         """Plugins subscribe, then the agent listens to its teammates and their tokens."""
@@ -162,6 +165,10 @@ class Agent:
             self._handles.append(self.bus.watch_liveliness(arch.key("*", SUBJECT, "*"),
                                                            self._on_subject_token))
         self._handles.append(self.bus.watch_liveliness(arch.agent_tokens, self._on_token))
+        for name in arch.processes:
+            if name != self.robot_id:
+                self._handles.append(self.bus.watch_liveliness(
+                    arch.process_token(name), lambda _k, alive, n=name: self._record(n, alive)))
 
     def listen_keys(self, kind: str) -> list[str]:
         """The key expressions the agent subscribes to for `kind`: every robot's, or only the
@@ -194,7 +201,15 @@ class Agent:
         for subject in self.advertised():
             self._handles.append(self.bus.declare_token(arch.key(self.robot_id, SUBJECT,
                                                                  subject)))
-        self._handles.append(self.bus.declare_token(arch.agent_token(self.robot_id)))
+        self._handles.append(self.bus.declare_token(
+            arch.process_token(self.robot_id) if self.is_process else
+            arch.agent_token(self.robot_id)))
+
+    @property
+    def is_process(self) -> bool:
+        """Whether this agent is one of the architecture's processes (a dispatcher), not a
+        robot: its token is its process token, and it has no body to command."""
+        return self.robot_id in self.architecture.processes
 
     def await_team(self, stop: threading.Event, limit: float = TEAM_WAIT) -> list[str]:
         """Before the first tick in lockstep: wait (wall time, at most `limit`) until every
@@ -226,8 +241,14 @@ class Agent:
     def _on_token(self, key: str, alive: bool) -> None:
         """A teammate's token came or went: recorded for the loop thread, which owns the team."""
         robot = first_chunk(key)
+        if robot in self.architecture.processes:
+            return  # a process is on the team by its process token only, never as a robot
         if self._outsider(key, robot, alive):
             return
+        self._record(robot, alive)
+
+    def _record(self, robot: str, alive: bool) -> None:
+        """A teammate (a robot, or one of the architecture's processes) came or went."""
         with self._token_lock:
             if alive and robot not in self._alive and len(self._alive) >= MAX_TOKENS:
                 self.ignored_tokens += 1
@@ -441,7 +462,8 @@ class Agent:
         for layer in self.layers_of(self.active_task):
             layer.on_deactivate(now)
         self.stalled = True
-        self.ctx.publish_cmd(0.0, 0.0)
+        if not self.is_process:
+            self.ctx.publish_cmd(0.0, 0.0)
 
     def switch_layers(self, task: str | None, now: float) -> None:
         """Make `task`'s layers the running ones: terminate the old task's layers, initialise
@@ -489,7 +511,8 @@ class Agent:
         now = self.clock.now()
         for layer in self.layers_of(self.active_task):
             layer.on_deactivate(now)
-        self.ctx.publish_cmd(0.0, 0.0)
+        if not self.is_process:
+            self.ctx.publish_cmd(0.0, 0.0)
         self.plugins.shutdown()
         for h in self._handles:
             h.close()

@@ -9,7 +9,8 @@ The agent is a fixed driver and plugins fill in hooks, with py_trees' life cycle
                         sensor's *own* timeout_duration
     SensoryEvaluator    is_applicable(now) -> bool, once per high-level tick
     Layer               on_activate(now) (py_trees' initialise), step(now, dt) at the control
-                        rate while its task is active (update), on_deactivate(now) (terminate)
+                        rate while its task is active (update), done(now) (SUCCESS: the
+                        robot finished it), on_deactivate(now) (terminate)
     ──
     shutdown()          once: every subscription opened through self.subscribe is closed
 
@@ -242,6 +243,13 @@ class Layer(Plugin):
 
     def step(self, now: float, dt: float) -> None:
         raise NotImplementedError
+
+    def done(self, now: float) -> bool:
+        """Whether this robot has finished the task since its last activation (py_trees'
+        SUCCESS): what a robot serving a route of tasks moves on at
+        (mrta_agent.runtime.route). Default: never — a continuous task (patrol's) is not
+        finished by running it."""
+        return False
 
     def on_deactivate(self, now: float) -> None:
         self.ctx.publish_cmd(0.0, 0.0)

@@ -55,7 +55,8 @@ class Board:
         with self._lock:
             return task_id in self.done
 
-    def delivered_by(self, robot: str) -> bool:
-        """Whether `robot` has completed a delivery (under IA it then serves no other)."""
+    def delivered_by(self, robot: str) -> int:
+        """How many deliveries `robot` has completed (an instance's max_tasks_per_robot caps
+        them)."""
         with self._lock:
-            return any(r == robot for r, _ in self.done.values())
+            return sum(1 for r, _ in self.done.values() if r == robot)

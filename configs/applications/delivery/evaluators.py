@@ -1,9 +1,10 @@
-"""`delivery/task_open`: the sensory feedback (ALLIANCE) and progress evaluator (MURDOCH) of a
-delivery task. Applicable while the robot's sensors are fresh, the task has arrived, nobody has
-completed it, the robot can serve it (capability) and the robot has completed no delivery
-(instantaneous assignment: each robot serves at most one task). A teammate's `done` makes it
-inapplicable at once: ALLIANCE drops the behaviour set, MURDOCH's holder gives the task back and
-nobody bids for it again.
+"""`delivery/task_open`: the sensory feedback (ALLIANCE), progress evaluator (MURDOCH) and
+route evaluator (central) of a delivery task. Applicable while the robot's sensors are fresh,
+the task has arrived, nobody has completed it, the robot can serve it (capability) and has
+served fewer than the instance's `max_tasks_per_robot` (unlimited by default: a robot that
+delivered serves another task, time-extended assignment; 1 is instantaneous assignment). A
+teammate's `done` makes it inapplicable at once: ALLIANCE drops the behaviour set, MURDOCH's
+holder gives the task back and nobody bids for it again.
 
 Sensors: a sensor that has reported and then went silent makes the task inapplicable; one that
 has not reported yet does not. Whether the first odometry sample arrives before or after a
@@ -28,10 +29,11 @@ class TaskOpen(SensoryEvaluator):
         params = ctx.section("Delivery", DeliveryParams)
         self.arrival = params.task(self.task_id).arrival
         self.capable = params.capable(ctx.robot_id, self.task_id)
+        self.cap = params.max_tasks_per_robot
         self.board = Board.of(self)
 
     def is_applicable(self, now: float) -> bool:
         return (self.capable and now >= self.arrival - EPSILON
                 and all(s.latest_time is None or s.is_up_to_date(now) for s in self.sensors)
                 and not self.board.is_done(self.task_id)
-                and not self.board.delivered_by(self.ctx.robot_id))
+                and (self.cap is None or self.board.delivered_by(self.ctx.robot_id) < self.cap))

@@ -1,14 +1,17 @@
-"""Both delivery application packages from one instance: `python -m mrta_delivery.generate_cli
+"""The delivery application packages from one instance — ALLIANCE's `delivery`, MURDOCH's
+`delivery_murdoch` and central's `delivery_central`: `python -m mrta_delivery.generate_cli
 [--instance FILE] [--output DIR] [--arrivals poisson --rate R --seed S]` writes the shipped ones
 (or copies elsewhere); `derive` writes a run's own into its folder (`mrta demo --instance FILE`).
 
 The rqt_mrta files (package.xml, rqt_mrta.xml, the robots' parameter files, the tasks file, the
-per-robot launch files) come from the toolchain's own generator (`mrta app new`'s
-`build_application`), fed with answers computed from the instance; the layers file (the
-instance as its `Delivery` section), `launch/delivery_sim.launch` (the simulator with the
-instance's starts, and one agent per robot of the instance) and, in the ALLIANCE package,
-`worlds/delivery.yaml` (the instance's room and walls, the world the simulator loads by name)
-are written beside them. The Python modules of
+per-robot launch files; central's dispatcher file) come from the toolchain's own generator
+(`mrta app new`'s `build_application`), fed with answers computed from the instance — central's
+are also written as `delivery_central_answers.yaml` beside the packages, from which `mrta app
+new --answers` makes the same files; the layers file (the instance as its `Delivery` section),
+`launch/delivery_sim.launch` (the simulator with the instance's starts, one agent per robot of
+the instance, and central's dispatcher), central's `config/instance.yaml` (what its dispatcher
+plans on) and, in the ALLIANCE package, `worlds/delivery.yaml` (the instance's room and walls,
+the world the simulator loads by name) are written beside them. The Python modules of
 `mrta_delivery` are not touched. tests/test_delivery.py checks that the shipped packages are
 exactly what this writes.
 
@@ -18,11 +21,18 @@ How the instance becomes each architecture's parameters (docs/delivery.md):
   fast_rate = θ / (ρ · α · cost) per tick — the robot's motivation for a task reaches θ after
   α · cost seconds, so the cheapest (robot, task) pair activates first, its broadcast resets
   the others' motivation for that task, and the next cheapest pair follows: greedy assignment
-  in order of cost, as L-ALLIANCE's learnt impatience would make it. expected_duration (the
-  patience φ teammates grant) is twice the cost and service, plus 10 s.
+  in order of cost, as L-ALLIANCE's learnt impatience would make it. A robot serves several
+  tasks one after another (time-extended): a rate is fixed while its motivation grows, so the
+  cost it is computed from is the robot's travel time to the task from where it may be when
+  it next becomes free — its start or any other task it can serve, averaged (`where_it_will_be`).
+  expected_duration (the patience φ teammates grant) is twice that cost and the service, plus
+  10 s.
 * MURDOCH: one skill per task the robot can serve (level 1) and utility
   1 − w · distance / speed (distance_weight = w / speed): bids are 1 − w · cost, so the
-  auctioneer's greedy award is again the lowest cost first.
+  auctioneer's greedy award is again the lowest cost first. Bids are priced from the robot's
+  pose when it bids, so a robot that finished a task bids from there.
+* central: one task entry per task the robot can serve (its evaluator), the dispatcher on
+  MinSum with its defaults (robot_agent/central/params.py).
 """
 
 from __future__ import annotations
@@ -33,6 +43,7 @@ import random
 from pathlib import Path
 
 import msgspec
+import yaml
 
 from mrta_zenoh.architectures import TEAM_ENV
 from mrta_zenoh.errors import ConfigError
@@ -75,11 +86,23 @@ def with_poisson_arrivals(params: DeliveryParams, rate: float, seed: int) -> Del
 
 
 def _costs(params: DeliveryParams) -> dict[tuple[str, str], float]:
-    """Each robot's travel time from its start to each task: the planning problem's (around
-    the walls when there are any)."""
+    """Each robot's travel time to each task from where it will be (`where_it_will_be`): the
+    planning problem's travel times (around the walls when there are any)."""
     problem = params.problem()
-    return {(r.id, t.id): problem.travel(i, None, j) for i, r in enumerate(problem.robots)
+    return {(r.id, t.id): where_it_will_be(problem, i, j) for i, r in enumerate(problem.robots)
             for j, t in enumerate(problem.tasks)}
+
+
+def where_it_will_be(problem, i: int, j: int) -> float:
+    """Robot i's travel time to task j from where it may be when it next becomes free: from
+    its start, and — when the instance has more tasks than robots, so that robots serve several
+    — from each other task it can serve, averaged. With no more tasks than robots every robot
+    serves at most one in the greedy order, from its start: the IA rate, unchanged."""
+    if len(problem.tasks) <= len(problem.robots):
+        return problem.travel(i, None, j)
+    places = [None] + [k for k in range(len(problem.tasks))
+                       if k != j and problem.capable(i, k)]
+    return sum(problem.travel(i, k, j) for k in places) / len(places)
 
 
 def _sig(x: float) -> float:
@@ -137,6 +160,42 @@ def alliance_answers(params: DeliveryParams, package: str = "delivery") -> Answe
                    + (["delivery"] if package != "delivery" else []), **COMMON)
 
 
+def central_answers(params: DeliveryParams, package: str = "delivery_central") -> Answers:
+    robots = _robot_tasks(params)
+    per_robot = {}
+    for k, (rid, tasks) in enumerate(robots.items()):
+        per_robot[rid] = {
+            "name": f"Robot {k + 1}", "spin_rate": SPIN, "report_period": 1.0, "lease": 3.0,
+            "pose_topic": "odom", "sensors": SENSORS,
+            "tasks": [{"evaluator": {"plugin_name": EVALUATOR,
+                                     "sensors": [{"topic_name": "odom"}]}} for _ in tasks]}
+    return Answers(package=package, name="Delivery (central)", architecture="central",
+                   robots=robots,
+                   configs={"central_params": per_robot,
+                            "tasks_central_params": {"tasks": _tasks_list(params, False)},
+                            "dispatcher_central_params": {"objective": "minsum"}},
+                   description="Point-task delivery (ST-SR-TA) with a central dispatcher "
+                               "re-solving the routing problem: robots of different speeds and "
+                               "capabilities, each serving a queue.",
+                   depends=["simulator", "supervisor", "delivery"], **COMMON)
+
+
+def answers_yaml(answers: Answers) -> bytes:
+    """An answers file (`mrta app new --answers`) holding `answers`."""
+    head = (f"# Answers for `mrta app new --answers`: the rqt_mrta files of "
+            f"configs/applications/{answers.package}\n# (written by `python -m "
+            "mrta_delivery.generate_cli` from instance.yaml; docs/delivery.md). The package "
+            "also holds\n# the layers file, its delivery_sim.launch and the instance its "
+            "dispatcher plans on,\n# which the generator writes beside these.\n")
+    body = {"package": answers.package, "name": answers.name, "version": answers.version,
+            "description": answers.description, "maintainer": answers.maintainer,
+            "email": answers.email, "license": answers.license,
+            "architecture": answers.architecture, "depends": answers.depends,
+            "robots": answers.robots, "configs": answers.configs}
+    return (head + yaml.safe_dump(body, sort_keys=False, allow_unicode=True,
+                                  width=100)).encode()
+
+
 def murdoch_answers(params: DeliveryParams, package: str = "delivery_murdoch") -> Answers:
     robots = _robot_tasks(params)
     per_robot = {}
@@ -185,7 +244,8 @@ def world_yaml(params: DeliveryParams) -> bytes:
     return (head + "\n".join(lines) + "\n").encode()
 
 
-def sim_launch(params: DeliveryParams, package: str, arch_pkg: str, stem: str) -> bytes:
+def sim_launch(params: DeliveryParams, package: str, arch_pkg: str, stem: str,
+               dispatcher: bool = False) -> bytes:
     starts = " ".join(f"--robot {rid}={r.start[0]:g},{r.start[1]:g},{r.heading:g}"
                       for rid, r in params.robots.items())
     lines = [
@@ -216,6 +276,15 @@ def sim_launch(params: DeliveryParams, package: str, arch_pkg: str, stem: str) -
             f'    <arg name="layers_params" value="$(find {package})/config/layers_{stem}_params.yaml"/>',
             '    <arg name="agent_args" value="--sim-time"/>',
             "  </include>"]
+    if dispatcher:
+        lines += [
+            "  <!-- the dispatcher: a lockstep participant beside the robots, planning on the "
+            "instance -->",
+            f'  <include file="$(find {arch_pkg})/launch/dispatcher.launch">',
+            f'    <arg name="params" value="$(find {package})/config/dispatcher_{stem}_params.yaml"/>',
+            f'    <arg name="instance" value="$(find {package})/config/instance.yaml"/>',
+            '    <arg name="dispatcher_args" value="--application delivery --sim-time"/>',
+            "  </include>"]
     lines.append("</launch>")
     return ("\n".join(lines) + "\n").encode()
 
@@ -232,31 +301,50 @@ def package_files(params: DeliveryParams, answers: Answers, registry: Registry |
                                               if c.id != f"layers_{stem}_params"])
     _, files = build_application(arch_pkg, arch, answers)
     files[f"config/layers_{stem}_params.yaml"] = layers_yaml(params, stem)
-    files["launch/delivery_sim.launch"] = sim_launch(params, answers.package, arch_pkg.name, stem)
+    planned = bool(arch.config(f"dispatcher_{stem}_params"))  # an architecture with a dispatcher
+    files["launch/delivery_sim.launch"] = sim_launch(params, answers.package, arch_pkg.name, stem,
+                                                     dispatcher=planned)
+    if planned:
+        files["config/instance.yaml"] = instance_yaml(params)
     return files
 
 
-def all_files(params: DeliveryParams, alliance: str, murdoch: str) -> dict[str, bytes]:
-    """Both packages' generated files, by path under their common parent folder."""
+def instance_yaml(params: DeliveryParams) -> bytes:
+    """The instance as a document (what a dispatcher plans on, `--instance`)."""
+    head = ("# The delivery instance this package runs (written by `python -m "
+            "mrta_delivery.generate_cli` from instance.yaml; docs/delivery.md)\n")
+    body = {"application": "delivery", **document_data(params)}
+    for key in ("tolerance", "turn_rate"):
+        body.pop(key, None)
+    return (head + document_yaml(body)).encode()
+
+
+def all_files(params: DeliveryParams, alliance: str = "delivery",
+              murdoch: str = "delivery_murdoch",
+              central: str = "delivery_central") -> dict[str, bytes]:
+    """Every package's generated files, by path under their common parent folder, and
+    central's answers file beside them."""
     files = {}
-    for answers, folder in ((alliance_answers(params, alliance), alliance),
-                            (murdoch_answers(params, murdoch), murdoch)):
+    made = ((alliance_answers(params, alliance), alliance),
+            (murdoch_answers(params, murdoch), murdoch),
+            (central_answers(params, central), central))
+    for answers, folder in made:
         for rel, data in package_files(params, answers).items():
             files[f"{folder}/{rel}"] = data
     files[f"{alliance}/worlds/delivery.yaml"] = world_yaml(params)
+    files[f"{central}_answers.yaml"] = answers_yaml(made[2][0])
     return files
 
 
-def generate(params: DeliveryParams, alliance_dir: Path, murdoch_dir: Path) -> list[Path]:
-    """Write both packages' generated files. Everything is built before the first file is
+def generate(params: DeliveryParams, folder: Path, name: str = "delivery") -> list[Path]:
+    """Write every package's generated files into `folder`: NAME (ALLIANCE), NAME_murdoch,
+    NAME_central and NAME_central_answers.yaml. Everything is built before the first file is
     written, so a bad instance writes nothing; each file is replaced atomically (the package
     folders also hold this application's Python modules, so they are not replaced whole)."""
-    if alliance_dir.parent != murdoch_dir.parent:
-        raise ConfigError("both packages go into one folder")
-    files = all_files(params, alliance_dir.name, murdoch_dir.name)
+    files = all_files(params, name, f"{name}_murdoch", f"{name}_central")
     written = []
     for rel, data in sorted(files.items()):
-        path = alliance_dir.parent / rel
+        path = folder / rel
         path.parent.mkdir(parents=True, exist_ok=True)
         write_text(path, data.decode())
         written.append(path)
@@ -264,7 +352,8 @@ def generate(params: DeliveryParams, alliance_dir: Path, murdoch_dir: Path) -> l
 
 
 def derive(doc: InstanceDoc, folder: Path) -> list[Path]:
-    """A run's own packages from an instance (`mrta demo --instance FILE`): `delivery` and
-    `delivery_murdoch` in `folder`, replacing it whole or not at all. Put first on the package
-    path, they shadow the installed ones for that run; nothing is written into those."""
-    return write_folder(folder, all_files(doc.params(), "delivery", "delivery_murdoch"))
+    """A run's own packages from an instance (`mrta demo --instance FILE`): `delivery`,
+    `delivery_murdoch` and `delivery_central` in `folder`, replacing it whole or not at all.
+    Put first on the package path, they shadow the installed ones for that run; nothing is
+    written into those."""
+    return write_folder(folder, all_files(doc.params()))

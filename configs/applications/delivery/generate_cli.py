@@ -18,11 +18,12 @@ from .generate import HERE, INSTANCE, generate, load_instance, with_poisson_arri
 @click.option("--instance", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               default=INSTANCE, show_default=True)
 @click.option("--output", type=OutputPath(folder=True), default=HERE.parent,
-              help="Folder receiving NAME/ and NAME_murdoch/ (default: beside this package, "
-                   "i.e. regenerate the shipped ones).")
+              help="Folder receiving NAME/, NAME_murdoch/, NAME_central/ and "
+                   "NAME_central_answers.yaml (default: beside this package, i.e. regenerate "
+                   "the shipped ones).")
 @click.option("--name", default="delivery", show_default=True,
-              help="Package names: NAME (ALLIANCE) and NAME_murdoch; another name than "
-                   "delivery makes them depend on delivery, whose mission they run.")
+              help="Package names: NAME (ALLIANCE), NAME_murdoch and NAME_central; another "
+                   "name than delivery makes them depend on delivery, whose mission they run.")
 @click.option("--arrivals", type=click.Choice(["static", "poisson"]), default="static",
               show_default=True)
 @click.option("--rate", type=finite_float(min=0, min_open=True), default=0.1, show_default=True,
@@ -31,11 +32,12 @@ from .generate import HERE, INSTANCE, generate, load_instance, with_poisson_arri
               help="Poisson arrivals: their seed.")
 def main(instance: Path, output: Path, name: str, arrivals: str, rate: float,
          seed: int) -> None:
-    """Write both delivery application packages from one instance."""
+    """Write the delivery application packages (ALLIANCE, MURDOCH, central) from one
+    instance."""
     params = load_instance(instance)
     if arrivals == "poisson":
         params = with_poisson_arrivals(params, rate, seed)
-    written = generate(params, output / name, output / f"{name}_murdoch")
+    written = generate(params, output, name)
     click.echo(f"wrote {len(written)} files under {output}")
 
 

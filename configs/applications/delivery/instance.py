@@ -64,6 +64,9 @@ class InstanceBody(msgspec.Struct, forbid_unknown_fields=True):
     tasks: dict[str, TaskSpec] = {}
     world: WorldSpec = DEFAULT_WORLD
     name: str = ""                       # what results carry (a generator's, or the file's stem)
+    # the most tasks one robot serves (None: as many as it likes — time-extended assignment;
+    # 1: instantaneous assignment, each robot one task)
+    max_tasks_per_robot: Annotated[int, msgspec.Meta(ge=1, le=1_000_000)] | None = None
 
     def robot(self, robot_id: str) -> RobotSpec:
         spec = self.robots.get(robot_id)
@@ -120,7 +123,8 @@ class InstanceBody(msgspec.Struct, forbid_unknown_fields=True):
     def problem(self) -> Problem:
         """The planning problem (file order), distances around the walls when there are any."""
         robots = tuple(Robot(rid, (float(r.start[0]), float(r.start[1])), r.speed,
-                             frozenset(r.capabilities)) for rid, r in self.robots.items())
+                             frozenset(r.capabilities), capacity=self.max_tasks_per_robot)
+                       for rid, r in self.robots.items())
         tasks = tuple(Task(tid, (float(t.position[0]), float(t.position[1])), t.arrival,
                            t.service, t.capability, t.reward) for tid, t in self.tasks.items())
         paths = self.path_map()
@@ -153,7 +157,8 @@ class InstanceDoc(InstanceBody, forbid_unknown_fields=True):
     cost_model: Any = None
 
     def params(self) -> DeliveryParams:
-        return DeliveryParams(self.robots, self.tasks, self.world, self.name)
+        return DeliveryParams(self.robots, self.tasks, self.world, self.name,
+                              self.max_tasks_per_robot)
 
 
 def load_document(path: Path | str) -> InstanceDoc:
@@ -196,7 +201,7 @@ def document_data(inst: InstanceBody) -> dict[str, Any]:
         if t.get("due") is None:
             t.pop("due", None)
     body["world"] = {"size": list(inst.world.size), "walls": [list(w) for w in inst.world.walls]}
-    for key in ("application", "generator", "cost", "cost_model"):
+    for key in ("application", "generator", "cost", "cost_model", "max_tasks_per_robot"):
         if not body.get(key):
             body.pop(key, None)
     return body

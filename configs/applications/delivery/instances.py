@@ -79,6 +79,9 @@ class DeliveryKind(InstanceKind):
         return describe(doc, exact_limit=exact_limit, time_limit=time_limit,
                         solutions=solutions)
 
+    def problem(self, doc: InstanceDoc):
+        return doc.problem()
+
 
 KIND = DeliveryKind()
 

@@ -64,6 +64,10 @@ class Deliver(Layer):
         self.finished = False
         self.waypoints: list[tuple[float, float]] | None = None  # planned at the next step
 
+    def done(self, now: float) -> bool:
+        """This robot served the task (its service is over) since it was last activated."""
+        return self.finished
+
     def pose(self, now: float) -> tuple[float, float, float] | None:
         return odometry_pose(self.ctx, now)
 

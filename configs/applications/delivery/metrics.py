@@ -1,17 +1,20 @@
-"""What a delivery run achieved, from its recording, against the optimum (docs/delivery.md).
+"""What a delivery run achieved, from its recording (docs/delivery.md, "The allocation log and
+the metrics").
 
 * The allocation log: one entry per stretch a robot held a task, read through the architecture
-  contract (`ground_truth.intervals_from`: ALLIANCE's motivations, MURDOCH's claims — what the
-  robots themselves decided, in simulated time), with when the robot began serving it
-  (`robotN/delivery/started`) and finished it (`robotN/delivery/done`). A task handed over
-  appears once per holder.
-* The metrics: makespan, total distance (ground truth), mean waiting time, completed, the
-  achieved cost (Σ cost of the *first* assignment of each task), the optimal cost (scipy's
-  linear_sum_assignment on the instance's cost matrix: travel times along the paths robots
-  drive, around the walls when there are any) and their ratio, optimality; MURDOCH's greedy
-  rule on the same instance as a second reference; and the instance's reference value of each
-  time-extended objective (`reference_minsum`, `reference_makespan`, `reference_flowtime`,
-  `reference_proven_optimal`: docs/delivery.md, Reference values).
+  contract (`ground_truth.stretches_from`: ALLIANCE's motivations, MURDOCH's claims, central's
+  queues — what the robots themselves said, in simulated time): when the task became the
+  robot's (`assigned_at`: it entered its queue, or it took it), when the robot set off to it
+  (`started_at`), reached it and began serving it (`reached_at`, its `robotN/delivery/started`),
+  finished it (`done_at`, its `robotN/delivery/done`), and when and why the stretch ended
+  (`ended_at`, `reason`: done, released, lost — its robot crashed or was cut off —, stalled,
+  or unfinished when the run ended). A task handed over appears once per holder.
+* The metrics: the time-extended objectives along the routes robots served against their
+  reference values, and overlaps (objectives.py); makespan (the last completion), total
+  distance (ground truth), mean waiting time, completed; and the instantaneous-assignment
+  figures — the achieved cost (Σ cost of each task's *first* assignment, from the robot's
+  start), the IA optimum (scipy's linear_sum_assignment) and their ratio, `ia_optimality`,
+  with MURDOCH's greedy rule as a second reference.
 """
 
 from __future__ import annotations
@@ -21,32 +24,41 @@ from dataclasses import dataclass, field
 from typing import Any, Iterable
 
 from mrta_zenoh.architectures import Architecture
+from mrta_zenoh.clock import EPSILON
 from mrta_zenoh.codec import DecodeError, decode, type_from_encoding
+from mrta_zenoh.failure import FaultKind, Faults
 from mrta_zenoh.planning import Problem
 from mrta_zenoh.planning.assignment import (greedy_online, ia_costs, murdoch_utility,
                                             optimal_assignment)
-from mrta_supervisor.ground_truth import intervals_from
+from mrta_supervisor.ground_truth import stretches_from
 
 from .instance import DeliveryParams, document_data
 from .messages import TaskEvent
+from .objectives import objective_metrics, objective_section, overlaps
 
 MATCH_SLACK = 1.0  # s: an event this long after its holder's interval still belongs to it
 
 
+REASONS = ("done", "released", "lost", "stalled", "unfinished")
+
+
 @dataclass
 class Entry:
-    """One assignment: `robot` held `task` from `assigned_at`."""
+    """One stretch: `robot` held `task` from `assigned_at` to `ended_at` (module docstring)."""
 
     task: str
     robot: str
     assigned_at: float
-    released_at: float
+    ended_at: float
     started_at: float | None = None
     done_at: float | None = None
+    reached_at: float | None = None
+    reason: str = ""
 
     def to_json(self) -> dict[str, Any]:
         return {"task": self.task, "robot": self.robot, "assigned_at": self.assigned_at,
-                "started_at": self.started_at, "done_at": self.done_at}
+                "started_at": self.started_at, "reached_at": self.reached_at,
+                "done_at": self.done_at, "ended_at": self.ended_at, "reason": self.reason}
 
 
 @dataclass
@@ -55,6 +67,7 @@ class RunAnalysis:
     instance: Problem
     log: list[Entry]
     metrics: dict[str, Any] = field(default_factory=dict)
+    objectives: dict[str, Any] = field(default_factory=dict)
 
 
 def events(records: Iterable) -> list[tuple[str, str, str, float]]:
@@ -94,26 +107,46 @@ def paths(records: Iterable, robots: set[str]) -> dict[str, float]:
     return dist
 
 
-def allocation_log(records: list, arch: Architecture, instance: Problem,
-                   end: float) -> list[Entry]:
-    """Every assignment of an instance task, in order of assignment, with its service times."""
+def allocation_log(records: list, arch: Architecture, instance: Problem, end: float,
+                   faults: Faults = Faults()) -> list[Entry]:
+    """Every stretch of an instance task, in order of assignment, with its service times and
+    why it ended (module docstring). A crash ends its robot's stretches at the crash (exact in
+    lockstep)."""
     tasks = {t.id for t in instance.tasks}
     robots = {r.id for r in instance.robots}
-    held = intervals_from(records, arch, end, arch.doing_stale_after)
-    log = sorted((Entry(task, robot, round(a, 3), round(b, 3))
-                  for robot, spans in held.items() if robot in robots
-                  for task, a, b in spans if task in tasks),
-                 key=lambda e: (e.assigned_at, e.robot))
+    crashes = [(f.robot, f.at) for f in faults.crashes() if f.at <= end]
+    log = [Entry(s.task, s.robot, round(s.assigned_at, 3), round(s.ended_at, 3),
+                 None if s.started_at is None else round(s.started_at, 3))
+           for s in stretches_from(records, arch, end, arch.doing_stale_after, crashes)
+           if s.robot in robots and s.task in tasks]
     for robot, task, event, stamp in events(records):
         entry = next((e for e in log if e.robot == robot and e.task == task
-                      and e.assigned_at - 1e-6 <= stamp <= e.released_at + MATCH_SLACK), None)
+                      and e.assigned_at - 1e-6 <= stamp <= e.ended_at + MATCH_SLACK), None)
         if entry is None:
             continue
-        if event == "started" and entry.started_at is None:
-            entry.started_at = round(stamp, 3)
+        if event == "started" and entry.reached_at is None:
+            entry.reached_at = round(stamp, 3)
         elif event == "done" and entry.done_at is None:
             entry.done_at = round(stamp, 3)
+    for e in log:
+        e.reason = reason(e, faults, end)
     return log
+
+
+def reason(e: Entry, faults: Faults, end: float) -> str:
+    """Why a stretch ended (module docstring): from its completion, then its robot's fault."""
+    if e.done_at is not None:
+        return "done"
+    f = faults.of(e.robot)
+    if f is not None and e.ended_at >= f.at - MATCH_SLACK:
+        if f.kind == FaultKind.CRASH or (f.kind == FaultKind.PARTITION
+                                         and e.ended_at <= f.at + f.duration + MATCH_SLACK):
+            return "lost"
+        if f.kind == FaultKind.STALL:
+            return "stalled"
+    if e.ended_at >= end - EPSILON:
+        return "unfinished"
+    return "released"
 
 
 def first_assignments(log: list[Entry]) -> dict[str, Entry]:
@@ -134,8 +167,8 @@ def measure(instance: Problem, log: list[Entry], distance: dict[str, float]) -> 
     for e in log:
         if e.done_at is not None:
             done[e.task] = min(done.get(e.task, math.inf), e.done_at)
-        if e.started_at is not None:
-            started[e.task] = min(started.get(e.task, math.inf), e.started_at)
+        if e.reached_at is not None:
+            started[e.task] = min(started.get(e.task, math.inf), e.reached_at)
     first = first_assignments(log)
     achieved = float(sum(cost[rows[e.robot], cols[t]] for t, e in first.items()))
     best = optimal_assignment(cost)
@@ -152,41 +185,36 @@ def measure(instance: Problem, log: list[Entry], distance: dict[str, float]) -> 
         "achieved_cost": round(achieved, 3) if math.isfinite(achieved) else None,
         "optimal_cost": round(best.cost, 3),
         "greedy_cost": round(float(sum(cost[i, j] for i, j in greedy)), 3),
-        "optimality": (round(best.cost / achieved, 4) if complete and achieved > 0
-                       else 1.0 if complete else None),
+        "ia_optimality": (round(best.cost / achieved, 4) if complete and achieved > 0
+                          else 1.0 if complete else None),
         "online": instance.online,
         "handovers": len(log) - len(first),
+        "overlaps": len(overlaps(log)),
     }
 
 
-def analyse(records: list, arch: Architecture, params: DeliveryParams,
-            end: float) -> RunAnalysis:
+def analyse(records: list, arch: Architecture, params: DeliveryParams, end: float,
+            faults: Faults = Faults(), objective: str | None = None) -> RunAnalysis:
+    """The log, the metrics and the objectives of a recorded run that ended at `end`;
+    `objective`: the one its architecture optimised (default: its contract's, else MinSum)."""
     instance = params.problem()
-    log = allocation_log(records, arch, instance, end)
+    log = allocation_log(records, arch, instance, end, faults)
     distance = paths(records, {r.id for r in instance.robots})
-    return RunAnalysis(params, instance, log,
-                       {**measure(instance, log, distance), **references(instance)})
+    section = objective_section(instance, log, objective or arch.objective or "minsum")
+    metrics = {**measure(instance, log, distance), **objective_metrics(section)}
+    return RunAnalysis(params, instance, log, metrics, section)
 
 
-REFERENCE_SOLUTIONS = 100  # the routing search's budget past the exact limit (deterministic)
-
-
-def references(instance: Problem) -> dict[str, Any]:
-    """The instance's reference value for each objective (mrta_zenoh.planning.reference:
-    exact — proven optimal — up to its task limit, OR-Tools' best found above), as
-    `reference_<objective>`, and whether all are proven optimal. The search is bounded by a
-    number of solutions, not a time (1–3 s for 10–20 tasks, ≈ 25 s for 100 robots × 100 tasks
-    on a 2-core machine): the same instance gives the same values anywhere. Its time cap is
-    only a safety net; a value it cut short is not reported (it would depend on the machine)."""
-    from mrta_zenoh.planning.reference import reference
-    out: dict[str, Any] = {}
-    proven = True
-    for objective in ("minsum", "makespan", "flowtime"):
-        ref = reference(instance, objective, solutions=REFERENCE_SOLUTIONS, time_limit=300.0)
-        out[f"reference_{objective}"] = None if ref.capped else round(ref.value, 3)
-        proven = proven and ref.proven_optimal
-    out["reference_proven_optimal"] = proven
-    return out
+def done_at(records: list, instance: Problem) -> float | None:
+    """When every task of the instance had been completed (its first completion each, from the
+    robots' own `done` events); None: some never was."""
+    first: dict[str, float] = {}
+    for _robot, task, event, stamp in events(records):
+        if event == "done":
+            first.setdefault(task, stamp)
+    if any(t.id not in first for t in instance.tasks):
+        return None
+    return max((first[t.id] for t in instance.tasks), default=None)
 
 
 def instance_json(params: DeliveryParams, instance: Problem) -> dict[str, Any]:

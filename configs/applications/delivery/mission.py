@@ -7,9 +7,14 @@ layers file whose `Delivery` section is the instance; `derive` writes a run's ow
 instance file (`mrta demo --instance FILE`).
 
 `metrics` lands in summary.json's `metrics` (scalars: also `mrta experiment`'s columns);
-`sections` is the instance and the allocation log, the top-level `instance` and `allocation`
-of summary.json: delivery's own schema (`DeliverySections`, declared as the Mission's
-`summary_sections`), which `read_summary` checks a summary against when it reads one back.
+`sections` is the instance, the allocation log, the objectives and the overlaps, the top-level
+`instance`, `allocation`, `objectives` and `overlaps` of summary.json: delivery's own schema
+(`DeliverySections`, declared as the Mission's `summary_sections`), which `read_summary` checks
+a summary against when it reads one back.
+
+A run ends when every task is done (`ended_at`: the last first completion, from the robots'
+`done` events): the runner learns it live through the task watch (`DeliveryWatch`: every task
+`done` for good) and stops the simulator; the figures cover the run up to `ended_at`.
 """
 
 from __future__ import annotations
@@ -21,7 +26,8 @@ import msgspec
 
 from mrta_agent.runtime.params import load_layers_params
 from mrta_zenoh.keys import first_chunk
-from mrta_supervisor.mission import Mission, MissionRun
+from mrta_supervisor.ground_truth import decisions
+from mrta_supervisor.mission import Mission, MissionRun, faults_of
 from mrta_supervisor.tasks import TaskStatus, TaskWatch
 from mrta_supervisor.summary import SummarySections
 
@@ -29,7 +35,7 @@ from .generate import derive
 from .instance import DeliveryParams, InstanceDoc, load_document
 from .keys import ALL_DONE
 from .messages import TaskEvent
-from .metrics import RunAnalysis, analyse, instance_json
+from .metrics import RunAnalysis, analyse, done_at, instance_json
 
 
 class _Section(msgspec.Struct, forbid_unknown_fields=True):
@@ -60,14 +66,44 @@ class LegacyInstance(_Section):
     cost_model: str
 
 
-class AllocationEntry(_Section):
-    """One stretch a robot held a task (metrics.Entry)."""
+class AllocationEntry(_Section, omit_defaults=True):
+    """One stretch a robot held a task (metrics.Entry); a summary written before stretches had
+    an end and a reason reads (and writes back) without them."""
 
     task: str
     robot: str
     assigned_at: float
     started_at: float | None
     done_at: float | None
+    reached_at: float | None = None
+    ended_at: float | None = None       # None: a summary written before stretches ended
+    reason: str = ""
+
+
+class ReferenceEntry(_Section):
+    value: float
+    method: str
+    proven_optimal: bool
+    stopped_by_time_limit: bool
+    routes: dict[str, list[str]]
+
+
+class ObjectivesSection(_Section):
+    """The objectives along the routes robots served, and their references (objectives.py)."""
+
+    objective: str
+    served: dict[str, list[str]]
+    values: dict[str, float]
+    complete: bool
+    reference: dict[str, ReferenceEntry]
+    optimality: float | None
+
+
+class OverlapEntry(_Section):
+    task: str
+    robots: list[str]
+    start: float = msgspec.field(name="from")
+    end: float = msgspec.field(name="to")
 
 
 class DeliverySections(SummarySections):
@@ -77,6 +113,8 @@ class DeliverySections(SummarySections):
 
     instance: dict[str, Any]
     allocation: list[AllocationEntry]
+    objectives: ObjectivesSection | None = None
+    overlaps: list[OverlapEntry] = []
 
     def __post_init__(self) -> None:
         try:
@@ -121,8 +159,10 @@ class Delivery(Mission):
     launch = "delivery_sim.launch"
     summary_sections = DeliverySections
     better = {"makespan": "lower", "total_distance": "lower", "mean_waiting_time": "lower",
-              "achieved_cost": "lower", "optimality": "higher", "completed": "higher",
-              "assigned": "higher", "handovers": "lower"}
+              "achieved_cost": "lower", "optimality": "higher", "ia_optimality": "higher",
+              "completed": "higher", "assigned": "higher", "handovers": "lower",
+              "overlaps": "lower", "objective_minsum": "lower", "objective_makespan": "lower",
+              "objective_flowtime": "lower"}
 
     def __init__(self) -> None:
         self._last: tuple[int, RunAnalysis] | None = None
@@ -135,12 +175,21 @@ class Delivery(Mission):
         """`mrta demo --instance FILE`: both packages derived from the file, into `folder`."""
         derive(load_document(instance), folder)
 
+    def ended_at(self, run: MissionRun, records: list) -> float | None:
+        """The last task's first completion, once every task is done (None: not all were)."""
+        return done_at(records, run_instance(run).problem())
+
     def analysis(self, run: MissionRun, records: list) -> RunAnalysis:
         """Computed once per recording (metrics and sections both read it)."""
         if self._last is not None and self._last[0] == id(records):
             return self._last[1]
         # what is still held at the end of the run ends there (simulated seconds)
-        result = analyse(records, run.arch, run_instance(run), run.options.duration)
+        params = run_instance(run)
+        ended = done_at(records, params.problem())
+        end = run.options.duration if ended is None else min(ended, run.options.duration)
+        made = decisions(records, run.arch, end)
+        result = analyse(records, run.arch, params, end, faults_of(run),
+                         made.objective if made is not None and made.objective else None)
         self._last = (id(records), result)
         return result
 
@@ -149,18 +198,25 @@ class Delivery(Mission):
 
     def sections(self, run: MissionRun, records: list) -> DeliverySections:
         a = self.analysis(run, records)
+        from .objectives import overlaps
         return msgspec.convert({"instance": instance_json(a.params, a.instance),
-                                "allocation": [e.to_json() for e in a.log]}, DeliverySections)
+                                "allocation": [e.to_json() for e in a.log],
+                                "objectives": a.objectives,
+                                "overlaps": [o.to_json() for o in overlaps(a.log)]},
+                               DeliverySections)
 
     def task_watch(self, run: MissionRun) -> TaskWatch:
         return DeliveryWatch(run_instance(run))
 
     def describe(self, metrics: dict[str, Any]) -> list[str]:
-        opt = metrics.get("optimality")
+        opt, name = metrics.get("optimality"), metrics.get("objective", "minsum")
+        value = metrics.get(f"objective_{name}")
+        label = "optimal" if metrics.get("reference_method") == "exact" else "best found"
         return [f"delivered {metrics['completed']}/{metrics['tasks']}; makespan "
-                f"{metrics['makespan'] if metrics['makespan'] is not None else '—'} s; cost "
-                f"{metrics['achieved_cost']} vs optimal {metrics['optimal_cost']} "
-                f"(optimality {opt if opt is not None else '—'})"]
+                f"{metrics['makespan'] if metrics['makespan'] is not None else '—'} s; "
+                f"{name} {value if value is not None else '—'} vs {label} "
+                f"{metrics.get(f'reference_{name}')} (optimality "
+                f"{opt if opt is not None else '—'}); overlaps {metrics.get('overlaps', 0)}"]
 
 
 DELIVERY = Delivery()

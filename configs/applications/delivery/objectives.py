@@ -1,0 +1,137 @@
+"""What a time-extended delivery run achieved on the three objectives (docs/delivery.md,
+"Objectives"), against their reference values, and whether any task was ever executed by two
+robots at once — all from the allocation log, so that a summary alone gives them again.
+
+* **Served orders.** Each robot's route as it actually ran: the tasks it completed (its own
+  `done` events), in the order it completed them; a task completed twice counts once, for
+  whoever completed it first.
+* **Objective values** along those routes on the instance's travel-time model
+  (`planning.schedule.evaluate`: MinSum = total travel, makespan = the last completion,
+  flowtime = the sum of completions), beside the **reference** of each
+  (`planning.reference`: exact up to `EXACT_LIMIT` tasks, proven; OR-Tools' best found above,
+  never called optimal). `optimality` = reference / achieved for the objective the
+  architecture optimises (its decisions' record, else its contract's `objective`, else MinSum),
+  and only when every task was served: a partial run's value is not comparable.
+* **Overlaps.** A stretch is *executed* from when its robot set off to the task until it
+  completed it or the task left it (`started_at` → `done_at`, else `ended_at`); two robots'
+  executions of one task that overlap by more than a tick are an overlap.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Iterable, Protocol
+
+from mrta_zenoh.planning import Problem
+from mrta_zenoh.planning.reference import EXACT_LIMIT, reference
+from mrta_zenoh.planning.schedule import Objective, evaluate
+
+SOLUTIONS = 200       # the routing search's budget above EXACT_LIMIT (central's dispatcher's)
+TIME_LIMIT = 30.0     # its safety cap (s)
+OVERLAP_SLACK = 0.1   # s: a handover within one agent tick is no overlap
+
+
+class Stretch(Protocol):
+    task: str
+    robot: str
+    started_at: float | None
+    done_at: float | None
+    ended_at: float
+
+
+def served_routes(log: Iterable[Stretch]) -> dict[str, list[str]]:
+    """robot → the tasks it completed, in the order it completed them (each task once)."""
+    firsts: dict[str, tuple[float, str]] = {}
+    for e in log:
+        if e.done_at is not None and (e.task not in firsts or e.done_at < firsts[e.task][0]):
+            firsts[e.task] = (e.done_at, e.robot)
+    routes: dict[str, list[tuple[float, str]]] = {}
+    for task, (at, robot) in firsts.items():
+        routes.setdefault(robot, []).append((at, task))
+    return {robot: [t for _, t in sorted(done)] for robot, done in sorted(routes.items())}
+
+
+def objective_values(problem: Problem, served: dict[str, list[str]]) -> dict[str, float]:
+    """The three objectives along the served routes (planning.schedule.evaluate)."""
+    ev = evaluate(problem, {problem.robot_index(r): [problem.task_index(t) for t in route]
+                            for r, route in served.items()})
+    return {o.value: ev.value(o) for o in Objective}
+
+
+@dataclass(frozen=True)
+class Overlap:
+    task: str
+    robots: tuple[str, str]
+    start: float
+    end: float
+
+    def to_json(self) -> dict[str, Any]:
+        return {"task": self.task, "robots": list(self.robots), "from": round(self.start, 3),
+                "to": round(self.end, 3)}
+
+
+def overlaps(log: Iterable[Stretch]) -> list[Overlap]:
+    """Every pair of robots' executions of one task that overlap (module docstring)."""
+    spans: dict[str, list[tuple[float, float, str]]] = {}
+    for e in log:
+        if e.started_at is None:
+            continue
+        finish = e.done_at if e.done_at is not None else e.ended_at
+        spans.setdefault(e.task, []).append((e.started_at, max(finish, e.started_at), e.robot))
+    out = []
+    for task, runs in sorted(spans.items()):
+        runs.sort()
+        for k, (a0, a1, ra) in enumerate(runs):
+            for b0, b1, rb in runs[k + 1:]:
+                lo, hi = max(a0, b0), min(a1, b1)
+                if ra != rb and hi - lo > OVERLAP_SLACK:
+                    out.append(Overlap(task, (ra, rb), lo, hi))
+    return out
+
+
+def references(problem: Problem) -> dict[str, dict[str, Any]]:
+    """Each objective's reference value on the whole instance (module docstring), with the
+    routes that give it."""
+    out = {}
+    for objective in Objective:
+        ref = reference(problem, objective, exact_limit=EXACT_LIMIT, time_limit=TIME_LIMIT,
+                        solutions=SOLUTIONS)
+        out[objective.value] = {"value": round(ref.value, 6), "method": ref.method,
+                                "proven_optimal": ref.proven_optimal,
+                                "stopped_by_time_limit": ref.capped,
+                                "routes": ref.routes_by_id(problem)}
+    return out
+
+
+def objective_section(problem: Problem, log: list[Stretch], objective: str,
+                      refs: dict[str, dict[str, Any]] | None = None) -> dict[str, Any]:
+    """summary.json's `objectives`: the objective optimised, the served routes, their values,
+    the references, optimality."""
+    served = served_routes(log)
+    values = objective_values(problem, served)
+    refs = references(problem) if refs is None else refs
+    complete = sum(len(r) for r in served.values()) == len(problem.tasks)
+    achieved, best = values[objective], refs[objective]["value"]
+    ratio = (best / achieved if achieved > 0 else 1.0) if complete else None
+    return {"objective": objective, "served": served,
+            "values": {k: round(v, 6) for k, v in values.items()},
+            "complete": complete, "reference": refs,
+            "optimality": None if ratio is None or not math.isfinite(ratio)
+            else round(ratio, 6)}
+
+
+def objective_metrics(section: dict[str, Any]) -> dict[str, Any]:
+    """The section's scalars, for `metrics` (results.csv's columns)."""
+    refs, values = section["reference"], section["values"]
+    out: dict[str, Any] = {"objective": section["objective"]}
+    for name in (o.value for o in Objective):
+        out[f"objective_{name}"] = round(values[name], 3) if section["complete"] else None
+        # a search its time cap cut short gave a value that depends on the machine: not a column
+        out[f"reference_{name}"] = None if refs[name]["stopped_by_time_limit"] \
+            else round(refs[name]["value"], 3)
+    out["reference_method"] = refs[section["objective"]]["method"]
+    out["reference_proven_optimal"] = all(r["proven_optimal"] for r in refs.values())
+    out["optimality"] = None if section["optimality"] is None \
+        else round(section["optimality"], 4)
+    return out

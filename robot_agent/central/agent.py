@@ -1,0 +1,116 @@
+"""A central robot's decision logic, as the agent runtime drives it: it decides nothing. It
+serves the queue its dispatcher sends (mrta_agent.runtime.route: one task after another, in
+order) and reports its progress.
+
+* A `Queue` counts only from the dispatcher (a process of the architecture, on the team by its
+  process token), addressed to this robot, and newer than the one applied (versions only grow:
+  a late or repeated queue changes nothing).
+* **Lease.** While the dispatcher's token lives but it has been silent for `lease` seconds —
+  it is cut off from this robot, and may have given its tasks to others — the robot holds:
+  it stands still and keeps its queue until it hears the dispatcher again. When the
+  dispatcher's token goes (it crashed), the robot finishes its queue and stops: nothing tells
+  it otherwise any more.
+* **Reports.** A `Progress` at every change (a queue applied, a task set off to, served or left)
+  and every `report_period`; and, every `report_period`, one `Queued` per task of its queue
+  for the supervisor.
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Iterable
+
+from mrta_zenoh.clock import EPSILON
+from mrta_zenoh.timetext import at
+
+from ..runtime.coordinator import Coordinator, Say
+from ..runtime.plugins import Plugins
+from ..runtime.route import PluginReadings, Readings, RouteExecutor
+from .messages import Queue
+from .params import CentralParams
+
+log = logging.getLogger("mrta.central")
+
+
+class CentralCoordinator(Coordinator):
+    listens = ("queue",)
+
+    def __init__(self, robot_id: str, params: CentralParams, plugins: Plugins | None = None,
+                 dispatcher: str = "dispatcher", readings: Readings | None = None):
+        self.robot_id = robot_id
+        self.params = params.robot
+        self.dispatcher = dispatcher
+        self.readings = readings if readings is not None else PluginReadings(
+            plugins, params.robot.pose_topic)
+        self.route = RouteExecutor()
+        self.applied = 0                      # the version of the queue applied
+        self.pending: Queue | None = None     # the newest queue heard, applied at the next tick
+        self.dispatcher_alive = False
+        self.last_word: float | None = None   # when the dispatcher's last queue was heard
+        self.holding = False
+        self._active: str | None = None
+        self._reported: tuple | None = None
+        self._report_at: float | None = None
+
+    @property
+    def active_task(self) -> str | None:
+        return self._active
+
+    def subjects(self, kind: str) -> tuple[str, ...] | None:
+        """Only the queues addressed to this robot (`*/central/queue/<robot>`)."""
+        return (self.robot_id,) if kind == "queue" else None
+
+    def teammate(self, robot: str, alive: bool) -> None:
+        if robot == self.dispatcher:
+            self.dispatcher_alive = alive
+            if not alive:
+                log.warning("%s: the dispatcher is gone: finishing my queue (%s)", self.robot_id,
+                            ", ".join(self.route.queue) or "empty")
+
+    def hear(self, kind: str, sender: str, message, at: float) -> bool:
+        if sender != self.dispatcher or not isinstance(message, Queue) \
+                or message.robot != self.robot_id:
+            return False
+        self.last_word = at if self.last_word is None else max(self.last_word, at)
+        newest = self.pending.version if self.pending is not None else self.applied
+        if message.version > newest:
+            self.pending = message
+        return True
+
+    def tick(self, now: float) -> Iterable[Say]:
+        changed = False
+        if self.pending is not None:
+            queue, self.pending = self.pending, None
+            self.applied = queue.version
+            for change in self.route.assign(queue.tasks, now):
+                log.info("%s: left %s (not in queue v%d) %s", self.robot_id, change.task,
+                         queue.version, at(now))
+            changed = True
+        for change in self.route.step(now, self.readings):
+            log.info("%s: %s %s %s", self.robot_id, change.kind.replace("_", " "), change.task,
+                     at(now))
+            changed = True
+        holding = (self.dispatcher_alive and self.last_word is not None
+                   and now - self.last_word > self.params.lease + EPSILON)
+        if holding != self.holding:
+            self.holding = holding
+            log.warning("%s: %s %s", self.robot_id, "the dispatcher is silent: holding"
+                        if holding else "the dispatcher is back", at(now))
+        self._active = None if holding else self.route.active(now, self.readings)
+        return self._report(now, changed)
+
+    def _report(self, now: float, changed: bool) -> list[Say]:
+        r = self.route
+        pose = self.readings.pose() or (0.0, 0.0, 0.0)
+        state = (r.current or "", r.last or "", tuple(r.queue), tuple(r.served_ids()),
+                 self.applied, self.holding)
+        due = self._report_at is None or now - self._report_at >= \
+            self.params.report_period - EPSILON
+        if not (changed or due or state != self._reported):
+            return []
+        out = [Say("progress", (*state[:5], *pose, self.holding))]
+        self._reported = state
+        if due:
+            self._report_at = now
+            out += [Say("queued", (task, place), task) for place, task in enumerate(r.queue)]
+        return out

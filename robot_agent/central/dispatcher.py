@@ -1,0 +1,310 @@
+"""The dispatcher's decisions, as pure logic on an injected time (a `Coordinator`: the agent
+runtime's fixed driver runs it in the dispatcher process, as it runs a robot's logic — the
+inbox in (time, sender, key, sequence) order, sender checks, faults; docs/central.md).
+
+What it does at each tick:
+
+1. **Learns.** Tasks whose arrival time has come are known. Robots' reports (`Progress`) say
+   what each served (in order), what it set off to, its queue and where it is; a robot's agent
+   token says whether it lives.
+2. **Watches progress.** A robot that has a task but has not progressed on it — moved, turned,
+   changed task — for `progress_timeout` (beyond its task's service time once it is there, and
+   not before the task's arrival) is *stalled*; one not heard for `progress_timeout` is
+   *silent*; one whose token went has *crashed*. Each is out of the plan; a silent one comes
+   back when it is heard again, a stalled one stays out (a robot that cannot be seen to
+   progress is not trusted with work again in the run).
+3. **Re-plans** on an arrival, a completion, a loss or a return (planner.py: the residual
+   problem on the model's clock, kept unless beaten), and records the decision (`Plan`).
+4. **Sends queues**, each robot its own, when they change and every `resend_period`. A task is
+   put in a robot's queue only once no other robot may still be serving it: every other robot's
+   last report shows it neither set off to it nor queued, or that robot crashed, or it is silent
+   (it stopped by its lease before the dispatcher gave up on it: docs/central.md, "No task
+   served twice"). A queue is cut before its first task that cannot be granted yet, so a robot
+   serves its plan's order and waits rather than skip ahead.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass, field
+from typing import Iterable
+
+from mrta_zenoh.clock import EPSILON
+from mrta_zenoh.planning import Problem
+from mrta_zenoh.timetext import at
+
+from ..runtime.coordinator import Coordinator, Say
+from .messages import Progress
+from .params import DispatcherParams
+from .planner import Outcome, Situation, ms, solve
+
+log = logging.getLogger("mrta.central")
+
+MOVED = 0.05     # m: a robot this far from where it last progressed has progressed
+TURNED = 0.1     # rad: so has one that turned this much
+AT_TASK = 0.5    # m: a robot this close to its task is serving it (the task's service counts)
+HISTORY = 256    # decisions kept for inspection (tests, a debugger)
+
+CRASHED, STALLED, SILENT = "crashed", "stalled", "silent"
+
+
+@dataclass
+class RobotView:
+    """What the dispatcher knows of one robot."""
+
+    alive: bool = False
+    joined: float | None = None             # when its token came (its silence counts from it)
+    lost: str | None = None                 # CRASHED, STALLED, SILENT; None: in the plan
+    report: Progress | None = None
+    heard: float | None = None              # when its last report counts as heard
+    progressed: float | None = None         # when it last progressed
+    where: tuple[float, float, float] | None = None  # its pose then
+
+
+@dataclass
+class Sent:
+    """The queue last sent to a robot, and every queue sent that it has not acknowledged yet
+    (a report with that version or a later one): a robot may still apply those."""
+
+    version: int
+    tasks: tuple[str, ...]
+    at: float
+    unacked: list[tuple[int, tuple[str, ...]]] = field(default_factory=list)
+
+
+@dataclass
+class Decision:
+    at: float
+    version: int
+    trigger: str
+    outcome: Outcome
+
+
+@dataclass
+class Dispatcher(Coordinator):
+    """One dispatcher (module docstring). `problem` is the instance (every robot and task, in
+    its order); `name` its process name (what its keys and robots know it by)."""
+
+    problem: Problem
+    params: DispatcherParams
+    name: str = "dispatcher"
+    robots: dict[str, RobotView] = field(default_factory=dict)
+    known: set[str] = field(default_factory=set)
+    done: dict[str, str] = field(default_factory=dict)          # task → who served it
+    plan: dict[str, list[str]] = field(default_factory=dict)    # robot → route after commitment
+    sent: dict[str, Sent] = field(default_factory=dict)
+    version: int = 0
+    decisions: list[Decision] = field(default_factory=list)
+    start: float | None = None
+    _triggers: list[str] = field(default_factory=list)
+
+    listens = ("progress",)
+
+    def __post_init__(self) -> None:
+        self.robots = {r.id: RobotView() for r in self.problem.robots}
+        self._task = {t.id: t for t in self.problem.tasks}
+
+    # ------------------------------------------------------------ what it hears
+    def teammate(self, robot: str, alive: bool) -> None:
+        view = self.robots.get(robot)
+        if view is None:
+            return  # not a robot of the instance
+        view.alive = alive
+        if alive:
+            view.joined = None  # set at the next tick (the driver tells at a tick's start)
+            if view.lost == CRASHED:
+                view.lost = None
+                self._triggers.append("return")
+        elif view.lost != STALLED:
+            view.lost = CRASHED
+            self._triggers.append("loss")
+
+    def hear(self, kind: str, sender: str, message, at: float) -> bool:
+        view = self.robots.get(sender)
+        if view is None or not isinstance(message, Progress):
+            return False
+        if any(t not in self._task for t in (*message.queue, *message.served)) \
+                or (message.task and message.task not in self._task):
+            return False  # names a task the instance does not have: refused whole
+        before = view.report
+        view.report, view.heard = message, at
+        sent = self.sent.get(sender)
+        if sent is not None:
+            sent.unacked = [(v, q) for v, q in sent.unacked if v > message.version]
+        planned = self.plan.get(sender, [])
+        if message.task and (before is None or message.task != before.task) \
+                and message.task not in self.done and planned[:1] != [message.task]:
+            self._triggers.append("deviation")  # it set off to another task than planned
+        if view.lost == SILENT:
+            view.lost = None
+            self._triggers.append("return")
+        pose = (message.x, message.y, message.theta)
+        if before is None or message.task != before.task or message.served != before.served \
+                or _moved(view.where, pose):
+            view.progressed, view.where = at, pose
+        for task in message.served:
+            if task not in self.done:
+                self.done[task] = sender
+                self._triggers.append("completion")
+        return True
+
+    # ------------------------------------------------------------ one decision step
+    def tick(self, now: float) -> Iterable[Say]:
+        if self.start is None:
+            self.start = now
+            self._triggers.append("start")
+        for view in self.robots.values():
+            if view.alive and view.joined is None:
+                view.joined = now
+        for task in self.problem.tasks:
+            if task.id not in self.known and task.arrival <= now + EPSILON:
+                self.known.add(task.id)
+                self._triggers.append("arrival")
+        self._watch(now)
+        out: list[Say] = []
+        if self._triggers:
+            trigger = _first(self._triggers)
+            self._triggers.clear()
+            out.append(self._replan(now, trigger))
+        out += self._queues(now)
+        return out
+
+    def _watch(self, now: float) -> None:
+        timeout = self.params.progress_timeout
+        for rid, view in self.robots.items():
+            if not view.alive or view.lost is not None:
+                continue
+            last = view.heard if view.heard is not None else view.joined
+            if last is not None and now - last > timeout + EPSILON:
+                view.lost = SILENT
+            elif self._stalled(view, now):
+                view.lost = STALLED
+            else:
+                continue
+            log.warning("%s: %s is %s %s: re-planning its tasks", self.name, rid, view.lost,
+                        at(now))
+            self._triggers.append("loss")
+
+    def _stalled(self, view: RobotView, now: float) -> bool:
+        report = view.report
+        if report is None or not report.task or report.task in self.done \
+                or view.progressed is None:
+            return False
+        task = self._task[report.task]
+        deadline = view.progressed + self.params.progress_timeout
+        if math.hypot(report.x - task.position[0], report.y - task.position[1]) <= AT_TASK:
+            deadline += task.service
+        deadline = max(deadline, task.arrival + self.params.progress_timeout)
+        return now > deadline + EPSILON
+
+    # ------------------------------------------------------------ planning
+    def available(self) -> list[str]:
+        return [r.id for r in self.problem.robots
+                if self.robots[r.id].alive and self.robots[r.id].lost is None]
+
+    def commitment(self, rid: str) -> tuple[str, ...]:
+        """What robot `rid` served, in order, then the task it set off to (if it is still in
+        the plan and the task is not done)."""
+        report = self.robots[rid].report
+        if report is None:
+            return ()
+        served = tuple(report.served)
+        if self.robots[rid].lost is None and report.task and report.task not in self.done:
+            return served + (report.task,)
+        return served
+
+    def situation(self) -> Situation:
+        available = self.available()
+        commitments = {r.id: self.commitment(r.id) for r in self.problem.robots}
+        committed = {c[-1] for r in available if (c := commitments[r]) and c[-1] not in
+                     self.done}
+        open_tasks = tuple(t.id for t in self.problem.tasks if t.id in self.known
+                           and t.id not in self.done and t.id not in committed)
+        return Situation(commitments, tuple(available), open_tasks)
+
+    def _replan(self, now: float, trigger: str) -> Say:
+        p = self.params
+        situation = self.situation()
+        outcome = solve(self.problem, situation, p.objective, exact_limit=p.exact_limit,
+                        solutions=p.solutions, time_limit=p.time_limit,
+                        current=self.plan if self.decisions else None)
+        self.plan = outcome.routes
+        self.version += 1
+        self.decisions.append(Decision(now, self.version, trigger, outcome))
+        del self.decisions[:-HISTORY]
+        if outcome.unassigned:
+            log.info("%s: nobody available may serve %s %s", self.name,
+                     ", ".join(outcome.unassigned), at(now))
+        routes = tuple(f"{rid}:{','.join(self.wanted(rid))}" for rid in situation.available)
+        return Say("plan", (self.version, trigger, p.objective.value, outcome.value,
+                            outcome.method, ms(outcome.seconds), routes))
+
+    # ------------------------------------------------------------ queues
+    def wanted(self, rid: str) -> list[str]:
+        """The queue the plan gives robot `rid`: the task it is on, then its route."""
+        if rid not in self.available():
+            return []
+        commitment = self.commitment(rid)
+        report = self.robots[rid].report
+        on = [commitment[-1]] if report is not None and report.task \
+            and commitment and commitment[-1] == report.task else []
+        return on + [t for t in self.plan.get(rid, ()) if t not in self.done and t not in on]
+
+    def grantable(self, rid: str, task: str) -> bool:
+        """Whether no robot but `rid` may still be serving `task`: none reports it, and none
+        was sent a queue holding it that it has not acknowledged since (module docstring)."""
+        for other, view in self.robots.items():
+            if other == rid or not view.alive or view.lost == SILENT:
+                continue  # crashed; or cut off, and stopped by its lease
+            report = view.report
+            if report is not None and (report.task == task or task in report.queue):
+                return False
+            sent = self.sent.get(other)
+            if sent is not None and any(task in q for _, q in sent.unacked):
+                return False
+        return True
+
+    def queue_for(self, rid: str) -> tuple[str, ...]:
+        out = []
+        for task in self.wanted(rid):
+            if not self.grantable(rid, task):
+                break
+            out.append(task)
+        return tuple(out)
+
+    def _queues(self, now: float) -> list[Say]:
+        out = []
+        for r in self.problem.robots:
+            view = self.robots[r.id]
+            if not view.alive:
+                continue
+            tasks = self.queue_for(r.id)
+            sent = self.sent.get(r.id)
+            if sent is not None and sent.tasks == tasks \
+                    and now - sent.at < self.params.resend_period - EPSILON:
+                continue
+            if sent is None or sent.tasks != tasks:
+                self.version += 1
+                unacked = [] if sent is None else sent.unacked
+                sent = self.sent[r.id] = Sent(self.version, tasks, now,
+                                              unacked + [(self.version, tasks)])
+            else:
+                sent.at = now
+            out.append(Say("queue", (r.id, sent.version, tasks), r.id))
+        return out
+
+
+def _moved(before: tuple[float, float, float] | None, now: tuple[float, float, float]) -> bool:
+    if before is None:
+        return True
+    turn = math.atan2(math.sin(now[2] - before[2]), math.cos(now[2] - before[2]))
+    return math.hypot(now[0] - before[0], now[1] - before[1]) >= MOVED or abs(turn) >= TURNED
+
+
+ORDER = ("start", "loss", "return", "arrival", "completion", "deviation")
+
+
+def _first(triggers: list[str]) -> str:
+    """The trigger a decision is recorded under when several came at once."""
+    return min(triggers, key=ORDER.index)

@@ -1,0 +1,173 @@
+"""The dispatcher's planning: the problem left at a moment of the run, solved with the reference
+solvers of `mrta_zenoh.planning`, and kept unless it improves on the current plan.
+
+**The model's clock.** A run's objective is computed from the instance's travel-time model
+along the order each robot served its tasks (planning.schedule: a robot's completions follow
+from its route alone, whatever the real clock did). The dispatcher plans on that same clock:
+each robot's *commitment* — what it served, then the task it set off to — is a fixed prefix
+of its route; the residual problem starts each robot at its prefix's last task (or its start),
+`ready` at the prefix's model completion, and holds the tasks known, not done and not
+committed. So the value it minimises is the value the run will report, and by the principle of
+optimality re-solving a static problem never changes an exact plan: the remainder of an
+optimal plan is optimal for its residual, so the re-solve can only tie (and a tie keeps the
+current plan, below). A robot's real delays do not enter; the real clock enters only through
+what is known (arrivals, completions, losses).
+
+**Kept unless better.** A new plan replaces the current one only if its value is lower by more
+than rounding; otherwise the current plan, restricted to the tasks still open (and extended by
+the cheapest insertion of newly arrived ones), is kept — so an exact solve never reshuffles
+ties, and a best-found search (OR-Tools, which may find worse than the current plan on the same
+residual) never makes the plan worse than keeping it.
+
+**Capacities** (`max_tasks_per_robot`): a robot's residual capacity is its cap less its
+commitment. Tasks no available robot may serve (capability, capacity) are left out of the
+residual — unassigned until someone can take them.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import Mapping, Sequence
+
+from mrta_zenoh.planning import Problem, Robot
+from mrta_zenoh.planning.schedule import Objective, evaluate, route_visits
+
+EXACT, BEST_FOUND, KEPT = "exact", "best found", "kept"
+TIE = 1e-9  # relative: a new plan must beat the current one by more than rounding
+
+
+@dataclass(frozen=True)
+class Situation:
+    """What the dispatcher knows at a moment: each robot's commitment (served tasks in order,
+    then the task it set off to, if any), which robots may take work, the tasks still open."""
+
+    commitments: dict[str, tuple[str, ...]]
+    available: tuple[str, ...]
+    open_tasks: tuple[str, ...]
+
+
+@dataclass
+class Outcome:
+    routes: dict[str, list[str]]       # robot → its new route after its commitment
+    value: float                       # the whole plan's value (commitments included)
+    method: str                        # EXACT, BEST_FOUND, KEPT
+    seconds: float                     # the computation's wall time
+    unassigned: list[str] = field(default_factory=list)
+
+
+def full_value(problem: Problem, objective: Objective, commitments: Mapping[str, Sequence[str]],
+               routes: Mapping[str, Sequence[str]]) -> float:
+    """The objective of every robot's commitment followed by its route (planning.schedule)."""
+    full = {problem.robot_index(r): [problem.task_index(t) for t in
+                                     (*commitments.get(r, ()), *routes.get(r, ()))]
+            for r in {*commitments, *routes}}
+    return evaluate(problem, full).value(objective)
+
+
+def residual(problem: Problem, situation: Situation
+             ) -> tuple[Problem, list[str], list[str], list[str]]:
+    """The residual problem (module docstring), its robots' and tasks' ids in its order, and the
+    open tasks it leaves out (nobody available may serve them)."""
+    n = len(problem.robots)
+    robots, origins = [], []
+    for rid in situation.available:
+        i = problem.robot_index(rid)
+        base = problem.robots[i]
+        prefix = [problem.task_index(t) for t in situation.commitments.get(rid, ())]
+        visits = route_visits(problem, i, prefix)
+        cap = None if base.capacity is None else max(0, base.capacity - len(prefix))
+        robots.append(Robot(rid, base.start if not prefix else problem.tasks[prefix[-1]].position,
+                            base.speed, base.capabilities,
+                            visits[-1].end if visits else base.ready, cap))
+        origins.append(n + prefix[-1] if prefix else i)
+    room = sum(len(situation.open_tasks) if r.capacity is None else r.capacity for r in robots)
+    servable = [t for t in situation.open_tasks
+                if any(_can(problem, r, problem.task_index(t)) for r in robots)]
+    # too few places for every task (max_tasks_per_robot): the earliest arrivals first
+    order = sorted(servable, key=lambda t: (problem.tasks[problem.task_index(t)].arrival, t))
+    kept = set(order[:room])
+    tasks = [t for t in servable if t in kept]
+    left = [t for t in situation.open_tasks if t not in kept]
+    points = origins + [n + problem.task_index(t) for t in tasks]
+    sub = Problem(tuple(robots), tuple(problem.tasks[problem.task_index(t)] for t in tasks),
+                  tuple(tuple(problem.distance[a][b] for b in points) for a in points))
+    return sub, [r.id for r in robots], tasks, left
+
+
+def _can(problem: Problem, robot: Robot, j: int) -> bool:
+    need = problem.tasks[j].capability
+    return (not need or need in robot.capabilities) and robot.capacity != 0
+
+
+def solve(problem: Problem, situation: Situation, objective: Objective, *, exact_limit: int,
+          solutions: int, time_limit: float,
+          current: Mapping[str, Sequence[str]] | None = None) -> Outcome:
+    """The plan for `situation`: the best of a fresh solve and the current plan (kept unless
+    beaten: module docstring)."""
+    t0 = time.perf_counter()
+    sub, robot_ids, task_ids, left = residual(problem, situation)
+    if not task_ids:
+        routes: dict[str, list[str]] = {r: [] for r in robot_ids}
+        method = KEPT
+    elif len(task_ids) <= exact_limit:
+        from mrta_zenoh.planning.exact import solve_exact
+        routes = _named(solve_exact(sub, objective).routes, robot_ids, task_ids)
+        method = EXACT
+    else:
+        from mrta_zenoh.planning.routing import solve_routing
+        routes = _named(solve_routing(sub, objective, solutions=solutions,
+                                      time_limit=time_limit).routes, robot_ids, task_ids)
+        method = BEST_FOUND
+    value = full_value(problem, objective, situation.commitments, routes)
+    if current is not None and task_ids:
+        kept = keep(problem, objective, situation, current, task_ids)
+        if kept is not None:
+            old = full_value(problem, objective, situation.commitments, kept)
+            if not value < old - TIE * max(1.0, abs(old)):
+                routes, value, method = kept, old, KEPT
+    return Outcome(routes, value, method, time.perf_counter() - t0, left)
+
+
+def _named(routes: Mapping[int, Sequence[int]], robot_ids: list[str],
+           task_ids: list[str]) -> dict[str, list[str]]:
+    return {robot_ids[i]: [task_ids[j] for j in routes.get(i, ())]
+            for i in range(len(robot_ids))}
+
+
+def keep(problem: Problem, objective: Objective, situation: Situation,
+         current: Mapping[str, Sequence[str]], task_ids: Sequence[str]
+         ) -> dict[str, list[str]] | None:
+    """The current plan on the tasks to plan: what is still open of each available robot's
+    route, then each task it does not hold inserted where it adds least (None: that is not
+    possible — a task nobody may take there)."""
+    wanted = set(task_ids)
+    routes = {r: [t for t in current.get(r, ()) if t in wanted] for r in situation.available}
+    held = {t for route in routes.values() for t in route}
+    for task in task_ids:
+        if task in held:
+            continue
+        best: tuple[float, str, int] | None = None
+        j = problem.task_index(task)
+        for rid in situation.available:
+            i = problem.robot_index(rid)
+            cap = problem.robots[i].capacity
+            if not problem.capable(i, j) or (cap is not None and len(
+                    situation.commitments.get(rid, ())) + len(routes[rid]) >= cap):
+                continue
+            for place in range(len(routes[rid]) + 1):
+                trial = {**routes, rid: routes[rid][:place] + [task] + routes[rid][place:]}
+                v = full_value(problem, objective, situation.commitments, trial)
+                if best is None or v < best[0] - TIE * max(1.0, abs(v)):
+                    best = (v, rid, place)
+        if best is None:
+            return None
+        _, rid, place = best
+        routes[rid].insert(place, task)
+    return routes
+
+
+def ms(seconds: float) -> float:
+    """Milliseconds, to the microsecond (what a Plan message carries)."""
+    return round(seconds * 1000.0, 3) if math.isfinite(seconds) else 0.0
