@@ -119,13 +119,20 @@ class RouteTeam:
     def all(self):
         return {**getattr(self, "_gone", {}), **self.coords}
 
-    def run_until_served(self, limit: float = 300.0) -> None:
+    def run_until_served(self, limit: float = 300.0, after: float = 5.0) -> None:
+        """Until every task is served and, for `after` seconds more, no live robot has a task
+        left (a task served twice would be served in that time)."""
         everything = {t.id for t in self.problem.tasks}
+        idle_since = None
         while self.now < limit:
-            if {t for tasks in self.served().values() for t in tasks} >= everything:
+            done = {t for tasks in self.served().values() for t in tasks} >= everything
+            idle = done and not any(c.route.queue for c in self.coords.values())
+            idle_since = (idle_since if idle_since is not None else self.now) if idle else None
+            if idle_since is not None and self.now - idle_since >= after:
                 return
             self.step()
-        raise AssertionError(f"not every task served by t={limit}: {self.served()}")
+        raise AssertionError(f"not every task served and the team idle by t={limit}: "
+                             f"{self.served()}")
 
     def run_until(self, t: float) -> None:
         while self.now < t - EPS:
