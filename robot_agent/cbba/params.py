@@ -32,7 +32,7 @@ class CbbaKeys:
     lookahead: float = 0.0
 
 
-def _read(top: StrictMapping) -> CbbaKeys:
+def read_keys(top: StrictMapping) -> CbbaKeys:
     discount = top.get("discount", float, DISCOUNT, positive=True)
     if discount > 1.0:
         raise top.doc.error(("discount",), f"discount must be in (0, 1], got {discount:g}")
@@ -50,8 +50,8 @@ KEYS = set(CbbaKeys.__dataclass_fields__)
 
 
 def load_robot(path) -> OwnRouteRobot:
-    return own.load_robot(path, WHAT, KEYS, _read)
+    return own.load_robot(path, WHAT, KEYS, read_keys)
 
 
 def load_params(robot_id: str, robot_file, tasks_file, layers_file=None) -> OwnRouteParams:
-    return own.load_params(robot_id, robot_file, tasks_file, layers_file, WHAT, KEYS, _read)
+    return own.load_params(robot_id, robot_file, tasks_file, layers_file, WHAT, KEYS, read_keys)

@@ -86,8 +86,6 @@ def load_robot(path: Path | str, what: str, extra_keys: set[str],
                         f"sensors ({', '.join(sorted(topics)) or 'none'})"
                         + did_you_mean(pose_topic, topics))
     instance = Path(doc.path).parent / top.get("instance", str)
-    if not instance.is_file():
-        raise doc.error(("instance",), f"instance file {instance} does not exist")
     return OwnRouteRobot(
         name=top.get("name", str, ""), spin_rate=top.rate("spin_rate", 10.0),
         control_rate=top.rate("control_rate", 10.0),
@@ -97,13 +95,26 @@ def load_robot(path: Path | str, what: str, extra_keys: set[str],
         evaluators=tuple(evaluators), extra=read_extra(top))
 
 
-def load_params(robot_id: str, robot_file, tasks_file, layers_file, what: str,
-                extra_keys: set[str], read_extra: Callable[[StrictMapping], Any]
-                ) -> OwnRouteParams:
+def load_files(robot_file, tasks_file, what: str, extra_keys: set[str],
+               read_extra: Callable[[StrictMapping], Any]
+               ) -> tuple[OwnRouteRobot, dict[str, TaskParams]]:
+    """The robot and tasks files, checked against each other — not the instance they name,
+    which an application writes beside them (`mrta app new` does not: the check of what it
+    writes stops here)."""
     robot = load_robot(robot_file, what, extra_keys, read_extra)
     tasks = {t.id: t for _, t in iter_tasks(tasks_file)}
     for ev in robot.evaluators:
         require_task(ev.task_id, tasks, robot_file, "a task entry")
+    return robot, tasks
+
+
+def load_params(robot_id: str, robot_file, tasks_file, layers_file, what: str,
+                extra_keys: set[str], read_extra: Callable[[StrictMapping], Any]
+                ) -> OwnRouteParams:
+    robot, tasks = load_files(robot_file, tasks_file, what, extra_keys, read_extra)
+    if not robot.instance.is_file():
+        raise ConfigError(f"{robot_file}: its instance file {robot.instance} does not exist "
+                          "(the key `instance`, relative to the robot file)")
     problem = instances.problem(robot.instance)
     if not isinstance(problem, Problem):
         raise ConfigError(f"{robot.instance}: its instance kind gave a "

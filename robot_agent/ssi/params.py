@@ -27,7 +27,7 @@ class SsiKeys:
     lookahead: float = 0.0
 
 
-def _read(top: StrictMapping) -> SsiKeys:
+def read_keys(top: StrictMapping) -> SsiKeys:
     return SsiKeys(top.duration("resend_period", RESEND_PERIOD),
                    top.duration("join_wait", JOIN_WAIT), lookahead(top))
 
@@ -37,8 +37,8 @@ KEYS = set(SsiKeys.__dataclass_fields__)
 
 
 def load_robot(path) -> OwnRouteRobot:
-    return own.load_robot(path, WHAT, KEYS, _read)
+    return own.load_robot(path, WHAT, KEYS, read_keys)
 
 
 def load_params(robot_id: str, robot_file, tasks_file, layers_file=None) -> OwnRouteParams:
-    return own.load_params(robot_id, robot_file, tasks_file, layers_file, WHAT, KEYS, _read)
+    return own.load_params(robot_id, robot_file, tasks_file, layers_file, WHAT, KEYS, read_keys)
