@@ -104,6 +104,12 @@ SHORT_HELP = {
         "Run a launch file: `mrta launch PACKAGE FILE.launch [name:=value …]` or a path.",
     "mrta_agent.murdoch.cli:murdoch":
         "Run ROBOT_ID's MURDOCH agent: auctions, leases, sensors, evaluators and layers.",
+    "mrta_agent.ssi.cli:ssi":
+        "Run ROBOT_ID's SSI agent: bid in sequential single-item auctions (clear them as the "
+        "lowest-id live robot), serve the path its awards built.",
+    "mrta_agent.cbba.cli:cbba":
+        "Run ROBOT_ID's CBBA agent: build its bundle, reach consensus with its teammates, "
+        "serve its bundle's path.",
     "mrta_supervisor.plot_cli:plot":
         "Plots from a recording made with `mrta record` (or `mrta demo`).",
     "mrta_zenoh.cli.record:record":
