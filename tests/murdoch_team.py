@@ -67,6 +67,7 @@ class Delays:
     latency = (0.0, 0.0)  # set: the driver holds each message until its time
     loss = 0.0
     partitions = ()
+    range = None
 
     def __init__(self, robot: str, choose: Callable[[str, str, int], float]):
         self.robot, self.choose = robot, choose
@@ -78,6 +79,9 @@ class Delays:
         return False
 
     def cut_off(self, t: float) -> bool:
+        return False
+
+    def out_of_range(self, here, there) -> bool:
         return False
 
     def stalled(self, now: float) -> bool:
