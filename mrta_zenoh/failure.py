@@ -19,7 +19,10 @@ A spec is a comma-separated list of items (docs/delivery.md, "Fault grammar"):
 * `loss:P`: each coordination message is lost for each receiver with probability P, drawn from
   the run's seed (the same seed loses the same messages);
 * `latency:MEAN±JITTER` (ASCII `MEAN+-JITTER`; `latency:MEAN` alone: no jitter): each
-  coordination message is heard MEAN ± JITTER seconds (uniform, seeded) after it was sent.
+  coordination message is heard MEAN ± JITTER seconds (uniform, seeded) after it was sent;
+* `range:R`: a coordination message between robots farther apart than R metres is dropped
+  (CBBA's communication-limited setting), as the receiver's latest ground truth of both robots
+  says; a robot whose position it has not heard yet is in range.
 
 Two forms: a *subject* kind strikes one process (`kind:SUBJECT@T`, `+D` for a duration), a
 *channel* kind sets one value for the run (`kind:VALUE`). A subject is a robot's id or a *role*,
@@ -44,6 +47,7 @@ from __future__ import annotations
 import dataclasses
 import enum
 import logging
+import math
 import os
 import re
 import signal
@@ -70,6 +74,7 @@ class FaultKind(str, enum.Enum):
     PARTITION = "partition"
     LOSS = "loss"
     LATENCY = "latency"
+    RANGE = "range"
 
     def __str__(self) -> str:
         return self.value
@@ -92,11 +97,12 @@ SYNTAX: dict[FaultKind, Syntax] = {
     FaultKind.LOSS: Syntax("loss:P with 0 < P < 1, e.g. loss:0.1", False),
     FaultKind.LATENCY: Syntax("latency:MEAN±JITTER (seconds; ASCII +- also), e.g. "
                               "latency:0.2±0.1", False),
+    FaultKind.RANGE: Syntax("range:R metres > 0, e.g. range:8", False),
 }
 KINDS = tuple(k.value for k in FaultKind)
 USAGE = SYNTAX[FaultKind.CRASH].usage
 GRAMMAR = ("a comma-separated list of ROBOT@T (crash), stall:ROBOT@T, partition:ROBOT@T+D, "
-           "loss:P, latency:MEAN±JITTER, e.g. stall:robot2@30,loss:0.1")
+           "loss:P, latency:MEAN±JITTER, range:R, e.g. stall:robot2@30,loss:0.1")
 
 _NUM = r"\d+(?:\.\d+)?"
 FIRST, RANDOM = "@first", "@random"
@@ -125,6 +131,7 @@ class Faults:
     failures: tuple[Failure, ...] = ()
     loss: float = 0.0
     latency: tuple[float, float] | None = None  # (mean, jitter) seconds
+    range: float | None = None  # metres: messages between robots farther apart are dropped
     spec: str = ""
 
     @property
@@ -133,7 +140,8 @@ class Faults:
         return self.failures[0] if self.failures else None
 
     def __bool__(self) -> bool:
-        return bool(self.failures) or self.loss > 0 or self.latency is not None
+        return (bool(self.failures) or self.loss > 0 or self.latency is not None
+                or self.range is not None)
 
     def items(self) -> list[str]:
         """The spec's items as written."""
@@ -241,9 +249,16 @@ def _latency(item: str, rest: str) -> tuple[float, float]:
     return mean, jitter
 
 
+def _range(item: str, rest: str) -> float:
+    if not _PROBABILITY.match(rest) or not float(rest) > 0:
+        raise ValueError(f"{item!r:.80}: expected {SYNTAX[FaultKind.RANGE].usage}")
+    return float(rest)
+
+
 # channel kind → its value's parser; the value goes to the `Faults` field of the kind's name
 _VALUES: dict[FaultKind, Callable[[str, str], object]] = {FaultKind.LOSS: _loss,
-                                                         FaultKind.LATENCY: _latency}
+                                                         FaultKind.LATENCY: _latency,
+                                                         FaultKind.RANGE: _range}
 
 
 def parse_faults(text: str) -> Faults:
@@ -301,6 +316,7 @@ class FaultPlan:
     loss: float = 0.0
     latency: tuple[float, float] | None = None
     crash_at: float | None = None
+    range: float | None = None
     # an `@first` fault not resolved yet: the agent resolves it at its time, from who was
     # assigned first among the robots no item names (`taken`), and then strikes or drops it
     first: Failure | None = None
@@ -335,10 +351,18 @@ class FaultPlan:
         u = uniform(self.seed, "latency", self.robot, key, seq)
         return mean + jitter * (2.0 * u - 1.0)
 
+    def out_of_range(self, here: tuple[float, float] | None,
+                     there: tuple[float, float] | None) -> bool:
+        """Whether a message between robots at `here` and `there` is dropped (`range:R`); an
+        unknown position is in range."""
+        return (self.range is not None and here is not None and there is not None
+                and math.dist(here, there) > self.range)
+
     @property
     def channel(self) -> bool:
         """Whether received messages are touched at all."""
-        return self.loss > 0 or self.latency is not None or bool(self.partitions)
+        return (self.loss > 0 or self.latency is not None or bool(self.partitions)
+                or self.range is not None)
 
 
 def plan_for(faults: Faults, subject: str, seed: int) -> FaultPlan | None:
@@ -350,12 +374,13 @@ def plan_for(faults: Faults, subject: str, seed: int) -> FaultPlan | None:
                          "the run (mrta demo, mrta experiment): give the robot's id")
     own = faults.of(subject)
     first = faults.of(FIRST) if own is None else None
-    if own is None and first is None and faults.loss == 0 and faults.latency is None:
+    if own is None and first is None and faults.loss == 0 and faults.latency is None \
+            and faults.range is None:
         return None
     taken = frozenset(f.robot for f in faults.failures if f.robot not in ROLES) \
         if first is not None else frozenset()
     plan = FaultPlan(subject, seed, loss=faults.loss, latency=faults.latency, first=first,
-                     taken=taken)
+                     taken=taken, range=faults.range)
     return plan.struck(own) if own is not None else plan
 
 

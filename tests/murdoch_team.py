@@ -68,6 +68,7 @@ class Delays:
     loss = 0.0
     partitions = ()
     first = None  # no fault names a robot by role
+    range = None
 
     def __init__(self, robot: str, choose: Callable[[str, str, int], float]):
         self.robot, self.choose = robot, choose
@@ -79,6 +80,9 @@ class Delays:
         return False
 
     def cut_off(self, t: float) -> bool:
+        return False
+
+    def out_of_range(self, here, there) -> bool:
         return False
 
     def stalled(self, now: float) -> bool:

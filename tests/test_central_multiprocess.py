@@ -132,7 +132,7 @@ def test_central_achieves_the_exact_minsum_optimum_on_a_static_instance(children
     assert s["messages"]["by_kind"]["queue"] > 0 and s["messages"]["by_kind"]["progress"] > 0
 
 
-@pytest.mark.long
+@pytest.mark.slow
 @pytest.mark.timeout(300)
 def test_a_crashed_robots_tasks_are_replanned_and_served(children, tmp_path):
     # robot4 serves t3, t4, t2 in the optimal plan: it crashes on its way to t3
@@ -145,7 +145,7 @@ def test_a_crashed_robots_tasks_are_replanned_and_served(children, tmp_path):
     assert lost and all(a["reason"] != "done" for a in lost)
 
 
-@pytest.mark.long
+@pytest.mark.slow
 @pytest.mark.timeout(300)
 def test_a_stalled_robots_tasks_go_to_the_others(children, tmp_path):
     s = run_demo(children, tmp_path / "a", "150", "--architecture", "central",
@@ -157,7 +157,7 @@ def test_a_stalled_robots_tasks_go_to_the_others(children, tmp_path):
     assert all(a["reason"] != "done" for a in stretches)
 
 
-@pytest.mark.long
+@pytest.mark.slow
 @pytest.mark.timeout(300)
 def test_robots_finish_their_queues_when_the_dispatcher_crashes(children, tmp_path):
     s = run_demo(children, tmp_path / "a", "60", "--architecture", "central",
@@ -170,7 +170,7 @@ def test_robots_finish_their_queues_when_the_dispatcher_crashes(children, tmp_pa
         s["objectives"]["reference"]["minsum"]["value"], abs=TOL)
 
 
-@pytest.mark.long
+@pytest.mark.slow
 @pytest.mark.timeout(400)
 def test_the_same_seed_gives_the_same_central_run_under_loss(children, tmp_path):
     runs = [run_demo(children, tmp_path / name, "60", "--architecture", "central",
@@ -185,7 +185,7 @@ def test_the_same_seed_gives_the_same_central_run_under_loss(children, tmp_path)
 
 
 # ------------------------------------------------------------------ 3 robots × 6 tasks, time-extended
-@pytest.mark.long
+@pytest.mark.slow
 @pytest.mark.timeout(420)
 @pytest.mark.parametrize("architecture", ["alliance", "murdoch", "central"])
 def test_every_architecture_completes_three_robots_by_six_tasks(children, tmp_path,

@@ -37,6 +37,8 @@ VERB_MODULES = {
     "robot_agent/alliance/plot_cli.py",  # mrta plot motivation
     "robot_agent/murdoch/cli.py",       # mrta murdoch
     "robot_agent/central/cli.py",       # mrta central, mrta dispatcher
+    "robot_agent/ssi/cli.py",           # mrta ssi
+    "robot_agent/cbba/cli.py",          # mrta cbba
     "simulator/cli.py",                 # mrta sim
     "supervisor/cli.py",                # mrta supervise, mrta view
     "supervisor/plot_cli.py",           # mrta plot, mrta plot timeline

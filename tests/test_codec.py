@@ -13,6 +13,7 @@ from mrta_delivery.messages import TaskEvent
 from mrta_zenoh.lockstep import LockstepStatus, Step, StepDone
 from mrta_agent.murdoch.messages import Announcement, Award, Bid, Claim, Release, Revoke
 from mrta_agent.central.messages import Plan, Progress, Queue, Queued
+from mrta_agent.runtime.own_route import Progress as RouteProgress, Queued as RouteQueued
 from mrta_agent.ssi.messages import Bid as SsiBid, Round
 from mrta_agent.cbba.messages import Bids
 from mrta_zenoh.fault_roles import Assigned
@@ -54,6 +55,8 @@ EXAMPLES = [
     Round(Header("robot1", 4.0, 5), 3, (1, -1, -2, -3), 0, 2.5),
     SsiBid(Header("robot2", 4.1, 2), "robot1", 3, 1, 4.0, (3,)),
     Bids(Header("robot2", 4.1, 9), ((0, 1, 0.75),), ((0, 4.0), (1, 4.1)), (3,), 1.5, -2.0),
+    RouteProgress(Header("robot2", 4.1, 9), "t3", "t5", ("t3", "t1"), ("t5",), 1.5, -2.0, 0.3),
+    RouteQueued(Header("robot2", 4.1, 10), "t1", 1),
 ]
 
 

@@ -96,7 +96,8 @@ def test_every_kind_is_written_read_and_carried_the_same_way():
             value = getattr(parse_faults(example), kind.value)
             assert value and kind.value in plan_fields
             assert getattr(plan_for(parse_faults(example), "robot1", 0), kind.value) == value
-    assert [str(k) for k in FaultKind] == ["crash", "stall", "partition", "loss", "latency"]
+    assert [str(k) for k in FaultKind] == ["crash", "stall", "partition", "loss", "latency",
+                                           "range"]
 
 
 # ------------------------------------------------------------------ seeded channel faults
@@ -211,6 +212,28 @@ def test_loss_drops_the_messages_the_seed_says(tmp_path):
     expected = [s for s in range(1, 41) if not plan.lost(key, s)]
     assert heard == expected and 5 < len(expected) < 35
     assert agent.dropped_by_fault == 40 - len(expected)
+
+
+def test_range_drops_the_messages_of_robots_farther_apart_than_r(tmp_path):
+    agent, bus, clock = make(tmp_path, FaultPlan("robot1", range=8.0))
+    heard = spy(agent, lambda msg, at: msg.header.seq)
+
+    def truth(robot, x, t):
+        bus.publish(keys.ground_truth(robot), Odometry(Header(f"{robot}/ground_truth", t, 0),
+                                                        Pose2D(x, 0.0, 0.0), Twist(0.0, 0.0)))
+    truth("robot1", 0.0, 0.0)
+    for seq, x in enumerate((5.0, 9.0, 7.9, 8.1), start=1):
+        t = seq * 0.5
+        truth("robot2", x, t)
+        run(agent, bus, clock, t)
+        bus.publish(ALLIANCE.key("robot2", IRC),
+                    InterRobotCommunication(Header("robot2", t, seq), "b", 60.0))
+    run(agent, bus, clock, 3.0)
+    assert heard == [1, 3]  # 9 m and 8.1 m away: dropped
+    assert agent.dropped_by_fault == 2
+    assert parse_faults("range:8").range == 8.0
+    with pytest.raises(ValueError, match="range:R"):
+        parse_faults("range:0")
 
 
 def test_latency_delays_each_message_by_its_seeded_draw(tmp_path):

@@ -29,9 +29,11 @@ PACKAGES = {
     "mrta_delivery": ROOT / "configs" / "applications" / "delivery",
     "mrta_delivery_murdoch": ROOT / "configs" / "applications" / "delivery_murdoch",
     "mrta_delivery_central": ROOT / "configs" / "applications" / "delivery_central",
+    "mrta_delivery_ssi": ROOT / "configs" / "applications" / "delivery_ssi",
+    "mrta_delivery_cbba": ROOT / "configs" / "applications" / "delivery_cbba",
 }
 APPS = {"mrta_patrol", "mrta_patrol_murdoch", "mrta_delivery", "mrta_delivery_murdoch",
-        "mrta_delivery_central", "ping_app"}
+        "mrta_delivery_central", "mrta_delivery_ssi", "mrta_delivery_cbba", "ping_app"}
 FORBIDDEN = {
     "mrta_zenoh": {"mrta_agent", "mrta_simulator", "mrta_supervisor"} | APPS,
     "mrta_agent.runtime": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_agent.central",
@@ -54,16 +56,22 @@ FORBIDDEN = {
     "mrta_patrol_murdoch": {"mrta_zenoh", "mrta_agent", "mrta_simulator", "mrta_supervisor",
                             "mrta_patrol"},  # holds no code at all
     "mrta_delivery": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_agent.central",
-                      "mrta_delivery_murdoch", "mrta_delivery_central", "mrta_patrol"},
+                      "mrta_agent.ssi", "mrta_agent.cbba", "mrta_delivery_murdoch",
+                      "mrta_delivery_central", "mrta_delivery_ssi", "mrta_delivery_cbba",
+                      "mrta_patrol"},
     "mrta_delivery_murdoch": {"mrta_zenoh", "mrta_agent", "mrta_simulator", "mrta_supervisor",
                               "mrta_delivery"},  # holds no code at all
     "mrta_delivery_central": {"mrta_zenoh", "mrta_agent", "mrta_simulator", "mrta_supervisor",
                               "mrta_delivery"},  # holds no code at all
+    "mrta_delivery_ssi": {"mrta_zenoh", "mrta_agent", "mrta_simulator", "mrta_supervisor",
+                          "mrta_delivery"},  # holds no code at all
+    "mrta_delivery_cbba": {"mrta_zenoh", "mrta_agent", "mrta_simulator", "mrta_supervisor",
+                           "mrta_delivery"},  # holds no code at all
 }
 # the top-level import names the wheel installs: none may be another PyPI project's
 TOP_LEVEL = {"mrta_zenoh", "mrta_agent", "mrta_simulator", "mrta_supervisor", "mrta_patrol",
              "mrta_patrol_murdoch", "mrta_delivery", "mrta_delivery_murdoch",
-             "mrta_delivery_central"}
+             "mrta_delivery_central", "mrta_delivery_ssi", "mrta_delivery_cbba"}
 
 
 def module_of(path: Path, package: str) -> str:

@@ -112,6 +112,12 @@ SHORT_HELP = {
         "Run central's dispatcher: it re-solves the problem at each arrival, completion or "
         "robot loss and sends each robot its queue (docs/central.md). Its faults come from "
         "$MRTA_FAULTS, e.g. crash:dispatcher@T.",
+    "mrta_agent.ssi.cli:ssi":
+        "Run ROBOT_ID's SSI agent: bid in sequential single-item auctions (clear them as the "
+        "lowest-id live robot), serve the path its awards built.",
+    "mrta_agent.cbba.cli:cbba":
+        "Run ROBOT_ID's CBBA agent: build its bundle, reach consensus with its teammates, "
+        "serve its bundle's path.",
     "mrta_supervisor.plot_cli:plot":
         "Plots from a recording made with `mrta record` (or `mrta demo`).",
     "mrta_zenoh.cli.record:record":

@@ -48,8 +48,9 @@ from mrta_zenoh.clock import EPSILON, Clock
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.failure import FaultPlan, crash_now
 from mrta_zenoh.fault_roles import EVERY_ASSIGNED, Assigned, assigned_key, first_assigned
+from mrta_zenoh import keys
 from mrta_zenoh.keys import first_chunk
-from mrta_zenoh.messages import Header
+from mrta_zenoh.messages import Header, Odometry
 from mrta_zenoh.seeds import robot_rng
 from mrta_zenoh.timetext import at
 from mrta_zenoh.untrusted import visible
@@ -127,6 +128,7 @@ class Agent:
         self._subject_tokens: dict[str, set[str]] = {}
         self._told_subjects: dict[str, set[str]] = {}
         self._handles: list = []  # subscriptions and the agent's token, closed at shutdown
+        self._where: dict[str, tuple[float, float]] = {}  # robot → its ground truth (range:R)
         self._layers_task: str | None = None
         # an @first fault: the team's first assignments heard (robot → stamp; callbacks write,
         # under _token_lock), whether this robot announced its own, and the plan as given (a
@@ -153,6 +155,9 @@ class Agent:
             self._handles.append(self.bus.subscribe(EVERY_ASSIGNED, self._on_assigned,
                                                     msg_type=Assigned))
         arch = self.architecture
+        if self.faults is not None and self.faults.range is not None:
+            self._handles.append(self.bus.subscribe(keys.ground_truth("*"), self._on_truth,
+                                                    msg_type=Odometry))
         for kind in self.coordinator.listens:
             for key_expr in self.listen_keys(kind):
                 self._handles.append(self.bus.subscribe(
@@ -335,10 +340,16 @@ class Agent:
                 self.dropped_by_fault += 1
                 return
             heard += plan.delay(sample.key, msg.header.seq)
-            if plan.cut_off(heard):
+            if plan.cut_off(heard) or plan.out_of_range(self._where.get(self.robot_id),
+                                                        self._where.get(sender)):
                 self.dropped_by_fault += 1
                 return
         self._inbox.append((heard, kind, sender, msg, sample.key))
+
+    def _on_truth(self, sample: Sample) -> None:
+        """A robot's ground truth, for the range fault (failure.py, `range:R`)."""
+        pose = sample.message.pose
+        self._where[first_chunk(sample.key)] = (pose.x, pose.y)
 
     # ------------------------------------------------------------ the inbox
     def in_lockstep(self) -> bool:

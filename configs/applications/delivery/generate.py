@@ -33,6 +33,9 @@ How the instance becomes each architecture's parameters (docs/delivery.md):
   pose when it bids, so a robot that finished a task bids from there.
 * central: one task entry per task the robot can serve (its evaluator), the dispatcher on
   MinSum with its defaults (robot_agent/central/params.py).
+* SSI and CBBA (`delivery_ssi`, `delivery_cbba`, answers files beside central's): as central's
+  robots, each robot file naming the package's `config/instance.yaml`, which its decision logic
+  plans on; their own keys at their defaults.
 """
 
 from __future__ import annotations
@@ -180,6 +183,34 @@ def central_answers(params: DeliveryParams, package: str = "delivery_central") -
                    depends=["simulator", "supervisor", "delivery"], **COMMON)
 
 
+OWN_ROUTE = {  # SSI and CBBA: each robot plans on the instance itself
+    "ssi": ("SSI", "sequential single-item auctions: each round every robot bids the travel "
+                   "time its best open task adds to its path, the lowest bid wins"),
+    "cbba": ("CBBA", "the consensus-based bundle algorithm: each robot builds a bundle by "
+                     "discounted reward and agrees on the winners with its teammates")}
+
+
+def own_route_answers(params: DeliveryParams, arch: str, package: str) -> Answers:
+    """SSI's or CBBA's answers: one task entry per task the robot can serve (its evaluator),
+    the instance beside the robot files (`config/instance.yaml`), the defaults otherwise."""
+    robots = _robot_tasks(params)
+    title, how = OWN_ROUTE[arch]
+    per_robot = {}
+    for k, (rid, tasks) in enumerate(robots.items()):
+        per_robot[rid] = {
+            "name": f"Robot {k + 1}", "spin_rate": SPIN, "report_period": 1.0,
+            "pose_topic": "odom", "instance": "instance.yaml", "sensors": SENSORS,
+            "tasks": [{"evaluator": {"plugin_name": EVALUATOR,
+                                     "sensors": [{"topic_name": "odom"}]}} for _ in tasks]}
+    return Answers(package=package, name=f"Delivery ({title})", architecture=arch,
+                   robots=robots,
+                   configs={f"{arch}_params": per_robot,
+                            f"tasks_{arch}_params": {"tasks": _tasks_list(params, False)}},
+                   description=f"Point-task delivery (ST-SR-TA) with {how}: robots of "
+                               "different speeds and capabilities, each serving its path.",
+                   depends=["simulator", "supervisor", "delivery"], **COMMON)
+
+
 def answers_yaml(answers: Answers) -> bytes:
     """An answers file (`mrta app new --answers`) holding `answers`."""
     head = (f"# Answers for `mrta app new --answers`: the rqt_mrta files of "
@@ -304,7 +335,7 @@ def package_files(params: DeliveryParams, answers: Answers, registry: Registry |
     planned = bool(arch.config(f"dispatcher_{stem}_params"))  # an architecture with a dispatcher
     files["launch/delivery_sim.launch"] = sim_launch(params, answers.package, arch_pkg.name, stem,
                                                      dispatcher=planned)
-    if planned:
+    if planned or answers.architecture in OWN_ROUTE:
         files["config/instance.yaml"] = instance_yaml(params)
     return files
 
@@ -321,18 +352,22 @@ def instance_yaml(params: DeliveryParams) -> bytes:
 
 def all_files(params: DeliveryParams, alliance: str = "delivery",
               murdoch: str = "delivery_murdoch",
-              central: str = "delivery_central") -> dict[str, bytes]:
+              central: str = "delivery_central", ssi: str = "delivery_ssi",
+              cbba: str = "delivery_cbba") -> dict[str, bytes]:
     """Every package's generated files, by path under their common parent folder, and
-    central's answers file beside them."""
+    central's, SSI's and CBBA's answers files beside them."""
     files = {}
     made = ((alliance_answers(params, alliance), alliance),
             (murdoch_answers(params, murdoch), murdoch),
-            (central_answers(params, central), central))
+            (central_answers(params, central), central),
+            (own_route_answers(params, "ssi", ssi), ssi),
+            (own_route_answers(params, "cbba", cbba), cbba))
     for answers, folder in made:
         for rel, data in package_files(params, answers).items():
             files[f"{folder}/{rel}"] = data
     files[f"{alliance}/worlds/delivery.yaml"] = world_yaml(params)
-    files[f"{central}_answers.yaml"] = answers_yaml(made[2][0])
+    for answers, folder in made[2:]:
+        files[f"{folder}_answers.yaml"] = answers_yaml(answers)
     return files
 
 
@@ -341,7 +376,8 @@ def generate(params: DeliveryParams, folder: Path, name: str = "delivery") -> li
     NAME_central and NAME_central_answers.yaml. Everything is built before the first file is
     written, so a bad instance writes nothing; each file is replaced atomically (the package
     folders also hold this application's Python modules, so they are not replaced whole)."""
-    files = all_files(params, name, f"{name}_murdoch", f"{name}_central")
+    files = all_files(params, name, f"{name}_murdoch", f"{name}_central", f"{name}_ssi",
+                      f"{name}_cbba")
     written = []
     for rel, data in sorted(files.items()):
         path = folder / rel

@@ -1,0 +1,56 @@
+"""CBBA (docs/cbba.md) as tools and the agent runtime see it: the object registered under
+`mrta.architectures` as `cbba` — bundle construction and consensus (Choi, Brunet & How 2009),
+asynchronous over the bus, each robot serving its bundle's path.
+
+Who is doing what is read from the robots' `Progress` reports (what each set off to, its whole
+queue). No decision records: CBBA decides nowhere in particular (every robot's table is the
+decision, and converges). Takeover bound: none — a lost robot's wins are reset at each teammate
+at the tick after its token goes (or after `progress_timeout` without progress) and re-bid, but
+whoever wins one serves it in its path's order (docs/cbba.md, "In execution").
+"""
+
+from __future__ import annotations
+
+from mrta_zenoh.architectures import Takeover, TakeoverBound
+from mrta_zenoh.clock import Clock
+
+from ..runtime.architecture import Prepared
+from ..runtime.own_route import Progress, Queued
+from ..runtime.own_route_arch import OwnRouteArchitecture
+from ..runtime.route import PluginReadings
+from . import params as cbba_params
+from .agent import CbbaCoordinator
+from .messages import Bids
+
+
+class CbbaArchitecture(OwnRouteArchitecture):
+    name = "cbba"
+    title = "CBBA"
+    namespace = "cbba"
+    executable = "cbba/agent"
+    command = "cbba"
+    param_stem = "cbba"
+    bound_formula = ("none: wins reset within a tick of the loss, then re-bid and served in "
+                     "the winner's path order")
+    messages = {"bids": Bids, "progress": Progress, "queued": Queued}
+    coordination_kinds = ("bids", "progress")
+    objective = None  # it maximises discounted rewards, none of planning.schedule's objectives
+    logger_name = "mrta.cbba"
+    params = cbba_params
+
+    def has_subkeys(self, kind: str) -> bool:
+        """Each queued task of a robot under its own key (`robot1/cbba/queued/t3`)."""
+        return kind == "queued"
+
+    def coordinator(self, prepared: Prepared, agent_clock: Clock) -> CbbaCoordinator:
+        return CbbaCoordinator(prepared.robot_id, prepared.params,
+                               PluginReadings(prepared.plugins, prepared.params.robot.pose_topic))
+
+
+    def takeover_check(self, t: Takeover) -> TakeoverBound:
+        return TakeoverBound(None, t.failed_at, case=(
+            "CBBA re-bids a lost robot's tasks at once, but whoever wins one serves it in its "
+            "path's order, which the bundles choose: no bound on when it is served"))
+
+
+CBBA = CbbaArchitecture()

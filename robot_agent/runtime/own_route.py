@@ -1,0 +1,191 @@
+"""A robot serving the route its *own* decision logic keeps (SSI's auction wins, CBBA's bundle):
+the thin adapter between a pure logic (`listens`, `hear`, `teammate`, `tick(now) -> [Out]`,
+`route()`, `served(task, at)`) and the `RouteExecutor`. The logic decides; this class only
+carries its messages, hands its route to the executor once the logic says it is *settled*, feeds
+served tasks back, watches its teammates' progress and reports its own.
+
+Rules, each for a reason:
+
+* **Settled before setting off.** The executor takes the logic's route only while the logic is
+  settled (`settled(now)`: SSI — no task any live robot could serve is still open; CBBA — its
+  winning-bid table unchanged for `settle` seconds). With every task known at the start the team
+  therefore sets off on the converged plan, not on a prefix of it the next round reorders; the
+  executed orders equal the converged ones. Mid-run (an arrival, a loss) a robot finishes the
+  task it is on meanwhile and takes the new route when the logic settles again.
+* **Work in progress is kept.** The task the robot set off to stays first (RouteExecutor.assign)
+  even if the logic's path would now insert a task before it — a departure from SSI's and
+  CBBA's insertion, whose bids assume the robot can still change its next stop.
+* **A stalled teammate is a departed one.** A teammate whose `Progress` reports show a task but
+  neither motion, nor a task served, nor a change of task for `progress_timeout` seconds is
+  told to the logic as gone (`teammate(robot, False)`), exactly as if its token went: its tasks
+  are auctioned again (SSI) or its wins reset (CBBA). When it progresses again (or its token
+  comes back after going) it is told as back. A stalled robot keeps talking, but its teammates
+  no longer count what it says.
+* **Reports.** A `Progress` at every change and every `report_period` (what the supervisor's
+  busy/idle view and the teammates' stall watch read), and, every `report_period`, one `Queued`
+  per task of its queue (monitoring only).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from typing import ClassVar, Iterable
+
+from mrta_zenoh.clock import EPSILON
+from mrta_zenoh.messages import Finite, Header, Message, message
+from mrta_zenoh.timetext import at
+
+from .coordinator import Coordinator, Say
+from .route import Readings, RouteExecutor
+
+MOVED = 0.05  # m: a teammate whose reported pose moved this far made progress
+
+
+@message("route_msgs/Progress")
+class Progress(Message):
+    """`task`: the task it set off to ("" none); `last`: the one it last served or left ("" none);
+    `queue`: its whole queue; `served`: what it served, in order; where it is."""
+
+    header: Header
+    task: str
+    last: str
+    queue: tuple[str, ...]
+    served: tuple[str, ...]
+    x: Finite
+    y: Finite
+    theta: Finite
+
+
+@message("route_msgs/Queued")
+class Queued(Message):
+    """`task_id` is in the sender's queue, at `place` (0: the task it is on)."""
+
+    header: Header
+    task_id: str
+    place: int
+
+
+class Watch:
+    """One teammate as its reports show it: the last time it made progress."""
+
+    def __init__(self) -> None:
+        self.state: tuple | None = None
+        self.pose: tuple[float, float] | None = None
+        self.progress_at: float | None = None
+        self.busy = False
+
+    def heard(self, msg: Progress, at_: float) -> None:
+        state = (msg.task, tuple(msg.served))
+        moved = self.pose is None or math.dist(self.pose, (msg.x, msg.y)) > MOVED
+        if state != self.state or moved:
+            self.state, self.pose = state, (msg.x, msg.y)
+            self.progress_at = at_
+        self.busy = bool(msg.task)
+
+
+class OwnRouteCoordinator(Coordinator):
+    """Subclasses set `logic_kinds` (what the logic hears) and implement `settled`."""
+
+    logic_kinds: ClassVar[tuple[str, ...]] = ()
+    log: ClassVar[logging.Logger] = logging.getLogger("mrta.agent")
+
+    def __init__(self, robot_id: str, logic, readings: Readings, report_period: float,
+                 progress_timeout: float):
+        self.robot_id = robot_id
+        self.logic = logic
+        self.readings = readings
+        self.report_period, self.progress_timeout = report_period, progress_timeout
+        self.route = RouteExecutor()
+        self.tokens: dict[str, bool] = {}      # teammate → its token lives
+        self.watch: dict[str, Watch] = {}      # teammate → its progress
+        self.told: dict[str, bool] = {}        # teammate → alive, as last told to the logic
+        self._active: str | None = None
+        self._reported: tuple | None = None
+        self._report_at: float | None = None
+
+    @property
+    def listens(self) -> tuple[str, ...]:  # type: ignore[override]
+        return self.logic_kinds + ("progress",)
+
+    @property
+    def active_task(self) -> str | None:
+        return self._active
+
+    def settled(self, now: float) -> bool:
+        """Whether the logic's route is the one to serve now (module docstring)."""
+        raise NotImplementedError
+
+    # ------------------------------------------------------------------ teammates
+    def teammate(self, robot: str, alive: bool) -> None:
+        self.tokens[robot] = alive
+        if alive:
+            self.watch.pop(robot, None)  # a robot back starts with a clean record
+        self._tell(robot)
+
+    def _tell(self, robot: str, now: float | None = None) -> None:
+        alive = self.tokens.get(robot, False) and not self._stalled(robot, now)
+        if self.told.get(robot) != alive:
+            self.told[robot] = alive
+            self.logic.teammate(robot, alive)
+
+    def _stalled(self, robot: str, now: float | None) -> bool:
+        w = self.watch.get(robot)
+        return (now is not None and w is not None and w.busy and w.progress_at is not None
+                and now - w.progress_at > self.progress_timeout + EPSILON)
+
+    def hear(self, kind: str, sender: str, message, at_: float) -> bool:
+        if kind == "progress":
+            if not isinstance(message, Progress) or sender == self.robot_id:
+                return False
+            self.watch.setdefault(sender, Watch()).heard(message, at_)
+            return True
+        if kind not in self.logic_kinds:
+            return False
+        return self.logic.hear(kind, sender, message, at_)
+
+    # ------------------------------------------------------------------ one tick
+    def tick(self, now: float) -> Iterable[Say]:
+        for robot in list(self.tokens):
+            before = self.told.get(robot)
+            self._tell(robot, now)
+            if before and not self.told[robot]:
+                self.log.warning("%s: %s made no progress for %g s: counted as gone %s",
+                                 self.robot_id, robot, self.progress_timeout, at(now))
+        out = [Say(o.kind, o.fields, getattr(o, "subject", None)) for o in self.logic.tick(now)]
+        changed = False
+        if self.settled(now) and self.route.queue != self._wanted():
+            for change in self.route.assign(self._wanted(), now):
+                self.log.info("%s: left %s %s", self.robot_id, change.task, at(now))
+            changed = True
+        for change in self.route.step(now, self.readings):
+            self.log.info("%s: %s %s %s", self.robot_id, change.kind.replace("_", " "),
+                          change.task, at(now))
+            if change.kind == "served":
+                self.logic.served(change.task, change.at)
+            changed = True
+        self._active = self.route.active(now, self.readings)
+        return out + self._report(now, changed)
+
+    def _wanted(self) -> list[str]:
+        """The logic's route, the task set off to first (module docstring)."""
+        wanted = self.logic.route()
+        current = self.route.current
+        if current is not None and current in wanted:
+            wanted = [current] + [t for t in wanted if t != current]
+        return wanted
+
+    def _report(self, now: float, changed: bool) -> list[Say]:
+        r = self.route
+        pose = self.readings.pose() or (0.0, 0.0, 0.0)
+        state = (r.current or "", r.last or "", tuple(r.queue), tuple(r.served_ids()))
+        due = self._report_at is None or now - self._report_at >= self.report_period - EPSILON
+        if not (changed or due or state != self._reported):
+            return []
+        out = [Say("progress", (*state, *pose))]
+        self._reported = state
+        if due:
+            self._report_at = now
+            out += [Say("queued", (task, place), task, lossy=True)
+                    for place, task in enumerate(r.queue)]
+        return out

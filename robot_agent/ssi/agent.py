@@ -1,0 +1,46 @@
+"""SSI in execution: one robot's auction logic (`auction.Ssi`) driving its route
+(mrta_agent.runtime.own_route: the logic's path to the RouteExecutor once settled, served tasks
+fed back with `served(task, at)`, teammates without progress told as gone, reports).
+
+Settled, for SSI: the robot has a Round (heard, or made as the auctioneer) and no task that a
+live robot could serve is still open in it — every award of the current rounds is in. With every
+task known at the start the team thus sets off on SSI's final allocation, each robot on the path
+its awards built (docs/ssi.md, "In execution").
+"""
+
+from __future__ import annotations
+
+import logging
+
+from mrta_zenoh.planning.insertion import Origin
+
+from ..runtime.own_route import OwnRouteCoordinator
+from ..runtime.own_route_params import OwnRouteParams
+from ..runtime.route import Readings
+from .auction import Ssi
+from .messages import OPEN
+
+
+class SsiCoordinator(OwnRouteCoordinator):
+    logic_kinds = Ssi.listens
+    log = logging.getLogger("mrta.ssi")
+
+    def __init__(self, robot_id: str, params: OwnRouteParams, readings: Readings):
+        keys = params.robot.extra
+        logic = Ssi(params.problem, robot_id, lookahead=keys.lookahead,
+                    resend_period=keys.resend_period, join_wait=keys.join_wait,
+                    origin=Origin(None, 0.0))
+        super().__init__(robot_id, logic, readings, params.robot.report_period,
+                         params.robot.progress_timeout)
+
+    def subjects(self, kind: str) -> tuple[str, ...] | None:
+        """Bids go to their auctioneer (`*/ssi/bid/<auctioneer>`): only those to this robot."""
+        return (self.robot_id,) if kind == "bid" else None
+
+    def settled(self, now: float) -> bool:
+        s = self.logic
+        if s.round_from is None:
+            return False
+        team = s.alive | {s.i}
+        return not any(w == OPEN and any(s.problem.capable(k, j) for k in team)
+                       for j, w in enumerate(s.owners))

@@ -1,0 +1,63 @@
+"""SSI (docs/ssi.md) as tools and the agent runtime see it: the object registered under
+`mrta.architectures` as `ssi` — sequential single-item auctions cleared by the lowest-id live
+robot, each robot serving the path its awards built.
+
+Who is doing what is read from the robots' `Progress` reports (what each set off to, its whole
+queue); every award is a decision (the auctioneer's `Round` carrying one). Takeover bound: none —
+a lost robot's tasks are open again at the auctioneer's next tick after its token goes (or after
+`progress_timeout` without progress), and awarded within a round per task, but whoever wins one
+serves it in its path's order, which the auction chooses (docs/ssi.md, "In execution").
+"""
+
+from __future__ import annotations
+
+from mrta_zenoh.architectures import Decision, Takeover, TakeoverBound
+from mrta_zenoh.clock import Clock
+
+from ..runtime.architecture import Prepared
+from ..runtime.own_route import Progress, Queued
+from ..runtime.own_route_arch import OwnRouteArchitecture
+from ..runtime.route import PluginReadings
+from . import params as ssi_params
+from .agent import SsiCoordinator
+from .messages import Bid, Round
+
+
+class SsiArchitecture(OwnRouteArchitecture):
+    name = "ssi"
+    title = "SSI"
+    namespace = "ssi"
+    executable = "ssi/agent"
+    command = "ssi"
+    param_stem = "ssi"
+    bound_formula = ("none: re-opened within a tick of the loss, then served in the winner's "
+                     "path order")
+    messages = {"round": Round, "bid": Bid, "progress": Progress, "queued": Queued}
+    coordination_kinds = ("round", "bid", "progress")
+    objective = "minsum"
+    decision_kinds = ("round",)
+    logger_name = "mrta.ssi"
+    params = ssi_params
+
+    def has_subkeys(self, kind: str) -> bool:
+        """A bid goes to its auctioneer (`robot2/ssi/bid/robot1`), each queued task of a robot
+        under its own key (`robot1/ssi/queued/t3`)."""
+        return kind in ("bid", "queued")
+
+    def coordinator(self, prepared: Prepared, agent_clock: Clock) -> SsiCoordinator:
+        return SsiCoordinator(prepared.robot_id, prepared.params,
+                              PluginReadings(prepared.plugins, prepared.params.robot.pose_topic))
+
+    def decision(self, sender: str, key: str, message: object) -> Decision | None:
+        """A Round that carries an award: one decision, by the auctioneer that sent it."""
+        if not isinstance(message, Round) or message.award < 0:
+            return None
+        return Decision(sender, message.header.stamp, 0.0, self.objective)
+
+    def takeover_check(self, t: Takeover) -> TakeoverBound:
+        return TakeoverBound(None, t.failed_at, case=(
+            "SSI re-auctions a lost robot's tasks at once, but whoever wins one serves it in "
+            "its path's order, which the auction chooses: no bound on when it is served"))
+
+
+SSI = SsiArchitecture()
