@@ -42,6 +42,7 @@ def test_sigterm_of_an_agent_is_a_clean_stop(children, tokens):
     assert agent.wait(20) == 0, agent.tail(10)
 
 
+@pytest.mark.slow
 @pytest.mark.timeout(150)
 def test_ctrl_c_of_the_demo_exits_130_whatever_its_children_did(children, tmp_path):
     """A terminal's Ctrl-C reaches the demo's children too, and the simulator may end by it

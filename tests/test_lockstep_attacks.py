@@ -52,6 +52,7 @@ def agent_time(children, robot, task="wander"):
     return json.loads(echo.stdout[-1])["message"]["header"]["stamp"]
 
 
+@pytest.mark.slow
 def test_one_forged_step_moves_no_agent(children, tokens):
     s, agents, sup, run = lockstep_fleet(children, tokens)
     forge(children, "step", run)                  # stamp 1e9, the real run id

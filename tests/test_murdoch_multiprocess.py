@@ -73,6 +73,7 @@ def test_three_agents_allocate_and_a_killed_winner_is_replaced_within_the_lease_
     sup.wait_json(lambda s: {r["id"]: r["state"] for r in s["robots"]}[holder] == "offline", 30)
 
 
+@pytest.mark.slow
 def test_mrta_demo_under_murdoch_writes_the_same_summary_fields_as_alliance(children, tmp_path):
     out = tmp_path / "demo"
     demo = children.mrta("demo", "--architecture", "murdoch", "--output", str(out), "--no-live",

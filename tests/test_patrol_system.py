@@ -18,6 +18,7 @@ def run_demo(children, out, *args, timeout=90):
     return json.loads((out / "summary.json").read_text()), demo
 
 
+@pytest.mark.slow
 def test_demo_with_a_failure_takes_over_within_the_bound_and_writes_everything(children, tmp_path):
     out = tmp_path / "demo"
     s, demo = run_demo(children, out, "--duration", "40", "--speed", "8", "--fail", "robot2@20")
