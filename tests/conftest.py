@@ -17,15 +17,7 @@ class UnmarkedMultiprocess(BaseException):
     so code that turns errors into exit codes (`except Exception`) does not hide it."""
 
 
-@pytest.hookimpl(tryfirst=True)  # before pytest-xdist reads the groups
 def pytest_collection_modifyitems(config, items):
-    # Under `-n 2 --dist loadgroup` (the README's test command) the cross-process tests run on
-    # one worker, one at a time — each starts a fleet of processes sized for the machine, and
-    # two fleets at once would only make each other late — while the other worker runs the
-    # in-process tests beside them.
-    for item in items:
-        if item.get_closest_marker("multiprocess") is not None:
-            item.add_marker(pytest.mark.xdist_group("multiprocess"))
     expr = config.option.markexpr or ""
     if "not multiprocess" not in expr or "slow" in expr:
         return
