@@ -15,11 +15,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from mrta_zenoh.planning.schedule import Objective
-from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, load_yaml, sized_array
+from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, load_yaml
 from mrta_agent.runtime.params import (SensorParams, StrictMapping, TaskParams, iter_tasks,
-                                       load_layers_params, load_sensor_topics, open_robot_file,
-                                       require_task, task_id_of)
+                                       load_layers_params, open_robot_file,
+                                       require_task)
 from mrta_agent.runtime.plugins import EvaluatorSpec
+from mrta_agent.runtime.route import route_tasks
 
 # A robot reports at least this often (s): its heartbeat to the dispatcher, and how fresh the
 # supervisor's view of it is.
@@ -80,27 +81,12 @@ DISPATCHER_KEYS = {"objective", "spin_rate", "resend_period", "progress_timeout"
 
 def load_robot(path: Path | str) -> RobotParams:
     doc, top, sensors = open_robot_file(path, ROBOT_KEYS, "a central robot parameter file")
-    topics = {s.topic_name for s in sensors}
-    evaluators: list[EvaluatorSpec] = []
-    for tpath, _ in sized_array(doc, ("tasks",), "task"):
-        t = StrictMapping(doc, tpath, {"task_id", "evaluator"})
-        task_id = task_id_of(t, "task_id")
-        if any(e.task_id == task_id for e in evaluators):
-            raise doc.error(tpath + ("task_id",), f"task {task_id!r} appears twice")
-        e = StrictMapping(doc, tpath + ("evaluator",), {"plugin_name", "sensors"})
-        etopics = load_sensor_topics(doc, tpath + ("evaluator", "sensors"), topics)
-        evaluators.append(EvaluatorSpec(task_id, e.get("plugin_name", str), etopics,
-                                        e.where("plugin_name")))
-    pose_topic = top.get("pose_topic", str, None)
-    if pose_topic is not None and pose_topic not in topics:
-        raise doc.error(("pose_topic",), f"pose_topic {pose_topic!r} is not among the robot's "
-                        f"sensors ({', '.join(sorted(topics)) or 'none'})"
-                        + did_you_mean(pose_topic, topics))
+    evaluators, pose_topic = route_tasks(doc, top, sensors)
     robot = RobotParams(name=top.get("name", str, ""), spin_rate=top.rate("spin_rate", 10.0),
                         control_rate=top.rate("control_rate", 10.0),
                         report_period=top.duration("report_period", REPORT_PERIOD),
                         lease=top.duration("lease", LEASE), pose_topic=pose_topic,
-                        sensors=sensors, evaluators=tuple(evaluators))
+                        sensors=sensors, evaluators=evaluators)
     if robot.lease <= 1.0 / robot.spin_rate:
         raise doc.error(("lease",), f"lease {robot.lease:g} s is not longer than a tick "
                         f"(1/spin_rate = {1.0 / robot.spin_rate:g} s): the robot would hold "

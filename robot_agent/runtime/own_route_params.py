@@ -19,11 +19,12 @@ from typing import Any, Callable
 from mrta_zenoh import instances
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.planning import Problem
-from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, sized_array
+from mrta_zenoh.yamlfile import YamlDoc, did_you_mean
 
 from .params import (SensorParams, StrictMapping, TaskParams, iter_tasks, load_layers_params,
-                     load_sensor_topics, open_robot_file, require_task, task_id_of)
+                     open_robot_file, require_task)
 from .plugins import EvaluatorSpec
+from .route import route_tasks
 
 REPORT_PERIOD = 1.0
 # A teammate whose reports show a task but no progress (no motion, nothing served, no change of
@@ -69,22 +70,7 @@ def lookahead(top: StrictMapping) -> float:
 def load_robot(path: Path | str, what: str, extra_keys: set[str],
                read_extra: Callable[[StrictMapping], Any]) -> OwnRouteRobot:
     doc, top, sensors = open_robot_file(path, COMMON_KEYS | extra_keys, what)
-    topics = {s.topic_name for s in sensors}
-    evaluators: list[EvaluatorSpec] = []
-    for tpath, _ in sized_array(doc, ("tasks",), "task"):
-        t = StrictMapping(doc, tpath, {"task_id", "evaluator"})
-        task_id = task_id_of(t, "task_id")
-        if any(e.task_id == task_id for e in evaluators):
-            raise doc.error(tpath + ("task_id",), f"task {task_id!r} appears twice")
-        e = StrictMapping(doc, tpath + ("evaluator",), {"plugin_name", "sensors"})
-        etopics = load_sensor_topics(doc, tpath + ("evaluator", "sensors"), topics)
-        evaluators.append(EvaluatorSpec(task_id, e.get("plugin_name", str), etopics,
-                                        e.where("plugin_name")))
-    pose_topic = top.get("pose_topic", str, None)
-    if pose_topic is not None and pose_topic not in topics:
-        raise doc.error(("pose_topic",), f"pose_topic {pose_topic!r} is not among the robot's "
-                        f"sensors ({', '.join(sorted(topics)) or 'none'})"
-                        + did_you_mean(pose_topic, topics))
+    evaluators, pose_topic = route_tasks(doc, top, sensors)
     instance = Path(doc.path).parent / top.get("instance", str)
     return OwnRouteRobot(
         name=top.get("name", str, ""), spin_rate=top.rate("spin_rate", 10.0),
@@ -92,7 +78,7 @@ def load_robot(path: Path | str, what: str, extra_keys: set[str],
         report_period=top.duration("report_period", REPORT_PERIOD),
         progress_timeout=top.duration("progress_timeout", PROGRESS_TIMEOUT),
         pose_topic=pose_topic, instance=instance, sensors=sensors,
-        evaluators=tuple(evaluators), extra=read_extra(top))
+        evaluators=evaluators, extra=read_extra(top))
 
 
 def load_files(robot_file, tasks_file, what: str, extra_keys: set[str],

@@ -184,3 +184,4 @@ def require_task(task_id: str, tasks, robot_file, what: str) -> None:
             f"{what} for task {task_id!r} but the tasks file has "
             f"{', '.join(sorted(tasks)) or 'no tasks'}" + did_you_mean(task_id, tasks),
             file=str(robot_file), element="'task_id'")
+

@@ -28,8 +28,10 @@ from dataclasses import dataclass, field
 from typing import NamedTuple, Protocol, Sequence
 
 from mrta_zenoh.messages import Odometry
+from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, sized_array
 
-from .plugins import Plugins
+from .params import SensorParams, StrictMapping, load_sensor_topics, task_id_of
+from .plugins import EvaluatorSpec, Plugins
 
 
 class Readings(Protocol):
@@ -124,3 +126,26 @@ class RouteExecutor:
         if self.current is not None and readings.applicable(self.current, now):
             return self.current
         return None
+
+def route_tasks(doc: YamlDoc, top: StrictMapping, sensors: Sequence[SensorParams]
+                ) -> tuple[tuple[EvaluatorSpec, ...], str | None]:
+    """A route-executing robot's `tasks` (one evaluator per task it may serve, no task twice)
+    and its `pose_topic` (one of its sensors): what central's and the own-route architectures'
+    robot files share."""
+    topics = {s.topic_name for s in sensors}
+    evaluators: list[EvaluatorSpec] = []
+    for tpath, _ in sized_array(doc, ("tasks",), "task"):
+        t = StrictMapping(doc, tpath, {"task_id", "evaluator"})
+        task_id = task_id_of(t, "task_id")
+        if any(e.task_id == task_id for e in evaluators):
+            raise doc.error(tpath + ("task_id",), f"task {task_id!r} appears twice")
+        e = StrictMapping(doc, tpath + ("evaluator",), {"plugin_name", "sensors"})
+        etopics = load_sensor_topics(doc, tpath + ("evaluator", "sensors"), topics)
+        evaluators.append(EvaluatorSpec(task_id, e.get("plugin_name", str), etopics,
+                                        e.where("plugin_name")))
+    pose_topic = top.get("pose_topic", str, None)
+    if pose_topic is not None and pose_topic not in topics:
+        raise doc.error(("pose_topic",), f"pose_topic {pose_topic!r} is not among the robot's "
+                        f"sensors ({', '.join(sorted(topics)) or 'none'})"
+                        + did_you_mean(pose_topic, topics))
+    return tuple(evaluators), pose_topic
