@@ -65,7 +65,7 @@ from .api import Refresh, attach
 from .ground_truth import decisions, intervals_from
 from .plots import ROBOTS_TITLE, Panel, TimeBase, draw_timeline
 from . import roles
-from .run_watch import Readiness, RunWatch, crashed_itself, run_status
+from .run_watch import Readiness, RunWatch, check_simulator_end, crashed_itself, run_status
 from .state import Supervisor
 from .tasks import TaskWatch
 from .summary import (COMPLETE, Coverage, Disturbance, FailureReport, MessageRates, Span, Summary,
@@ -415,8 +415,7 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
             # end by it before this process sees its own. Their ends are no failures.
             group.interrupted()
             raise Interrupted()
-        if sim.wait(30) != 0:
-            raise MrtaRuntimeError(f"the simulator {sim.describe_exit()}:\n" + sim.tail())
+        check_simulator_end(sim)
         group.stop_all()
         # the crashed subjects: those named (robots, the architecture's processes) and, for an
         # @first crash, the robot that crashed itself

@@ -18,7 +18,9 @@ participant's (agents, and any other participant: a dispatcher), the recorder's 
 simulator's clock source — a process is up while any of its tokens lives. What is no
 disturbance: the final loss of a crash target whose process died by a SIGKILL this runner did
 not send (the crash itself), and the simulator's token going at the end of its run (the runner
-checks that it then exits cleanly).
+checks that it then exits cleanly, or by the SIGTERM the runner sent it once the work was done),
+nor a token seen going and coming back before the run's clock moved (at 0 s: Zenoh may report a
+process's token twice as its session joins the bus, and no simulated time passed meanwhile).
 
 Not seen here: a process stopped for less than the lease keeps its session. In lockstep a
 stopped agent or simulator is waited for, so the run is unchanged; a recorder stopped that
@@ -140,6 +142,8 @@ class RunWatch(Closing):
                 if final and (process == SIMULATOR or (
                         process in crashes and crashed_itself(children.get(process)))):
                     continue
+                if back_at is not None and back_at <= 0.0:  # back before the run was on
+                    continue
                 out.append(Disturbance(process, round(lost_at, 2),
                                        None if back_at is None else round(back_at, 2)))
         return out
@@ -157,6 +161,16 @@ def crashed_itself(child: Child | None) -> bool:
     """Ended by a SIGKILL nobody here sent: the crash a fault injected (mrta_zenoh.failure)."""
     return (child is not None and child.returncode == -signal.SIGKILL
             and signal.SIGKILL not in child.signalled)
+
+
+def check_simulator_end(sim: Child) -> None:
+    """The simulator's end is the run's: an exit of its own with code 0, or the end of the
+    SIGTERM the runner sent it once the mission's work was done (mission._watch). That signal
+    may reach it as it is already shutting down at its duration, past its own signal handling,
+    so that it dies by it: the work was done, and the recording is the recorder's, so that is a
+    normal end too. Anything else is a MrtaRuntimeError naming how it ended."""
+    if sim.failed():
+        raise MrtaRuntimeError(f"the simulator {sim.describe_exit()}:\n" + sim.tail())
 
 
 def run_status(disturbances: list[Disturbance], recorded_until: float | None,

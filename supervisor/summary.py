@@ -287,8 +287,10 @@ def run_problem(summary: Summary) -> str | None:
                      + (f", back at {d.back_at:g} s" if d.back_at is not None else "")
                      for d in summary.disturbances)
     if summary.run_status == INCOMPLETE:
+        # the mission ends at its duration, or earlier when its work was over (ended_at)
+        end = summary.duration if summary.ended_at is None else summary.ended_at
         until = ("it is empty" if summary.recorded_until is None
-                 else f"it ends at {summary.recorded_until:g} s of {summary.duration:g} s")
+                 else f"it ends at {summary.recorded_until:g} s of {end:g} s")
         return (f"the recording does not cover the whole mission ({until}"
                 + (f"; {lost}" if lost else "") + ")")
     if summary.run_status == DISTURBED:

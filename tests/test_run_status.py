@@ -12,14 +12,17 @@ from types import SimpleNamespace
 import pytest
 
 from mrta_agent.alliance.architecture import ALLIANCE
-from mrta_supervisor.run_watch import RECORDER, SIMULATOR, RunWatch, run_status
+from mrta_supervisor.run_watch import (RECORDER, SIMULATOR, RunWatch, check_simulator_end,
+                                       run_status)
 from mrta_supervisor.summary import (COMPLETE, DISTURBED, INCOMPLETE, Disturbance, Summary,
                                      run_problem)
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.bus.inproc import InProcNetwork
 from mrta_zenoh.clock import ManualClock
+from mrta_zenoh.errors import MrtaRuntimeError
 from mrta_zenoh.keys import CLOCK_SOURCE_TOKEN, RECORDER_TOKEN
 from mrta_zenoh.lockstep import PARTICIPANT
+from mrta_zenoh.processes import Child
 
 CRASHED = SimpleNamespace(returncode=-signal.SIGKILL, signalled=set())       # killed itself
 KILLED_BY_US = SimpleNamespace(returncode=-signal.SIGKILL, signalled={signal.SIGKILL})
@@ -112,6 +115,51 @@ def test_what_goes_after_the_end_or_before_it_came_is_not_counted():
     run.watch.close()
 
 
+def test_a_token_seen_going_and_coming_before_the_clock_moved_is_no_disturbance():
+    """At start-up, as a session joins, its token may be reported gone and back at once: no
+    simulated time passed, the run was not on. A loss at 0 s that lasts, or a blink later
+    (a stopped simulator freezes the clock: gone and back at one instant), still counts."""
+    run = Run()
+    run.start()
+    run.down(RECORDER, 0.0)
+    run.up(RECORDER, f"{RECORDER_TOKEN}/abc")
+    run.down("robot1", 0.0)
+    run.clock.set(4.0)
+    run.up("robot1", "robot1/alliance/agent")
+    run.down(SIMULATOR, 20.0)
+    run.up(SIMULATOR, f"{CLOCK_SOURCE_TOKEN}/1234-x0")
+    run.watch.end()
+    d = run.watch.disturbances({}, set())
+    assert d == [Disturbance("robot1", 0.0, 4.0), Disturbance(SIMULATOR, 20.0, 20.0)]
+
+
+class _Sim(Child):
+    """The simulator's process as it ended: its exit status and the signals the runner sent
+    (Child.__init__ would start a process: set what the rest of Child reads)."""
+
+    def __init__(self, returncode: int, signalled: set[int]):
+        self.name, self.argv, self.signalled = "sim", ["sim"], signalled
+        self.proc = SimpleNamespace(poll=lambda: returncode)
+        self.stdout, self.stderr, self._threads = ["done: 60.0 s simulated"], [], []
+
+
+@pytest.mark.parametrize("rc, signalled, fails", [
+    (0, set(), False),                                  # ended at its duration
+    (0, {signal.SIGTERM}, False),                       # stopped by the runner, cleanly
+    (-signal.SIGTERM, {signal.SIGTERM}, False),         # died of it as it was ending anyway
+    (1, {signal.SIGTERM}, True),                        # crashed while stopping
+    (-signal.SIGTERM, set(), True),                     # someone else's SIGTERM
+    (3, set(), True)])
+def test_a_simulator_the_runner_stopped_once_the_work_was_done_ended_normally(
+        rc, signalled, fails):
+    sim = _Sim(rc, signalled)
+    if fails:
+        with pytest.raises(MrtaRuntimeError, match="the simulator"):
+            check_simulator_end(sim)
+    else:
+        check_simulator_end(sim)
+
+
 @pytest.mark.parametrize("recorded_until, status", [(60.0, COMPLETE), (59.2, COMPLETE),
                                                     (58.9, INCOMPLETE), (34.0, INCOMPLETE),
                                                     (None, INCOMPLETE)])
@@ -136,6 +184,9 @@ def test_the_summary_says_why_in_one_line():
         "lost its token at 34 s)")
     assert run_problem(summary(run_status=INCOMPLETE)) == (
         "the recording does not cover the whole mission (it is empty)")
+    # a mission whose work was over early ends then, not at its duration
+    assert run_problem(summary(run_status=INCOMPLETE, recorded_until=50.2, ended_at=54.7)) == (
+        "the recording does not cover the whole mission (it ends at 50.2 s of 54.7 s)")
     assert run_problem(summary(run_status=DISTURBED, lockstep_exact=False,
                                disturbances=[Disturbance("robot1", 21.3, 35.0)])) == (
         "a process of the run was stopped or cut off (robot1 lost its token at 21.3 s, back "
