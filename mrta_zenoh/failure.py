@@ -225,7 +225,8 @@ def parse_failure(text: str) -> Failure:
     if m is None or (m[3] is not None) != syntax.lasts or float(m[2]) <= 0 \
             or (syntax.lasts and float(m[3]) <= 0):
         usage = syntax.usage if written or kind is not FaultKind.CRASH else USAGE
-        raise ValueError(f"{text!r:.80}: expected {usage} (seconds > 0)")
+        raise ValueError(f"{text!r:.80}: expected {usage} (seconds > 0; ROBOT a robot's id, "
+                         f"{FIRST} or {RANDOM})")
     at = _seconds(text, m[2], "time")
     duration = _seconds(text, m[3], "duration") if syntax.lasts else 0.0
     return Failure(m[1], at, text, kind, duration)

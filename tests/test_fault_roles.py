@@ -179,3 +179,9 @@ def test_the_runner_expects_the_crash_of_whichever_robot_first_struck():
                                   {"robot1": False, "robot2": True, "robot4": True})
     assert crashes == {"robot2", "robot4"}
     assert roles.crash_targets(parse_faults("stall:@first@3"), {"robot2": True}) == set()
+
+
+def test_a_bad_subject_is_told_which_subjects_there_are():
+    """A typo'd role gets an error that names the roles a subject may be."""
+    with pytest.raises(ValueError, match="@first or @random"):
+        parse_faults("crash:@nobody@3")

@@ -240,3 +240,12 @@ def test_bad_generator_parameters_exit_2_in_one_line(tmp_path, args, message):
     r = CliRunner().invoke(cli, ["instance", "generate", "delivery", *args, "-o", str(out)])
     assert r.exit_code == 2 and message in r.output, r.output
     assert len(r.output.strip().splitlines()) == 1 and not out.exists()
+
+
+@pytest.mark.parametrize("option", ["--robots", "--tasks"])
+def test_an_instance_of_no_robot_or_no_task_is_refused(tmp_path, option):
+    """An instance without a robot or a task is no problem to allocate: exit 2, nothing
+    written."""
+    out = tmp_path / "i.yaml"
+    r = CliRunner().invoke(cli, ["instance", "generate", "delivery", option, "0", "-o", str(out)])
+    assert r.exit_code == 2 and ">= 1" in r.output and not out.exists()

@@ -125,7 +125,7 @@ def parse_mix(mix: str) -> list[tuple[str, float]]:
 
 class DeliveryGeneratorParams(msgspec.Struct, forbid_unknown_fields=True):
     robots: Annotated[int, msgspec.Meta(ge=1, le=200, description="Robots N.")] = 3
-    tasks: Annotated[int, msgspec.Meta(ge=0, le=1000, description="Tasks M.")] = 5
+    tasks: Annotated[int, msgspec.Meta(ge=1, le=1000, description="Tasks M.")] = 5
     capabilities: Annotated[str, msgspec.Meta(
         description="Capability mix NAME:P,…: a task needs NAME with probability P; each robot "
                     "has each NAME with probability ½, the first robot has all.")] = \
