@@ -18,10 +18,12 @@ from mrta_zenoh.identity import OBSERVER
 from mrta_zenoh.keys import NODE_TOKEN, ROS2_BRIDGE_TOKEN
 from mrta_zenoh.lockstep import STATUS, LockstepStatus
 from mrta_zenoh.node import Node, NodeTime
+from mrta_zenoh.architectures import architecture, architecture_names
 from mrta_zenoh.toolchain.model import ApplicationFile, ArchitectureFile
 from mrta_zenoh.toolchain.registry import Registry
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
 
+from .entities import Serving
 from .state import Supervisor
 from .tasks import application_watch
 
@@ -75,6 +77,9 @@ def attach(sup: Supervisor, bus: Bus, clock) -> list:
     handles = []
     for key_expr, monitors in by_key.items():
         handles.append(bus.subscribe(key_expr, sup.handler_for(monitors, clock.now)))
+    for key_expr, msg_type in sup.serving.feed() if sup.serving is not None else ():
+        handles.append(bus.subscribe(key_expr, lambda s: sup.on_doing_sample(
+            s.key, s.message, clock.now()), msg_type=msg_type))
     for key_expr, msg_type in sup.watch.feed() if sup.watch is not None else ():
         handles.append(bus.subscribe(key_expr, lambda s: sup.on_task_sample(
             s.key, s.message, clock.now()), msg_type=msg_type))
@@ -93,6 +98,12 @@ def attach(sup: Supervisor, bus: Bus, clock) -> list:
         s.message.unresponsive, clock.now(), s.message.rivals, s.message.dropped),
         msg_type=LockstepStatus))
     return handles
+
+
+def serving_of(name: str) -> Serving | None:
+    """The registered architecture's own reports of which task each robot serves; None for an
+    architecture file with no registered contract: its monitors are all there is to show."""
+    return Serving(architecture(name)) if name in architecture_names() else None
 
 
 class Refresh:
@@ -163,7 +174,8 @@ def run_supervise(options: SuperviseOptions, bus_options: BusOptions,
         if not node.wait_for_clock():
             return 0
         sup = Supervisor(arch, app, clock.now(), o.unattended_after, o.duplicate_after,
-                         ros2_domain=o.ros2_domain, watch=application_watch(app))
+                         ros2_domain=o.ros2_domain, watch=application_watch(app),
+                         serving=serving_of(app.architecture))
         for h in attach(sup, bus, clock):
             node.hold(h)
         wall_start = time.monotonic()

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
+from mrta_zenoh.architectures import Architecture, Doing
+
 from .holders import SampleHolder
 
 
@@ -82,3 +84,35 @@ class Allocations:
     def _release(self, tid: str, rid: str) -> None:
         self._by_robot.get(rid, set()).discard(tid)
         self._by_task.get(tid, set()).discard(rid)
+
+
+class Serving:
+    """Which task each robot serves now, as its architecture's own reports say (the registered
+    contract's `doing`: central's and the own-route architectures' Progress name the task a
+    robot is on and the queue behind it). The `allocated_tasks` monitor only says which tasks
+    a robot holds — for a robot with a queue, a set — so it cannot tell which one it is on.
+    A report holds for the architecture's `doing_stale_after`."""
+
+    def __init__(self, arch: Architecture):
+        self.arch = arch
+        self._latest: dict[str, tuple[Doing, float]] = {}  # robot → its last report, heard at
+
+    def feed(self) -> list[tuple[str, type]]:
+        return self.arch.doing_feed()
+
+    def read(self, key: str, message: object, now: float) -> Doing | None:
+        """A sample of the feed; its Doing (None: it says nothing of tasks, or is forged)."""
+        doing = self.arch.read_doing(key, message)
+        if doing is not None:
+            self._latest[doing.robot] = (doing, now)
+        return doing
+
+    def of(self, rid: str, now: float) -> Doing | None:
+        """The robot's latest report if it still holds at `now`."""
+        latest = self._latest.get(rid)
+        if latest is None or now - latest[1] > self.arch.doing_stale_after:
+            return None
+        return latest[0]
+
+    def clear(self) -> None:
+        self._latest.clear()

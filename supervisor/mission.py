@@ -66,6 +66,7 @@ from .ground_truth import decisions, intervals_from
 from .plots import ROBOTS_TITLE, Panel, TimeBase, draw_timeline
 from . import roles
 from .run_watch import Readiness, RunWatch, check_simulator_end, crashed_itself, run_status
+from .entities import Serving
 from .state import Supervisor
 from .tasks import TaskWatch
 from .summary import (COMPLETE, Coverage, Disturbance, FailureReport, MessageRates, Span, Summary,
@@ -396,7 +397,8 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
         group.start(mrta_argv(*view), name="record")
         ready.wait(ready.recorder.is_set, "the recorder", group, stop)
         sup = Supervisor(run.arch_model, run.app, 0.0, unattended_after=30.0,
-                         duplicate_after=5.0, watch=run.mission.task_watch(run))
+                         duplicate_after=5.0, watch=run.mission.task_watch(run),
+                         serving=Serving(run.arch))
         for h in attach(sup, bus, clock):
             live.callback(h.close)
         children = start_nodes(group, nodes)

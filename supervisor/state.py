@@ -34,7 +34,7 @@ from mrta_zenoh.toolchain.model import ApplicationFile, ArchitectureFile
 
 from .alarms import Alarms, LockstepAlarms
 from .drivers import Ros2Drivers
-from .entities import Allocations, RobotInfo, TaskInfo
+from .entities import Allocations, RobotInfo, Serving, TaskInfo
 from .holders import History, SampleHolder, StateChange
 from .intake import Ids, Intake
 from .monitors import Monitor, monitors_of
@@ -52,8 +52,8 @@ class Supervisor:
     def __init__(self, arch: ArchitectureFile, app: ApplicationFile, now: float = 0.0,
                  unattended_after: float = 30.0, duplicate_after: float = 5.0,
                  quiet: bool = False, unknown_expiry: float = 30.0, ros2_domain: int = 0,
-                 watch: TaskWatch | None = None):
-        self.arch, self.app, self.watch = arch, app, watch
+                 watch: TaskWatch | None = None, serving: Serving | None = None):
+        self.arch, self.app, self.watch, self.serving = arch, app, watch, serving
         # whether the simulation run's clock source is gone (set by api.Refresh on simulated
         # time: SimClock.ended); a robot's token lost then is the run ending, not a fault
         self.source_gone: Callable[[], bool] = lambda: False
@@ -93,6 +93,8 @@ class Supervisor:
         self.run_ended = False
         self._dup_since: dict[str, float] = {}
         self.lockstep = LockstepAlarms(self._alarms, MAX_UNKNOWN, MAX_NAME)
+        if self.serving is not None:
+            self.serving.clear()
 
     def _robot(self, rid: str, now: float) -> RobotInfo:
         return RobotInfo(rid, True, SampleHolder(self._timeouts.get("busy_robots", 1.0)),
@@ -196,6 +198,23 @@ class Supervisor:
             self._reassess_robot(self.robots[rid], now)
             self._reassess_task(self.tasks[tid], now)
         return holder
+
+    def on_doing_sample(self, key: str, message: Any, now: float) -> None:
+        """A sample of the architecture's own reports of who serves what (Serving)."""
+        with self._lock:
+            if self.serving is not None:
+                self.serving.read(key, message, now)
+
+    def _task_shown(self, rid: str, now: float) -> tuple[str | None, list[str]]:
+        """The task a robot serves now and the tasks it holds: with the architecture's own
+        reports (Serving), the one it says it is on, and its queue; without, the one task the
+        monitors say it holds (an architecture without queues holds one)."""
+        held = self.held.tasks_of(rid)
+        doing = self.serving.of(rid, now) if self.serving is not None else None
+        if doing is not None:
+            queue = list(doing.queue) if doing.queue is not None else held
+            return (doing.task if doing.active else None), queue
+        return (held[0] if held else None), held
 
     def on_task_sample(self, key: str, message: Any, now: float) -> None:
         """A sample of the application's TaskWatch feed (tasks.py)."""
@@ -430,8 +449,8 @@ class Supervisor:
             robots = []
             order = {rid: i for i, rid in enumerate(self.robots)}  # application order first
             for r in sorted(self.robots.values(), key=lambda r: (not r.known, order[r.id])):
-                tasks = self.held.tasks_of(r.id)
-                robots.append({"id": r.id, "state": r.state, "task": tasks[0] if tasks else None,
+                task, queue = self._task_shown(r.id, now)
+                robots.append({"id": r.id, "state": r.state, "task": task, "queue": queue,
                                "online": self._online(r), "since": r.since})
             tasks = [{"id": t.id, "state": t.state, "robots": list(t.robots), "since": t.since}
                      for t in self.tasks.values()]

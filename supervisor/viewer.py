@@ -47,7 +47,7 @@ from mrta_zenoh.node import Node, NodeTime
 from mrta_zenoh.recording import McapRecorder, SimLogTime, check_output, json_channel
 from mrta_zenoh.untrusted import visible
 
-from .api import Refresh, attach, resolve_application
+from .api import Refresh, attach, resolve_application, serving_of
 from .foxglove import FoxgloveOutputs, derived_channels
 from .foxglove_server import FoxgloveServer
 from .state import Supervisor
@@ -247,7 +247,8 @@ def run_view(options: ViewOptions, bus_options: BusOptions, *,
         sup = refresh = None
         if application is not None:
             app_model, arch = application
-            sup = Supervisor(arch, app_model, clock.now(), watch=application_watch(app_model))
+            sup = Supervisor(arch, app_model, clock.now(), watch=application_watch(app_model),
+                             serving=serving_of(app_model.architecture))
             for h in attach(sup, bus, clock):
                 handles.callback(h.close)
             refresh = Refresh(sup, clock, sim_time)

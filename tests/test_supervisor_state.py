@@ -307,3 +307,42 @@ def test_ids_with_markup_and_escape_codes_are_shown_as_plain_text(patrol):
     out = buf.getvalue()
     assert "[/x][bold red]boom\\x1b[2J" in out  # literally, escape made visible
     assert "\x1b[2J" not in out
+
+
+def test_a_route_executing_robot_shows_the_task_it_serves_not_the_first_it_holds():
+    """SSI's robots hold queues: robot1 holds t2 and t3 and is on t3. The supervisor names the
+    task its own Progress says it is on, and the queue beside it (the monitors' sorted set
+    would say t2)."""
+    from mrta_zenoh.architectures import architecture
+    from mrta_zenoh.toolchain.registry import Registry
+    from mrta_agent.runtime.own_route import Progress, Queued
+    from mrta_supervisor.entities import Serving
+
+    ssi = architecture("ssi")
+    app = ApplicationFile("delivery", "Delivery", [RobotEntry("robot1", ["t1", "t2", "t3"]),
+                                                   RobotEntry("robot2", ["t1", "t2", "t3"])])
+    clock = ManualClock(10.0)
+    net = InProcNetwork()
+    with InProcBus(net) as watcher, InProcBus(net) as fleet:
+        sup = Supervisor(Registry().architecture("ssi")[1], app, 10.0, serving=Serving(ssi))
+        handles = attach(sup, watcher, clock)
+        for place, task in enumerate(["t3", "t2"]):  # its route: t3 first, then t2
+            fleet.publish(f"robot1/ssi/queued/{task}", Queued(Header("robot1", 10.0, 0), task,
+                                                                place))
+        fleet.publish("robot1/ssi/progress", Progress(Header("robot1", 10.0, 0), "t3", "",
+                                                      ("t3", "t2"), (), 0.0, 0.0, 0.0))
+        snap = {r["id"]: r for r in sup.snapshot(10.0)["robots"]}
+        assert (snap["robot1"]["task"], snap["robot1"]["queue"]) == ("t3", ["t3", "t2"])
+        assert (snap["robot2"]["task"], snap["robot2"]["queue"]) == (None, [])
+        # a report between tasks: the robot is on none, its queue still holds t2
+        fleet.publish("robot1/ssi/progress", Progress(Header("robot1", 11.0, 0), "", "t3",
+                                                      ("t2",), ("t3",), 0.0, 0.0, 0.0))
+        clock.set(11.0)
+        snap = {r["id"]: r for r in sup.snapshot(11.0)["robots"]}
+        assert (snap["robot1"]["task"], snap["robot1"]["queue"]) == (None, ["t2"])
+        # a forged report (robot2's key, robot1's header) says nothing
+        fleet.publish("robot2/ssi/progress", Progress(Header("robot1", 11.0, 0), "t1", "",
+                                                      ("t1",), (), 0.0, 0.0, 0.0))
+        assert {r["id"]: r["task"] for r in sup.snapshot(11.0)["robots"]}["robot2"] is None
+        for h in handles:
+            h.close()
