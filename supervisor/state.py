@@ -206,14 +206,14 @@ class Supervisor:
                 self.serving.read(key, message, now)
 
     def _task_shown(self, rid: str, now: float) -> tuple[str | None, list[str]]:
-        """The task a robot serves now and the tasks it holds: with the architecture's own
-        reports (Serving), the one it says it is on, and its queue; without, the one task the
-        monitors say it holds (an architecture without queues holds one)."""
+        """The task a robot serves now and the tasks it holds: for a robot with a queue, the
+        one its architecture's own latest report says it is on (Serving), and the queue; else
+        the one task the monitors say it holds (an architecture without queues — ALLIANCE,
+        MURDOCH — holds one, and its monitors are what the view has always shown)."""
         held = self.held.tasks_of(rid)
         doing = self.serving.of(rid, now) if self.serving is not None else None
-        if doing is not None:
-            queue = list(doing.queue) if doing.queue is not None else held
-            return (doing.task if doing.active else None), queue
+        if doing is not None and doing.queue is not None:
+            return (doing.task if doing.active else None), list(doing.queue)
         return (held[0] if held else None), held
 
     def on_task_sample(self, key: str, message: Any, now: float) -> None:
