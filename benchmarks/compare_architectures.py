@@ -1,279 +1,273 @@
-"""ALLIANCE vs MURDOCH, the comparison study: `python benchmarks/compare_architectures.py`.
+"""The architecture study: `python benchmarks/compare_architectures.py --output DIR`.
 
-Runs `mrta experiment` once per mission × architecture — missions `patrol` and `delivery`,
-architectures `alliance` and `murdoch` — over the same seeds and the same fault models, lockstep
-at full speed (a run's outcome depends on its seed only), with the two architectures'
-parameters matched through experiment overrides (the shipped packages are not touched):
+Delivery over generated instances — team sizes and task counts crossed (`--robots`,
+`--tasks-per-robot`: M = N and M = 2N), `--instances` instances of each size from the
+experiment's `instances:` block (docs/statistics.md, "Instances") — under every registered
+delivery architecture (alliance, murdoch, central, ssi, cbba) and three fault models named by
+role, so one spec fits every team: none, `crash:@first@T` and `stall:@first@T` (the robot that
+is first to hold a task, docs/delivery.md, "Fault grammar"). One `mrta experiment` per
+mission × architecture, lockstep at full speed (a run's outcome depends on its instance and
+seed only), `--jobs` at once here or `--scheduler ADDRESS` on a Dask cluster.
+
+Patrol stays ALLIANCE against MURDOCH: its tasks never end (wander, border protection, report),
+while central, SSI and CBBA plan routes over point tasks for a time-extended objective — there is
+no route to plan over a task that is never done. Its two architectures run with matched
+parameters (experiment overrides; the shipped packages are not touched):
 
     ALLIANCE  broadcast_rate 2 Hz, timeout_duration τ = 2 s
     MURDOCH   renewal_period 0.5 s (2 Hz), lease_timeout 2 s
 
-— the same message budget for "I am still on it", the same silence before a teammate may take
-over. Fault models (docs/delivery.md, "Fault grammar"), on each mission's robot doing a task:
-none, crash, stall, partition, loss, latency.
+Delivery cannot be matched that way: overrides do not apply to instance-derived packages
+(supervisor/experiment_file.py), so each architecture runs with its shipped parameters.
 
-The tables are the experiment report's (mrta_supervisor.report_md, docs/statistics.md): both
-architectures' results.csv rows of a mission go into OUTPUT/<mission>/results.csv, and the
-report made from it — per cell the mean with its 95 % bootstrap interval, runs missing a metric
-counted apart, identical runs said in words; ALLIANCE − MURDOCH paired by seed with its
-bootstrap interval, Wilcoxon p (Holm-adjusted), A12 and the probability of improvement — is
-OUTPUT/<mission>/summary.md, cells.csv, comparisons.csv and its plots. OUTPUT/tables.md holds
-both missions' tables and the README's headline; one JSON line per figure goes to stdout.
-  patrol:   first full allocation, takeover, coverage per task (share with exactly one robot),
-            coordination messages/s (what robots tell each other: Architecture.coordination)
-  delivery: makespan, optimality, completed, mean waiting time, takeover, coordination msgs/s
+Every delivery objective stands beside its reference value (metrics.reference_<objective>, the
+instance's exact optimum up to 10 tasks, else OR-Tools' best found; `reference_proven_optimal`
+says which): the combined results.csv gains `metrics.gap_<objective>` — achieved ÷ reference − 1,
+in % — and `metrics.reference_objective_<objective>`, the reference under the name the report
+pairs with `metrics.objective_<objective>` (its performance profile against the reference).
+
+The tables are the experiment report's (mrta_supervisor.report_md, docs/statistics.md): all
+architectures' rows of a mission go into OUTPUT/<mission>/results.csv, and the report made from
+it — per cell the mean with its bootstrap interval over instances, runs missing a figure counted
+apart; each architecture against `--baseline` paired by instance and seed, Wilcoxon p
+Holm-adjusted, A12, the probability of improvement; performance profiles against the best
+architecture and against the reference; each metric against the team size — is
+OUTPUT/<mission>/summary.md, cells.csv, comparisons.csv and its plots. OUTPUT/tables.md holds the
+study's tables and the README's headline; one JSON line per figure goes to stdout.
 
 It writes nothing outside OUTPUT unless asked: `--write-docs` rewrites the block between
 `<!-- table: begin -->` and `<!-- table: end -->` of docs/comparison.md (the discussion around
-it is written by hand) and the README's `<!-- study: begin -->` … `<!-- study: end -->`
-headline.
+it is written by hand), the README's `<!-- study: begin -->` … `<!-- study: end -->` headline,
+and copies the plots the page shows into docs/img/study/.
 
-    python benchmarks/compare_architectures.py --jobs 2 --output /tmp/study   # the full study
-    --seeds 1 2 3 --duration 60 --missions delivery --faults none stall --quick
-    --reuse --output /tmp/study --write-docs    # the tables again from its results, into docs
+    python benchmarks/compare_architectures.py --output /tmp/study --jobs 2   # the study
+    --robots 3 5 --tasks-per-robot 1 2 --instances 2 --seeds 1 --faults none stall
+    --reuse --output /tmp/study --write-docs   # what OUTPUT holds is not run again
 """
 
 from __future__ import annotations
 
 import argparse
-import csv
 import json
 import math
-import re
 import sys
 import tempfile
-from dataclasses import dataclass
 from pathlib import Path
 
 import yaml
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "benchmarks"))
 
+from mrta_zenoh.architectures import architecture_names  # noqa: E402
+from mrta_zenoh.errors import ConfigError, MrtaRuntimeError  # noqa: E402
+from mrta_zenoh.files import write_atomically, write_text  # noqa: E402
 from mrta_supervisor.experiment import run_experiment  # noqa: E402
 from mrta_supervisor.report import Options, Report  # noqa: E402
-from mrta_supervisor.report_md import brief, interval_text, num, p_text, share, write_report  # noqa: E402
-from mrta_supervisor.results import write_csv  # noqa: E402
+from mrta_supervisor.report_md import write_report  # noqa: E402
+from mrta_supervisor.results import read_results, write_csv  # noqa: E402
 
-ARCHITECTURES = {"ALLIANCE": "alliance", "MURDOCH": "murdoch"}  # title → mrta.architectures
-BASELINE = "murdoch"  # paired differences read ALLIANCE − MURDOCH
-# the same message budget and the same silence: ALLIANCE's heartbeat against
+from study_tables import (delivery_tables, headline, json_lines, mission_tables,  # noqa: E402
+                          replace_block)
+
+DELIVERY_ARCHITECTURES = ("alliance", "murdoch", "central", "ssi", "cbba")
+PATROL_ARCHITECTURES = ("alliance", "murdoch")  # continuous tasks: no routes to plan
+# patrol: the same message budget and the same silence — ALLIANCE's heartbeat against
 # MURDOCH's lease renewal, τ against the lease
 MATCHED = {"alliance": {"robot*.broadcast_rate": 2.0, "robot*.timeout_duration": 2.0},
            "murdoch": {"robot*.renewal_period": 0.5, "robot*.lease_timeout": 2.0}}
-FAULT_MODELS = ("none", "crash", "stall", "partition", "loss", "latency")
+FAULT_MODELS = ("none", "crash", "stall")
+# robot2 holds border_protection from 0.6 s in every seed; its φ (600 s) is longer than a run
+PATROL_FAULTS = {"none": "none", "crash": "robot2@20", "stall": "stall:robot2@20"}
+OBJECTIVES = ("minsum", "makespan", "flowtime")
+COORDINATION = "coordination_messages_per_second"
+DELIVERY_METRICS = ("metrics.completed", "metrics.makespan",
+                    *(f"metrics.objective_{o}" for o in OBJECTIVES),
+                    *(f"metrics.gap_{o}" for o in OBJECTIVES),
+                    "metrics.mean_waiting_time", "takeover_seconds", COORDINATION)
+PATROL_METRICS = ("first_full_allocation", "takeover_seconds", "*.exactly_one", COORDINATION)
+PICTURES = ("team_size_metrics.gap_minsum.png", "team_size_metrics.completed.png",
+            "profile_metrics.objective_minsum.png", "profile_metrics.makespan.png")
 TABLE = ("<!-- table: begin -->", "<!-- table: end -->")
 STUDY = ("<!-- study: begin -->", "<!-- study: end -->")
-COVERAGE = "*.exactly_one"  # every task's coverage column of the results
 
 
-@dataclass(frozen=True)
-class Mission:
-    application: str
-    duration: float       # simulated s per run
-    quick_duration: float
-    faults: dict[str, str]
-    metrics: tuple[str, ...]  # results.csv columns, COVERAGE for every task's
+def delivery_fault(name: str, at: float) -> str:
+    """The role-named spec of a fault model: on whichever robot first holds a task."""
+    return "none" if name == "none" else f"{name}:@first@{at:g}"
 
 
-COORDINATION = "coordination_messages_per_second"
-MISSIONS = {
-    # robot2 holds border_protection from 0.6 s in every seed; patrol's φ (600 s) is longer
-    # than any run, so a stall there is invisible to both architectures (docs/comparison.md)
-    "patrol": Mission("patrol", 60.0, 30.0, {
-        "none": "none", "crash": "robot2@20", "stall": "stall:robot2@20",
-        "partition": "partition:robot2@20+10", "loss": "loss:0.2",
-        "latency": "latency:0.3±0.2"},
-        ("first_full_allocation", "takeover_seconds", COVERAGE, COORDINATION)),
-    # robot1 drives to t1 (lift; robot3, idle, can lift too) from ≈ 2.4 s; its φ for t1 is
-    # 42.1 s, so a stall is taken over by ALLIANCE near 45 s and served by ≈ 65 s
-    "delivery": Mission("delivery", 80.0, 40.0, {
-        "none": "none", "crash": "robot1@5", "stall": "stall:robot1@5",
-        "partition": "partition:robot1@5+10", "loss": "loss:0.2",
-        "latency": "latency:0.3±0.2"},
-        ("metrics.makespan", "metrics.optimality", "metrics.completed",
-         "metrics.mean_waiting_time", "takeover_seconds", COORDINATION)),
-}
-# the README's headline: (mission, fault, metric column)
-HEADLINE = (("patrol", "crash", "takeover_seconds"),
-            ("patrol", "none", COORDINATION),
-            ("delivery", "none", "metrics.optimality"),
-            ("delivery", "none", "metrics.makespan"),
-            ("delivery", "stall", "metrics.completed"),
-            ("delivery", "latency", "metrics.makespan"))
+def delivery_experiment(arch: str, args: argparse.Namespace) -> dict:
+    return {"application": "delivery", "architecture": arch, "duration": args.duration,
+            "seeds": args.seeds,
+            "failures": [delivery_fault(f, args.fault_at) for f in args.faults],
+            "instances": {"generator": "delivery", "robots": args.robots,
+                          "tasks_per_robot": args.tasks_per_robot, "count": args.instances,
+                          "seed": args.instance_seed}}
 
 
-def combined(folder: Path, mission: Mission, results: dict[str, list[dict]]) -> Path:
-    """Both architectures' rows of one mission as one results.csv, each row naming its
-    architecture and the mission's application (results written before those columns were
-    get them here), so the report pairs ALLIANCE's runs with MURDOCH's of the same seed."""
+def patrol_experiment(arch: str, args: argparse.Namespace) -> dict:
+    return {"application": "patrol", "architecture": arch, "duration": args.patrol_duration,
+            "seeds": args.patrol_seeds, "failures": [PATROL_FAULTS[f] for f in args.faults],
+            "overrides": {k: [v] for k, v in MATCHED[arch].items()}}
+
+
+def run_or_reuse(out: Path, mission: str, arch: str, experiment: dict,
+                 args: argparse.Namespace) -> list[dict]:
+    """One architecture's results on a mission: OUTPUT/<mission>_<arch>/results.csv. With
+    --reuse, results already there are read, not run again — refused when the experiment file
+    beside them asked for another matrix (results of another study must not be mixed in)."""
+    folder, file = out / f"{mission}_{arch}", out / f"{mission}_{arch}.yaml"
+    if args.reuse and (folder / "results.csv").is_file():
+        if file.is_file() and yaml.safe_load(file.read_text()) != experiment:
+            raise ConfigError("another matrix than this command's: give its options, or "
+                              "another --output", file=str(file))
+        return read_results(folder / "results.csv").rows
+    write_text(file, yaml.safe_dump(experiment, sort_keys=False, allow_unicode=True))
+    return run_experiment(file=file, output=folder, jobs=None if args.scheduler else args.jobs,
+                          scheduler=args.scheduler, plots=False)
+
+
+def with_gaps(row: dict) -> dict:
+    """The row with each objective's gap to its reference (achieved ÷ reference − 1, in %) and
+    the reference under the report's name for it; blank where either value is missing (a task
+    never served has no objective value)."""
+    out = dict(row)
+    for o in OBJECTIVES:
+        achieved, ref = _number(row.get(f"metrics.objective_{o}")), \
+            _number(row.get(f"metrics.reference_{o}"))
+        out[f"metrics.reference_objective_{o}"] = row.get(f"metrics.reference_{o}", "")
+        out[f"metrics.gap_{o}"] = "" if achieved is None or not ref else \
+            round((achieved / ref - 1.0) * 100.0, 3)
+    return out
+
+
+def _number(text) -> float | None:
+    try:
+        x = float(text)
+    except (TypeError, ValueError):
+        return None
+    return x if math.isfinite(x) else None
+
+
+def combined(folder: Path, mission: str, results: dict[str, list[dict]]) -> Path:
+    """Every architecture's rows of one mission as one results.csv, each naming its
+    architecture and application, so the report pairs the runs of one instance and seed."""
     rows = []
     for arch, arch_rows in results.items():
         for r in arch_rows:
-            rows.append({"architecture": arch, "application": mission.application, **r})
+            row = {**r, "architecture": arch, "application": mission}
+            rows.append(with_gaps(row) if mission == "delivery" else row)
     folder.mkdir(parents=True, exist_ok=True)
     write_csv(folder / "results.csv", rows, [])
     return folder / "results.csv"
 
 
-def metrics_of(mission: Mission, path: Path) -> tuple[str, ...]:
-    with path.open(newline="") as f:
-        columns = next(csv.reader(f))
-    out = []
-    for m in mission.metrics:
-        out += sorted(c for c in columns if c.endswith(".exactly_one")) if m == COVERAGE else [m]
+def metrics_of(wanted: tuple[str, ...], path: Path) -> tuple[str, ...]:
+    columns = read_results(path).columns
+    out: list[str] = []
+    for m in wanted:
+        if m.startswith("*"):
+            out += sorted(c for c in columns if c.endswith(m[1:]))
+        elif m in columns:
+            out.append(m)
     return tuple(out)
 
 
-def mission_tables(name: str, folder: Path) -> list[str]:
-    """The mission's report (its summary.md), headings one level down, for tables.md."""
-    text = (folder / "summary.md").read_text()
-    body = text.split("\n", 1)[1]  # its title: replaced by the mission's
-    return [f"### {name}", ""] + [("#" + line if line.startswith("#") else line)
-                                  for line in body.splitlines()]
-
-
-def json_lines(name: str, report: Report) -> None:
-    for f in report.figures:
-        d, i = f.figures, f.figures.interval
-        print(json.dumps({"mission": name, "fault": f.cell.value("failure"),
-                          "architecture": f.cell.value("architecture"), "figure": f.metric,
-                          "n": d.n, "missing": d.missing, "mean": _num(d.mean),
-                          "boot_low": _num(i.low) if i else None,
-                          "boot_high": _num(i.high) if i else None,
-                          "identical": d.identical}), flush=True)
-    for c in report.comparisons:
-        i = c.interval
-        print(json.dumps({"mission": name, "fault": c.group.removeprefix("fail="),
-                          "figure": c.metric, "alliance_minus_murdoch": _num(c.mean_difference),
-                          "boot_low": _num(i.low) if i else None,
-                          "boot_high": _num(i.high) if i else None, "pairs": c.pairs,
-                          "wilcoxon_p": c.p, "holm_p": c.p_holm, "a12": _num(c.a12),
-                          "improvement": c.improvement}), flush=True)
-
-
-def headline(reports: dict[str, Report], faults: dict[str, list[str]]) -> list[str]:
-    lines = ["| mission | fault | figure | ALLIANCE | MURDOCH | ALLIANCE − MURDOCH (paired) |",
-             "| --- | --- | --- | --- | --- | --- |"]
-    for name, fault, metric in HEADLINE:
-        report = reports.get(name)
-        if report is None or fault not in faults[name] or metric not in report.metrics:
-            continue
-        spec = MISSIONS[name].faults[fault]
-        cells = {c.value("architecture"): c for c in report.cells if c.value("failure") == spec}
-        figures = [brief(report.figure(cells[a], metric), metric) if a in cells else "–"
-                   for a in ARCHITECTURES.values()]
-        comp = next((c for c in report.comparisons
-                     if c.metric == metric and c.group == f"fail={spec}"), None)
-        diff = "–" if comp is None or comp.pairs == 0 else (
-            f"{num(comp.mean_difference, metric)} "
-            + ("(identical in every pair" if comp.identical else
-               f"{interval_text(comp.interval, metric)} (p = {p_text(comp.p_holm)}, "
-               f"A12 = {share(comp.a12)}") + f", n = {comp.pairs})")
-        lines.append(f"| {name} | {spec} | {metric.removeprefix('metrics.')} | "
-                     + " | ".join(figures) + f" | {diff} |")
-    return lines
-
-
-def _num(x: float) -> float | None:
-    return None if x is None or math.isnan(x) else round(x, 4)
-
-
-def replace_block(path: Path, markers: tuple[str, str], text: str) -> None:
-    """Rewrite what lies between the two markers of `path`; refuse a file without them (a
-    study's tables are never appended somewhere unexpected)."""
-    doc = path.read_text()
-    begin, end = markers
-    if begin not in doc or end not in doc:
-        raise SystemExit(f"{path}: no {begin} … {end} block to rewrite")
-    path.write_text(re.sub(re.escape(begin) + ".*?" + re.escape(end),
-                           lambda _: f"{begin}\n{text}\n{end}", doc, flags=re.S))
-
-
-def main(argv: list[str] | None = None) -> int:
+def parse(argv: list[str] | None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--seeds", type=int, nargs="+", default=None,
-                    help="seeds (default 1 … 10; --quick: 1)")
-    ap.add_argument("--duration", type=float, default=None,
-                    help="simulated s per run, every mission (default: patrol 60, delivery 80; "
-                         "--quick: 30, 40)")
-    ap.add_argument("--missions", nargs="+", choices=sorted(MISSIONS), default=sorted(MISSIONS))
-    ap.add_argument("--faults", nargs="+", choices=FAULT_MODELS, default=None,
-                    help="fault models (default: all; --quick: none crash)")
-    ap.add_argument("--jobs", type=int, default=2, help="runs at once")
-    ap.add_argument("--output", type=Path, default=None, help="runs and tables (default: a tmp dir)")
-    ap.add_argument("--quick", action="store_true", help="smoke run: 1 seed, 2 faults, short")
+    ap.add_argument("--missions", nargs="+", choices=("delivery", "patrol"),
+                    default=["delivery", "patrol"])
+    ap.add_argument("--architectures", nargs="+", default=list(DELIVERY_ARCHITECTURES),
+                    help="delivery's architectures (registered ones: mrta arch list)")
+    ap.add_argument("--baseline", default="central",
+                    help="delivery's paired comparisons read ARCH − BASELINE (patrol: murdoch)")
+    ap.add_argument("--robots", type=int, nargs="+", default=[3, 5], help="team sizes N")
+    ap.add_argument("--tasks-per-robot", type=float, nargs="+", default=[1.0, 2.0],
+                    help="M = k · N for each k")
+    ap.add_argument("--instances", type=int, default=2, help="instances per size")
+    ap.add_argument("--instance-seed", type=int, default=2,
+                    help="instance i of a size is the generator's with this seed + i")
+    ap.add_argument("--seeds", type=int, nargs="+", default=[1], help="runs' seeds")
+    ap.add_argument("--duration", type=float, default=90.0, help="delivery, simulated s")
+    ap.add_argument("--fault-at", type=float, default=5.0, help="delivery faults' time, s")
+    ap.add_argument("--patrol-seeds", type=int, nargs="+", default=[1, 2, 3])
+    ap.add_argument("--patrol-duration", type=float, default=60.0)
+    ap.add_argument("--faults", nargs="+", choices=FAULT_MODELS, default=list(FAULT_MODELS))
+    ap.add_argument("--jobs", type=int, default=2, help="runs at once on this machine")
+    ap.add_argument("--scheduler", default=None,
+                    help="a Dask scheduler's address: runs as tasks on its cluster")
+    ap.add_argument("--output", type=Path, default=None, help="runs and tables (default: tmp)")
     ap.add_argument("--reuse", action="store_true",
-                    help="make the tables from OUTPUT's results.csv files, running nothing")
-    ap.add_argument("--no-plots", action="store_true", help="no pictures, runs' nor report's")
+                    help="results already in OUTPUT are read, not run again")
+    ap.add_argument("--no-plots", action="store_true", help="no report plots")
     ap.add_argument("--write-docs", action="store_true",
-                    help="also rewrite the blocks of docs/comparison.md and README.md "
-                         "(default: write only into OUTPUT)")
+                    help="also rewrite docs/comparison.md's block, the README's headline and "
+                         "docs/img/study/ (default: write only into OUTPUT)")
     ap.add_argument("--doc", type=Path, default=ROOT / "docs" / "comparison.md")
     ap.add_argument("--readme", type=Path, default=ROOT / "README.md")
     args = ap.parse_args(argv)
-    seeds = args.seeds or ([1] if args.quick else list(range(1, 11)))
-    faults = args.faults or (["none", "crash"] if args.quick else list(FAULT_MODELS))
-    out = args.output or Path(tempfile.mkdtemp(prefix="mrta-compare-"))
+    known = architecture_names()
+    unknown = [a for a in args.architectures if a not in known]
+    if unknown:
+        ap.error(f"architecture {unknown[0]!r} is not registered (registered: "
+                 f"{', '.join(known)})")
+    if args.baseline not in args.architectures:
+        ap.error(f"--baseline {args.baseline!r} is not among --architectures")
+    return args
+
+
+def main(argv: list[str] | None = None) -> int:
+    args = parse(argv)
+    out = args.output or Path(tempfile.mkdtemp(prefix="mrta-study-"))
     out.mkdir(parents=True, exist_ok=True)
-
     reports: dict[str, Report] = {}
-    durations = {}
-    lines: list[str] = []
-    for name in args.missions:
-        mission = MISSIONS[name]
-        duration = args.duration or (mission.quick_duration if args.quick else mission.duration)
-        durations[name] = duration
-        results: dict[str, list[dict]] = {}
-        for arch in ARCHITECTURES.values():
-            folder = out / f"{name}_{arch}"
-            if args.reuse:
-                with (folder / "results.csv").open(newline="") as f:
-                    results[arch] = list(csv.DictReader(f))
-            else:
-                exp = out / f"{name}_{arch}.yaml"
-                exp.write_text(yaml.safe_dump(
-                    {"application": mission.application, "architecture": arch,
-                     "duration": duration, "seeds": seeds,
-                     "failures": [mission.faults[f] for f in faults],
-                     "overrides": {k: [v] for k, v in MATCHED[arch].items()}},
-                    sort_keys=False, allow_unicode=True))
-                results[arch] = run_experiment(file=exp, output=folder, jobs=args.jobs,
-                                               plots=not args.no_plots)
-            for r in results[arch]:
-                if r["status"] != "ok":
-                    print(json.dumps({"failed_run": r["run"], "mission": name,
-                                      "architecture": arch, "error": r["error"]}), flush=True)
-        path = combined(out / name, mission, results)
-        reports[name] = write_report(path, out / name, Options(
-            baseline=BASELINE, metrics=metrics_of(mission, path), plots=not args.no_plots))
-        json_lines(name, reports[name])
-        lines += mission_tables(name, out / name) + [""]
-
-    matched = "; ".join(f"{t}: " + ", ".join(f"{k.split('.', 1)[1]} {v:g}"
-                                             for k, v in MATCHED[a].items())
-                        for t, a in ARCHITECTURES.items())
-    n_seeds = f"{len(seeds)} seed{'s' if len(seeds) > 1 else ''}"
-    intro = (f"{n_seeds} ({', '.join(map(str, seeds))}) × {len(faults)} fault models per "
-             "mission, " + ", ".join(f"{n} {d:g} simulated s" for n, d in durations.items())
-             + f" per run, lockstep. Matched parameters — {matched}. Coordination: samples/s "
-             "robots send each other (ALLIANCE: its broadcasts; MURDOCH: announcements, bids, "
-             "awards, claims, releases). The statistics: docs/statistics.md.")
-    table = "\n".join([intro, ""] + lines).rstrip()
-    short = "\n".join([f"{n_seeds} per cell, lockstep, matched parameters; mean and 95 % "
-                       "bootstrap interval, paired difference with its interval, Holm-adjusted "
-                       "Wilcoxon p and A12 ([docs/comparison.md](docs/comparison.md) has every "
-                       "figure).", ""]
-                      + headline(reports, {n: faults for n in args.missions}))
-    (out / "tables.md").write_text(table + "\n\n" + short + "\n")
+    sections: list[str] = []
+    for mission in args.missions:
+        archs = args.architectures if mission == "delivery" else PATROL_ARCHITECTURES
+        make = delivery_experiment if mission == "delivery" else patrol_experiment
+        results = {a: run_or_reuse(out, mission, a, make(a, args), args) for a in archs}
+        for arch, rows in results.items():
+            for r in rows:
+                if r.get("status") != "ok":
+                    print(json.dumps({"failed_run": r.get("run"), "mission": mission,
+                                      "architecture": arch, "error": r.get("error")}),
+                          flush=True)
+        path = combined(out / mission, mission, results)
+        wanted = DELIVERY_METRICS if mission == "delivery" else PATROL_METRICS
+        baseline = args.baseline if mission == "delivery" else "murdoch"
+        baseline = baseline if len(archs) > 1 else None  # one architecture: nothing to pair
+        reports[mission] = write_report(path, out / mission, Options(
+            baseline=baseline, metrics=metrics_of(wanted, path), plots=not args.no_plots))
+        json_lines(mission, reports[mission])
+        sections += (delivery_tables(reports[mission], args) if mission == "delivery"
+                     else mission_tables(mission, out / mission)) + [""]
+    table = "\n".join(sections).rstrip()
+    short = "\n".join(headline(reports, args))
+    write_text(out / "tables.md", table + "\n\n" + short + "\n")
+    pictures = []
     if args.write_docs:
         replace_block(args.doc, TABLE, table)
         replace_block(args.readme, STUDY, short)
+        if "delivery" in reports and not args.no_plots:
+            img = args.doc.parent / "img" / "study"
+            img.mkdir(parents=True, exist_ok=True)
+            for name in PICTURES:
+                if (out / "delivery" / name).is_file():
+                    data = (out / "delivery" / name).read_bytes()
+                    write_atomically(img / name, lambda tmp, data=data: tmp.write_bytes(data))
+                    pictures.append(str(img / name))
     print(json.dumps({"tables": str(out / "tables.md"), "runs": str(out),
-                      "docs_rewritten": [str(args.doc), str(args.readme)] if args.write_docs
-                      else []}), flush=True)
+                      "docs_rewritten": [str(args.doc), str(args.readme)] + pictures
+                      if args.write_docs else []}), flush=True)
     return 0
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    try:
+        sys.exit(main())
+    except ConfigError as exc:  # a usage error: one line, exit 2, as `mrta` does
+        sys.exit(print(f"Error: {exc}", file=sys.stderr) or 2)
+    except MrtaRuntimeError as exc:
+        sys.exit(print(f"Error: {exc}", file=sys.stderr) or 1)

@@ -1,0 +1,215 @@
+"""The architecture study's tables (benchmarks/compare_architectures.py), made from the
+experiment report of each mission (mrta_supervisor.report): every figure is the report's — a
+cell's mean and bootstrap interval, a paired comparison's difference, Holm-adjusted p and A12 —
+laid out by fault, team size and architecture; nothing here computes a statistic."""
+
+from __future__ import annotations
+
+import json
+import math
+import re
+from pathlib import Path
+
+from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.files import write_text
+from mrta_supervisor.report import Cell, Report
+from mrta_supervisor.report_md import brief, interval_text, num, p_text, share, title
+
+FAULT_ORDER = ("none", "crash", "stall")
+# the delivery table's columns: every objective beside its gap to the reference
+SHOWN = ("metrics.completed", "metrics.makespan", "metrics.gap_minsum", "metrics.gap_makespan",
+         "metrics.gap_flowtime", "takeover_seconds", "coordination_messages_per_second")
+COMPARED = ("metrics.completed", "metrics.gap_minsum", "metrics.makespan",
+            "coordination_messages_per_second")
+HEADS = {"metrics.gap_minsum": "minsum gap (%)", "metrics.gap_makespan": "makespan gap (%)",
+         "metrics.gap_flowtime": "flowtime gap (%)", "metrics.makespan": "makespan (s)",
+         "metrics.completed": "completed"}
+
+
+def head(metric: str) -> str:
+    return HEADS.get(metric, title(metric))
+
+
+def fault_kind(spec: str) -> str:
+    """none, crash or stall, whatever robot or role the spec names."""
+    return "none" if spec == "none" else ("stall" if spec.startswith("stall:") else "crash")
+
+
+def _size(cell: Cell) -> tuple[int, int]:
+    return int(cell.value("n_robots") or 0), int(cell.value("n_tasks") or 0)
+
+
+def ordered(report: Report, archs: list[str]) -> list[Cell]:
+    """The cells by fault model, team size, task count, then the study's architecture order."""
+    def key(c: Cell):
+        arch = c.value("architecture")
+        return (FAULT_ORDER.index(fault_kind(c.value("failure"))), _size(c),
+                archs.index(arch) if arch in archs else len(archs))
+    return sorted(report.cells, key=key)
+
+
+def references_line(report: Report) -> str:
+    """Whether every instance's reference values are proven optimal, in the results' words."""
+    flags = {r.get("metrics.reference_proven_optimal", "") for r in report.table.ok()}
+    flags.discard("")
+    if flags == {"True"}:
+        return ("Every reference is proven optimal (exact, ≤ 10 tasks: docs/delivery.md, "
+                "\"Reference values\").")
+    return ("References: exact where `reference_proven_optimal` is True, otherwise OR-Tools' "
+            "best found — never called optimal.")
+
+
+def delivery_tables(report: Report, args) -> list[str]:
+    rows = report.table.rows
+    failed = [r for r in rows if r.get("status") != "ok"]
+    archs = list(args.architectures)
+    sizes = sorted({_size(c) for c in report.cells})
+    intro = (f"Delivery: {len(rows)} runs — {len(archs)} architectures ({', '.join(archs)}) × "
+             f"{len(sizes)} sizes (N robots, M tasks: "
+             + ", ".join(f"{n}/{m}" for n, m in sizes)
+             + f") × {args.instances} generated instances each (seed {args.instance_seed} on) × "
+             f"{len(args.faults)} fault models (role-named, at {args.fault_at:g} s) × "
+             f"{len(args.seeds)} seed{'s' if len(args.seeds) > 1 else ''}, "
+             f"{args.duration:g} simulated s each, lockstep; {len(failed)} failed. Each cell: "
+             "the mean and its 95 % bootstrap interval over instances (docs/statistics.md); a "
+             "gap is the objective achieved over its reference − 1, in %. "
+             + references_line(report))
+    cols = [m for m in SHOWN if m in report.metrics]
+    lines = ["### delivery", "", intro, ""]
+    for fault in FAULT_ORDER:
+        cells = [c for c in ordered(report, archs) if fault_kind(c.value("failure")) == fault]
+        if not cells:
+            continue
+        shown = [m for m in cols if m != "takeover_seconds" or fault != "none"]
+        lines += [f"#### {cells[0].value('failure')}", "",
+                  "| N | M | architecture | runs ok | " + " | ".join(map(head, shown)) + " |",
+                  "| --- | --- | --- | --- |" + " --- |" * len(shown)]
+        for c in cells:
+            n, m = _size(c)
+            lines.append(f"| {n} | {m} | {c.value('architecture')} | {len(c.ok)}/{len(c.rows)} "
+                         "| " + " | ".join(brief(report.figure(c, x), x) for x in shown) + " |")
+        lines.append("")
+    if report.axis == "architecture":  # one architecture: nothing to pair
+        lines += comparison_table(report) + [""]
+    return lines + pictures()
+    return lines
+
+
+def comparison_table(report: Report) -> list[str]:
+    lines = [f"#### Paired against {report.baseline}", "",
+             f"Architecture − {report.baseline} over the same instance and seed: the mean "
+             "difference and its bootstrap interval, Holm-adjusted Wilcoxon p (a family per "
+             "metric), A12 (the chance a run of the other is larger).", "",
+             "| cell | architecture | " + " | ".join(head(m) for m in COMPARED
+                                                      if m in report.metrics) + " |",
+             "| --- | --- |" + " --- |" * sum(m in report.metrics for m in COMPARED)]
+    found: dict[tuple[str, str], dict[str, str]] = {}
+    for c in report.comparisons:
+        if c.metric in COMPARED:
+            found.setdefault((c.group, c.other), {})[c.metric] = _difference(c)
+    for (group, other), by_metric in found.items():
+        lines.append(f"| {group} | {other} | " + " | ".join(
+            by_metric.get(m, "–") for m in COMPARED if m in report.metrics) + " |")
+    return lines
+
+
+def _difference(c) -> str:
+    if c.pairs == 0:
+        return "– (no pair)"
+    if c.identical:
+        return f"{num(c.mean_difference, c.metric)} (identical, n = {c.pairs})"
+    return (f"{num(c.mean_difference, c.metric)} {interval_text(c.interval, c.metric)} "
+            f"p = {p_text(c.p_holm)}, A12 = {share(c.a12)}, n = {c.pairs}")
+
+
+def pictures() -> list[str]:
+    return ["Plots (the report's, `--write-docs` copies them): the minsum gap and tasks "
+            "completed against the team size, and the performance profiles of the minsum "
+            "objective and of the makespan against the best architecture and the reference.", "",
+            "![minsum gap against N](img/study/team_size_metrics.gap_minsum.png)",
+            "![completed against N](img/study/team_size_metrics.completed.png)",
+            "![profile of minsum](img/study/profile_metrics.objective_minsum.png)",
+            "![profile of makespan](img/study/profile_metrics.makespan.png)"]
+
+
+def mission_tables(name: str, folder: Path) -> list[str]:
+    """The mission's report (its summary.md), headings one level down."""
+    text = (folder / "summary.md").read_text()
+    body = text.split("\n", 1)[1]  # its title: replaced by the mission's
+    return [f"### {name}", ""] + [("#" + line if line.startswith("#") else line)
+                                  for line in body.splitlines()]
+
+
+# the README's headline: (mission, fault, N robots (0: the largest), tasks per robot, metric)
+HEADLINE = (("delivery", "none", 0, 1, "metrics.gap_minsum"),
+            ("delivery", "none", 0, 2, "metrics.gap_minsum"),
+            ("delivery", "none", 0, 2, "metrics.gap_makespan"),
+            ("delivery", "none", 0, 2, "metrics.makespan"),
+            ("delivery", "none", 0, 1, "coordination_messages_per_second"),
+            ("delivery", "crash", 0, 2, "metrics.completed"),
+            ("delivery", "stall", 0, 1, "takeover_seconds"),
+            ("delivery", "stall", 0, 2, "metrics.completed"),
+            ("patrol", "crash", 0, 0, "takeover_seconds"))
+
+
+def headline(reports: dict[str, Report], args) -> list[str]:
+    archs = list(args.architectures)
+    lines = [f"Generated delivery instances ({len(args.robots)} team sizes, M = N and 2N, "
+             f"{args.instances} instances each), role-named faults, lockstep; mean and 95 % "
+             "bootstrap interval over instances ([docs/comparison.md](docs/comparison.md) has "
+             "every figure, the paired comparisons and what was scaled down). Patrol: ALLIANCE "
+             "and MURDOCH only.", "",
+             "| mission | fault | N / M | figure | " + " | ".join(archs) + " |",
+             "| --- | --- | --- | --- |" + " --- |" * len(archs)]
+    for mission, fault, n, per_robot, metric in HEADLINE:
+        report = reports.get(mission)
+        if report is None or metric not in report.metrics:
+            continue
+        cells = [c for c in report.cells if fault_kind(c.value("failure")) == fault]
+        if mission == "delivery":
+            n = n or max(_size(c)[0] for c in report.cells)
+            cells = [c for c in cells if _size(c) == (n, n * per_robot)]
+        by_arch = {c.value("architecture"): c for c in cells}
+        if not by_arch:
+            continue
+        spec = next(iter(by_arch.values())).value("failure")
+        size = f"{n} / {n * per_robot}" if mission == "delivery" else "3 / 3"
+        lines.append(f"| {mission} | {spec} | {size} | {head(metric)} | " + " | ".join(
+            brief(report.figure(by_arch[a], metric), metric) if a in by_arch else "not run"
+            for a in archs) + " |")
+    return lines
+
+
+def json_lines(mission: str, report: Report) -> None:
+    for f in report.figures:
+        d, i = f.figures, f.figures.interval
+        print(json.dumps({"mission": mission, "cell": f.cell.label,
+                          "architecture": f.cell.value("architecture"), "figure": f.metric,
+                          "n": d.n, "missing": d.missing, "mean": _num(d.mean),
+                          "boot_low": _num(i.low) if i else None,
+                          "boot_high": _num(i.high) if i else None,
+                          "identical": d.identical}), flush=True)
+    for c in report.comparisons:
+        i = c.interval
+        print(json.dumps({"mission": mission, "cell": c.group, "figure": c.metric,
+                          "baseline": c.baseline, "other": c.other,
+                          "other_minus_baseline": _num(c.mean_difference),
+                          "boot_low": _num(i.low) if i else None,
+                          "boot_high": _num(i.high) if i else None, "pairs": c.pairs,
+                          "wilcoxon_p": c.p, "holm_p": c.p_holm, "a12": _num(c.a12),
+                          "improvement": c.improvement}), flush=True)
+
+
+def _num(x: float | None) -> float | None:
+    return None if x is None or math.isnan(x) else round(x, 4)
+
+
+def replace_block(path: Path, markers: tuple[str, str], text: str) -> None:
+    """Rewrite what lies between the two markers of `path`; refuse a file without them (a
+    study's tables are never appended somewhere unexpected)."""
+    doc = path.read_text()
+    begin, end = markers
+    if begin not in doc or end not in doc:
+        raise ConfigError(f"no {begin} … {end} block to rewrite", file=str(path))
+    write_text(path, re.sub(re.escape(begin) + ".*?" + re.escape(end),
+                           lambda _: f"{begin}\n{text}\n{end}", doc, flags=re.S))
