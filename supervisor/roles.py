@@ -67,6 +67,18 @@ def announcements(records: Iterable) -> dict[str, float]:
     return out
 
 
+def as_struck(faults: Faults, records: list) -> Faults:
+    """`faults` with an `@first` item naming the robot it struck (dropped if it struck
+    nobody): what an analysis of who did what needs — a stretch ends `lost` at its robot's
+    crash, `stalled` at its stall, only once the item names that robot."""
+    first = faults.of(FIRST)
+    if first is None:
+        return faults
+    hit = struck(first, faults, records)
+    return dataclasses.replace(faults, failures=tuple(
+        f for f in (hit if f is first else f for f in faults.failures) if f is not None))
+
+
 def struck(failure: Failure | None, faults: Faults, records: list) -> Failure | None:
     """`failure` as the robot it struck: itself when it names one, the robot `@first`
     resolved to (None: nobody was assigned before its time)."""

@@ -156,8 +156,8 @@ class DeliveryGenerator(InstanceGenerator):
 
     def generate(self, params: DeliveryGeneratorParams, seed: int) -> str:
         doc = generate_document(params, seed)
-        header = (f"# A delivery instance (docs/delivery.md, \"Instances\"): `mrta instance "
-                  f"generate delivery` with the parameters under `generator`.\n")
+        header = ("# A delivery instance (docs/delivery.md, \"Instances\"): `mrta instance "
+                  "generate delivery` with the parameters under `generator`.\n")
         return document_text(doc, header)
 
 

@@ -110,11 +110,13 @@ def paths(records: Iterable, robots: set[str]) -> dict[str, float]:
 def allocation_log(records: list, arch: Architecture, instance: Problem, end: float,
                    faults: Faults = Faults()) -> list[Entry]:
     """Every stretch of an instance task, in order of assignment, with its service times and
-    why it ended (module docstring). A crash ends its robot's stretches at the crash (exact in
-    lockstep)."""
+    why it ended (module docstring). A crash ends its robot's stretches at the crash, and so
+    does a stall: a stalled robot may go on saying it holds its tasks, but from then on it
+    serves none (exact in lockstep)."""
     tasks = {t.id for t in instance.tasks}
     robots = {r.id for r in instance.robots}
-    crashes = [(f.robot, f.at) for f in faults.crashes() if f.at <= end]
+    crashes = [(f.robot, f.at) for f in faults.failures
+               if f.kind in (FaultKind.CRASH, FaultKind.STALL) and f.at <= end]
     log = [Entry(s.task, s.robot, round(s.assigned_at, 3), round(s.ended_at, 3),
                  None if s.started_at is None else round(s.started_at, 3))
            for s in stretches_from(records, arch, end, arch.doing_stale_after, crashes)

@@ -28,6 +28,7 @@ from mrta_agent.runtime.params import load_layers_params
 from mrta_zenoh.keys import first_chunk
 from mrta_supervisor.ground_truth import decisions
 from mrta_supervisor.mission import Mission, MissionRun, faults_of
+from mrta_supervisor.roles import as_struck
 from mrta_supervisor.tasks import TaskStatus, TaskWatch
 from mrta_supervisor.summary import SummarySections
 
@@ -188,7 +189,7 @@ class Delivery(Mission):
         ended = done_at(records, params.problem())
         end = run.options.duration if ended is None else min(ended, run.options.duration)
         made = decisions(records, run.arch, end)
-        result = analyse(records, run.arch, params, end, faults_of(run),
+        result = analyse(records, run.arch, params, end, as_struck(faults_of(run), records),
                          made.objective if made is not None and made.objective else None)
         self._last = (id(records), result)
         return result
