@@ -13,12 +13,11 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from mrta_zenoh.architectures import Decision, Doing, Takeover, TakeoverBound
+from mrta_zenoh.architectures import Decision, Takeover, TakeoverBound
 from mrta_zenoh.clock import Clock
 
-from ..runtime.architecture import AgentArchitecture, Prepared
+from ..runtime.architecture import Prepared, RouteArchitecture
 from ..runtime.host import AgentOptions
-from ..runtime.plugins import Plugins
 from . import params as central_params
 from .agent import CentralCoordinator
 from .messages import Plan, Progress, Queue, Queued
@@ -27,7 +26,7 @@ DISPATCHER = "dispatcher"  # the dispatcher's process name (and lockstep partici
 SUBJECT_KINDS = ("queue", "queued")  # published under a sub-key: the robot, the task
 
 
-class Central(AgentArchitecture):
+class Central(RouteArchitecture):
     name = "central"
     title = "central"
     namespace = "central"
@@ -38,8 +37,7 @@ class Central(AgentArchitecture):
                      "then served in its new queue's order")
     messages = {"queue": Queue, "progress": Progress, "queued": Queued, "plan": Plan}
     coordination_kinds = ("queue", "progress")
-    doing_kinds = ("progress",)
-    doing_stale_after = 2.5  # a robot reports every report_period (1 s by default)
+    progress_type = Progress
     processes = (DISPATCHER,)
     objective = "minsum"
     decision_kinds = ("plan",)
@@ -51,26 +49,12 @@ class Central(AgentArchitecture):
         return kind in SUBJECT_KINDS
 
     def prepare(self, options: AgentOptions) -> Prepared:
-        params = central_params.load_params(options.robot_params, options.tasks_params,
-                                            options.layers_params)
-        plugins = Plugins(params.robot.sensors, params.robot.evaluators, params.tasks,
-                          params.layers)
-        return Prepared(options.robot_id, params, plugins, params.robot.spin_rate,
-                        params.robot.control_rate,
-                        f"central, {len(params.robot.evaluators)} tasks it can serve",
-                        params.warnings + plugins.unread_warnings())
+        return self.route_prepared(options.robot_id, central_params.load_params(
+            options.robot_params, options.tasks_params, options.layers_params))
 
     def coordinator(self, prepared: Prepared, agent_clock: Clock) -> CentralCoordinator:
         return CentralCoordinator(prepared.robot_id, prepared.params, prepared.plugins,
                                   DISPATCHER)
-
-    def doing(self, sender: str, key: str, message: object) -> Doing | None:
-        if not isinstance(message, Progress):
-            return None
-        queue = tuple(message.queue)
-        if message.task:
-            return Doing(sender, message.task, True, message.header.stamp, queue)
-        return Doing(sender, message.last, False, message.header.stamp, queue)
 
     def decision(self, sender: str, key: str, message: object) -> Decision | None:
         if not isinstance(message, Plan) or sender != DISPATCHER:
