@@ -25,6 +25,7 @@ import msgspec
 
 from .errors import ConfigError
 from .files import write_text
+from .codec import validation_fault
 from .yamlfile import did_you_mean, load_yaml
 
 GROUP = "mrta.instances"
@@ -161,7 +162,13 @@ def generate(name: str, options: dict[str, Any], seed: int, output: Path | None)
     try:
         params = msgspec.convert(options, gen.Params)
     except msgspec.ValidationError as exc:
-        raise ConfigError(f"generator {name}: {exc}") from None
+        fault = validation_fault(exc)
+        # the options are the verb's --flags: name the flag and the value, not msgspec's `$.x`
+        flag = "--" + "-".join(str(p) for p in fault.path[:1]).replace("_", "-")
+        value = options.get(fault.path[0]) if fault.path else None
+        what = fault.what.replace("`", "")
+        raise ConfigError(f"generator {name}: {flag} {value}: {what}" if fault.path
+                          else f"generator {name}: {what}") from None
     text = gen.generate(params, seed)
     if output is not None:
         write_text(output, text)

@@ -40,7 +40,7 @@ def test_the_same_generator_parameters_and_seed_give_the_same_file_byte_for_byte
     c = generated(tmp_path, "c.yaml", *args[:-1], "8")
     assert c.read_bytes() != a.read_bytes()
     doc = load_document(a)
-    assert doc.name == "delivery-r20-t20-7"  # generator, sizes and index: never a path
+    assert doc.name == "delivery-r20-t20-w2-7"  # generator, sizes, walls and seed: never a path
     assert (len(doc.robots), len(doc.tasks), len(doc.world.walls)) == (20, 20, 2)
     # to standard output when no file is named: the same text
     assert mrta("instance", "generate", "delivery", *args).output == a.read_text()
@@ -81,7 +81,7 @@ def test_show_gives_sizes_costs_and_the_optimum_brute_force_agrees_with(tmp_path
     r = mrta("instance", "show", str(f), "--json")
     assert r.exit_code == 0, r.output
     info = json.loads(r.output)
-    assert (info["name"], info["robots"], info["tasks"]) == ("delivery-r2-t4-3", 2, 4)
+    assert (info["name"], info["robots"], info["tasks"]) == ("delivery-r2-t4-w1-3", 2, 4)
     problem = load_document(f).problem()
     for objective in ("minsum", "makespan", "flowtime"):
         ref = info["reference"][objective]
@@ -234,6 +234,8 @@ def test_a_solomon_file_maps_depot_customers_times_and_scale(tmp_path):
     (("--capabilities", "lift"), "'lift' is not NAME:P"),
     (("--walls", "30", "--room", "4", "4"), "could not place wall"),
     (("--robots", "100", "--room", "3", "3"), "could not place robot"),
+    (("--robots", "0"), "--robots 0: Expected int >= 1"),  # the flag, not msgspec's `$.robots`
+    (("--tasks", "0"), "--tasks 0: Expected int >= 1"),
 ])
 def test_bad_generator_parameters_exit_2_in_one_line(tmp_path, args, message):
     out = tmp_path / "x.yaml"

@@ -244,8 +244,10 @@ def generate_document(p: DeliveryGeneratorParams, seed: int) -> InstanceDoc:
     for key, value in source.items():
         if isinstance(value, tuple):
             source[key] = list(value)
+    # walls in the name: the same sizes and seed with and without walls are two instances
+    walled = f"-w{p.walls}" if p.walls else ""
     doc = InstanceDoc(robots, tasks, WorldSpec(tuple(p.room), tuple(walls)),
-                      f"delivery-r{p.robots}-t{p.tasks}-{seed}", generator=source)
+                      f"delivery-r{p.robots}-t{p.tasks}{walled}-{seed}", generator=source)
     doc.check()
     doc.problem()  # every task reachable: a ConfigError now rather than at the run
     return doc
