@@ -62,6 +62,7 @@ from mrta_zenoh.toolchain.runner import start_nodes
 from mrta_zenoh.yamlfile import did_you_mean
 
 from .api import Refresh, attach
+from .fault_effects import fault_effects
 from .ground_truth import decisions, intervals_from
 from .plots import ROBOTS_TITLE, Panel, TimeBase, draw_timeline
 from . import roles
@@ -550,6 +551,7 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
         messages=message_rates(records, run.arch, end - t0, tb),
         ended_at=None if ended_at is None else round(end, 3),
         decisions=decisions(records, run.arch, end),
+        fault_effects=fault_effects(records, run.robots, end),
         metrics=run.mission.metrics(run, records), failure=report,
         output=str(output), files=[], sections=mission_sections(run, records))
     # what this run wrote: new or changed files (an earlier run's are neither), and the

@@ -173,6 +173,10 @@ def _bound_note(f) -> str:
     return f" ({since}{ok} {bound} {f.bound_formula} = {f.bound_seconds:.2f} s{case}{why})"
 
 
+_EFFECT_WORDS = {"lost": "lost", "delayed": "heard late", "cut_off": "cut off by a partition",
+                 "out_of_range": "out of range"}
+
+
 def print_summary(console: Console, s: Summary, title: str, arch_title: str,
                   extra: list[str]) -> None:
     simulated = (f"{s.duration:.0f} s simulated" if s.ended_at is None else
@@ -204,6 +208,10 @@ def print_summary(console: Console, s: Summary, title: str, arch_title: str,
     if d is not None and d.count:
         console.print(f"  {d.count} allocation decisions ({d.objective or 'no objective'}): "
                       f"computation median {d.median_ms:g} ms, max {d.max_ms:g} ms",
+                      highlight=False)
+    if s.fault_effects:
+        said = ", ".join(f"{n} {_EFFECT_WORDS[c]}" for c, n in s.fault_effects.items() if n)
+        console.print(f"  injected faults: {s.faults}; coordination messages {said}",
                       highlight=False)
     problem = run_problem(s)
     if problem is not None:

@@ -8,11 +8,12 @@ naming a role, `@first` or `@random`, resolves per run), every parameter that de
 last three with an `instances:` block — `failure`, one column per parameter override), and
 what the run measured (summary.flat_metrics: the takeover, coverage per task — not for runs of
 instances, whose task ids are their own — traffic and its coordination kinds' `messages.*`,
-when the run ended, the decisions and their computation time, the application's `metrics.*`).
+what injected faults did to those messages (`faults.lost`, `.delayed`, `.cut_off`,
+`.out_of_range`), when the run ended, the decisions and their computation time, the application's `metrics.*`).
 Which column is which is decided by name alone (`kind`), so a file from another
 version, or rows of several experiments put together, read the same way: a measured column is
-one of the framework's own or ends in a coverage share or starts with `metrics.` or
-`messages.`; bookkeeping
+one of the framework's own or ends in a coverage share or starts with `metrics.`,
+`messages.` or `faults.`; bookkeeping
 is the fixed list; every other column is a parameter. An override whose key would read as a
 measure is refused by the experiment file (experiment_file.py), so the split is exact.
 """
@@ -37,6 +38,7 @@ MEASURES = ("takeover_seconds", "first_full_allocation", "messages", "messages_p
 COVERAGE = (".exactly_one", ".none", ".more_than_one")
 APPLICATION_PREFIX = "metrics."
 MESSAGES_PREFIX = "messages."  # coordination messages of each kind (summary.flat_metrics)
+FAULTS_PREFIX = "faults."  # what injected faults did to them, by cause (fault_effects.py)
 INSTANCE, SEED, STATUS, OK = "instance", "seed", "status", "ok"
 REQUIRED = (SEED, STATUS)
 
@@ -46,7 +48,7 @@ def kind(column: str) -> str:
     if column in BOOKKEEPING:
         return "bookkeeping"
     if column in MEASURES or column.endswith(COVERAGE) \
-            or column.startswith((APPLICATION_PREFIX, MESSAGES_PREFIX)):
+            or column.startswith((APPLICATION_PREFIX, MESSAGES_PREFIX, FAULTS_PREFIX)):
         return "measure"
     return "parameter"
 
@@ -55,8 +57,8 @@ def measure_problem(key: str) -> str | None:
     """Why an override key would be read back as a measure (None: it would not)."""
     if kind(key) != "parameter":
         return (f"{key!r} would read as a measured column of results.csv (a name ending in "
-                f"{', '.join(COVERAGE)} or starting with {APPLICATION_PREFIX!r} or "
-                f"{MESSAGES_PREFIX!r}, or a "
+                f"{', '.join(COVERAGE)} or starting with {APPLICATION_PREFIX!r}, "
+                f"{MESSAGES_PREFIX!r} or {FAULTS_PREFIX!r}, or a "
                 "framework column)")
     return None
 

@@ -29,6 +29,7 @@ from typing import Any
 import msgspec
 
 from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.fault_tally import CAUSES
 from mrta_zenoh.files import write_text
 from mrta_zenoh.yamlfile import did_you_mean
 
@@ -159,6 +160,9 @@ class Summary(msgspec.Struct, forbid_unknown_fields=True):
     # duration: the figures cover the run up to then; None: it ran to its duration
     ended_at: float | None = None
     decisions: Decisions | None = None   # None: the architecture records none
+    # what injected faults did to coordination messages, summed over the robots by cause
+    # (fault_effects.py: lost, delayed, cut_off, out_of_range); {}: nothing was touched
+    fault_effects: dict[str, int] = {}
     schema: int = SCHEMA
     # the application's own sections (its Mission's `summary_sections` type): written at the
     # top level of summary.json, not under this name (write_summary / read_summary)
@@ -324,6 +328,8 @@ def flat_metrics(summary: Summary) -> dict[str, Any]:
     for kind, count in summary.messages.by_kind.items():
         row[f"messages.{kind}"] = count
     row["ended_at"] = "" if summary.ended_at is None else summary.ended_at
+    for cause in CAUSES:
+        row[f"faults.{cause}"] = summary.fault_effects.get(cause, 0)
     d = summary.decisions
     row["decisions"] = "" if d is None else d.count
     row["decision_ms_median"] = "" if d is None or d.median_ms is None else d.median_ms

@@ -20,6 +20,7 @@ from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.failure import (FAULTS_ENV, SYNTAX, Failure, FaultKind, FaultPlan, Faults,
                                 fault_env, faults_problem, parse_faults, plan_for,
                                 plan_from_env)
+from mrta_zenoh.fault_tally import TALLY_PERIOD, tally_key
 from mrta_zenoh.messages import Header, Odometry, PointCloud, Pose2D, Twist
 from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
 
@@ -212,6 +213,38 @@ def test_loss_drops_the_messages_the_seed_says(tmp_path):
     expected = [s for s in range(1, 41) if not plan.lost(key, s)]
     assert heard == expected and 5 < len(expected) < 35
     assert agent.dropped_by_fault == 40 - len(expected)
+
+
+def test_a_robot_tells_what_the_faults_did_to_its_messages(tmp_path):
+    """Its tally (mrta_zenoh.fault_tally): cumulative, said when it changed and at most every
+    TALLY_PERIOD, and once more as it stops — so the summary can show a loss acted."""
+    plan = FaultPlan("robot1", seed=3, loss=0.5, latency=(0.2, 0.0))
+    agent, bus, clock = make(tmp_path, plan)
+    tallies = []
+    bus.subscribe(tally_key("robot1"), lambda s: tallies.append(s.message))
+    key = ALLIANCE.key("robot2", IRC)
+    for seq in range(1, 41):
+        run(agent, bus, clock, seq * 0.1)
+        bus.publish(key, InterRobotCommunication(Header("robot2", seq * 0.1, seq), "b", 60.0))
+    run(agent, bus, clock, 4.2)
+    agent.shutdown()
+    lost = sum(plan.lost(key, s) for s in range(1, 41))
+    assert 5 < lost < 35
+    assert (tallies[-1].lost, tallies[-1].delayed) == (lost, 40 - lost)
+    assert tallies[-1].cut_off == tallies[-1].out_of_range == 0
+    stamps = [t.header.stamp for t in tallies]
+    assert all(b - a >= TALLY_PERIOD - 1e-9 for a, b in zip(stamps, stamps[1:-1]))
+    assert [t.lost for t in tallies] == sorted(t.lost for t in tallies)  # cumulative
+    assert len(tallies) < 4.2 / TALLY_PERIOD + 2
+
+
+def test_a_robot_without_message_faults_says_no_tally(tmp_path):
+    agent, bus, clock = make(tmp_path, FaultPlan("robot1", stall_at=2.0))
+    tallies = []
+    bus.subscribe(tally_key("robot1"), tallies.append)
+    run(agent, bus, clock, 3.0)
+    agent.shutdown()
+    assert tallies == []
 
 
 def test_range_drops_the_messages_of_robots_farther_apart_than_r(tmp_path):

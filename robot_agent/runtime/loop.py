@@ -38,6 +38,7 @@ from __future__ import annotations
 import collections
 import dataclasses
 import logging
+import math
 import threading
 import time
 from typing import TYPE_CHECKING, Callable, Iterable, Iterator
@@ -48,6 +49,7 @@ from mrta_zenoh.clock import EPSILON, Clock
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.failure import FaultPlan, crash_now
 from mrta_zenoh.fault_roles import EVERY_ASSIGNED, Assigned, assigned_key, first_assigned
+from mrta_zenoh.fault_tally import CAUSES, TALLY_PERIOD, FaultTally, tally_key
 from mrta_zenoh import keys
 from mrta_zenoh.keys import first_chunk
 from mrta_zenoh.messages import Header, Odometry
@@ -103,7 +105,11 @@ class Agent:
         self.ignored_strangers = 0
         self.ignored_outsiders = 0  # tokens and messages of robots off the roster
         self.refused = 0
-        self.dropped_by_fault = 0  # coordination messages lost, or not sent, by injected faults
+        # what injected faults did to coordination messages, by cause (fault_tally.CAUSES),
+        # and what the robot last said of it (robotN/faults/tally) and when
+        self.fault_counts: collections.Counter[str] = collections.Counter()
+        self._told_counts: dict[str, int] = {}
+        self._told_at = -math.inf
         # teammates' coordination messages that reached this agent, by kind (whatever became of
         # them): the cost of what it subscribes to (docs/murdoch.md, Messages heard)
         self.received: collections.Counter[str] = collections.Counter()
@@ -337,13 +343,18 @@ class Agent:
         plan = self.faults
         if plan is not None and plan.channel:
             if plan.lost(sample.key, msg.header.seq):
-                self.dropped_by_fault += 1
+                self._count_fault("lost")
                 return
-            heard += plan.delay(sample.key, msg.header.seq)
-            if plan.cut_off(heard) or plan.out_of_range(self._where.get(self.robot_id),
-                                                        self._where.get(sender)):
-                self.dropped_by_fault += 1
+            delay = plan.delay(sample.key, msg.header.seq)
+            heard += delay
+            if plan.cut_off(heard):
+                self._count_fault("cut_off")
                 return
+            if plan.out_of_range(self._where.get(self.robot_id), self._where.get(sender)):
+                self._count_fault("out_of_range")
+                return
+            if delay > 0:
+                self._count_fault("delayed")
         self._inbox.append((heard, kind, sender, msg, sample.key))
 
     def _on_truth(self, sample: Sample) -> None:
@@ -399,6 +410,28 @@ class Agent:
                              *(visible(a, 200) if isinstance(a, str) else a for a in args), n)
 
     # ------------------------------------------------------------ one decision step
+    @property
+    def dropped_by_fault(self) -> int:
+        """Coordination messages lost, or not sent, by injected faults (delays not counted)."""
+        return sum(n for cause, n in self.fault_counts.items() if cause != "delayed")
+
+    def _count_fault(self, cause: str) -> None:
+        with self._token_lock:  # network callbacks run on several threads
+            self.fault_counts[cause] += 1
+
+    def tell_fault_tally(self, now: float, final: bool = False) -> None:
+        """Say what injected faults did to this robot's messages (mrta_zenoh.fault_tally), when
+        it changed — at most every TALLY_PERIOD, or now as the robot stops."""
+        if not final and now < self._told_at + TALLY_PERIOD:
+            return
+        with self._token_lock:
+            counts = {cause: self.fault_counts[cause] for cause in CAUSES}
+        if counts == self._told_counts or not any(counts.values()):
+            return
+        self._told_counts, self._told_at = counts, now
+        self.bus.publish(tally_key(self.robot_id), FaultTally(Header(self.robot_id, now, 1),
+                                                              **counts))
+
     def tick_high(self, now: float) -> None:
         with self._token_lock:
             changes, self._token_changes = self._token_changes, {}
@@ -444,7 +477,7 @@ class Agent:
 
     def send(self, say: Say, now: float) -> None:
         if self.faults is not None and self.faults.cut_off(now):
-            self.dropped_by_fault += 1  # partitioned: nobody hears it
+            self._count_fault("cut_off")  # partitioned: nobody hears it
             return
         key = self.architecture.key(self.robot_id, say.kind,
                                     *((say.subkey,) if say.subkey is not None else ()))
@@ -506,6 +539,9 @@ class Agent:
             sensor.forget()
         self._inbox.clear()
         self.faults = self._given_faults  # an @first fault is resolved again in the new run
+        with self._token_lock:  # the tally counts from its run's start
+            self.fault_counts.clear()
+        self._told_counts, self._told_at = {}, -math.inf
         with self._token_lock:
             self._assigned.clear()
         self._announced = False
@@ -520,6 +556,8 @@ class Agent:
         """Stop the robot: deactivate the running layers, command zero velocity, let every
         plugin close what it opened (py_trees' terminate, then shutdown), stop listening."""
         now = self.clock.now()
+        if self._given_faults is not None:
+            self.tell_fault_tally(now, final=True)
         for layer in self.layers_of(self.active_task):
             layer.on_deactivate(now)
         if not self.is_process:
@@ -568,6 +606,8 @@ class Agent:
                     until = now + (until - t)
             if now >= next_high - EPSILON:
                 self.tick_high(now)
+                if self._given_faults is not None:
+                    self.tell_fault_tally(now)
                 next_high += high_period
                 if next_high <= now:  # fell behind: skip, don't burst
                     next_high = now + high_period

@@ -1,0 +1,47 @@
+"""The summary's `fault_effects`: each robot's latest tally before the run's end, summed over
+the team; forged, stray, late and malformed tallies do not count."""
+
+from __future__ import annotations
+
+from mrta_supervisor.fault_effects import fault_effects
+from mrta_supervisor.results import kind
+from mrta_supervisor.summary import MessageRates, Summary, flat_metrics
+from mrta_zenoh.codec import encode
+from mrta_zenoh.fault_tally import FaultTally, tally_key
+from mrta_zenoh.messages import Header
+
+ENC = "application/msgpack;mrta_msgs/FaultTally"
+
+
+def tally(robot: str, stamp: float, frame: str | None = None, **counts):
+    msg = FaultTally(Header(frame or robot, stamp, 1), **counts)
+    return (tally_key(robot), ENC, 0, encode(msg))
+
+
+def test_the_latest_tally_of_each_robot_before_the_end_is_summed():
+    records = [
+        tally("robot1", 1.0, lost=3), tally("robot1", 2.0, lost=5, delayed=9),
+        tally("robot2", 1.5, cut_off=4),
+        tally("robot2", 0.5, cut_off=1),             # older, recorded later: not the latest
+        tally("robot1", 9.0, lost=50),               # after the end
+        tally("robot3", 1.0, frame="robot9", lost=70),  # forged: its key says robot3
+        tally("robot8", 1.0, lost=80),               # not on the team
+        (tally_key("robot3"), ENC, 0, b"\xc1junk"),  # malformed: dropped
+        ("robot3/faults/tally/x", ENC, 0, encode(FaultTally(Header("robot3", 1.0, 1), lost=1))),
+    ]
+    got = fault_effects(records, ["robot1", "robot2", "robot3"], until=5.0)
+    assert got == {"lost": 5, "delayed": 9, "cut_off": 4, "out_of_range": 0}
+    assert fault_effects(records[:1], ["robot2"], until=5.0) == {}  # nobody said one
+
+
+def test_results_rows_carry_each_cause_as_a_measure():
+    s = Summary(mission="delivery", application="delivery_ssi", architecture="ssi",
+                duration=60.0, speed=0.0, seed=1, wall_seconds=1.0, robots=["robot1"],
+                who_did_what={"robot1": []}, first_full_allocation=None, coverage={},
+                messages=MessageRates(1.0, 0.5, "ssi"), output="o", files=[],
+                fault_effects={"lost": 7, "delayed": 0, "cut_off": 2, "out_of_range": 0})
+    row = flat_metrics(s)
+    assert (row["faults.lost"], row["faults.cut_off"], row["faults.out_of_range"]) == (7, 2, 0)
+    assert kind("faults.lost") == "measure"  # not a parameter splitting the cells
+    s.fault_effects = {}
+    assert flat_metrics(s)["faults.lost"] == 0
