@@ -140,6 +140,7 @@ class DeliveryWatch(TaskWatch):
     """A delivered task is done for good; one that arrives later is waiting until then."""
 
     def __init__(self, params: DeliveryParams):
+        self.params = params
         self.arrivals = {tid: t.arrival for tid, t in params.tasks.items()}
 
     def feed(self):
@@ -152,6 +153,13 @@ class DeliveryWatch(TaskWatch):
         if message.event != "done" or message.header.frame_id.strip("/") != first_chunk(key):
             return None  # the board's rule (board.py): only a robot's own `done` counts
         return TaskStatus(message.task_id, "done")
+
+    def servers(self, task: str) -> frozenset[str] | None:
+        """The robots with the task's capability (a task waiting while all of them are busy
+        is queued, not unattended)."""
+        if task not in self.params.tasks:
+            return None
+        return frozenset(rid for rid in self.params.robots if self.params.capable(rid, task))
 
 
 class Delivery(Mission):
