@@ -62,6 +62,9 @@ class Decision:
     stamp: float
     ms: float
     objective: str | None = None  # the objective it optimised (planning.schedule.Objective)
+    # what names it across repeats of its message (a message resent until acknowledged records
+    # one decision, counted once); None: every message is a decision of its own
+    ident: object = None
 
 
 @dataclass(frozen=True)

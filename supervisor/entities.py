@@ -36,6 +36,9 @@ class TaskInfo:
     # `until` (None: for good); a task that is neither needs a robot
     status: str | None = None
     until: float | None = None
+    # when it was last seen waiting for a robot to be free (tasks.waits_for_a_robot): the
+    # unattended clock counts from then at the earliest
+    waited: float = float("-inf")
 
 
 class Allocations:

@@ -182,7 +182,7 @@ def decisions(records, arch: Architecture, end: float) -> Decisions | None:
     feed = [expr for expr, _ in arch.decision_feed()]
     if not feed:
         return None
-    found = []
+    found, seen = [], set()
     for key, enc, _t, payload in records:
         if not any(matches(expr, key) for expr in feed):
             continue
@@ -194,8 +194,13 @@ def decisions(records, arch: Architecture, end: float) -> Decisions | None:
         if header is None or header.frame_id.strip("/") != first_chunk(key):
             continue
         d = arch.decision(first_chunk(key), key, msg)
-        if d is not None and d.stamp <= end + EPSILON:
-            found.append(d)
+        if d is None or d.stamp > end + EPSILON:
+            continue
+        if d.ident is not None:
+            if (d.decider, d.ident) in seen:
+                continue
+            seen.add((d.decider, d.ident))
+        found.append(d)
     times = sorted(d.ms for d in found)
     objectives = sorted({d.objective for d in found if d.objective})
     return Decisions(len(found), round(statistics.median(times), 3) if times else None,

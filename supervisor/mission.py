@@ -96,6 +96,13 @@ class Mission:
     # which direction is better for each of its `metrics` ("lower" or "higher"): the
     # experiment report's comparisons say so (A12, the probability of improvement, profiles)
     better: dict[str, str] = {}
+    # whether every task needs a robot at once (instantaneous assignment: patrol's continuous
+    # tasks): only then is the first instant every task was held at once — the summary's
+    # `first_full_allocation` — a measure of how fast the team got there. A mission whose
+    # tasks are served in turn (time-extended: delivery, more tasks than robots) sets False
+    # and the summary leaves it out: its tasks need never be held at once, and an
+    # architecture with queues holds them long before one without does
+    instantaneous: bool = True
 
     def default_failure(self, robots: list[str], duration: float) -> str | None:
         """The failure `mrta demo` injects when none is given: the second robot at half time
@@ -544,7 +551,7 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
         lockstep_given_up=given_up, lockstep_forgiven=forgiven, run_status=status,
         disturbances=list(disturbances),
         recorded_until=None if recorded_until is None else round(recorded_until, 3),
-        first_full_allocation=first_full_allocation(intervals, run.app.tasks()),
+        first_full_allocation=full_allocation(run.mission, intervals, run.app.tasks()),
         coverage=coverage(intervals, run.app.tasks(), t0, t1),
         # up to the duration asked for: the last instant also holds what processes say as they
         # stop, recorded or not as the shutdown races the recorder
@@ -729,6 +736,12 @@ def message_rates(records, arch: Architecture, seconds: float,
                         arch.namespace, round(namespace / seconds, 1), list(arch.coordination),
                         total, by_kind)
 
+
+
+def full_allocation(mission: Mission, intervals: dict, tasks) -> float | None:
+    """The summary's `first_full_allocation`: for a mission whose tasks all need a robot at
+    once (Mission.instantaneous), None for others."""
+    return first_full_allocation(intervals, tasks) if mission.instantaneous else None
 
 
 def first_full_allocation(intervals: dict, tasks) -> float | None:

@@ -7,18 +7,20 @@
   (architecture, or cell) for each metric with a known better direction, beside its profile
   against the reference value when results.csv has one;
 * `team_size_<metric>.png` — each metric against the team size (`n_robots` column, when the
-  results have one), mean with its bootstrap band.
+  results have one): a panel per failure model (and tasks-per-robot ratio), a line per
+  architecture, mean with its bootstrap band (`team_size_series`).
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
 from mrta_zenoh.files import save_figure
 
 from . import stats
-from .report import Report, profile_data
+from .report import ARCHITECTURE, Report, profile_data
 from .report_md import title
 
 TEAM = "n_robots"
@@ -134,30 +136,97 @@ def plot_profile(metric: str, ratios: dict[str, list[float]],
         plt.close(fig)
 
 
-def plot_team_size(report: Report, metric: str, path: Path) -> Path:
-    plt = _pyplot()
-    lines: dict[str, dict[float, object]] = {}
+@dataclass(frozen=True)
+class Point:
+    """One cell's figure at one team size: its mean and bootstrap interval (None: none)."""
+
+    x: float
+    mean: float
+    low: float | None
+    high: float | None
+
+
+def team_size_series(report: Report, metric: str) -> dict[tuple[str, str], dict[str, list[Point]]]:
+    """What `team_size_<metric>.png` draws: (failure, tasks per robot) → line label → points
+    in team-size order. One panel per failure model, and per tasks-per-robot ratio
+    (`n_tasks` / `n_robots`, "M = 2N"; "" when the cells have only one) — a metric against N
+    means little with M = N and M = 2N mixed on one line; one line per architecture (with any
+    other parameter that varies); each point a cell's mean with its bootstrap interval. Cells
+    with no value, or no numeric team size, are left out."""
+    def varies(k: str) -> bool:
+        return len({c.value(k) for c in report.cells}) > 1
+
+    ratios = {_ratio(c) for c in report.cells} - {None}
+    panels: dict[tuple, dict[str, list[Point]]] = {}
     for cell in report.cells:
-        size = cell.value(TEAM)
         try:
-            x = float(size)
+            x = float(cell.value(TEAM))
         except ValueError:
             continue
-        label = " ".join(f"{k}={v}" for k, v in cell.key if k not in (TEAM, "n_tasks")
-                         and len({c.value(k) for c in report.cells}) > 1) or "all"
-        lines.setdefault(label, {})[x] = report.figure(cell, metric)
-    fig, ax = plt.subplots(figsize=(6, 4), dpi=100)
+        f = report.figure(cell, metric)
+        if not f.n:
+            continue
+        ratio = _ratio(cell) if len(ratios) > 1 else None
+        panel = (cell.value("failure"), -1.0 if ratio is None else ratio)
+        label = " ".join(f"{k}={v}" for k, v in cell.key
+                         if k not in (TEAM, "n_tasks", "failure") and varies(k)) or "all"
+        if label.startswith(f"{ARCHITECTURE}="):
+            label = label.removeprefix(f"{ARCHITECTURE}=")
+        low, high = (None, None) if f.interval is None else (f.interval.low, f.interval.high)
+        panels.setdefault(panel, {}).setdefault(label, []).append(Point(x, f.mean, low, high))
+    out: dict[tuple[str, str], dict[str, list[Point]]] = {}
+    for (failure, ratio), lines in sorted(panels.items()):
+        tasks = "" if ratio < 0 else "M = N" if ratio == 1 else f"M = {ratio:g}N"
+        out[(failure, tasks)] = {label: sorted(points, key=lambda p: p.x)
+                                 for label, points in sorted(lines.items())}
+    return out
+
+
+def _ratio(cell) -> float | None:
     try:
-        for label, points in sorted(lines.items()):
-            xs = sorted(x for x, f in points.items() if f.n)
-            ax.plot(xs, [points[x].mean for x in xs], marker="o", label=label)
-            band = [x for x in xs if points[x].interval is not None]
-            ax.fill_between(band, [points[x].interval.low for x in band],
-                            [points[x].interval.high for x in band], alpha=0.2)
-        ax.set_xlabel("team size (robots)")
-        ax.set_ylabel(title(metric))
-        ax.legend(fontsize=7)
-        fig.tight_layout()
+        return round(float(cell.value("n_tasks")) / float(cell.value(TEAM)), 3)
+    except (ValueError, ZeroDivisionError):
+        return None
+
+
+def plot_team_size(report: Report, metric: str, path: Path) -> Path:
+    plt = _pyplot()
+    series = team_size_series(report, metric)
+    labels = sorted({label for lines in series.values() for label in lines})
+    colours = {label: f"C{k % 10}" for k, label in enumerate(labels)}
+    # a row per failure model, a column per tasks-per-robot ratio
+    failures = list(dict.fromkeys(f for f, _ in series)) or [""]
+    ratios = list(dict.fromkeys(r for _, r in series)) or [""]
+    fig, axes = plt.subplots(len(failures), len(ratios),
+                             figsize=(4.2 * len(ratios) + 1.8, 3.2 * len(failures)), dpi=100,
+                             squeeze=False, sharey=True)
+    try:
+        for ax in axes.flat:
+            ax.set_visible(False)
+        for (failure, ratio), lines in series.items():
+            ax = axes[failures.index(failure), ratios.index(ratio)]
+            ax.set_visible(True)
+            name = ", ".join(x for x in (f"fail={failure}" if failure else "", ratio) if x)
+            for label, points in lines.items():
+                xs = [p.x for p in points]
+                ax.plot(xs, [p.mean for p in points], marker="o", color=colours[label],
+                        label=label)
+                band = [p for p in points if p.low is not None]
+                ax.fill_between([p.x for p in band], [p.low for p in band],
+                                [p.high for p in band], color=colours[label], alpha=0.15)
+            ax.set_title(name or "all runs", fontsize=9)
+            ax.set_xlabel("team size (robots)")
+            ax.set_xticks(sorted({p.x for points in lines.values() for p in points}))
+        for ax in axes[:, 0]:
+            ax.set_ylabel(title(metric))
+        # one legend for every panel, beside them: inside a panel it covered the data
+        handles = [plt.Line2D([], [], color=colours[label], marker="o", label=label)
+                   for label in labels]
+        fig.legend(handles=handles, fontsize=8, loc="upper left",
+                   bbox_to_anchor=(1.0 - 1.7 / fig.get_figwidth(), 0.95))
+        fig.suptitle(f"{title(metric)} against team size (mean, 95 % bootstrap band)",
+                     fontsize=10)
+        fig.tight_layout(rect=(0.0, 0.0, 1.0 - 1.8 / fig.get_figwidth(), 1.0))
         return save_figure(fig, path)
     finally:
         plt.close(fig)

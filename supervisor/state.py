@@ -39,7 +39,7 @@ from .holders import History, SampleHolder, StateChange
 from .intake import Ids, Intake
 from .monitors import Monitor, monitors_of
 from .strangers import MAX_NAME, MAX_STRANGER_TOKENS, MAX_UNKNOWN, Strangers
-from .tasks import TaskStatus, TaskWatch
+from .tasks import TaskStatus, TaskWatch, waits_for_a_robot
 
 log = logging.getLogger("mrta.supervisor")
 
@@ -430,10 +430,16 @@ class Supervisor:
     def _task_alarms(self, t: TaskInfo, now: float) -> None:
         if not t.known or self.clock_stopped or self.run_ended:
             return
-        if t.robots or t.status is not None:
+        waiting = not t.robots and t.status is None and waits_for_a_robot(
+            self.watch.servers(t.id) if self.watch is not None else None,
+            {r.id: r.state for r in self.robots.values()})
+        if waiting:
+            t.waited = now
+        since = max(t.since, t.waited)
+        if t.robots or t.status is not None or waiting:
             self._alarms.clear("task_unattended", t.id, now)
-        elif now - t.since >= self.unattended_after:
-            self._alarms.raise_("task_unattended", t.id, now, since=t.since)
+        elif now - since >= self.unattended_after:
+            self._alarms.raise_("task_unattended", t.id, now, since=since)
         if self.arch.tasks_type == "SR" and len(t.robots) >= 2:
             first = self._dup_since.setdefault(t.id, now)
             if now - first >= self.duplicate_after:

@@ -17,7 +17,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any, Literal, Mapping
 
 from mrta_zenoh.toolchain.model import ApplicationFile
 from mrta_zenoh.toolchain.registry import Registry
@@ -46,6 +46,23 @@ class TaskWatch:
     def read(self, key: str, message: Any) -> TaskStatus | None:
         """What a sample of the feed says of a task (None: nothing)."""
         return None
+
+    def servers(self, task: str) -> frozenset[str] | None:
+        """The robots able to serve `task` (None: every robot), for `waits_for_a_robot`."""
+        return None
+
+
+def waits_for_a_robot(servers: frozenset[str] | None, states: Mapping[str, str]) -> bool:
+    """Whether a task nobody holds is waiting for a robot to be free rather than unattended:
+    some robot able to serve it (`servers`, None: any) is online and none of them is idle.
+    With more tasks than robots (time-extended allocation) that is the normal course under an
+    architecture that keeps no queue — MURDOCH auctions the task again until a robot that
+    finished bids, ALLIANCE's robots take it up when they are free — whereas a queueing one
+    (central, SSI, CBBA) shows the same task held, in some robot's queue. A task no online robot
+    can serve, or that an idle one leaves alone, is unattended. `states`: robot → the
+    supervisor's state (busy, idle, offline, unknown)."""
+    able = [s for r, s in states.items() if servers is None or r in servers]
+    return "busy" in able and "idle" not in able
 
 
 def application_watch(app: ApplicationFile, registry: Registry | None = None) -> TaskWatch | None:

@@ -49,10 +49,13 @@ class SsiArchitecture(OwnRouteArchitecture):
                               PluginReadings(prepared.plugins, prepared.params.robot.pose_topic))
 
     def decision(self, sender: str, key: str, message: object) -> Decision | None:
-        """A Round that carries an award: one decision, by the auctioneer that sent it."""
+        """A Round that carries an award: one decision, by the auctioneer that sent it, taking
+        `Round.ms` (its slowest bid and the winner determination, wall time); a Round repeated
+        until every robot answered it is the same decision (its round number names it)."""
         if not isinstance(message, Round) or message.award < 0:
             return None
-        return Decision(sender, message.header.stamp, 0.0, self.objective)
+        return Decision(sender, message.header.stamp, message.ms, self.objective,
+                        ident=message.round)
 
     def takeover_check(self, t: Takeover) -> TakeoverBound:
         return TakeoverBound(None, t.failed_at, case=(

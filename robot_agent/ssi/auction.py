@@ -23,12 +23,20 @@ The auction (Lagoudakis et al. 2005; Koenig, Tovey et al. 2006; docs/ssi.md):
   tasks it served until a Round shows them DONE. When the auctioneer goes, the next lowest id
   takes over from the last Round it heard, opening a new round (docs/ssi.md says why one
   auctioneer and what a takeover can lose).
+
+**Decision time.** Each award records its computation time (`Round.ms`): the slowest bid of its
+round (each bidder times its own `best_bid` and says so in its `Bid`; the bidders compute side by
+side, so the slowest one gates the round) plus the auctioneer's winner determination. It is wall
+time (`timer`, `time.perf_counter` by default) even in lockstep, where simulated time stands still
+while the logic computes: a computation time is the machine's, a measurement that never enters a
+decision.
 """
 
 from __future__ import annotations
 
 import math
-from typing import NamedTuple
+import time
+from typing import Callable, NamedTuple
 
 from mrta_zenoh.planning import Problem
 from mrta_zenoh.planning.insertion import Origin, minsum_insertion, ranks
@@ -50,6 +58,7 @@ class Award(NamedTuple):
     task: int
     robot: int
     cost: float
+    ms: float = 0.0  # its computation time (module docstring, "Decision time")
 
 
 class Ssi:
@@ -57,17 +66,20 @@ class Ssi:
     `lookahead` seconds before its arrival (math.inf: all from the start); `resend_period`: how
     often a Round still missing bids, or an unacknowledged report of served tasks, is
     repeated; `join_wait`: how long the first auctioneer waits for robots of the instance it
-    has not seen yet; `origin`: where and when this robot's path begins."""
+    has not seen yet; `origin`: where and when this robot's path begins; `timer`: the wall
+    clock (seconds) decision times are measured with."""
 
     listens = ("round", "bid")
 
     def __init__(self, problem: Problem, robot_id: str, *, lookahead: float = 0.0,
-                 resend_period: float = 0.5, join_wait: float = 1.0, origin: Origin = Origin()):
+                 resend_period: float = 0.5, join_wait: float = 1.0, origin: Origin = Origin(),
+                 timer: Callable[[], float] = time.perf_counter):
         self.problem = problem
         self.id = robot_id
         self.i = problem.robot_index(robot_id)
         self.index = {r.id: k for k, r in enumerate(problem.robots)}  # robot id → its index
         self.lookahead, self.resend_period, self.join_wait = lookahead, resend_period, join_wait
+        self.timer = timer
         self.rank = ranks([r.id for r in problem.robots])
         self.task_rank = ranks([t.id for t in problem.tasks])
         self.alive: set[int] = set()      # teammates whose token lives
@@ -87,6 +99,7 @@ class Ssi:
         self.leading = False
         self.started: float | None = None
         self.bids: dict[int, tuple[int, float]] = {}
+        self.bid_ms: dict[int, float] = {}  # how long each bid of the round took to compute
         self.reported: set[int] = set()   # served tasks heard of, to show DONE
         self.lagging = False
         self.last_round = -math.inf
@@ -143,13 +156,14 @@ class Ssi:
             return True  # not (or no longer) the auctioneer this robot follows
         if k == self.round_from and msg.round < self.round:
             return True  # an older Round, delivered late
-        self._adopt(k, msg.round, list(msg.owners), msg.award, msg.cost)
+        self._adopt(k, msg.round, list(msg.owners), msg.award, msg.cost, msg.ms)
         self.answer_due = True
         return True
 
     def _on_bid(self, k: int, msg: Bid) -> bool:
         n_tasks = len(self.problem.tasks)
-        if not -1 <= msg.task < n_tasks or not all(0 <= j < n_tasks for j in msg.served):
+        if (not -1 <= msg.task < n_tasks or not all(0 <= j < n_tasks for j in msg.served)
+                or msg.ms < 0):
             return False
         if msg.auctioneer != self.id:
             return True
@@ -160,6 +174,7 @@ class Ssi:
             self.lagging = True  # it missed the current Round: send it again
         else:
             self.bids[k] = (msg.task, msg.cost)
+            self.bid_ms[k] = msg.ms
         return True
 
     def served(self, task_id: str, at: float) -> None:
@@ -174,7 +189,7 @@ class Ssi:
 
     # ------------------------------------------------------------------ the shared state
     def _adopt(self, announcer: int, number: int, owners: list[int], award: int,
-               cost: float) -> None:
+               cost: float, ms: float = 0.0) -> None:
         """Take a Round: tasks no longer this robot's leave its path; tasks newly its own go in
         at their cheapest place — the round's award first, any other (a Round missed) in task
         id order."""
@@ -189,7 +204,7 @@ class Ssi:
             self.path.insert(where, j)
         if award >= 0 and owners[award] >= 0 and (not self.awards
                                                   or self.awards[-1].round != number):
-            self.awards.append(Award(number, award, owners[award], cost))
+            self.awards.append(Award(number, award, owners[award], cost, ms))
         self.round, self.round_from, self.owners = number, announcer, owners
         self.unacked = {j for j in self.unacked if owners[j] != DONE}
 
@@ -237,21 +252,26 @@ class Ssi:
                 owners[j], reopened = OPEN, True
             elif owners[j] >= 0 and owners[j] != self.i and owners[j] not in self.alive:
                 owners[j], reopened = OPEN, True  # its robot left before serving it
-        award, cost = -1, 0.0
+        award, cost, ms = -1, 0.0, 0.0
+        began = self.timer()
         self.bids[self.i] = self.best_bid()
+        self.bid_ms[self.i] = (self.timer() - began) * 1000.0
         expected = self._expected(now)
         missing = expected - self.bids.keys()  # a bid is also the Round's acknowledgement
         if not reopened and OPEN in owners and not missing:
             # a bid from a robot that left meanwhile does not count
+            began = self.timer()
             best = min(((c, self.rank[r], self.task_rank[j], r, j)
                         for r, (j, c) in self.bids.items()
                         if r in expected and j >= 0 and owners[j] == OPEN), default=None)
             if best is not None:
                 cost, _, _, winner, award = best
                 owners[award] = winner
+                ms = (max(self.bid_ms.get(r, 0.0) for r in self.bids if r in expected)
+                      + (self.timer() - began) * 1000.0)
         if reopened or award >= 0:
-            self.bids = {}
-            self._adopt(self.i, self.round + 1, owners, award, cost)
+            self.bids, self.bid_ms = {}, {}
+            self._adopt(self.i, self.round + 1, owners, award, cost, ms)
         elif acked:
             self._adopt(self.i, self.round, owners, -1, 0.0)
         elif not ((missing or self.lagging) and now - self.last_round >= self.resend_period):
@@ -260,7 +280,7 @@ class Ssi:
         self.last_round = now
         last = self.awards[-1] if self.awards and self.awards[-1].round == self.round else None
         return [Out("round", (self.round, tuple(self.owners), last.task if last else -1,
-                              last.cost if last else 0.0))]
+                              last.cost if last else 0.0, last.ms if last else 0.0))]
 
     def _bid(self, now: float) -> list[Out]:
         """The answer to each Round heard from the auctioneer — a bid, or task −1 when nothing
@@ -275,6 +295,9 @@ class Ssi:
         if not (self.answer_due or (self.unacked and now - self.last_bid >= self.resend_period)):
             return []
         self.answer_due, self.last_bid = False, now
+        began = self.timer()
         task, cost = self.best_bid() if OPEN in self.owners else (-1, 0.0)
+        ms = (self.timer() - began) * 1000.0
         name = self.problem.robots[target].id
-        return [Out("bid", (name, self.round, task, cost, tuple(sorted(self.unacked))), name)]
+        return [Out("bid", (name, self.round, task, cost, tuple(sorted(self.unacked)), ms),
+                    name)]

@@ -17,20 +17,23 @@ OPEN, UNKNOWN, DONE = -1, -2, -3  # a task's state in Round.owners besides its o
 class Round(Message):
     """`owners[j]`: the index of the robot task j was awarded to, or OPEN (to bid on), UNKNOWN
     (not arrived yet) or DONE (served); `award`: the task this round's opening awarded (its
-    winner is its owner; −1: none) and `cost` its winning bid."""
+    winner is its owner; −1: none), `cost` its winning bid and `ms` the computation time of
+    that award (the slowest bid of the round and the winner determination, auction.Ssi)."""
 
     header: Header
     round: int
     owners: tuple[int, ...]
     award: int
     cost: Finite
+    ms: Finite = 0.0
 
 
 @message("ssi_msgs/Bid")
 class Bid(Message):
     """A robot's bid in `round` of `auctioneer`'s: what adding `task` to its path costs (task −1:
     nothing it can serve is open), and the tasks it served that the last Round it heard did not
-    yet show DONE (so a task served just before its server died is not auctioned again)."""
+    yet show DONE (so a task served just before its server died is not auctioned again);
+    `ms`: how long computing the bid took (wall time, a measurement)."""
 
     header: Header
     auctioneer: str
@@ -38,6 +41,7 @@ class Bid(Message):
     task: int
     cost: Finite
     served: tuple[int, ...]
+    ms: Finite = 0.0
 
 
 MESSAGES = {"round": Round, "bid": Bid}

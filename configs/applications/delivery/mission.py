@@ -140,6 +140,7 @@ class DeliveryWatch(TaskWatch):
     """A delivered task is done for good; one that arrives later is waiting until then."""
 
     def __init__(self, params: DeliveryParams):
+        self.params = params
         self.arrivals = {tid: t.arrival for tid, t in params.tasks.items()}
 
     def feed(self):
@@ -153,12 +154,22 @@ class DeliveryWatch(TaskWatch):
             return None  # the board's rule (board.py): only a robot's own `done` counts
         return TaskStatus(message.task_id, "done")
 
+    def servers(self, task: str) -> frozenset[str] | None:
+        """The robots with the task's capability (a task waiting while all of them are busy
+        is queued, not unattended)."""
+        if task not in self.params.tasks:
+            return None
+        return frozenset(rid for rid in self.params.robots if self.params.capable(rid, task))
+
 
 class Delivery(Mission):
     name = "delivery"
     title = "Delivery mission"
     launch = "delivery_sim.launch"
     summary_sections = DeliverySections
+    # tasks served in turn: no `first_full_allocation` (its waiting and completion times —
+    # mean_waiting_time, flowtime, makespan — say how fast tasks were taken up)
+    instantaneous = False
     better = {"makespan": "lower", "total_distance": "lower", "mean_waiting_time": "lower",
               "achieved_cost": "lower", "optimality": "higher", "ia_optimality": "higher",
               "completed": "higher", "assigned": "higher", "handovers": "lower",

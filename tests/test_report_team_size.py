@@ -1,0 +1,62 @@
+"""The team-size plot's data (supervisor/report_plots.team_size_series): a panel per failure
+model and tasks-per-robot ratio, a line per architecture, each point a cell's mean — checked
+against the rows' own means computed here — with its bootstrap interval around it."""
+
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+
+from mrta_supervisor.report import Options, build
+from mrta_supervisor.report_plots import plot_team_size, team_size_series
+from mrta_supervisor.results import read_results
+from tests.test_report import write
+
+ARCHS = ("cbba", "central", "murdoch")
+FAILURES = ("none", "crash:role")
+
+
+def value(arch: str, n: int, m: int, fail: str, seed: int) -> float:
+    return 10.0 * n + m + ARCHS.index(arch) + (5.0 if fail != "none" else 0.0) + seed / 4
+
+
+def rows() -> list[dict]:
+    out = []
+    for arch, n, per, fail, seed in itertools.product(ARCHS, (3, 5), (1, 2), FAILURES,
+                                                      (1, 2, 3)):
+        out.append({"run": len(out), "seed": seed, "mission": "delivery",
+                    "architecture": arch, "instance": f"i{n}x{per}", "n_robots": n,
+                    "n_tasks": n * per, "failure": fail, "status": "ok",
+                    "metrics.makespan": value(arch, n, n * per, fail, seed)})
+    return out
+
+
+def test_one_panel_per_failure_and_ratio_one_line_per_architecture(tmp_path):
+    folder = write(tmp_path / "r", rows())
+    report = build(read_results(folder / "results.csv"),
+                   Options(metrics=("metrics.makespan",), resamples=500))
+    series = team_size_series(report, "metrics.makespan")
+    ratio = {"M = N": 1, "M = 2N": 2}
+    assert sorted(series) == sorted((f, r) for f in FAILURES for r in ratio)
+    for (fail, tasks), lines in series.items():
+        per = ratio[tasks]
+        assert sorted(lines) == list(ARCHS)
+        for arch, points in lines.items():
+            assert [p.x for p in points] == [3.0, 5.0]
+            for p in points:
+                n = int(p.x)
+                expected = np.mean([value(arch, n, n * per, fail, s) for s in (1, 2, 3)])
+                assert abs(p.mean - expected) < 1e-9
+                assert p.low is not None and p.low <= p.mean <= p.high
+    path = plot_team_size(report, "metrics.makespan", tmp_path / "team.png")
+    assert path.stat().st_size > 5_000
+
+
+def test_one_ratio_makes_one_panel_per_failure(tmp_path):
+    data = [r for r in rows() if r["n_tasks"] == r["n_robots"]]
+    folder = write(tmp_path / "r", data)
+    report = build(read_results(folder / "results.csv"),
+                   Options(metrics=("metrics.makespan",), resamples=500))
+    assert sorted(team_size_series(report, "metrics.makespan")) == sorted(
+        (f, "") for f in FAILURES)
