@@ -113,7 +113,7 @@ def test_each_instance_is_the_file_instance_generate_writes_for_its_size_and_see
     out = tmp_path / "o"
     experiment.run_experiment(file=f, output=out, jobs=1, plots=False)
     made = sorted((out / "instances").iterdir())
-    assert [p.name for p in made] == ["delivery-r3-t4-40.yaml", "delivery-r3-t4-41.yaml"]
+    assert [p.name for p in made] == ["delivery-r3-t4-w1-40.yaml", "delivery-r3-t4-w1-41.yaml"]
     for seed, path in zip((40, 41), made):  # the verb, run here as a user would
         by_hand = tmp_path / f"hand{seed}.yaml"
         result = CliRunner().invoke(cli, ["instance", "generate", "delivery", "--robots", "3",
