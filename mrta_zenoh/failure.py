@@ -15,7 +15,9 @@ A spec is a comma-separated list of items (docs/delivery.md, "Fault grammar"):
   what its decision logic says (ALLIANCE's heartbeats, MURDOCH's lease renewals), but its
   layers stop commanding motion, so it makes no progress on its task;
 * `partition:ROBOT@T+D`: cut off for D seconds from T — it neither hears nor is heard on the
-  coordination keys, then rejoins;
+  coordination keys, then rejoins; what it sends meanwhile is dropped by each receiver (every
+  process's plan holds the others' partitions, `FaultPlan.peers_cut`), not by the sender, so
+  the recording keeps what it said and the analysis sees it working through the cut;
 * `loss:P`: each coordination message is lost for each receiver with probability P, drawn from
   the run's seed (the same seed loses the same messages);
 * `latency:MEAN±JITTER` (ASCII `MEAN+-JITTER`; `latency:MEAN` alone: no jitter): each
@@ -322,6 +324,10 @@ class FaultPlan:
     # assigned first among the robots no item names (`taken`), and then strikes or drops it
     first: Failure | None = None
     taken: frozenset[str] = frozenset()
+    # the other subjects' partitions (subject, from, until): a partitioned robot still
+    # transmits — its messages are in the recording, which is what it did and said — and every
+    # receiver drops what it sent in its window (`sender_cut`), as a network would
+    peers_cut: tuple[tuple[str, float, float], ...] = ()
 
     def struck(self, failure: Failure) -> FaultPlan:
         """This plan with `failure` (a role's, once resolved to this subject) its own."""
@@ -341,6 +347,22 @@ class FaultPlan:
 
     def cut_off(self, t: float) -> bool:
         return any(a <= t < b for a, b in self.partitions)
+
+    def sender_cut(self, sender: str, stamp: float) -> bool:
+        """Whether `sender` was cut off by its partition when it sent at `stamp`."""
+        return any(who == sender and a <= stamp < b for who, a, b in self.peers_cut)
+
+    def resolved(self, who: str | None) -> FaultPlan:
+        """This plan once its `@first` item struck `who` (None: nobody): this subject's own
+        fault if it is `who`, else — for a partition — a peer's cut to honour."""
+        first = self.first
+        if first is None:
+            return self
+        if who == self.robot:
+            return self.struck(first)
+        cut = ((who, first.at, first.at + first.duration),) \
+            if who is not None and FaultKind(first.kind) is FaultKind.PARTITION else ()
+        return dataclasses.replace(self, first=None, peers_cut=self.peers_cut + cut)
 
     def lost(self, key: str, seq: int) -> bool:
         return self.loss > 0 and uniform(self.seed, "loss", self.robot, key, seq) < self.loss
@@ -374,14 +396,21 @@ def plan_for(faults: Faults, subject: str, seed: int) -> FaultPlan | None:
         raise ValueError(f"{faults.of(RANDOM).spec}: {RANDOM} is drawn by the runner before "
                          "the run (mrta demo, mrta experiment): give the robot's id")
     own = faults.of(subject)
-    first = faults.of(FIRST) if own is None else None
-    if own is None and first is None and faults.loss == 0 and faults.latency is None \
-            and faults.range is None:
+    first = faults.of(FIRST)
+    # a subject named by an item is never `@first` (taken), but it must learn whom an
+    # `@first` partition cut off, to drop what that robot sends
+    if own is not None and first is not None and FaultKind(first.kind) is not FaultKind.PARTITION:
+        first = None
+    peers_cut = tuple((f.robot, f.at, f.at + f.duration) for f in faults.failures
+                      if FaultKind(f.kind) is FaultKind.PARTITION and f.robot != subject
+                      and f.robot not in ROLES)
+    if own is None and first is None and not peers_cut and faults.loss == 0 \
+            and faults.latency is None and faults.range is None:
         return None
     taken = frozenset(f.robot for f in faults.failures if f.robot not in ROLES) \
         if first is not None else frozenset()
     plan = FaultPlan(subject, seed, loss=faults.loss, latency=faults.latency, first=first,
-                     taken=taken, range=faults.range)
+                     taken=taken, range=faults.range, peers_cut=peers_cut)
     return plan.struck(own) if own is not None else plan
 
 

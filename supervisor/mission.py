@@ -597,7 +597,7 @@ def takeover_report(run: MissionRun, failure: Failure, failed_at: float | None,
     options = run.options
     bound = run.arch.takeover_check(Takeover(
         task, failure.robot, failed_at, by, t_take, run.robot_params(by), records, time_of,
-        faults_of(run), options.seed, options.lockstep))
+        roles.as_struck(faults_of(run), records), options.seed, options.lockstep))
     report.bound_formula = run.arch.bound_formula
     report.bound_seconds = None if bound.seconds is None else round(bound.seconds, 2)
     report.bound_from = round(bound.since, 2)

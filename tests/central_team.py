@@ -7,6 +7,7 @@ its logic talks on) or cut off (a partition, through the driver's fault channel)
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass, field
 
@@ -86,6 +87,12 @@ class Team:
         self.served: dict[str, list[tuple[str, float]]] = {}   # robot → (task, when)
         self.active_log: list[tuple[float, str, str]] = []     # (t, robot, task) every step
         faults = faults or {}
+        # every member honours the others' partitions, as plan_for gives each process them:
+        # a cut-off robot still sends, and its receivers drop what it sent in its window
+        cuts = tuple((name, a, b) for name, plan in faults.items() for a, b in plan.partitions)
+        faults = {name: dataclasses.replace(faults.get(name) or FaultPlan(name, 0), peers_cut=tuple(
+            c for c in cuts if c[0] != name)) for name in [*(r.id for r in problem.robots),
+                                                            DISPATCHER]}
         team = [r.id for r in problem.robots]
         for r in problem.robots:
             body = self.bodies[r.id] = Body(*r.start, r.speed, problem)

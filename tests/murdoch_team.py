@@ -67,6 +67,7 @@ class Delays:
     latency = (0.0, 0.0)  # set: the driver holds each message until its time
     loss = 0.0
     partitions = ()
+    peers_cut = ()  # nobody is cut off
     first = None  # no fault names a robot by role
     range = None
 

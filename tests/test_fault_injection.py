@@ -177,7 +177,10 @@ def test_a_stalled_robot_keeps_broadcasting_but_stops_moving(tmp_path):
     assert len(after) >= 19 and all(m.task_id == "a" for m in after)  # heartbeats go on
 
 
-def test_a_partitioned_robot_neither_hears_nor_is_heard_then_rejoins(tmp_path):
+def test_a_partitioned_robot_hears_nothing_and_is_heard_by_nobody_then_rejoins(tmp_path):
+    """robot1 cut off from 2 s to 4 s: it hears nothing, and what it sends meanwhile is on the
+    wire (the recording holds what it said) but every receiver drops it — its plan's peers_cut,
+    which plan_for gives every process of the run."""
     agent, bus, clock = make(tmp_path, FaultPlan("robot1", partitions=((2.0, 4.0),)))
     irc = recorder(bus, ALLIANCE.key("robot1", IRC))
     heard = spy(agent, lambda msg, at: at)
@@ -193,12 +196,25 @@ def test_a_partitioned_robot_neither_hears_nor_is_heard_then_rejoins(tmp_path):
     run(agent, bus, clock, 5.0)
     other(5.0, 3)
     run(agent, bus, clock, 6.0)
-    stamps = [s.message.header.stamp for s in irc]
-    assert stamps and not [t for t in stamps if 2.0 <= t < 4.0]
-    assert any(t < 2.0 for t in stamps) and any(t >= 4.0 for t in stamps)
     assert heard == [pytest.approx(1.0), pytest.approx(5.0)]
-    # robot2's message in the cut, and all robot1 said for 2 s (its 5 Hz heartbeats among it)
-    assert agent.dropped_by_fault >= 1 + 10
+    assert agent.fault_counts["cut_off"] == 1
+    stamps = [s.message.header.stamp for s in irc]
+    assert [t for t in stamps if 2.0 <= t < 4.0]  # it went on saying what its logic said
+    peer = plan_for(parse_faults("partition:robot1@2+2"), "robot2", 0)
+    assert [t for t in stamps if peer.sender_cut("robot1", t)] == \
+        [t for t in stamps if 2.0 <= t < 4.0]
+    assert not peer.cut_off(3.0)  # robot2 itself is not cut off
+
+
+def test_a_receiver_drops_what_a_partitioned_teammate_sent_in_its_window(tmp_path):
+    agent, bus, clock = make(tmp_path, plan_for(parse_faults("partition:robot2@2+2"), "robot1", 0))
+    heard = spy(agent, lambda msg, at: msg.header.seq)
+    for seq, t in enumerate((1.0, 2.0, 3.9, 4.0), start=1):
+        run(agent, bus, clock, t)
+        bus.publish(ALLIANCE.key("robot2", IRC),
+                    InterRobotCommunication(Header("robot2", t, seq), "b", 60.0))
+    run(agent, bus, clock, 5.0)
+    assert heard == [1, 4] and agent.fault_counts["cut_off"] == 2
 
 
 def test_loss_drops_the_messages_the_seed_says(tmp_path):

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from mrta_agent.alliance.architecture import ALLIANCE
+from mrta_agent.alliance.messages import InterRobotCommunication
 from mrta_agent.runtime.host import AgentOptions
 from mrta_zenoh import keys
 from mrta_zenoh.bus import InProcBus
@@ -132,6 +133,28 @@ def test_the_first_assigned_robot_stalls_at_the_faults_time_and_no_other(tmp_pat
     assert len(said) == 1 and said[0].message.task_id == "a"
     if struck and other_at is not None:  # it said so before robot2 did
         assert said[0].message.header.stamp < other_at
+
+
+def test_an_at_first_partition_of_a_teammate_cuts_what_it_sends_in_its_window(tmp_path):
+    """robot2 was assigned first: at 2 s the partition strikes it, so robot1 (not cut off)
+    drops what robot2 sends from 2 s to 5 s — and hears it before and after."""
+    agent, bus, clock = make(tmp_path, "robot1", "partition:@first@2+3")
+    heard = []
+    hear = agent.coordinator.hear
+    agent.coordinator.hear = lambda kind, sender, msg, at: (
+        heard.append(msg.header.seq) if sender == "robot2" else None) or hear(kind, sender,
+                                                                               msg, at)
+    agent._on_token(ALLIANCE.key("robot2", "agent"), True)  # robot2 on the team
+
+    def say(t, seq):
+        return (t, lambda: bus.publish(ALLIANCE.key("robot2", "inter_robot_communication"),
+                                       InterRobotCommunication(Header("robot2", t, seq), "b",
+                                                               60.0)))
+    run(agent, bus, clock, 6.0, [(0.01, lambda: bus.publish(
+        assigned_key("robot2"), Assigned(Header("robot2", 0.01, 1), "b"))),
+        say(1.0, 1), say(2.5, 2), say(4.9, 3), say(5.5, 4)])
+    assert not agent.faults.cut_off(3.0) and agent.faults.sender_cut("robot2", 3.0)
+    assert heard == [1, 4] and agent.fault_counts["cut_off"] == 2
 
 
 def test_a_robot_an_item_names_is_never_first_and_announcements_only_come_with_first(tmp_path):

@@ -98,7 +98,8 @@ class AllianceArchitecture(AgentArchitecture):
     def takeover_check(self, t: Takeover) -> TakeoverBound:
         """`takeover_bound`, counted from the taker's last reception, before it took the task,
         of a broadcast on the task from any other robot. In lockstep a broadcast is heard at
-        its stamp, plus the latency the run injected, unless the run's loss or a partition
+        its stamp, plus the latency the run injected, unless the run's loss or a partition (the
+        taker's, or the sender's: a cut-off robot's broadcasts are recorded, nobody hears them)
         took it — the driver's own seeded draws (mrta_zenoh.failure.FaultPlan), made again
         here — so the instant is exact. Out of lockstep the recorder's reception stands for
         the taker's (both on the same loopback). A taker that heard nobody: from the fault."""
@@ -116,7 +117,8 @@ class AllianceArchitecture(AgentArchitecture):
             if msg.task_id != t.task or msg.header.frame_id.strip("/") != sender:
                 continue
             seq = msg.header.seq
-            if plan is not None and plan.lost(key, seq):
+            if plan is not None and (plan.lost(key, seq)
+                                     or plan.sender_cut(sender, msg.header.stamp)):
                 continue
             heard = (msg.header.stamp if t.lockstep else t.time_of(logged)) \
                 + (plan.delay(key, seq) if plan is not None else 0.0)

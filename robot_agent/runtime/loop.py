@@ -24,8 +24,9 @@ what every architecture needs and none should write twice:
 * the low level: plugins' set-up and shutdown, the active task's layers, a restart of time;
 * fault injection (mrta_zenoh/failure.py), here because this is the one place every
   architecture's messages go out and come in, and its layers run: a crash (SIGKILL), a stall
-  (the layers stop, the decision logic and its messages go on), a partition (nothing sent,
-  nothing heard for a while), loss and latency of received coordination messages; and a
+  (the layers stop, the decision logic and its messages go on), a partition (for a while
+  nothing heard, and what it sends heard by nobody: each receiver drops it, so the recording
+  still holds what the robot said and did), loss and latency of received coordination messages; and a
   fault naming a robot by role, `@first`, resolved here at its time from the team's
   announcements of their first assignments (mrta_zenoh/fault_roles.py: exact in lockstep).
 
@@ -36,7 +37,6 @@ An architecture supplies a `Coordinator` (its decision logic for one robot) thro
 from __future__ import annotations
 
 import collections
-import dataclasses
 import logging
 import math
 import threading
@@ -316,8 +316,7 @@ class Agent:
         who = first_assigned(heard, plan.first.at, plan.taken)
         self.log.info("%s: %s at t=%.2f is %s", self.robot_id, plan.first.spec, now,
                       who or "nobody (no robot was assigned before)")
-        self.faults = (plan.struck(plan.first) if who == self.robot_id
-                       else dataclasses.replace(plan, first=None))
+        self.faults = plan.resolved(who)
 
     def _on_message(self, kind: str, sample: Sample) -> None:
         sender = first_chunk(sample.key)
@@ -442,7 +441,13 @@ class Agent:
                 self.coordinator.teammate(robot, alive)
         if changes or subject_changes:
             self._apply_subjects(set(changes) | {r for r, _ in subject_changes}, subject_changes)
+        plan = self.faults
         for t, kind, sender, what, _ in self.take_due(now):
+            # here, not on receipt: an `@first` partition is resolved by now (schedule)
+            if plan is not None and plan.peers_cut and plan.sender_cut(sender,
+                                                                       what.header.stamp):
+                self._count_fault("cut_off")
+                continue
             if sender not in self.team:
                 self._drop("ignored_strangers", "ignoring %s from %s, which holds no agent token",
                            type(what).__name__, sender)
@@ -476,9 +481,6 @@ class Agent:
                 self._told_subjects.pop(robot, None)
 
     def send(self, say: Say, now: float) -> None:
-        if self.faults is not None and self.faults.cut_off(now):
-            self._count_fault("cut_off")  # partitioned: nobody hears it
-            return
         key = self.architecture.key(self.robot_id, say.kind,
                                     *((say.subkey,) if say.subkey is not None else ()))
         self._seq[key] += 1
