@@ -199,6 +199,21 @@ def test_a_cut_off_robot_holds_before_its_tasks_go_to_another():
     assert sorted(team.served_tasks()) == ["t1", "t2", "t3"]
 
 
+@pytest.mark.parametrize("back_at", [16.0, 20.0])
+def test_a_robot_back_from_a_partition_with_a_task_granted_meanwhile_does_not_break_the_plan(
+        back_at):
+    """robot2, cut off from 2 s, is re-planned out at 11.1 s and t3 granted to robot1; back at
+    `back_at` it still reports t3. One of the two keeps it — the dispatcher does not stop on
+    two routes holding one task (it raised there) — and nobody serves it twice at once."""
+    far = Problem(SQUARE.robots, (Task("t1", (1.0, 0.0), service=1.0),
+                                  Task("t2", (2.0, 0.0), service=1.0),
+                                  Task("t3", (7.0, 0.0), service=1.0)))
+    team = Team(far, faults={"robot2": FaultPlan("robot2", 0, partitions=((2.0, back_at),))})
+    team.until(team.all_served, limit=600)
+    assert [d.trigger for d in team.dispatcher.decisions][3:5] == ["loss", "return"]
+    assert sorted(team.served_tasks()) == ["t1", "t2", "t3"] and not team.simultaneous()
+
+
 FAULTS = st.sampled_from(["none", "crash", "stall", "partition"])
 
 

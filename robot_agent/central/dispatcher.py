@@ -214,9 +214,34 @@ class Dispatcher(Coordinator):
             return served + (report.task,)
         return served
 
+    def commitments(self) -> dict[str, tuple[str, ...]]:
+        """Every robot's commitment, a task set off to by two available robots kept by one:
+        a robot cut off (silent) and re-planned out comes back still reporting the task it
+        was on, which the dispatcher meanwhile granted to another. The robot it was granted to
+        last keeps it (the latest queue sent holding it; else the first in the instance's
+        order); the other's queue then leaves it out, and no third robot is granted it until
+        that one has let it go (`grantable`)."""
+        out = {r.id: self.commitment(r.id) for r in self.problem.robots}
+        order = {r.id: k for k, r in enumerate(self.problem.robots)}
+        on: dict[str, list[str]] = {}
+        for rid in self.available():
+            if out[rid] and out[rid][-1] not in self.done:
+                on.setdefault(out[rid][-1], []).append(rid)
+        for task, rids in on.items():
+            if len(rids) > 1:
+                keeper = min(rids, key=lambda r: (-self._granted_at(r, task), order[r]))
+                for rid in rids:
+                    if rid != keeper:
+                        out[rid] = out[rid][:-1]
+        return out
+
+    def _granted_at(self, rid: str, task: str) -> float:
+        sent = self.sent.get(rid)
+        return sent.at if sent is not None and task in sent.tasks else -math.inf
+
     def situation(self) -> Situation:
         available = self.available()
-        commitments = {r.id: self.commitment(r.id) for r in self.problem.robots}
+        commitments = self.commitments()
         committed = {c[-1] for r in available if (c := commitments[r]) and c[-1] not in
                      self.done}
         open_tasks = tuple(t.id for t in self.problem.tasks if t.id in self.known
@@ -245,7 +270,7 @@ class Dispatcher(Coordinator):
         """The queue the plan gives robot `rid`: the task it is on, then its route."""
         if rid not in self.available():
             return []
-        commitment = self.commitment(rid)
+        commitment = self.commitments()[rid]
         report = self.robots[rid].report
         on = [commitment[-1]] if report is not None and report.task \
             and commitment and commitment[-1] == report.task else []
