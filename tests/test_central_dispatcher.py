@@ -241,7 +241,7 @@ def test_no_task_is_ever_executed_by_two_robots(seed, robots, tasks, fault, loss
 
 # ------------------------------------------------------------------ the grant rule, message by message
 def progress(task: str, queue: tuple[str, ...], version: int, x: float, served=()) -> Progress:
-    return Progress(Header("", 0.0, 0), task, "", queue, tuple(served), version, x, 0.0, 0.0)
+    return Progress(Header("", 0.0, 0), task, "", queue, tuple(served), x, 0.0, 0.0, version)
 
 
 def queues(out) -> dict[str, tuple[str, ...]]:

@@ -12,8 +12,8 @@ from mrta_patrol.messages import PatrolLog, Report, TaskTime
 from mrta_delivery.messages import TaskEvent
 from mrta_zenoh.lockstep import LockstepStatus, Step, StepDone
 from mrta_agent.murdoch.messages import Announcement, Award, Bid, Claim, Release, Revoke
-from mrta_agent.central.messages import Plan, Progress, Queue, Queued
-from mrta_agent.runtime.own_route import Progress as RouteProgress, Queued as RouteQueued
+from mrta_agent.central.messages import Plan, Queue
+from mrta_agent.runtime.own_route import Progress, Queued
 from mrta_agent.ssi.messages import Bid as SsiBid, Round
 from mrta_agent.cbba.messages import Bids
 from mrta_zenoh.fault_roles import Assigned
@@ -50,15 +50,15 @@ EXAMPLES = [
     Release(Header("robot3", 20.0, 9), "report", "no progress for 3.0 s"),
     Revoke(Header("robot1", 61.0, 1), "t1", "robot3", 0.5, "no progress in 60 s"),
     Queue(Header("dispatcher", 4.0, 3), "robot2", 7, ("t3", "t1")),
-    Progress(Header("robot2", 4.1, 9), "t3", "t5", ("t3", "t1"), ("t5",), 7, 1.5, -2.0, 0.3),
-    Queued(Header("robot2", 4.1, 10), "t1", 1),
+    Progress(Header("robot2", 4.1, 9), "t3", "t5", ("t3", "t1"), ("t5",), 1.5, -2.0, 0.3, 7,
+             True),  # central's: the queue version it applied, holding
     Plan(Header("dispatcher", 4.0, 2), 6, "completion", "minsum", 29.45, "kept", 0.75,
          ("robot2:t3,t1", "robot4:")),
     Round(Header("robot1", 4.0, 5), 3, (1, -1, -2, -3), 0, 2.5),
     SsiBid(Header("robot2", 4.1, 2), "robot1", 3, 1, 4.0, (3,)),
     Bids(Header("robot2", 4.1, 9), ((0, 1, 0.75),), ((0, 4.0), (1, 4.1)), (3,), 1.5, -2.0),
-    RouteProgress(Header("robot2", 4.1, 9), "t3", "t5", ("t3", "t1"), ("t5",), 1.5, -2.0, 0.3),
-    RouteQueued(Header("robot2", 4.1, 10), "t1", 1),
+    Progress(Header("robot2", 4.1, 9), "t3", "t5", ("t3", "t1"), ("t5",), 1.5, -2.0, 0.3),
+    Queued(Header("robot2", 4.1, 10), "t1", 1),
 ]
 
 

@@ -108,7 +108,7 @@ class CentralCoordinator(Coordinator):
             self.params.report_period - EPSILON
         if not (changed or due or state != self._reported):
             return []
-        out = [Say("progress", (*state[:5], *pose, self.holding))]
+        out = [Say("progress", (*state[:4], *pose, self.applied, self.holding))]
         self._reported = state
         if due:
             self._report_at = now

@@ -44,8 +44,13 @@ MOVED = 0.05  # m: a teammate whose reported pose moved this far made progress
 
 @message("route_msgs/Progress")
 class Progress(Message):
-    """`task`: the task it set off to ("" none); `last`: the one it last served or left ("" none);
-    `queue`: its whole queue; `served`: what it served, in order; where it is."""
+    """A robot's progress on its route, under every architecture whose robots serve routes
+    (SSI, CBBA, central): `task`: the task it set off to ("" none); `last`: the one it last
+    served or left ("" none), so a report of an idle robot still says what it stopped;
+    `queue`: its whole queue; `served`: what it served, in order; where it is; `version`: the
+    queue version it applied (central's dispatcher numbers its queues; 0 where the robot's own
+    logic keeps its route); `holding`: it stands still although it has work (central: the
+    dispatcher, alive, has been silent past its lease)."""
 
     header: Header
     task: str
@@ -55,6 +60,8 @@ class Progress(Message):
     x: Finite
     y: Finite
     theta: Finite
+    version: int = 0
+    holding: bool = False
 
 
 @message("route_msgs/Queued")
