@@ -271,3 +271,36 @@ def test_a_task_another_robot_may_still_serve_is_not_granted_until_it_lets_go():
     assert d.queue_for("robot2") == ("t4", "t2")            # cut before t1: robot1 is on it
     d.hear("progress", "robot1", progress("", (), d.sent["robot1"].version, 0.0), now)
     assert d.queue_for("robot2") == ("t4", "t2", "t1")
+
+
+def test_the_robot_a_task_was_granted_to_keeps_it_when_the_robot_cut_off_from_it_comes_back():
+    """robot2 sets off to t1 and goes silent; t1 goes to robot1, which sets off; robot2 comes
+    back still reporting t1. robot1 keeps it in its queue (it is already on it: withholding
+    it would leave t1 to nobody until some other event re-planned), robot2 is sent none."""
+    problem = Problem((Robot("robot1", (0.0, 0.0), 0.5), Robot("robot2", (10.0, 0.0), 0.5)),
+                      (Task("t1", (9.0, 0.0), service=1.0),))
+    d = Dispatcher(problem, DispatcherParams(progress_timeout=5.0))
+    d.teammate("robot1", True)
+    d.teammate("robot2", True)
+    assert queues(d.tick(0.0)) == {"robot1": (), "robot2": ("t1",)}
+    d.hear("progress", "robot2", progress("t1", ("t1",), d.sent["robot2"].version, 10.0), 0.1)
+    now = 0.2
+    while d.robots["robot2"].lost is None:  # robot2 silent from here on
+        d.hear("progress", "robot1", progress("", (), d.sent["robot1"].version, 0.0), now)
+        d.tick(now)
+        now = round(now + 0.1, 1)
+    assert d.robots["robot2"].lost == "silent" and d.queue_for("robot1") == ("t1",)
+    x = 0.0
+    for _ in range(3):  # robot1 sets off
+        x += 0.05
+        d.hear("progress", "robot1", progress("t1", ("t1",), d.sent["robot1"].version, x), now)
+        d.tick(now)
+        now = round(now + 0.1, 1)
+    d.hear("progress", "robot2", progress("t1", ("t1",), d.sent["robot2"].version, 9.6), now)
+    for _ in range(100):
+        x += 0.05
+        d.hear("progress", "robot1", progress("t1", ("t1",), d.sent["robot1"].version, x), now)
+        d.tick(now)
+        now = round(now + 0.1, 1)
+        assert d.queue_for("robot1") == ("t1",) and d.queue_for("robot2") == ()
+    assert d.sent["robot1"].tasks == ("t1",) and d.sent["robot2"].tasks == ()

@@ -278,7 +278,12 @@ class Dispatcher(Coordinator):
 
     def grantable(self, rid: str, task: str) -> bool:
         """Whether no robot but `rid` may still be serving `task`: none reports it, and none
-        was sent a queue holding it that it has not acknowledged since (module docstring)."""
+        was sent a queue holding it that it has not acknowledged since (module docstring) —
+        or `rid` is on it already and keeps it (`commitments`: back from a partition, another
+        robot may still report it; withholding it would only make `rid` leave it too)."""
+        own = self.robots[rid].report
+        if own is not None and own.task == task and self.commitments()[rid][-1:] == (task,):
+            return True
         for other, view in self.robots.items():
             if other == rid or not view.alive or view.lost == SILENT:
                 continue  # crashed; or cut off, and stopped by its lease
