@@ -430,9 +430,9 @@ class Supervisor:
     def _task_alarms(self, t: TaskInfo, now: float) -> None:
         if not t.known or self.clock_stopped or self.run_ended:
             return
-        waiting = not t.robots and t.status is None and waits_for_a_robot(
-            self.watch.servers(t.id) if self.watch is not None else None,
-            {r.id: r.state for r in self.robots.values()})
+        waiting = not t.robots and t.status is None and self.watch is not None \
+            and self.watch.served_in_turn and waits_for_a_robot(
+                self.watch.servers(t.id), {r.id: r.state for r in self.robots.values()})
         if waiting:
             t.waited = now
         since = max(t.since, t.waited)

@@ -34,6 +34,12 @@ class TaskWatch:
     """An application's view of its tasks' life cycle (py_trees style: override what you
     need; the defaults say nothing)."""
 
+    # tasks served one after another by fewer robots (time-extended allocation): a task
+    # nobody holds may be waiting for a robot to be free (`waits_for_a_robot`). False for
+    # continuous tasks (patrol's): a robot never becomes free of one, so a task left alone
+    # while the others are busy is unattended
+    served_in_turn: bool = False
+
     def feed(self) -> list[tuple[str, type]]:
         """(key expression, message type) pairs whose samples `read` understands."""
         return []

@@ -93,3 +93,21 @@ def test_waits_for_a_robot_from_its_definition():
     assert not waits_for_a_robot(cold, {"robot1": off, "robot2": off, "robot3": busy})
     assert not waits_for_a_robot(None, {"robot1": busy, "robot3": idle})
     assert waits_for_a_robot(None, {"robot1": busy, "robot3": busy})
+
+
+def test_a_continuous_task_left_alone_while_the_others_are_busy_is_unattended():
+    """Patrol's tasks never end, so no robot becomes free of one: its watch does not serve
+    tasks in turn, and wander, left by robot2 when it went offline, is unattended although
+    every online robot is busy."""
+    from mrta_supervisor.tasks import application_watch
+    app, arch = resolve_application("patrol_murdoch")
+    watch = application_watch(app)
+    assert watch is not None and not watch.served_in_turn
+    s = Supervisor(arch, app, 0.0, unattended_after=UNATTENDED, quiet=True, watch=watch)
+    for r in ("robot1", "robot2", "robot3"):
+        s.on_liveliness(f"{r}/murdoch/agent", True, 0.0)
+    s.on_liveliness("robot2/murdoch/agent", False, 1.0)
+    now = run(s, 1.0, 1.0 + UNATTENDED + 2.0, {"robot1": "border_protection",
+                                               "robot3": "report"})
+    assert {r["id"]: r["state"] for r in s.snapshot(now)["robots"]}["robot1"] == "busy"
+    assert "wander" in unattended(s, now)

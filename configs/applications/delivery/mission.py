@@ -139,6 +139,8 @@ def run_instance(run: MissionRun) -> DeliveryParams:
 class DeliveryWatch(TaskWatch):
     """A delivered task is done for good; one that arrives later is waiting until then."""
 
+    served_in_turn = True  # more tasks than robots: a task may wait for a robot to be free
+
     def __init__(self, params: DeliveryParams):
         self.params = params
         self.arrivals = {tid: t.arrival for tid, t in params.tasks.items()}
