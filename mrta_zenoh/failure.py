@@ -411,7 +411,8 @@ def plan_for(faults: Faults, subject: str, seed: int) -> FaultPlan | None:
         if first is not None else frozenset()
     plan = FaultPlan(subject, seed, loss=faults.loss, latency=faults.latency, first=first,
                      taken=taken, range=faults.range, peers_cut=peers_cut)
-    return plan.struck(own) if own is not None else plan
+    # struck() settles the plan's own `@first`; a named subject keeps the item (a partition's)
+    return dataclasses.replace(plan.struck(own), first=first) if own is not None else plan
 
 
 def plan_from_env(subject: str, seed: int, crash_at: float | None = None,

@@ -49,6 +49,8 @@ from mrta_zenoh.errors import ConfigError, Interrupted, MrtaRuntimeError
 from mrta_zenoh.failure import (FAULTS_ENV, RETIRED_CRASH_ENV, ROLES, Failure, FaultKind,
                                 Faults, fault_env, parse_faults)
 from mrta_zenoh.codec import DecodeError, decode
+from mrta_zenoh.fault_roles import ASSIGNED
+from mrta_zenoh.fault_tally import TALLY
 from mrta_zenoh.identity import OBSERVER
 from mrta_zenoh.lockstep import STATUS, LockstepStatus
 from mrta_zenoh.node import Node, NodeTime
@@ -558,7 +560,7 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
         messages=message_rates(records, run.arch, end - t0, tb),
         ended_at=None if ended_at is None else round(end, 3),
         decisions=decisions(records, run.arch, end),
-        fault_effects=fault_effects(records, run.robots, end),
+        fault_effects=fault_effects(records, [*run.robots, *run.arch.processes], end),
         metrics=run.mission.metrics(run, records), failure=report,
         output=str(output), files=[], sections=mission_sections(run, records))
     # what this run wrote: new or changed files (an earlier run's are neither), and the
@@ -647,8 +649,12 @@ def is_traffic(key: str) -> bool:
     """Whether a recorded sample counts as bus traffic: not liveliness (`@…`), nor the
     simulator's clock and lockstep status. The clock goes out best effort every physics step,
     and the transport drops a few of them when the recorder falls behind — counting them made
-    two runs of one seed differ in their rates (and results.csv in its bytes)."""
-    return not key.startswith("@") and key not in UNCOUNTED
+    two runs of one seed differ in their rates (and results.csv in its bytes). Nor the fault
+    channel's own words (`robotN/faults/…`: an `@first` announcement, a tally): the
+    experiment's instrument, not the architecture's traffic — a fault would raise the counts
+    it is compared on."""
+    return not key.startswith("@") and key not in UNCOUNTED \
+        and not key.endswith((f"/{ASSIGNED}", f"/{TALLY}"))
 
 
 class _Stamp(msgspec.Struct):

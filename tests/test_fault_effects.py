@@ -45,3 +45,9 @@ def test_results_rows_carry_each_cause_as_a_measure():
     assert kind("faults.lost") == "measure"  # not a parameter splitting the cells
     s.fault_effects = {}
     assert flat_metrics(s)["faults.lost"] == 0
+
+
+def test_the_fault_channels_own_words_are_not_the_architectures_traffic():
+    from mrta_supervisor.mission import is_traffic
+    assert not is_traffic("robot1/faults/tally") and not is_traffic("robot1/faults/assigned")
+    assert is_traffic("robot1/alliance/inter_robot_communication")

@@ -356,3 +356,23 @@ def test_a_crash_strikes_at_the_first_wake_up_at_or_after_its_time(tmp_path, mon
     assert clock.now() == pytest.approx(1.3)  # the first 10 Hz wake-up at or after 1.25
     stamps = [s.message.header.stamp for s in irc]
     assert stamps and max(stamps) < 1.25  # it broadcast until then, and not at its last wake
+
+
+def test_a_message_a_partition_cuts_is_counted_once_whatever_its_latency(tmp_path):
+    plan = plan_for(parse_faults("partition:robot2@2+2,latency:0.2"), "robot1", 0)
+    agent, bus, clock = make(tmp_path, plan)
+    heard = spy(agent, lambda msg, at: msg.header.seq)
+    for seq, t in enumerate((1.0, 3.0), start=1):
+        run(agent, bus, clock, t)
+        bus.publish(ALLIANCE.key("robot2", IRC),
+                    InterRobotCommunication(Header("robot2", t, seq), "b", 60.0))
+    run(agent, bus, clock, 4.0)
+    assert heard == [1]
+    assert (agent.fault_counts["cut_off"], agent.fault_counts["delayed"]) == (1, 1)
+
+
+def test_a_robot_named_by_an_item_still_learns_whom_an_at_first_partition_cut_off():
+    plan = plan_for(parse_faults("stall:robot1@5,partition:@first@10+5"), "robot1", 0)
+    assert plan.stall_at == 5.0 and plan.first is not None
+    assert plan.resolved("robot2").peers_cut == (("robot2", 10.0, 15.0),)
+    assert plan_for(parse_faults("stall:robot1@5,crash:@first@10"), "robot1", 0).first is None

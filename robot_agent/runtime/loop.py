@@ -108,6 +108,10 @@ class Agent:
         # what injected faults did to coordination messages, by cause (fault_tally.CAUSES),
         # and what the robot last said of it (robotN/faults/tally) and when
         self.fault_counts: collections.Counter[str] = collections.Counter()
+        # drops decided on receipt (network threads), counted by the loop once due — at the
+        # time they would have been heard, by take_due's rule — so that in lockstep a tally
+        # at time t holds exactly the drops of messages heard before t, whatever the threads did
+        self._fault_pending: collections.deque[tuple[float, str]] = collections.deque()
         self._told_counts: dict[str, int] = {}
         self._told_at = -math.inf
         # teammates' coordination messages that reached this agent, by kind (whatever became of
@@ -342,18 +346,15 @@ class Agent:
         plan = self.faults
         if plan is not None and plan.channel:
             if plan.lost(sample.key, msg.header.seq):
-                self._count_fault("lost")
+                self._drop_by_fault(heard, "lost")
                 return
-            delay = plan.delay(sample.key, msg.header.seq)
-            heard += delay
+            heard += plan.delay(sample.key, msg.header.seq)
             if plan.cut_off(heard):
-                self._count_fault("cut_off")
+                self._drop_by_fault(heard, "cut_off")
                 return
             if plan.out_of_range(self._where.get(self.robot_id), self._where.get(sender)):
-                self._count_fault("out_of_range")
+                self._drop_by_fault(heard, "out_of_range")
                 return
-            if delay > 0:
-                self._count_fault("delayed")
         self._inbox.append((heard, kind, sender, msg, sample.key))
 
     def _on_truth(self, sample: Sample) -> None:
@@ -411,20 +412,37 @@ class Agent:
     # ------------------------------------------------------------ one decision step
     @property
     def dropped_by_fault(self) -> int:
-        """Coordination messages lost, or not sent, by injected faults (delays not counted)."""
+        """Coordination messages injected faults kept from this robot (delays not counted)."""
+        self._settle_faults(self.clock.now(), everything=True)
         return sum(n for cause, n in self.fault_counts.items() if cause != "delayed")
 
-    def _count_fault(self, cause: str) -> None:
+    def _drop_by_fault(self, heard: float, cause: str) -> None:
         with self._token_lock:  # network callbacks run on several threads
-            self.fault_counts[cause] += 1
+            self._fault_pending.append((heard, cause))
+
+    def _settle_faults(self, now: float, everything: bool = False) -> None:
+        """Count the drops due at `now` (take_due's rule; `everything`: all of them)."""
+        lockstep = self.in_lockstep()
+        with self._token_lock:
+            pending = list(self._fault_pending)
+            self._fault_pending.clear()
+        later = []
+        for heard, cause in pending:
+            if not everything and ((lockstep and heard >= now) or heard > now + EPSILON):
+                later.append((heard, cause))
+            else:
+                self.fault_counts[cause] += 1
+        if later:
+            with self._token_lock:
+                self._fault_pending.extend(later)
 
     def tell_fault_tally(self, now: float, final: bool = False) -> None:
         """Say what injected faults did to this robot's messages (mrta_zenoh.fault_tally), when
         it changed — at most every TALLY_PERIOD, or now as the robot stops."""
         if not final and now < self._told_at + TALLY_PERIOD:
             return
-        with self._token_lock:
-            counts = {cause: self.fault_counts[cause] for cause in CAUSES}
+        self._settle_faults(now)
+        counts = {cause: self.fault_counts[cause] for cause in CAUSES}
         if counts == self._told_counts or not any(counts.values()):
             return
         self._told_counts, self._told_at = counts, now
@@ -442,16 +460,19 @@ class Agent:
         if changes or subject_changes:
             self._apply_subjects(set(changes) | {r for r, _ in subject_changes}, subject_changes)
         plan = self.faults
-        for t, kind, sender, what, _ in self.take_due(now):
+        for t, kind, sender, what, key in self.take_due(now):
             # here, not on receipt: an `@first` partition is resolved by now (schedule)
             if plan is not None and plan.peers_cut and plan.sender_cut(sender,
                                                                        what.header.stamp):
-                self._count_fault("cut_off")
+                self.fault_counts["cut_off"] += 1
                 continue
             if sender not in self.team:
                 self._drop("ignored_strangers", "ignoring %s from %s, which holds no agent token",
                            type(what).__name__, sender)
                 continue
+            if plan is not None and plan.latency is not None and plan.delay(
+                    key, what.header.seq) > 0:
+                self.fault_counts["delayed"] += 1  # heard late, and heard
             if not self.coordinator.hear(kind, sender, what, t):
                 self._drop("refused", "refused %s from %s", type(what).__name__, sender)
         for say in self.coordinator.tick(now):
@@ -543,6 +564,7 @@ class Agent:
         self.faults = self._given_faults  # an @first fault is resolved again in the new run
         with self._token_lock:  # the tally counts from its run's start
             self.fault_counts.clear()
+            self._fault_pending.clear()
         self._told_counts, self._told_at = {}, -math.inf
         with self._token_lock:
             self._assigned.clear()
