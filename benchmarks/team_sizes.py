@@ -39,6 +39,7 @@ from pathlib import Path
 HERE = os.path.abspath(__file__)
 sys.path.insert(0, os.path.dirname(HERE))
 from procstat import private_mb, proc_stat  # noqa: E402  (benchmarks/procstat.py, beside this)
+from swarm import client, start_router  # noqa: E402  (the router topology, as swarm.py runs it)
 
 sys.path[:] = [p for p in sys.path if os.path.abspath(p or ".") != os.path.dirname(HERE)]
 
@@ -86,23 +87,28 @@ def parse_done(line: str) -> tuple[float, float]:
     return float(words[0]), float(words[4])
 
 
-def nodes_of(pkgs: Path, seconds: float, lockstep: bool):
+def nodes_of(pkgs: Path, seconds: float, lockstep: bool, bus: list[str] = ()):
+    """The launch file's nodes, each given `bus` (the topology's bus options) besides."""
     from mrta_zenoh.toolchain.launchfile import LaunchEvaluator
     from mrta_zenoh.toolchain.registry import Registry
 
     reg = Registry([pkgs])
     sim_args = f"--duration {seconds}" + (" --lockstep" if lockstep else "")
-    return LaunchEvaluator(lambda name: reg.find(name).path).run(
+    nodes = LaunchEvaluator(lambda name: reg.find(name).path).run(
         pkgs / "delivery" / "launch" / "delivery_sim.launch",
         {"speed": "0", "seed": "0", "sim_args": sim_args})
+    for node in nodes:
+        node.args += list(bus)
+    return nodes
 
 
-def team_run(n: int, pkgs: Path, seconds: float, env: dict) -> dict:
+def team_run(n: int, pkgs: Path, seconds: float, env: dict, topology: str) -> dict:
     from mrta_zenoh.toolchain.runner import start_nodes
 
-    nodes = nodes_of(pkgs, seconds, lockstep=True)
+    nodes = nodes_of(pkgs, seconds, lockstep=True, bus=client(topology, env))
     t0 = time.monotonic()
     with ProcessGroup(env) as group:
+        router = start_router(group, topology, env)
         children = start_nodes(group, nodes)
         sim = next(c for c in children if c.name == "sim")
         agents = [c for c in children if c is not sim]
@@ -110,7 +116,8 @@ def team_run(n: int, pkgs: Path, seconds: float, env: dict) -> dict:
         startup = time.monotonic() - t0
         if f"lockstep with {n} participants" not in ready:
             raise RuntimeError(f"not every agent joined: {ready}")
-        before = {c.pid: proc_stat(c.pid) for c in children}
+        hub = [router] if router is not None else []
+        before = {c.pid: proc_stat(c.pid) for c in children + hub}
         w0 = time.monotonic()
         done = sim.wait_stderr(lambda line: "done:" in line, 3600)
         window = time.monotonic() - w0
@@ -118,18 +125,25 @@ def team_run(n: int, pkgs: Path, seconds: float, env: dict) -> dict:
         if gone:
             raise RuntimeError(f"{gone[0].name} {gone[0].describe_exit()} during the run:\n"
                                + gone[0].tail())
-        after = {c.pid: proc_stat(c.pid) for c in children}
+        after = {c.pid: proc_stat(c.pid) for c in children + hub}
         uss = [private_mb(c.pid) for c in agents]
         sim.wait(60)
     simulated, wall = parse_done(done)
-    cpu = [(after[c.pid][0] - before[c.pid][0]) / window * 100 for c in agents]
+    used = [after[c.pid][0] - before[c.pid][0] for c in agents]
+    cpu = [u / window * 100 for u in used]
     rss = [after[c.pid][1] / 2**20 for c in agents]
     return {"figure": "team_run", "robots": n, "tasks": n, "room": list(room(n)),
-            "lockstep": True, "startup_s": round(startup, 1), "simulated_s": simulated,
+            "topology": topology, "lockstep": True, "startup_s": round(startup, 1),
+            "simulated_s": simulated,
             "wall_s": wall, "real_time_factor": round(simulated / wall, 2),
             "ms_per_step": round(wall / (simulated / STEP) * 1e3, 3),
             "agent_cpu_percent_of_a_core_mean": round(sum(cpu) / n, 2),
             "agents_cpu_cores_total": round(sum(cpu) / 100, 2),
+            # what the machine's load does not change: CPU the agents spent per simulated second
+            "agents_cpu_s_per_simulated_s": round(sum(used) / simulated, 3),
+            "router_cpu_percent_of_a_core": round(sum(
+                after[c.pid][0] - before[c.pid][0] for c in hub) / window * 100, 1)
+            if hub else None,
             "sim_cpu_percent_of_a_core": round(
                 (after[sim.pid][0] - before[sim.pid][0]) / window * 100, 1),
             "agent_startup_cpu_s_mean": round(sum(before[c.pid][0] for c in agents) / n, 2),
@@ -214,6 +228,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--robots", type=int, nargs="+", default=[5, 10, 20, 50, 100])
     ap.add_argument("--seconds", type=float, default=30.0, help="simulated seconds per run")
+    ap.add_argument("--topology", choices=("peer", "router"), default="peer",
+                    help="peer: the launch's peer mesh (as `mrta demo` runs it); router: `mrta "
+                         "router` and every process its client (as swarm.py runs patrol)")
     ap.add_argument("--demo", action="store_true", help="also the whole mission at each N")
     ap.add_argument("--plot", type=Path, help="draw the figures into this PNG")
     args = ap.parse_args()
@@ -226,7 +243,7 @@ def main() -> None:
             env = dict(os.environ, MRTA_RENDEZVOUS=private_rendezvous(), RUST_LOG="error",
                        MRTA_PACKAGE_PATH=str(pkgs))
             for figure in (lambda: sim_alone(n, pkgs, args.seconds * 5, env),
-                           lambda: team_run(n, pkgs, args.seconds, env)):
+                           lambda: team_run(n, pkgs, args.seconds, env, args.topology)):
                 lines.append(figure())
                 print(json.dumps(lines[-1]), flush=True)
             if args.demo:
