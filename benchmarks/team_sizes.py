@@ -201,7 +201,8 @@ def plot(lines: list[dict], path: Path) -> None:
                    key=lambda d: d["robots"])
     fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4), dpi=100)
     left.plot([d["robots"] for d in runs], [d["real_time_factor"] for d in runs], "o-",
-              label="agents + simulator, lockstep")
+              label="agents + simulator, lockstep"
+              + (f" ({runs[0]['topology']})" if runs and "topology" in runs[0] else ""))
     left.plot([d["robots"] for d in alone], [d["real_time_factor"] for d in alone], "s--",
               label="simulator alone")
     left.axhline(1.0, color="grey", linewidth=0.8)
