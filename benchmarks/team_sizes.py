@@ -7,8 +7,9 @@ a room grown with N so starts and tasks keep their spacing, seed 1) and its pack
 its PID:
 
 * `team_run` — the derived launch file (`delivery_sim.launch`: `mrta sim --lockstep --speed 0`
-  and one ALLIANCE agent per robot on simulated time, all on one private peer rendezvous, as
-  `mrta demo` starts them): start-up (the first process started → the simulator's `ready:`, every
+  and one ALLIANCE agent per robot on simulated time, all on one private rendezvous: a peer
+  mesh, or with `--topology router` every process a client of `mrta router` on it, as `mrta
+  demo` starts them from 20 robots up): start-up (the first process started → the simulator's `ready:`, every
   agent in step; and each agent's CPU seconds until then, which the machine's load does not
   change), the real-time factor once running (the simulator's `done:` line: simulated
   over wall seconds, start-up apart), agents' CPU share, RSS and private memory (USS) at the end;
@@ -22,6 +23,7 @@ One JSON line per figure on stdout, each with the load average when measured (ot
 the machine); `--plot FILE` draws the real-time factors and the agents' RSS against N.
 
 Run: python benchmarks/team_sizes.py [--robots 5 10 20 50 100] [--seconds 30] [--demo]
+                                     [--topology peer|router]
                                      [--plot benchmarks/img/team_sizes.png]
 """
 
