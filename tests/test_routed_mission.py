@@ -5,8 +5,12 @@ every process CPU in proportion to N (benchmarks/README.md, team sizes)."""
 from __future__ import annotations
 
 import json
+import time
+from pathlib import Path
 
 import pytest
+
+from tests.test_mission_hygiene import children_of
 
 SAME = ("who_did_what", "decisions", "first_full_allocation", "metrics", "ended_at", "coverage",
         "overlaps", "robots", "recorded_until")
@@ -25,7 +29,20 @@ def test_a_routed_mission_does_what_the_peer_mesh_does(children, tmp_path):
     assert peer.wait(400) == 0, peer.tail(30)
     routed = children.python("routed_demo.py", *args, "--output", str(tmp_path / "routed"),
                              name="routed")
-    assert routed.wait(400) == 0, routed.tail(30)
+    seen: set[tuple[str, ...]] = set()  # the run's processes, by command line
+    deadline = time.monotonic() + 400
+    while routed.running() and time.monotonic() < deadline:
+        for pid in children_of(routed.pid):
+            try:
+                seen.add(tuple(Path(f"/proc/{pid}/cmdline").read_bytes().decode().split("\0")))
+            except OSError:
+                pass  # ended meanwhile
+        time.sleep(0.2)
+    assert routed.wait(60) == 0, routed.tail(30)
+    assert any("router" in argv for argv in seen), "no router among the run's processes"
+    others = [argv for argv in seen if "router" not in argv]
+    assert len(others) >= 7  # the simulator, 5 agents, the recorder
+    assert all("client" in argv for argv in others), "a process of the run is no client"
     a, b = (json.loads((tmp_path / run / "summary.json").read_text())
             for run in ("peer", "routed"))
     assert a["lockstep_exact"] is True and b["lockstep_exact"] is True
