@@ -7,8 +7,9 @@ a room grown with N so starts and tasks keep their spacing, seed 1) and its pack
 its PID:
 
 * `team_run` — the derived launch file (`delivery_sim.launch`: `mrta sim --lockstep --speed 0`
-  and one ALLIANCE agent per robot on simulated time, all on one private peer rendezvous, as
-  `mrta demo` starts them): start-up (the first process started → the simulator's `ready:`, every
+  and one ALLIANCE agent per robot on simulated time, all on one private rendezvous: a peer
+  mesh, or with `--topology router` every process a client of `mrta router` on it, as `mrta
+  demo` starts them from 20 robots up): start-up (the first process started → the simulator's `ready:`, every
   agent in step; and each agent's CPU seconds until then, which the machine's load does not
   change), the real-time factor once running (the simulator's `done:` line: simulated
   over wall seconds, start-up apart), agents' CPU share, RSS and private memory (USS) at the end;
@@ -22,6 +23,7 @@ One JSON line per figure on stdout, each with the load average when measured (ot
 the machine); `--plot FILE` draws the real-time factors and the agents' RSS against N.
 
 Run: python benchmarks/team_sizes.py [--robots 5 10 20 50 100] [--seconds 30] [--demo]
+                                     [--topology peer|router]
                                      [--plot benchmarks/img/team_sizes.png]
 """
 
@@ -39,6 +41,7 @@ from pathlib import Path
 HERE = os.path.abspath(__file__)
 sys.path.insert(0, os.path.dirname(HERE))
 from procstat import private_mb, proc_stat  # noqa: E402  (benchmarks/procstat.py, beside this)
+from swarm import client, start_router  # noqa: E402  (the router topology, as swarm.py runs it)
 
 sys.path[:] = [p for p in sys.path if os.path.abspath(p or ".") != os.path.dirname(HERE)]
 
@@ -86,23 +89,28 @@ def parse_done(line: str) -> tuple[float, float]:
     return float(words[0]), float(words[4])
 
 
-def nodes_of(pkgs: Path, seconds: float, lockstep: bool):
+def nodes_of(pkgs: Path, seconds: float, lockstep: bool, bus: list[str] = ()):
+    """The launch file's nodes, each given `bus` (the topology's bus options) besides."""
     from mrta_zenoh.toolchain.launchfile import LaunchEvaluator
     from mrta_zenoh.toolchain.registry import Registry
 
     reg = Registry([pkgs])
     sim_args = f"--duration {seconds}" + (" --lockstep" if lockstep else "")
-    return LaunchEvaluator(lambda name: reg.find(name).path).run(
+    nodes = LaunchEvaluator(lambda name: reg.find(name).path).run(
         pkgs / "delivery" / "launch" / "delivery_sim.launch",
         {"speed": "0", "seed": "0", "sim_args": sim_args})
+    for node in nodes:
+        node.args += list(bus)
+    return nodes
 
 
-def team_run(n: int, pkgs: Path, seconds: float, env: dict) -> dict:
+def team_run(n: int, pkgs: Path, seconds: float, env: dict, topology: str) -> dict:
     from mrta_zenoh.toolchain.runner import start_nodes
 
-    nodes = nodes_of(pkgs, seconds, lockstep=True)
+    nodes = nodes_of(pkgs, seconds, lockstep=True, bus=client(topology, env))
     t0 = time.monotonic()
     with ProcessGroup(env) as group:
+        router = start_router(group, topology, env)
         children = start_nodes(group, nodes)
         sim = next(c for c in children if c.name == "sim")
         agents = [c for c in children if c is not sim]
@@ -110,7 +118,8 @@ def team_run(n: int, pkgs: Path, seconds: float, env: dict) -> dict:
         startup = time.monotonic() - t0
         if f"lockstep with {n} participants" not in ready:
             raise RuntimeError(f"not every agent joined: {ready}")
-        before = {c.pid: proc_stat(c.pid) for c in children}
+        hub = [router] if router is not None else []
+        before = {c.pid: proc_stat(c.pid) for c in children + hub}
         w0 = time.monotonic()
         done = sim.wait_stderr(lambda line: "done:" in line, 3600)
         window = time.monotonic() - w0
@@ -118,18 +127,25 @@ def team_run(n: int, pkgs: Path, seconds: float, env: dict) -> dict:
         if gone:
             raise RuntimeError(f"{gone[0].name} {gone[0].describe_exit()} during the run:\n"
                                + gone[0].tail())
-        after = {c.pid: proc_stat(c.pid) for c in children}
+        after = {c.pid: proc_stat(c.pid) for c in children + hub}
         uss = [private_mb(c.pid) for c in agents]
         sim.wait(60)
     simulated, wall = parse_done(done)
-    cpu = [(after[c.pid][0] - before[c.pid][0]) / window * 100 for c in agents]
+    used = [after[c.pid][0] - before[c.pid][0] for c in agents]
+    cpu = [u / window * 100 for u in used]
     rss = [after[c.pid][1] / 2**20 for c in agents]
     return {"figure": "team_run", "robots": n, "tasks": n, "room": list(room(n)),
-            "lockstep": True, "startup_s": round(startup, 1), "simulated_s": simulated,
+            "topology": topology, "lockstep": True, "startup_s": round(startup, 1),
+            "simulated_s": simulated,
             "wall_s": wall, "real_time_factor": round(simulated / wall, 2),
             "ms_per_step": round(wall / (simulated / STEP) * 1e3, 3),
             "agent_cpu_percent_of_a_core_mean": round(sum(cpu) / n, 2),
             "agents_cpu_cores_total": round(sum(cpu) / 100, 2),
+            # what the machine's load does not change: CPU the agents spent per simulated second
+            "agents_cpu_s_per_simulated_s": round(sum(used) / simulated, 3),
+            "router_cpu_percent_of_a_core": round(sum(
+                after[c.pid][0] - before[c.pid][0] for c in hub) / window * 100, 1)
+            if hub else None,
             "sim_cpu_percent_of_a_core": round(
                 (after[sim.pid][0] - before[sim.pid][0]) / window * 100, 1),
             "agent_startup_cpu_s_mean": round(sum(before[c.pid][0] for c in agents) / n, 2),
@@ -187,7 +203,8 @@ def plot(lines: list[dict], path: Path) -> None:
                    key=lambda d: d["robots"])
     fig, (left, right) = plt.subplots(1, 2, figsize=(10, 4), dpi=100)
     left.plot([d["robots"] for d in runs], [d["real_time_factor"] for d in runs], "o-",
-              label="agents + simulator, lockstep")
+              label="agents + simulator, lockstep"
+              + (f" ({runs[0]['topology']})" if runs and "topology" in runs[0] else ""))
     left.plot([d["robots"] for d in alone], [d["real_time_factor"] for d in alone], "s--",
               label="simulator alone")
     left.axhline(1.0, color="grey", linewidth=0.8)
@@ -214,6 +231,9 @@ def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--robots", type=int, nargs="+", default=[5, 10, 20, 50, 100])
     ap.add_argument("--seconds", type=float, default=30.0, help="simulated seconds per run")
+    ap.add_argument("--topology", choices=("peer", "router"), default="peer",
+                    help="peer: the launch's peer mesh (as `mrta demo` runs it); router: `mrta "
+                         "router` and every process its client (as swarm.py runs patrol)")
     ap.add_argument("--demo", action="store_true", help="also the whole mission at each N")
     ap.add_argument("--plot", type=Path, help="draw the figures into this PNG")
     args = ap.parse_args()
@@ -226,7 +246,7 @@ def main() -> None:
             env = dict(os.environ, MRTA_RENDEZVOUS=private_rendezvous(), RUST_LOG="error",
                        MRTA_PACKAGE_PATH=str(pkgs))
             for figure in (lambda: sim_alone(n, pkgs, args.seconds * 5, env),
-                           lambda: team_run(n, pkgs, args.seconds, env)):
+                           lambda: team_run(n, pkgs, args.seconds, env, args.topology)):
                 lines.append(figure())
                 print(json.dumps(lines[-1]), flush=True)
             if args.demo:

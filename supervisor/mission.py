@@ -31,6 +31,7 @@ import logging
 import math
 import os
 import signal
+import socket
 import threading
 import time
 from dataclasses import dataclass
@@ -382,6 +383,10 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
     check_executables(nodes)
     check_seeds(nodes, options.seed)
     rendezvous = private_rendezvous()
+    routed = len(run.robots) >= ROUTER_FROM
+    client = ["--mode", "client", "--connect", rendezvous] if routed else []
+    for n in nodes:
+        n.args = [*n.args, *client]
     # every process of the run: the run's seed and exactly the run's faults (none inherited
     # from this process's own environment), which each injects at its simulated time
     env = {k: v for k, v in os.environ.items() if k not in (FAULTS_ENV, RETIRED_CRASH_ENV)}
@@ -393,7 +398,9 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
     failure = faults.primary
     failed_at: float | None = None
     t_wall0 = time.monotonic()
-    with Node(BusOptions(rendezvous=rendezvous), OBSERVER, time=NodeTime.SIM, stop=stop) as node, \
+    with ProcessGroup(env) as hub, \
+            Node(_meeting(hub, rendezvous, routed), OBSERVER, time=NodeTime.SIM,
+                 stop=stop) as node, \
             ProcessGroup(env) as group, contextlib.ExitStack() as live:
         bus, clock, stop = node.bus, node.clock, node.stop
         ready = live.enter_context(Readiness(bus, run.robots))
@@ -401,7 +408,8 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
         watch = live.enter_context(RunWatch(bus, run.arch, clock))
         # the recording: the bus, the scene and the supervisor's channels, readable by Foxglove;
         # with a Foxglove port the same channels are also served live
-        view = ["view", run.package.name, "--sim-time", "--output", output / "run.mcap"]
+        view = ["view", run.package.name, "--sim-time", "--output", output / "run.mcap",
+                *client]
         view += (["--port", str(options.foxglove_port)] if options.foxglove_port is not None
                  else ["--no-server"])
         group.start(mrta_argv(*view), name="record")
@@ -440,6 +448,36 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
                                    + "\n".join(f"[{c.name}]\n{c.tail(10)}" for c in crashed))
     summary = analyse(run, failure, failed_at, time.monotonic() - t_wall0, before, disturbances)
     return run, summary
+
+
+# From this many robots a run's processes meet through a router of their own (`mrta router` on
+# the run's rendezvous, every process its client) instead of in a peer mesh: the mesh's N + 3
+# processes keep (N + 3)² links, whose keep-alives alone cost every process CPU in proportion
+# to N — ≈ 2 % of a core each at 50 robots while idle, a whole core in all — so lockstep ran
+# 50 robots at 0.02× real time, against 0.5× through a router (benchmarks/README.md, team sizes).
+ROUTER_FROM = 20
+
+
+def _meeting(hub: ProcessGroup, rendezvous: str, routed: bool) -> BusOptions:
+    """The supervisor's bus options: the run's peer mesh, or (`routed`) a client of the run's
+    router, started in `hub` and up once its endpoint accepts connections."""
+    if not routed:
+        return BusOptions(rendezvous=rendezvous)
+    router = hub.start(mrta_argv("router"), name="router", merge_stderr=True)
+    host, port = rendezvous.split("/", 1)[1].rsplit(":", 1)
+    deadline = time.monotonic() + READY_ROUTER
+    while True:
+        try:
+            socket.create_connection((host, int(port)), timeout=1).close()
+            return BusOptions(mode="client", connect=[rendezvous])
+        except OSError:
+            if not router.running() or time.monotonic() > deadline:
+                raise MrtaRuntimeError(f"the run's router did not come up:\n{router.tail()}") \
+                    from None
+            time.sleep(0.05)
+
+
+READY_ROUTER = 60.0  # wall s for the run's router to accept connections
 
 
 def check_seeds(nodes: list[NodeSpec], seed: int) -> None:

@@ -339,6 +339,7 @@ class Bus(Closing):
         self._lock = threading.Lock()
         self._closed = False
         self._counts: Counts | None = None  # lockstep's (enable_counting), else nothing counted
+        self._unclaimed: set[str] = set()   # leave_unclaimed
 
     # ---- public API
     def publish(self, key: str, msg: Message | GenericMessage, lossy: bool = False) -> None:
@@ -444,6 +445,14 @@ class Bus(Closing):
         for sub in subs:
             self._attach_tally(sub)
         return counts
+
+    def leave_unclaimed(self, key: str) -> None:
+        """Samples on `key` are monitoring for observers (the supervisor, the recorder), which
+        no lockstep participant's decisions read: lockstep holds no step for them, so this
+        bus does not claim them (Counts.claims; they are still counted as sent). An ALLIANCE
+        robot's motivation and sensory feedback per task are such keys — with 100 robots and
+        100 tasks, 20,000 of them, five times what a run's key table holds (MAX_KEYS)."""
+        self._unclaimed.add(key)
 
     def _stop_counting(self, counts: Counts) -> None:
         with self._lock:

@@ -44,6 +44,14 @@ class Counts(Closing):
         self._bus = bus  # its subscriptions: tallies() follows them
         self._counted = on_counted or _nothing
 
+    def claims(self) -> dict[str, int]:
+        """What this bus claims in a lockstep answer: `sent`, less the keys left unclaimed
+        (Bus.leave_unclaimed: monitoring nobody in the run waits for)."""
+        unclaimed = self._bus._unclaimed
+        if not unclaimed:
+            return dict(self.sent)
+        return {k: n for k, n in self.sent.items() if k not in unclaimed}
+
     def tally(self, key_expr: str) -> Tally:
         """A new subscription's tally (the bus attaches it)."""
         return Tally(key_expr, self._counted)

@@ -91,7 +91,7 @@ class LockstepClock(SimClock):
         done_key = f"{DONE}/{self.participant}"
 
         def publish_done(stamp: float, next_due: float, resync: bool = False) -> None:
-            bus.publish(done_key, StepDone(self.participant, stamp, dict(counts.sent),
+            bus.publish(done_key, StepDone(self.participant, stamp, counts.claims(),
                                            next_due, self.run or "", self.forgiven, resync))
 
         self._publish_done = publish_done

@@ -1,7 +1,8 @@
 """ALLIANCE's decision logic for one robot, as the agent runtime drives it: the high level
 (`HighLevel`, pure logic on virtual time) fed with sensory feedback from the evaluator plugins
 and with teammates' broadcasts, and what it says back — sensory feedback and motivations every
-tick (monitoring: lossy), a broadcast of the active task at `broadcast_rate` (coordination).
+tick (monitoring: lossy, and watched only — no teammate decides on them, so lockstep does not
+wait for them), a broadcast of the active task at `broadcast_rate` (coordination).
 
 The driver (mrta_agent.runtime.loop.Agent) owns the inbox, the team, sender checks, headers and
 layers; this class only decides.
@@ -56,7 +57,7 @@ class AllianceCoordinator(Coordinator):
         for task, ev in self.plugins.evaluators.items():
             applicable = bool(ev.is_applicable(now))
             self.high.on_feedback(task, applicable, now)
-            out.append(Say("sensory_feedback", (task, applicable), lossy=True))
+            out.append(Say("sensory_feedback", (task, applicable), lossy=True, watched=True))
         before = self.high.active_task
         states, transitions = self.high.tick(now)
         for st in states:
@@ -67,7 +68,7 @@ class AllianceCoordinator(Coordinator):
             out.append(Say("motivation", (st.task_id, st.impatience, st.acquiescent,
                                           st.suppressed, st.resetted, st.applicable,
                                           st.motivation, st.threshold, st.active),
-                           subkey=task_chunk(st.task_id), lossy=not changed))
+                           subkey=task_chunk(st.task_id), lossy=not changed, watched=True))
         for tr in transitions:
             self.history.append((now, tr))
             if tr.kind == "reset":

@@ -17,12 +17,15 @@ from typing import ClassVar, Iterable, NamedTuple
 class Say(NamedTuple):
     """One message the decision logic wants sent: its kind (a key chunk under the
     architecture's namespace, with an optional sub-key), the fields after the header, and
-    whether it may be dropped under pressure (monitoring) or must arrive (coordination)."""
+    whether it may be dropped under pressure (monitoring) or must arrive (coordination), and
+    whether it is for observers only (`watched`: the supervisor, the recorder, the plots — no
+    teammate's decision reads it, so lockstep holds no step for it: Bus.leave_unclaimed)."""
 
     kind: str
     fields: tuple
     subkey: str | None = None
     lossy: bool = False
+    watched: bool = False
 
 
 class Coordinator:

@@ -505,6 +505,8 @@ class Agent:
         key = self.architecture.key(self.robot_id, say.kind,
                                     *((say.subkey,) if say.subkey is not None else ()))
         self._seq[key] += 1
+        if say.watched and self._seq[key] == 1:
+            self.bus.leave_unclaimed(key)
         header = Header(self.robot_id, now, self._seq[key])
         self.bus.publish(key, self.architecture.messages[say.kind](header, *say.fields),
                          lossy=say.lossy)

@@ -285,8 +285,12 @@ def load_plugin(kind: str, name: str, where: str = "") -> type:
             raise ConfigError(f"cannot load {kind} plugin {name!r}: {exc}", file=where) from None
     else:
         eps = plugin_entry_points(GROUPS[kind])
-        alias = {old: new for old, new in aliases().items() if new in eps}
-        ep = eps.get(name) or eps.get(alias.get(name, ""))
+        # a registered name needs no aliases: reading them loads every package that declares
+        # some (a delivery robot loaded patrol's layers and ledger), once per plugin
+        ep = eps.get(name)
+        alias = {} if ep is not None else \
+            {old: new for old, new in aliases().items() if new in eps}
+        ep = ep or eps.get(alias.get(name, ""))
         if ep is None:
             known = sorted(eps) + sorted(alias)
             raise ConfigError(
