@@ -40,7 +40,9 @@ COVERAGE_BETTER = {".exactly_one": stats.HIGHER, ".none": stats.LOWER,
 NOT_BY_DEFAULT = (".none", ".more_than_one")
 NOT_BY_DEFAULT_NAMES = ("messages", "messages_per_second", "namespace_messages_per_second",
                         "decisions")
-NOT_BY_DEFAULT_PREFIXES = (REFERENCE, "messages.")  # references; counts of each message kind
+# references; counts of each message kind; what injected faults did to the messages (the
+# fault's dose, which shows it acted — asked for by name: `--metrics faults.lost`)
+NOT_BY_DEFAULT_PREFIXES = (REFERENCE, "messages.", "faults.")
 
 
 @dataclass(frozen=True)

@@ -51,3 +51,12 @@ def test_the_fault_channels_own_words_are_not_the_architectures_traffic():
     from mrta_supervisor.mission import is_traffic
     assert not is_traffic("robot1/faults/tally") and not is_traffic("robot1/faults/assigned")
     assert is_traffic("robot1/alliance/inter_robot_communication")
+
+
+def test_a_report_shows_the_faults_dose_only_when_asked(tmp_path):
+    from mrta_supervisor.report import default_metrics
+    from mrta_supervisor.results import read_results
+    f = tmp_path / "results.csv"
+    f.write_text("run,seed,status,failure,faults.lost,messages_per_second,takeover_seconds\n"
+                 "1,1,ok,loss:0.2,12,3.0,2.5\n")
+    assert default_metrics(read_results(f)) == ["takeover_seconds"]
