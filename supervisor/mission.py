@@ -425,8 +425,16 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
         # the architecture's own processes (a dispatcher), by name: fault subjects as robots are
         named = {**agents, **{c.name: c for c in children if c.name in run.arch.processes}}
         sim = next(c for c, n in zip(children, nodes) if n.required)  # the launch's end
-        ready.wait(ready.robots_up, "the robots' agents", group, stop)
-        ready.wait(ready.clock.is_set, "the simulator", group, stop)
+        # a crash the run injected may strike before this runner saw everyone up (a busy
+        # machine, lockstep at full speed): the crashed subject is no start-up failure
+        def injected() -> set[str]:
+            itself = {r: crashed_itself(c) for r, c in named.items()}
+            return {t for t in roles.crash_targets(faults, itself) if itself.get(t)}
+
+        ready.wait(lambda: not set(ready.presence.missing()) - injected(), "the robots' agents",
+                   group, stop, ignore=lambda: [named[t].name for t in injected()])
+        ready.wait(ready.clock.is_set, "the simulator", group, stop,
+                   ignore=lambda: [named[t].name for t in injected()])
         failed_at = _watch(sim, sup, clock, failure, stop, progress)
         watch.end()
         live.close()

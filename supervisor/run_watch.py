@@ -72,13 +72,15 @@ class Readiness(Closing):
         return self.presence.all_up()
 
     def wait(self, what: Callable[[], bool], label: str, group: ProcessGroup,
-             stop: threading.Event) -> None:
+             stop: threading.Event, ignore: Callable[[], list[str]] = list) -> None:
+        """Until `what()`; a child of `group` that failed meanwhile is an error, but those
+        `ignore()` names (subjects of a crash the run injected)."""
         deadline = time.monotonic() + READY_TIMEOUT
         while not what():
             if stop.is_set():  # first: after a Ctrl-C, children ended by it did not fail
                 group.interrupted()
                 raise Interrupted()
-            failed = group.failed()
+            failed = group.failed(ignore=ignore())
             if failed:
                 raise MrtaRuntimeError(f"{failed[0].name} failed while starting (it "
                                        f"{failed[0].describe_exit()}):\n{failed[0].tail()}")
