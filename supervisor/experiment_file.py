@@ -15,7 +15,8 @@ every error names the file, the line and the key, with a "did you mean" for a mi
       count: 3
       seed: 7
     overrides:             # optional sweeps: <parameter file glob>.<key path>: [values]
-      robot*.timeout_duration: [2.0, 4.0]
+      robot*.timeout_duration: [2.0, 4.0]   # (overrides.py; with instances, set in each
+                           # run's derived packages)
     robots: [3]            # optional, without instances: the team size the file expects
                            # (checked, not varied)
 
@@ -310,12 +311,6 @@ def check(doc: YamlDoc, spec: ExperimentSpec, base: Path) -> None:
         if spec.robots is not None:
             raise doc.error(("robots",), "robots: with instances, the team sizes are the "
                                          "instances block's (instances: robots: [N, …])")
-        if spec.overrides:
-            # a run's packages are derived from its instance (mrta demo --instance), and an
-            # override would have to be applied to them, inside the run: not done yet
-            raise doc.error(("overrides",), "overrides with instances: not supported (each "
-                                            "run's packages are derived from its instance); "
-                                            "run the overrides without an instances block")
         check_block(doc, spec.instances, base)
     for key, values in (spec.overrides or {}).items():
         if "." not in key:

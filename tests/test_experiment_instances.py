@@ -193,7 +193,8 @@ def test_rows_carry_the_instance_and_no_coverage_per_task(tmp_path, missions):
      "robot4 is not one of the application's robots (robot1, robot2) (did you mean "
      "'robot2'?) (instance delivery-r2-t2-0)"),
     ("instances:\n  generator: delivery\n  robots: [2]\n"
-     "overrides:\n  robot*.spin_rate: [5]\n", ":7", "overrides with instances"),
+     "overrides:\n  robit*.spin_rate: [5]\n", ":8", "no parameter file of package 'delivery' "
+                                                 "matches 'robit*'"),
     ("instances:\n  generator: delivery\n  robots: [2]\nrobots: [2]\n", ":7",
      "the team sizes are the instances block's"),
 ])
