@@ -2,12 +2,26 @@
 
 Delivery over generated instances — team sizes and task counts crossed (`--robots`,
 `--tasks-per-robot`: M = N and M = 2N), `--instances` instances of each size from the
-experiment's `instances:` block (docs/statistics.md, "Instances") — under every registered
-delivery architecture (alliance, murdoch, central, ssi, cbba) and three fault models named by
-role, so one spec fits every team: none, `crash:@first@T` and `stall:@first@T` (the robot that
-is first to hold a task, docs/delivery.md, "Fault grammar"). One `mrta experiment` per
-mission × architecture, lockstep at full speed (a run's outcome depends on its instance and
-seed only), `--jobs` at once here or `--scheduler ADDRESS` on a Dask cluster.
+experiment's `instances:` block (docs/statistics.md, "Instances"), `--walls` of them with
+walls the robots drive around — under every registered delivery architecture (alliance,
+murdoch, central, ssi, cbba) and every fault model, each spec named by role or channel so one
+spec fits every team (`--fault-at` T = 5 s, docs/delivery.md, "Fault grammar"):
+
+    none        no fault
+    crash       crash:@first@T          the robot first to hold a task dies at T
+    stall       stall:@first@T          it stays alive and talking, but stops moving
+    partition   partition:@first@T+10   it neither hears nor is heard for 10 s, then rejoins
+    loss        loss:0.2                each coordination message lost for each receiver, 20 %
+    latency     latency:0.5+-0.2        each coordination message heard 0.5 ± 0.2 s late
+    range       range:4                 messages between robots over 4 m apart dropped (a third
+                                        of the 12 m × 8 m room: most pairs start out of range)
+    dispatcher  crash:dispatcher@T      central's dispatcher dies at T (docs/central.md)
+
+The dispatcher crash applies to central only: the other architectures have no dispatcher, and
+their cells of that fault are "n/a" in the tables — never a faultless copy under its name. One
+`mrta experiment` per mission × architecture, lockstep at full speed (a run's outcome depends
+on its instance and seed only), `--jobs` at once here or `--scheduler ADDRESS` on a Dask
+cluster; runs draw no pictures (the study reads none; `plots=False`).
 
 Patrol stays ALLIANCE against MURDOCH: its tasks never end (wander, border protection, report),
 while central, SSI and CBBA plan routes over point tasks for a time-extended objective — there is
@@ -77,9 +91,19 @@ PATROL_ARCHITECTURES = ("alliance", "murdoch")  # continuous tasks: no routes to
 # MURDOCH's lease renewal, τ against the lease
 MATCHED = {"alliance": {"robot*.broadcast_rate": 2.0, "robot*.timeout_duration": 2.0},
            "murdoch": {"robot*.renewal_period": 0.5, "robot*.lease_timeout": 2.0}}
-FAULT_MODELS = ("none", "crash", "stall")
-# robot2 holds border_protection from 0.6 s in every seed; its φ (600 s) is longer than a run
-PATROL_FAULTS = {"none": "none", "crash": "robot2@20", "stall": "stall:robot2@20"}
+# each fault model's spec, by role or channel (module docstring); {at} is --fault-at
+FAULT_SPECS = {"none": "none", "crash": "crash:@first@{at}", "stall": "stall:@first@{at}",
+               "partition": "partition:@first@{at}+10", "loss": "loss:0.2",
+               "latency": "latency:0.5+-0.2", "range": "range:4",
+               "dispatcher": "crash:dispatcher@{at}"}
+FAULT_MODELS = tuple(FAULT_SPECS)
+# the fault models only some architectures can suffer: elsewhere the tables say "n/a"
+ONLY = {"dispatcher": ("central",)}
+# robot2 holds border_protection from 0.6 s in every seed; its φ (600 s) is longer than a run.
+# Patrol's channel faults are delivery's; range has no meaning for patrol's fixed posts.
+PATROL_FAULTS = {"none": "none", "crash": "robot2@20", "stall": "stall:robot2@20",
+                 "partition": "partition:robot2@20+10", "loss": "loss:0.2",
+                 "latency": "latency:0.5+-0.2"}
 OBJECTIVES = ("minsum", "makespan", "flowtime")
 COORDINATION = "coordination_messages_per_second"
 DELIVERY_METRICS = ("metrics.completed", "metrics.makespan",
@@ -94,14 +118,20 @@ STUDY = ("<!-- study: begin -->", "<!-- study: end -->")
 
 
 def delivery_fault(name: str, at: float) -> str:
-    """The role-named spec of a fault model: on whichever robot first holds a task."""
-    return "none" if name == "none" else f"{name}:@first@{at:g}"
+    """The spec of a fault model, named by role or channel so it fits every team."""
+    return FAULT_SPECS[name].format(at=f"{at:g}")
+
+
+def applies(fault: str, arch: str) -> bool:
+    """Whether `arch` can suffer the fault model at all (a dispatcher crash needs a dispatcher)."""
+    return arch in ONLY.get(fault, (arch,))
 
 
 def delivery_experiment(arch: str, args: argparse.Namespace) -> dict:
     return {"application": "delivery", "architecture": arch, "duration": args.duration,
             "seeds": args.seeds,
-            "failures": [delivery_fault(f, args.fault_at) for f in args.faults],
+            "failures": [delivery_fault(f, args.fault_at) for f in args.faults
+                         if applies(f, arch)],
             "instances": {"generator": "delivery", "robots": args.robots,
                           "tasks_per_robot": args.tasks_per_robot, "count": args.instances,
                           "seed": args.instance_seed}}
@@ -109,7 +139,8 @@ def delivery_experiment(arch: str, args: argparse.Namespace) -> dict:
 
 def patrol_experiment(arch: str, args: argparse.Namespace) -> dict:
     return {"application": "patrol", "architecture": arch, "duration": args.patrol_duration,
-            "seeds": args.patrol_seeds, "failures": [PATROL_FAULTS[f] for f in args.faults],
+            "seeds": args.patrol_seeds,
+            "failures": [PATROL_FAULTS[f] for f in args.faults if f in PATROL_FAULTS],
             "overrides": {k: [v] for k, v in MATCHED[arch].items()}}
 
 

@@ -15,7 +15,13 @@ from mrta_zenoh.files import write_text
 from mrta_supervisor.report import Cell, Report
 from mrta_supervisor.report_md import brief, interval_text, num, p_text, share, title
 
-FAULT_ORDER = ("none", "crash", "stall")
+FAULT_ORDER = ("none", "crash", "stall", "partition", "loss", "latency", "range", "dispatcher")
+# the fault models only some architectures can suffer, and what their other rows say instead
+ONLY = {"dispatcher": ("central",)}
+NOT_APPLICABLE = {"dispatcher": "n/a: no dispatcher to crash (not run)"}
+# what a run did, compared with the faultless run of its instance and seed ("as without")
+OUTCOME = ("metrics.completed", "metrics.makespan", "metrics.objective_minsum",
+           "coordination_messages_per_second")
 # the delivery table's columns: every objective beside its gap to the reference
 SHOWN = ("metrics.completed", "metrics.makespan", "metrics.gap_minsum", "metrics.gap_makespan",
          "metrics.gap_flowtime", "takeover_seconds", "coordination_messages_per_second")
@@ -31,8 +37,13 @@ def head(metric: str) -> str:
 
 
 def fault_kind(spec: str) -> str:
-    """none, crash or stall, whatever robot or role the spec names."""
-    return "none" if spec == "none" else ("stall" if spec.startswith("stall:") else "crash")
+    """The fault model of a spec (FAULT_ORDER), whatever robot or role it names: its kind
+    (`robot2@5` is a crash), and a crash of central's dispatcher its own model."""
+    if spec == "none":
+        return "none"
+    kind, sep, subject = spec.partition(":")
+    kind, subject = (kind, subject) if sep else ("crash", spec)
+    return "dispatcher" if kind == "crash" and subject.startswith("dispatcher@") else kind
 
 
 def _size(cell: Cell) -> tuple[int, int]:
@@ -68,7 +79,8 @@ def delivery_tables(report: Report, args) -> list[str]:
              f"{len(sizes)} sizes (N robots, M tasks: "
              + ", ".join(f"{n}/{m}" for n, m in sizes)
              + f") × {args.instances} generated instances each (seed {args.instance_seed} on) × "
-             f"{len(args.faults)} fault models (role-named, at {args.fault_at:g} s) × "
+             f"{len(args.faults)} fault models (by role or channel, at {args.fault_at:g} s; "
+             "the dispatcher crash under central only) × "
              f"{len(args.seeds)} seed{'s' if len(args.seeds) > 1 else ''}, "
              f"{args.duration:g} simulated s each, lockstep; {len(failed)} failed. Each cell: "
              "the mean and its 95 % bootstrap interval over instances (docs/statistics.md); a "
@@ -81,18 +93,47 @@ def delivery_tables(report: Report, args) -> list[str]:
         if not cells:
             continue
         shown = [m for m in cols if m != "takeover_seconds" or fault != "none"]
+        same = [] if fault == "none" else ["as without a fault"]
         lines += [f"#### {cells[0].value('failure')}", "",
-                  "| N | M | architecture | runs ok | " + " | ".join(map(head, shown)) + " |",
-                  "| --- | --- | --- | --- |" + " --- |" * len(shown)]
-        for c in cells:
-            n, m = _size(c)
-            lines.append(f"| {n} | {m} | {c.value('architecture')} | {len(c.ok)}/{len(c.rows)} "
-                         "| " + " | ".join(brief(report.figure(c, x), x) for x in shown) + " |")
+                  "| N | M | architecture | runs ok | " + " | ".join(map(head, shown))
+                  + "".join(f" | {x}" for x in same) + " |",
+                  "| --- | --- | --- | --- |" + " --- |" * (len(shown) + len(same))]
+        by_size = {_size(c): c for c in cells}
+        for n, m in sizes:
+            for arch in archs:
+                c = next((c for c in cells if _size(c) == (n, m)
+                          and c.value("architecture") == arch), None)
+                if c is None and (n, m) in by_size and arch not in ONLY.get(fault, (arch,)):
+                    lines.append(f"| {n} | {m} | {arch} | {NOT_APPLICABLE[fault]} |"
+                                 + " – |" * (len(shown) + len(same)))
+                if c is None:
+                    continue
+                lines.append(f"| {n} | {m} | {arch} | {len(c.ok)}/{len(c.rows)} | "
+                             + " | ".join(brief(report.figure(c, x), x) for x in shown)
+                             + "".join(f" | {as_without(report, c)}" for _ in same) + " |")
         lines.append("")
     if report.axis == "architecture":  # one architecture: nothing to pair
         lines += comparison_table(report) + [""]
     return lines + pictures()
-    return lines
+
+
+def as_without(report: Report, cell: Cell) -> str:
+    """How many of the cell's runs ended exactly as the faultless run of the same
+    architecture, instance and seed (OUTCOME: tasks completed, makespan, MinSum, coordination
+    traffic) — a fault that changed nothing, in words rather than a statistic."""
+    def outcome(row: dict[str, str]) -> tuple[str, ...]:
+        return tuple(row.get(k, "") for k in OUTCOME)
+
+    def key(row: dict[str, str]) -> tuple[str, ...]:
+        return (row.get("architecture", ""), row.get("instance", ""), row.get("seed", ""))
+
+    faultless = {key(r): outcome(r) for r in report.table.ok() if r.get("failure") == "none"}
+    paired = [r for r in cell.ok if key(r) in faultless]
+    if not paired:
+        return "–"
+    same = sum(outcome(r) == faultless[key(r)] for r in paired)
+    return ("every run" if same == len(paired) else "none" if same == 0
+            else f"{same} of {len(paired)}")
 
 
 def comparison_table(report: Report) -> list[str]:

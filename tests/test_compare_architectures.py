@@ -95,10 +95,14 @@ def test_the_matrix_is_generated_instances_sizes_crossed_and_role_named_faults(t
     path = tmp_path / "delivery_ssi.yaml"
     path.write_text(json.dumps(mod.delivery_experiment("ssi", args)))  # JSON is YAML
     exp = load_experiment(path)  # the experiment's own checks: generator, faults, sizes
-    assert exp.spec.failures == ["none", "crash:@first@5", "stall:@first@5"]
-    # 2 team sizes × 2 task counts × 2 instances × 3 faults × 2 seeds
-    assert exp.count() == 2 * 2 * 2 * 3 * 2
+    every = ["none", "crash:@first@5", "stall:@first@5", "partition:@first@5+10", "loss:0.2",
+             "latency:0.5+-0.2", "range:4"]
+    assert exp.spec.failures == every  # no dispatcher to crash: not run at all
+    # 2 team sizes × 2 task counts × 2 instances × 7 faults × 2 seeds
+    assert exp.count() == 2 * 2 * 2 * 7 * 2
     assert exp.spec.architecture == "ssi" and exp.spec.instances.generator == "delivery"
+    path.write_text(json.dumps(mod.delivery_experiment("central", args)))
+    assert load_experiment(path).spec.failures == every + ["crash:dispatcher@5"]
 
 
 def test_delivery_tables_put_each_objective_beside_its_reference(tmp_path, capsys):
