@@ -140,7 +140,7 @@ def prepare_experiment(exp: Experiment, output: Path) -> tuple[Experiment, dict]
     with tempfile.TemporaryDirectory(prefix="mrta-derived-") as tmp:
         for run in resolved.values():
             robots = [normalize_robot_id(r.id) for r in run.app.robots]
-            exp.check_against(robots)
+            exp.check_against(robots, tuple(run.arch.processes))
             check_overrides(exp, *_overridden(exp, run, Path(tmp), robots))
     return exp, resolved
 

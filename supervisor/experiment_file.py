@@ -210,11 +210,13 @@ class Experiment:
                 f"this experiment makes {n:,} runs ({' × '.join(parts)}), more than --max-runs "
                 f"{max_runs:,}: pass --max-runs {n} to start them all", file=str(self.file))
 
-    def check_against(self, robots: list[str]) -> None:
+    def check_against(self, robots: list[str], processes: tuple[str, ...] = ()) -> None:
         """Every failure names one of the application's `robots` (with instances: of every
-        instance) and happens before the end of a run; a ConfigError naming the line otherwise
-        (a failure of an unknown robot would fail every run the same way)."""
-        teams = [(i.name, list(i.robots)) for i in self.instances] or [("", robots)]
+        instance) or of the architecture's own `processes` (central's dispatcher), and happens
+        before the end of a run; a ConfigError naming the line otherwise (a failure of an
+        unknown robot would fail every run the same way)."""
+        teams = [(i.name, list(i.robots) + list(processes)) for i in self.instances] \
+            or [("", robots + list(processes))]
         for i, spec in enumerate(self.spec.failures):
             if spec == "none":
                 continue
