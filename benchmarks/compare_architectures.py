@@ -31,8 +31,21 @@ parameters (experiment overrides; the shipped packages are not touched):
     ALLIANCE  broadcast_rate 2 Hz, timeout_duration τ = 2 s
     MURDOCH   renewal_period 0.5 s (2 Hz), lease_timeout 2 s
 
-Delivery cannot be matched that way: overrides do not apply to instance-derived packages
-(supervisor/experiment_file.py), so each architecture runs with its shipped parameters.
+Delivery is matched the same way (overrides set in each run's derived packages,
+supervisor/overrides.py), pinned to the values below so a change of the generator's defaults
+cannot unmatch the study:
+
+    ALLIANCE  broadcast_rate 2 Hz, timeout_duration τ = 2 s
+    MURDOCH   renewal_period 0.5 s, lease_timeout 2 s
+    central   robots report every 1 s; the dispatcher's progress_timeout 10 s (stall watch)
+    SSI, CBBA robots report every 1 s; progress_timeout 10 s (stall watch)
+
+Not matched, and why: MURDOCH's per-task progress_timeout (60 s) is a contract deadline — a
+task not done within it is revoked — not a watch on motion: 10 s would revoke every healthy
+contract longer than that (a delivery here takes 10–50 s). ALLIANCE has no stall watch at all:
+a stalled robot keeps broadcasting, so a teammate takes over only once its impatience passes
+the threshold on the slow rate or the stalled robot's own giving_up_delay λ (3 × the task's
+expected duration) makes it acquiesce — that is the architecture, and the study measures it.
 
 Every delivery objective stands beside its reference value (metrics.reference_<objective>, the
 instance's exact optimum up to 10 tasks, else OR-Tools' best found; `reference_proven_optimal`
@@ -87,10 +100,17 @@ from study_tables import (delivery_tables, headline, json_lines, mission_tables,
 
 DELIVERY_ARCHITECTURES = ("alliance", "murdoch", "central", "ssi", "cbba")
 PATROL_ARCHITECTURES = ("alliance", "murdoch")  # continuous tasks: no routes to plan
+ROUTE_MISSIONS = ("delivery", "walls")  # delivery in the open room, and around walls
 # patrol: the same message budget and the same silence — ALLIANCE's heartbeat against
 # MURDOCH's lease renewal, τ against the lease
 MATCHED = {"alliance": {"robot*.broadcast_rate": 2.0, "robot*.timeout_duration": 2.0},
            "murdoch": {"robot*.renewal_period": 0.5, "robot*.lease_timeout": 2.0}}
+# delivery: the same two, and the route architectures' report period and stall watch
+MATCHED_DELIVERY = {**MATCHED,
+                    "central": {"robot*.report_period": 1.0,
+                                "dispatcher*.progress_timeout": 10.0},
+                    "ssi": {"robot*.report_period": 1.0, "robot*.progress_timeout": 10.0},
+                    "cbba": {"robot*.report_period": 1.0, "robot*.progress_timeout": 10.0}}
 # each fault model's spec, by role or channel (module docstring); {at} is --fault-at
 FAULT_SPECS = {"none": "none", "crash": "crash:@first@{at}", "stall": "stall:@first@{at}",
                "partition": "partition:@first@{at}+10", "loss": "loss:0.2",
@@ -106,13 +126,18 @@ PATROL_FAULTS = {"none": "none", "crash": "robot2@20", "stall": "stall:robot2@20
                  "latency": "latency:0.5+-0.2"}
 OBJECTIVES = ("minsum", "makespan", "flowtime")
 COORDINATION = "coordination_messages_per_second"
-DELIVERY_METRICS = ("metrics.completed", "metrics.makespan",
+PER_ROBOT = "metrics.coordination_per_robot"  # coordination messages/s ÷ N (with_gaps)
+DELIVERY_METRICS = ("metrics.completed", "metrics.makespan", "metrics.optimality",
                     *(f"metrics.objective_{o}" for o in OBJECTIVES),
                     *(f"metrics.gap_{o}" for o in OBJECTIVES),
-                    "metrics.mean_waiting_time", "takeover_seconds", COORDINATION)
+                    "metrics.mean_waiting_time", "takeover_seconds", COORDINATION, PER_ROBOT)
 PATROL_METRICS = ("first_full_allocation", "takeover_seconds", "*.exactly_one", COORDINATION)
-PICTURES = ("team_size_metrics.gap_minsum.png", "team_size_metrics.completed.png",
+# the report's plots the page shows: each figure against the team size, and two profiles
+PICTURES = ("team_size_metrics.makespan.png", "team_size_metrics.optimality.png",
+            "team_size_metrics.gap_minsum.png", "team_size_metrics.completed.png",
+            f"team_size_{PER_ROBOT}.png", "team_size_takeover_seconds.png",
             "profile_metrics.objective_minsum.png", "profile_metrics.makespan.png")
+WALL_SEEDS = 1000  # walled instance i has the generator's seed --instance-seed + 1000 + i
 TABLE = ("<!-- table: begin -->", "<!-- table: end -->")
 STUDY = ("<!-- study: begin -->", "<!-- study: end -->")
 
@@ -134,13 +159,54 @@ def delivery_experiment(arch: str, args: argparse.Namespace) -> dict:
                          if applies(f, arch)],
             "instances": {"generator": "delivery", "robots": args.robots,
                           "tasks_per_robot": args.tasks_per_robot, "count": args.instances,
-                          "seed": args.instance_seed}}
+                          "seed": args.instance_seed,
+                          **({"parameters": {"walls": args.walls}} if args.walls else {})},
+            **({"overrides": {k: [v] for k, v in MATCHED_DELIVERY[arch].items()}}
+               if arch in MATCHED_DELIVERY else {})}
+
+
+def walls_args(args: argparse.Namespace) -> argparse.Namespace:
+    """The walled instances' matrix: delivery's, with its own sizes, count, faults and
+    instance seeds (WALL_SEEDS on: other instances than the open room's)."""
+    return argparse.Namespace(**{**vars(args), "robots": args.walls_robots,
+                                 "instances": args.walls_instances, "faults": args.walls_faults,
+                                 "instance_seed": args.instance_seed + WALL_SEEDS})
+
+
+def large_args(args: argparse.Namespace) -> argparse.Namespace:
+    """The larger teams' matrix (--large-robots): delivery's, with fewer instances and faults
+    (a 10-robot run costs 2-3 times a 5-robot one); its rows join delivery's report."""
+    return argparse.Namespace(**{**vars(args), "robots": args.large_robots, "walls": 0,
+                                 "instances": args.large_instances,
+                                 "faults": args.large_faults})
+
+
+def mission_args(mission: str, args: argparse.Namespace) -> argparse.Namespace:
+    return walls_args(args) if mission == "walls" else \
+        argparse.Namespace(**{**vars(args), "walls": 0})
+
+
+LARGE_RUNS = 100_000  # the larger teams' run numbers follow delivery's from here
+
+
+def mission_results(out: Path, mission: str, arch: str, args: argparse.Namespace) -> list[dict]:
+    """One architecture's rows of a mission; delivery's with the larger teams' after them
+    (run numbers from LARGE_RUNS on, so every row of the report stays one run)."""
+    margs = mission_args(mission, args)
+    if mission not in ROUTE_MISSIONS:
+        return run_or_reuse(out, mission, arch, patrol_experiment(arch, margs), args)
+    rows = run_or_reuse(out, mission, arch, delivery_experiment(arch, margs), args)
+    if mission == "delivery" and args.large_robots:
+        large = run_or_reuse(out, "large", arch, delivery_experiment(arch, large_args(args)),
+                             args)
+        rows = rows + [{**r, "run": LARGE_RUNS + int(r["run"])} for r in large]
+    return rows
 
 
 def patrol_experiment(arch: str, args: argparse.Namespace) -> dict:
     return {"application": "patrol", "architecture": arch, "duration": args.patrol_duration,
             "seeds": args.patrol_seeds,
-            "failures": [PATROL_FAULTS[f] for f in args.faults if f in PATROL_FAULTS],
+            "failures": [PATROL_FAULTS[f] for f in args.patrol_faults],
             "overrides": {k: [v] for k, v in MATCHED[arch].items()}}
 
 
@@ -163,8 +229,10 @@ def run_or_reuse(out: Path, mission: str, arch: str, experiment: dict,
 def with_gaps(row: dict) -> dict:
     """The row with each objective's gap to its reference (achieved ÷ reference − 1, in %) and
     the reference under the report's name for it; blank where either value is missing (a task
-    never served has no objective value)."""
+    never served has no objective value); and the coordination traffic per robot."""
     out = dict(row)
+    traffic, n = _number(row.get(COORDINATION)), _number(row.get("n_robots"))
+    out[PER_ROBOT] = "" if traffic is None or not n else round(traffic / n, 4)
     for o in OBJECTIVES:
         achieved, ref = _number(row.get(f"metrics.objective_{o}")), \
             _number(row.get(f"metrics.reference_{o}"))
@@ -188,8 +256,9 @@ def combined(folder: Path, mission: str, results: dict[str, list[dict]]) -> Path
     rows = []
     for arch, arch_rows in results.items():
         for r in arch_rows:
-            row = {**r, "architecture": arch, "application": mission}
-            rows.append(with_gaps(row) if mission == "delivery" else row)
+            routes = mission in ROUTE_MISSIONS
+            row = {**r, "architecture": arch, "application": "delivery" if routes else mission}
+            rows.append(with_gaps(row) if routes else row)
     folder.mkdir(parents=True, exist_ok=True)
     write_csv(folder / "results.csv", rows, [])
     return folder / "results.csv"
@@ -208,8 +277,9 @@ def metrics_of(wanted: tuple[str, ...], path: Path) -> tuple[str, ...]:
 
 def parse(argv: list[str] | None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    ap.add_argument("--missions", nargs="+", choices=("delivery", "patrol"),
-                    default=["delivery", "patrol"])
+    ap.add_argument("--missions", nargs="+", choices=("delivery", "walls", "patrol"),
+                    default=["delivery", "walls", "patrol"],
+                    help="walls: delivery on instances with walls (--walls …)")
     ap.add_argument("--architectures", nargs="+", default=list(DELIVERY_ARCHITECTURES),
                     help="delivery's architectures (registered ones: mrta arch list)")
     ap.add_argument("--baseline", default="central",
@@ -226,6 +296,19 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--patrol-seeds", type=int, nargs="+", default=[1, 2, 3])
     ap.add_argument("--patrol-duration", type=float, default=60.0)
     ap.add_argument("--faults", nargs="+", choices=FAULT_MODELS, default=list(FAULT_MODELS))
+    ap.add_argument("--large-robots", type=int, nargs="*", default=[],
+                    help="larger team sizes N, in delivery's report with fewer instances and "
+                         "faults (--large-instances, --large-faults)")
+    ap.add_argument("--large-instances", type=int, default=1)
+    ap.add_argument("--large-faults", nargs="+", choices=FAULT_MODELS, default=["none", "crash"])
+    ap.add_argument("--patrol-faults", nargs="+", choices=tuple(PATROL_FAULTS),
+                    default=list(PATROL_FAULTS), help="patrol's fault models")
+    ap.add_argument("--walls", type=int, default=2, help="walls in each walled instance")
+    ap.add_argument("--walls-robots", type=int, nargs="+", default=[5],
+                    help="walled instances' team sizes N")
+    ap.add_argument("--walls-instances", type=int, default=3, help="walled instances per size")
+    ap.add_argument("--walls-faults", nargs="+", choices=FAULT_MODELS,
+                    default=["none", "crash", "stall"], help="the walled instances' faults")
     ap.add_argument("--jobs", type=int, default=2, help="runs at once on this machine")
     ap.add_argument("--scheduler", default=None,
                     help="a Dask scheduler's address: runs as tasks on its cluster")
@@ -256,9 +339,10 @@ def main(argv: list[str] | None = None) -> int:
     reports: dict[str, Report] = {}
     sections: list[str] = []
     for mission in args.missions:
-        archs = args.architectures if mission == "delivery" else PATROL_ARCHITECTURES
-        make = delivery_experiment if mission == "delivery" else patrol_experiment
-        results = {a: run_or_reuse(out, mission, a, make(a, args), args) for a in archs}
+        routes = mission in ROUTE_MISSIONS  # delivery, in an open room or around walls
+        archs = args.architectures if routes else PATROL_ARCHITECTURES
+        margs = mission_args(mission, args)
+        results = {a: mission_results(out, mission, a, args) for a in archs}
         for arch, rows in results.items():
             for r in rows:
                 if r.get("status") != "ok":
@@ -266,13 +350,13 @@ def main(argv: list[str] | None = None) -> int:
                                       "architecture": arch, "error": r.get("error")}),
                           flush=True)
         path = combined(out / mission, mission, results)
-        wanted = DELIVERY_METRICS if mission == "delivery" else PATROL_METRICS
-        baseline = args.baseline if mission == "delivery" else "murdoch"
+        wanted = DELIVERY_METRICS if routes else PATROL_METRICS
+        baseline = args.baseline if routes else "murdoch"
         baseline = baseline if len(archs) > 1 else None  # one architecture: nothing to pair
         reports[mission] = write_report(path, out / mission, Options(
             baseline=baseline, metrics=metrics_of(wanted, path), plots=not args.no_plots))
         json_lines(mission, reports[mission])
-        sections += (delivery_tables(reports[mission], args) if mission == "delivery"
+        sections += (delivery_tables(reports[mission], margs, mission) if routes
                      else mission_tables(mission, out / mission)) + [""]
     table = "\n".join(sections).rstrip()
     short = "\n".join(headline(reports, args))

@@ -24,12 +24,16 @@ OUTCOME = ("metrics.completed", "metrics.makespan", "metrics.objective_minsum",
            "coordination_messages_per_second")
 # the delivery table's columns: every objective beside its gap to the reference
 SHOWN = ("metrics.completed", "metrics.makespan", "metrics.gap_minsum", "metrics.gap_makespan",
-         "metrics.gap_flowtime", "takeover_seconds", "coordination_messages_per_second")
+         "metrics.gap_flowtime", "takeover_seconds", "metrics.coordination_per_robot")
 COMPARED = ("metrics.completed", "metrics.gap_minsum", "metrics.makespan",
             "coordination_messages_per_second")
 HEADS = {"metrics.gap_minsum": "minsum gap (%)", "metrics.gap_makespan": "makespan gap (%)",
          "metrics.gap_flowtime": "flowtime gap (%)", "metrics.makespan": "makespan (s)",
-         "metrics.completed": "completed"}
+         "metrics.completed": "completed",
+         "metrics.coordination_per_robot": "coordination msgs/s per robot"}
+
+
+MISSION_TITLES = {"delivery": "delivery", "walls": "delivery around walls"}
 
 
 def head(metric: str) -> str:
@@ -59,6 +63,16 @@ def ordered(report: Report, archs: list[str]) -> list[Cell]:
     return sorted(report.cells, key=key)
 
 
+def large_line(args, mission: str) -> str:
+    """The larger teams' part of delivery's matrix, in words (compare_architectures.large_args)."""
+    if mission != "delivery" or not getattr(args, "large_robots", None):
+        return ""
+    return (f"Larger teams beside them, N = {', '.join(map(str, args.large_robots))} (M = "
+            f"{', '.join(f'{k:g}' for k in args.tasks_per_robot)} × N): "
+            f"{args.large_instances} instance{'s' if args.large_instances > 1 else ''} per size "
+            f"and the faults {', '.join(args.large_faults)} only. ")
+
+
 def references_line(report: Report) -> str:
     """Whether every instance's reference values are proven optimal, in the results' words."""
     flags = {r.get("metrics.reference_proven_optimal", "") for r in report.table.ok()}
@@ -70,7 +84,7 @@ def references_line(report: Report) -> str:
             "best found — never called optimal.")
 
 
-def delivery_tables(report: Report, args) -> list[str]:
+def delivery_tables(report: Report, args, mission: str = "delivery") -> list[str]:
     rows = report.table.rows
     failed = [r for r in rows if r.get("status") != "ok"]
     archs = list(args.architectures)
@@ -78,16 +92,17 @@ def delivery_tables(report: Report, args) -> list[str]:
     intro = (f"Delivery: {len(rows)} runs — {len(archs)} architectures ({', '.join(archs)}) × "
              f"{len(sizes)} sizes (N robots, M tasks: "
              + ", ".join(f"{n}/{m}" for n, m in sizes)
-             + f") × {args.instances} generated instances each (seed {args.instance_seed} on) × "
+             + f") × {args.instances} generated instances each (seed {args.instance_seed} on"
+             + (f", {args.walls} walls each" if args.walls else "") + ") × "
              f"{len(args.faults)} fault models (by role or channel, at {args.fault_at:g} s; "
              "the dispatcher crash under central only) × "
              f"{len(args.seeds)} seed{'s' if len(args.seeds) > 1 else ''}, "
              f"{args.duration:g} simulated s each, lockstep; {len(failed)} failed. Each cell: "
              "the mean and its 95 % bootstrap interval over instances (docs/statistics.md); a "
              "gap is the objective achieved over its reference − 1, in %. "
-             + references_line(report))
+             + large_line(args, mission) + references_line(report))
     cols = [m for m in SHOWN if m in report.metrics]
-    lines = ["### delivery", "", intro, ""]
+    lines = [f"### {MISSION_TITLES.get(mission, mission)}", "", intro, ""]
     for fault in FAULT_ORDER:
         cells = [c for c in ordered(report, archs) if fault_kind(c.value("failure")) == fault]
         if not cells:
@@ -114,7 +129,7 @@ def delivery_tables(report: Report, args) -> list[str]:
         lines.append("")
     if report.axis == "architecture":  # one architecture: nothing to pair
         lines += comparison_table(report) + [""]
-    return lines + pictures()
+    return lines + (pictures() if mission == "delivery" else [])
 
 
 def as_without(report: Report, cell: Cell) -> str:
@@ -164,13 +179,18 @@ def _difference(c) -> str:
 
 
 def pictures() -> list[str]:
-    return ["Plots (the report's, `--write-docs` copies them): the minsum gap and tasks "
-            "completed against the team size, and the performance profiles of the minsum "
-            "objective and of the makespan against the best architecture and the reference.", "",
-            "![minsum gap against N](img/study/team_size_metrics.gap_minsum.png)",
-            "![completed against N](img/study/team_size_metrics.completed.png)",
-            "![profile of minsum](img/study/profile_metrics.objective_minsum.png)",
-            "![profile of makespan](img/study/profile_metrics.makespan.png)"]
+    return ["Plots (the report's, `--write-docs` copies them): makespan, optimality (the "
+            "reference over the achieved value of the architecture's own objective), the "
+            "MinSum gap, tasks completed, coordination messages per second per robot and the "
+            "takeover time against the team size, one line per architecture and fault; and "
+            "the performance profiles of MinSum and of the makespan against the best "
+            "architecture and the reference.", "",
+            *(f"![{name[:-4]}](img/study/{name})" for name in (
+                "team_size_metrics.makespan.png", "team_size_metrics.optimality.png",
+                "team_size_metrics.gap_minsum.png", "team_size_metrics.completed.png",
+                "team_size_metrics.coordination_per_robot.png",
+                "team_size_takeover_seconds.png", "profile_metrics.objective_minsum.png",
+                "profile_metrics.makespan.png"))]
 
 
 def mission_tables(name: str, folder: Path) -> list[str]:
