@@ -78,3 +78,25 @@ def test_an_instance_run_gets_the_folder_beside_its_instance(tmp_path, monkeypat
     monkeypatch.setenv(REFERENCE_CACHE_ENV, "/elsewhere")  # the caller's folder is kept
     start_run(group, Pkg, 10.0, Run, tmp_path, instance=inst)
     assert REFERENCE_CACHE_ENV not in group.started[2][1]
+
+
+KEY = """
+import importlib, json, os, sys, tempfile
+from pathlib import Path
+from mrta_zenoh.planning.problem import Problem, Robot, Task
+ref = importlib.import_module("mrta_zenoh.planning.reference")
+os.environ[ref.REFERENCE_CACHE_ENV] = sys.argv[1]
+robots = (Robot("r1", (0.0, 0.0), 1.0, frozenset({"lift", "cold", "heat", "dry", "wet"})),)
+ref.reference(Problem(robots, (Task("t1", (1.0, 1.0), capability="cold"),)), "minsum")
+"""
+
+
+@pytest.mark.multiprocess
+def test_runs_in_other_processes_find_the_same_entry(tmp_path):
+    import os
+    import subprocess
+    import sys
+    for hash_seed in ("1", "2", "3"):  # a set's order follows the process's string hashing
+        subprocess.run([sys.executable, "-c", KEY, str(tmp_path)], check=True,
+                       env={**os.environ, "PYTHONHASHSEED": hash_seed})
+    assert len(list(tmp_path.glob("*.json"))) == 1

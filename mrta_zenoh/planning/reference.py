@@ -19,6 +19,7 @@ turns (a lock per entry), so the second reads what the first wrote.
 
 from __future__ import annotations
 
+import dataclasses
 import fcntl
 import hashlib
 import json
@@ -26,6 +27,7 @@ import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from ..errors import ConfigError
 from ..files import write_text
@@ -91,12 +93,28 @@ def _solve(problem: Problem, objective: Objective, exact_limit: int, time_limit:
                      seconds, objective, capped)
 
 
+def _plain(x: Any) -> Any:
+    """`x` as JSON data that is the same in every process: every field of a dataclass, a set
+    sorted (a frozenset's repr follows the process's string hashing, so two runs of one
+    instance would miss each other's entries)."""
+    if dataclasses.is_dataclass(x):
+        return {f.name: _plain(getattr(x, f.name)) for f in dataclasses.fields(x)}
+    if isinstance(x, (set, frozenset)):
+        return sorted(_plain(v) for v in x)
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    if isinstance(x, dict):
+        return {str(k): _plain(v) for k, v in x.items()}
+    return x
+
+
 def _cached(folder: Path, problem: Problem, objective: Objective, exact_limit: int,
             time_limit: float, solutions: int) -> Reference:
     """The reference from `folder`, solved and written there first if it is not yet: keyed by
     everything the solve reads (the problem with its distances, the objective, the budget)."""
-    key = hashlib.sha256(repr((problem, problem.distance, objective.value, exact_limit,
-                               time_limit, solutions)).encode()).hexdigest()[:32]
+    text = json.dumps([_plain(problem), objective.value, exact_limit, time_limit, solutions],
+                      sort_keys=True)
+    key = hashlib.sha256(text.encode()).hexdigest()[:32]
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"{key}.json"
     with open(folder / f".{key}.lock", "a") as lock:
