@@ -42,10 +42,10 @@ cannot unmatch the study:
 
 Not matched, and why: MURDOCH's per-task progress_timeout (60 s) is a contract deadline — a
 task not done within it is revoked — not a watch on motion: 10 s would revoke every healthy
-contract longer than that (a delivery here takes 10–50 s). ALLIANCE has no stall watch at all:
-a stalled robot keeps broadcasting, so a teammate takes over only once its impatience passes
-the threshold on the slow rate or the stalled robot's own giving_up_delay λ (3 × the task's
-expected duration) makes it acquiesce — that is the architecture, and the study measures it.
+contract longer than that (a delivery here takes 10–50 s). ALLIANCE's watch is its patience φ,
+the holder's expected duration of the task (2 × (travel + service) + 10 s, per task): a stalled
+robot keeps broadcasting, and teammates' impatience turns fast only once φ has run out — that is
+the architecture, and the study measures it.
 
 Every delivery objective stands beside its reference value (metrics.reference_<objective>, the
 instance's exact optimum up to 10 tasks, else OR-Tools' best found; `reference_proven_optimal`
@@ -169,6 +169,7 @@ def walls_args(args: argparse.Namespace) -> argparse.Namespace:
     """The walled instances' matrix: delivery's, with its own sizes, count, faults and
     instance seeds (WALL_SEEDS on: other instances than the open room's)."""
     return argparse.Namespace(**{**vars(args), "robots": args.walls_robots,
+                                 "tasks_per_robot": args.walls_tasks_per_robot,
                                  "instances": args.walls_instances, "faults": args.walls_faults,
                                  "instance_seed": args.instance_seed + WALL_SEEDS})
 
@@ -306,9 +307,10 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--walls", type=int, default=2, help="walls in each walled instance")
     ap.add_argument("--walls-robots", type=int, nargs="+", default=[5],
                     help="walled instances' team sizes N")
-    ap.add_argument("--walls-instances", type=int, default=3, help="walled instances per size")
+    ap.add_argument("--walls-tasks-per-robot", type=float, nargs="+", default=[1.0])
+    ap.add_argument("--walls-instances", type=int, default=2, help="walled instances per size")
     ap.add_argument("--walls-faults", nargs="+", choices=FAULT_MODELS,
-                    default=["none", "crash", "stall"], help="the walled instances' faults")
+                    default=["none", "crash"], help="the walled instances' faults")
     ap.add_argument("--jobs", type=int, default=2, help="runs at once on this machine")
     ap.add_argument("--scheduler", default=None,
                     help="a Dask scheduler's address: runs as tasks on its cluster")
