@@ -2,10 +2,10 @@
 
 Delivery over generated instances — team sizes and task counts crossed (`--robots`,
 `--tasks-per-robot`: M = N and M = 2N), `--instances` instances of each size from the
-experiment's `instances:` block (docs/statistics.md, "Instances"), `--walls` of them with
-walls the robots drive around — under every registered delivery architecture (alliance,
-murdoch, central, ssi, cbba) and every fault model, each spec named by role or channel so one
-spec fits every team (`--fault-at` T = 5 s, docs/delivery.md, "Fault grammar"):
+experiment's `instances:` block (docs/statistics.md, "Instances") — under every registered
+delivery architecture (alliance, murdoch, central, ssi, cbba) and every fault model, each spec
+named by role or channel so one spec fits every team (`--fault-at` T = 5 s, docs/delivery.md,
+"Fault grammar"):
 
     none        no fault
     crash       crash:@first@T          the robot first to hold a task dies at T
@@ -18,7 +18,11 @@ spec fits every team (`--fault-at` T = 5 s, docs/delivery.md, "Fault grammar"):
     dispatcher  crash:dispatcher@T      central's dispatcher dies at T (docs/central.md)
 
 The dispatcher crash applies to central only: the other architectures have no dispatcher, and
-their cells of that fault are "n/a" in the tables — never a faultless copy under its name. One
+their cells of that fault are "n/a" in the tables — never a faultless copy under its name.
+Larger teams (`--large-robots`, e.g. 10) join delivery's report with fewer instances and
+faults (`--large-instances`, `--large-faults`): a 10-robot run costs 2–3 times a 5-robot one.
+Mission `walls`: delivery on instances with `--walls` walls the robots drive around (costs on a
+visibility graph), its own sizes, count and faults (`--walls-*`), its own section. One
 `mrta experiment` per mission × architecture, lockstep at full speed (a run's outcome depends
 on its instance and seed only), `--jobs` at once here or `--scheduler ADDRESS` on a Dask
 cluster; runs draw no pictures (the study reads none; `plots=False`).
@@ -67,9 +71,14 @@ It writes nothing outside OUTPUT unless asked: `--write-docs` rewrites the block
 it is written by hand), the README's `<!-- study: begin -->` … `<!-- study: end -->` headline,
 and copies the plots the page shows into docs/img/study/.
 
-    python benchmarks/compare_architectures.py --output /tmp/study --jobs 2   # the study
-    --robots 3 5 --tasks-per-robot 1 2 --instances 2 --seeds 1 --faults none stall
+    python benchmarks/compare_architectures.py --output /tmp/study --jobs 2   # defaults
+    --robots 5 --tasks-per-robot 1 2 --instances 2 --large-robots 10   # sizes and counts
+    --scheduler tcp://127.0.0.1:8786   # on a Dask cluster (workers: --resources runs=1)
     --reuse --output /tmp/study --write-docs   # what OUTPUT holds is not run again
+
+Runs of one instance share its reference values ($MRTA_REFERENCE_CACHE, set by the runner
+beside the instance files; give Dask workers one folder of their own): the references of a
+10 × 20 instance cost more than its mission.
 """
 
 from __future__ import annotations
@@ -285,7 +294,7 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
                     help="delivery's architectures (registered ones: mrta arch list)")
     ap.add_argument("--baseline", default="central",
                     help="delivery's paired comparisons read ARCH − BASELINE (patrol: murdoch)")
-    ap.add_argument("--robots", type=int, nargs="+", default=[3, 5], help="team sizes N")
+    ap.add_argument("--robots", type=int, nargs="+", default=[5], help="team sizes N")
     ap.add_argument("--tasks-per-robot", type=float, nargs="+", default=[1.0, 2.0],
                     help="M = k · N for each k")
     ap.add_argument("--instances", type=int, default=2, help="instances per size")
@@ -297,13 +306,13 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--patrol-seeds", type=int, nargs="+", default=[1, 2, 3])
     ap.add_argument("--patrol-duration", type=float, default=60.0)
     ap.add_argument("--faults", nargs="+", choices=FAULT_MODELS, default=list(FAULT_MODELS))
-    ap.add_argument("--large-robots", type=int, nargs="*", default=[],
+    ap.add_argument("--large-robots", type=int, nargs="*", default=[10],
                     help="larger team sizes N, in delivery's report with fewer instances and "
                          "faults (--large-instances, --large-faults)")
     ap.add_argument("--large-instances", type=int, default=1)
     ap.add_argument("--large-faults", nargs="+", choices=FAULT_MODELS, default=["none", "crash"])
     ap.add_argument("--patrol-faults", nargs="+", choices=tuple(PATROL_FAULTS),
-                    default=list(PATROL_FAULTS), help="patrol's fault models")
+                    default=["none", "crash", "stall"], help="patrol's fault models")
     ap.add_argument("--walls", type=int, default=2, help="walls in each walled instance")
     ap.add_argument("--walls-robots", type=int, nargs="+", default=[5],
                     help="walled instances' team sizes N")
