@@ -201,25 +201,32 @@ def mission_tables(name: str, folder: Path) -> list[str]:
                                   for line in body.splitlines()]
 
 
-# the README's headline: (mission, fault, N robots (0: the largest), tasks per robot, metric)
-HEADLINE = (("delivery", "none", 0, 1, "metrics.gap_minsum"),
-            ("delivery", "none", 0, 2, "metrics.gap_minsum"),
-            ("delivery", "none", 0, 2, "metrics.gap_makespan"),
-            ("delivery", "none", 0, 2, "metrics.makespan"),
-            ("delivery", "none", 0, 1, "coordination_messages_per_second"),
-            ("delivery", "crash", 0, 2, "metrics.completed"),
-            ("delivery", "stall", 0, 1, "takeover_seconds"),
-            ("delivery", "stall", 0, 2, "metrics.completed"),
+# the README's headline: (mission, fault, N robots, tasks per robot, metric)
+HEADLINE = (("delivery", "none", 5, 1, "metrics.gap_minsum"),
+            ("delivery", "none", 5, 2, "metrics.gap_minsum"),
+            ("delivery", "none", 5, 2, "metrics.makespan"),
+            ("delivery", "none", 5, 2, "metrics.coordination_per_robot"),
+            ("delivery", "none", 10, 2, "metrics.gap_minsum"),
+            ("delivery", "crash", 5, 2, "takeover_seconds"),
+            ("delivery", "stall", 5, 2, "takeover_seconds"),
+            ("delivery", "partition", 5, 2, "metrics.completed"),
+            ("delivery", "loss", 5, 2, "metrics.makespan"),
+            ("delivery", "latency", 5, 2, "metrics.makespan"),
+            ("delivery", "range", 5, 2, "metrics.makespan"),
+            ("delivery", "dispatcher", 5, 2, "metrics.completed"),
+            ("walls", "none", 5, 1, "metrics.gap_minsum"),
             ("patrol", "crash", 0, 0, "takeover_seconds"))
 
 
 def headline(reports: dict[str, Report], args) -> list[str]:
     archs = list(args.architectures)
-    lines = [f"Generated delivery instances ({len(args.robots)} team sizes, M = N and 2N, "
-             f"{args.instances} instances each), role-named faults, lockstep; mean and 95 % "
-             "bootstrap interval over instances ([docs/comparison.md](docs/comparison.md) has "
-             "every figure, the paired comparisons and what was scaled down). Patrol: ALLIANCE "
-             "and MURDOCH only.", "",
+    lines = [f"Generated delivery instances (N = {', '.join(map(str, args.robots))}, M = N and "
+             f"2N, {args.instances} instances each; N = "
+             f"{', '.join(map(str, getattr(args, 'large_robots', []) or ['–']))} with "
+             f"{getattr(args, 'large_instances', 0)}), every fault model, matched parameters, "
+             "lockstep; mean and 95 % bootstrap interval over instances "
+             "([docs/comparison.md](docs/comparison.md) has every figure, the paired "
+             "comparisons and what was scaled down). Patrol: ALLIANCE and MURDOCH only.", "",
              "| mission | fault | N / M | figure | " + " | ".join(archs) + " |",
              "| --- | --- | --- | --- |" + " --- |" * len(archs)]
     for mission, fault, n, per_robot, metric in HEADLINE:
@@ -227,16 +234,16 @@ def headline(reports: dict[str, Report], args) -> list[str]:
         if report is None or metric not in report.metrics:
             continue
         cells = [c for c in report.cells if fault_kind(c.value("failure")) == fault]
-        if mission == "delivery":
-            n = n or max(_size(c)[0] for c in report.cells)
+        if mission != "patrol":
             cells = [c for c in cells if _size(c) == (n, n * per_robot)]
         by_arch = {c.value("architecture"): c for c in cells}
         if not by_arch:
             continue
         spec = next(iter(by_arch.values())).value("failure")
-        size = f"{n} / {n * per_robot}" if mission == "delivery" else "3 / 3"
+        size = f"{n} / {n * per_robot}" if mission != "patrol" else "3 / 3"
         lines.append(f"| {mission} | {spec} | {size} | {head(metric)} | " + " | ".join(
-            brief(report.figure(by_arch[a], metric), metric) if a in by_arch else "not run"
+            brief(report.figure(by_arch[a], metric), metric) if a in by_arch
+            else "n/a" if a not in ONLY.get(fault, (a,)) else "not run"
             for a in archs) + " |")
     return lines
 
