@@ -297,7 +297,7 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--robots", type=int, nargs="+", default=[5], help="team sizes N")
     ap.add_argument("--tasks-per-robot", type=float, nargs="+", default=[1.0, 2.0],
                     help="M = k · N for each k")
-    ap.add_argument("--instances", type=int, default=2, help="instances per size")
+    ap.add_argument("--instances", type=int, default=1, help="instances per size")
     ap.add_argument("--instance-seed", type=int, default=2,
                     help="instance i of a size is the generator's with this seed + i")
     ap.add_argument("--seeds", type=int, nargs="+", default=[1], help="runs' seeds")
@@ -310,7 +310,7 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
                     help="larger team sizes N, in delivery's report with fewer instances and "
                          "faults (--large-instances, --large-faults)")
     ap.add_argument("--large-instances", type=int, default=1)
-    ap.add_argument("--large-faults", nargs="+", choices=FAULT_MODELS, default=["none", "crash"])
+    ap.add_argument("--large-faults", nargs="+", choices=FAULT_MODELS, default=["none"])
     ap.add_argument("--patrol-faults", nargs="+", choices=tuple(PATROL_FAULTS),
                     default=["none", "crash", "stall"], help="patrol's fault models")
     ap.add_argument("--walls", type=int, default=2, help="walls in each walled instance")
@@ -319,7 +319,7 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--walls-tasks-per-robot", type=float, nargs="+", default=[1.0])
     ap.add_argument("--walls-instances", type=int, default=2, help="walled instances per size")
     ap.add_argument("--walls-faults", nargs="+", choices=FAULT_MODELS,
-                    default=["none", "crash"], help="the walled instances' faults")
+                    default=["none"], help="the walled instances' faults")
     ap.add_argument("--jobs", type=int, default=2, help="runs at once on this machine")
     ap.add_argument("--scheduler", default=None,
                     help="a Dask scheduler's address: runs as tasks on its cluster")
