@@ -268,6 +268,8 @@ def combined(folder: Path, mission: str, results: dict[str, list[dict]]) -> Path
         for r in arch_rows:
             routes = mission in ROUTE_MISSIONS
             row = {**r, "architecture": arch, "application": "delivery" if routes else mission}
+            if routes:  # the matched parameters are the architecture's, fixed: not a cell's
+                row = {k: v for k, v in row.items() if k not in MATCHED_DELIVERY.get(arch, {})}
             rows.append(with_gaps(row) if routes else row)
     folder.mkdir(parents=True, exist_ok=True)
     write_csv(folder / "results.csv", rows, [])
