@@ -15,15 +15,25 @@ from mrta_zenoh.files import write_text
 from mrta_supervisor.report import Cell, Report
 from mrta_supervisor.report_md import brief, interval_text, num, p_text, share, title
 
-FAULT_ORDER = ("none", "crash", "stall")
+FAULT_ORDER = ("none", "crash", "stall", "partition", "loss", "latency", "range", "dispatcher")
+# the fault models only some architectures can suffer, and what their other rows say instead
+ONLY = {"dispatcher": ("central",)}
+NOT_APPLICABLE = {"dispatcher": "n/a: no dispatcher to crash (not run)"}
+# what a run did, compared with the faultless run of its instance and seed ("as without")
+OUTCOME = ("metrics.completed", "metrics.makespan", "metrics.objective_minsum",
+           "coordination_messages_per_second")
 # the delivery table's columns: every objective beside its gap to the reference
 SHOWN = ("metrics.completed", "metrics.makespan", "metrics.gap_minsum", "metrics.gap_makespan",
-         "metrics.gap_flowtime", "takeover_seconds", "coordination_messages_per_second")
+         "metrics.gap_flowtime", "takeover_seconds", "metrics.coordination_per_robot")
 COMPARED = ("metrics.completed", "metrics.gap_minsum", "metrics.makespan",
             "coordination_messages_per_second")
 HEADS = {"metrics.gap_minsum": "minsum gap (%)", "metrics.gap_makespan": "makespan gap (%)",
          "metrics.gap_flowtime": "flowtime gap (%)", "metrics.makespan": "makespan (s)",
-         "metrics.completed": "completed"}
+         "metrics.completed": "completed",
+         "metrics.coordination_per_robot": "coordination msgs/s per robot"}
+
+
+MISSION_TITLES = {"delivery": "delivery", "walls": "delivery around walls"}
 
 
 def head(metric: str) -> str:
@@ -31,8 +41,13 @@ def head(metric: str) -> str:
 
 
 def fault_kind(spec: str) -> str:
-    """none, crash or stall, whatever robot or role the spec names."""
-    return "none" if spec == "none" else ("stall" if spec.startswith("stall:") else "crash")
+    """The fault model of a spec (FAULT_ORDER), whatever robot or role it names: its kind
+    (`robot2@5` is a crash), and a crash of central's dispatcher its own model."""
+    if spec == "none":
+        return "none"
+    kind, sep, subject = spec.partition(":")
+    kind, subject = (kind, subject) if sep else ("crash", spec)
+    return "dispatcher" if kind == "crash" and subject.startswith("dispatcher@") else kind
 
 
 def _size(cell: Cell) -> tuple[int, int]:
@@ -48,6 +63,16 @@ def ordered(report: Report, archs: list[str]) -> list[Cell]:
     return sorted(report.cells, key=key)
 
 
+def large_line(args, mission: str) -> str:
+    """The larger teams' part of delivery's matrix, in words (compare_architectures.large_args)."""
+    if mission != "delivery" or not getattr(args, "large_robots", None):
+        return ""
+    return (f"Larger teams beside them, N = {', '.join(map(str, args.large_robots))} (M = "
+            f"{', '.join(f'{k:g}' for k in args.tasks_per_robot)} × N): "
+            f"{args.large_instances} instance{'s' if args.large_instances > 1 else ''} per size "
+            f"and the faults {', '.join(args.large_faults)} only. ")
+
+
 def references_line(report: Report) -> str:
     """Whether every instance's reference values are proven optimal, in the results' words."""
     flags = {r.get("metrics.reference_proven_optimal", "") for r in report.table.ok()}
@@ -59,7 +84,7 @@ def references_line(report: Report) -> str:
             "best found — never called optimal.")
 
 
-def delivery_tables(report: Report, args) -> list[str]:
+def delivery_tables(report: Report, args, mission: str = "delivery") -> list[str]:
     rows = report.table.rows
     failed = [r for r in rows if r.get("status") != "ok"]
     archs = list(args.architectures)
@@ -67,32 +92,63 @@ def delivery_tables(report: Report, args) -> list[str]:
     intro = (f"Delivery: {len(rows)} runs — {len(archs)} architectures ({', '.join(archs)}) × "
              f"{len(sizes)} sizes (N robots, M tasks: "
              + ", ".join(f"{n}/{m}" for n, m in sizes)
-             + f") × {args.instances} generated instances each (seed {args.instance_seed} on) × "
-             f"{len(args.faults)} fault models (role-named, at {args.fault_at:g} s) × "
+             + f") × {args.instances} generated instances each (seed {args.instance_seed} on"
+             + (f", {args.walls} walls each" if args.walls else "") + ") × "
+             f"{len(args.faults)} fault models (by role or channel, at {args.fault_at:g} s; "
+             "the dispatcher crash under central only) × "
              f"{len(args.seeds)} seed{'s' if len(args.seeds) > 1 else ''}, "
              f"{args.duration:g} simulated s each, lockstep; {len(failed)} failed. Each cell: "
              "the mean and its 95 % bootstrap interval over instances (docs/statistics.md); a "
              "gap is the objective achieved over its reference − 1, in %. "
-             + references_line(report))
+             + large_line(args, mission) + references_line(report))
     cols = [m for m in SHOWN if m in report.metrics]
-    lines = ["### delivery", "", intro, ""]
+    lines = [f"### {MISSION_TITLES.get(mission, mission)}", "", intro, ""]
     for fault in FAULT_ORDER:
         cells = [c for c in ordered(report, archs) if fault_kind(c.value("failure")) == fault]
         if not cells:
             continue
         shown = [m for m in cols if m != "takeover_seconds" or fault != "none"]
+        same = [] if fault == "none" else ["as without a fault"]
         lines += [f"#### {cells[0].value('failure')}", "",
-                  "| N | M | architecture | runs ok | " + " | ".join(map(head, shown)) + " |",
-                  "| --- | --- | --- | --- |" + " --- |" * len(shown)]
-        for c in cells:
-            n, m = _size(c)
-            lines.append(f"| {n} | {m} | {c.value('architecture')} | {len(c.ok)}/{len(c.rows)} "
-                         "| " + " | ".join(brief(report.figure(c, x), x) for x in shown) + " |")
+                  "| N | M | architecture | runs ok | " + " | ".join(map(head, shown))
+                  + "".join(f" | {x}" for x in same) + " |",
+                  "| --- | --- | --- | --- |" + " --- |" * (len(shown) + len(same))]
+        by_size = {_size(c): c for c in cells}
+        for n, m in sizes:
+            for arch in archs:
+                c = next((c for c in cells if _size(c) == (n, m)
+                          and c.value("architecture") == arch), None)
+                if c is None and (n, m) in by_size and arch not in ONLY.get(fault, (arch,)):
+                    lines.append(f"| {n} | {m} | {arch} | {NOT_APPLICABLE[fault]} |"
+                                 + " – |" * (len(shown) + len(same)))
+                if c is None:
+                    continue
+                lines.append(f"| {n} | {m} | {arch} | {len(c.ok)}/{len(c.rows)} | "
+                             + " | ".join(brief(report.figure(c, x), x) for x in shown)
+                             + "".join(f" | {as_without(report, c)}" for _ in same) + " |")
         lines.append("")
     if report.axis == "architecture":  # one architecture: nothing to pair
         lines += comparison_table(report) + [""]
-    return lines + pictures()
-    return lines
+    return lines + (pictures() if mission == "delivery" else [])
+
+
+def as_without(report: Report, cell: Cell) -> str:
+    """How many of the cell's runs ended exactly as the faultless run of the same
+    architecture, instance and seed (OUTCOME: tasks completed, makespan, MinSum, coordination
+    traffic) — a fault that changed nothing, in words rather than a statistic."""
+    def outcome(row: dict[str, str]) -> tuple[str, ...]:
+        return tuple(row.get(k, "") for k in OUTCOME)
+
+    def key(row: dict[str, str]) -> tuple[str, ...]:
+        return (row.get("architecture", ""), row.get("instance", ""), row.get("seed", ""))
+
+    faultless = {key(r): outcome(r) for r in report.table.ok() if r.get("failure") == "none"}
+    paired = [r for r in cell.ok if key(r) in faultless]
+    if not paired:
+        return "–"
+    same = sum(outcome(r) == faultless[key(r)] for r in paired)
+    return ("every run" if same == len(paired) else "none" if same == 0
+            else f"{same} of {len(paired)}")
 
 
 def comparison_table(report: Report) -> list[str]:
@@ -123,13 +179,18 @@ def _difference(c) -> str:
 
 
 def pictures() -> list[str]:
-    return ["Plots (the report's, `--write-docs` copies them): the minsum gap and tasks "
-            "completed against the team size, and the performance profiles of the minsum "
-            "objective and of the makespan against the best architecture and the reference.", "",
-            "![minsum gap against N](img/study/team_size_metrics.gap_minsum.png)",
-            "![completed against N](img/study/team_size_metrics.completed.png)",
-            "![profile of minsum](img/study/profile_metrics.objective_minsum.png)",
-            "![profile of makespan](img/study/profile_metrics.makespan.png)"]
+    return ["Plots (the report's, `--write-docs` copies them): makespan, optimality (the "
+            "reference over the achieved value of the architecture's own objective), the "
+            "MinSum gap, tasks completed, coordination messages per second per robot and the "
+            "takeover time against the team size, one line per architecture and fault; and "
+            "the performance profiles of MinSum and of the makespan against the best "
+            "architecture and the reference.", "",
+            *(f"![{name[:-4]}](img/study/{name})" for name in (
+                "team_size_metrics.makespan.png", "team_size_metrics.optimality.png",
+                "team_size_metrics.gap_minsum.png", "team_size_metrics.completed.png",
+                "team_size_metrics.coordination_per_robot.png",
+                "team_size_takeover_seconds.png", "profile_metrics.objective_minsum.png",
+                "profile_metrics.makespan.png"))]
 
 
 def mission_tables(name: str, folder: Path) -> list[str]:
@@ -140,25 +201,32 @@ def mission_tables(name: str, folder: Path) -> list[str]:
                                   for line in body.splitlines()]
 
 
-# the README's headline: (mission, fault, N robots (0: the largest), tasks per robot, metric)
-HEADLINE = (("delivery", "none", 0, 1, "metrics.gap_minsum"),
-            ("delivery", "none", 0, 2, "metrics.gap_minsum"),
-            ("delivery", "none", 0, 2, "metrics.gap_makespan"),
-            ("delivery", "none", 0, 2, "metrics.makespan"),
-            ("delivery", "none", 0, 1, "coordination_messages_per_second"),
-            ("delivery", "crash", 0, 2, "metrics.completed"),
-            ("delivery", "stall", 0, 1, "takeover_seconds"),
-            ("delivery", "stall", 0, 2, "metrics.completed"),
+# the README's headline: (mission, fault, N robots, tasks per robot, metric)
+HEADLINE = (("delivery", "none", 5, 1, "metrics.gap_minsum"),
+            ("delivery", "none", 5, 2, "metrics.gap_minsum"),
+            ("delivery", "none", 5, 2, "metrics.makespan"),
+            ("delivery", "none", 5, 2, "metrics.coordination_per_robot"),
+            ("delivery", "none", 10, 2, "metrics.gap_minsum"),
+            ("delivery", "crash", 5, 2, "takeover_seconds"),
+            ("delivery", "stall", 5, 2, "takeover_seconds"),
+            ("delivery", "partition", 5, 2, "metrics.completed"),
+            ("delivery", "loss", 5, 2, "metrics.makespan"),
+            ("delivery", "latency", 5, 2, "metrics.makespan"),
+            ("delivery", "range", 5, 2, "metrics.makespan"),
+            ("delivery", "dispatcher", 5, 2, "metrics.completed"),
+            ("walls", "none", 5, 1, "metrics.gap_minsum"),
             ("patrol", "crash", 0, 0, "takeover_seconds"))
 
 
 def headline(reports: dict[str, Report], args) -> list[str]:
     archs = list(args.architectures)
-    lines = [f"Generated delivery instances ({len(args.robots)} team sizes, M = N and 2N, "
-             f"{args.instances} instances each), role-named faults, lockstep; mean and 95 % "
-             "bootstrap interval over instances ([docs/comparison.md](docs/comparison.md) has "
-             "every figure, the paired comparisons and what was scaled down). Patrol: ALLIANCE "
-             "and MURDOCH only.", "",
+    lines = [f"Generated delivery instances (N = {', '.join(map(str, args.robots))}, M = N and "
+             f"2N, {args.instances} instances each; N = "
+             f"{', '.join(map(str, getattr(args, 'large_robots', []) or ['–']))} with "
+             f"{getattr(args, 'large_instances', 0)}), every fault model, matched parameters, "
+             "lockstep; mean and 95 % bootstrap interval over instances "
+             "([docs/comparison.md](docs/comparison.md) has every figure, the paired "
+             "comparisons and what was scaled down). Patrol: ALLIANCE and MURDOCH only.", "",
              "| mission | fault | N / M | figure | " + " | ".join(archs) + " |",
              "| --- | --- | --- | --- |" + " --- |" * len(archs)]
     for mission, fault, n, per_robot, metric in HEADLINE:
@@ -166,16 +234,16 @@ def headline(reports: dict[str, Report], args) -> list[str]:
         if report is None or metric not in report.metrics:
             continue
         cells = [c for c in report.cells if fault_kind(c.value("failure")) == fault]
-        if mission == "delivery":
-            n = n or max(_size(c)[0] for c in report.cells)
+        if mission != "patrol":
             cells = [c for c in cells if _size(c) == (n, n * per_robot)]
         by_arch = {c.value("architecture"): c for c in cells}
         if not by_arch:
             continue
         spec = next(iter(by_arch.values())).value("failure")
-        size = f"{n} / {n * per_robot}" if mission == "delivery" else "3 / 3"
+        size = f"{n} / {n * per_robot}" if mission != "patrol" else "3 / 3"
         lines.append(f"| {mission} | {spec} | {size} | {head(metric)} | " + " | ".join(
-            brief(report.figure(by_arch[a], metric), metric) if a in by_arch else "not run"
+            brief(report.figure(by_arch[a], metric), metric) if a in by_arch
+            else "n/a" if a not in ONLY.get(fault, (a,)) else "not run"
             for a in archs) + " |")
     return lines
 

@@ -137,11 +137,28 @@ def prepare_experiment(exp: Experiment, output: Path) -> tuple[Experiment, dict]
     if exp.spec.instances is not None:
         exp = exp.with_instances(prepare_instances(exp.spec.instances, mission,
                                                    exp.file.parent, output, exp.doc))
-    for run in resolved.values():
-        robots = [normalize_robot_id(r.id) for r in run.app.robots]
-        exp.check_against(robots)
-        check_overrides(exp, run.package.path, run.arch, robots)
+    with tempfile.TemporaryDirectory(prefix="mrta-derived-") as tmp:
+        for run in resolved.values():
+            robots = [normalize_robot_id(r.id) for r in run.app.robots]
+            exp.check_against(robots, tuple(run.arch.processes))
+            check_overrides(exp, *_overridden(exp, run, Path(tmp), robots))
     return exp, resolved
+
+
+def _overridden(exp: Experiment, run: MissionRun, tmp: Path, robots: list[str]):
+    """The package the overrides of `run`'s architecture are checked against, with its robots:
+    the installed one, or — with instances, whose runs set them in the packages each derives
+    (overrides.py) — the first instance's, derived into `tmp`."""
+    if not exp.spec.overrides or not exp.instances:
+        return run.package.path, run.arch, robots
+    inst = exp.instances[0]
+    folder = tmp / run.arch.name
+    run.mission.derive(inst.path, folder)
+    path = Registry([folder]).find(run.package.name).path
+    if folder.resolve() not in Path(path).resolve().parents:  # found the installed one
+        raise exp.error(("overrides",), f"overrides: instance {inst.name} derives no "
+                        f"{run.package.name!r} package to set them in")
+    return path, run.arch, list(inst.robots)
 
 
 def run_experiment(*, file: Path, output: Path, jobs: int | None = None,

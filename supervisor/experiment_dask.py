@@ -212,7 +212,10 @@ def run_on_cluster(address: str, *, packages: dict, duration: float, runs: list[
     others stopped."""
     distributed = require_distributed()
     # fail here, as the local backend would at that run, rather than once per run on workers
-    combos = {(run.architecture, run.overrides) for run in runs if run.overrides}
+    # (a run of an instance sets its overrides in the packages it derives: checked by
+    # experiment.check_overrides on the first instance's)
+    combos = {(run.architecture, run.overrides) for run in runs
+              if run.overrides and run.instance is None}
     for arch, overrides in combos:
         with tempfile.TemporaryDirectory(prefix="mrta-overrides-") as tmp:
             package_copy(packages[arch].path, Path(tmp), overrides)

@@ -15,7 +15,8 @@ every error names the file, the line and the key, with a "did you mean" for a mi
       count: 3
       seed: 7
     overrides:             # optional sweeps: <parameter file glob>.<key path>: [values]
-      robot*.timeout_duration: [2.0, 4.0]
+      robot*.timeout_duration: [2.0, 4.0]   # (overrides.py; with instances, set in each
+                           # run's derived packages)
     robots: [3]            # optional, without instances: the team size the file expects
                            # (checked, not varied)
 
@@ -209,11 +210,13 @@ class Experiment:
                 f"this experiment makes {n:,} runs ({' × '.join(parts)}), more than --max-runs "
                 f"{max_runs:,}: pass --max-runs {n} to start them all", file=str(self.file))
 
-    def check_against(self, robots: list[str]) -> None:
+    def check_against(self, robots: list[str], processes: tuple[str, ...] = ()) -> None:
         """Every failure names one of the application's `robots` (with instances: of every
-        instance) and happens before the end of a run; a ConfigError naming the line otherwise
-        (a failure of an unknown robot would fail every run the same way)."""
-        teams = [(i.name, list(i.robots)) for i in self.instances] or [("", robots)]
+        instance) or of the architecture's own `processes` (central's dispatcher), and happens
+        before the end of a run; a ConfigError naming the line otherwise (a failure of an
+        unknown robot would fail every run the same way)."""
+        teams = [(i.name, list(i.robots) + list(processes)) for i in self.instances] \
+            or [("", robots + list(processes))]
         for i, spec in enumerate(self.spec.failures):
             if spec == "none":
                 continue
@@ -310,12 +313,6 @@ def check(doc: YamlDoc, spec: ExperimentSpec, base: Path) -> None:
         if spec.robots is not None:
             raise doc.error(("robots",), "robots: with instances, the team sizes are the "
                                          "instances block's (instances: robots: [N, …])")
-        if spec.overrides:
-            # a run's packages are derived from its instance (mrta demo --instance), and an
-            # override would have to be applied to them, inside the run: not done yet
-            raise doc.error(("overrides",), "overrides with instances: not supported (each "
-                                            "run's packages are derived from its instance); "
-                                            "run the overrides without an instances block")
         check_block(doc, spec.instances, base)
     for key, values in (spec.overrides or {}).items():
         if "." not in key:

@@ -1,12 +1,11 @@
 """One run of an experiment, the same whichever backend starts it — here (experiment.py,
-`--jobs`) or on a Dask worker (experiment_dask.py, `--scheduler`): the package copy a run
-with parameter overrides gets, the `mrta demo` argv, how a run is started, and how what it
+`--jobs`) or on a Dask worker (experiment_dask.py, `--scheduler`): where a run's parameter
+overrides go (a package copy, or its instance's derived packages: overrides.py), the `mrta demo` argv, how a run is started, and how what it
 left becomes a row of results.csv. Both backends import this module and nothing of each other.
 """
 
 from __future__ import annotations
 
-import fnmatch
 import os
 import shutil
 from dataclasses import dataclass
@@ -15,11 +14,16 @@ from typing import Any
 
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.failure import ROLES
+from mrta_zenoh.planning.reference import REFERENCE_CACHE_ENV
 from mrta_zenoh.processes import ProcessGroup, mrta_argv
 
 from .experiment_file import Run
+from .overrides import Overrides, apply_overrides, override_text
 from .results import COVERAGE, write_csv
 from .summary import COMPLETE, INCOMPLETE, flat_metrics, read_summary, run_problem
+
+
+REFERENCES = "references"  # beside a run's instance file: its solved reference values
 
 
 @dataclass(frozen=True)
@@ -38,33 +42,11 @@ class Context:
                                   ("duration", self.duration)) if v not in ("", None)}
 
 
-def _set_path(data: dict, path: list[str], value: Any, where: str) -> None:
-    d = data
-    for i, p in enumerate(path[:-1]):
-        if not isinstance(d, dict) or p not in d:
-            raise ConfigError(f"override {where}: no key {'.'.join(path[:i + 1])!r}")
-        d = d[p]
-    if not isinstance(d, dict) or path[-1] not in d:
-        raise ConfigError(f"override {where}: no key {'.'.join(path)!r}")
-    d[path[-1]] = value
-
-
-def package_copy(pkg_path: Path, dest: Path, overrides: tuple[tuple[str, Any], ...]) -> Path:
+def package_copy(pkg_path: Path, dest: Path, overrides: Overrides) -> Path:
     """A copy of the application's package with the overridden parameter values."""
-    import yaml
-
     target = dest / pkg_path.name
     shutil.copytree(pkg_path, target, ignore=shutil.ignore_patterns("__pycache__", "*.py"))
-    for key, value in overrides:
-        glob, _, dotted = key.partition(".")
-        files = [f for f in sorted((target / "config").glob("*.yaml"))
-                 if fnmatch.fnmatch(f.stem, glob) or fnmatch.fnmatch(f.stem, glob + "_*")]
-        if not files:
-            raise ConfigError(f"override {key}: no parameter file matches {glob!r}")
-        for f in files:
-            data = yaml.safe_load(f.read_text())
-            _set_path(data, dotted.split("."), value, f"{key} in {f.name}")
-            f.write_text(yaml.safe_dump(data, sort_keys=False))
+    apply_overrides(target, overrides)
     return target
 
 
@@ -73,24 +55,32 @@ def demo_args(package: str, duration: float, run: Run, out: Path, plots: bool = 
     """`mrta ARGS…` for one run, whichever backend starts it: one spelling, so both run
     exactly the same mission. Without `plots` the run draws no picture (its recording and
     summary are the same: pictures are drawn from them). `instance`: the run's instance file
-    as this machine has it (a Dask worker writes its own copy)."""
+    as this machine has it (a Dask worker writes its own copy); its overrides go to the
+    packages the run derives from it (`--override`: overrides.py)."""
     return (["-q", "demo", "--application", package, "--duration", str(duration), "--speed",
              "0", "--fail", run.failure, "--seed", str(run.seed), "--output", str(out),
              "--no-live"] + ([] if plots else ["--no-plots"])
-            + ([] if instance is None else ["--instance", str(instance)]))
+            + ([] if instance is None else ["--instance", str(instance)]
+               + [a for k, v in run.overrides for a in ("--override", override_text(k, v))]))
 
 
 def start_run(group: ProcessGroup, package, duration: float, run: Run, out: Path,
               plots: bool = True, instance: Path | None = None):
-    """One run's mission as a child of `group`, writing into `out` (which exists): with its own
-    copy of the application package when the run overrides parameters, and its instance file
-    (`instance`, default: the one in the experiment's output folder)."""
+    """One run's mission as a child of `group`, writing into `out` (which exists): with its
+    instance file (`instance`, default: the one in the experiment's output folder), or, without
+    one, its own copy of the application package when the run overrides parameters. Runs of
+    one instance share its reference values (REFERENCES), unless $MRTA_REFERENCE_CACHE names
+    a folder of the caller's."""
     env = {}
-    if run.overrides:
-        package_copy(package.path, out / "package", run.overrides)
-        env["MRTA_PACKAGE_PATH"] = str(out / "package")
     if instance is None and run.instance is not None:
         instance = run.instance.path
+    if instance is not None and REFERENCE_CACHE_ENV not in os.environ:
+        # the instance's reference values, solved by its first run's analysis and read by
+        # the others' (mrta_zenoh.planning.reference): a folder beside the instance files
+        env[REFERENCE_CACHE_ENV] = str(instance.parent / REFERENCES)
+    if run.overrides and instance is None:
+        package_copy(package.path, out / "package", run.overrides)
+        env["MRTA_PACKAGE_PATH"] = str(out / "package")
     return group.start(mrta_argv(*demo_args(package.name, duration, run, out, plots, instance)),
                        name=f"run{run.index:03d}", env=env, merge_stderr=True)
 

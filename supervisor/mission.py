@@ -69,6 +69,7 @@ from .fault_effects import fault_effects
 from .ground_truth import decisions, intervals_from
 from .plots import ROBOTS_TITLE, Panel, TimeBase, draw_timeline
 from . import roles
+from .overrides import apply_overrides
 from .run_watch import Readiness, RunWatch, check_simulator_end, crashed_itself, run_status
 from .entities import Serving
 from .state import Supervisor
@@ -163,6 +164,7 @@ class MissionOptions:
     foxglove_port: int | None = None
     instance: Path | None = None      # an instance file the run's packages are derived from
     plots: bool = True                # the pictures (world, timeline, the architecture's own)
+    overrides: tuple[tuple[str, Any], ...] = ()  # set in the instance's packages (overrides.py)
 
 
 def instance_folder(options: MissionOptions) -> Path:
@@ -303,12 +305,19 @@ def run_mission(options: MissionOptions, *, stop: threading.Event | None = None,
     faults = faults_of(run)
     if not run.mission.launch:
         raise ConfigError(f"mission {run.mission.name!r} names no launch file")
+    if options.overrides and options.instance is None:  # installed packages are never written
+        raise ConfigError("--override sets parameters of the packages a run derives from its "
+                          "--instance: give one (an experiment copies the package instead)")
     options.output.mkdir(parents=True, exist_ok=True)
     with output_lock(options.output):
         if options.instance is not None:
             run.mission.derive(options.instance, instance_folder(options))
             reg = Registry([instance_folder(options)] + reg_path())
             run = resolve(options, reg)
+            if options.overrides and instance_folder(options) not in run.package.path.parents:
+                raise ConfigError(f"--override: the instance derives no {run.package.name!r} "
+                                  "package to set it in")
+            apply_overrides(run.package.path, options.overrides)  # the run's own copy
             faults = faults_of(run)  # against the instance's robots
         run = roles.with_random_drawn(run, faults)  # from the instance's own numbers
         return _run_in(run, faults_of(run), reg, stop, progress, folder_state(options.output))

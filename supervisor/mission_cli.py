@@ -24,6 +24,7 @@ from mrta_zenoh.failure import FaultKind
 
 from .cli import LiveScreen, quiet_alarms, state_line
 from .mission import MissionOptions, run_mission
+from .overrides import parse_override
 from .summary import COMPLETE, INCOMPLETE, Summary, run_problem
 from .view import render
 
@@ -40,6 +41,10 @@ from .view import render
               help="Run this instance file (mrta instance generate; a summary.json runs its "
                    "`instance` section): the run's packages are derived from it in "
                    "OUTPUT/instance.")
+@click.option("--override", "overrides", multiple=True, metavar="GLOB.KEY.PATH=VALUE",
+              callback=lambda _ctx, _param, texts: tuple(parse_override(t) for t in texts),
+              help="With --instance: set a parameter in the packages derived from it, as an "
+                   "experiment's overrides: do (e.g. robot*.timeout_duration=4.0). Repeatable.")
 @click.option("--duration", type=finite_float(min=0, min_open=True), default=60.0,
               show_default=True, help="Simulated seconds of mission.")
 @click.option("--speed", type=finite_float(min=0), default=2.0, show_default=True,

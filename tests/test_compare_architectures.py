@@ -95,16 +95,21 @@ def test_the_matrix_is_generated_instances_sizes_crossed_and_role_named_faults(t
     path = tmp_path / "delivery_ssi.yaml"
     path.write_text(json.dumps(mod.delivery_experiment("ssi", args)))  # JSON is YAML
     exp = load_experiment(path)  # the experiment's own checks: generator, faults, sizes
-    assert exp.spec.failures == ["none", "crash:@first@5", "stall:@first@5"]
-    # 2 team sizes × 2 task counts × 2 instances × 3 faults × 2 seeds
-    assert exp.count() == 2 * 2 * 2 * 3 * 2
+    every = ["none", "crash:@first@5", "stall:@first@5", "partition:@first@5+10", "loss:0.2",
+             "latency:0.5+-0.2", "range:4"]
+    assert exp.spec.failures == every  # no dispatcher to crash: not run at all
+    # 2 team sizes × 2 task counts × 2 instances × 7 faults × 2 seeds
+    assert exp.count() == 2 * 2 * 2 * 7 * 2
     assert exp.spec.architecture == "ssi" and exp.spec.instances.generator == "delivery"
+    path.write_text(json.dumps(mod.delivery_experiment("central", args)))
+    assert load_experiment(path).spec.failures == every + ["crash:dispatcher@5"]
 
 
 def test_delivery_tables_put_each_objective_beside_its_reference(tmp_path, capsys):
     out = tmp_path / "study"
     delivery_results(out)
-    args = ["--reuse", "--output", str(out), "--missions", "delivery", "--architectures",
+    args = ["--reuse", "--output", str(out), "--missions", "delivery", "--large-robots",
+            "--architectures",
             "alliance", "central", "--faults", "none", "--robots", "3", "--no-plots"]
     assert study().main(args) == 0
     with (out / "delivery" / "results.csv").open(newline="") as f:
@@ -162,3 +167,66 @@ def test_reuse_refuses_results_of_another_matrix(tmp_path):
     (out / "patrol_alliance.yaml").write_text("application: patrol\nduration: 30.0\n")
     with pytest.raises(ConfigError, match="another matrix"):
         study().main(["--reuse", "--output", str(out), "--missions", "patrol", "--no-plots"])
+
+
+def fault_results(out: Path) -> None:
+    """ALLIANCE and central on two 3-robot instances: without a fault and under loss (ALLIANCE's
+    loss run of i2 ends later than its faultless one, every other ends the same), and central
+    also under its dispatcher's crash."""
+    for arch in ("alliance", "central"):
+        rows = []
+        failures = ["none", "loss:0.2"] + (["crash:dispatcher@5"] if arch == "central" else [])
+        for fail in failures:
+            for inst in ("i1", "i2"):
+                late = arch == "alliance" and fail == "loss:0.2" and inst == "i2"
+                rows.append({"run": len(rows), "config": "", "seed": 1, "mission": "delivery",
+                             "instance": inst, "n_robots": 3, "n_tasks": 3, "failure": fail,
+                             "status": "ok", "error": "", "wall_seconds": 20.0,
+                             "metrics.completed": 3, "metrics.makespan": 30.0 if late else 20.0,
+                             "metrics.objective_minsum": 10.0, "metrics.reference_minsum": 8.0,
+                             "metrics.reference_proven_optimal": True,
+                             "coordination_messages_per_second": 2.0})
+        write_rows(out / f"delivery_{arch}", rows)
+
+
+def test_each_faults_rows_say_what_did_not_apply_and_what_it_changed(tmp_path):
+    out = tmp_path / "study"
+    fault_results(out)
+    args = ["--reuse", "--output", str(out), "--missions", "delivery", "--large-robots",
+            "--architectures",
+            "alliance", "central", "--faults", "none", "loss", "dispatcher", "--robots", "3",
+            "--tasks-per-robot", "1", "--instances", "2", "--no-plots"]
+    assert study().main(args) == 0
+    tables = (out / "tables.md").read_text()
+    loss = tables.split("#### loss:0.2")[1].split("####")[0]
+    assert "| 3 | 3 | alliance | 2/2 |" in loss and loss.count("| 1 of 2 |") == 1
+    assert "| 3 | 3 | central | 2/2 |" in loss and loss.count("| every run |") == 1
+    dispatcher = tables.split("#### crash:dispatcher@5")[1].split("####")[0]
+    assert "| 3 | 3 | alliance | n/a: no dispatcher to crash (not run) |" in dispatcher
+    assert "| 3 | 3 | central | 2/2 |" in dispatcher
+    with (out / "delivery" / "results.csv").open(newline="") as f:
+        per_robot = [float(r["metrics.coordination_per_robot"]) for r in csv.DictReader(f)]
+    assert len(per_robot) == 10 and per_robot == [pytest.approx(2.0 / 3, abs=1e-4)] * 10
+
+
+def test_larger_teams_join_deliverys_report_as_runs_of_their_own(tmp_path):
+    out = tmp_path / "study"
+    delivery_results(out)
+    for arch in ("alliance", "central"):
+        write_rows(out / f"large_{arch}", [
+            {"run": 0, "config": "", "seed": 1, "mission": "delivery", "instance": "big",
+             "n_robots": 10, "n_tasks": 10, "failure": "none", "status": "ok", "error": "",
+             "wall_seconds": 60.0, "metrics.completed": 10 if arch == "central" else 9,
+             "coordination_messages_per_second": 5.0}])
+    args = ["--reuse", "--output", str(out), "--missions", "delivery", "--large-robots", "10",
+            "--large-faults", "none", "--architectures", "alliance", "central", "--faults",
+            "none", "--robots", "3", "--tasks-per-robot", "1", "--no-plots"]
+    assert study().main(args) == 0
+    with (out / "delivery" / "results.csv").open(newline="") as f:
+        rows = list(csv.DictReader(f))
+    assert sorted(int(r["run"]) for r in rows if r["n_robots"] == "10") == [100_000, 100_000]
+    assert len({(r["architecture"], r["run"]) for r in rows}) == len(rows) == 6
+    tables = (out / "tables.md").read_text()
+    assert "| 10 | 10 | central | 1/1 | 10.00 (1 run) |" in tables
+    assert "| 10 | 10 | alliance | 1/1 | 9.00 (1 run) |" in tables
+    assert "Larger teams beside them, N = 10" in tables

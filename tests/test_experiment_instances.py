@@ -193,7 +193,8 @@ def test_rows_carry_the_instance_and_no_coverage_per_task(tmp_path, missions):
      "robot4 is not one of the application's robots (robot1, robot2) (did you mean "
      "'robot2'?) (instance delivery-r2-t2-0)"),
     ("instances:\n  generator: delivery\n  robots: [2]\n"
-     "overrides:\n  robot*.spin_rate: [5]\n", ":7", "overrides with instances"),
+     "overrides:\n  robit*.spin_rate: [5]\n", ":8", "no parameter file of package 'delivery' "
+                                                 "matches 'robit*'"),
     ("instances:\n  generator: delivery\n  robots: [2]\nrobots: [2]\n", ":7",
      "the team sizes are the instances block's"),
 ])
@@ -224,3 +225,14 @@ def test_a_matrix_too_large_names_its_instances_and_architectures(tmp_path, miss
     assert ("makes 120 runs (30 instances × 2 architectures × 1 failure × 1 override "
             "combinations × 2 seeds)") in result.output
     assert not (tmp_path / "o").exists()  # refused before any instance is made
+
+
+def test_a_dispatcher_crash_is_a_fault_of_central_and_refused_elsewhere(tmp_path, missions):
+    block = ("duration: 10\nseeds: [1]\nfailures: [none, \"crash:dispatcher@5\"]\n"
+             "instances:\n  generator: delivery\n  robots: [2]\n")
+    f = write(tmp_path, "application: delivery\narchitecture: central\n" + block)
+    got = experiment.run_experiment(file=f, output=tmp_path / "o", jobs=1, plots=False)
+    assert [r["failure"] for r in got] == ["none", "crash:dispatcher@5"]
+    f = write(tmp_path, "application: delivery\narchitecture: alliance\n" + block)
+    result = CliRunner().invoke(cli, ["experiment", str(f), "--output", str(tmp_path / "p")])
+    assert result.exit_code == 2 and "dispatcher is not one of" in result.output, result.output

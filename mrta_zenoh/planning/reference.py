@@ -7,20 +7,37 @@ best found, never called optimal).
 `routes` (robot index → task indices in service order) evaluate to `value` through
 `schedule.evaluate`: the value is always the routes' own, computed in floats by the one
 definition of the objectives.
+
+An experiment runs one instance under many architectures and faults, and every run's analysis
+asks for the same references (at 10 robots and 20 tasks, ~30 s of CPU per run: more than the
+mission). With `$MRTA_REFERENCE_CACHE` (REFERENCE_CACHE_ENV) naming a folder, each reference is
+solved once per problem and search budget and read back by every later run: the same value
+and routes the solve gives (the solve is deterministic; only a search its time cap cut short
+could differ, and that value is never reported). Runs solving the same problem at once take
+turns (a lock per entry), so the second reads what the first wrote.
 """
 
 from __future__ import annotations
 
+import dataclasses
+import fcntl
+import hashlib
+import json
+import os
 import time
 from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
 
 from ..errors import ConfigError
+from ..files import write_text
 from .problem import Problem
 from .schedule import Objective, evaluate
 
 EXACT = "exact"
 BEST_FOUND = "best found"
 EXACT_LIMIT = 10      # tasks: the exact recursion up to here (3 robots × 10 tasks: < 1 s)
+REFERENCE_CACHE_ENV = "MRTA_REFERENCE_CACHE"  # a folder of solved references (module docstring)
 
 
 @dataclass(frozen=True)
@@ -53,6 +70,14 @@ def reference(problem: Problem, objective: Objective | str, *, exact_limit: int 
     except ValueError:
         raise ConfigError(f"unknown objective {objective!r}; known: "
                           + ", ".join(o.value for o in Objective)) from None
+    cache = os.environ.get(REFERENCE_CACHE_ENV)
+    if cache:
+        return _cached(Path(cache), problem, objective, exact_limit, time_limit, solutions)
+    return _solve(problem, objective, exact_limit, time_limit, solutions)
+
+
+def _solve(problem: Problem, objective: Objective, exact_limit: int, time_limit: float,
+           solutions: int) -> Reference:
     t0 = time.perf_counter()
     capped = False
     if len(problem.tasks) <= exact_limit:
@@ -66,3 +91,41 @@ def reference(problem: Problem, objective: Objective | str, *, exact_limit: int 
     seconds = time.perf_counter() - t0
     return Reference(evaluate(problem, routes).value(objective), routes, method, proven,
                      seconds, objective, capped)
+
+
+def _plain(x: Any) -> Any:
+    """`x` as JSON data that is the same in every process: every field of a dataclass, a set
+    sorted (a frozenset's repr follows the process's string hashing, so two runs of one
+    instance would miss each other's entries)."""
+    if dataclasses.is_dataclass(x):
+        return {f.name: _plain(getattr(x, f.name)) for f in dataclasses.fields(x)}
+    if isinstance(x, (set, frozenset)):
+        return sorted(_plain(v) for v in x)
+    if isinstance(x, (list, tuple)):
+        return [_plain(v) for v in x]
+    if isinstance(x, dict):
+        return {str(k): _plain(v) for k, v in x.items()}
+    return x
+
+
+def _cached(folder: Path, problem: Problem, objective: Objective, exact_limit: int,
+            time_limit: float, solutions: int) -> Reference:
+    """The reference from `folder`, solved and written there first if it is not yet: keyed by
+    everything the solve reads (the problem with its distances, the objective, the budget)."""
+    text = json.dumps([_plain(problem), objective.value, exact_limit, time_limit, solutions],
+                      sort_keys=True)
+    key = hashlib.sha256(text.encode()).hexdigest()[:32]
+    folder.mkdir(parents=True, exist_ok=True)
+    path = folder / f"{key}.json"
+    with open(folder / f".{key}.lock", "a") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes, however this ends
+        if path.is_file():
+            d = json.loads(path.read_text())
+            return Reference(d["value"], {int(i): r for i, r in d["routes"].items()},
+                             d["method"], d["proven_optimal"], d["seconds"], objective,
+                             d["capped"])
+        ref = _solve(problem, objective, exact_limit, time_limit, solutions)
+        write_text(path, json.dumps({"value": ref.value, "routes": ref.routes,
+                                     "method": ref.method, "proven_optimal": ref.proven_optimal,
+                                     "seconds": ref.seconds, "capped": ref.capped}))
+        return ref
