@@ -48,7 +48,7 @@ def test_the_message_round_trips_and_grows_with_tasks_won_not_with_the_instance(
     base = len(encode(Bids(Header("r0", 1000.0, 1), (), *fields[1:])))
     assert len(fields[0]) == 60 and len(fields[1]) == 10  # every task won; every robot heard
     assert size - base <= 12 * 60 + 2  # + a longer array header past 15 entries
-    assert base <= 200  # header, stamps of 10 robots, position
+    assert base <= 212  # header, stamps of 10 robots, position, the decision's ms
 
 
 def test_a_malformed_message_is_refused_whole():
@@ -142,3 +142,28 @@ def test_bad_parameters_are_refused():
         Cbba(p, "r1", bundle_limit=0)
     with pytest.raises(KeyError):
         Cbba(p, "r9")
+
+
+def test_a_bids_after_a_change_carries_its_decisions_cost_and_a_resend_none():
+    """CBBA's decision (architecture.decision): the bundle work that changed a robot's table,
+    its wall time in `Bids.ms`; a periodic resend of an unchanged table records none."""
+    from mrta_agent.cbba.architecture import CBBA
+    p = two_robots()
+    logic = Cbba(p, "r1", resend_period=1.0)
+    first = logic.tick(0.0)[0].fields
+    assert first[-1] > 0.0  # it built its first bundle
+    assert logic.tick(0.5) == []  # nothing changed, not due
+    again = logic.tick(1.5)[0].fields  # the periodic resend of the same table
+    assert again[0] == first[0] and again[-1] == 0.0  # the same winners (stamps move on)
+    sent = Bids(Header("r1", 0.0, 1), *first)
+    d = CBBA.decision("r1", "r1/cbba/bids", sent)
+    assert d is not None and d.ms == first[-1] and d.decider == "r1"
+    assert CBBA.decision("r1", "r1/cbba/bids", Bids(Header("r1", 1.5, 2), *again)) is None
+    # what a run's summary counts from the recording (supervisor/ground_truth.decisions)
+    from mrta_supervisor.ground_truth import decisions
+    from mrta_zenoh.codec import encode
+    enc = "application/msgpack;" + Bids.TYPE_NAME
+    records = [("r1/cbba/bids", enc, 0, encode(sent)),
+               ("r1/cbba/bids", enc, 0, encode(Bids(Header("r1", 1.5, 2), *again)))]
+    summary = decisions(records, CBBA, end=10.0)
+    assert (summary.count, summary.max_ms) == (1, round(first[-1], 3))

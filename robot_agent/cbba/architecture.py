@@ -3,15 +3,17 @@
 asynchronous over the bus, each robot serving its bundle's path.
 
 Who is doing what is read from the robots' `Progress` reports (what each set off to, its whole
-queue). No decision records: CBBA decides nowhere in particular (every robot's table is the
-decision, and converges). Takeover bound: none — a lost robot's wins are reset at each teammate
+queue). Decisions: CBBA decides nowhere in particular (every robot's table is the decision,
+and converges), so a decision here is one robot's bundle work that changed its table — the
+`Bids` it then sends carries its wall-time cost (`Bids.ms`); a resend of an unchanged table is
+none. Takeover bound: none — a lost robot's wins are reset at each teammate
 at the tick after its token goes (or after `progress_timeout` without progress) and re-bid, but
 whoever wins one serves it in its path's order (docs/cbba.md, "In execution").
 """
 
 from __future__ import annotations
 
-from mrta_zenoh.architectures import Takeover, TakeoverBound
+from mrta_zenoh.architectures import Decision, Takeover, TakeoverBound
 from mrta_zenoh.clock import Clock
 
 from ..runtime.architecture import Prepared
@@ -34,9 +36,17 @@ class CbbaArchitecture(OwnRouteArchitecture):
                      "the winner's path order")
     messages = {"bids": Bids, "progress": Progress, "queued": Queued}
     coordination_kinds = ("bids", "progress")
+    decision_kinds = ("bids",)
     objective = None  # it maximises discounted rewards, none of planning.schedule's objectives
     logger_name = "mrta.cbba"
     params = cbba_params
+
+    def decision(self, sender: str, key: str, message: object) -> Decision | None:
+        """A Bids that follows a change of its sender's table: one decision, by that robot,
+        taking `Bids.ms` (its bundle work since its previous Bids, wall time)."""
+        if not isinstance(message, Bids) or message.ms <= 0.0:
+            return None
+        return Decision(sender, message.header.stamp, message.ms, self.objective)
 
     def has_subkeys(self, kind: str) -> bool:
         """Each queued task of a robot under its own key (`robot1/cbba/queued/t3`)."""

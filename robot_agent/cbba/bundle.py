@@ -38,6 +38,7 @@ Departures from the paper, each for a reason given in docs/cbba.md:
 from __future__ import annotations
 
 import math
+import time
 from typing import NamedTuple
 
 from mrta_zenoh.planning import Problem
@@ -103,6 +104,7 @@ class Cbba:
         self._levels: list[dict[int, tuple[float, int]]] | None = None  # `_scores`
         self.superseded = 0
         self.out_of_range = 0
+        self._work = 0.0  # wall seconds spent on the bundle since the last Bids
 
     # ------------------------------------------------------------------ what it tells the runtime
     @property
@@ -197,19 +199,24 @@ class Cbba:
 
     # ------------------------------------------------------------------ one iteration
     def tick(self, now: float) -> list[Out]:
+        started = time.perf_counter()  # wall time: a computation's cost is the machine's
         candidates = self._candidates(now)
         self._release()
         if self.recheck:
             self._recheck(candidates)
         self._build(candidates)
+        self._work += time.perf_counter() - started
         if not self.changed and now - self.last_sent < self.resend_period:
             return []
+        # a decision: the table changed since the last Bids (a resend of it is none)
+        ms = round(self._work * 1000.0, 3) if self.changed else 0.0
+        self._work = 0.0
         self.changed, self.last_sent = False, now
         self.stamps[self.i] = now
         winners = tuple((j, w, self.y[j]) for j, w in enumerate(self.z)
                         if w != NONE and j not in self.done)
         stamps = tuple(sorted((m, t) for m, t in self.stamps.items() if m not in self.departed))
-        return [Out("bids", (winners, stamps, tuple(sorted(self.done)), *self.position))]
+        return [Out("bids", (winners, stamps, tuple(sorted(self.done)), *self.position, ms))]
 
     def _candidates(self, now: float) -> list[int]:
         """The tasks this robot may bid on: known by now, unserved, within its capabilities."""

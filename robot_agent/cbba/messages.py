@@ -18,7 +18,8 @@ class Bids(Message):
     """`winners`: (task, robot, winning bid) for each task the sender knows a winner of;
     `stamps`: (robot, time) — when the sender last had information from each robot it heard
     from, itself included (its send time); `done`: tasks served, by anyone, as far as it knows;
-    `x`, `y`: where it is (a range-limited network drops messages from too far)."""
+    `x`, `y`: where it is (a range-limited network drops messages from too far); `ms`: what its
+    last decision cost (below)."""
 
     header: Header
     winners: tuple[tuple[int, int, Finite], ...]
@@ -26,6 +27,9 @@ class Bids(Message):
     done: tuple[int, ...]
     x: Finite
     y: Finite
+    # wall ms this robot spent on its bundle (release, re-check, build) since its last Bids,
+    # when its table changed (its decision); 0 on a resend of an unchanged table
+    ms: Finite = 0.0
 
 
 MESSAGES = {"bids": Bids}
