@@ -73,6 +73,11 @@ SUBJECT = "subject"  # subject tokens: robotN/<namespace>/subject/<subject> (nev
 DROP_LOG_PERIOD = 10.0  # wall seconds between two log lines about the same kind of drop
 
 
+def is_due(heard: float, now: float, lockstep: bool, delayed: bool) -> bool:
+    """Whether what counts as heard at `heard` is handled at `now` (Agent.take_due)."""
+    return not ((lockstep and heard >= now) or (delayed and heard > now + EPSILON))
+
+
 class Agent:
     """One robot's agent: `architecture` says which keys and messages, `make_coordinator` builds
     the decision logic (again when time restarts), `plugins` are the robot's sensors, evaluators
@@ -387,8 +392,7 @@ class Agent:
         due, later = [], []
         while self._inbox:
             item = self._inbox.popleft()
-            (later if (lockstep and item[0] >= now) or (delayed and item[0] > now + EPSILON)
-             else due).append(item)
+            (due if is_due(item[0], now, lockstep, delayed) else later).append(item)
         self._inbox.extendleft(reversed(later))
         if lockstep:
             due.sort(key=lambda item: (item[0], item[2], item[4], item[3].header.seq))
@@ -423,12 +427,13 @@ class Agent:
     def _settle_faults(self, now: float, everything: bool = False) -> None:
         """Count the drops due at `now` (take_due's rule; `everything`: all of them)."""
         lockstep = self.in_lockstep()
+        delayed = self.faults is not None and self.faults.latency is not None
         with self._token_lock:
             pending = list(self._fault_pending)
             self._fault_pending.clear()
         later = []
         for heard, cause in pending:
-            if not everything and ((lockstep and heard >= now) or heard > now + EPSILON):
+            if not everything and not is_due(heard, now, lockstep, delayed):
                 later.append((heard, cause))
             else:
                 self.fault_counts[cause] += 1
