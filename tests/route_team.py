@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from mrta_zenoh.messages import Header
 from mrta_zenoh.planning import Problem
-from mrta_agent.runtime.own_route_params import OwnRouteParams, OwnRouteRobot
+from mrta_agent.route.own_route_params import OwnRouteParams, OwnRouteRobot
 
 EPS = 1e-9
 

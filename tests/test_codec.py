@@ -13,7 +13,7 @@ from mrta_delivery.messages import TaskEvent
 from mrta_zenoh.lockstep import LockstepStatus, Step, StepDone
 from mrta_agent.murdoch.messages import Announcement, Award, Bid, Claim, Release, Revoke
 from mrta_agent.central.messages import Plan, Queue
-from mrta_agent.runtime.own_route import Progress, Queued
+from mrta_agent.route.messages import Progress, Queued
 from mrta_agent.ssi.messages import Bid as SsiBid, Round
 from mrta_agent.cbba.messages import Bids
 from mrta_zenoh.fault_roles import Assigned

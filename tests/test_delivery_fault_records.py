@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import msgspec
 
-from mrta_agent.runtime.own_route import Progress
+from mrta_agent.route.messages import Progress
 from mrta_agent.ssi.architecture import SSI
 from mrta_delivery.instance import DeliveryParams
 from mrta_delivery.metrics import allocation_log

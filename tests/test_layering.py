@@ -2,7 +2,9 @@
 
 mrta_zenoh (the core) knows no architecture, simulator, supervisor or application — it defines
 the architecture contract, not an architecture. The agent runtime (mrta_agent.runtime) knows no
-architecture; ALLIANCE and MURDOCH build on it and never on each other; the simulator and the
+architecture and no route; the route family (mrta_agent.route: what central, SSI and CBBA share)
+builds on the runtime and knows no architecture; ALLIANCE and MURDOCH build on the runtime, never
+on the route family nor on each other; the simulator and the
 supervisor build on the core only; applications reach an architecture only through its
 registered contract (entry points), never by importing it.
 """
@@ -17,6 +19,7 @@ from tests.helpers import ROOT
 PACKAGES = {
     "mrta_zenoh": ROOT / "mrta_zenoh",
     "mrta_agent.runtime": ROOT / "robot_agent" / "runtime",
+    "mrta_agent.route": ROOT / "robot_agent" / "route",
     "mrta_agent.alliance": ROOT / "robot_agent" / "alliance",
     "mrta_agent.murdoch": ROOT / "robot_agent" / "murdoch",
     "mrta_agent.central": ROOT / "robot_agent" / "central",
@@ -36,13 +39,16 @@ APPS = {"mrta_patrol", "mrta_patrol_murdoch", "mrta_delivery", "mrta_delivery_mu
         "mrta_delivery_central", "mrta_delivery_ssi", "mrta_delivery_cbba", "ping_app"}
 FORBIDDEN = {
     "mrta_zenoh": {"mrta_agent", "mrta_simulator", "mrta_supervisor"} | APPS,
-    "mrta_agent.runtime": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_agent.central",
-                           "mrta_agent.ssi", "mrta_agent.cbba",
+    "mrta_agent.runtime": {"mrta_agent.route", "mrta_agent.alliance", "mrta_agent.murdoch",
+                           "mrta_agent.central", "mrta_agent.ssi", "mrta_agent.cbba",
                            "mrta_simulator", "mrta_supervisor"} | APPS,
-    "mrta_agent.alliance": {"mrta_agent.murdoch", "mrta_agent.central", "mrta_simulator",
-                            "mrta_supervisor"} | APPS,
-    "mrta_agent.murdoch": {"mrta_agent.alliance", "mrta_agent.central", "mrta_simulator",
-                           "mrta_supervisor"} | APPS,
+    "mrta_agent.route": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_agent.central",
+                         "mrta_agent.ssi", "mrta_agent.cbba",
+                         "mrta_simulator", "mrta_supervisor"} | APPS,
+    "mrta_agent.alliance": {"mrta_agent.route", "mrta_agent.murdoch", "mrta_agent.central",
+                            "mrta_simulator", "mrta_supervisor"} | APPS,
+    "mrta_agent.murdoch": {"mrta_agent.route", "mrta_agent.alliance", "mrta_agent.central",
+                           "mrta_simulator", "mrta_supervisor"} | APPS,
     "mrta_agent.central": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_simulator",
                            "mrta_supervisor"} | APPS,
     "mrta_agent.ssi": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_agent.cbba",
@@ -114,6 +120,18 @@ def test_relative_imports_are_resolved():
     """The checker itself: a relative import reaching into a sibling architecture is caught."""
     f = ROOT / "robot_agent" / "alliance" / "agent.py"
     assert "mrta_agent.runtime.loop" in imports_of(f, "mrta_agent.alliance")
+
+
+def test_the_runtime_holds_no_route_family_module():
+    """The route family lives in its own package: no route, own-route or route-message module is
+    left in the runtime, and the runtime's names do not mention the route executor."""
+    left = sorted(f.name for f in PACKAGES["mrta_agent.runtime"].glob("*.py")
+                  if "route" in f.stem)
+    assert not left, left
+    for f in PACKAGES["mrta_agent.runtime"].glob("*.py"):
+        names = {n.name for n in ast.walk(ast.parse(f.read_text(encoding="utf-8")))
+                 if isinstance(n, (ast.ClassDef, ast.FunctionDef))}
+        assert not {"RouteArchitecture", "RouteExecutor", "Progress", "Queued"} & names, f
 
 
 def test_configs_hold_applications_only():

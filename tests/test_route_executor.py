@@ -1,4 +1,4 @@
-"""The route executor (mrta_agent.runtime.route) on a manual clock: a route served in its order,
+"""The route executor (mrta_agent.route.executor) on a manual clock: a route served in its order,
 a held head not skipped, a re-plan keeping the task in progress or leaving it, a served task
 never served again; and `PluginReadings` answering from a robot's plugins."""
 
@@ -7,7 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 from mrta_agent.runtime.plugins import Plugins
-from mrta_agent.runtime.route import Change, PluginReadings, RouteExecutor, Served
+from mrta_agent.route.executor import Change, PluginReadings, RouteExecutor, Served
 from mrta_zenoh.messages import Header, Odometry, Pose2D, Twist
 
 

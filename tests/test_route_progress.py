@@ -1,12 +1,12 @@
 """One message for a robot's progress on its route (`route_msgs/Progress`,
-robot_agent/runtime/own_route.py) under every route-serving architecture: central's robots send
+robot_agent/route/messages.py) under every route-serving architecture: central's robots send
 it too, with the queue version they applied, which its dispatcher reads off the bus."""
 
 from __future__ import annotations
 
 from mrta_agent.cbba.architecture import CBBA
 from mrta_agent.central.architecture import CENTRAL
-from mrta_agent.runtime.own_route import Progress, Queued
+from mrta_agent.route.messages import Progress, Queued
 from mrta_agent.ssi.architecture import SSI
 from tests.central_team import Team
 from tests.test_central_dispatcher import SQUARE

@@ -315,7 +315,7 @@ def test_a_route_executing_robot_shows_the_task_it_serves_not_the_first_it_holds
     would say t2)."""
     from mrta_zenoh.architectures import architecture
     from mrta_zenoh.toolchain.registry import Registry
-    from mrta_agent.runtime.own_route import Progress, Queued
+    from mrta_agent.route.messages import Progress, Queued
     from mrta_supervisor.entities import Serving
 
     ssi = architecture("ssi")

@@ -1,4 +1,4 @@
-"""CBBA's parameter files (mrta_agent.runtime.own_route_params: the keys every robot serving its
+"""CBBA's parameter files (mrta_agent.route.own_route_params: the keys every robot serving its
 own route has) and CBBA's own robot keys, each with its default:
 
 * `discount` (λ per second, 0.95) and `bundle_limit` (L_t, none): the score (docs/cbba.md);
@@ -13,8 +13,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from mrta_agent.runtime import own_route_params as own
-from mrta_agent.runtime.own_route_params import OwnRouteParams, OwnRouteRobot, lookahead
+from mrta_agent.route import own_route_params as own
+from mrta_agent.route.own_route_params import OwnRouteParams, OwnRouteRobot, lookahead
 from mrta_agent.runtime.params import StrictMapping
 
 DISCOUNT = 0.95

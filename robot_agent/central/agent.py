@@ -1,5 +1,5 @@
 """A central robot's decision logic, as the agent runtime drives it: it decides nothing. It
-serves the queue its dispatcher sends (mrta_agent.runtime.route: one task after another, in
+serves the queue its dispatcher sends (mrta_agent.route.executor: one task after another, in
 order) and reports its progress.
 
 * A `Queue` counts only from the dispatcher (a process of the architecture, on the team by its
@@ -25,7 +25,7 @@ from mrta_zenoh.timetext import at
 
 from ..runtime.coordinator import Coordinator, Say
 from ..runtime.plugins import Plugins
-from ..runtime.route import PluginReadings, Readings, RouteExecutor
+from ..route.executor import PluginReadings, Readings, RouteExecutor
 from .messages import Queue
 from .params import CentralParams
 

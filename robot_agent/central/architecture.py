@@ -16,7 +16,8 @@ from pathlib import Path
 from mrta_zenoh.architectures import Decision, Takeover, TakeoverBound
 from mrta_zenoh.clock import Clock
 
-from ..runtime.architecture import Prepared, RouteArchitecture
+from ..route.architecture import RouteArchitecture
+from ..runtime.architecture import Prepared
 from ..runtime.host import AgentOptions
 from . import params as central_params
 from .agent import CentralCoordinator

@@ -20,7 +20,7 @@ from __future__ import annotations
 from mrta_zenoh.messages import Finite, Header, Message, message
 
 # a robot's progress and its queued tasks are every route-serving architecture's messages
-from ..runtime.own_route import Progress, Queued  # noqa: F401  (re-exported: central's kinds)
+from ..route.messages import Progress, Queued  # noqa: F401  (re-exported: central's kinds)
 
 
 @message("central_msgs/Queue")

@@ -20,7 +20,7 @@ from mrta_agent.runtime.params import (SensorParams, StrictMapping, TaskParams, 
                                        load_layers_params, open_robot_file,
                                        require_task)
 from mrta_agent.runtime.plugins import EvaluatorSpec
-from mrta_agent.runtime.route import route_tasks
+from mrta_agent.route.executor import route_tasks
 
 # A robot reports at least this often (s): its heartbeat to the dispatcher, and how fresh the
 # supervisor's view of it is.

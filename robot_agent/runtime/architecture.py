@@ -15,9 +15,9 @@ import threading
 from abc import abstractmethod
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, ClassVar
+from typing import TYPE_CHECKING, Any
 
-from mrta_zenoh.architectures import Architecture, Doing
+from mrta_zenoh.architectures import Architecture
 from mrta_zenoh.bus import Bus
 from mrta_zenoh.clock import Clock
 
@@ -82,31 +82,3 @@ class AgentArchitecture(Architecture):
         return host(lambda bus, clock, rng: self.agent(prepared, bus, clock, rng), options,
                     warnings=prepared.warnings, describe=prepared.describe, stop=stop,
                     logger=logging.getLogger(self.logger_name))
-
-
-class RouteArchitecture(AgentArchitecture):
-    """An architecture whose robots serve an ordered route of point tasks (runtime.route) and
-    say so in a `progress_type` report — the task set off to, the last one served or left,
-    the queue: central's and the own-route architectures (SSI, CBBA)."""
-
-    progress_type: ClassVar[type]
-    doing_kinds = ("progress",)
-    doing_stale_after = 2.5  # a robot reports every report_period (1 s by default)
-
-    def route_prepared(self, robot_id: str, params: Any) -> Prepared:
-        """What `prepare` gives for parameters with `robot` (sensors, evaluators, rates),
-        `tasks`, `layers` and `warnings`."""
-        plugins = Plugins(params.robot.sensors, params.robot.evaluators, params.tasks,
-                          params.layers)
-        return Prepared(robot_id, params, plugins, params.robot.spin_rate,
-                        params.robot.control_rate,
-                        f"{self.title}, {len(params.robot.evaluators)} tasks it can serve",
-                        params.warnings + plugins.unread_warnings())
-
-    def doing(self, sender: str, key: str, message: object) -> Doing | None:
-        if not isinstance(message, self.progress_type):
-            return None
-        queue = tuple(message.queue)
-        if message.task:
-            return Doing(sender, message.task, True, message.header.stamp, queue)
-        return Doing(sender, message.last, False, message.header.stamp, queue)

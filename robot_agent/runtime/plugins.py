@@ -247,7 +247,7 @@ class Layer(Plugin):
     def done(self, now: float) -> bool:
         """Whether this robot has finished the task since its last activation (py_trees'
         SUCCESS): what a robot serving a route of tasks moves on at
-        (mrta_agent.runtime.route). Default: never — a continuous task (patrol's) is not
+        (mrta_agent.route.executor). Default: never — a continuous task (patrol's) is not
         finished by running it."""
         return False
 

@@ -15,9 +15,9 @@ from mrta_zenoh.architectures import Decision, Takeover, TakeoverBound
 from mrta_zenoh.clock import Clock
 
 from ..runtime.architecture import Prepared
-from ..runtime.own_route import Progress, Queued
-from ..runtime.own_route_arch import OwnRouteArchitecture
-from ..runtime.route import PluginReadings
+from ..route.messages import Progress, Queued
+from ..route.own_route_arch import OwnRouteArchitecture
+from ..route.executor import PluginReadings
 from . import params as ssi_params
 from .agent import SsiCoordinator
 from .messages import Bid, Round

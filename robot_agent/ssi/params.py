@@ -1,4 +1,4 @@
-"""SSI's parameter files (mrta_agent.runtime.own_route_params: the keys every robot serving its
+"""SSI's parameter files (mrta_agent.route.own_route_params: the keys every robot serving its
 own route has) and SSI's own robot keys, each with its default:
 
 * `resend_period` (s, 0.5): how often the auctioneer repeats a Round still missing bids, and a
@@ -12,8 +12,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from mrta_agent.runtime import own_route_params as own
-from mrta_agent.runtime.own_route_params import OwnRouteParams, OwnRouteRobot, lookahead
+from mrta_agent.route import own_route_params as own
+from mrta_agent.route.own_route_params import OwnRouteParams, OwnRouteRobot, lookahead
 from mrta_agent.runtime.params import StrictMapping
 
 RESEND_PERIOD = 0.5

@@ -30,8 +30,8 @@ from typing import NamedTuple, Protocol, Sequence
 from mrta_zenoh.messages import Odometry
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, sized_array
 
-from .params import SensorParams, StrictMapping, load_sensor_topics, task_id_of
-from .plugins import EvaluatorSpec, Plugins
+from ..runtime.params import SensorParams, StrictMapping, load_sensor_topics, task_id_of
+from ..runtime.plugins import EvaluatorSpec, Plugins
 
 
 class Readings(Protocol):

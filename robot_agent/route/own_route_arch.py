@@ -1,5 +1,5 @@
 """What the contract objects of SSI and CBBA share (robots serving their own routes,
-mrta_agent.runtime.own_route): how a robot is prepared from its files, what the file check
+mrta_agent.route.own_route): how a robot is prepared from its files, what the file check
 reads, and who is doing what, read from the robots' `Progress` reports."""
 
 from __future__ import annotations
@@ -8,11 +8,12 @@ from pathlib import Path
 from types import ModuleType
 from typing import ClassVar
 
-from .architecture import Prepared, RouteArchitecture
-from .host import AgentOptions
-from .own_route import Progress
+from ..runtime.architecture import Prepared
+from ..runtime.host import AgentOptions
+from ..runtime.plugins import Plugins
+from .architecture import RouteArchitecture
+from .messages import Progress
 from .own_route_params import load_files
-from .plugins import Plugins
 
 
 class OwnRouteArchitecture(RouteArchitecture):

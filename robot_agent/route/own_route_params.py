@@ -21,10 +21,10 @@ from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.planning import Problem
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean
 
-from .params import (SensorParams, StrictMapping, TaskParams, iter_tasks, load_layers_params,
+from ..runtime.params import (SensorParams, StrictMapping, TaskParams, iter_tasks, load_layers_params,
                      open_robot_file, require_task)
-from .plugins import EvaluatorSpec
-from .route import route_tasks
+from ..runtime.plugins import EvaluatorSpec
+from .executor import route_tasks
 
 REPORT_PERIOD = 1.0
 # A teammate whose reports show a task but no progress (no motion, nothing served, no change of

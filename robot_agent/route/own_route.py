@@ -33,44 +33,13 @@ import math
 from typing import ClassVar, Iterable
 
 from mrta_zenoh.clock import EPSILON
-from mrta_zenoh.messages import Finite, Header, Message, message
 from mrta_zenoh.timetext import at
 
-from .coordinator import Coordinator, Say
-from .route import Readings, RouteExecutor
+from ..runtime.coordinator import Coordinator, Say
+from .executor import Readings, RouteExecutor
+from .messages import Progress
 
 MOVED = 0.05  # m: a teammate whose reported pose moved this far made progress
-
-
-@message("route_msgs/Progress")
-class Progress(Message):
-    """A robot's progress on its route, under every architecture whose robots serve routes
-    (SSI, CBBA, central): `task`: the task it set off to ("" none); `last`: the one it last
-    served or left ("" none), so a report of an idle robot still says what it stopped;
-    `queue`: its whole queue; `served`: what it served, in order; where it is; `version`: the
-    queue version it applied (central's dispatcher numbers its queues; 0 where the robot's own
-    logic keeps its route); `holding`: it stands still although it has work (central: the
-    dispatcher, alive, has been silent past its lease)."""
-
-    header: Header
-    task: str
-    last: str
-    queue: tuple[str, ...]
-    served: tuple[str, ...]
-    x: Finite
-    y: Finite
-    theta: Finite
-    version: int = 0
-    holding: bool = False
-
-
-@message("route_msgs/Queued")
-class Queued(Message):
-    """`task_id` is in the sender's queue, at `place` (0: the task it is on)."""
-
-    header: Header
-    task_id: str
-    place: int
 
 
 class Watch:
