@@ -11,8 +11,8 @@ What it does at each tick:
    changed task — for `progress_timeout` (beyond its task's service time once it is there, and
    not before the task's arrival) is *stalled*; one not heard for `progress_timeout` is
    *silent*; one whose token went has *crashed*. Each is out of the plan; a silent one comes
-   back when it is heard again, a stalled one stays out (a robot that cannot be seen to
-   progress is not trusted with work again in the run).
+   back when it is heard again, a stalled one when it is seen to move again (a task served or
+   changed does not count: a robot stripped of its queue changes task without moving).
 3. **Re-plans** on an arrival, a completion, a loss or a return (planner.py: the residual
    problem on the model's clock, kept unless beaten), and records the decision (`Plan`).
 4. **Sends queues**, each robot its own, when they change and every `resend_period`. A task is
@@ -21,6 +21,14 @@ What it does at each tick:
    (it stopped by its lease before the dispatcher gave up on it: docs/central.md, "No task
    served twice"). A queue is cut before its first task that cannot be granted yet, so a robot
    serves its plan's order and waits rather than skip ahead.
+
+**What a report is believed for** (docs/security.md). A `Progress` speaks for its sender's own
+queue only: a task counts as served, set off to or queued by a robot only if the dispatcher
+granted it to that robot (sent it in a queue); a task served counts once, for the first robot
+that reported it (a robot cut off by a partition may serve a task the dispatcher meanwhile
+granted to another: both serve it, the second report is no completion), and only if that robot
+could serve it (capability, capacity). What is not believed is refused and counted by sender
+and reason (`Coordinator.refuse`), never raised: no report can stop the dispatcher.
 """
 
 from __future__ import annotations
@@ -32,6 +40,7 @@ from typing import Iterable
 
 from mrta_zenoh.clock import EPSILON
 from mrta_zenoh.planning import Problem
+from mrta_zenoh import timetext
 from mrta_zenoh.timetext import at
 
 from ..runtime.coordinator import Coordinator, Say
@@ -48,6 +57,12 @@ HISTORY = 256    # decisions kept for inspection (tests, a debugger)
 
 CRASHED, STALLED, SILENT = "crashed", "stalled", "silent"
 
+# why a claim of a report was not believed (module docstring; Coordinator.refuse)
+NOT_GRANTED = "not_granted"      # served, set off to or queued a task never granted to it
+SERVED_TWICE = "served_twice"    # served a task another robot reported served first
+IMPOSSIBLE = "impossible"        # served a task it cannot serve (capability, capacity)
+UNKNOWN_TASK = "unknown_task"    # named a task the instance does not have (refused whole)
+
 
 @dataclass
 class RobotView:
@@ -60,6 +75,22 @@ class RobotView:
     heard: float | None = None              # when its last report counts as heard
     progressed: float | None = None         # when it last progressed
     where: tuple[float, float, float] | None = None  # its pose then
+    served: list[str] = field(default_factory=list)  # what it served, as believed, in order
+    claimed: set[str] = field(default_factory=set)   # what its reports said it served
+    granted: set[str] = field(default_factory=set)   # every task ever sent it in a queue
+
+    @property
+    def on(self) -> str:
+        """The task its last report has it set off to, if granted to it ("" none)."""
+        report = self.report
+        return report.task if report is not None and report.task and \
+            report.task in self.granted else ""
+
+    def holds(self, task: str) -> bool:
+        """Whether its last report has `task` set off to or queued (a granted one only)."""
+        report = self.report
+        return report is not None and task in self.granted and \
+            (report.task == task or task in report.queue)
 
 
 @dataclass
@@ -132,22 +163,49 @@ class Dispatcher(Coordinator):
         sent = self.sent.get(sender)
         if sent is not None:
             sent.unacked = [(v, q) for v, q in sent.unacked if v > message.version]
+        if message.task and message.task not in view.granted \
+                and (before is None or message.task != before.task):
+            self.refuse("progress", sender, NOT_GRANTED)
         planned = self.plan.get(sender, [])
-        if message.task and (before is None or message.task != before.task) \
-                and message.task not in self.done and planned[:1] != [message.task]:
+        on = view.on
+        if on and (before is None or on != before.task) \
+                and on not in self.done and planned[:1] != [on]:
             self._triggers.append("deviation")  # it set off to another task than planned
         if view.lost == SILENT:
             view.lost = None
             self._triggers.append("return")
         pose = (message.x, message.y, message.theta)
+        moved = _moved(view.where, pose)
+        if view.lost == STALLED and before is not None and moved:
+            view.lost = None  # seen to move again: back in the plan
+            log.warning("%s: %s moves again %s: back in the plan", self.name, sender, timetext.at(at))
+            self._triggers.append("return")
         if before is None or message.task != before.task or message.served != before.served \
-                or _moved(view.where, pose):
+                or moved:
             view.progressed, view.where = at, pose
         for task in message.served:
-            if task not in self.done:
-                self.done[task] = sender
-                self._triggers.append("completion")
+            self._served(sender, view, task)
         return True
+
+    def _served(self, rid: str, view: RobotView, task: str) -> None:
+        """Robot `rid` reports `task` served: believed once, if it may (module docstring)."""
+        if task in view.claimed:
+            return
+        view.claimed.add(task)
+        i, j = self.problem.robot_index(rid), self.problem.task_index(task)
+        cap = self.problem.robots[i].capacity
+        if task not in view.granted:
+            self.refuse("progress", rid, NOT_GRANTED)
+        elif task in self.done:
+            self.refuse("progress", rid, SERVED_TWICE)
+            log.warning("%s: %s reports %s served, which %s served first: counted once",
+                        self.name, rid, task, self.done[task])
+        elif not self.problem.capable(i, j) or (cap is not None and len(view.served) >= cap):
+            self.refuse("progress", rid, IMPOSSIBLE)
+        else:
+            self.done[task] = rid
+            view.served.append(task)
+            self._triggers.append("completion")
 
     # ------------------------------------------------------------ one decision step
     def tick(self, now: float) -> Iterable[Say]:
@@ -206,12 +264,13 @@ class Dispatcher(Coordinator):
     def commitment(self, rid: str) -> tuple[str, ...]:
         """What robot `rid` served, in order, then the task it set off to (if it is still in
         the plan and the task is not done)."""
-        report = self.robots[rid].report
-        if report is None:
-            return ()
-        served = tuple(report.served)
-        if self.robots[rid].lost is None and report.task and report.task not in self.done:
-            return served + (report.task,)
+        view = self.robots[rid]
+        served = tuple(view.served)
+        on = view.on
+        cap = self.problem.robots[self.problem.robot_index(rid)].capacity
+        if view.lost is None and on and on not in self.done \
+                and (cap is None or len(served) < cap):
+            return served + (on,)
         return served
 
     def commitments(self) -> dict[str, tuple[str, ...]]:
@@ -271,9 +330,8 @@ class Dispatcher(Coordinator):
         if rid not in self.available():
             return []
         commitment = self.commitments()[rid]
-        report = self.robots[rid].report
-        on = [commitment[-1]] if report is not None and report.task \
-            and commitment and commitment[-1] == report.task else []
+        task = self.robots[rid].on
+        on = [commitment[-1]] if task and commitment and commitment[-1] == task else []
         return on + [t for t in self.plan.get(rid, ()) if t not in self.done and t not in on]
 
     def grantable(self, rid: str, task: str) -> bool:
@@ -281,14 +339,12 @@ class Dispatcher(Coordinator):
         was sent a queue holding it that it has not acknowledged since (module docstring) —
         or `rid` is on it already and keeps it (`commitments`: back from a partition, another
         robot may still report it; withholding it would only make `rid` leave it too)."""
-        own = self.robots[rid].report
-        if own is not None and own.task == task and self.commitments()[rid][-1:] == (task,):
+        if self.robots[rid].on == task and self.commitments()[rid][-1:] == (task,):
             return True
         for other, view in self.robots.items():
             if other == rid or not view.alive or view.lost == SILENT:
                 continue  # crashed; or cut off, and stopped by its lease
-            report = view.report
-            if report is not None and (report.task == task or task in report.queue):
+            if view.holds(task):
                 return False
             sent = self.sent.get(other)
             if sent is not None and any(task in q for _, q in sent.unacked):
@@ -319,6 +375,7 @@ class Dispatcher(Coordinator):
                 unacked = [] if sent is None else sent.unacked
                 sent = self.sent[r.id] = Sent(self.version, tasks, now,
                                               unacked + [(self.version, tasks)])
+                view.granted.update(tasks)
             else:
                 sent.at = now
             out.append(Say("queue", (r.id, sent.version, tasks), r.id))

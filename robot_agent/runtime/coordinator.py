@@ -10,8 +10,9 @@ probing, such a typo silently disabled the feature.
 
 from __future__ import annotations
 
+import collections
 import difflib
-from typing import ClassVar, Iterable, NamedTuple
+from typing import ClassVar, Iterable, Mapping, NamedTuple
 
 
 class Say(NamedTuple):
@@ -45,7 +46,11 @@ class Coordinator:
       and the robot's agent token live. MURDOCH advertises the tasks a robot serves, so the
       auctioneer of a task is ranked among the robots that serve it; ALLIANCE advertises none;
     * `tick(now)`: the decision step, what to send;
-    * `active_task`: the task whose layers run (None: none).
+    * `active_task`: the task whose layers run (None: none);
+    * `refuse(kind, sender, reason)`: what a logic did not believe of a message it accepted
+      otherwise (a claim its sender cannot make: docs/security.md), counted by kind, sender and
+      reason — the driver reports these with the messages `hear` refused whole
+      (`refusals()`), so every summary shows what was refused.
     """
 
     listens: ClassVar[tuple[str, ...]] = ()
@@ -62,6 +67,17 @@ class Coordinator:
             if close:
                 raise TypeError(f"{cls.__qualname__}.{name}: not a Coordinator hook — did you "
                                 f"mean {close[0]!r}? (the driver would never call it)")
+
+    def refuse(self, kind: str, sender: str, reason: str) -> None:
+        """Count one refused claim (class docstring). Senders are teammates the driver admitted
+        (or, for a dispatcher, robots of the instance), reasons a logic's constants: the count
+        stays bounded whatever a forger sends."""
+        counts = vars(self).setdefault("_refusals", collections.Counter())
+        counts[(kind, sender, reason)] += 1
+
+    def refusals(self) -> Mapping[tuple[str, str, str], int]:
+        """(kind, sender, reason) → how many claims the logic refused (`refuse`)."""
+        return vars(self).get("_refusals", {})
 
     @classmethod
     def hears_subjects(cls) -> bool:

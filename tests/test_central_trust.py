@@ -1,0 +1,143 @@
+"""central's dispatcher believes a report only for what its sender can claim, and no report can
+stop it (issue 51; robot_agent/central/dispatcher.py, "What a report is believed for"): the
+dispatcher alone, on explicit times, fed forged and conflicting `Progress` reports."""
+
+from __future__ import annotations
+
+import collections
+
+from hypothesis import HealthCheck, given, settings, strategies as st
+
+from mrta_agent.central.dispatcher import (IMPOSSIBLE, NOT_GRANTED, SERVED_TWICE, STALLED,
+                                           Dispatcher)
+from mrta_agent.central.messages import Progress
+from mrta_agent.central.params import DispatcherParams
+from mrta_zenoh.messages import Header
+from mrta_zenoh.planning import Problem, Robot, Task
+
+SQUARE = Problem(
+    (Robot("robot1", (0.0, 0.0), 0.5), Robot("robot2", (10.0, 0.0), 0.5)),
+    (Task("t1", (1.0, 0.0), service=1.0), Task("t2", (2.0, 0.0), service=1.0),
+     Task("t3", (9.0, 0.0), service=1.0), Task("t4", (5.0, 0.0), service=2.0)))
+EVERY = tuple(t.id for t in SQUARE.tasks)
+
+
+def progress(task="", queue=(), version=0, x=0.0, served=()) -> Progress:
+    return Progress(Header("", 0.0, 0), task, "", tuple(queue), tuple(served), x, 0.0, 0.0,
+                    version)
+
+
+def queues(out) -> dict[str, tuple[str, ...]]:
+    return {s.fields[0]: s.fields[2] for s in out if s.kind == "queue"}
+
+
+def started(problem: Problem = SQUARE, timeout: float = 5.0) -> Dispatcher:
+    d = Dispatcher(problem, DispatcherParams(progress_timeout=timeout))
+    for r in problem.robots:
+        d.teammate(r.id, True)
+    d.tick(0.0)
+    return d
+
+
+def refused(d: Dispatcher) -> dict[tuple[str, str], int]:
+    out: collections.Counter = collections.Counter()
+    for (_kind, sender, reason), n in d.refusals().items():
+        out[(sender, reason)] += n
+    return dict(out)
+
+
+def test_a_report_claiming_every_task_served_counts_only_what_was_granted_to_its_sender():
+    d = started()
+    assert d.sent["robot2"].tasks == ("t3",)
+    d.hear("progress", "robot2", progress(x=9.0, served=EVERY), 1.0)
+    d.tick(1.0)  # planned on: no ConfigError (it raised "task … is on the routes of …")
+    assert d.done == {"t3": "robot2"}
+    assert refused(d) == {("robot2", NOT_GRANTED): 3}
+    assert sorted(d.sent["robot1"].tasks) == ["t1", "t2", "t4"]  # still robot1's to serve
+
+
+def test_a_task_served_by_two_robots_across_a_partition_counts_once_and_the_plan_goes_on():
+    """robot2 sets off to t3 and falls silent (cut off); t3 goes to robot1, which serves it;
+    robot2, back, reports t3 served too (it served it unseen). The first report wins."""
+    d = started()
+    d.hear("progress", "robot2", progress("t3", ("t3",), d.sent["robot2"].version, 10.0), 0.1)
+    now = 0.2
+    while d.robots["robot2"].lost is None:
+        d.hear("progress", "robot1", progress("", (), d.sent["robot1"].version, 0.0), now)
+        d.tick(now)
+        now = round(now + 0.1, 1)
+    d.tick(now)
+    assert "t3" in d.sent["robot1"].tasks
+    d.hear("progress", "robot1", progress("", (), d.sent["robot1"].version, 9.0, ["t3"]), now)
+    d.hear("progress", "robot2", progress("", (), d.sent["robot2"].version, 9.0, ["t3"]), now)
+    for _ in range(20):
+        now = round(now + 0.1, 1)
+        d.tick(now)
+    assert d.done["t3"] == "robot1" and d.robots["robot2"].lost is None
+    assert refused(d) == {("robot2", SERVED_TWICE): 1}
+    assert set(d.sent["robot1"].tasks) | set(d.sent["robot2"].tasks) == {"t1", "t2", "t4"}
+
+
+def test_a_task_the_robot_cannot_serve_is_not_believed_served():
+    problem = Problem((Robot("robot1", (0.0, 0.0), 0.5, capacity=1),),
+                      (Task("t1", (1.0, 0.0)), Task("t2", (2.0, 0.0))))
+    d = started(problem)
+    granted = d.sent["robot1"].tasks
+    assert granted == ("t1",)
+    d.robots["robot1"].granted.add("t2")  # as if granted once: still beyond its capacity
+    d.hear("progress", "robot1", progress(served=("t1", "t2")), 1.0)
+    d.tick(1.0)
+    assert d.done == {"t1": "robot1"} and refused(d) == {("robot1", IMPOSSIBLE): 1}
+
+
+def test_a_queue_claimed_by_a_robot_holds_back_only_the_tasks_granted_to_it():
+    """A report listing every task in its queue (a forger under robot2's key) keeps no task
+    of robot1's from it: a robot speaks for its own queue only."""
+    d = started()
+    d.hear("progress", "robot2", progress("t1", EVERY, d.sent["robot2"].version, 10.0), 0.1)
+    out = d.tick(0.2)
+    assert d.queue_for("robot1") == d.sent["robot1"].tasks == ("t1", "t2", "t4")
+    assert "robot1" not in queues(out)  # unchanged
+    assert refused(d) == {("robot2", NOT_GRANTED): 1}
+
+
+def test_a_stalled_robot_is_back_in_the_plan_once_it_moves_again():
+    d = started(timeout=2.0)
+    v = d.sent["robot1"].version
+    now = 0.1
+    while d.robots["robot1"].lost is None:
+        d.hear("progress", "robot1", progress("t1", ("t1", "t2", "t4"), v, 0.0), now)
+        d.hear("progress", "robot2", progress("", (), d.sent["robot2"].version, 10.0), now)
+        d.tick(now)
+        now = round(now + 0.1, 1)
+    assert d.robots["robot1"].lost == STALLED
+    # stripped of its queue it reports no task: that is no progress, it stays out
+    d.hear("progress", "robot1", progress("", (), d.sent["robot1"].version, 0.0), now)
+    d.tick(now)
+    assert d.robots["robot1"].lost == STALLED
+    d.hear("progress", "robot1", progress("", (), d.sent["robot1"].version, 0.5), now + 0.1)
+    d.tick(now + 0.1)
+    assert d.robots["robot1"].lost is None and d.decisions[-1].trigger == "return"
+
+
+REPORT = st.tuples(st.sampled_from(["robot1", "robot2"]), st.sampled_from(("",) + EVERY),
+                   st.lists(st.sampled_from(EVERY), max_size=4),
+                   st.lists(st.sampled_from(EVERY), max_size=4),
+                   st.floats(-1, 11), st.integers(0, 50))
+
+
+@settings(max_examples=60, deadline=None, derandomize=True,
+          suppress_health_check=[HealthCheck.too_slow])
+@given(reports=st.lists(REPORT, max_size=30), gaps=st.lists(st.sampled_from([0.1, 3.0, 7.0]),
+                                                            min_size=30, max_size=30))
+def test_no_sequence_of_reports_stops_the_dispatcher_or_counts_a_task_twice(reports, gaps):
+    d = started(timeout=5.0)
+    now = 0.0
+    for (rid, task, queue, served, x, version), gap in zip(reports, gaps):
+        now = round(now + gap, 1)
+        d.hear("progress", rid, progress(task, queue, version, x, served), now)
+        d.tick(now)  # never raises
+        for t, who in d.done.items():
+            assert t in d.robots[who].granted and d.robots[who].served.count(t) == 1
+        served_lists = [t for v in d.robots.values() for t in v.served]
+        assert len(served_lists) == len(set(served_lists)) == len(d.done)
