@@ -50,7 +50,9 @@ from . import experiment_dask
 from .experiment_file import (Experiment, Run, _failure_problem, load_experiment)  # noqa: F401
 from .experiment_runs import (Context, Results, error_of, inexact, package_copy,
                               prepare_output, start_run)
-from .experiment_instances import prepare as prepare_instances
+from .experiment_instances import place as place_instances, prepare as prepare_instances
+from .experiment_resume import (Shard, check_block, check_folder, done_rows, identity_of,
+                                write_identity)
 from .mission import MissionOptions, MissionRun, resolve
 from .report import Options, build
 from .report_md import Precision, write_report
@@ -121,9 +123,13 @@ def resolve_all(exp: Experiment) -> dict[str | None, MissionRun]:
     return out
 
 
-def prepare_experiment(exp: Experiment, output: Path) -> tuple[Experiment, dict]:
-    """Everything checked before the first run, and the instances made into OUTPUT: the
-    experiment with its instances, and the run set-up of each architecture."""
+def prepare_experiment(exp: Experiment, output: Path, shard: Shard | None = None
+                       ) -> tuple[Experiment, dict, list[dict]]:
+    """Everything checked before the first run, then the instances made into OUTPUT: the
+    experiment with its instances, the run set-up of each architecture, and the rows OUTPUT's
+    results.csv already holds (a resumed run: experiment_resume). The instances are made in a
+    staging folder first, so a folder holding another experiment is refused with nothing
+    written."""
     resolved = resolve_all(exp)
     first = next(iter(resolved.values()))
     mission = first.mission.name
@@ -133,16 +139,25 @@ def prepare_experiment(exp: Experiment, output: Path) -> tuple[Experiment, dict]
                         f"{', '.join(sorted(instance_kinds())) or 'none'})")
     if exp.spec.instances is None:
         exp.check_team(len(first.app.robots), first.app.name)
-    prepare_output(output)
-    if exp.spec.instances is not None:
-        exp = exp.with_instances(prepare_instances(exp.spec.instances, mission,
-                                                   exp.file.parent, output, exp.doc))
-    with tempfile.TemporaryDirectory(prefix="mrta-derived-") as tmp:
-        for run in resolved.values():
-            robots = [normalize_robot_id(r.id) for r in run.app.robots]
-            exp.check_against(robots, tuple(run.arch.processes))
-            check_overrides(exp, *_overridden(exp, run, Path(tmp), robots))
-    return exp, resolved
+    with tempfile.TemporaryDirectory(prefix="mrta-staging-") as staging:
+        if exp.spec.instances is not None:
+            exp = exp.with_instances(prepare_instances(exp.spec.instances, mission,
+                                                       exp.file.parent, Path(staging), exp.doc))
+        with tempfile.TemporaryDirectory(prefix="mrta-derived-") as tmp:
+            for run in resolved.values():
+                robots = [normalize_robot_id(r.id) for r in run.app.robots]
+                exp.check_against(robots, tuple(run.arch.processes))
+                check_overrides(exp, *_overridden(exp, run, Path(tmp), robots))
+        runs = exp.runs()
+        identity = identity_of(exp, runs, shard)
+        check_folder(output, identity)
+        done = done_rows(output, runs if shard is None else
+                         [r for r in runs if shard.takes(r.index)], len(runs))
+        prepare_output(output)
+        if exp.instances:
+            exp = exp.with_instances(place_instances(exp.instances, output))
+        write_identity(output, identity)
+    return exp, resolved, done
 
 
 def _overridden(exp: Experiment, run: MissionRun, tmp: Path, robots: list[str]):
@@ -165,34 +180,45 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
                    stop: threading.Event | None = None, progress=None,
                    scheduler: str | None = None, max_runs: int = MAX_RUNS,
                    until: dict[str, float] | None = None, block: int = 1, plots: bool = True,
-                   report: Options = Options()) -> list[dict]:
+                   report: Options = Options(), shard: Shard | None = None) -> list[dict]:
     """Every run of FILE's matrix (and, with `until`, the blocks of seeds it takes), `jobs` at
     once here or, with `scheduler` (a Dask scheduler's address), as tasks on that cluster;
     returns the rows (also in OUTPUT/results.csv) and writes the report beside them. A matrix
-    of more than `max_runs` runs is refused before anything starts."""
+    of more than `max_runs` runs is refused before anything starts. Runs OUTPUT's results.csv
+    already has a row for are not run again (resuming: experiment_resume); with `shard`, only
+    that shard's runs are this call's."""
     if scheduler is not None:
         if jobs is not None:
             raise ConfigError("--jobs is for runs on this machine; with --scheduler the "
                               "workers' `runs` resources say how many run at once")
         experiment_dask.check_address(scheduler)
         experiment_dask.require_distributed()  # before anything is written
+    if shard is not None and until:
+        raise ConfigError(f"--until-ci with --shard {shard}: the blocks depend on every row of "
+                          "the matrix; run --until-ci on the shards' folders reported together "
+                          "(mrta experiment report DIR… --output OUT), then resume OUT")
     exp = load_experiment(file)
     exp.check_runs(max_runs)
-    exp, resolved = prepare_experiment(exp, output)
+    exp, resolved, done = prepare_experiment(exp, output, shard)
     stop = stop or threading.Event()
     runs = exp.runs()
     pictures = {next(r.index for r in runs if r.cell == c) for c in exp.cells()} if plots \
         else set()
+    mine = runs if shard is None else [r for r in runs if shard.takes(r.index)]
     # the application as the file names it, not the package configured for the architecture
     # (patrol_murdoch): runs of one application under two architectures are of one instance
     first = next(iter(resolved.values()))
     context = Context(first.mission.name, exp.spec.application,
                       "" if exp.spec.architectures else first.arch.name, exp.spec.duration)
-    results = Results(output / "results.csv", len(runs), progress, context)
+    results = Results(output / "results.csv", len(mine), progress, context, done)
+    if done:
+        log.info("resuming: %s of %s already in %s", len(done), plural(len(mine), "run"),
+                 results.path)
     packages = {name: run.package for name, run in resolved.items()}
     backend = _Backend(packages, exp.spec.duration, output, jobs, scheduler, stop, results,
                        pictures)
-    backend.run(runs)
+    have = results.done()
+    backend.run([r for r in mine if r.index not in have])
     precision = None
     if until:
         precision = _until_precise(exp, backend, runs, until, block, max_runs, report)
@@ -202,7 +228,7 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
         write_report(output / "results.csv", output, options, precision)
     if stop.is_set():
         raise Interrupted(f"stopped after {len(rows)} of {plural(results.total, 'run')}; "
-                          f"{results.path} has them")
+                          f"{results.path} has them: the same command resumes")
     return rows
 
 
@@ -232,7 +258,7 @@ def _until_precise(exp: Experiment, backend: "_Backend", runs: list[Run],
         log.info("block %d: %s for %s", blocks + 1, plural(len(more), "run"),
                  ", ".join(f"{c} {m}" for c, m, _ in missed[:3]))
         backend.results.expect(total + len(more))
-        backend.run(more)
+        backend.run(check_block(backend.results.done(), more))
         used += seeds
         total += len(more)
         blocks += 1
@@ -269,7 +295,7 @@ class _Backend:
         self.scheduler, self.stop, self.results, self.pictures = scheduler, stop, results, pictures
 
     def run(self, runs: list[Run]) -> None:
-        if self.stop.is_set():
+        if self.stop.is_set() or not runs:
             return
         if self.scheduler is not None:
             experiment_dask.run_on_cluster(self.scheduler, packages=self.packages,

@@ -28,7 +28,7 @@ import glob
 import math
 import re
 import tempfile
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -37,7 +37,7 @@ import msgspec
 from mrta_zenoh import instances as registry
 from mrta_zenoh.codec import validation_fault
 from mrta_zenoh.errors import ConfigError
-from mrta_zenoh.files import write_text
+from mrta_zenoh.files import write_atomically, write_text
 from mrta_zenoh.keys import ID_PATTERN
 from mrta_zenoh.limits import SEED
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean
@@ -247,6 +247,21 @@ def prepare(spec: InstancesSpec, application: str, base: Path, output: Path,
                 loaded = registry.load(staged, application)
             made.append(_written(loaded, ".yaml", folder, text))
     return _distinct(made, doc)
+
+
+def place(instances: tuple[Instance, ...], output: Path) -> tuple[Instance, ...]:
+    """The instances, made elsewhere (a staging folder: experiment.prepare_experiment makes
+    them before it knows the output folder may be written), copied to OUTPUT/instances/ and
+    pointing there."""
+    folder = output / FOLDER
+    folder.mkdir(parents=True, exist_ok=True)
+    placed = []
+    for inst in instances:
+        path = folder / inst.path.name
+        data = inst.path.read_bytes()  # byte for byte: the digest of the matrix reads them
+        write_atomically(path, lambda tmp: tmp.write_bytes(data))
+        placed.append(replace(inst, path=path.resolve()))
+    return tuple(placed)
 
 
 def _distinct(made: list[Instance], doc: YamlDoc | None) -> tuple[Instance, ...]:

@@ -155,13 +155,20 @@ def prepare_output(output: Path) -> None:
 class Results:
     """The rows of the runs that ended, in results.csv as soon as each ends (a Ctrl-C or a
     crash keeps them), the progress callback told: `progress(done, total, row)`, and
-    `progress(0, total, None)` when the total is known or grows (a block of --until-ci)."""
+    `progress(done, total, None)` when the total is known or grows (a block of --until-ci).
+    `rows`: those results.csv already held (a resumed folder: experiment_resume.done_rows), as
+    read (strings), under their own columns first."""
 
-    def __init__(self, path: Path, total: int, progress=None, context: Context = Context()):
+    def __init__(self, path: Path, total: int, progress=None, context: Context = Context(),
+                 rows: list[dict] | None = None):
         self.path, self.total, self.progress, self.context = path, total, progress, context
-        self.rows: list[dict] = []
-        self.fields: list[str] = []
+        self.rows: list[dict] = list(rows or [])
+        self.fields: list[str] = list(self.rows[0]) if self.rows else []
         self.expect(total)
+
+    def done(self) -> dict[int, dict]:
+        """The rows by run number."""
+        return {int(r["run"]): r for r in self.rows}
 
     def expect(self, total: int) -> None:
         self.total = total
@@ -178,6 +185,6 @@ class Results:
 
     def finish(self) -> list[dict]:
         """The rows in run order, results.csv rewritten in that order."""
-        self.rows.sort(key=lambda r: r["run"])
+        self.rows.sort(key=lambda r: int(r["run"]))
         write_csv(self.path, self.rows, [])
         return self.rows

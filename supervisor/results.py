@@ -21,6 +21,8 @@ measure is refused by the experiment file (experiment_file.py), so the split is 
 from __future__ import annotations
 
 import csv
+import io
+import logging
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -29,6 +31,8 @@ from typing import Any
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.files import write_atomically
 from mrta_zenoh.yamlfile import did_you_mean
+
+log = logging.getLogger("mrta.experiment")
 
 BOOKKEEPING = ("run", "config", "seed", "status", "error", "wall_seconds", "taken_over_by",
                "failed_robot")
@@ -39,6 +43,8 @@ COVERAGE = (".exactly_one", ".none", ".more_than_one")
 APPLICATION_PREFIX = "metrics."
 MESSAGES_PREFIX = "messages."  # coordination messages of each kind (summary.flat_metrics)
 FAULTS_PREFIX = "faults."  # what injected faults did to them, by cause (fault_effects.py)
+# what the machine, not the run, decides: two runs of one seed differ in these alone
+MACHINE_TIME = ("wall_seconds", "decision_ms_median", "decision_ms_max")
 INSTANCE, SEED, STATUS, OK = "instance", "seed", "status", "ok"
 REQUIRED = (SEED, STATUS)
 
@@ -109,32 +115,44 @@ class ResultsTable:
                               + did_you_mean(column, measures), file=str(self.path), line=1)
 
 
-def read_results(path: Path) -> ResultsTable:
+def read_results(path: Path, torn: bool = False) -> ResultsTable:
     """results.csv, checked: the columns every report needs (`seed`, `status`), seeds as
     integers, no row longer than the header. Measures are checked as they are read
-    (ResultsTable.number)."""
+    (ResultsTable.number). With `torn` (a folder being resumed), a last line without its
+    newline, or a last row shorter than the header, is a row cut off mid-write: left out."""
     path = Path(path)
     try:
-        f = path.open(newline="", encoding="utf-8")
+        text = path.read_bytes().decode("utf-8")
     except OSError as exc:
         raise ConfigError(f"cannot read the results: {exc.strerror}", file=str(path)) from None
-    with f:
-        try:
-            reader = csv.reader(f)
-            header = next(reader, None)
-            if not header:
-                raise ConfigError("empty: no header row", file=str(path))
-            rows, lines = [], []
-            for cells in reader:
-                if not cells:
-                    continue
-                if len(cells) > len(header):
-                    raise ConfigError(f"{len(cells)} cells for {len(header)} columns",
-                                      file=str(path), line=reader.line_num)
-                rows.append(dict(zip(header, cells + [""] * (len(header) - len(cells)))))
-                lines.append(reader.line_num)
-        except (csv.Error, UnicodeDecodeError) as exc:
-            raise ConfigError(f"not a CSV file: {exc}", file=str(path)) from None
+    except UnicodeDecodeError as exc:
+        raise ConfigError(f"not a CSV file: {exc}", file=str(path)) from None
+    cut = torn and bool(text) and not text.endswith("\n")
+    if cut:
+        text = text[:text.rfind("\n") + 1]
+    try:
+        reader = csv.reader(io.StringIO(text, newline=""))
+        header = next(reader, None)
+        if not header:
+            raise ConfigError("empty: no header row", file=str(path))
+        rows, lines = [], []
+        for cells in reader:
+            if not cells:
+                continue
+            if len(cells) > len(header):
+                raise ConfigError(f"{len(cells)} cells for {len(header)} columns",
+                                  file=str(path), line=reader.line_num)
+            rows.append(dict(zip(header, cells + [""] * (len(header) - len(cells)))))
+            lines.append(reader.line_num)
+            short = len(cells) < len(header)
+    except csv.Error as exc:
+        raise ConfigError(f"not a CSV file: {exc}", file=str(path)) from None
+    if torn and rows and short:
+        cut = True
+        rows.pop()
+        lines.pop()
+    if cut:
+        log.warning("%s: its last line was cut off mid-write; that run runs again", path)
     table = ResultsTable(path, header, rows, lines)
     for column in REQUIRED:
         if column not in header:

@@ -118,7 +118,7 @@ def test_an_experiment_gives_each_instance_run_its_cells_overrides(tmp_path):
     f.write_text("application: delivery\narchitecture: alliance\nduration: 10\nseeds: [1]\n"
                  "instances: {generator: delivery, robots: [2], count: 1, seed: 3}\n"
                  "overrides:\n  robot*.timeout_duration: [2.0, 4.0]\n")
-    exp, resolved = prepare_experiment(load_experiment(f), tmp_path / "o")
+    exp, resolved, _ = prepare_experiment(load_experiment(f), tmp_path / "o")
     group = Group()
     for run in exp.runs():
         out = tmp_path / f"r{run.index}"
