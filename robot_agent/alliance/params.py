@@ -14,12 +14,13 @@ import math
 from dataclasses import dataclass, field
 from pathlib import Path
 
+from mrta_zenoh import paramdoc
 from mrta_zenoh.limits import IMPATIENCE, THRESHOLD
-from mrta_zenoh.yamlfile import YamlDoc, sized_array
+from mrta_zenoh.paramdoc import Duration, Id, Rate, Text, sized, within
+from mrta_zenoh.yamlfile import YamlDoc
 
-from ..runtime.params import (SensorParams, StrictMapping, TaskParams, load_layers_params,
-                              load_sensor_topics, load_tasks_params, open_robot_file,
-                              require_task, task_id_of)
+from ..runtime.params import (Doc, SensorParams, Sensors, TaskParams, Topics, load_layers_params,
+                              load_tasks_params, require_task, sensor_params, sensor_topics)
 
 
 @dataclass(frozen=True)
@@ -56,63 +57,89 @@ class AgentParams:
     warnings: list[str] = field(default_factory=list)
 
 
-ROBOT_KEYS = {"name", "spin_rate", "broadcast_rate", "timeout_duration", "buffer_horizon",
-              "sensors", "behaviour_sets", "control_rate", "id", "max_expected_duration"}
+class Acquiescence(Doc):
+    yielding_delay: Duration
+    giving_up_delay: Duration
+
+
+class Impatience(Doc):
+    fast_rate: within(IMPATIENCE, positive=True)
+
+
+class SensoryFeedback(Doc):
+    plugin_name: Text
+    sensors: Topics
+
+
+class Motivation(Doc):
+    threshold: within(THRESHOLD, positive=True)
+    acquiescence: Acquiescence
+    impatience: Impatience
+    sensory_feedback: SensoryFeedback
+
+
+class BehaviourSetDoc(Doc):
+    task_id: Id
+    task_expected_duration: Duration
+    motivational_behaviour: Motivation
+
+
+class RobotFile(Doc):
+    """The robot file as written (the dissertation's layout)."""
+
+    spin_rate: Rate
+    broadcast_rate: Rate
+    timeout_duration: Duration
+    sensors: Sensors
+    behaviour_sets: sized(BehaviourSetDoc, "behaviour_set")
+    name: Text | None = None
+    id: str | None = None  # the reference files' own label of the robot; the command line's wins
+    buffer_horizon: Duration = 10.0
+    control_rate: Rate = 10.0
+    max_expected_duration: Duration = 3600.0
 
 
 def load_robot_params(path: Path | str) -> tuple[RobotParams, list[str]]:
-    doc, top, sensors = open_robot_file(path, ROBOT_KEYS, "a robot parameter file")
+    d = paramdoc.load(path, RobotFile, "a robot parameter file")
+    f = d.value
+    sensors = sensor_params(d, f.sensors)
     warnings: list[str] = []
-    topics = {s.topic_name for s in sensors}
     sets = []
     seen_tasks: set[str] = set()
-    for bpath, _ in sized_array(doc, ("behaviour_sets",), "behaviour_set"):
-        b = StrictMapping(doc, bpath, {"task_id", "task_expected_duration", "motivational_behaviour"})
+    for i, b in enumerate(f.behaviour_sets):
+        bpath = ("behaviour_sets", i)
         mpath = bpath + ("motivational_behaviour",)
-        m = StrictMapping(doc, mpath, {"threshold", "acquiescence", "impatience", "sensory_feedback"})
-        a = StrictMapping(doc, mpath + ("acquiescence",), {"yielding_delay", "giving_up_delay"})
-        i = StrictMapping(doc, mpath + ("impatience",), {"fast_rate"})
-        f = StrictMapping(doc, mpath + ("sensory_feedback",), {"plugin_name", "sensors"})
-        ftopics = load_sensor_topics(doc, mpath + ("sensory_feedback", "sensors"), topics)
-        task_id = task_id_of(b, "task_id")
-        if task_id in seen_tasks:
-            raise doc.error(bpath + ("task_id",), f"task {task_id!r} has two behaviour sets")
-        seen_tasks.add(task_id)
+        m = b.motivational_behaviour
+        ftopics = sensor_topics(d, mpath + ("sensory_feedback", "sensors"),
+                                m.sensory_feedback.sensors, sensors)
+        if b.task_id in seen_tasks:
+            raise d.error(bpath + ("task_id",), f"task {b.task_id!r} has two behaviour sets")
+        seen_tasks.add(b.task_id)
         bs = BehaviourSetParams(
-            task_id=task_id,
-            expected_duration=b.duration("task_expected_duration"),
-            threshold=m.get("threshold", float, positive=True, within=THRESHOLD),
-            yielding_delay=a.duration("yielding_delay"),
-            giving_up_delay=a.duration("giving_up_delay"),
-            fast_rate=i.get("fast_rate", float, positive=True, within=IMPATIENCE),
-            evaluator_plugin=f.get("plugin_name", str),
-            evaluator_topics=ftopics,
-            where=f.where("plugin_name"),
-        )
+            task_id=b.task_id, expected_duration=b.task_expected_duration,
+            threshold=m.threshold, yielding_delay=m.acquiescence.yielding_delay,
+            giving_up_delay=m.acquiescence.giving_up_delay, fast_rate=m.impatience.fast_rate,
+            evaluator_plugin=m.sensory_feedback.plugin_name, evaluator_topics=ftopics,
+            where=d.where(mpath + ("sensory_feedback", "plugin_name")))
         if bs.yielding_delay > bs.giving_up_delay:
-            warnings.append(doc.warning(
-                a.path + ("yielding_delay",),
+            warnings.append(d.warning(
+                mpath + ("acquiescence", "yielding_delay"),
                 f"yielding_delay {bs.yielding_delay:g} s is longer than giving_up_delay "
                 f"{bs.giving_up_delay:g} s: this robot gives up before it would ever yield"))
         sets.append(bs)
     robot = RobotParams(
-        name=top.get("name", str, ""),
-        spin_rate=top.rate("spin_rate"),
-        broadcast_rate=top.rate("broadcast_rate"),
-        timeout_duration=top.duration("timeout_duration"),
-        buffer_horizon=top.duration("buffer_horizon", 10.0),
-        sensors=sensors, behaviour_sets=tuple(sets),
-        control_rate=top.rate("control_rate", 10.0),
-        max_expected_duration=top.duration("max_expected_duration", 3600.0),
-    )
+        name=f.name or "", spin_rate=f.spin_rate, broadcast_rate=f.broadcast_rate,
+        timeout_duration=f.timeout_duration, buffer_horizon=f.buffer_horizon,
+        sensors=sensors, behaviour_sets=tuple(sets), control_rate=f.control_rate,
+        max_expected_duration=f.max_expected_duration)
     tick = 1.0 / robot.spin_rate
     if robot.timeout_duration <= tick:
-        raise doc.error(("timeout_duration",), f"timeout_duration {robot.timeout_duration:g} s must "
-                        f"be longer than the tick period 1/spin_rate = {tick:g} s, or a teammate "
-                        "heard between two ticks is never seen")
+        raise d.error(("timeout_duration",), f"timeout_duration {robot.timeout_duration:g} s must "
+                      f"be longer than the tick period 1/spin_rate = {tick:g} s, or a teammate "
+                      "heard between two ticks is never seen")
     period = effective_broadcast_period(robot)
     if robot.timeout_duration < 2 * period:
-        warnings.append(doc.warning(
+        warnings.append(d.warning(
             ("timeout_duration",),
             f"broadcasts leave on ticks, so every {period:g} s (broadcast_rate "
             f"{robot.broadcast_rate:g} Hz at spin_rate {robot.spin_rate:g} Hz); timeout_duration "

@@ -1,20 +1,25 @@
-"""What every architecture's parameter files share: a strict reader of YAML mappings (unknown
-keys refused with "did you mean", numbers finite, rates in range), the robot file's sensors, the
-tasks file (ids, names, layer stacks) and the layers file the plugins read.
+"""What every architecture's parameter files share: the robot file's sensors, the tasks file
+(ids, names, layer stacks) and the layers file the plugins read, as typed documents
+(mrta_zenoh.paramdoc: unknown keys refused with "did you mean", numbers finite, rates and
+durations in range, rqt_mrta's sized arrays read as lists).
 
 Strict: a missing mandatory key or an unknown key is a ConfigError naming file, line and key.
-ALLIANCE's robot file (behaviour sets) is read in mrta_agent.alliance.params, MURDOCH's
-(skills, auctions) in mrta_agent.murdoch.params, both through these helpers.
+Each architecture's robot file is a Struct of its own (its params module) holding `sensors:
+Sensors`; the tasks file is `TasksFile[TaskDoc]` (MURDOCH's adds keys to TaskDoc).
 """
 
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterator
+from typing import Any, Generic, Iterator, TypeVar
 
+import msgspec
+
+from mrta_zenoh import paramdoc
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.keys import is_id
 from mrta_zenoh.limits import DURATION, RATE, Range
+from mrta_zenoh.paramdoc import Document, Duration, Id, Text, sized
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, get_path, load_yaml, sized_array
 
 
@@ -36,6 +41,94 @@ class TaskParams:
     name: str
     layers: tuple[str, ...]
     where: tuple[str, ...] = ()  # file:line of each layer's plugin_name
+
+
+class Doc(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
+    """The base of every parameter document: no key beyond its fields."""
+
+
+class SensorDoc(Doc):
+    plugin_name: Text
+    topic_name: Text
+    timeout_duration: Duration = 5.0
+    buffer_horizon: Duration = 5.0
+
+
+class TopicDoc(Doc):
+    """One of the robot's sensors, named by topic (an evaluator's inputs, a task's resources)."""
+    topic_name: Text
+
+
+class LayerDoc(Doc):
+    plugin_name: Text
+
+
+class TaskDoc(Doc):
+    id: Id
+    name: Text | None = None  # the id when absent
+    layers: sized(LayerDoc, "layer") = []
+
+
+TaskT = TypeVar("TaskT", bound=TaskDoc)
+
+
+class TasksFile(Doc, Generic[TaskT]):
+    tasks: sized(TaskT, "task")
+
+
+Sensors = sized(SensorDoc, "sensor")
+Topics = sized(TopicDoc, "sensor")
+
+
+def sensor_params(d: Document, sensors: list[SensorDoc]) -> tuple[SensorParams, ...]:
+    """The robot file's `sensors` (every architecture's robot file has them at the top)."""
+    return tuple(SensorParams(s.plugin_name, s.topic_name, s.timeout_duration, s.buffer_horizon,
+                              d.where(("sensors", i, "plugin_name")))
+                 for i, s in enumerate(sensors))
+
+
+def sensor_topics(d: Document, path: tuple, topics: list[TopicDoc],
+                  robot: tuple[SensorParams, ...]) -> tuple[str, ...]:
+    """An evaluator's `sensors` at `path`: topic names, each one of the robot's sensors."""
+    known = {s.topic_name for s in robot}
+    for i, t in enumerate(topics):
+        if t.topic_name not in known:
+            raise d.error(path + (i, "topic_name"), f"sensor topic {t.topic_name!r} is not among "
+                          f"the robot's sensors ({', '.join(sorted(known)) or 'none'})"
+                          + did_you_mean(t.topic_name, known))
+    return tuple(t.topic_name for t in topics)
+
+
+def pose_topic_of(d: Document, pose_topic: str | None, robot: tuple[SensorParams, ...]
+                  ) -> str | None:
+    """The robot file's `pose_topic`, one of its sensors (or none)."""
+    known = {s.topic_name for s in robot}
+    if pose_topic is not None and pose_topic not in known:
+        raise d.error(("pose_topic",), f"pose_topic {pose_topic!r} is not among the robot's "
+                      f"sensors ({', '.join(sorted(known)) or 'none'})"
+                      + did_you_mean(pose_topic, known))
+    return pose_topic
+
+
+def read_tasks(path: Path | str, kind: type[TaskT] = TaskDoc
+               ) -> Iterator[tuple[Document, int, TaskT, TaskParams]]:
+    """Each task of a tasks file (every architecture's) as `kind` — TaskDoc, or an
+    architecture's subclass with keys of its own — with its document, its index and its
+    TaskParams. Ids must be unique."""
+    d = paramdoc.load(path, TasksFile[kind], "a tasks parameter file")
+    seen: set[str] = set()
+    for i, t in enumerate(d.value.tasks):
+        if t.id in seen:
+            raise d.error(("tasks", i, "id"), f"task id {t.id!r} appears twice")
+        seen.add(t.id)
+        where = tuple(d.where(("tasks", i, "layers", j, "plugin_name"))
+                      for j in range(len(t.layers)))
+        yield d, i, t, TaskParams(t.id, t.name or t.id,
+                                  tuple(layer.plugin_name for layer in t.layers), where)
+
+
+def load_tasks_params(path: Path | str) -> dict[str, TaskParams]:
+    return {t.id: t for *_, t in read_tasks(path)}
 
 
 class StrictMapping:
@@ -156,10 +249,6 @@ def iter_tasks(path: Path | str, extra_keys: frozenset[str] = frozenset()
                 layers.append(lr.get("plugin_name", str))
                 where.append(lr.where("plugin_name"))
         yield r, TaskParams(task_id, r.get("name", str, task_id), tuple(layers), tuple(where))
-
-
-def load_tasks_params(path: Path | str) -> dict[str, TaskParams]:
-    return {t.id: t for _, t in iter_tasks(path)}
 
 
 def load_layers_params(path: Path | str | None) -> YamlDoc | None:
