@@ -197,7 +197,7 @@ def test_a_partitioned_robot_hears_nothing_and_is_heard_by_nobody_then_rejoins(t
     other(5.0, 3)
     run(agent, bus, clock, 6.0)
     assert heard == [pytest.approx(1.0), pytest.approx(5.0)]
-    assert agent.fault_counts["cut_off"] == 1
+    assert agent.injector.counts["cut_off"] == 1
     stamps = [s.message.header.stamp for s in irc]
     assert [t for t in stamps if 2.0 <= t < 4.0]  # it went on saying what its logic said
     peer = plan_for(parse_faults("partition:robot1@2+2"), "robot2", 0)
@@ -214,7 +214,7 @@ def test_a_receiver_drops_what_a_partitioned_teammate_sent_in_its_window(tmp_pat
         bus.publish(ALLIANCE.key("robot2", IRC),
                     InterRobotCommunication(Header("robot2", t, seq), "b", 60.0))
     run(agent, bus, clock, 5.0)
-    assert heard == [1, 4] and agent.fault_counts["cut_off"] == 2
+    assert heard == [1, 4] and agent.injector.counts["cut_off"] == 2
 
 
 def test_loss_drops_the_messages_the_seed_says(tmp_path):
@@ -228,7 +228,7 @@ def test_loss_drops_the_messages_the_seed_says(tmp_path):
     run(agent, bus, clock, 4.2)
     expected = [s for s in range(1, 41) if not plan.lost(key, s)]
     assert heard == expected and 5 < len(expected) < 35
-    assert agent.dropped_by_fault == 40 - len(expected)
+    assert agent.injector.dropped == 40 - len(expected)
 
 
 def test_a_robot_tells_what_the_faults_did_to_its_messages(tmp_path):
@@ -279,7 +279,7 @@ def test_range_drops_the_messages_of_robots_farther_apart_than_r(tmp_path):
                     InterRobotCommunication(Header("robot2", t, seq), "b", 60.0))
     run(agent, bus, clock, 3.0)
     assert heard == [1, 3]  # 9 m and 8.1 m away: dropped
-    assert agent.dropped_by_fault == 2
+    assert agent.injector.dropped == 2
     assert parse_faults("range:8").range == 8.0
     with pytest.raises(ValueError, match="range:R"):
         parse_faults("range:0")
@@ -368,7 +368,7 @@ def test_a_message_a_partition_cuts_is_counted_once_whatever_its_latency(tmp_pat
                     InterRobotCommunication(Header("robot2", t, seq), "b", 60.0))
     run(agent, bus, clock, 4.0)
     assert heard == [1]
-    assert (agent.fault_counts["cut_off"], agent.fault_counts["delayed"]) == (1, 1)
+    assert (agent.injector.counts["cut_off"], agent.injector.counts["delayed"]) == (1, 1)
 
 
 def test_a_robot_named_by_an_item_still_learns_whom_an_at_first_partition_cut_off():

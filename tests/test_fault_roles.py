@@ -154,7 +154,7 @@ def test_an_at_first_partition_of_a_teammate_cuts_what_it_sends_in_its_window(tm
         assigned_key("robot2"), Assigned(Header("robot2", 0.01, 1), "b"))),
         say(1.0, 1), say(2.5, 2), say(4.9, 3), say(5.5, 4)])
     assert not agent.faults.cut_off(3.0) and agent.faults.sender_cut("robot2", 3.0)
-    assert heard == [1, 4] and agent.fault_counts["cut_off"] == 2
+    assert heard == [1, 4] and agent.injector.counts["cut_off"] == 2
 
 
 def test_a_robot_an_item_names_is_never_first_and_announcements_only_come_with_first(tmp_path):

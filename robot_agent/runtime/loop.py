@@ -22,13 +22,9 @@ what every architecture needs and none should write twice:
 * publishing: every message the logic says goes out on `robotN/<namespace>/<kind>` with a header
   carrying the robot, the time and a per-key sequence number;
 * the low level: plugins' set-up and shutdown, the active task's layers, a restart of time;
-* fault injection (mrta_zenoh/failure.py), here because this is the one place every
-  architecture's messages go out and come in, and its layers run: a crash (SIGKILL), a stall
-  (the layers stop, the decision logic and its messages go on), a partition (for a while
-  nothing heard, and what it sends heard by nobody: each receiver drops it, so the recording
-  still holds what the robot said and did), loss and latency of received coordination messages; and a
-  fault naming a robot by role, `@first`, resolved here at its time from the team's
-  announcements of their first assignments (mrta_zenoh/fault_roles.py: exact in lockstep).
+* the hooks of fault injection (faults.py, `FaultInjector`: crash, stall, partition, loss,
+  latency, range, `@first`), called here because this is the one place every architecture's
+  messages go out and come in, and its layers run.
 
 An architecture supplies a `Coordinator` (its decision logic for one robot) through
 `mrta_agent.runtime.architecture.AgentArchitecture`.
@@ -38,7 +34,6 @@ from __future__ import annotations
 
 import collections
 import logging
-import math
 import threading
 import time
 from typing import TYPE_CHECKING, Callable, Iterable, Iterator
@@ -47,17 +42,16 @@ from mrta_zenoh.architectures import Architecture
 from mrta_zenoh.bus import Bus, Sample
 from mrta_zenoh.clock import EPSILON, Clock
 from mrta_zenoh.errors import ConfigError
-from mrta_zenoh.failure import FaultPlan, crash_now
-from mrta_zenoh.fault_roles import EVERY_ASSIGNED, Assigned, assigned_key, first_assigned
-from mrta_zenoh.fault_tally import CAUSES, TALLY_PERIOD, FaultTally, tally_key
-from mrta_zenoh import keys
+from mrta_zenoh.failure import FaultKind, FaultPlan, crash_now
 from mrta_zenoh.keys import first_chunk
-from mrta_zenoh.messages import Header, Odometry
+from mrta_zenoh.messages import Header
 from mrta_zenoh.seeds import robot_rng
 from mrta_zenoh.timetext import at
 from mrta_zenoh.untrusted import visible
 
 from .coordinator import Coordinator, Say
+from .faults import FaultInjector
+from .inbox import Heard, Inbox
 from .plugins import AgentContext, Layer, Plugins
 
 if TYPE_CHECKING:
@@ -65,7 +59,6 @@ if TYPE_CHECKING:
 
 log = logging.getLogger("mrta.agent")
 
-INBOX = 10_000  # queued messages at most: a flood drops the oldest, never grows the process
 TEAM_WAIT = 10.0  # wall s an agent in lockstep waits for its roster's tokens before its first tick
 MAX_TOKENS = 1_000  # robots whose tokens are tracked: invented ids beyond are ignored, counted
 MAX_SUBJECT_TOKENS = 10_000  # teammates' subject tokens tracked: a flood beyond is ignored, counted
@@ -73,17 +66,11 @@ SUBJECT = "subject"  # subject tokens: robotN/<namespace>/subject/<subject> (nev
 DROP_LOG_PERIOD = 10.0  # wall seconds between two log lines about the same kind of drop
 
 
-def is_due(heard: float, now: float, lockstep: bool, delayed: bool) -> bool:
-    """Whether what counts as heard at `heard` is handled at `now` (Agent.take_due)."""
-    return not ((lockstep and heard >= now) or (delayed and heard > now + EPSILON))
-
-
 class Agent:
     """One robot's agent: `architecture` says which keys and messages, `make_coordinator` builds
     the decision logic (again when time restarts), `plugins` are the robot's sensors, evaluators
     and layers."""
 
-    faults: FaultPlan | None = None  # fault injection: crash, stall, partition, loss, latency
     stalled = False  # the stall fault struck: the layers no longer run
     roster: frozenset[str] | None = None  # the only robots that may join the team (limit_team)
 
@@ -110,23 +97,13 @@ class Agent:
         self.ignored_strangers = 0
         self.ignored_outsiders = 0  # tokens and messages of robots off the roster
         self.refused = 0
-        # what injected faults did to coordination messages, by cause (fault_tally.CAUSES),
-        # and what the robot last said of it (robotN/faults/tally) and when
-        self.fault_counts: collections.Counter[str] = collections.Counter()
-        # drops decided on receipt (network threads), counted by the loop once due — at the
-        # time they would have been heard, by take_due's rule — so that in lockstep a tally
-        # at time t holds exactly the drops of messages heard before t, whatever the threads did
-        self._fault_pending: collections.deque[tuple[float, str]] = collections.deque()
-        self._told_counts: dict[str, int] = {}
-        self._told_at = -math.inf
+        self.injector = FaultInjector(robot_id, bus, clock, logger)  # `faults` sets its plan
         # teammates' coordination messages that reached this agent, by kind (whatever became of
         # them): the cost of what it subscribes to (docs/murdoch.md, Messages heard)
         self.received: collections.Counter[str] = collections.Counter()
         self._last_drop_log: dict[str, float] = {}
         self._seq: dict[str, int] = collections.defaultdict(int)
-        # (time heard, kind, sender, message, key): filled by network callbacks, drained by the
-        # loop thread only
-        self._inbox: collections.deque = collections.deque(maxlen=INBOX)
+        self._inbox = Inbox()  # filled by network callbacks, drained by the loop thread only
         # tokens are kept apart from the bounded inbox, so a flood of messages can never push
         # a teammate out of the team: callbacks record the latest state per robot (`_alive` is
         # their view, for dropping strangers before they take inbox space), the loop applies
@@ -143,14 +120,17 @@ class Agent:
         self._subject_tokens: dict[str, set[str]] = {}
         self._told_subjects: dict[str, set[str]] = {}
         self._handles: list = []  # subscriptions and the agent's token, closed at shutdown
-        self._where: dict[str, tuple[float, float]] = {}  # robot → its ground truth (range:R)
         self._layers_task: str | None = None
-        # an @first fault: the team's first assignments heard (robot → stamp; callbacks write,
-        # under _token_lock), whether this robot announced its own, and the plan as given (a
-        # restart of time resolves it again)
-        self._assigned: dict[str, float] = {}
-        self._announced = False
-        self._given_faults: FaultPlan | None = None
+
+    @property
+    def faults(self) -> FaultPlan | None:
+        """The faults injected into this agent, as resolved so far (`FaultInjector.plan`)."""
+        return self.injector.plan
+
+    @faults.setter
+    def faults(self, plan: FaultPlan | None) -> None:
+        """Set before `start`: the run's plan for this agent (mrta_zenoh.failure.plan_for)."""
+        self.injector.give(plan)
 
     # ------------------------------------------------------------ set-up (py_trees' setup)
     def limit_team(self, team: Iterable[str] | None) -> None:
@@ -165,14 +145,8 @@ class Agent:
         """Plugins subscribe, then the agent listens to its teammates and their tokens."""
         self.advertised()  # a bad subject is a configuration error before anything starts
         self.plugins.setup(self.ctx)
-        self._given_faults = self.faults
-        if self.faults is not None and self.faults.first is not None:
-            self._handles.append(self.bus.subscribe(EVERY_ASSIGNED, self._on_assigned,
-                                                    msg_type=Assigned))
+        self._handles.extend(self.injector.listen(lambda: self.roster))
         arch = self.architecture
-        if self.faults is not None and self.faults.range is not None:
-            self._handles.append(self.bus.subscribe(keys.ground_truth("*"), self._on_truth,
-                                                    msg_type=Odometry))
         for kind in self.coordinator.listens:
             for key_expr in self.listen_keys(kind):
                 self._handles.append(self.bus.subscribe(
@@ -293,40 +267,6 @@ class Agent:
                 self._subject_seen.discard(pair)
             self._subject_changes[pair] = alive
 
-    def _on_assigned(self, sample: Sample) -> None:
-        """A robot's first assignment (its own included): recorded for an @first fault. Only
-        the earliest of a robot counts, from a sender its key and header agree on and, with a
-        roster, on the team."""
-        sender = first_chunk(sample.key)
-        msg = sample.message
-        if msg.header.frame_id.strip("/") != sender or (self.roster is not None
-                                                         and sender not in self.roster):
-            return
-        with self._token_lock:
-            if len(self._assigned) < MAX_TOKENS or sender in self._assigned:
-                self._assigned[sender] = min(self._assigned.get(sender, msg.header.stamp),
-                                             msg.header.stamp)
-
-    def _announce(self, now: float) -> None:
-        """With an @first fault in the run, say once when this robot first holds a task."""
-        if self._announced or self._given_faults is None or self._given_faults.first is None \
-                or self.coordinator.active_task is None:
-            return
-        self._announced = True
-        self.bus.publish(assigned_key(self.robot_id),
-                         Assigned(Header(self.robot_id, now, 1), self.coordinator.active_task))
-
-    def resolve_first(self, now: float) -> None:
-        """The @first fault's time has come: strike it if this robot was first assigned
-        (fault_roles.first_assigned over what was heard stamped before it), else drop it."""
-        plan = self.faults
-        with self._token_lock:
-            heard = dict(self._assigned)
-        who = first_assigned(heard, plan.first.at, plan.taken)
-        self.log.info("%s: %s at t=%.2f is %s", self.robot_id, plan.first.spec, now,
-                      who or "nobody (no robot was assigned before)")
-        self.faults = plan.resolved(who)
-
     def _on_message(self, kind: str, sample: Sample) -> None:
         sender = first_chunk(sample.key)
         msg = sample.message
@@ -347,25 +287,10 @@ class Agent:
             self._drop("ignored_strangers", "ignoring %s from %s, which holds no agent token",
                        type(msg).__name__, sender)
             return
-        heard = self.heard_at(msg.header.stamp)
-        plan = self.faults
-        if plan is not None and plan.channel:
-            if plan.lost(sample.key, msg.header.seq):
-                self._drop_by_fault(heard, "lost")
-                return
-            heard += plan.delay(sample.key, msg.header.seq)
-            if plan.cut_off(heard):
-                self._drop_by_fault(heard, "cut_off")
-                return
-            if plan.out_of_range(self._where.get(self.robot_id), self._where.get(sender)):
-                self._drop_by_fault(heard, "out_of_range")
-                return
-        self._inbox.append((heard, kind, sender, msg, sample.key))
-
-    def _on_truth(self, sample: Sample) -> None:
-        """A robot's ground truth, for the range fault (failure.py, `range:R`)."""
-        pose = sample.message.pose
-        self._where[first_chunk(sample.key)] = (pose.x, pose.y)
+        heard = self.injector.on_receipt(sample.key, msg.header.seq, sender,
+                                         self.heard_at(msg.header.stamp))
+        if heard is not None:  # else a fault dropped it (counted by the injector)
+            self._inbox.put(Heard(heard, kind, sender, msg, sample.key))
 
     # ------------------------------------------------------------ the inbox
     def in_lockstep(self) -> bool:
@@ -377,28 +302,9 @@ class Agent:
         An injected latency comes on top (`_on_message`)."""
         return stamp if self.in_lockstep() else self.clock.now()
 
-    def take_due(self, now: float) -> list[tuple]:
-        """Every queued item due at `now`. In lockstep, one stamped at this very time waits for
-        the next tick: the sender handled this step too, and what it said belongs after it.
-        One delayed by an injected latency waits until its time (and they come in time order:
-        jitter reorders messages, as a network does).
-
-        In lockstep the items due are put in (time heard, sender, key, sequence number) order:
-        the order they arrived in is the network's — even one teammate's, on two keys — and it
-        changed what a run did: which of two announcements stamped alike was bid on first,
-        hence the bids' sequence numbers, hence which bid an injected loss drew."""
-        lockstep = self.in_lockstep()
-        delayed = self.faults is not None and self.faults.latency is not None
-        due, later = [], []
-        while self._inbox:
-            item = self._inbox.popleft()
-            (due if is_due(item[0], now, lockstep, delayed) else later).append(item)
-        self._inbox.extendleft(reversed(later))
-        if lockstep:
-            due.sort(key=lambda item: (item[0], item[2], item[4], item[3].header.seq))
-        elif delayed:
-            due.sort(key=lambda item: item[0])
-        return due
+    def take_due(self, now: float) -> list[Heard]:
+        """Every queued message due at `now`, in order (`Inbox.take_due`)."""
+        return self._inbox.take_due(now, self.in_lockstep(), self.injector.delayed)
 
     def _drop(self, counter: str, reason: str, *args) -> None:
         """Count a dropped message in `counter`; log at most one line per DROP_LOG_PERIOD wall
@@ -414,46 +320,6 @@ class Agent:
                              *(visible(a, 200) if isinstance(a, str) else a for a in args), n)
 
     # ------------------------------------------------------------ one decision step
-    @property
-    def dropped_by_fault(self) -> int:
-        """Coordination messages injected faults kept from this robot (delays not counted)."""
-        self._settle_faults(self.clock.now(), everything=True)
-        return sum(n for cause, n in self.fault_counts.items() if cause != "delayed")
-
-    def _drop_by_fault(self, heard: float, cause: str) -> None:
-        with self._token_lock:  # network callbacks run on several threads
-            self._fault_pending.append((heard, cause))
-
-    def _settle_faults(self, now: float, everything: bool = False) -> None:
-        """Count the drops due at `now` (take_due's rule; `everything`: all of them)."""
-        lockstep = self.in_lockstep()
-        delayed = self.faults is not None and self.faults.latency is not None
-        with self._token_lock:
-            pending = list(self._fault_pending)
-            self._fault_pending.clear()
-        later = []
-        for heard, cause in pending:
-            if not everything and not is_due(heard, now, lockstep, delayed):
-                later.append((heard, cause))
-            else:
-                self.fault_counts[cause] += 1
-        if later:
-            with self._token_lock:
-                self._fault_pending.extend(later)
-
-    def tell_fault_tally(self, now: float, final: bool = False) -> None:
-        """Say what injected faults did to this robot's messages (mrta_zenoh.fault_tally), when
-        it changed — at most every TALLY_PERIOD, or now as the robot stops."""
-        if not final and now < self._told_at + TALLY_PERIOD:
-            return
-        self._settle_faults(now)
-        counts = {cause: self.fault_counts[cause] for cause in CAUSES}
-        if counts == self._told_counts or not any(counts.values()):
-            return
-        self._told_counts, self._told_at = counts, now
-        self.bus.publish(tally_key(self.robot_id), FaultTally(Header(self.robot_id, now, 1),
-                                                              **counts))
-
     def tick_high(self, now: float) -> None:
         with self._token_lock:
             changes, self._token_changes = self._token_changes, {}
@@ -464,26 +330,21 @@ class Agent:
                 self.coordinator.teammate(robot, alive)
         if changes or subject_changes:
             self._apply_subjects(set(changes) | {r for r, _ in subject_changes}, subject_changes)
-        plan = self.faults
-        for t, kind, sender, what, key in self.take_due(now):
-            # here, not on receipt: an `@first` partition is resolved by now (schedule)
-            if plan is not None and plan.peers_cut and plan.sender_cut(sender,
-                                                                       what.header.stamp):
-                self.fault_counts["cut_off"] += 1
+        for item in self.take_due(now):
+            what = item.message
+            if self.injector.cut(item.sender, what.header.stamp):
                 continue
-            if sender not in self.team:
+            if item.sender not in self.team:
                 self._drop("ignored_strangers", "ignoring %s from %s, which holds no agent token",
-                           type(what).__name__, sender)
+                           type(what).__name__, item.sender)
                 continue
-            if plan is not None and plan.latency is not None and plan.delay(
-                    key, what.header.seq) > 0:
-                self.fault_counts["delayed"] += 1  # heard late, and heard
-            if not self.coordinator.hear(kind, sender, what, t):
-                self._drop("refused", "refused %s from %s", type(what).__name__, sender)
+            self.injector.heard_late(item.key, what.header.seq)
+            if not self.coordinator.hear(item.kind, item.sender, what, item.at):
+                self._drop("refused", "refused %s from %s", type(what).__name__, item.sender)
         for say in self.coordinator.tick(now):
             self.send(say, now)
         self.switch_layers(self.coordinator.active_task, now)
-        self._announce(now)
+        self.injector.announce(now, self.coordinator.active_task)
 
     def _apply_subjects(self, robots: set[str], changes: dict[tuple[str, str], bool]) -> None:
         """Tell the coordinator what changed of its teammates' subjects: a subject counts while
@@ -568,14 +429,7 @@ class Agent:
         for sensor in self.plugins.sensors.values():
             sensor.forget()
         self._inbox.clear()
-        self.faults = self._given_faults  # an @first fault is resolved again in the new run
-        with self._token_lock:  # the tally counts from its run's start
-            self.fault_counts.clear()
-            self._fault_pending.clear()
-        self._told_counts, self._told_at = {}, -math.inf
-        with self._token_lock:
-            self._assigned.clear()
-        self._announced = False
+        self.injector.restart()  # an @first fault is resolved again, the tally counts afresh
         self.coordinator = self._make_coordinator()
         for robot in sorted(self.team):
             self.coordinator.teammate(robot, True)
@@ -586,9 +440,8 @@ class Agent:
     def shutdown(self) -> None:
         """Stop the robot: deactivate the running layers, command zero velocity, let every
         plugin close what it opened (py_trees' terminate, then shutdown), stop listening."""
+        self.injector.final_tally()
         now = self.clock.now()
-        if self._given_faults is not None:
-            self.tell_fault_tally(now, final=True)
         for layer in self.layers_of(self.active_task):
             layer.on_deactivate(now)
         if not self.is_process:
@@ -622,12 +475,10 @@ class Agent:
                 return
             yield t
             now = self.clock.now()
-            if self.faults is not None and self.faults.first is not None \
-                    and now >= self.faults.first.at:
-                self.resolve_first(now)
-            if self.faults is not None and self.faults.crashed(now):
+            strike = self.injector.strikes(now)
+            if strike is FaultKind.CRASH:
                 crash_now(self.robot_id, now, self.log)  # a real crash: no shutdown, no goodbye
-            if self.faults is not None and not self.stalled and self.faults.stalled(now):
+            if strike is FaultKind.STALL and not self.stalled:
                 self.stall(now)
             if self.clock.restarts != epoch:
                 epoch = self.clock.restarts
@@ -637,8 +488,7 @@ class Agent:
                     until = now + (until - t)
             if now >= next_high - EPSILON:
                 self.tick_high(now)
-                if self._given_faults is not None:
-                    self.tell_fault_tally(now)
+                self.injector.tally(now)
                 next_high += high_period
                 if next_high <= now:  # fell behind: skip, don't burst
                     next_high = now + high_period

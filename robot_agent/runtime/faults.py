@@ -1,0 +1,237 @@
+"""Fault injection in an agent (mrta_zenoh/failure.py: the grammar and the pure plan): what the
+agent driver (loop.py) asks at its hooks, and nothing the driver needs otherwise.
+
+In the driver because that is the one place every architecture's messages go out and come in
+and its layers run, yet apart from it, so the driver reads as a driver and the injector is
+tested alone on the in-process bus and a manual clock (tests/test_fault_injector.py). It holds
+the run's plan, resolves a fault naming a robot by role, `@first`, at its time from the team's
+announcements of their first assignments (mrta_zenoh/fault_roles.py: exact in lockstep), acts
+on received coordination messages, and tallies what it did (mrta_zenoh/fault_tally.py):
+
+* a crash (SIGKILL) and a stall (the layers stop, the decision logic and its messages go on)
+  strike at their time: `strikes` says which, the driver does it (its crash hook, its layers);
+* a partition: for a while nothing heard (`on_receipt`), and what the robot sends heard by
+  nobody — each receiver drops it (`cut`), so the recording still holds what the robot said
+  and did;
+* loss and out-of-range drops on receipt (`on_receipt`); latency delays a message's time heard
+  (`on_receipt`) and is counted once the message is handled (`heard_late`).
+
+The hooks, in the order a tick meets them: `listen` (at start), `on_receipt` (network threads),
+`strikes` (each wake-up), `cut` and `heard_late` (per message handled at a tick), `announce`
+(end of a tick), `tally` (after a decision tick), `restart` (time restarted), `final_tally`
+(shutdown).
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import math
+import threading
+from typing import Callable
+
+from mrta_zenoh import keys
+from mrta_zenoh.bus import Bus, Sample
+from mrta_zenoh.clock import Clock
+from mrta_zenoh.failure import FaultKind, FaultPlan
+from mrta_zenoh.fault_roles import EVERY_ASSIGNED, Assigned, assigned_key, first_assigned
+from mrta_zenoh.fault_tally import CAUSES, TALLY_PERIOD, FaultTally, tally_key
+from mrta_zenoh.keys import first_chunk
+from mrta_zenoh.messages import Header, Odometry
+
+from .inbox import is_due
+
+MAX_ASSIGNED = 1_000  # robots whose first assignment is tracked: invented ids beyond are ignored
+
+
+class FaultInjector:
+    """One agent's fault injection. `plan` is the plan as resolved so far (an `@first` item
+    becomes the robot's own fault, a peer's cut or nothing at its time); `given` the plan as
+    given, which a restart of time resolves again. None: no fault touches this agent, and
+    every hook is a no-op."""
+
+    def __init__(self, robot_id: str, bus: Bus, clock: Clock, log: logging.Logger):
+        self.robot_id, self.bus, self.clock, self.log = robot_id, bus, clock, log
+        self.plan: FaultPlan | None = None
+        self.given: FaultPlan | None = None
+        # what injected faults did to coordination messages, by cause (fault_tally.CAUSES),
+        # and what the robot last said of it (robotN/faults/tally) and when
+        self.counts: collections.Counter[str] = collections.Counter()
+        self._told_counts: dict[str, int] = {}
+        self._told_at = -math.inf
+        self._lock = threading.Lock()  # network callbacks run on several threads
+        # drops decided on receipt (network threads), counted by the loop once due — at the
+        # time they would have been heard, by the inbox's rule — so that in lockstep a tally at
+        # time t holds exactly the drops of messages heard before t, whatever the threads did
+        self._pending: collections.deque[tuple[float, str]] = collections.deque()
+        # an @first fault: the team's first assignments heard (robot → stamp; callbacks write,
+        # under _lock) and whether this robot announced its own
+        self._assigned: dict[str, float] = {}
+        self._announced = False
+        self._where: dict[str, tuple[float, float]] = {}  # robot → its ground truth (range:R)
+
+    def give(self, plan: FaultPlan | None) -> None:
+        """The run's plan for this agent (mrta_zenoh.failure.plan_for), before `listen`."""
+        self.plan = self.given = plan
+
+    @property
+    def delayed(self) -> bool:
+        """Whether received messages wait for an injected latency (the inbox's due rule)."""
+        return self.plan is not None and self.plan.latency is not None
+
+    # ------------------------------------------------------------ at start
+    def listen(self, roster: Callable[[], frozenset[str] | None]) -> list:
+        """Subscribe to what the plan needs: the team's first assignments for an `@first`
+        fault (only a robot on the `roster` counts, when there is one), every robot's ground
+        truth for `range:R`. Returns the subscriptions, for the driver to close."""
+        plan, handles = self.plan, []
+        if plan is not None and plan.first is not None:
+            handles.append(self.bus.subscribe(
+                EVERY_ASSIGNED, lambda s: self._on_assigned(s, roster()), msg_type=Assigned))
+        if plan is not None and plan.range is not None:
+            handles.append(self.bus.subscribe(keys.ground_truth("*"), self._on_truth,
+                                              msg_type=Odometry))
+        return handles
+
+    def _on_assigned(self, sample: Sample, roster: frozenset[str] | None) -> None:
+        """A robot's first assignment (its own included). Only the earliest of a robot counts,
+        from a sender its key and header agree on and, with a roster, on the team."""
+        sender = first_chunk(sample.key)
+        msg = sample.message
+        if msg.header.frame_id.strip("/") != sender or (roster is not None
+                                                         and sender not in roster):
+            return
+        with self._lock:
+            if len(self._assigned) < MAX_ASSIGNED or sender in self._assigned:
+                self._assigned[sender] = min(self._assigned.get(sender, msg.header.stamp),
+                                             msg.header.stamp)
+
+    def _on_truth(self, sample: Sample) -> None:
+        """A robot's ground truth, for the range fault (failure.py, `range:R`)."""
+        pose = sample.message.pose
+        self._where[first_chunk(sample.key)] = (pose.x, pose.y)
+
+    # ------------------------------------------------------------ on receipt (network threads)
+    def on_receipt(self, key: str, seq: int, sender: str, heard: float) -> float | None:
+        """A teammate's coordination message, from `sender` on `key` with sequence number
+        `seq`, that would count as heard at `heard`: None if a fault drops it (counted once
+        due), else when it counts as heard (later by an injected latency)."""
+        plan = self.plan
+        if plan is None or not plan.channel:
+            return heard
+        if plan.lost(key, seq):
+            return self._drop(heard, "lost")
+        heard += plan.delay(key, seq)
+        if plan.cut_off(heard):
+            return self._drop(heard, "cut_off")
+        if plan.out_of_range(self._where.get(self.robot_id), self._where.get(sender)):
+            return self._drop(heard, "out_of_range")
+        return heard
+
+    def _drop(self, heard: float, cause: str) -> None:
+        with self._lock:
+            self._pending.append((heard, cause))
+
+    # ------------------------------------------------------------ at the loop's wake-ups
+    def strikes(self, now: float) -> FaultKind | None:
+        """What strikes this agent now: CRASH or STALL (the driver does it; a stall is said
+        at every wake-up from its time on), else None. An `@first` fault whose time has come is
+        resolved first."""
+        plan = self.plan
+        if plan is None:
+            return None
+        if plan.first is not None and now >= plan.first.at:
+            plan = self.resolve_first(now)
+        if plan.crashed(now):
+            return FaultKind.CRASH
+        if plan.stalled(now):
+            return FaultKind.STALL
+        return None
+
+    def resolve_first(self, now: float) -> FaultPlan:
+        """The @first fault's time has come: strike it if this robot was first assigned
+        (fault_roles.first_assigned over what was heard stamped before it), else drop it."""
+        plan = self.plan
+        with self._lock:
+            heard = dict(self._assigned)
+        who = first_assigned(heard, plan.first.at, plan.taken)
+        self.log.info("%s: %s at t=%.2f is %s", self.robot_id, plan.first.spec, now,
+                      who or "nobody (no robot was assigned before)")
+        self.plan = plan.resolved(who)
+        return self.plan
+
+    def cut(self, sender: str, stamp: float) -> bool:
+        """Whether what `sender` sent at `stamp` is dropped, its sender cut off then by its
+        partition (counted). At the tick, not on receipt: an `@first` partition is resolved by
+        then."""
+        plan = self.plan
+        if plan is not None and plan.peers_cut and plan.sender_cut(sender, stamp):
+            self.counts["cut_off"] += 1
+            return True
+        return False
+
+    def heard_late(self, key: str, seq: int) -> None:
+        """A message from a teammate is handled: count it if an injected latency delayed it."""
+        plan = self.plan
+        if plan is not None and plan.latency is not None and plan.delay(key, seq) > 0:
+            self.counts["delayed"] += 1  # heard late, and heard
+
+    def announce(self, now: float, task: str | None) -> None:
+        """With an @first fault in the run, say once when this robot first holds a task."""
+        if self._announced or self.given is None or self.given.first is None or task is None:
+            return
+        self._announced = True
+        self.bus.publish(assigned_key(self.robot_id),
+                         Assigned(Header(self.robot_id, now, 1), task))
+
+    # ------------------------------------------------------------ the tally
+    @property
+    def dropped(self) -> int:
+        """Coordination messages injected faults kept from this robot (delays not counted)."""
+        self._settle(self.clock.now(), everything=True)
+        return sum(n for cause, n in self.counts.items() if cause != "delayed")
+
+    def _settle(self, now: float, everything: bool = False) -> None:
+        """Count the drops due at `now` (the inbox's rule; `everything`: all of them)."""
+        lockstep, delayed = self.clock.in_lockstep(), self.delayed
+        with self._lock:
+            pending = list(self._pending)
+            self._pending.clear()
+        later = []
+        for heard, cause in pending:
+            if not everything and not is_due(heard, now, lockstep, delayed):
+                later.append((heard, cause))
+            else:
+                self.counts[cause] += 1
+        if later:
+            with self._lock:
+                self._pending.extend(later)
+
+    def tally(self, now: float, final: bool = False) -> None:
+        """Say what injected faults did to this robot's messages (mrta_zenoh.fault_tally), when
+        it changed — at most every TALLY_PERIOD, or now as the robot stops. Nothing without a
+        plan."""
+        if self.given is None or (not final and now < self._told_at + TALLY_PERIOD):
+            return
+        self._settle(now)
+        counts = {cause: self.counts[cause] for cause in CAUSES}
+        if counts == self._told_counts or not any(counts.values()):
+            return
+        self._told_counts, self._told_at = counts, now
+        self.bus.publish(tally_key(self.robot_id), FaultTally(Header(self.robot_id, now, 1),
+                                                              **counts))
+
+    def final_tally(self) -> None:
+        """The robot stops: say the tally once more."""
+        self.tally(self.clock.now(), final=True)
+
+    def restart(self) -> None:
+        """Time restarted (a new simulation run): the plan as given (an @first fault is
+        resolved again), the tally from the run's start, no first assignment heard yet."""
+        self.plan = self.given
+        with self._lock:
+            self.counts.clear()
+            self._pending.clear()
+            self._assigned.clear()
+        self._told_counts, self._told_at = {}, -math.inf
+        self._announced = False
