@@ -203,9 +203,9 @@ def test_an_auctioneer_counts_its_unclaimed_winners_as_busy(tmp_path):
     params = load_params(write(tmp_path / "r.yaml", robot_doc({"a": 1.0, "b": 1.0})),
                          write(tmp_path / "t.yaml", tasks_doc(["a", "b"])))
     core = Murdoch("robot1", params.robot, params.tasks)  # bid window 0.5 s, lease 2 s
-    core.on_teammate("robot2", True)
-    core.on_teammate("robot3", True)
-    core.on_claim("robot3", Claim(Header("robot3", 0.0, 1), "b", -5.0, 2.0), 0.0)
+    core.teammate("robot2", True)
+    core.teammate("robot3", True)
+    core.hear("claim", "robot3", Claim(Header("robot3", 0.0, 1), "b", -5.0, 2.0), 0.0)
     awards = {}
 
     def at(t, *heard):
@@ -218,20 +218,20 @@ def test_an_auctioneer_counts_its_unclaimed_winners_as_busy(tmp_path):
     # t=0.0: robot1 (rank 0) announces a (#1, closes at 0.5); b is held by robot3
     assert [o.fields[:2] for o in at(0.0) if o.kind == "announcement"] == [(1, "a")]
     # t=0.1: robot2 bids 0.9 for a; robot3 releases b → b unheld from 0.1
-    at(0.1, lambda t: core.on_bid("robot2", Bid(Header("robot2", t, 1), "robot1", 1, "a", 0.9), t),
-       lambda t: core.on_release("robot3", Release(Header("robot3", t, 1), "b", "done"), t))
+    at(0.1, lambda t: core.hear("bid", "robot2", Bid(Header("robot2", t, 1), "robot1", 1, "a", 0.9), t),
+       lambda t: core.hear("release", "robot3", Release(Header("robot3", t, 1), "b", "done"), t))
     # t=0.2: b announced (#2, closes at 0.7)
     assert [o.fields[:2] for o in at(0.2) if o.kind == "announcement"] == [(2, "b")]
     # t=0.3: robot2 bids 0.8 for b, robot3 0.4
-    at(0.3, lambda t: core.on_bid("robot2", Bid(Header("robot2", t, 2), "robot1", 2, "b", 0.8), t),
-       lambda t: core.on_bid("robot3", Bid(Header("robot3", t, 2), "robot1", 2, "b", 0.4), t))
+    at(0.3, lambda t: core.hear("bid", "robot2", Bid(Header("robot2", t, 2), "robot1", 2, "b", 0.8), t),
+       lambda t: core.hear("bid", "robot3", Bid(Header("robot3", t, 2), "robot1", 2, "b", 0.4), t))
     at(0.4)
     at(0.5)  # #1 closes: a → robot2 (0.9)
     at(0.6)  # robot2's claim is still on its way
     at(0.7)  # #2 closes: robot2, awarded a two ticks ago and unclaimed, is busy → robot3
     assert awards == {0.5: (1, "a", "robot2", 0.9), 0.7: (2, "b", "robot3", 0.4)}
     # once robot2's claim arrives, the pending award gives way to its lease
-    core.on_claim("robot2", Claim(Header("robot2", 0.75, 1), "a", 0.6, 2.0), 0.75)
+    core.hear("claim", "robot2", Claim(Header("robot2", 0.75, 1), "a", 0.6, 2.0), 0.75)
     assert "robot2" not in core.awarded and "robot2" in core.leases["a"]
 
 

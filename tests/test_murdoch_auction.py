@@ -143,14 +143,27 @@ def test_of_two_holders_the_later_claim_yields():
         def applicable(self, task, now): return True
         def pose(self): return None
 
-    core.on_claim("robot3", Claim(Header("robot3", 11.0, 1), "a", 11.0, 2.0), 11.0)
+    core.hear("claim", "robot3", Claim(Header("robot3", 11.0, 1), "a", 11.0, 2.0), 11.0)
     out, changes = core.tick(11.0, Fresh())
     assert core.task == "a" and not changes  # robot3 claimed later: robot3 yields, not us
-    core.on_claim("robot1", Claim(Header("robot1", 11.1, 1), "a", 9.5, 2.0), 11.1)
+    core.hear("claim", "robot1", Claim(Header("robot1", 11.1, 1), "a", 9.5, 2.0), 11.1)
     out, changes = core.tick(11.2, Fresh())
     assert core.task is None and changes[0].kind == "released"
     assert "robot1" in changes[0].reason and [o.kind for o in out] == ["release"]
 
+
+
+def test_hear_takes_murdochs_kinds_only_each_of_its_own_type():
+    """One entry for what is heard: a kind that is not MURDOCH's, or a message of another kind's
+    type, is refused (False) and changes nothing; a claim of the right type takes effect."""
+    params = load_robot_from_doc({"a": 1.0})
+    core = Murdoch("robot2", params.robot, params.tasks)
+    claim = Claim(Header("robot3", 1.0, 1), "a", 1.0, 2.0)
+    assert core.hear("progress", "robot3", claim, 1.0) is False
+    assert core.hear("award", "robot3", claim, 1.0) is False
+    assert core.leases["a"] == {} and core.held_until == {}
+    assert core.hear("claim", "robot3", claim, 1.0) is True
+    assert set(core.leases["a"]) == {"robot3"} and core.held_until["a"] == 3.0
 
 def load_robot_from_doc(skills):
     d = Path(tempfile.mkdtemp())

@@ -83,15 +83,15 @@ def test_a_revoked_contracts_claims_are_ignored_and_its_holder_barred(tmp_path):
                          write(tmp_path / "t.yaml", tasks_doc(["a"], progress_timeout=5.0)))
     core = Murdoch("robot3", params.robot, params.tasks)
     for r in ("robot1", "robot2"):
-        core.on_teammate(r, True)
-        core.on_subject(r, "a", True)
-    core.on_claim("robot1", Claim(Header("robot1", 10.0, 1), "a", 10.0, 2.0), 10.0)
-    core.on_revoke("robot2", Revoke(Header("robot2", 15.0, 1), "a", "robot1", 10.0, "x"), 15.0)
-    core.on_claim("robot1", Claim(Header("robot1", 15.5, 2), "a", 10.0, 2.0), 15.5)
+        core.teammate(r, True)
+        core.teammate_subject(r, "a", True)
+    core.hear("claim", "robot1", Claim(Header("robot1", 10.0, 1), "a", 10.0, 2.0), 10.0)
+    core.hear("revoke", "robot2", Revoke(Header("robot2", 15.0, 1), "a", "robot1", 10.0, "x"), 15.0)
+    core.hear("claim", "robot1", Claim(Header("robot1", 15.5, 2), "a", 10.0, 2.0), 15.5)
     assert "robot1" not in core.leases["a"] and core.held_until["a"] == 15.0
     assert core.barred("a", "robot1", 19.9) and not core.barred("a", "robot1", 20.1)
     # a new contract of the same robot (a later since) counts again
-    core.on_claim("robot1", Claim(Header("robot1", 30.0, 3), "a", 29.5, 2.0), 30.0)
+    core.hear("claim", "robot1", Claim(Header("robot1", 30.0, 3), "a", 29.5, 2.0), 30.0)
     assert core.leases["a"]["robot1"].since == 29.5
 
 

@@ -16,8 +16,7 @@ from typing import Iterable
 from mrta_zenoh.messages import Odometry
 from mrta_zenoh.timetext import at
 
-from ..runtime.coordinator import Coordinator
-from ..runtime.loop import Say
+from ..runtime.coordinator import Coordinator, Say
 from ..runtime.plugins import Plugins
 from .auction import Change, Murdoch
 from .params import MurdochParams
@@ -62,7 +61,7 @@ class MurdochCoordinator(Coordinator):
         return self.core.task
 
     def teammate(self, robot: str, alive: bool) -> None:
-        self.core.on_teammate(robot, alive)
+        self.core.teammate(robot, alive)
 
     @property
     def advertises(self) -> tuple[str, ...]:
@@ -71,11 +70,10 @@ class MurdochCoordinator(Coordinator):
         return self.core.subjects
 
     def teammate_subject(self, robot: str, subject: str, alive: bool) -> None:
-        self.core.on_subject(robot, subject, alive)
+        self.core.teammate_subject(robot, subject, alive)
 
     def hear(self, kind: str, sender: str, msg, at: float) -> bool:
-        getattr(self.core, "on_" + kind)(sender, msg, at)
-        return True
+        return self.core.hear(kind, sender, msg, at)
 
     def tick(self, now: float) -> Iterable[Say]:
         out, changes = self.core.tick(now, self.readings)
@@ -83,7 +81,7 @@ class MurdochCoordinator(Coordinator):
             self.history.append((now, change))
             log.info("%s: %s %s (%s) %s", self.robot_id, change.kind, change.task_id,
                      change.reason, at(now))
-        return [Say(kind, tuple(fields), subject) for kind, fields, subject in out]
+        return out
 
     def subjects(self, kind: str) -> tuple[str, ...] | None:
         """Sub-keys heard per kind (the runtime subscribes to `*/murdoch/<kind>/<subject>`):

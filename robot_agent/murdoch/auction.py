@@ -1,5 +1,6 @@
 """MURDOCH's decisions for one robot, as pure logic on an injected time (like ALLIANCE's
-HighLevel): messages heard go in through `on_*`, `tick(now, readings)` returns what to publish.
+HighLevel): messages heard go in through `hear`, teammates and their subjects through `teammate`
+and `teammate_subject`, and `tick(now, readings)` returns what to publish (the runtime's `Say`).
 No bus, no clock, no threads — the agent wires it, tests drive it in virtual time.
 
 The protocol (Gerkey & Matarić 2002; docs/murdoch.md):
@@ -21,7 +22,7 @@ The protocol (Gerkey & Matarić 2002; docs/murdoch.md):
 * **Who auctions.** Every robot knows the mission's tasks, and any robot may auction an unheld
   one it serves (its subjects: the tasks it has a skill for; it hears only their announcements,
   and must hear whether someone else announced). Each robot advertises its subjects (a
-  liveliness token each, `on_subject`), so a task's auctioneers are ranked among the live
+  liveliness token each, `teammate_subject`), so a task's auctioneers are ranked among the live
   robots that serve it: the one of rank k (k-th lowest id among them, this one included)
   announces once the task has been unheld for k·reannounce_period and nobody announced it for
   (k+1)·reannounce_period. The lowest-id robot that serves a task therefore announces it at once
@@ -49,7 +50,9 @@ from dataclasses import dataclass, field
 from typing import NamedTuple, Protocol
 
 from mrta_zenoh.clock import EPSILON
+from mrta_zenoh.messages import Message
 
+from ..runtime.coordinator import Say
 from .messages import Announcement, Award, Bid, Claim, Release, Revoke
 from .params import MurdochRobot, MurdochTask
 
@@ -61,16 +64,6 @@ class Readings(Protocol):
     def fresh(self, topic: str, now: float) -> bool: ...
     def applicable(self, task_id: str, now: float) -> bool: ...
     def pose(self) -> tuple[float, float] | None: ...
-
-
-class Out(NamedTuple):
-    """A message to publish: `kind` names the key (announcement, bid, award, claim, release);
-    `fields` are the message's fields after its header; `subject` its sub-key, if any — an
-    announcement goes out on its task's subject, a bid to its auctioneer (docs/murdoch.md)."""
-
-    kind: str
-    fields: tuple
-    subject: str | None = None
 
 
 class Change(NamedTuple):
@@ -127,10 +120,10 @@ class Murdoch:
         self._revocations: list[tuple[str, Revoke]] = []  # of this robot's own contract
 
     # ------------------------------------------------------------------ what was heard
-    def on_teammate(self, robot: str, alive: bool) -> None:
+    def teammate(self, robot: str, alive: bool) -> None:
         (self.teammates.add if alive else self.teammates.discard)(robot)
 
-    def on_subject(self, robot: str, task_id: str, alive: bool) -> None:
+    def teammate_subject(self, robot: str, task_id: str, alive: bool) -> None:
         """A teammate advertises (or stopped advertising) that it serves `task_id`; tasks not
         in the tasks file are none of this robot's business."""
         servers = self.servers.get(task_id)
@@ -143,14 +136,34 @@ class Murdoch:
         hears, bids on and auctions. Static: resources stay a check at bid time."""
         return tuple(t for t in self.tasks if (s := self.p.skill(t)) is not None and s.level > 0)
 
-    def on_announcement(self, sender: str, msg: Announcement, t: float) -> None:
+    def hear(self, kind: str, sender: str, msg: Message, t: float) -> bool:
+        """One message heard at `t` (this robot's own announcements too: they say it announced);
+        False when `kind` is none of MURDOCH's or `msg` not of its type."""
+        match kind, msg:
+            case "announcement", Announcement():
+                self._on_announcement(sender, msg, t)
+            case "bid", Bid():
+                self._on_bid(sender, msg, t)
+            case "award", Award():
+                self._on_award(sender, msg, t)
+            case "claim", Claim():
+                self._on_claim(sender, msg, t)
+            case "release", Release():
+                self._on_release(sender, msg, t)
+            case "revoke", Revoke():
+                self._on_revoke(sender, msg, t)
+            case _:
+                return False
+        return True
+
+    def _on_announcement(self, sender: str, msg: Announcement, t: float) -> None:
         if msg.task_id not in self.subjects:  # heard only on its subjects: a mislabelled one
             return
         self.last_announced[msg.task_id] = max(self.last_announced.get(msg.task_id, t), t)
         if sender != self.id:
             self._announcements.append((sender, msg, t))
 
-    def on_bid(self, sender: str, msg: Bid, t: float) -> None:
+    def _on_bid(self, sender: str, msg: Bid, t: float) -> None:
         auction = self.open.get(msg.auction)
         if msg.auctioneer != self.id or auction is None or auction.task_id != msg.task_id:
             return
@@ -158,7 +171,7 @@ class Murdoch:
             return
         auction.bids[sender] = msg.utility
 
-    def on_award(self, sender: str, msg: Award, t: float) -> None:
+    def _on_award(self, sender: str, msg: Award, t: float) -> None:
         if msg.task_id not in self.tasks:
             return
         # the winner claims at its next tick: until then (and for a lease) the task is taken
@@ -169,7 +182,7 @@ class Murdoch:
         else:
             self._awards.append((sender, msg, t))
 
-    def on_claim(self, sender: str, msg: Claim, t: float) -> None:
+    def _on_claim(self, sender: str, msg: Claim, t: float) -> None:
         if msg.task_id not in self.tasks or sender == self.id:
             return
         if self.revoked[msg.task_id].get(sender, (None,))[0] == msg.since:
@@ -182,7 +195,7 @@ class Murdoch:
         self.awarded.pop(sender, None)  # its lease says it is busy from now on
         self.held_until[msg.task_id] = max(self.held_until.get(msg.task_id, t), lease.expiry())
 
-    def on_release(self, sender: str, msg: Release, t: float) -> None:
+    def _on_release(self, sender: str, msg: Release, t: float) -> None:
         if msg.task_id not in self.tasks:
             return
         self.leases[msg.task_id].pop(sender, None)
@@ -192,7 +205,7 @@ class Murdoch:
                   if lease.expiry() >= t]
         self.held_until[msg.task_id] = max(others, default=t)
 
-    def on_revoke(self, sender: str, msg: Revoke, t: float) -> None:
+    def _on_revoke(self, sender: str, msg: Revoke, t: float) -> None:
         if msg.task_id not in self.tasks:
             return
         if msg.holder == self.id:
@@ -220,10 +233,10 @@ class Murdoch:
         return self.revoked[task].get(robot, (0.0, -math.inf))[1] > now
 
     # ------------------------------------------------------------------ one tick
-    def tick(self, now: float, readings: Readings) -> tuple[list[Out], list[Change]]:
+    def tick(self, now: float, readings: Readings) -> tuple[list[Say], list[Change]]:
         if self.start is None:
             self.start = now
-        out: list[Out] = []
+        out: list[Say] = []
         changes: list[Change] = []
         self._expire(now)
         self._take_awards(now, out, changes)
@@ -260,20 +273,20 @@ class Murdoch:
                                                   for x, y in places)
         return value
 
-    def _become(self, task: str, now: float, out: list[Out], changes: list[Change], why: str) -> None:
+    def _become(self, task: str, now: float, out: list[Say], changes: list[Change], why: str) -> None:
         self.task, self.since, self.last_claim, self.stalled_since = task, now, now, None
-        out.append(Out("claim", (task, now, self.p.lease_timeout)))
+        out.append(Say("claim", (task, now, self.p.lease_timeout)))
         changes.append(Change("won", task, why))
 
-    def _release(self, reason: str, now: float, out: list[Out], changes: list[Change]) -> None:
+    def _release(self, reason: str, now: float, out: list[Say], changes: list[Change]) -> None:
         task = self.task
         self.task = None
         self.held_until[task] = max((lease.expiry() for lease in self.leases[task].values()),
                                     default=now)
-        out.append(Out("release", (task, reason)))
+        out.append(Say("release", (task, reason)))
         changes.append(Change("released", task, reason))
 
-    def _take_awards(self, now: float, out: list[Out], changes: list[Change]) -> None:
+    def _take_awards(self, now: float, out: list[Say], changes: list[Change]) -> None:
         awards, self._awards = self._awards, []
         awards.sort(key=lambda a: (-a[1].utility, a[1].task_id))
         for auctioneer, award, _ in awards:
@@ -281,9 +294,9 @@ class Murdoch:
                 self._become(award.task_id, now, out, changes,
                              f"won auction {auctioneer}#{award.auction} with {award.utility:.3g}")
             elif award.task_id != self.task:
-                out.append(Out("release", (award.task_id, f"busy with {self.task}")))
+                out.append(Say("release", (award.task_id, f"busy with {self.task}")))
 
-    def _take_revocations(self, now: float, out: list[Out], changes: list[Change]) -> None:
+    def _take_revocations(self, now: float, out: list[Say], changes: list[Change]) -> None:
         revocations, self._revocations = self._revocations, []
         for auctioneer, msg in revocations:
             if self.task == msg.task_id and self.since == msg.since:
@@ -292,7 +305,7 @@ class Murdoch:
                 self._release(f"revoked by {auctioneer}: not done within its progress_timeout "
                               f"{timeout:g} s", now, out, changes)
 
-    def _monitor(self, now: float, out: list[Out]) -> None:
+    def _monitor(self, now: float, out: list[Say]) -> None:
         """Revoke the contracts of the tasks this robot serves that have run past their
         progress_timeout (module docstring): rank k among the task's other live servers waits
         k more reannounce_periods, so a revocation heard meanwhile makes it unnecessary."""
@@ -307,10 +320,10 @@ class Murdoch:
                 if now - first < timeout + wait - EPSILON:
                     continue
                 reason = f"no progress: held {now - first:.1f} s, progress_timeout {timeout:g} s"
-                out.append(Out("revoke", (task, holder, since, reason)))
+                out.append(Say("revoke", (task, holder, since, reason)))
                 self._end_contract(task, holder, since, now)
 
-    def _keep_or_release(self, now: float, readings: Readings, out: list[Out],
+    def _keep_or_release(self, now: float, readings: Readings, out: list[Say],
                          changes: list[Change]) -> None:
         if self.task is None:
             return
@@ -332,9 +345,9 @@ class Murdoch:
                 return
         if now - self.last_claim >= self.p.renewal_period - EPSILON:
             self.last_claim = now
-            out.append(Out("claim", (self.task, self.since, self.p.lease_timeout)))
+            out.append(Say("claim", (self.task, self.since, self.p.lease_timeout)))
 
-    def _bid(self, now: float, readings: Readings, out: list[Out]) -> None:
+    def _bid(self, now: float, readings: Readings, out: list[Say]) -> None:
         pending, self._announcements = self._announcements, []
         if self.task is not None:
             return
@@ -343,10 +356,10 @@ class Murdoch:
                 continue
             if not all(readings.fresh(r, now) for r in ann.resources):
                 continue
-            out.append(Out("bid", (auctioneer, ann.auction, ann.task_id,
+            out.append(Say("bid", (auctioneer, ann.auction, ann.task_id,
                                    self.utility(ann.task_id, readings)), auctioneer))
 
-    def _close_auctions(self, now: float, readings: Readings, out: list[Out],
+    def _close_auctions(self, now: float, readings: Readings, out: list[Say],
                         changes: list[Change]) -> None:
         closed = [a for a in self.open.values() if now >= a.deadline - EPSILON]
         if not closed:
@@ -365,7 +378,7 @@ class Murdoch:
                 continue
             done_tasks.add(task)
             busy.add(robot)
-            out.append(Out("award", (number, task, robot, -neg_u)))
+            out.append(Say("award", (number, task, robot, -neg_u)))
             if robot != self.id:
                 self.awarded[robot] = (task, now + self.p.lease_timeout)
             self.held_until[task] = max(self.held_until.get(task, now), now + self.p.lease_timeout)
@@ -382,7 +395,7 @@ class Murdoch:
         token live (the runtime tells both)."""
         return sorted((self.servers[task_id] & self.teammates) | {self.id}).index(self.id)
 
-    def _announce(self, now: float, readings: Readings, out: list[Out]) -> None:
+    def _announce(self, now: float, readings: Readings, out: list[Say]) -> None:
         period = self.p.reannounce_period
         auctioning = {a.task_id for a in self.open.values()}
         for task in self.subjects:  # only what it hears: it must hear who else announced
@@ -399,7 +412,7 @@ class Murdoch:
             auction = OpenAuction(number, task, now + self.p.bid_window)
             self.open[number] = auction
             self.last_announced[task] = now
-            out.append(Out("announcement", (number, task, self.tasks[task].resources,
+            out.append(Say("announcement", (number, task, self.tasks[task].resources,
                                             self.p.bid_window), task))
             if self.task is None and self.capable(task, now, readings):
                 auction.bids[self.id] = self.utility(task, readings)
