@@ -24,6 +24,7 @@ from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.limits import MAX_RUNS
 
 from .experiment import parse_target, run_experiment
+from .experiment_resume import Shard, merge_folders, parse_shard
 from .experiment_runs import prepare_output
 from .report import Options
 from .report_md import write_report
@@ -79,12 +80,19 @@ class ExperimentGroup(click.Group):
 
     def format_usage(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
         formatter.write_usage(ctx.command_path, "FILE.yaml [OPTIONS]  |  report RESULTS_DIR "
-                                                "[OPTIONS]")
+                                                "[RESULTS_DIR…] [OPTIONS]")
 
 
 def _targets(ctx, param, values: tuple[str, ...]) -> dict[str, float]:
     try:
         return dict(parse_target(v) for v in values)
+    except ConfigError as exc:
+        raise click.BadParameter(exc.detail, ctx, param) from None
+
+
+def _shard(ctx, param, value: str | None) -> Shard | None:
+    try:
+        return None if value is None else parse_shard(value)
     except ConfigError as exc:
         raise click.BadParameter(exc.detail, ctx, param) from None
 
@@ -138,15 +146,19 @@ def experiment() -> None:
                    "(repeatable), or --max-runs is reached.")
 @click.option("--block", type=click.IntRange(min=1), default=1, show_default=True,
               help="Seeds each --until-ci block adds to every cell.")
+@click.option("--shard", metavar="I/N", default=None, callback=_shard,
+              help="Run only every N-th run of the matrix from the I-th (1 ≤ I ≤ N), on any "
+                   "backend; `mrta experiment report` puts the shards' folders together.")
 @report_options
 def run(file: Path, output: Path, jobs: int | None, scheduler: str | None, max_runs: int,
-        until: dict[str, float], block: int, baseline: str | None,
+        until: dict[str, float], block: int, shard: Shard | None, baseline: str | None,
         metrics: tuple[str, ...] | None, plots: bool) -> None:
-    """Run the matrix of FILE (seeds × failures × parameter overrides) and summarise it."""
+    """Run the matrix of FILE (seeds × failures × parameter overrides) and summarise it; on a
+    folder holding an interrupted run of FILE, run only the runs it lacks."""
     with stop_on_signals() as stop, progress_reporter() as progress:
         rows = run_experiment(file=file, output=output, jobs=jobs, stop=stop, progress=progress,
                               scheduler=scheduler, max_runs=max_runs, until=until or None,
-                              block=block, plots=plots,
+                              block=block, plots=plots, shard=shard,
                               report=Options(baseline=baseline, metrics=metrics))
     failed = sum(r["status"] != "ok" for r in rows)
     click.echo(f"{plural(len(rows), 'run')} ({failed} failed): {output / 'results.csv'}, "
@@ -159,17 +171,27 @@ def run(file: Path, output: Path, jobs: int | None, scheduler: str | None, max_r
 
 
 @experiment.command(REPORT)
-@click.argument("results", metavar="RESULTS_DIR",
+@click.argument("results", metavar="RESULTS_DIR…", nargs=-1, required=True,
                 type=click.Path(exists=True, path_type=Path))
 @click.option("--output", type=click.Path(file_okay=False, path_type=Path), default=None,
-              help="Folder for the report (default: RESULTS_DIR).")
+              help="Folder for the report (default: RESULTS_DIR); with several folders, "
+                   "required: their rows go there as one results.csv (and experiment.json).")
 @report_options
-def report(results: Path, output: Path | None, baseline: str | None,
+def report(results: tuple[Path, ...], output: Path | None, baseline: str | None,
            metrics: tuple[str, ...] | None, plots: bool) -> None:
     """Rebuild summary.md, cells.csv, comparisons.csv and the plots from RESULTS_DIR's
-    results.csv, running nothing."""
-    if output is not None:
-        prepare_output(output)
-    where = output or (results if results.is_dir() else results.parent)
-    write_report(results, output, Options(baseline=baseline, metrics=metrics, plots=plots))
+    results.csv, running nothing; several folders of one experiment file (its shards) are
+    reported as one."""
+    folders = [r if r.is_dir() else r.parent for r in results]
+    if len(folders) > 1:
+        if output is None:
+            raise ConfigError(f"{len(folders)} folders are reported as one into a folder of "
+                              "their own: give --output OUT")
+        source = merge_folders(folders, output)
+    else:
+        source = results[0]
+        if output is not None:
+            prepare_output(output)
+    where = output or folders[0]
+    write_report(source, output, Options(baseline=baseline, metrics=metrics, plots=plots))
     click.echo((where / "summary.md").read_text())

@@ -41,7 +41,8 @@ from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.files import write_text
 
 from .experiment_file import Experiment, Run
-from .results import ResultsTable, read_results
+from .experiment_runs import prepare_output
+from .results import ResultsTable, read_results, write_csv
 
 log = logging.getLogger("mrta.experiment")
 
@@ -213,3 +214,48 @@ def check_block(rows: dict[int, dict[str, Any]], runs: list[Run]) -> list[Run]:
                               f"{row.get('config')}, not seed {run.seed} of {run.config}: "
                               "resume with the --block of the interrupted run")
     return missing
+
+
+# ------------------------------------------------------------------ several folders as one
+def merge_folders(folders: list[Path], output: Path) -> Path:
+    """The rows of several folders of one experiment (its shards, or any disjoint parts) as one
+    results.csv in OUTPUT, with the identity of the whole matrix (so `mrta experiment FILE
+    --output OUTPUT` resumes it: runs no shard ran). Refused, naming them: a folder without
+    experiment.json (nothing says which matrix its rows are of), folders of different files,
+    a run with rows in two folders, OUTPUT among the folders."""
+    if output.resolve() in {f.resolve() for f in folders}:
+        raise ConfigError(f"--output {output} is one of the folders reported: give another "
+                          "folder for the merged report")
+    identities = []
+    for folder in folders:
+        identity = read_identity(folder)
+        if identity is None:
+            raise ConfigError(f"{folder} has no {IDENTITY}: nothing says which experiment its "
+                              "rows are of (run it with this version, or report it alone)")
+        identities.append(identity)
+    first = identities[0]
+    for folder, identity in zip(folders[1:], identities[1:]):
+        if identity.digest != first.digest:
+            raise ConfigError(f"{folders[0]} and {folder} hold different experiments "
+                              f"({first.file}, {first.runs} runs; {identity.file}, "
+                              f"{identity.runs} runs): report each alone")
+    rows: list[dict[str, str]] = []
+    fields: list[str] = []
+    where: dict[int, tuple[Path, int]] = {}
+    for folder in folders:
+        table = read_results(folder / RESULTS)
+        for row, line in zip(table.rows, table.lines):
+            index = _index(table, row)
+            if index in where:
+                other, at = where[index]
+                raise table.error(row, "run", f"run {index} (seed {row['seed']}, "
+                                              f"{row.get('config', '')}) is also in "
+                                              f"{other / RESULTS}:{at}: report each once")
+            where[index] = (folder, line)
+            rows.append(row)
+        fields += [c for c in table.columns if c not in fields]
+    rows.sort(key=lambda r: int(r["run"]))
+    prepare_output(output)
+    write_csv(output / RESULTS, rows, fields)
+    write_identity(output, Identity(file=first.file, digest=first.digest, runs=first.runs))
+    return output / RESULTS

@@ -15,7 +15,7 @@ from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
 from mrta_zenoh.errors import Interrupted
-from mrta_supervisor import experiment
+from mrta_supervisor import experiment, experiment_resume
 from mrta_supervisor.results import MACHINE_TIME
 from tests.test_experiment_runs import exp_file, missions, rows  # noqa: F401 (a fixture)
 
@@ -152,3 +152,74 @@ def test_until_ci_resumed_runs_only_the_blocks_rows_it_lacks(tmp_path, missions)
                               until={"takeover_seconds": 0.001}, max_runs=9)
     assert len(missions) == len(whole) - 5
     assert same(rows(out)) == same(whole)
+
+
+# ------------------------------------------------------------------ shards
+def shard(tmp_path: Path, which: str, name: str | None = None) -> Path:
+    out = tmp_path / (name or f"shard{which.replace('/', 'of')}")
+    experiment.run_experiment(file=exp_file(tmp_path, SEEDS), output=out, jobs=1, plots=False,
+                              shard=experiment_resume.parse_shard(which))
+    return out
+
+
+def report(*args) -> object:
+    return CliRunner().invoke(cli, ["experiment", "report", *map(str, args), "--no-plots"])
+
+
+def test_two_shards_reported_together_equal_the_unsharded_study(tmp_path, missions):
+    whole = uninterrupted(tmp_path)
+    missions.clear()
+    a = shard(tmp_path, "1/2")
+    assert sorted(i for i, _, _ in missions) == [0, 2, 4]  # every 2nd run from the 1st
+    missions.clear()
+    b = shard(tmp_path, "2/2")
+    assert sorted(i for i, _, _ in missions) == [1, 3, 5]
+    res = report(a, b, "--output", tmp_path / "merged")
+    assert res.exit_code == 0, res.output
+    merged = tmp_path / "merged"
+    assert same(rows(merged)) == same(whole)
+    for name in ("cells.csv", "comparisons.csv"):
+        assert (merged / name).read_text() == (tmp_path / "whole" / name).read_text(), name
+    # the merged folder is the whole matrix's: resuming it runs nothing
+    missions.clear()
+    experiment.run_experiment(file=exp_file(tmp_path, SEEDS), output=merged, jobs=1,
+                              plots=False)
+    assert missions == []
+
+
+def test_folders_reported_together_refuse_a_run_twice_and_another_file(tmp_path, missions):
+    a = shard(tmp_path, "1/2")
+    copy = shard(tmp_path, "1/2", name="again")
+    res = report(a, copy, "--output", tmp_path / "m")
+    assert res.exit_code == 2 and "run 0 (seed 1, fail=none)" in res.output, res.output
+    assert "again/results.csv:2" in res.output and len(res.output.strip().splitlines()) == 1
+    other = tmp_path / "other.yaml"
+    other.write_text(exp_file(tmp_path, "[1, 2]").read_text())
+    experiment.run_experiment(file=other, output=tmp_path / "o", jobs=1, plots=False)
+    res = report(a, tmp_path / "o", "--output", tmp_path / "m")
+    assert res.exit_code == 2 and "different experiments" in res.output, res.output
+    res = report(a, copy)
+    assert res.exit_code == 2 and "--output" in res.output
+    assert len(res.output.strip().splitlines()) == 1 and not (tmp_path / "m").exists()
+
+
+@pytest.mark.parametrize("args,says", [
+    (["--shard", "3/2"], "expected I/N"),
+    (["--shard", "0/2"], "expected I/N"),
+    (["--shard", "1/2", "--until-ci", "takeover_seconds:0.1"], "every row of the matrix"),
+])
+def test_shard_usage_errors_exit_2_before_any_run(tmp_path, missions, args, says):
+    res = CliRunner().invoke(cli, ["experiment", str(exp_file(tmp_path, SEEDS)), "--output",
+                                   str(tmp_path / "o"), *args])
+    assert res.exit_code == 2 and says in res.output, res.output
+    assert missions == [] and not (tmp_path / "o").exists()
+
+
+def test_a_shards_folder_resumes_that_shard_only(tmp_path, missions):
+    a = shard(tmp_path, "1/2")
+    res = CliRunner().invoke(cli, ["experiment", str(exp_file(tmp_path, SEEDS)), "--output",
+                                   str(a), "--shard", "2/2"])
+    assert res.exit_code == 2 and "shard 1/2" in res.output, res.output
+    res = CliRunner().invoke(cli, ["experiment", str(exp_file(tmp_path, SEEDS)), "--output",
+                                   str(a)])
+    assert res.exit_code == 2 and "shard 1/2" in res.output and "every run" in res.output
