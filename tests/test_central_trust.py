@@ -41,7 +41,7 @@ def started(problem: Problem = SQUARE, timeout: float = 5.0) -> Dispatcher:
 
 def refused(d: Dispatcher) -> dict[tuple[str, str], int]:
     out: collections.Counter = collections.Counter()
-    for (_kind, sender, reason), n in d.refusals().items():
+    for (_kind, sender, reason, _forged), n in d.refusals().items():
         out[(sender, reason)] += n
     return dict(out)
 

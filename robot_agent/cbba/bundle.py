@@ -32,11 +32,21 @@ Departures from the paper, each for a reason given in docs/cbba.md:
 * a robot that leaves the team (its token goes) has its wins reset and is treated as "none"
   wherever a message still names it; served tasks are final; a message older than the latest
   one heard from its sender is superseded; an optional communication range (`position` is
-  where this robot is: its route's origin until the runtime tells it better).
+  where this robot is: its route's origin until the runtime tells it better);
+* **what a message is believed for** (docs/security.md): a message whose winning bids are out
+  of range (below 0, or above the task's reward: a marginal score is at most that) is refused
+  whole; a task in its `done` counts as served only if its sender had won it as this robot
+  knew it before the message, or a third robot holds it (a relay, which cannot take this
+  robot's own work, nor a task nobody has won, from it), or two robots said so (a robot
+  counted gone and back — a stall — never learns who won its tasks meanwhile; every other
+  robot relays their completion). A claim believed on none of these grounds is refused and
+  counted (`refused`), once per task and sender. The paper trusts every message: one robot saying every task done would
+  otherwise end the mission with nothing served.
 """
 
 from __future__ import annotations
 
+import collections
 import math
 import time
 from typing import NamedTuple
@@ -47,6 +57,11 @@ from mrta_zenoh.planning.insertion import (DiscountedRoute, Origin, prefix_score
 
 from .messages import Bids
 from .table import NONE, RESET, UPDATE, View, higher, resolve
+
+# why a message, or a claim in it, was not believed (`Cbba.refused`)
+BID_OUT_OF_RANGE = "bid_out_of_range"  # a winning bid below 0 or above the task's reward
+NOT_WON = "done_not_won"               # a task said served that its sender never won
+ROUNDING = 1e-9
 
 
 class Out(NamedTuple):
@@ -105,6 +120,9 @@ class Cbba:
         self.superseded = 0
         self.out_of_range = 0
         self._work = 0.0  # wall seconds spent on the bundle since the last Bids
+        self.won: dict[int, set[int]] = {}  # task → every robot believed its winner so far
+        self.done_claims: dict[int, set[int]] = {}  # task → who said it served (not yet believed)
+        self.refused: collections.Counter[tuple[str, str, str, bool]] = collections.Counter()
 
     # ------------------------------------------------------------------ what it tells the runtime
     @property
@@ -155,9 +173,22 @@ class Cbba:
         if msg.header.stamp < self.latest.get(k, -math.inf):
             self.superseded += 1  # delivered out of order: a later one was applied already
             return True
+        tasks = self.problem.tasks
+        if any(not -ROUNDING <= y <= tasks[j].reward + ROUNDING for j, _, y in msg.winners):
+            self.refused[("bids", sender, BID_OUT_OF_RANGE, True)] += 1
+            return True  # refused whole, and counted here
         self.latest[k] = msg.header.stamp
         for j in msg.done:
-            self._mark_done(j)
+            if j in self.done:
+                continue
+            claims = self.done_claims.setdefault(j, set())
+            if k not in claims and not (k in self.won.get(j, ()) or self.z[j] not in
+                                        (NONE, self.i, k)):
+                self.refused[("bids", sender, NOT_WON, True)] += 1
+            claims.add(k)
+            if k in self.won.get(j, ()) or self.z[j] not in (NONE, self.i, k) \
+                    or len(claims) >= 2:
+                self._mark_done(j)
         theirs = {j: View(w, y) for j, w, y in msg.winners}
         s_k = dict(msg.stamps)
         for j in range(len(self.problem.tasks)):
@@ -320,6 +351,8 @@ class Cbba:
         if (self.z[j], self.y[j]) != (winner, bid):
             self.z[j], self.y[j] = winner, bid
             self.changed = True
+            if winner != NONE:
+                self.won.setdefault(j, set()).add(winner)
 
     def _view(self, view: View) -> View:
         """A winner that left the team reads as none."""

@@ -28,6 +28,7 @@ Rules, each for a reason:
 
 from __future__ import annotations
 
+import collections
 import logging
 import math
 from typing import ClassVar, Iterable
@@ -119,6 +120,11 @@ class OwnRouteCoordinator(Coordinator):
         if kind not in self.logic_kinds:
             return False
         return self.logic.hear(kind, sender, message, at_)
+
+    def refusals(self):
+        """What this adapter and its logic refused (`Coordinator.refuse`; the logic's
+        `refused` counter: SSI's and CBBA's rules of what a message is believed for)."""
+        return collections.Counter(super().refusals()) + self.logic.refused
 
     # ------------------------------------------------------------------ one tick
     def tick(self, now: float) -> Iterable[Say]:

@@ -68,15 +68,16 @@ class Coordinator:
                 raise TypeError(f"{cls.__qualname__}.{name}: not a Coordinator hook — did you "
                                 f"mean {close[0]!r}? (the driver would never call it)")
 
-    def refuse(self, kind: str, sender: str, reason: str) -> None:
-        """Count one refused claim (class docstring). Senders are teammates the driver admitted
-        (or, for a dispatcher, robots of the instance), reasons a logic's constants: the count
-        stays bounded whatever a forger sends."""
+    def refuse(self, kind: str, sender: str, reason: str, forged: bool = True) -> None:
+        """Count one refused claim (class docstring); `forged`: no process of the run would
+        say it (mrta_zenoh/refusal_tally.py), False for what an honest team says under faults.
+        Senders are teammates the driver admitted (or, for a dispatcher, robots of the
+        instance), reasons a logic's constants: the count stays bounded whatever is sent."""
         counts = vars(self).setdefault("_refusals", collections.Counter())
-        counts[(kind, sender, reason)] += 1
+        counts[(kind, sender, reason, forged)] += 1
 
-    def refusals(self) -> Mapping[tuple[str, str, str], int]:
-        """(kind, sender, reason) → how many claims the logic refused (`refuse`)."""
+    def refusals(self) -> Mapping[tuple[str, str, str, bool], int]:
+        """(kind, sender, reason, forged) → how many claims the logic refused (`refuse`)."""
         return vars(self).get("_refusals", {})
 
     @classmethod

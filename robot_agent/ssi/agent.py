@@ -29,7 +29,7 @@ class SsiCoordinator(OwnRouteCoordinator):
         keys = params.robot.extra
         logic = Ssi(params.problem, robot_id, lookahead=keys.lookahead,
                     resend_period=keys.resend_period, join_wait=keys.join_wait,
-                    origin=Origin(None, 0.0))
+                    origin=Origin(None, 0.0), silence=params.robot.progress_timeout)
         super().__init__(robot_id, logic, readings, params.robot.report_period,
                          params.robot.progress_timeout)
 

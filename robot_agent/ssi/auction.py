@@ -24,6 +24,20 @@ The auction (Lagoudakis et al. 2005; Koenig, Tovey et al. 2006; docs/ssi.md):
   takes over from the last Round it heard, opening a new round (docs/ssi.md says why one
   auctioneer and what a takeover can lose).
 
+**What a message is believed for** (docs/security.md). A Round counts only from the auctioneer
+this robot follows, and only with a number it can have reached: the same round again, a later one
+by at most ROUND_JUMP, or — a number far ahead, or behind the last one it adopted from that
+auctioneer — the same number heard again at least half a `resend_period` later (the auctioneer
+repeats a Round until every robot answered it, so a real one is always confirmed; a forged
+`Round` numbered 2^62 said once is not). A Bid's `served` counts only for tasks the bidder held
+(owned, or was awarded); a bid for a task its bidder cannot serve, or at a negative cost, is
+refused whole. What is not believed is counted by kind, sender and reason (`refused`).
+
+**A robot that does not answer.** A round waits for the bids of the robots expected — but not
+for ever: a robot that has not answered the round for `silence` seconds since it opened is
+left out of it and its unserved tasks are opened again, as if its token had gone (a dead robot
+whose token a forger keeps alive, a certified robot that never bids); it is back when it bids.
+
 **Decision time.** Each award records its computation time (`Round.ms`): the slowest bid of its
 round (each bidder times its own `best_bid` and says so in its `Bid`; the bidders compute side by
 side, so the slowest one gates the round) plus the auctioneer's winner determination. It is wall
@@ -34,14 +48,29 @@ decision.
 
 from __future__ import annotations
 
+import collections
+import logging
 import math
 import time
 from typing import Callable, NamedTuple
 
 from mrta_zenoh.planning import Problem
 from mrta_zenoh.planning.insertion import Origin, minsum_insertion, ranks
+from mrta_zenoh import timetext
 
 from .messages import DONE, OPEN, UNKNOWN, Bid, Round
+
+log = logging.getLogger("mrta.ssi")
+
+ROUND_JUMP = 64  # rounds ahead of the last adopted a Round is believed at once (module docstring)
+# why a message, or a claim in it, was not believed (`Ssi.refused`)
+NOT_AUCTIONEER = "not_auctioneer"  # a Round from another robot (a takeover does it too)
+ROUND_AHEAD = "round_ahead"        # a round far ahead, not (yet) confirmed
+ROUND_BEHIND = "round_behind"      # an older round (late, or the auctioneer is behind)
+NOT_HELD = "not_held"              # served a task it never held
+CANNOT_SERVE = "cannot_serve"      # a bid for a task it cannot serve
+NEGATIVE_COST = "negative_cost"
+NEGATIVE = -1e-9  # a cost below this is negative (an insertion's cost is ≥ 0 but for rounding)
 
 
 class Out(NamedTuple):
@@ -73,7 +102,7 @@ class Ssi:
 
     def __init__(self, problem: Problem, robot_id: str, *, lookahead: float = 0.0,
                  resend_period: float = 0.5, join_wait: float = 1.0, origin: Origin = Origin(),
-                 timer: Callable[[], float] = time.perf_counter):
+                 timer: Callable[[], float] = time.perf_counter, silence: float = math.inf):
         self.problem = problem
         self.id = robot_id
         self.i = problem.robot_index(robot_id)
@@ -103,6 +132,14 @@ class Ssi:
         self.reported: set[int] = set()   # served tasks heard of, to show DONE
         self.lagging = False
         self.last_round = -math.inf
+        # what is believed (module docstring): a round number held until confirmed, when each
+        # robot last answered, since when the current round waits, who it no longer waits for
+        self.silence = silence
+        self.held: tuple[int, float] | None = None
+        self.answered: dict[int, float] = {}
+        self.asked_at = -math.inf
+        self.silent: dict[int, float] = {}  # robot → since when the rounds leave it out
+        self.refused: collections.Counter[tuple[str, str, str, bool]] = collections.Counter()
 
     # ------------------------------------------------------------------ what it tells the runtime
     @property
@@ -142,32 +179,53 @@ class Ssi:
         if k == self.i:
             return False
         if kind == "round" and isinstance(msg, Round):
-            return self._on_round(k, msg)
+            return self._on_round(k, msg, at)
         if kind == "bid" and isinstance(msg, Bid):
-            return self._on_bid(k, msg)
+            return self._on_bid(k, msg, at)
         return False
 
-    def _on_round(self, k: int, msg: Round) -> bool:
+    def _on_round(self, k: int, msg: Round, heard: float) -> bool:
         n_robots, n_tasks = len(self.problem.robots), len(self.problem.tasks)
         if (len(msg.owners) != n_tasks or not all(DONE <= w < n_robots for w in msg.owners)
                 or not -1 <= msg.award < n_tasks):
             return False
+        sender = self.problem.robots[k].id
         if k != self.auctioneer():
+            self.refused[("round", sender, NOT_AUCTIONEER, False)] += 1
             return True  # not (or no longer) the auctioneer this robot follows
-        if k == self.round_from and msg.round < self.round:
-            return True  # an older Round, delivered late
+        behind = k == self.round_from and msg.round < self.round
+        if behind or msg.round > self.round + ROUND_JUMP:
+            if self.held is None or self.held[0] != msg.round:
+                self.held = (msg.round, heard)
+                self.refused[("round", sender, ROUND_BEHIND if behind else ROUND_AHEAD,
+                              not behind)] += 1
+                return True  # an older Round delivered late, or one far ahead: not yet
+            if heard - self.held[1] < self.resend_period / 2:
+                return True  # the same again at once is no confirmation
+        self.held = None
         self._adopt(k, msg.round, list(msg.owners), msg.award, msg.cost, msg.ms)
         self.answer_due = True
         return True
 
-    def _on_bid(self, k: int, msg: Bid) -> bool:
+    def _on_bid(self, k: int, msg: Bid, heard: float) -> bool:
         n_tasks = len(self.problem.tasks)
         if (not -1 <= msg.task < n_tasks or not all(0 <= j < n_tasks for j in msg.served)
                 or msg.ms < 0):
             return False
         if msg.auctioneer != self.id:
             return True
-        self.reported.update(msg.served)
+        sender = self.problem.robots[k].id
+        if msg.cost < NEGATIVE or (msg.task >= 0 and not self.problem.capable(k, msg.task)):
+            self.refused[("bid", sender, NEGATIVE_COST if msg.cost < NEGATIVE else CANNOT_SERVE,
+                          True)] += 1
+            return True  # refused whole: it is no answer either
+        self.answered[k] = heard
+        held = {a.task for a in self.awards if a.robot == k}
+        for j in msg.served:
+            if self.owners[j] in (k, DONE) or j in held:
+                self.reported.add(j)
+            else:
+                self.refused[("bid", sender, NOT_HELD, True)] += 1
         if not self.leading or msg.round > self.round:
             return True
         if msg.round < self.round:
@@ -235,8 +293,23 @@ class Ssi:
         """Whose bids a round waits for: the live teammates and this robot; during `join_wait`
         also every robot of the instance not known to have gone."""
         if now < self.started + self.join_wait:
-            return set(range(len(self.problem.robots))) - self.gone
-        return self.alive | {self.i}
+            return set(range(len(self.problem.robots))) - self.gone - set(self.silent)
+        return (self.alive - set(self.silent)) | {self.i}
+
+    def _judge_silence(self, now: float) -> None:
+        """Who the round no longer waits for, and who is back (module docstring)."""
+        for k in sorted(self.alive | set(self.silent)):
+            answered = self.answered.get(k, -math.inf)
+            if k in self.silent:
+                if answered > self.silent[k] or k not in self.alive:
+                    del self.silent[k]  # it answered again (or its token went: gone anyway)
+                    log.warning("%s: %s answers again %s", self.id, self.problem.robots[k].id,
+                                timetext.at(now))
+            elif answered < self.asked_at and now - self.asked_at > self.silence:
+                self.silent[k] = now
+                log.warning("%s: %s has not answered round %d for %g s: left out, its tasks "
+                            "opened again %s", self.id, self.problem.robots[k].id, self.round,
+                            self.silence, timetext.at(now))
 
     def _lead(self, now: float) -> list[Out]:
         owners = list(self.owners)
@@ -247,10 +320,12 @@ class Ssi:
             if owners[j] != DONE:
                 owners[j], acked = DONE, True
         self.reported = set()
+        self._judge_silence(now)
+        present = self.alive - set(self.silent)
         for j, task in enumerate(self.problem.tasks):
             if owners[j] == UNKNOWN and task.arrival <= now + self.lookahead:
                 owners[j], reopened = OPEN, True
-            elif owners[j] >= 0 and owners[j] != self.i and owners[j] not in self.alive:
+            elif owners[j] >= 0 and owners[j] != self.i and owners[j] not in present:
                 owners[j], reopened = OPEN, True  # its robot left before serving it
         award, cost, ms = -1, 0.0, 0.0
         began = self.timer()
@@ -272,6 +347,7 @@ class Ssi:
         if reopened or award >= 0:
             self.bids, self.bid_ms = {}, {}
             self._adopt(self.i, self.round + 1, owners, award, cost, ms)
+            self.asked_at = now
         elif acked:
             self._adopt(self.i, self.round, owners, -1, 0.0)
         elif not ((missing or self.lagging) and now - self.last_round >= self.resend_period):

@@ -1,0 +1,128 @@
+"""SSI and CBBA believe a message only for what its sender can claim (issue 51; the module
+docstrings of mrta_agent.ssi.auction and mrta_agent.cbba.bundle, docs/security.md): each rule
+forges the message the hostile probe sent — once, on a team of real logics exchanging real
+messages in virtual time (tests/logic_team.py) — and checks that the team still allocates every
+task, and that the forgery was counted."""
+
+from __future__ import annotations
+
+import math
+
+from mrta_agent.cbba.bundle import BID_OUT_OF_RANGE, NOT_WON, Cbba
+from mrta_agent.cbba.messages import MESSAGES as CBBA_MESSAGES, Bids
+from mrta_agent.ssi.auction import (CANNOT_SERVE, NEGATIVE_COST, NOT_HELD, ROUND_AHEAD, Ssi)
+from mrta_agent.ssi.messages import MESSAGES as SSI_MESSAGES, OPEN, Bid, Round
+from mrta_zenoh.messages import Header
+from mrta_zenoh.planning import Problem, Robot, Task
+from tests.logic_team import LogicTeam
+
+LINE = Problem((Robot("r1", (0.0, 0.0), 1.0), Robot("r2", (5.0, 0.0), 1.0),
+                Robot("r3", (10.0, 0.0), 1.0, frozenset({"lift"}))),
+               (Task("a", (3.0, 0.0)), Task("b", (7.0, 0.0)), Task("c", (12.0, 0.0)),
+                Task("d", (9.0, 0.0), capability="lift")))
+
+
+def refused(logics, reason: str) -> int:
+    return sum(n for logic in logics for (_k, _s, r, _f), n in logic.refused.items()
+               if r == reason)
+
+
+# ------------------------------------------------------------------ SSI
+def ssi_team(p: Problem = LINE, **kw) -> LogicTeam:
+    kw.setdefault("join_wait", 0.0)
+    return LogicTeam({r.id: Ssi(p, r.id, **kw) for r in p.robots}, SSI_MESSAGES)
+
+
+def allocated(team: LogicTeam) -> dict[str, str]:
+    return next(iter(team.logics.values())).winners()
+
+
+def test_a_round_numbered_2_62_from_the_auctioneers_key_does_not_stop_the_auction():
+    """Said once to every bidder before the first real Round: today's rule (adopt any round not
+    lower than the last) made every real round look old, and nothing was ever awarded."""
+    team = ssi_team()
+    forged = Round(Header("r1", 0.0, 99), 2 ** 62, (OPEN,) * 4, -1, 0.0)
+    for robot in ("r2", "r3"):
+        assert team.deliver(robot, "round", forged)
+    team.run()
+    assert sorted(allocated(team)) == ["a", "b", "c", "d"]
+    assert {tuple(logic.owners) for logic in team.logics.values()} == {
+        tuple(team.logics["r1"].owners)}
+    assert refused(team.logics.values(), ROUND_AHEAD) == 2
+
+
+def test_a_round_far_ahead_repeated_by_the_auctioneer_is_believed():
+    """A robot that missed many rounds (a partition) is not locked out: the auctioneer repeats
+    its Round until answered, and the repeat confirms it."""
+    s = Ssi(LINE, "r2", resend_period=0.5)
+    s.teammate("r1", True)
+    far = Round(Header("r1", 1.0, 7), 500, (0, OPEN, OPEN, OPEN), 0, 3.0)
+    assert s.hear("round", "r1", far, 1.0) and s.round == 0
+    assert s.hear("round", "r1", far, 1.1) and s.round == 0   # at once: no confirmation
+    assert s.hear("round", "r1", far, 1.6) and s.round == 500
+
+
+def test_a_bid_reporting_every_task_served_counts_only_for_the_tasks_its_bidder_held():
+    team = ssi_team()
+    team.run()
+    before = allocated(team)
+    held_by_r2 = [LINE.task_index(t) for t, r in before.items() if r == "r2"]
+    forged = Bid(Header("r2", team.now, 99), "r1", team.logics["r1"].round, -1, 0.0,
+                 (0, 1, 2, 3), 0.0)
+    assert team.deliver("r1", "bid", forged)
+    team.run()
+    owners = team.logics["r1"].owners
+    done = [j for j, w in enumerate(owners) if w < 0 and w != OPEN]
+    assert sorted(done) == sorted(held_by_r2)  # only r2's own are DONE; the others still owned
+    assert refused([team.logics["r1"]], NOT_HELD) == 4 - len(held_by_r2)
+
+
+def test_a_bid_at_a_negative_cost_or_for_a_task_its_bidder_cannot_serve_is_refused():
+    s = Ssi(LINE, "r1")
+    s.teammate("r2", True)
+    s.teammate("r3", True)
+    s.tick(0.0)  # r1 leads: round 1 opens
+    assert s.hear("bid", "r2", Bid(Header("r2", 0.1, 1), "r1", s.round, 0, -5.0, (), 0.0), 0.1)
+    assert s.hear("bid", "r2", Bid(Header("r2", 0.1, 2), "r1", s.round, 3, 0.1, (), 0.0), 0.1)
+    assert 1 not in s.bids and refused([s], NEGATIVE_COST) == 1 \
+        and refused([s], CANNOT_SERVE) == 1
+
+
+def test_the_auctioneer_leaves_out_a_robot_that_does_not_answer_and_gives_its_tasks_away():
+    """r3's token lives (a forger keeps it, or r3 is a certified robot that never bids) but r3
+    never answers: the round waited for it for ever; now it waits `silence` seconds."""
+    p = Problem(LINE.robots, LINE.tasks[:3])
+    team = LogicTeam({r: Ssi(p, r, join_wait=0.0, silence=5.0) for r in ("r1", "r2")},
+                     SSI_MESSAGES)
+    for logic in team.logics.values():
+        logic.teammate("r3", True)
+    team.run(until=8.0)
+    assert sorted(allocated(team)) == ["a", "b", "c"]
+    assert set(allocated(team).values()) <= {"r1", "r2"}
+    assert 2 in team.logics["r1"].silent
+
+
+# ------------------------------------------------------------------ CBBA
+def cbba_team(p: Problem = LINE) -> LogicTeam:
+    return LogicTeam({r.id: Cbba(p, r.id, lookahead=math.inf, resend_period=1.0)
+                      for r in p.robots}, CBBA_MESSAGES)
+
+
+def test_a_bids_saying_every_task_done_from_a_robot_that_won_none_of_them_is_not_believed():
+    team = cbba_team()
+    forged = Bids(Header("r3", 0.0, 99), (), ((2, 0.0),), (0, 1, 2, 3), 10.0, 0.0)
+    for robot in ("r1", "r2"):
+        assert team.deliver(robot, "bids", forged)
+    team.run()
+    for logic in team.logics.values():
+        assert not logic.done
+    won = {j for logic in team.logics.values() for j in logic.bundle}
+    assert won == {0, 1, 2, 3}
+    assert refused(team.logics.values(), NOT_WON) == 8  # 4 tasks, told to 2 robots
+
+
+def test_a_bids_with_a_winning_bid_above_the_tasks_reward_is_refused_whole():
+    team = cbba_team()
+    forged = Bids(Header("r3", 0.0, 99), ((0, 2, 1e9), (1, 2, 1e9)), ((2, 0.0),), (), 10.0, 0.0)
+    assert team.deliver("r1", "bids", forged)
+    assert team.logics["r1"].z[0] != 2 and refused([team.logics["r1"]], BID_OUT_OF_RANGE) == 1
