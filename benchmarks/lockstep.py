@@ -69,7 +69,7 @@ def child_participants(first: int, count: int) -> None:
     the step's run: the barrier drops an answer for another run)."""
     from mrta_zenoh.bus import BusOptions, open_bus
     from mrta_zenoh.lifecycle import stop_on_signals
-    from mrta_zenoh.lockstep import DONE, PARTICIPANT, STEP, Step, StepDone
+    from mrta_zenoh.lockstep.protocol import DONE, PARTICIPANT, STEP, Step, StepDone
 
     with stop_on_signals() as stop, open_bus(BusOptions()) as bus:
         names = [f"fake{i}" for i in range(first, first + count)]
@@ -116,7 +116,7 @@ def step_cost(env: dict, participants: int, seconds: float) -> float:
 BARE = """
 import sys, threading, time
 from mrta_zenoh.bus import BusOptions, open_bus
-from mrta_zenoh.lockstep import DONE, STEP, Step, StepDone
+from mrta_zenoh.lockstep.protocol import DONE, STEP, Step, StepDone
 n, steps = int(sys.argv[1]), int(sys.argv[2])
 cond, got = threading.Condition(), [0]
 def on_done(sample):
@@ -185,7 +185,7 @@ if os.environ.get("MRTA_ATTACKS"):  # a subset: MRTA_ATTACKS=copy,descend
 def attack(env: dict, mode: str, args: list[str]) -> dict:
     """One forger against a fresh lockstep fleet; the agents' pauses before and during it."""
     from mrta_zenoh.bus import BusOptions, open_bus
-    from mrta_zenoh.lockstep import STATUS, LockstepStatus
+    from mrta_zenoh.lockstep.protocol import STATUS, LockstepStatus
 
     heard: dict[str, list[float]] = {"robot1": [], "robot2": []}
     forgiven = [0]
@@ -230,7 +230,7 @@ def attack(env: dict, mode: str, args: list[str]) -> dict:
 
 def _run_of(bus) -> str:
     """The run id from its barrier token."""
-    from mrta_zenoh.lockstep import BARRIER
+    from mrta_zenoh.lockstep.protocol import BARRIER
 
     found: list[str] = []
     watch = bus.watch_liveliness(f"{BARRIER}/*", lambda key, up: up and found.append(key))

@@ -14,6 +14,7 @@ import threading
 import time
 
 from .keys import CLOCK_SOURCE_ENDED
+from .untrusted import visible
 
 log = logging.getLogger("mrta.clock")
 EPSILON = 1e-9  # simulated times this close are the same instant (sums of 0.02 s steps drift)
@@ -211,7 +212,7 @@ class SimClock(ManualClock):
             self.rivals.add(source)
             log.warning("clock: a second clock source %r holds a token while %r runs: two "
                         "simulators (or a forger) on one bus; %r is ignored",
-                        _printable(source), _printable(self.source or ""), _printable(source))
+                        visible(source, 80), visible(self.source or "", 80), visible(source, 80))
 
     def on_source(self, run: str, alive: bool) -> None:
         """A clock source's token appeared or vanished (follow_sim_clock); `<run>/ended`: that
@@ -314,11 +315,6 @@ def run_rate(run: str) -> float | None:
     if speed is None:
         return None
     return CEILING if speed == 0 else min(CEILING, speed * RATE_MARGIN)
-
-
-def _printable(text: str) -> str:
-    """A name from the bus, safe for a log line (no control characters reach a terminal)."""
-    return "".join(c if c.isprintable() else f"\\x{ord(c):02x}" for c in text[:80])
 
 
 class Rate:

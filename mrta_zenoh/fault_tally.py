@@ -14,12 +14,25 @@ message-level fault never says it: no traffic for runs that do not need it.
 
 from __future__ import annotations
 
+import enum
+
 from .messages import Header, Message, message
 
 TALLY = "faults/tally"           # robotN/faults/tally
 EVERY_TALLY = f"*/{TALLY}"
 TALLY_PERIOD = 0.5               # simulated s between two tallies of a robot, at most
-CAUSES = ("lost", "delayed", "cut_off", "out_of_range")
+
+
+class Cause(str, enum.Enum):
+    """What an injected fault did to a coordination message: each a `FaultTally` field."""
+
+    LOST = "lost"                  # loss:P — dropped on receipt
+    DELAYED = "delayed"            # latency — heard late (not dropped)
+    CUT_OFF = "cut_off"            # partition — not heard, or not sent
+    OUT_OF_RANGE = "out_of_range"  # range:R — dropped on receipt
+
+
+CAUSES = tuple(c.value for c in Cause)  # the field names, in order
 
 
 def tally_key(robot: str) -> str:

@@ -15,7 +15,8 @@ from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.clock import run_id as new_run_id
 from mrta_zenoh.errors import ConfigError, MrtaRuntimeError
 from mrta_zenoh.limits import COORDINATE
-from mrta_zenoh.lockstep import DEFAULT_TIMEOUT, PARTICIPANT, Barrier
+from mrta_zenoh.lockstep.barrier import Barrier
+from mrta_zenoh.lockstep.protocol import DEFAULT_TIMEOUT, PARTICIPANT
 from mrta_zenoh.node import Node
 from mrta_zenoh.presence import RobotPresence
 from mrta_zenoh.ros2.types import SONAR_TYPES

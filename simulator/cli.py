@@ -7,7 +7,7 @@ import click
 
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.cli.common import SEED_TYPE, OutputPath, bus_options, finite_float
-from mrta_zenoh.lockstep import DEFAULT_TIMEOUT
+from mrta_zenoh.lockstep.protocol import DEFAULT_TIMEOUT
 from mrta_zenoh.ros2.types import SONAR_TYPES
 from mrta_zenoh.seeds import SEED_ENV
 

@@ -17,7 +17,7 @@ from mrta_zenoh import keys
 from mrta_zenoh.bus import Bus
 from mrta_zenoh.clock import CEILING, EPSILON
 from mrta_zenoh.lifecycle import Closing
-from mrta_zenoh.lockstep import Barrier
+from mrta_zenoh.lockstep.barrier import Barrier
 from mrta_zenoh.messages import Clock, Header, Twist
 
 from .engine import SENSOR_EVERY, Simulation

@@ -10,7 +10,7 @@ lockstep mission through a secured router and compares it with an open one).
 from __future__ import annotations
 
 from mrta_zenoh import keys
-from mrta_zenoh.lockstep import BARRIER, STATUS, STEP
+from mrta_zenoh.lockstep.protocol import BARRIER, STATUS, STEP
 
 from .node import WORLD_KEY, bumper_key
 

@@ -49,7 +49,7 @@ class Alarms:
 
 
 class LockstepAlarms:
-    """The lockstep simulator's report (mrta_zenoh.lockstep.LockstepStatus) as alarms:
+    """The lockstep simulator's report (mrta_zenoh.lockstep.protocol.LockstepStatus) as alarms:
     participants it stopped waiting for (`participant_unresponsive`), other clock sources or
     lockstep runs on the bus (`clock_rival`: one source per run, so a second is a
     misconfiguration or a forgery), and StepDones it refused (`lockstep_refused`, raised while

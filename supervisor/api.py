@@ -16,7 +16,7 @@ from mrta_zenoh.bus import Bus, BusOptions
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.identity import OBSERVER
 from mrta_zenoh.keys import NODE_TOKEN, ROS2_BRIDGE_TOKEN
-from mrta_zenoh.lockstep import STATUS, LockstepStatus
+from mrta_zenoh.lockstep.protocol import STATUS, LockstepStatus
 from mrta_zenoh.node import Node, NodeTime
 from mrta_zenoh.architectures import architecture, architecture_names
 from mrta_zenoh.toolchain.model import ApplicationFile, ArchitectureFile

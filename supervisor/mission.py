@@ -53,7 +53,7 @@ from mrta_zenoh.codec import DecodeError, decode
 from mrta_zenoh.fault_roles import ASSIGNED
 from mrta_zenoh.fault_tally import TALLY
 from mrta_zenoh.identity import OBSERVER
-from mrta_zenoh.lockstep import STATUS, LockstepStatus
+from mrta_zenoh.lockstep.protocol import STATUS, LockstepStatus
 from mrta_zenoh.node import Node, NodeTime
 from mrta_zenoh.processes import Child, ProcessGroup, mrta_argv
 from mrta_zenoh.recording import read_recording

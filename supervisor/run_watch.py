@@ -42,7 +42,7 @@ from mrta_zenoh.architectures import Architecture
 from mrta_zenoh.clock import Clock
 from mrta_zenoh.errors import Interrupted, MrtaRuntimeError
 from mrta_zenoh.lifecycle import Closing
-from mrta_zenoh.lockstep import PARTICIPANT
+from mrta_zenoh.lockstep.protocol import PARTICIPANT
 from mrta_zenoh.presence import RobotPresence
 from mrta_zenoh.processes import Child, ProcessGroup
 

@@ -251,7 +251,8 @@ def claiming_step(stamp: float, step: int, sent: dict[str, int], run: str, timeo
                   table=None):
     """A lockstep Step (a forger's) claiming `sent` (key → count) with a whole key table: the
     keys of `table` (the simulator's, copied) first, then those of `sent` it lacks."""
-    from mrta_zenoh.lockstep import Claims, KeyTable, Step
+    from mrta_zenoh.lockstep.protocol import Step
+    from mrta_zenoh.lockstep.table import Claims, KeyTable
 
     keys = KeyTable()
     if table is not None:

@@ -14,7 +14,7 @@ from mrta_agent.runtime.loop import Agent
 from mrta_agent.runtime.plugins import Plugins, heard_at
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.clock import Clock, ManualClock, SimClock, WallClock
-from mrta_zenoh.lockstep import LockstepClock
+from mrta_zenoh.lockstep.participant import LockstepClock
 from mrta_zenoh.messages import Header, Odometry, Pose2D, Twist
 from tests.test_murdoch_subjects import _RecordingBus
 

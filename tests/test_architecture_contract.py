@@ -219,7 +219,7 @@ def test_decision_history_and_inbox_are_bounded():
     prepared = ALLIANCE.prepare(AgentOptions(
         "robot1", ROOT / "configs/applications/patrol/config/robot1_alliance_params.yaml",
         ROOT / "configs/applications/patrol/config/tasks_alliance_params.yaml"))
-    coord = ALLIANCE.coordinator(prepared, ManualClock())
+    coord = ALLIANCE.coordinator(prepared)
     for i in range(HISTORY + 50):
         coord.history.append((float(i), None))
     assert len(coord.history) == HISTORY

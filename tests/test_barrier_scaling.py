@@ -13,7 +13,9 @@ import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
-from mrta_zenoh.lockstep import DONE, EPSILON, PARTICIPANT, Barrier, StepDone
+from mrta_zenoh.clock import EPSILON
+from mrta_zenoh.lockstep.barrier import Barrier
+from mrta_zenoh.lockstep.protocol import DONE, PARTICIPANT, StepDone
 
 SETTINGS = settings(max_examples=60, derandomize=True, deadline=None,
                     suppress_health_check=[HealthCheck.too_slow])

@@ -14,7 +14,7 @@ from click.testing import CliRunner
 
 from mrta_zenoh.bus.options import base_config
 from mrta_zenoh.cli.main import SHORT_HELP, cli, listed
-from mrta_zenoh.lockstep import DEFAULT_TIMEOUT
+from mrta_zenoh.lockstep.protocol import DEFAULT_TIMEOUT
 
 GROUPS = ("mrta.commands", "mrta.plots")
 

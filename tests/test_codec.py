@@ -10,7 +10,7 @@ from mrta_agent.alliance.messages import InterRobotCommunication, Motivation, Se
 from mrta_simulator.messages import Bumper, Segment, World
 from mrta_patrol.messages import PatrolLog, Report, TaskTime
 from mrta_delivery.messages import TaskEvent
-from mrta_zenoh.lockstep import LockstepStatus, Step, StepDone
+from mrta_zenoh.lockstep.protocol import LockstepStatus, Step, StepDone
 from mrta_agent.murdoch.messages import Announcement, Award, Bid, Claim, Release, Revoke
 from mrta_agent.central.messages import Plan, Queue
 from mrta_agent.route.messages import Progress, Queued

@@ -20,7 +20,7 @@ from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.failure import (FAULTS_ENV, SYNTAX, Failure, FaultKind, FaultPlan, Faults,
                                 fault_env, faults_problem, parse_faults, plan_for,
                                 plan_from_env)
-from mrta_zenoh.fault_tally import TALLY_PERIOD, tally_key
+from mrta_zenoh.fault_tally import TALLY_PERIOD, Cause, tally_key
 from mrta_zenoh.messages import Header, Odometry, PointCloud, Pose2D, Twist
 from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
 
@@ -197,7 +197,7 @@ def test_a_partitioned_robot_hears_nothing_and_is_heard_by_nobody_then_rejoins(t
     other(5.0, 3)
     run(agent, bus, clock, 6.0)
     assert heard == [pytest.approx(1.0), pytest.approx(5.0)]
-    assert agent.injector.counts["cut_off"] == 1
+    assert agent.injector.counts[Cause.CUT_OFF] == 1
     stamps = [s.message.header.stamp for s in irc]
     assert [t for t in stamps if 2.0 <= t < 4.0]  # it went on saying what its logic said
     peer = plan_for(parse_faults("partition:robot1@2+2"), "robot2", 0)
@@ -214,7 +214,7 @@ def test_a_receiver_drops_what_a_partitioned_teammate_sent_in_its_window(tmp_pat
         bus.publish(ALLIANCE.key("robot2", IRC),
                     InterRobotCommunication(Header("robot2", t, seq), "b", 60.0))
     run(agent, bus, clock, 5.0)
-    assert heard == [1, 4] and agent.injector.counts["cut_off"] == 2
+    assert heard == [1, 4] and agent.injector.counts[Cause.CUT_OFF] == 2
 
 
 def test_loss_drops_the_messages_the_seed_says(tmp_path):
@@ -368,7 +368,7 @@ def test_a_message_a_partition_cuts_is_counted_once_whatever_its_latency(tmp_pat
                     InterRobotCommunication(Header("robot2", t, seq), "b", 60.0))
     run(agent, bus, clock, 4.0)
     assert heard == [1]
-    assert (agent.injector.counts["cut_off"], agent.injector.counts["delayed"]) == (1, 1)
+    assert (agent.injector.counts[Cause.CUT_OFF], agent.injector.counts[Cause.DELAYED]) == (1, 1)
 
 
 def test_a_robot_named_by_an_item_still_learns_whom_an_at_first_partition_cut_off():

@@ -14,7 +14,7 @@ from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.clock import ManualClock
 from mrta_zenoh.failure import FaultKind, parse_faults, plan_for
 from mrta_zenoh.fault_roles import Assigned, assigned_key
-from mrta_zenoh.fault_tally import EVERY_TALLY, TALLY_PERIOD
+from mrta_zenoh.fault_tally import EVERY_TALLY, TALLY_PERIOD, Cause
 from mrta_zenoh.messages import Header, Odometry, Pose2D, Twist
 
 KEY = "robot2/alliance/inter_robot_communication"
@@ -71,7 +71,7 @@ def test_latency_delays_the_time_heard_and_is_counted_when_handled():
     assert heard == [1.0 + inj.plan.delay(KEY, seq) for seq in range(1, 51)]
     for seq in range(1, 51):
         inj.heard_late(KEY, seq)
-    assert inj.counts["delayed"] == 50 and inj.dropped == 0  # heard late, and heard
+    assert inj.counts[Cause.DELAYED] == 50 and inj.dropped == 0  # heard late, and heard
     inj.tally(2.0)
     assert (tallies[-1].message.delayed, tallies[-1].message.lost) == (50, 0)
 
@@ -96,7 +96,7 @@ def test_a_partition_cuts_what_it_hears_and_what_its_peers_hear_from_it():
     peer, *_ = injector("partition:robot2@2+3")  # robot1 drops what robot2 sends then
     assert peer.on_receipt(KEY, 2, "robot2", 3.0) == 3.0  # not on receipt: at the tick
     assert peer.cut("robot2", 3.0) and not peer.cut("robot2", 5.0) and not peer.cut("robot3", 3.0)
-    assert (inj.dropped, peer.counts["cut_off"]) == (1, 1)
+    assert (inj.dropped, peer.counts[Cause.CUT_OFF]) == (1, 1)
 
 
 @pytest.mark.parametrize("spec,kind", [("robot1@4", FaultKind.CRASH),
@@ -121,7 +121,7 @@ def test_range_drops_a_teammate_farther_than_r_as_ground_truth_says():
     assert inj.on_receipt(KEY, 2, "robot2", 1.0) == 1.0
     truth("robot2", 9.0)
     assert inj.on_receipt(KEY, 3, "robot2", 1.0) is None
-    assert inj.dropped == 1 and inj.counts["out_of_range"] == 1
+    assert inj.dropped == 1 and inj.counts[Cause.OUT_OF_RANGE] == 1
 
 
 def test_first_is_resolved_at_its_time_from_the_announcements_on_the_roster_only():

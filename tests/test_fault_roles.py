@@ -21,6 +21,7 @@ from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.failure import (FAULTS_ENV, Failure, FaultKind, faults_problem, parse_faults,
                                 plan_for, plan_from_env)
 from mrta_zenoh.fault_roles import Assigned, assigned_key, draw_random, first_assigned
+from mrta_zenoh.fault_tally import Cause
 from mrta_zenoh.messages import Header, Odometry, PointCloud, Pose2D, Twist
 from mrta_supervisor import roles
 from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
@@ -154,7 +155,7 @@ def test_an_at_first_partition_of_a_teammate_cuts_what_it_sends_in_its_window(tm
         assigned_key("robot2"), Assigned(Header("robot2", 0.01, 1), "b"))),
         say(1.0, 1), say(2.5, 2), say(4.9, 3), say(5.5, 4)])
     assert not agent.faults.cut_off(3.0) and agent.faults.sender_cut("robot2", 3.0)
-    assert heard == [1, 4] and agent.injector.counts["cut_off"] == 2
+    assert heard == [1, 4] and agent.injector.counts[Cause.CUT_OFF] == 2
 
 
 def test_a_robot_an_item_names_is_never_first_and_announcements_only_come_with_first(tmp_path):

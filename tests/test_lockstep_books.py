@@ -13,7 +13,9 @@ import pytest
 
 from mrta_zenoh.bus.inproc import InProcBus
 from mrta_zenoh.keys import matches
-from mrta_zenoh.lockstep import Books, Claims, KeyTable, Step
+from mrta_zenoh.lockstep.books import Books
+from mrta_zenoh.lockstep.protocol import Step
+from mrta_zenoh.lockstep.table import Claims, KeyTable
 
 
 def packed(counts: list[int]) -> bytes:

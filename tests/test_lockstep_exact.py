@@ -16,7 +16,9 @@ from mrta_zenoh import codec
 from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
 from mrta_zenoh.clock import run_id
 from mrta_zenoh.keys import CLOCK_SOURCE_TOKEN
-from mrta_zenoh.lockstep import REPORT_AFTER, STATUS, Barrier, LockstepClock, LockstepStatus
+from mrta_zenoh.lockstep.barrier import Barrier
+from mrta_zenoh.lockstep.participant import LockstepClock
+from mrta_zenoh.lockstep.protocol import REPORT_AFTER, STATUS, LockstepStatus
 from mrta_zenoh.messages import Twist
 from mrta_supervisor import experiment
 from mrta_supervisor.mission import lockstep_trouble
@@ -221,7 +223,8 @@ def test_a_participant_waits_for_its_own_samples_to_reach_its_own_subscriptions(
     """Zenoh hands a session's own samples to its subscribers on another thread: a robot's
     report heard back by its own ReportDue could reach it a tick apart in two runs of one seed.
     The books count what this bus sent on a key its own subscriptions count, as a claim."""
-    from mrta_zenoh.lockstep import Books, Claims, KeyTable
+    from mrta_zenoh.lockstep.books import Books
+    from mrta_zenoh.lockstep.table import Claims, KeyTable
 
     net = InProcNetwork()
     bus, other = InProcBus(net), InProcBus(net)

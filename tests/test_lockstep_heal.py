@@ -7,8 +7,10 @@ import threading
 
 import msgspec
 
-from mrta_zenoh.lockstep import (DONE, FORGIVE_WINDOW, PARTICIPANT, REPORT_AFTER, STEP,
-                                 Books, Claims, KeyTable, Step, StepDone, claimant, count_wait)
+from mrta_zenoh.lockstep.books import Books, claimant
+from mrta_zenoh.lockstep.protocol import (DONE, FORGIVE_WINDOW, PARTICIPANT, REPORT_AFTER, STEP,
+                                          Step, StepDone, count_wait)
+from mrta_zenoh.lockstep.table import Claims, KeyTable
 from mrta_zenoh.messages import Twist
 from tests.helpers import wait_for
 from tests.test_lockstep_trust import Fleet
@@ -92,7 +94,7 @@ def test_while_every_participant_is_given_up_the_whole_table_still_goes_out():
     """Once every participant was given up, due() never stopped again, and the whole-table
     resend promised every REPORT_AFTER never came."""
     from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
-    from mrta_zenoh.lockstep import Barrier
+    from mrta_zenoh.lockstep.barrier import Barrier
     from tests.helpers import Wall
 
     net, wall, stop = InProcNetwork(), Wall(), threading.Event()

@@ -12,8 +12,9 @@ from hypothesis import strategies as st
 from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
 from mrta_zenoh.clock import CEILING, RATE_MARGIN, SimClock, run_id, run_rate, run_speed
 from mrta_zenoh.keys import CLOCK_SOURCE_TOKEN
-from mrta_zenoh.lockstep import (DONE, NEXT_HORIZON, STEP, Barrier, LockstepClock, Step,
-                                 StepDone, count_wait)
+from mrta_zenoh.lockstep.barrier import Barrier
+from mrta_zenoh.lockstep.participant import LockstepClock
+from mrta_zenoh.lockstep.protocol import DONE, NEXT_HORIZON, STEP, Step, StepDone, count_wait
 from mrta_zenoh.messages import Twist
 from tests.helpers import Wall, claiming_step, wait_for
 
@@ -343,7 +344,7 @@ def test_a_newcomer_passes_over_steps_until_it_has_the_whole_key_table():
 def with_a_wrong_table(f):
     """The participant's copy of the key table replaced by another, then the simulator's loop
     to t=1.0 on a thread (returned)."""
-    from mrta_zenoh.lockstep import KeyTable
+    from mrta_zenoh.lockstep.table import KeyTable
 
     wrong = KeyTable()
     wrong.add({"robot9/forged"})
@@ -376,7 +377,7 @@ def test_a_participant_whose_key_table_is_wrong_asks_for_the_whole_one():
 def test_a_participant_whose_request_is_not_honoured_gets_the_whole_table_when_silent():
     """A forger asked in its name just before (one request per REPORT_AFTER is honoured): the
     simulator still sends the whole table to a participant silent for REPORT_AFTER."""
-    from mrta_zenoh.lockstep import REPORT_AFTER
+    from mrta_zenoh.lockstep.protocol import REPORT_AFTER
 
     f = Fleet(timeout=10.0)
     try:
@@ -400,7 +401,7 @@ def test_a_participant_claiming_thousands_of_keys_loses_its_claims_not_the_steps
     """A participant (a forger holding a token, or a robot with its own certificate) that
     claims 4,096 keys of its own: its answer counts, its claims are dropped (CLAIM_KEYS), so
     the Steps stay what the others can read; once per run it counts as forgiven."""
-    from mrta_zenoh.lockstep import CLAIM_KEYS, PARTICIPANT
+    from mrta_zenoh.lockstep.protocol import CLAIM_KEYS, PARTICIPANT
 
     f = Fleet()
     try:

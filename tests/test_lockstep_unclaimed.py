@@ -11,7 +11,8 @@ from mrta_agent.runtime.plugins import Plugins
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.clock import ManualClock
 from mrta_zenoh.messages import Header
-from mrta_zenoh.lockstep import LockstepClock, StepDone
+from mrta_zenoh.lockstep.participant import LockstepClock
+from mrta_zenoh.lockstep.protocol import StepDone
 from tests.alliance_team import IRC, TASK, Spec, make_agent
 
 

@@ -19,7 +19,8 @@ from mrta_zenoh.clock import SimClock, WallClock
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.identity import OBSERVER, ROBOT
 from mrta_zenoh.keys import CLOCK, CLOCK_SOURCE_TOKEN
-from mrta_zenoh.lockstep import PARTICIPANT, LockstepClock
+from mrta_zenoh.lockstep.participant import LockstepClock
+from mrta_zenoh.lockstep.protocol import PARTICIPANT
 from mrta_zenoh.messages import Clock as ClockMsg
 from mrta_zenoh.node import Node, NodeTime
 

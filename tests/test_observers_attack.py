@@ -13,7 +13,7 @@ import time
 import pytest
 
 from mrta_agent.alliance.messages import InterRobotCommunication
-from mrta_zenoh.lockstep import STATUS, LockstepStatus
+from mrta_zenoh.lockstep.protocol import STATUS, LockstepStatus
 from mrta_zenoh.messages import Header
 from mrta_zenoh.ros2 import names
 from mrta_zenoh.untrusted import visible

@@ -404,7 +404,7 @@ def test_invented_keys_cannot_grow_the_live_view_without_bound(monkeypatch):
 
 def test_lockstep_rivals_and_refused_stepdones_are_alarms(sup):
     """The simulator reports other clock sources on the bus and StepDones it refused
-    (mrta_zenoh.lockstep.LockstepStatus): the supervisor shows both, escaped, and clears them."""
+    (mrta_zenoh.lockstep.protocol.LockstepStatus): the supervisor shows both, escaped, and clears them."""
     sup.on_lockstep((), 1.0, rivals=("ab12-x2" + ESC,), dropped=3)
     raised = alarms(sup, 1.0)
     assert ("lockstep_refused", "simulator") in raised

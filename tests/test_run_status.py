@@ -21,7 +21,7 @@ from mrta_zenoh.bus.inproc import InProcNetwork
 from mrta_zenoh.clock import ManualClock
 from mrta_zenoh.errors import MrtaRuntimeError
 from mrta_zenoh.keys import CLOCK_SOURCE_TOKEN, RECORDER_TOKEN
-from mrta_zenoh.lockstep import PARTICIPANT
+from mrta_zenoh.lockstep.protocol import PARTICIPANT
 from mrta_zenoh.processes import Child
 
 CRASHED = SimpleNamespace(returncode=-signal.SIGKILL, signalled=set())       # killed itself

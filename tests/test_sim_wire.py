@@ -328,7 +328,8 @@ def _clock_stamps(barrier_for=None, participant_every=None, duration=1.0):
     running, or in lockstep with a participant that is due every `participant_every` s."""
     from mrta_zenoh.bus.inproc import InProcNetwork
     from mrta_zenoh.clock import run_id
-    from mrta_zenoh.lockstep import Barrier, LockstepClock
+    from mrta_zenoh.lockstep.barrier import Barrier
+    from mrta_zenoh.lockstep.participant import LockstepClock
     from mrta_zenoh.messages import Clock
 
     net = InProcNetwork()

@@ -11,7 +11,8 @@ import pytest
 import yaml
 
 from mrta_zenoh.bus.inproc import InProcBus
-from mrta_zenoh.lockstep import Books, Claims, KeyTable
+from mrta_zenoh.lockstep.books import Books
+from mrta_zenoh.lockstep.table import Claims, KeyTable
 from mrta_zenoh.messages import Clock
 
 ROOT = Path(__file__).resolve().parent.parent

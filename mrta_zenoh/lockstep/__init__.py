@@ -68,9 +68,10 @@ The barrier also re-publishes the step it waits on when a participant (re)appear
 resumed or late participant answers at once instead of after the timeout, and stops every
 REPORT_AFTER to send the whole table while any participant is given up.
 
-The package, by concern (an agent loads the participant's modules only, the supervisor and the
-access-control generator the protocol only; names are looked up lazily, so `from
-mrta_zenoh.lockstep import X` loads only the module that defines X):
+The package, by concern. Each name is imported from the module that defines it (`from
+mrta_zenoh.lockstep.protocol import STEP`): the package itself exports nothing, so an agent
+loads the participant's modules only, the supervisor and the access-control generator the
+protocol only (tests/test_lockstep.py says so):
 * `protocol` — keys, messages (Step, StepDone, LockstepStatus) and limits;
 * `table` — the run's key table and a step's claims by index (KeyTable, Claims);
 * `books` — what a process received of what was claimed, less what it forgave (Books);
@@ -79,35 +80,3 @@ mrta_zenoh.lockstep import X` loads only the module that defines X):
 * `ledger` — each participant's last answer and claims, and their caps;
 * `barrier` — the simulator's side (Barrier).
 """
-
-from __future__ import annotations
-
-import importlib
-
-_WHERE = {
-    **dict.fromkeys(("STEP", "DONE", "PARTICIPANT", "BARRIER", "STATUS", "DEFAULT_TIMEOUT",
-                     "REPORT_AFTER", "STEP_SLACK", "STEP_BURST", "NEXT_HORIZON",
-                     "MAX_IN_FLIGHT", "MAX_KEYS", "MAX_NAMES", "LOG_FIRST", "FORGIVE_WINDOW",
-                     "CLAIM_KEYS", "CLAIM_KEY_CHARS", "CLAIM_CHARS", "count_wait", "Step",
-                     "StepDone", "LockstepStatus", "Rejections"), "protocol"),
-    **dict.fromkeys(("KeyTable", "Claims", "WORD", "count_of"), "table"),
-    **dict.fromkeys(("Books", "claimant"), "books"),
-    **dict.fromkeys(("Sequence", "ASK_AGAIN", "ANSWER_WITHIN"), "sequence"),
-    "Ledger": "ledger",
-    **dict.fromkeys(("LockstepClock", "StepBudget"), "participant"),
-    "Barrier": "barrier",
-}
-__all__ = sorted([*_WHERE, "EPSILON"])
-
-
-def __getattr__(name: str):
-    if name == "EPSILON":  # the clock's tolerance, which steps are compared with
-        return importlib.import_module("mrta_zenoh.clock").EPSILON
-    where = _WHERE.get(name)
-    if where is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(importlib.import_module(f"{__name__}.{where}"), name)
-
-
-def __dir__() -> list[str]:
-    return __all__

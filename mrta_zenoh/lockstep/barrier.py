@@ -17,7 +17,8 @@ import time
 
 import msgspec
 
-from ..clock import EPSILON, _printable
+from ..clock import EPSILON
+from ..untrusted import visible
 from ..keys import CLOCK_SOURCE_TOKEN
 from ..lifecycle import Closing
 from .books import Books
@@ -126,7 +127,7 @@ class Barrier(Closing):
             stamp = self._last.stamp if self._last is not None else 0.0
         log.warning("lockstep: another clock source %r is on the bus beside this run %r: two "
                     "simulators (or a forger); participants follow only this one",
-                    _printable(run), _printable(self.run))
+                    visible(run, 80), visible(self.run, 80))
         self._status(stamp)
 
     def _on_done(self, sample) -> None:
@@ -135,17 +136,17 @@ class Barrier(Closing):
         with self._cond:
             published = self._last.stamp if self._last is not None else None
             if d.participant != name:
-                why = f"{_printable(name)!r} sent a StepDone naming {_printable(d.participant)!r}"
+                why = f"{visible(name, 80)!r} sent a StepDone naming {visible(d.participant, 80)!r}"
             elif name not in self.participants:
-                why = f"{_printable(name)!r} holds no participant token"
+                why = f"{visible(name, 80)!r} holds no participant token"
             elif d.run != self.run:
-                why = f"{_printable(name)!r} acknowledges run {_printable(d.run)!r}"
+                why = f"{visible(name, 80)!r} acknowledges run {visible(d.run, 80)!r}"
             elif d.resync:
                 why = self._honour(name)
             elif published is None or d.stamp > published + EPSILON:
-                why = f"{_printable(name)!r} acknowledges t={d.stamp:.3f}, not yet published"
+                why = f"{visible(name, 80)!r} acknowledges t={d.stamp:.3f}, not yet published"
             elif d.sent and min(d.sent.values()) < 0:
-                why = f"{_printable(name)!r} counts fewer than no samples on a key"
+                why = f"{visible(name, 80)!r} counts fewer than no samples on a key"
             else:
                 why = None
             if why is not None:
@@ -154,7 +155,7 @@ class Barrier(Closing):
                 return
             over = self.ledger.over_cap(name, d.sent, self.counts.sent.keys())
             if over is not None:  # its answer counts, its claims do not
-                self.dropped(f"{_printable(name)!r}'s claims dropped: {_printable(over)}")
+                self.dropped(f"{visible(name, 80)!r}'s claims dropped: {visible(over, 80)}")
                 if name not in self.ledger.capped and len(self.ledger.capped) < MAX_NAMES:
                     self.ledger.capped.add(name)
                     self.forgiven += 1  # not waited for: the run is inexact
@@ -188,7 +189,7 @@ class Barrier(Closing):
         per participant per REPORT_AFTER (a forger may ask in its name); None if honoured."""
         now = self._wall()
         if now - self._asked.get(name, now - REPORT_AFTER) < REPORT_AFTER:
-            return f"{_printable(name)!r} asked for the whole table again within {REPORT_AFTER} s"
+            return f"{visible(name, 80)!r} asked for the whole table again within {REPORT_AFTER} s"
         self._asked[name] = now
         self._resync = self._republish = self._whole = True
         self._cond.notify_all()
@@ -311,7 +312,7 @@ class Barrier(Closing):
                 if back:
                     report = True
                     log.warning("lockstep: %s answers again",
-                                ", ".join(_printable(p) for p in sorted(back)))
+                                ", ".join(visible(p, 80) for p in sorted(back)))
                 required = self.claims()
                 self.books.review(required)
                 missing = self.books.missing(required)
@@ -328,7 +329,7 @@ class Barrier(Closing):
                         self.forgiven += 1
                         report = True
                     self.dropped(f"claims of {sum(forgive.values())} samples on "
-                                 f"{', '.join(_printable(k) for k in sorted(forgive)[:3])} that "
+                                 f"{', '.join(visible(k, 80) for k in sorted(forgive)[:3])} that "
                                  f"did not arrive by t={stamp:.2f}: forgiven")
                     continue
                 if waiting and now >= self._report_at < deadline:
@@ -336,7 +337,7 @@ class Barrier(Closing):
                     self._republish = True  # with the whole key table: it may have missed keys
                     log.warning("lockstep: %s did not finish t=%.2f within %.1f s; still waited "
                                 "for while it holds its participant token (given up after "
-                                "%.1f s)", ", ".join(_printable(p) for p in sorted(waiting)),
+                                "%.1f s)", ", ".join(visible(p, 80) for p in sorted(waiting)),
                                 stamp, REPORT_AFTER, self.timeout)
                 if self.unresponsive and now >= self._resend_at:
                     # one given up may be passing steps over for want of the table (it left
@@ -349,7 +350,7 @@ class Barrier(Closing):
                     self.given_up += len(waiting)
                     self._due_at = None
                     log.warning("lockstep: %s did not finish t=%.2f within %.1f s: no longer "
-                                "waited for", ", ".join(_printable(p) for p in sorted(waiting)),
+                                "waited for", ", ".join(visible(p, 80) for p in sorted(waiting)),
                                 stamp, self.timeout)
                     report = True
                     break

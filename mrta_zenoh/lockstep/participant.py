@@ -8,7 +8,8 @@ import threading
 import time
 from typing import Callable
 
-from ..clock import CEILING, EPSILON, SimClock, _printable, run_rate
+from ..clock import CEILING, EPSILON, SimClock, run_rate
+from ..untrusted import visible
 from .books import Books
 from .protocol import (BARRIER, DONE, MAX_KEYS, MAX_NAMES, PARTICIPANT, STEP,
                        STEP_BURST, STEP_SLACK, Rejections, Step, StepDone, count_wait, log)
@@ -55,7 +56,7 @@ class LockstepClock(SimClock):
         self.participant = participant
         self.lockstep = threading.Event()
         self.run: str | None = None           # the lockstep run whose steps move time
-        self.rejected_steps = Rejections(f"step for {_printable(participant)}")
+        self.rejected_steps = Rejections(f"step for {visible(participant, 80)}")
         self.step_rivals: set[str] = set()
         self.counts = None                    # the bus's lockstep counts, once joined
         self._books: Books | None = None
@@ -174,14 +175,14 @@ class LockstepClock(SimClock):
             return f"it counts {count_of(step)} keys (at most {MAX_KEYS})"
         if step.run != self.run:
             if step.run not in self._barriers:
-                return f"run {_printable(step.run)!r} holds no barrier token"
+                return f"run {visible(step.run, 80)!r} holds no barrier token"
             if self.run is not None and self.run in self._barriers:
                 if step.run not in self.step_rivals and len(self.step_rivals) < MAX_NAMES:
                     self.step_rivals.add(step.run)
                     log.warning("lockstep: a second lockstep run %r while %r runs: ignored",
-                                _printable(step.run), _printable(self.run))
+                                visible(step.run, 80), visible(self.run, 80))
                 self._refused = step
-                return f"run {_printable(step.run)!r} while {_printable(self.run)!r} runs"
+                return f"run {visible(step.run, 80)!r} while {visible(self.run, 80)!r} runs"
             table = KeyTable()
             why = self._take_table(table, step)
             if why is not None:
@@ -255,8 +256,8 @@ class LockstepClock(SimClock):
                 if gaps and books.forgive(gaps, claims):
                     self.forgiven += 1  # told to the simulator in every StepDone (LockstepStatus)
                     log.warning("lockstep: %s: %d samples on %s never arrived by t=%.2f: "
-                                "forgiven", _printable(self.participant), sum(gaps.values()),
-                                ", ".join(_printable(k) for k in sorted(gaps)[:3]), step.stamp)
+                                "forgiven", visible(self.participant, 80), sum(gaps.values()),
+                                ", ".join(visible(k, 80) for k in sorted(gaps)[:3]), step.stamp)
                 if len(gaps) < len(missing):
                     self._still_missing = [k for k in missing if k not in gaps]
                     if self._timer is None:  # look again then, even if nothing arrives
@@ -274,8 +275,8 @@ class LockstepClock(SimClock):
                     restarted = True
                     self.restarts += 1
                     log.warning("lockstep: new simulation run %r adopted at t=%.3f (was %r at "
-                                "t=%.3f)", _printable(step.run), step.stamp,
-                                _printable(self.source), self._now)
+                                "t=%.3f)", visible(step.run, 80), step.stamp,
+                                visible(self.source, 80), self._now)
                 self.source, self._source_alive = step.run, True
                 self._rate = run_rate(step.run)
             self._now = step.stamp

@@ -12,7 +12,6 @@ import math
 from pathlib import Path
 
 from mrta_zenoh.architectures import Doing, Takeover, TakeoverBound
-from mrta_zenoh.clock import Clock
 from mrta_zenoh.codec import DecodeError, decode
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.failure import plan_for
@@ -66,7 +65,7 @@ class AllianceArchitecture(AgentArchitecture):
                         f"{plural(len(params.robot.behaviour_sets), 'behaviour set')}",
                         params.warnings + plugins.unread_warnings())
 
-    def coordinator(self, prepared: Prepared, agent_clock: Clock) -> AllianceCoordinator:
+    def coordinator(self, prepared: Prepared) -> AllianceCoordinator:
         return AllianceCoordinator(prepared.robot_id, prepared.params, prepared.plugins)
 
     def doing(self, sender: str, key: str, message: object) -> Doing | None:

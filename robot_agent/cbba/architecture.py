@@ -14,7 +14,6 @@ whoever wins one serves it in its path's order (docs/cbba.md, "In execution").
 from __future__ import annotations
 
 from mrta_zenoh.architectures import Decision, Takeover, TakeoverBound
-from mrta_zenoh.clock import Clock
 
 from ..runtime.architecture import Prepared
 from ..route.messages import Progress, Queued
@@ -52,7 +51,7 @@ class CbbaArchitecture(OwnRouteArchitecture):
         """Each queued task of a robot under its own key (`robot1/cbba/queued/t3`)."""
         return kind == "queued"
 
-    def coordinator(self, prepared: Prepared, agent_clock: Clock) -> CbbaCoordinator:
+    def coordinator(self, prepared: Prepared) -> CbbaCoordinator:
         return CbbaCoordinator(prepared.robot_id, prepared.params,
                                PluginReadings(prepared.plugins, prepared.params.robot.pose_topic))
 

@@ -14,7 +14,6 @@ from __future__ import annotations
 from pathlib import Path
 
 from mrta_zenoh.architectures import Decision, Takeover, TakeoverBound
-from mrta_zenoh.clock import Clock
 
 from ..route.architecture import RouteArchitecture
 from ..runtime.architecture import Prepared
@@ -53,7 +52,7 @@ class Central(RouteArchitecture):
         return self.route_prepared(options.robot_id, central_params.load_params(
             options.robot_params, options.tasks_params, options.layers_params))
 
-    def coordinator(self, prepared: Prepared, agent_clock: Clock) -> CentralCoordinator:
+    def coordinator(self, prepared: Prepared) -> CentralCoordinator:
         return CentralCoordinator(prepared.robot_id, prepared.params, prepared.plugins,
                                   DISPATCHER)
 

@@ -13,7 +13,7 @@ from mrta_zenoh.cli.common import SEED_TYPE, bus_options, finite_float
 from mrta_zenoh.failure import FAULTS_ENV
 from mrta_zenoh.seeds import SEED_ENV
 
-from ..runtime.cli import _team, agent_command
+from ..runtime.cli import parse_team, agent_command
 from .api import DispatcherOptions, run_dispatcher
 from .architecture import CENTRAL, DISPATCHER
 
@@ -42,7 +42,7 @@ central = agent_command(
                    "what it hears derive from it.")
 @click.option("--duration", type=finite_float(min=0, min_open=True),
               help="Stop after this many seconds (of its clock).")
-@click.option("--team", metavar="ROBOT,ROBOT,…", envvar=TEAM_ENV, callback=_team,
+@click.option("--team", metavar="ROBOT,ROBOT,…", envvar=TEAM_ENV, callback=parse_team,
               help="The only robots it dispatches to (launch files set "
                    f"${TEAM_ENV}); default: every robot of the instance.")
 @bus_options

@@ -10,7 +10,6 @@ from __future__ import annotations
 from pathlib import Path
 
 from mrta_zenoh.architectures import Doing, Takeover, TakeoverBound
-from mrta_zenoh.clock import Clock
 from mrta_zenoh.codec import DecodeError, decode, type_from_encoding
 
 from ..runtime.architecture import AgentArchitecture, Prepared
@@ -56,7 +55,7 @@ class MurdochArchitecture(AgentArchitecture):
                         params.robot.control_rate, f"MURDOCH, {len(params.robot.skills)} skills",
                         params.warnings + plugins.unread_warnings())
 
-    def coordinator(self, prepared: Prepared, agent_clock: Clock) -> MurdochCoordinator:
+    def coordinator(self, prepared: Prepared) -> MurdochCoordinator:
         return MurdochCoordinator(prepared.robot_id, prepared.params, prepared.plugins)
 
     def doing(self, sender: str, key: str, message: object) -> Doing | None:

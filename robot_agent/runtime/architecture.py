@@ -66,13 +66,13 @@ class AgentArchitecture(Architecture):
         return frozenset(name for name, _ in prepared.plugins.sections)
 
     @abstractmethod
-    def coordinator(self, prepared: Prepared, agent_clock: Clock) -> Coordinator:
+    def coordinator(self, prepared: Prepared) -> Coordinator:
         """The decision logic for one robot, fresh (called again when time restarts)."""
 
     def agent(self, prepared: Prepared, bus: Bus, clock: Clock,
               rng: np.random.Generator | None = None) -> Agent:
         """The fixed driver, given this architecture's logic."""
-        return Agent(prepared.robot_id, self, lambda: self.coordinator(prepared, clock), bus,
+        return Agent(prepared.robot_id, self, lambda: self.coordinator(prepared), bus,
                      clock, rng, prepared.plugins, prepared.spin_rate, prepared.control_rate,
                      logging.getLogger(self.logger_name))
 

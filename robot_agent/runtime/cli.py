@@ -19,7 +19,7 @@ from .architecture import AgentArchitecture
 from .host import AgentOptions
 
 
-def _team(ctx: click.Context, param: click.Parameter, value: str | None) -> tuple[str, ...] | None:
+def parse_team(ctx: click.Context, param: click.Parameter, value: str | None) -> tuple[str, ...] | None:
     """`robot1,robot2,…` → ids; empty or absent → None (the open team). A bad id is a usage
     error naming the option."""
     if value is None or not value.strip():
@@ -56,7 +56,7 @@ def agent_command(arch: AgentArchitecture, help: str) -> click.Command:
                           "process of a run."),
         click.option("--duration", type=finite_float(min=0, min_open=True),
                      help="Stop after this many seconds (of the agent's clock)."),
-        click.option("--team", metavar="ROBOT,ROBOT,…", envvar=TEAM_ENV, callback=_team,
+        click.option("--team", metavar="ROBOT,ROBOT,…", envvar=TEAM_ENV, callback=parse_team,
                      help="The only robots counted as teammates (the application's robots; "
                           f"launch files set ${TEAM_ENV}). Others holding an agent token are "
                           "ignored and counted. Not given or empty: anyone holding one."),

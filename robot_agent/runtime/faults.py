@@ -35,7 +35,7 @@ from mrta_zenoh.bus import Bus, Sample
 from mrta_zenoh.clock import Clock
 from mrta_zenoh.failure import FaultKind, FaultPlan
 from mrta_zenoh.fault_roles import EVERY_ASSIGNED, Assigned, assigned_key, first_assigned
-from mrta_zenoh.fault_tally import CAUSES, TALLY_PERIOD, FaultTally, tally_key
+from mrta_zenoh.fault_tally import TALLY_PERIOD, Cause, FaultTally, tally_key
 from mrta_zenoh.keys import first_chunk
 from mrta_zenoh.messages import Header, Odometry
 
@@ -54,16 +54,16 @@ class FaultInjector:
         self.robot_id, self.bus, self.clock, self.log = robot_id, bus, clock, log
         self.plan: FaultPlan | None = None
         self.given: FaultPlan | None = None
-        # what injected faults did to coordination messages, by cause (fault_tally.CAUSES),
+        # what injected faults did to coordination messages, by cause (fault_tally.Cause),
         # and what the robot last said of it (robotN/faults/tally) and when
-        self.counts: collections.Counter[str] = collections.Counter()
+        self.counts: collections.Counter[Cause] = collections.Counter()
         self._told_counts: dict[str, int] = {}
         self._told_at = -math.inf
         self._lock = threading.Lock()  # network callbacks run on several threads
         # drops decided on receipt (network threads), counted by the loop once due — at the
         # time they would have been heard, by the inbox's rule — so that in lockstep a tally at
         # time t holds exactly the drops of messages heard before t, whatever the threads did
-        self._pending: collections.deque[tuple[float, str]] = collections.deque()
+        self._pending: collections.deque[tuple[float, Cause]] = collections.deque()
         # an @first fault: the team's first assignments heard (robot → stamp; callbacks write,
         # under _lock) and whether this robot announced its own
         self._assigned: dict[str, float] = {}
@@ -120,15 +120,15 @@ class FaultInjector:
         if plan is None or not plan.channel:
             return heard
         if plan.lost(key, seq):
-            return self._drop(heard, "lost")
+            return self._drop(heard, Cause.LOST)
         heard += plan.delay(key, seq)
         if plan.cut_off(heard):
-            return self._drop(heard, "cut_off")
+            return self._drop(heard, Cause.CUT_OFF)
         if plan.out_of_range(self._where.get(self.robot_id), self._where.get(sender)):
-            return self._drop(heard, "out_of_range")
+            return self._drop(heard, Cause.OUT_OF_RANGE)
         return heard
 
-    def _drop(self, heard: float, cause: str) -> None:
+    def _drop(self, heard: float, cause: Cause) -> None:
         with self._lock:
             self._pending.append((heard, cause))
 
@@ -166,7 +166,7 @@ class FaultInjector:
         then."""
         plan = self.plan
         if plan is not None and plan.peers_cut and plan.sender_cut(sender, stamp):
-            self.counts["cut_off"] += 1
+            self.counts[Cause.CUT_OFF] += 1
             return True
         return False
 
@@ -174,7 +174,7 @@ class FaultInjector:
         """A message from a teammate is handled: count it if an injected latency delayed it."""
         plan = self.plan
         if plan is not None and plan.latency is not None and plan.delay(key, seq) > 0:
-            self.counts["delayed"] += 1  # heard late, and heard
+            self.counts[Cause.DELAYED] += 1  # heard late, and heard
 
     def announce(self, now: float, task: str | None) -> None:
         """With an @first fault in the run, say once when this robot first holds a task."""
@@ -189,7 +189,7 @@ class FaultInjector:
     def dropped(self) -> int:
         """Coordination messages injected faults kept from this robot (delays not counted)."""
         self._settle(self.clock.now(), everything=True)
-        return sum(n for cause, n in self.counts.items() if cause != "delayed")
+        return sum(n for cause, n in self.counts.items() if cause is not Cause.DELAYED)
 
     def _settle(self, now: float, everything: bool = False) -> None:
         """Count the drops due at `now` (the inbox's rule; `everything`: all of them)."""
@@ -214,7 +214,7 @@ class FaultInjector:
         if self.given is None or (not final and now < self._told_at + TALLY_PERIOD):
             return
         self._settle(now)
-        counts = {cause: self.counts[cause] for cause in CAUSES}
+        counts = {cause.value: self.counts[cause] for cause in Cause}
         if counts == self._told_counts or not any(counts.values()):
             return
         self._told_counts, self._told_at = counts, now

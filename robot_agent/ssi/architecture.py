@@ -12,7 +12,6 @@ serves it in its path's order, which the auction chooses (docs/ssi.md, "In execu
 from __future__ import annotations
 
 from mrta_zenoh.architectures import Decision, Takeover, TakeoverBound
-from mrta_zenoh.clock import Clock
 
 from ..runtime.architecture import Prepared
 from ..route.messages import Progress, Queued
@@ -44,7 +43,7 @@ class SsiArchitecture(OwnRouteArchitecture):
         under its own key (`robot1/ssi/queued/t3`)."""
         return kind in ("bid", "queued")
 
-    def coordinator(self, prepared: Prepared, agent_clock: Clock) -> SsiCoordinator:
+    def coordinator(self, prepared: Prepared) -> SsiCoordinator:
         return SsiCoordinator(prepared.robot_id, prepared.params,
                               PluginReadings(prepared.plugins, prepared.params.robot.pose_topic))
 

@@ -13,7 +13,7 @@ import threading
 from mrta_zenoh.keys import first_chunk
 from mrta_agent.runtime.plugins import Plugin
 
-from .keys import ALL_DONE
+from .keys import ALL_DONE, Event
 from .messages import TaskEvent
 
 ATTRIBUTE = "_delivery_board"  # where the board hangs on the robot's AgentContext
@@ -41,7 +41,7 @@ class Board:
     def _on_done(self, sample) -> None:
         msg = sample.message
         sender = first_chunk(sample.key)
-        if msg.event != "done" or msg.header.frame_id.strip("/") != sender:
+        if msg.event != Event.DONE or msg.header.frame_id.strip("/") != sender:
             with self._lock:
                 self.rejected += 1
             return

@@ -91,7 +91,7 @@ def document_text(doc: InstanceDoc, header: str) -> str:
     return header + document_yaml({"application": KIND.application, **document_data(doc)})
 
 
-def _r(x: float, digits: int = 3) -> float:
+def rounded(x: float, digits: int = 3) -> float:
     return round(x, digits) + 0.0  # + 0.0: no -0.0 in the file
 
 
@@ -101,7 +101,7 @@ def poisson_arrivals(rng: random.Random, rate: float, n: int) -> list[float]:
     t, out = 0.0, []
     for _ in range(n):
         t += -math.log(1.0 - rng.random()) / rate
-        out.append(_r(t))
+        out.append(rounded(t))
     return out
 
 
@@ -185,7 +185,7 @@ def _place_walls(rng: random.Random, p: DeliveryGeneratorParams) -> list[tuple]:
             angle = math.pi * rng.random()
             cx, cy = w * (rng.random() - 0.5), h * (rng.random() - 0.5)
             dx, dy = length / 2 * math.cos(angle), length / 2 * math.sin(angle)
-            wall = (_r(cx - dx), _r(cy - dy), _r(cx + dx), _r(cy + dy))
+            wall = (rounded(cx - dx), rounded(cy - dy), rounded(cx + dx), rounded(cy + dy))
             inside = max(abs(wall[0]), abs(wall[2])) < w / 2 and \
                 max(abs(wall[1]), abs(wall[3])) < h / 2
             if inside and all(segment_distance(wall, o) >= WALL_GAP for o in room + walls):
@@ -206,7 +206,7 @@ def _place_points(rng: random.Random, p: DeliveryGeneratorParams, walls: list[tu
     out = []
     for k in range(count):
         for _ in range(5000):
-            pt = (_r(w * (rng.random() - 0.5)), _r(h * (rng.random() - 0.5)))
+            pt = (rounded(w * (rng.random() - 0.5)), rounded(h * (rng.random() - 0.5)))
             if all(point_segment_distance(pt, x) >= POINT_GAP for x in every) \
                     and all(math.dist(pt, q) >= gap for q in taken + out):
                 out.append(pt)
@@ -226,7 +226,7 @@ def generate_document(p: DeliveryGeneratorParams, seed: int) -> InstanceDoc:
     spots = _place_points(rng, p, walls, p.tasks, starts, TASK_GAP, "task")
     robots = {}
     for i, start in enumerate(starts):
-        speed = _r(p.speeds[0] + (p.speeds[1] - p.speeds[0]) * rng.random(), 2)
+        speed = rounded(p.speeds[0] + (p.speeds[1] - p.speeds[0]) * rng.random(), 2)
         caps = tuple(name for name, _ in mix if i == 0 or rng.random() < 0.5)
         robots[f"robot{i + 1}"] = RobotSpec(start, speed, caps)
     arrivals = (poisson_arrivals(rng, p.rate, p.tasks) if p.rate > 0 else [0.0] * p.tasks)
@@ -238,7 +238,7 @@ def generate_document(p: DeliveryGeneratorParams, seed: int) -> InstanceDoc:
             if u < acc:
                 need = name
                 break
-        service = _r(p.service[0] + (p.service[1] - p.service[0]) * rng.random(), 1)
+        service = rounded(p.service[0] + (p.service[1] - p.service[0]) * rng.random(), 1)
         tasks[f"t{j + 1}"] = TaskSpec(spot, arrivals[j], service, need)
     source = {"name": "delivery", "seed": seed, **msgspec.to_builtins(p)}
     for key, value in source.items():

@@ -29,7 +29,7 @@ from mrta_agent.runtime.plugins import AgentContext, Layer
 
 from .board import Board
 from .instance import DeliveryParams
-from .keys import event_key
+from .keys import Event, event_key
 from .messages import TaskEvent
 
 ALIGNED = 0.35  # rad: beyond this heading error the robot turns (almost) in place
@@ -80,7 +80,7 @@ class Deliver(Layer):
             if now - self.serving_since >= self.service - EPSILON:
                 self.finished = True
                 self.board.mark_done(self.task_id, self.ctx.robot_id, now)
-                self._say("done", now)
+                self._say(Event.DONE, now)
             return
         pose = self.pose(now)
         if pose is None:
@@ -96,7 +96,7 @@ class Deliver(Layer):
         if arrived:
             self.serving_since = now
             self.ctx.publish_cmd(0.0, 0.0)
-            self._say("started", now)
+            self._say(Event.STARTED, now)
             return
         self.ctx.publish_cmd(v, w)
 
@@ -133,11 +133,11 @@ class Deliver(Layer):
         v = min(self.speed, max(0.1, dist)) * math.cos(err)
         return v, w, False
 
-    def _say(self, event: str, now: float) -> None:
+    def _say(self, event: Event, now: float) -> None:
         self.seq += 1
         self.ctx.bus.publish(event_key(self.ctx.robot_id, event),
                              TaskEvent(Header(self.ctx.robot_id, now, self.seq), self.task_id,
-                                       event))
+                                       event.value))
         self.ctx.log.info("%s: %s %s at t=%.2f", self.ctx.robot_id, event, self.task_id, now)
 
 

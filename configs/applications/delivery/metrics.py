@@ -19,6 +19,7 @@ the metrics").
 
 from __future__ import annotations
 
+import enum
 import math
 from dataclasses import dataclass, field
 from typing import Any, Iterable
@@ -33,13 +34,27 @@ from mrta_zenoh.planning.assignment import (greedy_online, ia_costs, murdoch_uti
 from mrta_supervisor.ground_truth import stretches_from
 
 from .instance import DeliveryParams, document_data
+from .keys import Event
 from .messages import TaskEvent
 from .objectives import objective_metrics, objective_section, overlaps
 
 MATCH_SLACK = 1.0  # s: an event this long after its holder's interval still belongs to it
 
 
-REASONS = ("done", "released", "lost", "stalled", "unfinished")
+EVENTS = frozenset(e.value for e in Event)
+
+
+class Reason(str, enum.Enum):
+    """Why a stretch of the allocation log ended (module docstring; `Entry.reason`)."""
+
+    DONE = "done"
+    RELEASED = "released"
+    LOST = "lost"
+    STALLED = "stalled"
+    UNFINISHED = "unfinished"
+
+    def __str__(self) -> str:
+        return self.value
 
 
 @dataclass
@@ -75,7 +90,7 @@ def events(records: Iterable) -> list[tuple[str, str, str, float]]:
     out = []
     for key, enc, _t, payload in records:
         chunks = key.split("/")
-        if len(chunks) != 3 or chunks[1] != "delivery" or chunks[2] not in ("started", "done"):
+        if len(chunks) != 3 or chunks[1] != "delivery" or chunks[2] not in EVENTS:
             continue
         try:
             msg = decode(type_from_encoding(enc), payload)
@@ -126,29 +141,29 @@ def allocation_log(records: list, arch: Architecture, instance: Problem, end: fl
                       and e.assigned_at - 1e-6 <= stamp <= e.ended_at + MATCH_SLACK), None)
         if entry is None:
             continue
-        if event == "started" and entry.reached_at is None:
+        if event == Event.STARTED and entry.reached_at is None:
             entry.reached_at = round(stamp, 3)
-        elif event == "done" and entry.done_at is None:
+        elif event == Event.DONE and entry.done_at is None:
             entry.done_at = round(stamp, 3)
     for e in log:
         e.reason = reason(e, faults, end)
     return log
 
 
-def reason(e: Entry, faults: Faults, end: float) -> str:
+def reason(e: Entry, faults: Faults, end: float) -> Reason:
     """Why a stretch ended (module docstring): from its completion, then its robot's fault."""
     if e.done_at is not None:
-        return "done"
+        return Reason.DONE
     f = faults.of(e.robot)
     if f is not None and e.ended_at >= f.at - MATCH_SLACK:
         if f.kind == FaultKind.CRASH or (f.kind == FaultKind.PARTITION
                                          and e.ended_at <= f.at + f.duration + MATCH_SLACK):
-            return "lost"
+            return Reason.LOST
         if f.kind == FaultKind.STALL:
-            return "stalled"
+            return Reason.STALLED
     if e.ended_at >= end - EPSILON:
-        return "unfinished"
-    return "released"
+        return Reason.UNFINISHED
+    return Reason.RELEASED
 
 
 def first_assignments(log: list[Entry]) -> dict[str, Entry]:
@@ -212,7 +227,7 @@ def done_at(records: list, instance: Problem) -> float | None:
     robots' own `done` events); None: some never was."""
     first: dict[str, float] = {}
     for _robot, task, event, stamp in events(records):
-        if event == "done":
+        if event == Event.DONE:
             first.setdefault(task, stamp)
     if any(t.id not in first for t in instance.tasks):
         return None

@@ -34,7 +34,7 @@ from mrta_supervisor.summary import SummarySections
 
 from .generate import derive
 from .instance import DeliveryParams, InstanceDoc, load_document
-from .keys import ALL_DONE
+from .keys import ALL_DONE, Event
 from .messages import TaskEvent
 from .metrics import RunAnalysis, analyse, done_at, instance_json
 
@@ -152,7 +152,7 @@ class DeliveryWatch(TaskWatch):
         return [TaskStatus(tid, "waiting", at) for tid, at in self.arrivals.items() if at > 0]
 
     def read(self, key: str, message) -> TaskStatus | None:
-        if message.event != "done" or message.header.frame_id.strip("/") != first_chunk(key):
+        if message.event != Event.DONE or message.header.frame_id.strip("/") != first_chunk(key):
             return None  # the board's rule (board.py): only a robot's own `done` counts
         return TaskStatus(message.task_id, "done")
 

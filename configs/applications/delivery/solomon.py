@@ -27,7 +27,7 @@ from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.instances import InstanceGenerator
 
 from .instance import InstanceDoc, RobotSpec, TaskSpec, WorldSpec
-from .instances import KIND, START_GAP, _r, document_text
+from .instances import KIND, START_GAP, document_text, rounded
 
 MARGIN = 1.0  # m between the scaled points' box and the room's walls
 
@@ -77,7 +77,7 @@ def solomon_document(p: SolomonParams) -> InstanceDoc:
     cx, cy = (max(xs) + min(xs)) / 2, (max(ys) + min(ys)) / 2
 
     def place(k: int) -> tuple[float, float]:
-        return (_r((coords[k][0] - cx) * scale), _r((coords[k][1] - cy) * scale))
+        return (rounded((coords[k][0] - cx) * scale), rounded((coords[k][1] - cy) * scale))
 
     times = scale / p.speed  # s per Solomon time unit
     depot = place(0)
@@ -85,18 +85,18 @@ def solomon_document(p: SolomonParams) -> InstanceDoc:
     robots = {}
     for i in range(p.robots):
         angle = 2 * math.pi * i / p.robots
-        start = (_r(depot[0] + ring * math.cos(angle)) if i else depot[0],
-                 _r(depot[1] + ring * math.sin(angle)) if i else depot[1])
+        start = (rounded(depot[0] + ring * math.cos(angle)) if i else depot[0],
+                 rounded(depot[1] + ring * math.sin(angle)) if i else depot[1])
         robots[f"robot{i + 1}"] = RobotSpec(start, p.speed)
-    tasks = {f"c{k}": TaskSpec(place(k), _r(windows[k][0] * times), _r(service[k] * times),
-                               due=_r(windows[k][1] * times))
+    tasks = {f"c{k}": TaskSpec(place(k), rounded(windows[k][0] * times), rounded(service[k] * times),
+                               due=rounded(windows[k][1] * times))
              for k in customers}
     name = f"{data.get('name') or 'solomon'}-r{p.robots}-t{len(customers)}"
     doc = InstanceDoc(robots, tasks, WorldSpec((w, h)), name,
                       generator={"name": "solomon", "file": p.file.rsplit("/", 1)[-1],
                                  "robots": p.robots, "tasks": p.tasks, "room": [w, h],
-                                 "speed": p.speed, "scale_m_per_unit": _r(scale, 6),
-                                 "seconds_per_unit": _r(times, 6)})
+                                 "speed": p.speed, "scale_m_per_unit": rounded(scale, 6),
+                                 "seconds_per_unit": rounded(times, 6)})
     doc.check()
     return doc
 

@@ -15,7 +15,7 @@ from pathlib import Path
 from typing import Iterable
 
 from mrta_zenoh.architectures import Doing
-from mrta_zenoh.clock import EPSILON, Clock
+from mrta_zenoh.clock import EPSILON
 from mrta_zenoh.messages import Header, Message, message
 from mrta_agent.runtime.architecture import AgentArchitecture, Prepared
 from mrta_agent.runtime.cli import agent_command
@@ -101,7 +101,7 @@ class FixedArchitecture(AgentArchitecture):
                         f"fixed: {task}" + (f", standby for {standby}" if standby else ""),
                         plugins.unread_warnings())
 
-    def coordinator(self, prepared: Prepared, agent_clock: Clock) -> FixedCoordinator:
+    def coordinator(self, prepared: Prepared) -> FixedCoordinator:
         return FixedCoordinator(prepared.robot_id, *prepared.params)
 
     def doing(self, sender: str, key: str, message: object) -> Doing | None:
