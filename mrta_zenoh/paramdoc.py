@@ -46,8 +46,7 @@ class Check:
     `problem(value)` says what is wrong with a value of the right type (None: fine)."""
 
     expected: str
-    problem: Callable[[Any], str | None]
-    keyed: bool = True  # the problem follows the key's name ("spin_rate must be > 0, got 0")
+    problem: Callable[[Any], str | None]  # follows the key's name: "spin_rate must be > 0"
 
 
 def _number(positive: bool = False, range_: Range | None = None) -> Check:
@@ -88,15 +87,19 @@ def _text(value: str) -> str | None:
 
 
 def _id(value: str) -> str | None:
-    return None if is_id(value) else (f"task id {value!r:.80} must be one key chunk: up to 64 "
-                                      "letters, digits, '_', '-' or '.'")
+    if is_id(value):
+        return None
+    return _text(value) or (f"{value!r:.80} must be one key chunk: up to 64 letters, digits, "
+                            "'_', '-' or '.'")
 
 
 Rate = within(RATE, positive=True)           # Hz: positive, finite, what a process can honour
 Duration = within(DURATION, positive=True)   # s: positive, finite, at most a day
 Positive = checked(float, _number(positive=True))
+NonNegative = checked(float, Check("must be a number",
+                                   lambda v: f"must be ≥ 0, got {v:g}" if v < 0 else None))
 Text = checked(str, Check("must be a non-empty string", _text))
-Id = checked(str, Check("must be a non-empty string", _id, keyed=False))  # a task id: one key chunk
+Id = checked(str, Check("must be a non-empty string", _id))  # a task id: one key chunk
 
 
 @dataclass
@@ -167,6 +170,15 @@ def _bare(t: mi.Type) -> tuple[mi.Type, Check | None, str | None]:
         check, prefix = extra.get(CHECK, check), extra.get(SIZED, prefix)
         t = t.type
     return t, check, prefix
+
+
+def _check_of(t: mi.Type) -> Check | None:
+    """The check of `t`, or of the one type an optional `t` is when not null."""
+    bare, check, _ = _bare(t)
+    if check is None and isinstance(bare, mi.UnionType):
+        members = [m for m in bare.types if not isinstance(m, mi.NoneType)]
+        return _bare(members[0])[1] if len(members) == 1 else None
+    return check
 
 
 def _struct_of(t: mi.Type) -> mi.StructType | None:
@@ -252,7 +264,12 @@ def _shape_error(out: Document, info: mi.Type, data: Any, exc: msgspec.Validatio
     if expected == "object":
         return out.error(path, f"expected a mapping, got {type(value).__name__}")
     declared = _type_at(info, path)
-    check = _bare(declared)[1] if declared is not None else None
+    enum = _bare(declared)[0] if declared is not None else None
+    if isinstance(enum, mi.EnumType) and fault.what.startswith("Invalid enum value"):
+        known = [m.value for m in enum.cls]
+        return out.error(path, f"{key} {value!r:.40} is not one of "
+                         f"{', '.join(map(str, known))}" + did_you_mean(value, known))
+    check = _check_of(declared) if declared is not None else None
     expected = check.expected if check is not None else _EXPECTED.get(expected)
     if expected is None:
         return out.error(path, fault.what.replace("`", ""))
@@ -264,14 +281,14 @@ def _check(out: Document, t: mi.Type, value: Any, raw: Any, path: tuple) -> None
     (a key the file leaves out: `raw` lacks it) is the Struct's word, not checked."""
     if value is None:
         return
-    bare, check, _ = _bare(t)
+    bare, check = _bare(t)[0], _check_of(t)
     key = next((s for s in reversed(path) if isinstance(s, str)), "value")
     if isinstance(value, float) and not math.isfinite(value):
         raise out.error(path, f"{key} must be a finite number, got {value}")
     if check is not None:
         problem = check.problem(value)
         if problem is not None:
-            raise out.error(path, f"{key} {problem}" if check.keyed else problem)
+            raise out.error(path, f"{key} {problem}")
     struct = _struct_of(bare)
     if struct is not None and isinstance(value, msgspec.Struct):
         for f in struct.fields:

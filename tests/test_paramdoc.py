@@ -92,7 +92,7 @@ def test_sized_arrays_become_lists_and_paths_lead_back_to_the_file(tmp_path):
      "unknown key 'limt' (did you mean 'limit'?)"),
     ("    item0: {topic_name: odom}", "    item0: {topic_nam: odom}", 12,
      "inner/items/item0/topic_nam", "(did you mean 'topic_name'?)"),
-    ("spin_rate: 2", "spin_rate: 2\ntask: a/b", 2, "task", "task id 'a/b' must be one key chunk"),
+    ("spin_rate: 2", "spin_rate: 2\ntask: a/b", 2, "task", "task 'a/b' must be one key chunk"),
     ("inner:\n  items:", "inner: 3\nx:\n  items:", 9, "inner", "expected a mapping, got int"),
 ])
 def test_a_bad_value_names_file_line_and_the_files_own_key(tmp_path, old, new, line, key, text):

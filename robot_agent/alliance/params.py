@@ -19,7 +19,7 @@ from mrta_zenoh.limits import IMPATIENCE, THRESHOLD
 from mrta_zenoh.paramdoc import Duration, Id, Rate, Text, sized, within
 from mrta_zenoh.yamlfile import YamlDoc
 
-from ..runtime.params import (Doc, SensorParams, Sensors, TaskParams, Topics, load_layers_params,
+from ..runtime.params import (Doc, EvaluatorDoc, SensorParams, Sensors, TaskParams, load_layers_params,
                               load_tasks_params, require_task, sensor_params, sensor_topics)
 
 
@@ -66,16 +66,11 @@ class Impatience(Doc):
     fast_rate: within(IMPATIENCE, positive=True)
 
 
-class SensoryFeedback(Doc):
-    plugin_name: Text
-    sensors: Topics
-
-
 class Motivation(Doc):
     threshold: within(THRESHOLD, positive=True)
     acquiescence: Acquiescence
     impatience: Impatience
-    sensory_feedback: SensoryFeedback
+    sensory_feedback: EvaluatorDoc
 
 
 class BehaviourSetDoc(Doc):
@@ -92,7 +87,7 @@ class RobotFile(Doc):
     timeout_duration: Duration
     sensors: Sensors
     behaviour_sets: sized(BehaviourSetDoc, "behaviour_set")
-    name: Text | None = None
+    name: Text = ""
     id: str | None = None  # the reference files' own label of the robot; the command line's wins
     buffer_horizon: Duration = 10.0
     control_rate: Rate = 10.0
@@ -128,7 +123,7 @@ def load_robot_params(path: Path | str) -> tuple[RobotParams, list[str]]:
                 f"{bs.giving_up_delay:g} s: this robot gives up before it would ever yield"))
         sets.append(bs)
     robot = RobotParams(
-        name=f.name or "", spin_rate=f.spin_rate, broadcast_rate=f.broadcast_rate,
+        name=f.name, spin_rate=f.spin_rate, broadcast_rate=f.broadcast_rate,
         timeout_duration=f.timeout_duration, buffer_horizon=f.buffer_horizon,
         sensors=sensors, behaviour_sets=tuple(sets), control_rate=f.control_rate,
         max_expected_duration=f.max_expected_duration)

@@ -11,47 +11,38 @@ own route has) and CBBA's own robot keys, each with its default:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 from mrta_agent.route import own_route_params as own
-from mrta_agent.route.own_route_params import OwnRouteParams, OwnRouteRobot, lookahead
-from mrta_agent.runtime.params import StrictMapping
+from mrta_agent.route.own_route_params import OwnRouteParams, OwnRouteRobot
+from mrta_agent.runtime.params import Doc
+from mrta_zenoh.paramdoc import Check, Duration, NonNegative, Positive, checked, whole
 
 DISCOUNT = 0.95
 RESEND_PERIOD = 1.0
 SETTLE = 1.0
 
 
-@dataclass(frozen=True)
-class CbbaKeys:
-    discount: float = DISCOUNT
-    bundle_limit: int | None = None
-    resend_period: float = RESEND_PERIOD
-    settle: float = SETTLE
-    comm_range: float | None = None
-    lookahead: float = 0.0
+def _discount(value: float) -> str | None:
+    if value <= 0:
+        return f"must be > 0, got {value:g}"
+    return f"must be in (0, 1], got {value:g}" if value > 1.0 else None
 
 
-def read_keys(top: StrictMapping) -> CbbaKeys:
-    discount = top.get("discount", float, DISCOUNT, positive=True)
-    if discount > 1.0:
-        raise top.doc.error(("discount",), f"discount must be in (0, 1], got {discount:g}")
-    limit = top.data.get("bundle_limit")
-    if limit is not None and (type(limit) is not int or limit < 1):
-        raise top.doc.error(("bundle_limit",), f"bundle_limit must be a whole number ≥ 1, got "
-                            f"{limit!r:.40}")
-    comm = top.get("comm_range", float, None, positive=True)
-    return CbbaKeys(discount, limit, top.duration("resend_period", RESEND_PERIOD),
-                    top.duration("settle", SETTLE), comm, lookahead(top))
+class CbbaKeys(Doc, kw_only=True):
+    discount: checked(float, Check("must be a number", _discount)) = DISCOUNT
+    bundle_limit: whole(1) | None = None
+    resend_period: Duration = RESEND_PERIOD
+    settle: Duration = SETTLE
+    comm_range: Positive | None = None
+    lookahead: NonNegative = 0.0
 
 
 WHAT = "a CBBA robot parameter file"
-KEYS = set(CbbaKeys.__dataclass_fields__)
+KEYS = CbbaKeys
 
 
 def load_robot(path) -> OwnRouteRobot:
-    return own.load_robot(path, WHAT, KEYS, read_keys)
+    return own.load_robot(path, WHAT, KEYS)
 
 
 def load_params(robot_id: str, robot_file, tasks_file, layers_file=None) -> OwnRouteParams:
-    return own.load_params(robot_id, robot_file, tasks_file, layers_file, WHAT, KEYS, read_keys)
+    return own.load_params(robot_id, robot_file, tasks_file, layers_file, WHAT, KEYS)

@@ -16,11 +16,17 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import msgspec
+
+from mrta_zenoh import paramdoc
 from mrta_zenoh.clock import EPSILON
 from mrta_zenoh.limits import COORDINATE, LEVEL, WEIGHT
-from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, sized_array
-from mrta_agent.runtime.params import SensorParams, StrictMapping, TaskParams, iter_tasks, load_layers_params, load_sensor_topics, open_robot_file, require_task, task_id_of
-from mrta_agent.runtime.plugins import EvaluatorSpec
+from mrta_zenoh.paramdoc import Duration, Rate, Id, Text, sized, within
+from mrta_zenoh.yamlfile import YamlDoc
+from mrta_agent.runtime.params import (Doc, EvaluatorDoc, EvaluatorSpec, SensorParams, Sensors,
+                                       TaskDoc, TaskParams, TopicDoc, evaluator_spec,
+                                       load_layers_params, pose_topic_of, read_tasks,
+                                       require_task, sensor_params)
 
 
 @dataclass(frozen=True)
@@ -80,85 +86,96 @@ class MurdochParams:
         return {t.id: t.layers for t in self.tasks.values()}
 
 
-ROBOT_KEYS = {"name", "spin_rate", "control_rate", "bid_window", "renewal_period",
-              "lease_timeout", "reannounce_period", "give_up_delay", "utility", "pose_topic",
-              "sensors", "skills"}
+class Utility(Doc):
+    skill_weight: within(WEIGHT) = 1.0
+    distance_weight: within(WEIGHT) = 0.0
+
+
+class SkillDoc(Doc):
+    task_id: Id
+    level: within(LEVEL)
+    progress: EvaluatorDoc
+
+
+class RobotFile(Doc):
+    """The robot file as written."""
+
+    bid_window: Duration
+    renewal_period: Duration
+    lease_timeout: Duration
+    reannounce_period: Duration
+    give_up_delay: Duration
+    sensors: Sensors
+    skills: sized(SkillDoc, "skill")
+    name: Text = ""
+    spin_rate: Rate = 10.0
+    control_rate: Rate = 10.0
+    utility: Utility = msgspec.field(default_factory=Utility)
+    pose_topic: Text = ""  # none: the robot's pose is not read
+
+
+class Location(Doc):
+    x: within(COORDINATE)
+    y: within(COORDINATE)
+
+
+class MurdochTaskDoc(TaskDoc):
+    """A task of the tasks file: ALLIANCE's keys (id, name, layers), plus the resources it
+    needs, the locations where it is done and its progress timeout."""
+
+    resources: sized(TopicDoc, "resource") = []
+    locations: sized(Location, "location") = []
+    progress_timeout: Duration = PROGRESS_TIMEOUT
 
 
 def load_robot(path: Path | str) -> tuple[MurdochRobot, list[str]]:
-    doc, top, sensors = open_robot_file(path, ROBOT_KEYS, "a MURDOCH robot parameter file")
+    d = paramdoc.load(path, RobotFile, "a MURDOCH robot parameter file")
+    f = d.value
+    sensors = sensor_params(d, f.sensors)
     warnings: list[str] = []
-    topics = {s.topic_name for s in sensors}
-    u = StrictMapping(doc, ("utility",), {"skill_weight", "distance_weight"}) \
-        if "utility" in top.data else None
     skills: list[Skill] = []
-    for spath, _ in sized_array(doc, ("skills",), "skill"):
-        s = StrictMapping(doc, spath, {"task_id", "level", "progress"})
-        task_id = task_id_of(s, "task_id")
-        if any(k.task_id == task_id for k in skills):
-            raise doc.error(spath + ("task_id",), f"task {task_id!r} has two skills")
-        p = StrictMapping(doc, spath + ("progress",), {"plugin_name", "sensors"})
-        ptopics = load_sensor_topics(doc, spath + ("progress", "sensors"), topics)
-        level = s.get("level", float, within=LEVEL)
-        skills.append(Skill(task_id, level, EvaluatorSpec(
-            task_id, p.get("plugin_name", str), ptopics, p.where("plugin_name"))))
-    pose_topic = top.get("pose_topic", str, None)
-    if pose_topic is not None and pose_topic not in topics:
-        raise doc.error(("pose_topic",), f"pose_topic {pose_topic!r} is not among the robot's "
-                        f"sensors ({', '.join(sorted(topics)) or 'none'})" + did_you_mean(pose_topic, topics))
+    for i, s in enumerate(f.skills):
+        if any(k.task_id == s.task_id for k in skills):
+            raise d.error(("skills", i, "task_id"), f"task {s.task_id!r} has two skills")
+        skills.append(Skill(s.task_id, s.level, evaluator_spec(
+            d, ("skills", i, "progress"), s.task_id, s.progress, sensors)))
     robot = MurdochRobot(
-        name=top.get("name", str, ""),
-        spin_rate=top.rate("spin_rate", 10.0),
-        control_rate=top.rate("control_rate", 10.0),
-        bid_window=top.duration("bid_window"),
-        renewal_period=top.duration("renewal_period"),
-        lease_timeout=top.duration("lease_timeout"),
-        reannounce_period=top.duration("reannounce_period"),
-        give_up_delay=top.duration("give_up_delay"),
-        skill_weight=u.get("skill_weight", float, 1.0, within=WEIGHT) if u else 1.0,
-        distance_weight=u.get("distance_weight", float, 0.0, within=WEIGHT) if u else 0.0,
-        pose_topic=pose_topic, sensors=sensors, skills=tuple(skills))
+        name=f.name, spin_rate=f.spin_rate, control_rate=f.control_rate,
+        bid_window=f.bid_window, renewal_period=f.renewal_period,
+        lease_timeout=f.lease_timeout, reannounce_period=f.reannounce_period,
+        give_up_delay=f.give_up_delay, skill_weight=f.utility.skill_weight,
+        distance_weight=f.utility.distance_weight,
+        pose_topic=pose_topic_of(d, f.pose_topic or None, sensors), sensors=sensors,
+        skills=tuple(skills))
     tick = 1.0 / robot.spin_rate
     for key in ("bid_window", "renewal_period"):
         if getattr(robot, key) < tick:
-            raise doc.error((key,), f"{key} {getattr(robot, key):g} s is shorter than the tick "
-                            f"period 1/spin_rate = {tick:g} s: it could never be honoured")
+            raise d.error((key,), f"{key} {getattr(robot, key):g} s is shorter than the tick "
+                          f"period 1/spin_rate = {tick:g} s: it could never be honoured")
     if robot.lease_timeout <= robot.renewal_period:
-        raise doc.error(("lease_timeout",), f"lease_timeout {robot.lease_timeout:g} s must be "
-                        f"longer than renewal_period {robot.renewal_period:g} s, or every lease "
-                        "lapses between two renewals")
+        raise d.error(("lease_timeout",), f"lease_timeout {robot.lease_timeout:g} s must be "
+                      f"longer than renewal_period {robot.renewal_period:g} s, or every lease "
+                      "lapses between two renewals")
     if robot.lease_timeout < 2 * robot.renewal_period + tick:
-        warnings.append(doc.warning(
+        warnings.append(d.warning(
             ("lease_timeout",), f"lease_timeout {robot.lease_timeout:g} s is less than two "
             f"renewal periods plus a tick ({2 * robot.renewal_period + tick:g} s): one late "
             "renewal makes teammates re-auction a task this robot still does"))
     if robot.reannounce_period <= robot.bid_window:
-        raise doc.error(("reannounce_period",), f"reannounce_period {robot.reannounce_period:g} s "
-                        f"must be longer than bid_window {robot.bid_window:g} s, or a task is "
-                        "announced again before its auction closes")
+        raise d.error(("reannounce_period",), f"reannounce_period {robot.reannounce_period:g} s "
+                      f"must be longer than bid_window {robot.bid_window:g} s, or a task is "
+                      "announced again before its auction closes")
     return robot, warnings
 
 
 def load_tasks(path: Path | str) -> dict[str, MurdochTask]:
     """The tasks file: ALLIANCE's (id, name, layers), plus resources, locations and the
     progress timeout."""
-    tasks: dict[str, MurdochTask] = {}
-    for r, layers in iter_tasks(path, frozenset({"resources", "locations", "progress_timeout"})):
-        doc, tpath = r.doc, r.path
-        resources = []
-        if "resources" in r.data:
-            for rp, _ in sized_array(doc, tpath + ("resources",), "resource"):
-                resources.append(StrictMapping(doc, rp, {"topic_name"}).get("topic_name", str))
-        locations = []
-        if "locations" in r.data:
-            for lp, _ in sized_array(doc, tpath + ("locations",), "location"):
-                m = StrictMapping(doc, lp, {"x", "y"})
-                locations.append((m.get("x", float, within=COORDINATE),
-                                  m.get("y", float, within=COORDINATE)))
-        tasks[layers.id] = MurdochTask(layers.id, layers.name, tuple(resources),
-                                       tuple(locations), layers,
-                                       r.duration("progress_timeout", PROGRESS_TIMEOUT))
-    return tasks
+    return {t.id: MurdochTask(t.id, layers.name,
+                              tuple(r.topic_name for r in t.resources),
+                              tuple((p.x, p.y) for p in t.locations), layers,
+                              t.progress_timeout)
+            for *_, t, layers in read_tasks(path, MurdochTaskDoc)}
 
 
 def load_params(robot_file, tasks_file, layers_file=None) -> MurdochParams:

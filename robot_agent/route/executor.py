@@ -28,10 +28,11 @@ from dataclasses import dataclass, field
 from typing import NamedTuple, Protocol, Sequence
 
 from mrta_zenoh.messages import Odometry
-from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, sized_array
+from mrta_zenoh.paramdoc import Document, Duration, Id, Rate, Text, sized
 
-from ..runtime.params import SensorParams, StrictMapping, load_sensor_topics, task_id_of
-from ..runtime.plugins import EvaluatorSpec, Plugins
+from ..runtime.params import (Doc, EvaluatorDoc, EvaluatorSpec, SensorParams, Sensors,
+                              evaluator_spec, pose_topic_of)
+from ..runtime.plugins import Plugins
 
 
 class Readings(Protocol):
@@ -127,25 +128,38 @@ class RouteExecutor:
             return self.current
         return None
 
-def route_tasks(doc: YamlDoc, top: StrictMapping, sensors: Sequence[SensorParams]
+# A robot reports at least this often (s): its heartbeat to whoever plans its route, and how
+# fresh the supervisor's view of it is.
+REPORT_PERIOD = 1.0
+
+
+class RouteTaskDoc(Doc):
+    """One task a route-executing robot may serve, and the evaluator saying whether it can now."""
+
+    task_id: Id
+    evaluator: EvaluatorDoc
+
+
+class RouteRobotFile(Doc, kw_only=True):
+    """What central's and the own-route architectures' robot files share."""
+
+    sensors: Sensors
+    tasks: sized(RouteTaskDoc, "task")
+    name: Text = ""
+    spin_rate: Rate = 10.0
+    control_rate: Rate = 10.0
+    report_period: Duration = REPORT_PERIOD
+    pose_topic: Text = ""  # none: the robot's pose is not read
+
+
+def route_tasks(d: Document, f: RouteRobotFile, sensors: tuple[SensorParams, ...]
                 ) -> tuple[tuple[EvaluatorSpec, ...], str | None]:
     """A route-executing robot's `tasks` (one evaluator per task it may serve, no task twice)
-    and its `pose_topic` (one of its sensors): what central's and the own-route architectures'
-    robot files share."""
-    topics = {s.topic_name for s in sensors}
+    and its `pose_topic` (one of its sensors)."""
     evaluators: list[EvaluatorSpec] = []
-    for tpath, _ in sized_array(doc, ("tasks",), "task"):
-        t = StrictMapping(doc, tpath, {"task_id", "evaluator"})
-        task_id = task_id_of(t, "task_id")
-        if any(e.task_id == task_id for e in evaluators):
-            raise doc.error(tpath + ("task_id",), f"task {task_id!r} appears twice")
-        e = StrictMapping(doc, tpath + ("evaluator",), {"plugin_name", "sensors"})
-        etopics = load_sensor_topics(doc, tpath + ("evaluator", "sensors"), topics)
-        evaluators.append(EvaluatorSpec(task_id, e.get("plugin_name", str), etopics,
-                                        e.where("plugin_name")))
-    pose_topic = top.get("pose_topic", str, None)
-    if pose_topic is not None and pose_topic not in topics:
-        raise doc.error(("pose_topic",), f"pose_topic {pose_topic!r} is not among the robot's "
-                        f"sensors ({', '.join(sorted(topics)) or 'none'})"
-                        + did_you_mean(pose_topic, topics))
-    return tuple(evaluators), pose_topic
+    for i, t in enumerate(f.tasks):
+        if any(e.task_id == t.task_id for e in evaluators):
+            raise d.error(("tasks", i, "task_id"), f"task {t.task_id!r} appears twice")
+        evaluators.append(evaluator_spec(d, ("tasks", i, "evaluator"), t.task_id, t.evaluator,
+                                         sensors))
+    return tuple(evaluators), pose_topic_of(d, f.pose_topic or None, sensors)

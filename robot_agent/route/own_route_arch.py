@@ -17,8 +17,8 @@ from .own_route_params import load_files
 
 
 class OwnRouteArchitecture(RouteArchitecture):
-    """Subclasses set `params` (the module with `load_params`, `load_robot`, WHAT, KEYS and
-    `_read`) besides the contract's attributes."""
+    """Subclasses set `params` (the module with `load_params`, `load_robot`, WHAT and KEYS —
+    the Struct of the architecture's own robot-file keys) besides the contract's attributes."""
 
     params: ClassVar[ModuleType]
     progress_type = Progress
@@ -30,8 +30,7 @@ class OwnRouteArchitecture(RouteArchitecture):
     def _plugins(self, robot_params: Path, tasks_params: Path) -> Plugins:
         """The robot's plugins from its robot and tasks files alone (load_files): the instance
         they name is the application's, read when the robot starts."""
-        robot, tasks = load_files(robot_params, tasks_params, self.params.WHAT,
-                                  self.params.KEYS, self.params.read_keys)
+        robot, tasks = load_files(robot_params, tasks_params, self.params.WHAT, self.params.KEYS)
         return Plugins(robot.sensors, robot.evaluators, tasks, None)
 
     def check_files(self, robot_id: str, robot_params: Path, tasks_params: Path,

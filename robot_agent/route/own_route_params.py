@@ -12,28 +12,46 @@ task's id, name and layers.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
-from mrta_zenoh import instances
+import msgspec
+
+from mrta_zenoh import instances, paramdoc
 from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.paramdoc import Duration, Text
 from mrta_zenoh.planning import Problem
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean
 
-from ..runtime.params import (SensorParams, StrictMapping, TaskParams, iter_tasks, load_layers_params,
-                     open_robot_file, require_task)
-from ..runtime.plugins import EvaluatorSpec
-from .executor import route_tasks
+from ..runtime.params import (EvaluatorSpec, SensorParams, TaskParams, load_layers_params,
+                              load_tasks_params, require_task, sensor_params)
+from .executor import RouteRobotFile, route_tasks
 
-REPORT_PERIOD = 1.0
 # A teammate whose reports show a task but no progress (no motion, nothing served, no change of
 # task) for this long (s) counts as gone: its tasks go to the others. Longer than any task's
 # service in the shipped applications, so a robot serving in place is not taken for stalled.
 PROGRESS_TIMEOUT = 10.0
 
-COMMON_KEYS = {"name", "spin_rate", "control_rate", "report_period", "progress_timeout",
-               "pose_topic", "instance", "sensors", "tasks"}
+
+class OwnRouteFile(RouteRobotFile, kw_only=True):
+    """The keys every own-route robot file has: the route family's, the instance (relative to
+    the file) and the progress timeout."""
+
+    instance: Text
+    progress_timeout: Duration = PROGRESS_TIMEOUT
+
+
+@functools.cache
+def robot_file(keys: type) -> type:
+    """An own-route architecture's robot file: OwnRouteFile's keys and those of `keys`, the
+    Struct of the architecture's own (SsiKeys, CbbaKeys: their defaults and bounds)."""
+    fields = [(f.name, f.type, f.default if f.default is not msgspec.NODEFAULT
+               else msgspec.field(default_factory=f.default_factory))
+              for f in msgspec.structs.fields(keys)]
+    return msgspec.defstruct(keys.__name__.removesuffix("Keys") + "RobotFile", fields,
+                             bases=(OwnRouteFile,), kw_only=True, module=keys.__module__)
 
 
 @dataclass(frozen=True)
@@ -47,7 +65,7 @@ class OwnRouteRobot:
     instance: Path
     sensors: tuple[SensorParams, ...]
     evaluators: tuple[EvaluatorSpec, ...]
-    extra: Any = None  # the architecture's own keys, as its reader returned them
+    extra: Any = None  # the architecture's own keys: its Struct (SsiKeys, CbbaKeys)
 
 
 @dataclass
@@ -59,45 +77,34 @@ class OwnRouteParams:
     warnings: list[str] = field(default_factory=list)
 
 
-def lookahead(top: StrictMapping) -> float:
-    """The `lookahead` key (s, 0 by default): how long before its arrival a task is planned."""
-    value = top.get("lookahead", float, 0.0)
-    if value < 0:
-        raise top.doc.error(("lookahead",), f"lookahead must be ≥ 0, got {value:g}")
-    return value
-
-
-def load_robot(path: Path | str, what: str, extra_keys: set[str],
-               read_extra: Callable[[StrictMapping], Any]) -> OwnRouteRobot:
-    doc, top, sensors = open_robot_file(path, COMMON_KEYS | extra_keys, what)
-    evaluators, pose_topic = route_tasks(doc, top, sensors)
-    instance = Path(doc.path).parent / top.get("instance", str)
+def load_robot(path: Path | str, what: str, keys: type) -> OwnRouteRobot:
+    d = paramdoc.load(path, robot_file(keys), what)
+    f = d.value
+    sensors = sensor_params(d, f.sensors)
+    evaluators, pose_topic = route_tasks(d, f, sensors)
     return OwnRouteRobot(
-        name=top.get("name", str, ""), spin_rate=top.rate("spin_rate", 10.0),
-        control_rate=top.rate("control_rate", 10.0),
-        report_period=top.duration("report_period", REPORT_PERIOD),
-        progress_timeout=top.duration("progress_timeout", PROGRESS_TIMEOUT),
-        pose_topic=pose_topic, instance=instance, sensors=sensors,
-        evaluators=evaluators, extra=read_extra(top))
+        name=f.name, spin_rate=f.spin_rate, control_rate=f.control_rate,
+        report_period=f.report_period, progress_timeout=f.progress_timeout,
+        pose_topic=pose_topic, instance=Path(d.doc.path).parent / f.instance, sensors=sensors,
+        evaluators=evaluators,
+        extra=keys(**{name: getattr(f, name) for name in keys.__struct_fields__}))
 
 
-def load_files(robot_file, tasks_file, what: str, extra_keys: set[str],
-               read_extra: Callable[[StrictMapping], Any]
+def load_files(robot_file, tasks_file, what: str, keys: type
                ) -> tuple[OwnRouteRobot, dict[str, TaskParams]]:
     """The robot and tasks files, checked against each other — not the instance they name,
     which an application writes beside them (`mrta app new` does not: the check of what it
     writes stops here)."""
-    robot = load_robot(robot_file, what, extra_keys, read_extra)
-    tasks = {t.id: t for _, t in iter_tasks(tasks_file)}
+    robot = load_robot(robot_file, what, keys)
+    tasks = load_tasks_params(tasks_file)
     for ev in robot.evaluators:
         require_task(ev.task_id, tasks, robot_file, "a task entry")
     return robot, tasks
 
 
-def load_params(robot_id: str, robot_file, tasks_file, layers_file, what: str,
-                extra_keys: set[str], read_extra: Callable[[StrictMapping], Any]
+def load_params(robot_id: str, robot_file, tasks_file, layers_file, what: str, keys: type
                 ) -> OwnRouteParams:
-    robot, tasks = load_files(robot_file, tasks_file, what, extra_keys, read_extra)
+    robot, tasks = load_files(robot_file, tasks_file, what, keys)
     if not robot.instance.is_file():
         raise ConfigError(f"{robot_file}: its instance file {robot.instance} does not exist "
                           "(the key `instance`, relative to the robot file)")

@@ -8,22 +8,16 @@ Each architecture's robot file is a Struct of its own (its params module) holdin
 Sensors`; the tasks file is `TasksFile[TaskDoc]` (MURDOCH's adds keys to TaskDoc).
 """
 
-import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Generic, Iterator, TypeVar
+from typing import Generic, Iterator, NamedTuple, TypeVar
 
 import msgspec
 
 from mrta_zenoh import paramdoc
 from mrta_zenoh.errors import ConfigError
-from mrta_zenoh.keys import is_id
-from mrta_zenoh.limits import DURATION, RATE, Range
 from mrta_zenoh.paramdoc import Document, Duration, Id, Text, sized
-from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, get_path, load_yaml, sized_array
-
-
-NUMBER = (int, float)
+from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, load_yaml
 
 
 @dataclass(frozen=True)
@@ -65,7 +59,7 @@ class LayerDoc(Doc):
 
 class TaskDoc(Doc):
     id: Id
-    name: Text | None = None  # the id when absent
+    name: Text = ""  # the id when absent
     layers: sized(LayerDoc, "layer") = []
 
 
@@ -78,6 +72,23 @@ class TasksFile(Doc, Generic[TaskT]):
 
 Sensors = sized(SensorDoc, "sensor")
 Topics = sized(TopicDoc, "sensor")
+
+
+class EvaluatorSpec(NamedTuple):
+    """One task's sensory evaluator: which plugin, on which of the robot's sensors."""
+
+    task_id: str
+    plugin_name: str
+    topics: tuple[str, ...]
+    where: str = ""
+
+
+class EvaluatorDoc(Doc):
+    """A sensory evaluator as a robot file names it (ALLIANCE's `sensory_feedback`, MURDOCH's
+    `progress`, the route family's `evaluator`): its plugin and the robot's sensors it reads."""
+
+    plugin_name: Text
+    sensors: Topics
 
 
 def sensor_params(d: Document, sensors: list[SensorDoc]) -> tuple[SensorParams, ...]:
@@ -97,6 +108,14 @@ def sensor_topics(d: Document, path: tuple, topics: list[TopicDoc],
                           f"the robot's sensors ({', '.join(sorted(known)) or 'none'})"
                           + did_you_mean(t.topic_name, known))
     return tuple(t.topic_name for t in topics)
+
+
+def evaluator_spec(d: Document, path: tuple, task_id: str, ev: EvaluatorDoc,
+                   robot: tuple[SensorParams, ...]) -> EvaluatorSpec:
+    """The evaluator at `path` of the robot file, its sensors checked against the robot's."""
+    return EvaluatorSpec(task_id, ev.plugin_name,
+                         sensor_topics(d, path + ("sensors",), ev.sensors, robot),
+                         d.where(path + ("plugin_name",)))
 
 
 def pose_topic_of(d: Document, pose_topic: str | None, robot: tuple[SensorParams, ...]
@@ -129,126 +148,6 @@ def read_tasks(path: Path | str, kind: type[TaskT] = TaskDoc
 
 def load_tasks_params(path: Path | str) -> dict[str, TaskParams]:
     return {t.id: t for *_, t in read_tasks(path)}
-
-
-class StrictMapping:
-    """Reads one mapping, remembering which keys were used, so leftovers can be reported."""
-
-    def __init__(self, doc: YamlDoc, path: tuple, allowed: set[str]):
-        self.doc, self.path = doc, path
-        data = get_path(doc.data, path)
-        if not isinstance(data, dict):
-            raise doc.error(path, "expected a mapping")
-        self.data = data
-        unknown = [k for k in data if k not in allowed]
-        if unknown:
-            k = unknown[0]
-            raise doc.error(path + (k,), f"unknown key {k!r}" + did_you_mean(k, allowed))
-
-    def get(self, key: str, kind, default: Any = ..., positive: bool = False,
-            within: Range | None = None) -> Any:
-        """The value of `key` as `kind`; a number is finite, > 0 with `positive`, and inside
-        `within` (mrta_zenoh.limits): the error names file, line, key and the range."""
-        if key not in self.data:
-            if default is ...:
-                raise self.doc.error(self.path + (key,), f"missing mandatory key {key!r}")
-            return default
-        value = self.data[key]
-        if kind is float:
-            if type(value) is bool or not isinstance(value, NUMBER):
-                raise self.doc.error(self.path + (key,), f"{key} must be a number, got {value!r:.40}")
-            value = float(value)
-            if not math.isfinite(value):
-                raise self.doc.error(self.path + (key,), f"{key} must be a finite number, got {value}")
-            if positive and value <= 0:
-                raise self.doc.error(self.path + (key,), f"{key} must be > 0, got {value:g}")
-            if within is not None and within.problem(value):
-                raise self.doc.error(self.path + (key,), f"{key} {within.problem(value)}")
-        elif kind is str:
-            if not isinstance(value, str) or not value.strip():
-                raise self.doc.error(self.path + (key,), f"{key} must be a non-empty string, got {value!r:.40}")
-        return value
-
-    def rate(self, key: str, default: Any = ...) -> float:
-        """A frequency in Hz: positive, finite, and within what a process can honour."""
-        return self.get(key, float, default, positive=True, within=RATE)
-
-    def duration(self, key: str, default: Any = ...) -> float:
-        """A duration, delay or timeout in seconds: positive, finite, at most a day."""
-        return self.get(key, float, default, positive=True, within=DURATION)
-
-    def where(self, key: str) -> str:
-        line = self.doc.line(self.path + (key,))
-        return f"{self.doc.path}:{line}" if line else str(self.doc.path)
-
-
-def load_sensors(doc: YamlDoc) -> tuple[SensorParams, ...]:
-    """The robot file's `sensors` array (shared by every architecture's robot file)."""
-    sensors = []
-    for spath, _ in sized_array(doc, ("sensors",), "sensor"):
-        r = StrictMapping(doc, spath, {"plugin_name", "topic_name", "timeout_duration", "buffer_horizon"})
-        sensors.append(SensorParams(
-            plugin_name=r.get("plugin_name", str), topic_name=r.get("topic_name", str),
-            timeout_duration=r.duration("timeout_duration", 5.0),
-            buffer_horizon=r.duration("buffer_horizon", 5.0),
-            where=r.where("plugin_name")))
-    return tuple(sensors)
-
-
-def load_sensor_topics(doc: YamlDoc, path: tuple, topics: set[str]) -> tuple[str, ...]:
-    """An evaluator's `sensors` array: topic names, each one of the robot's sensors."""
-    out = []
-    for fp, _ in sized_array(doc, path, "sensor"):
-        t = StrictMapping(doc, fp, {"topic_name"}).get("topic_name", str)
-        if t not in topics:
-            raise doc.error(fp + ("topic_name",), f"sensor topic {t!r} is not among the robot's "
-                            f"sensors ({', '.join(sorted(topics)) or 'none'})" + did_you_mean(t, topics))
-        out.append(t)
-    return tuple(out)
-
-
-def task_id_of(m: StrictMapping, key: str) -> str:
-    """The task id under `key` of a mapping: one key chunk, or a ConfigError naming the key."""
-    task_id = m.get(key, str)
-    if not is_id(task_id):
-        raise m.doc.error(m.path + (key,), f"task id {task_id!r:.80} must be one key chunk: "
-                          "up to 64 letters, digits, '_', '-' or '.'")
-    return task_id
-
-
-def open_robot_file(path: Path | str, keys: set[str], what: str
-                    ) -> tuple[YamlDoc, StrictMapping, tuple[SensorParams, ...]]:
-    """A robot parameter file (every architecture's): its document, its top-level keys
-    checked against `keys`, and its sensors."""
-    doc = load_yaml(path)
-    if not isinstance(doc.data, dict):
-        raise doc.error((), f"{what} must be a mapping")
-    return doc, StrictMapping(doc, (), keys), load_sensors(doc)
-
-
-def iter_tasks(path: Path | str, extra_keys: frozenset[str] = frozenset()
-               ) -> Iterator[tuple[StrictMapping, TaskParams]]:
-    """Each task of a tasks file (every architecture's): its mapping — with `extra_keys` allowed
-    beside id, name and layers, for the architecture to read — and its TaskParams. Ids are
-    checked and must be unique."""
-    doc = load_yaml(path)
-    if not isinstance(doc.data, dict):
-        raise doc.error((), "a tasks parameter file must be a mapping")
-    StrictMapping(doc, (), {"tasks"})
-    seen: set[str] = set()
-    for tpath, _ in sized_array(doc, ("tasks",), "task"):
-        r = StrictMapping(doc, tpath, {"id", "name", "layers"} | extra_keys)
-        task_id = task_id_of(r, "id")
-        if task_id in seen:
-            raise doc.error(tpath + ("id",), f"task id {task_id!r} appears twice")
-        seen.add(task_id)
-        layers, where = [], []
-        if "layers" in r.data:
-            for lpath, _ in sized_array(doc, tpath + ("layers",), "layer"):
-                lr = StrictMapping(doc, lpath, {"plugin_name"})
-                layers.append(lr.get("plugin_name", str))
-                where.append(lr.where("plugin_name"))
-        yield r, TaskParams(task_id, r.get("name", str, task_id), tuple(layers), tuple(where))
 
 
 def load_layers_params(path: Path | str | None) -> YamlDoc | None:

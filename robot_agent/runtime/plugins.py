@@ -37,7 +37,7 @@ import sys
 import threading
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
-from typing import TYPE_CHECKING, Any, ClassVar, NamedTuple, Sequence
+from typing import TYPE_CHECKING, Any, ClassVar, Sequence
 
 import msgspec
 
@@ -50,7 +50,7 @@ from mrta_zenoh.messages import Message, Twist
 from mrta_zenoh.seeds import prepare
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean
 
-from .params import SensorParams, TaskParams
+from .params import EvaluatorSpec, SensorParams, TaskParams
 
 if TYPE_CHECKING:
     import numpy as np  # annotations only: numpy loads when a plugin draws (mrta_zenoh.seeds)
@@ -84,15 +84,6 @@ def plugin_entry_points(group: str) -> dict:
     current name wins when a plugin is registered under both)."""
     path = tuple(sys.path)
     return {**_group(group.replace(*LEGACY_PREFIX), path), **_group(group, path)}
-
-
-class EvaluatorSpec(NamedTuple):
-    """One task's sensory evaluator: which plugin, on which of the robot's sensors."""
-
-    task_id: str
-    plugin_name: str
-    topics: tuple[str, ...]
-    where: str = ""
 
 
 class NoParams(msgspec.Struct, forbid_unknown_fields=True):

@@ -10,35 +10,28 @@ own route has) and SSI's own robot keys, each with its default:
 
 from __future__ import annotations
 
-from dataclasses import dataclass
-
 from mrta_agent.route import own_route_params as own
-from mrta_agent.route.own_route_params import OwnRouteParams, OwnRouteRobot, lookahead
-from mrta_agent.runtime.params import StrictMapping
+from mrta_agent.route.own_route_params import OwnRouteParams, OwnRouteRobot
+from mrta_agent.runtime.params import Doc
+from mrta_zenoh.paramdoc import Duration, NonNegative
 
 RESEND_PERIOD = 0.5
 JOIN_WAIT = 1.0
 
 
-@dataclass(frozen=True)
-class SsiKeys:
-    resend_period: float = RESEND_PERIOD
-    join_wait: float = JOIN_WAIT
-    lookahead: float = 0.0
-
-
-def read_keys(top: StrictMapping) -> SsiKeys:
-    return SsiKeys(top.duration("resend_period", RESEND_PERIOD),
-                   top.duration("join_wait", JOIN_WAIT), lookahead(top))
+class SsiKeys(Doc, kw_only=True):
+    resend_period: Duration = RESEND_PERIOD
+    join_wait: Duration = JOIN_WAIT
+    lookahead: NonNegative = 0.0
 
 
 WHAT = "an SSI robot parameter file"
-KEYS = set(SsiKeys.__dataclass_fields__)
+KEYS = SsiKeys
 
 
 def load_robot(path) -> OwnRouteRobot:
-    return own.load_robot(path, WHAT, KEYS, read_keys)
+    return own.load_robot(path, WHAT, KEYS)
 
 
 def load_params(robot_id: str, robot_file, tasks_file, layers_file=None) -> OwnRouteParams:
-    return own.load_params(robot_id, robot_file, tasks_file, layers_file, WHAT, KEYS, read_keys)
+    return own.load_params(robot_id, robot_file, tasks_file, layers_file, WHAT, KEYS)

@@ -21,11 +21,23 @@ from mrta_agent.runtime.architecture import AgentArchitecture, Prepared
 from mrta_agent.runtime.cli import agent_command
 from mrta_agent.runtime.host import AgentOptions
 from mrta_agent.runtime.coordinator import Coordinator, Say
-from mrta_agent.runtime.params import (load_layers_params, load_tasks_params,
-                                       open_robot_file, require_task, task_id_of)
+from mrta_agent.runtime.params import (Doc, SensorParams, Sensors, load_layers_params,
+                                       load_tasks_params, require_task, sensor_params)
 from mrta_agent.runtime.plugins import EvaluatorSpec, Plugins
+from mrta_zenoh import paramdoc
+from mrta_zenoh.paramdoc import Id, Positive, Rate, Text
 
-KEYS = {"name", "spin_rate", "period", "timeout", "task", "standby", "sensors"}
+
+class FixedFile(Doc):
+    """The robot file: a typed document (mrta_zenoh.paramdoc), as every architecture's."""
+
+    task: Id
+    sensors: Sensors
+    name: Text = ""
+    standby: Id = ""
+    spin_rate: Rate = 10.0
+    period: Positive = 0.5
+    timeout: Positive = 2.0
 
 
 @message("fixed_msgs/Doing")
@@ -80,15 +92,14 @@ class FixedArchitecture(AgentArchitecture):
     messages = {"doing": DoingMsg}
     doing_kinds = ("doing",)
 
-    def _read(self, path: Path):
-        doc, top, sensors = open_robot_file(path, KEYS, "a fixed-assignment robot file")
-        standby = task_id_of(top, "standby") if "standby" in top.data else None
-        return (top, sensors, task_id_of(top, "task"), standby, top.rate("spin_rate", 10.0),
-                top.get("period", float, 0.5, positive=True),
-                top.get("timeout", float, 2.0, positive=True))
+    def _read(self, path: Path) -> tuple[FixedFile, tuple[SensorParams, ...]]:
+        d = paramdoc.load(path, FixedFile, "a fixed-assignment robot file")
+        return d.value, sensor_params(d, d.value.sensors)
 
     def prepare(self, options: AgentOptions) -> Prepared:
-        _, sensors, task, standby, spin, period, timeout = self._read(options.robot_params)
+        f, sensors = self._read(options.robot_params)
+        task, standby, spin, period, timeout = (f.task, f.standby or None, f.spin_rate,
+                                                f.period, f.timeout)
         tasks = load_tasks_params(options.tasks_params)
         mine = [t for t in (task, standby) if t is not None]
         for t in mine:
@@ -111,8 +122,8 @@ class FixedArchitecture(AgentArchitecture):
 
     def takeover_bound(self, robot_params: Path, task: str) -> float:
         """The owner's last word, then `timeout`, then the standby's next tick and its word."""
-        _, _, _, _, spin, period, timeout = self._read(robot_params)
-        return timeout + period + 1.0 / spin
+        f, _ = self._read(robot_params)
+        return f.timeout + f.period + 1.0 / f.spin_rate
 
 
 FIXED = FixedArchitecture()
