@@ -18,7 +18,9 @@ run of its cell — one set per cell shows what the cell does; every run keeps i
 from which `mrta plot` draws any other. `plots=False` draws none, the report's included.
 
 Run until precise (`until`: metric → half-width): after the file's seeds, blocks of `block`
-new seeds (the next integers above those used) are added to every cell until the bootstrap
+new seeds (the next integers above those used) — or, when the file has an instance generator,
+`block` new instances of every size (two-level bootstrap: only instances narrow an interval
+over instances) — are added to every cell until the bootstrap
 half-width of each named metric is below the target in every cell, or the next block would
 pass `max_runs`. Every cell gets every block, so architectures and configurations stay paired
 seed for seed; the blocks depend only on the results, so the same command gives the same rows,
@@ -41,12 +43,12 @@ from typing import Any
 from mrta_zenoh.errors import ConfigError, Interrupted
 from mrta_zenoh.instances import kinds as instance_kinds
 from mrta_zenoh.keys import normalize_robot_id
-from mrta_zenoh.limits import MAX_RUNS
+from mrta_zenoh.limits import MAX_RUNS, SEED
 from mrta_zenoh.processes import ProcessGroup
 from mrta_zenoh.toolchain.registry import Registry
 from mrta_zenoh.yamlfile import did_you_mean, plural
 
-from . import experiment_dask
+from . import experiment_dask, experiment_slurm
 from .experiment_file import (Experiment, Run, _failure_problem, load_experiment)  # noqa: F401
 from .experiment_runs import (Context, Results, error_of, inexact, package_copy,
                               prepare_output, start_run)
@@ -56,14 +58,15 @@ from .experiment_resume import (Shard, check_block, check_folder, done_rows, ide
 from .mission import MissionOptions, MissionRun, resolve
 from .report import Options, build
 from .report_md import Precision, write_report
-from .results import COVERAGE, MEASURES, kind, read_results
+from .results import COVERAGE, MEASURES, column_named, kind, read_results
 
 log = logging.getLogger("mrta.experiment")
 
 
 def parse_target(text: str) -> tuple[str, float]:
     """`METRIC:HALF_WIDTH` of --until-ci; a ConfigError saying what is expected otherwise. The
-    metric is a measured column of results.csv (results.kind): refused here, before any run,
+    metric is a measured column of results.csv (results.kind), by its name or the one the
+    report's tables print (results.column_named: `makespan`): refused here, before any run,
     when it cannot be one."""
     metric, sep, width = text.rpartition(":")
     try:
@@ -73,6 +76,7 @@ def parse_target(text: str) -> tuple[str, float]:
     if not sep or not metric or not half > 0 or half == float("inf"):
         raise ConfigError(f"--until-ci {text!r}: expected METRIC:HALF_WIDTH, a results.csv "
                           "column and a number > 0 (e.g. takeover_seconds:0.1)")
+    metric = column_named(metric)
     if kind(metric) != "measure":
         known = list(MEASURES) + ["TASK" + s for s in COVERAGE] + ["metrics.NAME"]
         raise ConfigError(f"--until-ci {text!r}: {metric!r} is not a measured column"
@@ -180,9 +184,11 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
                    stop: threading.Event | None = None, progress=None,
                    scheduler: str | None = None, max_runs: int = MAX_RUNS,
                    until: dict[str, float] | None = None, block: int = 1, plots: bool = True,
-                   report: Options = Options(), shard: Shard | None = None) -> list[dict]:
+                   report: Options = Options(), shard: Shard | None = None,
+                   slurm: experiment_slurm.SlurmOptions | None = None) -> list[dict]:
     """Every run of FILE's matrix (and, with `until`, the blocks of seeds it takes), `jobs` at
     once here or, with `scheduler` (a Dask scheduler's address), as tasks on that cluster;
+    or, with `slurm`, as SLURM array tasks (experiment_slurm.py);
     returns the rows (also in OUTPUT/results.csv) and writes the report beside them. A matrix
     of more than `max_runs` runs is refused before anything starts. Runs OUTPUT's results.csv
     already has a row for are not run again (resuming: experiment_resume); with `shard`, only
@@ -193,6 +199,11 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
                               "workers' `runs` resources say how many run at once")
         experiment_dask.check_address(scheduler)
         experiment_dask.require_distributed()  # before anything is written
+    if slurm is not None:
+        if jobs is not None or scheduler is not None:
+            raise ConfigError("--backend slurm runs every run as an array task: --jobs (this "
+                              "machine) and --scheduler (Dask) are for the other backends")
+        slurm.check()
     if shard is not None and until:
         raise ConfigError(f"--until-ci with --shard {shard}: the blocks depend on every row of "
                           "the matrix; run --until-ci on the shards' folders reported together "
@@ -216,7 +227,7 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
                  results.path)
     packages = {name: run.package for name, run in resolved.items()}
     backend = _Backend(packages, exp.spec.duration, output, jobs, scheduler, stop, results,
-                       pictures)
+                       pictures, slurm)
     have = results.done()
     backend.run([r for r in mine if r.index not in have])
     precision = None
@@ -241,9 +252,11 @@ def _with_targets(metrics: tuple[str, ...] | None, until: dict[str, float] | Non
 def _until_precise(exp: Experiment, backend: "_Backend", runs: list[Run],
                    until: dict[str, float], block: int, max_runs: int,
                    report: Options) -> Precision:
-    """Blocks of new seeds for every cell until every cell is precise enough (module
-    docstring); the precision reached, for summary.md."""
-    used = sorted(exp.spec.seeds)
+    """Blocks of new instances (a file with an instance generator) or new seeds for every cell
+    until every cell is precise enough (module docstring); the precision reached, for
+    summary.md."""
+    more_of = _instance_blocks(exp, backend.output, block, backend.results.context.mission) \
+        if _generated(exp) else _seed_blocks(exp, block)
     total, blocks = len(runs), 1
     missed: list[tuple[str, str, float | None]] = []
     while not backend.stop.is_set():
@@ -251,18 +264,52 @@ def _until_precise(exp: Experiment, backend: "_Backend", runs: list[Run],
         missed = missed_targets(backend.results.path, until, report)
         if not missed:
             break
-        seeds = list(range(used[-1] + 1, used[-1] + 1 + block))
-        more = exp.runs(seeds, first=total)
-        if total + len(more) > max_runs:
+        more = more_of(total, blocks - 1)
+        if more is None or total + len(more) > max_runs:
             break
         log.info("block %d: %s for %s", blocks + 1, plural(len(more), "run"),
                  ", ".join(f"{c} {m}" for c, m, _ in missed[:3]))
         backend.results.expect(total + len(more))
         backend.run(check_block(backend.results.done(), more))
-        used += seeds
         total += len(more)
         blocks += 1
-    return Precision(until, total, max_runs, blocks, missed, backend.stop.is_set())
+    return Precision(until, total, max_runs, blocks, missed, backend.stop.is_set(),
+                     by=f"{plural(block, 'new instance')} of every size"
+                     if _generated(exp) else f"{plural(block, 'new seed')} in every cell")
+
+
+def _generated(exp: Experiment) -> bool:
+    return exp.spec.instances is not None and exp.spec.instances.generator is not None
+
+
+def _seed_blocks(exp: Experiment, block: int):
+    """Block k's runs: every cell and instance × the k-th `block` seeds above the file's."""
+    top = max(exp.spec.seeds)
+
+    def more(first: int, k: int) -> list[Run]:
+        return exp.runs(list(range(top + 1 + k * block, top + 1 + (k + 1) * block)), first)
+    return more
+
+
+def _instance_blocks(exp: Experiment, output: Path, block: int, mission: str):
+    """Block k's runs: `block` new instances of every size — the generator's next seeds after
+    the file's own (seed + count + k·block …), made into OUTPUT/instances — × every cell of
+    their size × the file's seeds. With a two-level bootstrap over instances, more seeds of the
+    same instances cannot narrow an interval whose width comes from the instances. None when
+    the next seeds are past the generator seed's range."""
+    spec = exp.spec.instances
+    state = {"exp": exp}
+
+    def more(first: int, k: int) -> list[Run] | None:
+        start = spec.seed + spec.count + k * block
+        if SEED.problem(start + block - 1):
+            return None
+        current = state["exp"]
+        new = prepare_instances(spec, mission, exp.file.parent, output, current.doc,
+                                range(start, start + block))
+        state["exp"] = current.with_instances(current.instances + new)
+        return state["exp"].runs(first=first, instances=new)
+    return more
 
 
 def missed_targets(results: Path, until: dict[str, float], report: Options = Options()
@@ -284,20 +331,27 @@ def missed_targets(results: Path, until: dict[str, float], report: Options = Opt
 
 
 class _Backend:
-    """Where runs go: this machine (`jobs` at once) or a Dask cluster; each run's row is added
-    to `results` as it ends. `packages`: the application package of each architecture."""
+    """Where runs go: this machine (`jobs` at once), a Dask cluster or SLURM array tasks; each
+    run's row is added to `results` as it ends. `packages`: the application package of each
+    architecture."""
 
     def __init__(self, packages: dict, duration: float, output: Path, jobs: int | None,
                  scheduler: str | None, stop: threading.Event, results: Results,
-                 pictures: set[int]):
+                 pictures: set[int], slurm: experiment_slurm.SlurmOptions | None = None):
         self.packages, self.duration, self.output = packages, duration, output
         self.jobs = max(1, jobs or os.cpu_count() or 1)
         self.scheduler, self.stop, self.results, self.pictures = scheduler, stop, results, pictures
+        self.slurm = slurm
 
     def run(self, runs: list[Run]) -> None:
         if self.stop.is_set() or not runs:
             return
-        if self.scheduler is not None:
+        if self.slurm is not None:
+            experiment_slurm.run_on_slurm(packages=self.packages, duration=self.duration,
+                                          runs=runs, output=self.output, stop=self.stop,
+                                          results=self.results, pictures=self.pictures,
+                                          options=self.slurm)
+        elif self.scheduler is not None:
             experiment_dask.run_on_cluster(self.scheduler, packages=self.packages,
                                            duration=self.duration, runs=runs,
                                            output=self.output, stop=self.stop,

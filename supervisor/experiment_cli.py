@@ -26,11 +26,13 @@ from mrta_zenoh.limits import MAX_RUNS
 from .experiment import parse_target, run_experiment
 from .experiment_resume import Shard, merge_folders, parse_shard
 from .experiment_runs import prepare_output
+from .experiment_slurm import TIME_LIMIT, SlurmOptions
 from .report import Options
 from .report_md import write_report
 
 Progress = Callable[[int, int, "dict | None"], None]
 RUN, REPORT = "run", "report"
+BACKENDS = ("local", "dask", "slurm")
 
 
 @contextlib.contextmanager
@@ -136,6 +138,20 @@ def experiment() -> None:
 @click.option("--scheduler", metavar="tcp://HOST:PORT", default=None,
               help="Run every run as a task on this Dask cluster instead (workers started with "
                    "--resources runs=1; needs pip install 'mrta-zenoh[dask]').")
+@click.option("--backend", type=click.Choice(BACKENDS), default=None,
+              show_default="local, or dask with --scheduler",
+              help="Where runs go: this machine (--jobs), a Dask cluster (--scheduler) or "
+                   "SLURM job arrays (through submitit: pip install 'mrta-zenoh[slurm]'; "
+                   "--output on a file system the nodes share).")
+@click.option("--partition", metavar="NAME", default=None,
+              help="With --backend slurm: the partition the array tasks go to (default: the "
+                   "cluster's).")
+@click.option("--array-size", type=click.IntRange(min=1), default=None,
+              show_default="the cluster's MaxArraySize",
+              help="With --backend slurm: at most this many runs an array.")
+@click.option("--time-limit", type=click.IntRange(min=1), default=None,
+              show_default=f"{TIME_LIMIT}",
+              help="With --backend slurm: minutes an array task (one run) may take.")
 @click.option("--max-runs", type=click.IntRange(min=1), default=MAX_RUNS, show_default=True,
               help="Refuse a matrix of more runs than this (seeds × failures × overrides); "
                    "with --until-ci, the cap on every run it adds too.")
@@ -150,15 +166,18 @@ def experiment() -> None:
               help="Run only every N-th run of the matrix from the I-th (1 ≤ I ≤ N), on any "
                    "backend; `mrta experiment report` puts the shards' folders together.")
 @report_options
-def run(file: Path, output: Path, jobs: int | None, scheduler: str | None, max_runs: int,
-        until: dict[str, float], block: int, shard: Shard | None, baseline: str | None,
-        metrics: tuple[str, ...] | None, plots: bool) -> None:
+def run(file: Path, output: Path, jobs: int | None, scheduler: str | None,
+        backend: str | None, partition: str | None, array_size: int | None,
+        time_limit: int | None, max_runs: int, until: dict[str, float], block: int,
+        shard: Shard | None, baseline: str | None, metrics: tuple[str, ...] | None,
+        plots: bool) -> None:
     """Run the matrix of FILE (seeds × failures × parameter overrides) and summarise it; on a
     folder holding an interrupted run of FILE, run only the runs it lacks."""
+    slurm = _slurm_options(backend, scheduler, partition, array_size, time_limit)
     with stop_on_signals() as stop, progress_reporter() as progress:
         rows = run_experiment(file=file, output=output, jobs=jobs, stop=stop, progress=progress,
                               scheduler=scheduler, max_runs=max_runs, until=until or None,
-                              block=block, plots=plots, shard=shard,
+                              block=block, plots=plots, shard=shard, slurm=slurm,
                               report=Options(baseline=baseline, metrics=metrics))
     failed = sum(r["status"] != "ok" for r in rows)
     click.echo(f"{plural(len(rows), 'run')} ({failed} failed): {output / 'results.csv'}, "
@@ -168,6 +187,24 @@ def run(file: Path, output: Path, jobs: int | None, scheduler: str | None, max_r
     if failed:  # a sweep with holes is not a result: say so to scripts and CI (exit 1)
         raise MrtaRuntimeError(f"{failed} of {plural(len(rows), 'run')} failed: "
                                f"see {output / 'summary.md'}")
+
+
+def _slurm_options(backend: str | None, scheduler: str | None, partition: str | None,
+                   array_size: int | None, time_limit: int | None) -> SlurmOptions | None:
+    """The SLURM options with --backend slurm; a ConfigError for a backend's option given to
+    another backend (a --partition that would be ignored is a mistake to say, not to skip)."""
+    if backend == "dask" and scheduler is None:
+        raise ConfigError("--backend dask needs --scheduler tcp://HOST:PORT, the cluster's "
+                          "scheduler")
+    if backend in ("local", "slurm") and scheduler is not None:
+        raise ConfigError(f"--scheduler is the Dask backend's: not with --backend {backend}")
+    if backend != "slurm":
+        given = [name for name, v in (("--partition", partition), ("--array-size", array_size),
+                                      ("--time-limit", time_limit)) if v is not None]
+        if given:
+            raise ConfigError(f"{given[0]} is for --backend slurm")
+        return None
+    return SlurmOptions(partition, array_size, time_limit or TIME_LIMIT)
 
 
 @experiment.command(REPORT)

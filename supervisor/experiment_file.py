@@ -5,7 +5,7 @@ every error names the file, the line and the key, with a "did you mean" for a mi
     architectures: [alliance, murdoch]  # optional axis: any registered architecture's name;
                            # or `architecture: NAME`, one, not an axis
     duration: 120          # simulated seconds per run
-    seeds: [1, 2, 3, 4, 5]
+    seeds: [1, 2, 3, 4, 5]   # or seeds: 5 (1 to 5); one value stands for a one-item list
     failures: [none, robot2@40, "stall:@first@5", "partition:robot2@40+10,loss:0.1"]
                            # each one fault spec (docs/delivery.md, "Fault grammar")
     instances:             # optional: the instances runs serve (experiment_instances.py)
@@ -51,7 +51,7 @@ from mrta_zenoh.failure import faults_problem, parse_faults
 from mrta_zenoh.limits import MAX_RUNS, RUN_DURATION, SEED
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, load_yaml, plural
 
-from .experiment_instances import Instance, InstancesSpec, Size, check_block
+from .experiment_instances import Instance, InstancesSpec, Size, as_lists, check_block
 from .experiment_instances import count as instance_count
 from .results import measure_problem
 
@@ -61,21 +61,22 @@ class ExperimentSpec(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
 
     application: str
     duration: float
-    seeds: list[int]
+    seeds: list[int] | int   # an integer N: seeds 1 to N (load_experiment makes it the list)
     failures: list[str] = msgspec.field(default_factory=lambda: ["none"])
     overrides: dict[str, list[Any]] | None = None
     architecture: str | None = None
     architectures: list[str] | None = None
     instances: InstancesSpec | None = None
-    robots: list[int] | None = None   # the team size the file was written for (checked)
+    robots: list[int] | int | None = None   # the team size the file was written for (checked)
 
 
 FIELDS = tuple(f.encode_name for f in msgspec.structs.fields(ExperimentSpec))
 # what a value must be, for the messages of the shape check (key → its whole value)
 SHAPE = {"application": "a name", "architecture": "a name (mrta arch list)",
          "architectures": "a non-empty list of names (mrta arch list)",
-         "duration": "a number (simulated seconds)", "seeds": "a non-empty list",
-         "failures": "a non-empty list", "robots": "a non-empty list",
+         "duration": "a number (simulated seconds)",
+         "seeds": "a non-empty list, or N (seeds 1 to N)",
+         "failures": "a non-empty list", "robots": "a number, or a non-empty list",
          "instances": "a mapping: generator: with robots:, or files:",
          "overrides": "a mapping of PARAMETER_FILE_GLOB.KEY.PATH to lists"}
 ITEM = {"seeds": "int", "failures": "str", "robots": "int", "architectures": "str"}
@@ -164,17 +165,19 @@ class Experiment:
             cells.append(Cell(failure, tuple(chosen.items()), arch, size))
         return cells
 
-    def instances_of(self, cell: Cell) -> list[Instance | None]:
+    def instances_of(self, cell: Cell, among: tuple[Instance, ...] | None = None
+                     ) -> list[Instance | None]:
         if cell.size is None:
             return [None]
-        return [i for i in self.instances if i.size == cell.size]
+        return [i for i in (self.instances if among is None else among) if i.size == cell.size]
 
-    def runs(self, seeds: list[int] | None = None, first: int = 0) -> list[Run]:
-        """One run per cell, instance of its size and seed (the file's seeds unless given),
-        numbered from `first`."""
+    def runs(self, seeds: list[int] | None = None, first: int = 0,
+             instances: tuple[Instance, ...] | None = None) -> list[Run]:
+        """One run per cell, instance of its size and seed (the file's seeds, and every
+        instance, unless given), numbered from `first`."""
         seeds = self.spec.seeds if seeds is None else seeds
         combos = [(cell, inst, seed) for cell in self.cells()
-                  for inst in self.instances_of(cell) for seed in seeds]
+                  for inst in self.instances_of(cell, instances) for seed in seeds]
         return [Run(first + i, seed, cell.failure, cell.overrides, cell.architecture, inst)
                 for i, (cell, inst, seed) in enumerate(combos)]
 
@@ -252,9 +255,25 @@ def _failure_problem(spec: str) -> str | None:
 
 def load_experiment(path: Path) -> Experiment:
     doc = load_yaml(path)
-    spec = _shape(doc)
+    spec = _lists(doc, _shape(doc))
     check(doc, spec, Path(path).parent)
     return Experiment(Path(path), spec, doc)
+
+
+def _lists(doc: YamlDoc, spec: ExperimentSpec) -> ExperimentSpec:
+    """The scalar forms as the lists they stand for: `seeds: N` is seeds 1 to N (N runs per
+    cell, the seeds a file of `seeds: [1, …, N]` names), `robots: 5` is [5], and in an
+    instances block `robots:`, `tasks:` and `tasks_per_robot:` one value each."""
+    if isinstance(spec.seeds, int):
+        if not 1 <= spec.seeds <= MAX_RUNS:
+            raise doc.error(("seeds",), f"seeds: N means seeds 1 to N: expected 1 ≤ N ≤ "
+                                        f"{MAX_RUNS:,}, got {spec.seeds}")
+        spec.seeds = list(range(1, spec.seeds + 1))
+    if isinstance(spec.robots, int):
+        spec.robots = [spec.robots]
+    if spec.instances is not None:
+        spec.instances = as_lists(spec.instances)
+    return spec
 
 
 def _shape(doc: YamlDoc) -> ExperimentSpec:

@@ -4,7 +4,7 @@ folder before any run starts (docs/statistics.md, "Instances"; the README's expe
     instances:                 # generated: every size, `count` instances each
       generator: delivery      # a generator registered under mrta.instances
       parameters: {walls: 1}   # its other parameters (mrta instance generate GENERATOR --help)
-      robots: [5, 10, 20]
+      robots: [5, 10, 20]      # or one size: robots: 5 (so tasks:, tasks_per_robot:)
       tasks: [5, 10]           # crossed with robots (every pair); or tasks_per_robot: [1, 2];
                                # neither: as many tasks as robots
       count: 3                 # instances per size
@@ -53,12 +53,22 @@ class InstancesSpec(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
 
     generator: str | None = None
     parameters: dict[str, Any] = {}
-    robots: list[int] | None = None
-    tasks: list[int] | None = None
-    tasks_per_robot: list[float] | None = None
+    robots: list[int] | int | None = None      # a number: one size (as_lists)
+    tasks: list[int] | int | None = None
+    tasks_per_robot: list[float] | float | None = None
     count: int = 1
     seed: int = 0
     files: list[str] | None = None
+
+
+def as_lists(spec: InstancesSpec) -> InstancesSpec:
+    """The block with `robots: 5`, `tasks: 10`, `tasks_per_robot: 2` as the one-value lists
+    they stand for."""
+    for key in SIZES + ("tasks_per_robot",):
+        value = getattr(spec, key)
+        if value is not None and not isinstance(value, list):
+            setattr(spec, key, [value])
+    return spec
 
 
 GENERATED_ONLY = ("parameters", "robots", "tasks", "tasks_per_robot", "count", "seed")
@@ -213,10 +223,12 @@ def generator_params(doc: YamlDoc | None, spec: InstancesSpec, gen, size: Size) 
 
 # ------------------------------------------------------------------ made once, before the runs
 def prepare(spec: InstancesSpec, application: str, base: Path, output: Path,
-            doc: YamlDoc | None = None) -> tuple[Instance, ...]:
+            doc: YamlDoc | None = None, seeds: range | None = None) -> tuple[Instance, ...]:
     """Every instance of the block, written to OUTPUT/instances/ (the same block gives the same
     files, byte for byte) and read back as the application reads it: a file the application
-    cannot run is refused here, naming it, before any run starts."""
+    cannot run is refused here, naming it, before any run starts. `seeds`: the generator seeds
+    of each size (default: the block's own, `seed` to `seed + count - 1`; --until-ci's blocks
+    of instances take the next ones: experiment.py)."""
     folder = output / FOLDER
     folder.mkdir(parents=True, exist_ok=True)
     made: list[Instance] = []
@@ -233,7 +245,7 @@ def prepare(spec: InstancesSpec, application: str, base: Path, output: Path,
                      f"instances, not {application!r} ones")
     for size in sizes(spec):
         params = generator_params(doc, spec, gen, size)
-        for seed in range(spec.seed, spec.seed + spec.count):
+        for seed in seeds if seeds is not None else range(spec.seed, spec.seed + spec.count):
             try:
                 text = gen.generate(params, seed)
             except ConfigError as exc:

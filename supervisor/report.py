@@ -17,13 +17,13 @@ in sorted order.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.yamlfile import did_you_mean
 
 from . import stats
-from .results import INSTANCE, ResultsTable, kind
+from .results import INSTANCE, ResultsTable, column_named, kind
 from .summary import mission_hook
 
 ARCHITECTURE = "architecture"
@@ -205,7 +205,9 @@ def values_by_instance(table: ResultsTable, cell: Cell, metric: str
 
 def build(table: ResultsTable, options: Options = Options()) -> Report:
     """The report's figures for `table` (nothing written)."""
-    if options.metrics is not None:
+    if options.metrics is not None:  # by their column names or the names the tables print
+        options = replace(options, metrics=tuple(column_named(m, table.columns)
+                                                 for m in options.metrics))
         for m in options.metrics:
             table.check_metric(m)
     metrics = list(options.metrics) if options.metrics is not None else default_metrics(table)

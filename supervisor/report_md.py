@@ -15,7 +15,7 @@ from mrta_zenoh.yamlfile import plural
 
 from . import stats
 from .report import Cell, Options, Report, build
-from .results import read_results, write_csv
+from .results import read_results, title, write_csv
 
 SHARE = (".exactly_one", ".none", ".more_than_one")  # shares of the run, shown in %
 SMALL = 5  # below this many values a bootstrap interval is at most the values' range
@@ -33,6 +33,7 @@ class Precision:
     blocks: int
     missed: list[tuple[str, str, float | None]] = field(default_factory=list)  # cell, metric, hw
     stopped: bool = False  # a Ctrl-C ended the blocks, not the cap
+    by: str = "new seeds"  # what a block after the file's own adds: seeds, or instances
 
 
 def write_report(results: Path, output: Path | None = None, options: Options = Options(),
@@ -58,18 +59,6 @@ def scale_of(metric: str) -> tuple[float, str]:
     return (100.0, " %") if metric.endswith(SHARE) else (1.0, "")
 
 
-TITLES = {"takeover_seconds": "takeover (s)", "first_full_allocation": "first full allocation (s)",
-          "coordination_messages_per_second": "coordination msgs/s",
-          "messages_per_second": "all msgs/s", "namespace_messages_per_second": "namespace msgs/s"}
-
-
-def title(metric: str) -> str:
-    """A column's name in a table's header (its section heading names the column too)."""
-    if metric in TITLES:
-        return TITLES[metric]
-    if metric.endswith(".exactly_one"):
-        return metric.removesuffix(".exactly_one") + " covered"
-    return metric.removeprefix("metrics.")
 
 
 def num(x: float | None, metric: str = "") -> str:
@@ -241,10 +230,12 @@ def _precision(report: Report, p: Precision) -> list[str]:
     asked = ", ".join(f"`{m}` ≤ {num(h, m)}" for m, h in p.targets.items())
     if not p.missed:
         return ["## Precision", "", f"Every cell reached the bootstrap half-width asked "
-                f"({asked}) after {plural(p.blocks, 'block')}, {plural(p.runs, 'run')}.", ""]
+                f"({asked}) after {plural(p.blocks, 'block')}, {plural(p.runs, 'run')} "
+                f"(each block after the file's own: {p.by}).", ""]
     lines = ["## Precision not reached", "",
              f"`--until-ci` asked for bootstrap half-widths {asked}; after "
-             f"{plural(p.blocks, 'block')}, {plural(p.runs, 'run')} ("
+             f"{plural(p.blocks, 'block')} (each after the file's own: {p.by}), "
+             f"{plural(p.runs, 'run')} ("
              + ("stopped by the user" if p.stopped else f"the cap, --max-runs {p.max_runs:,}, "
                 "leaves no room for another block") + ") these cells are wider:", "",
              "| cell | metric | half-width | asked |", "| --- | --- | --- | --- |"]

@@ -43,8 +43,11 @@ COVERAGE = (".exactly_one", ".none", ".more_than_one")
 APPLICATION_PREFIX = "metrics."
 MESSAGES_PREFIX = "messages."  # coordination messages of each kind (summary.flat_metrics)
 FAULTS_PREFIX = "faults."  # what injected faults did to them, by cause (fault_effects.py)
-# what the machine, not the run, decides: two runs of one seed differ in these alone
-MACHINE_TIME = ("wall_seconds", "decision_ms_median", "decision_ms_max")
+# what the machine, not the run, decides: two runs of one seed differ in these alone — wall
+# and computing time, and the whole bus's counts, whose edges (the recording's first and last
+# messages) fall where the machine's timing puts them (a message more or less in ~2700)
+MACHINE_TIME = ("wall_seconds", "decision_ms_median", "decision_ms_max", "messages",
+                "messages_per_second", "namespace_messages_per_second")
 INSTANCE, SEED, STATUS, OK = "instance", "seed", "status", "ok"
 REQUIRED = (SEED, STATUS)
 
@@ -57,6 +60,42 @@ def kind(column: str) -> str:
             or column.startswith((APPLICATION_PREFIX, MESSAGES_PREFIX, FAULTS_PREFIX)):
         return "measure"
     return "parameter"
+
+
+# the names the report's tables print for the framework's measures (`title`)
+TITLES = {"takeover_seconds": "takeover (s)", "first_full_allocation": "first full allocation (s)",
+          "coordination_messages_per_second": "coordination msgs/s",
+          "messages_per_second": "all msgs/s", "namespace_messages_per_second": "namespace msgs/s"}
+COVERED = " covered"  # `wander covered`: the share of a run with exactly one robot on wander
+
+
+def title(metric: str) -> str:
+    """A column's name in a table's header (its section heading names the column too)."""
+    if metric in TITLES:
+        return TITLES[metric]
+    if metric.endswith(".exactly_one"):
+        return metric.removesuffix(".exactly_one") + COVERED
+    return metric.removeprefix(APPLICATION_PREFIX)
+
+
+def column_named(name: str, columns: list[str] | None = None) -> str:
+    """The results.csv column a metric's name stands for: the column's own name, or the name the
+    report's tables print for it (`title`: `makespan` for `metrics.makespan`, `takeover (s)`,
+    `wander covered`); with `columns` (a file's), the one among them. Without, a bare name
+    that is no framework measure, nor close to one, is the application's `metrics.NAME`. The
+    name as given when it stands for nothing (the caller refuses it, with a did-you-mean)."""
+    reverse = {v: k for k, v in TITLES.items()}
+    candidates = [name, reverse.get(name, name)]
+    if name.endswith(COVERED):
+        candidates.append(name.removesuffix(COVERED) + ".exactly_one")
+    if columns is not None:
+        return next((c for c in candidates + [APPLICATION_PREFIX + name] if c in columns), name)
+    known = next((c for c in candidates if kind(c) == "measure"), None)
+    if known is not None:
+        return known
+    if name.strip() and "." not in name and not did_you_mean(name, MEASURES):
+        return APPLICATION_PREFIX + name
+    return name
 
 
 def measure_problem(key: str) -> str | None:

@@ -236,3 +236,34 @@ def test_a_dispatcher_crash_is_a_fault_of_central_and_refused_elsewhere(tmp_path
     f = write(tmp_path, "application: delivery\narchitecture: alliance\n" + block)
     result = CliRunner().invoke(cli, ["experiment", str(f), "--output", str(tmp_path / "p")])
     assert result.exit_code == 2 and "dispatcher is not one of" in result.output, result.output
+
+
+@pytest.mark.slow
+def test_until_ci_adds_instances_when_the_file_has_a_generator_and_scalars_read_as_lists(
+        tmp_path, missions, monkeypatch):
+    """`seeds: 2`, `robots: 2` read as [1, 2] and [2]; `makespan` is metrics.makespan; the
+    blocks add instances (the generator's next seeds after the file's), never seeds: the
+    makespan here varies by instance alone, which more seeds could not narrow."""
+    from mrta_supervisor.summary import read_summary
+
+    inner = experiment.start_run
+
+    def start_run(group, package, duration, run, out, plots=True, instance=None):
+        child = inner(group, package, duration, run, out, plots, instance)
+        summary = read_summary(out / "summary.json")
+        summary.metrics = {"makespan": 10.0 + int(run.instance.name.rsplit("-", 1)[1]) % 3}
+        write_summary(out / "summary.json", summary)
+        return child
+    monkeypatch.setattr(experiment, "start_run", start_run)
+    f = write(tmp_path, "application: delivery\nduration: 10\nseeds: 2\ninstances:\n"
+                        "  generator: delivery\n  robots: 2\n  count: 2\n  seed: 5\n")
+    out = tmp_path / "o"
+    experiment.run_experiment(file=f, output=out, jobs=1, plots=False, max_runs=10,
+                              until={experiment.parse_target("makespan:0.01")[0]: 0.01})
+    got = rows(out)
+    assert {r["seed"] for r in got} == {"1", "2"}  # no seed added
+    names = list(dict.fromkeys(r["instance"] for r in got))
+    assert names == [f"delivery-r2-t2-{s}" for s in range(5, 10)]  # 2, then one a block
+    assert len(got) == 10 and (out / "instances" / "delivery-r2-t2-9.yaml").is_file()
+    md = (out / "summary.md").read_text()
+    assert "each after the file's own: 1 new instance of every size" in md, md

@@ -30,6 +30,12 @@ def same(table: list[dict]) -> list[dict]:
     return [{k: v for k, v in r.items() if k not in MACHINE_TIME} for r in table]
 
 
+def differ(a: list[dict], b: list[dict]) -> list[dict]:
+    """Per row, the columns whose values differ (for the assertion's message)."""
+    return [{k: (x.get(k), y.get(k)) for k in {*x, *y} if x.get(k) != y.get(k)}
+            for x, y in zip(a, b)]
+
+
 @pytest.mark.timeout(900)
 def test_a_run_killed_midway_resumes_to_the_uninterrupted_rows(children, tmp_path):
     f = tmp_path / "exp.yaml"
@@ -61,7 +67,7 @@ def test_a_run_killed_midway_resumes_to_the_uninterrupted_rows(children, tmp_pat
     whole = children.mrta("experiment", f, "--output", tmp_path / "whole", "--jobs", "1",
                           "--no-plots", name="uninterrupted")
     assert whole.wait(600) == 0, whole.tail(20)
-    assert same(got) == same(rows(tmp_path / "whole"))
+    assert same(got) == same(rows(tmp_path / "whole")), differ(got, rows(tmp_path / "whole"))
     assert all(r["metrics.border_visited"] and r["wander.exactly_one"] for r in got)  # measured
 
 

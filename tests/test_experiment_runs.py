@@ -174,6 +174,25 @@ def test_until_ci_usage_errors_exit_2_before_any_run(tmp_path, missions, args, s
     assert missions == []
 
 
+@pytest.mark.parametrize("name,column", [
+    ("makespan", "metrics.makespan"), ("metrics.makespan", "metrics.makespan"),
+    ("takeover (s)", "takeover_seconds"), ("wander covered", "wander.exactly_one"),
+    ("coordination msgs/s", "coordination_messages_per_second"),
+])
+def test_until_ci_takes_a_metric_by_the_name_the_tables_print(name, column):
+    assert experiment.parse_target(f"{name}:0.5") == (column, 0.5)
+
+
+def test_the_report_takes_metrics_by_the_names_the_tables_print(tmp_path, missions):
+    experiment.run_experiment(file=exp_file(tmp_path), output=tmp_path / "o", jobs=1,
+                              plots=False)
+    result = CliRunner().invoke(cli, ["experiment", "report", str(tmp_path / "o"), "--no-plots",
+                                      "--metrics", "takeover (s),wander covered"])
+    assert result.exit_code == 0, result.output
+    cells = list(csv.DictReader((tmp_path / "o" / "cells.csv").open()))
+    assert {c["metric"] for c in cells} == {"takeover_seconds", "wander.exactly_one"}
+
+
 def test_an_application_metric_not_measured_is_refused_after_the_first_block(tmp_path,
                                                                              missions):
     result = CliRunner().invoke(cli, ["experiment", str(exp_file(tmp_path)), "--output",
