@@ -8,12 +8,16 @@ import collections
 
 from hypothesis import HealthCheck, given, settings, strategies as st
 
+from mrta_agent.central.agent import VERSION_AHEAD, VERSION_OUT_OF_RANGE, CentralCoordinator
+from mrta_agent.central.architecture import CENTRAL, DISPATCHER
 from mrta_agent.central.dispatcher import (IMPOSSIBLE, NOT_GRANTED, SERVED_TWICE, STALLED,
-                                           Dispatcher)
-from mrta_agent.central.messages import Progress
+                                           VERSION_NOT_SENT, Dispatcher)
+from mrta_agent.central.messages import Progress, Queue
 from mrta_agent.central.params import DispatcherParams
+from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.messages import Header
 from mrta_zenoh.planning import Problem, Robot, Task
+from tests.central_team import Body, Team, robot_params
 
 SQUARE = Problem(
     (Robot("robot1", (0.0, 0.0), 0.5), Robot("robot2", (10.0, 0.0), 0.5)),
@@ -141,3 +145,63 @@ def test_no_sequence_of_reports_stops_the_dispatcher_or_counts_a_task_twice(repo
             assert t in d.robots[who].granted and d.robots[who].served.count(t) == 1
         served_lists = [t for v in d.robots.values() for t in v.served]
         assert len(served_lists) == len(set(served_lists)) == len(d.done)
+
+
+# ------------------------------------------------------------------ queue versions
+def queue(version: int, tasks=(), robot="robot1") -> Queue:
+    return Queue(Header(DISPATCHER, 0.0, 1), robot, version, tuple(tasks))
+
+
+def test_a_queue_version_far_ahead_is_believed_only_when_heard_again_later():
+    c = CentralCoordinator("robot1", robot_params(), dispatcher=DISPATCHER,
+                           readings=Body(0.0, 0.0, 0.5, SQUARE))
+    c.hear("queue", DISPATCHER, queue(3, ["t1"]), 0.0)
+    c.tick(0.0)
+    assert c.applied == 3
+    assert c.hear("queue", DISPATCHER, queue(2 ** 62), 0.1)        # out of range, for good
+    assert c.hear("queue", DISPATCHER, queue(2 ** 40), 0.1)        # far ahead: held
+    assert c.hear("queue", DISPATCHER, queue(2 ** 40), 0.1)        # the same tick: no repeat
+    c.tick(0.1)
+    assert c.applied == 3 and c.route.queue == ["t1"]
+    c.hear("queue", DISPATCHER, queue(4, ["t2"]), 0.2)              # the dispatcher goes on
+    c.tick(0.2)
+    assert c.applied == 4
+    c.hear("queue", DISPATCHER, queue(2 ** 40, ["t3"]), 0.5)
+    c.hear("queue", DISPATCHER, queue(2 ** 40, ["t3"]), 1.5)        # repeated: believed
+    c.tick(1.5)
+    assert c.applied == 2 ** 40
+    assert {r: n for (_k, _s, r, _f), n in c.refusals().items()} == {
+        VERSION_OUT_OF_RANGE: 1, VERSION_AHEAD: 2}
+
+
+def forge(team: Team, message, kind: str = "queue", subkey: str | None = "robot1") -> None:
+    bus = InProcBus(team.net)
+    bus.publish(CENTRAL.key(message.header.frame_id, kind, *((subkey,) if subkey else ())),
+                message)
+    bus.close()
+
+
+def test_a_forged_queue_said_once_under_the_dispatchers_key_changes_nothing():
+    team = Team(SQUARE)
+    team.step(10)
+    forge(team, Queue(Header(DISPATCHER, team.clock.now(), 999), "robot1", 2 ** 62, ()))
+    forge(team, Queue(Header(DISPATCHER, team.clock.now(), 999), "robot1", 10 ** 9, ()))
+    team.until(team.all_served)
+    assert sorted(team.served_tasks()) == sorted(EVERY) and not team.simultaneous()
+
+
+def test_a_robot_fooled_by_a_repeated_forged_queue_is_noticed_and_brought_back():
+    """A forger repeating a queue far ahead is believed by the robot (nothing on an open bus
+    tells it from the dispatcher); its report then acknowledges a version never sent, and the
+    dispatcher's next queue is newer still."""
+    team = Team(SQUARE)
+    team.step(11)  # past the dispatcher's resend at 1 s
+    for _ in range(2):  # twice, at two ticks with no queue of the dispatcher's between
+        forge(team, Queue(Header(DISPATCHER, team.clock.now(), 999), "robot1", 10 ** 9, ()))
+        team.step(1)
+    assert team.agents["robot1"].coordinator.applied == 10 ** 9
+    team.until(team.all_served)
+    assert sorted(team.served_tasks()) == sorted(EVERY)
+    d = team.dispatcher
+    assert d.version > 10 ** 9
+    assert refused(d)[("robot1", VERSION_NOT_SENT)] >= 1

@@ -4,7 +4,10 @@ order) and reports its progress.
 
 * A `Queue` counts only from the dispatcher (a process of the architecture, on the team by its
   process token), addressed to this robot, and newer than the one applied (versions only grow:
-  a late or repeated queue changes nothing).
+  a late or repeated queue changes nothing) — but not too new: a version more than
+  VERSION_JUMP ahead counts only once heard again at a later tick (the dispatcher repeats its
+  queues every `resend_period`), none above MAX_VERSION (messages.py). What is not believed is
+  counted (`Coordinator.refuse`).
 * **Lease.** While the dispatcher's token lives but it has been silent for `lease` seconds —
   it is cut off from this robot, and may have given its tasks to others — the robot holds:
   it stands still and keeps its queue until it hears the dispatcher again. When the
@@ -26,10 +29,13 @@ from mrta_zenoh.timetext import at
 from ..runtime.coordinator import Coordinator, Say
 from ..runtime.plugins import Plugins
 from ..route.executor import PluginReadings, Readings, RouteExecutor
-from .messages import Queue
+from .messages import MAX_VERSION, VERSION_JUMP, Queue
 from .params import CentralParams
 
 log = logging.getLogger("mrta.central")
+
+VERSION_AHEAD = "version_ahead"            # a queue far ahead, not (yet) heard again
+VERSION_OUT_OF_RANGE = "version_out_of_range"
 
 
 class CentralCoordinator(Coordinator):
@@ -45,6 +51,7 @@ class CentralCoordinator(Coordinator):
         self.route = RouteExecutor()
         self.applied = 0                      # the version of the queue applied
         self.pending: Queue | None = None     # the newest queue heard, applied at the next tick
+        self.held: tuple[int, float] | None = None  # a version far ahead, and when first heard
         self.dispatcher_alive = False
         self.last_word: float | None = None   # when the dispatcher's last queue was heard
         self.holding = False
@@ -71,6 +78,17 @@ class CentralCoordinator(Coordinator):
         if sender != self.dispatcher or not isinstance(message, Queue) \
                 or message.robot != self.robot_id:
             return False
+        if message.version > MAX_VERSION:
+            self.refuse("queue", sender, VERSION_OUT_OF_RANGE)
+            return True
+        if message.version > self.applied + VERSION_JUMP:
+            if self.held is None or self.held[0] != message.version:
+                self.held = (message.version, at)
+                self.refuse("queue", sender, VERSION_AHEAD)
+                return True
+            if at <= self.held[1] + EPSILON:
+                return True  # the same again at once is no confirmation
+        self.held = None
         self.last_word = at if self.last_word is None else max(self.last_word, at)
         newest = self.pending.version if self.pending is not None else self.applied
         if message.version > newest:

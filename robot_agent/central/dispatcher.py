@@ -28,7 +28,10 @@ granted it to that robot (sent it in a queue); a task served counts once, for th
 that reported it (a robot cut off by a partition may serve a task the dispatcher meanwhile
 granted to another: both serve it, the second report is no completion), and only if that robot
 could serve it (capability, capacity). What is not believed is refused and counted by sender
-and reason (`Coordinator.refuse`), never raised: no report can stop the dispatcher.
+and reason (`Coordinator.refuse`), never raised: no report can stop the dispatcher. A report
+acknowledging a queue version the dispatcher never sent shows that a robot applied a forged
+queue: counted, and the dispatcher's versions continue above it (up to MAX_VERSION / 2), so its
+next queue to that robot is newer and believed again.
 """
 
 from __future__ import annotations
@@ -44,7 +47,7 @@ from mrta_zenoh import timetext
 from mrta_zenoh.timetext import at
 
 from ..runtime.coordinator import Coordinator, Say
-from .messages import Progress
+from .messages import MAX_VERSION, Progress
 from .params import DispatcherParams
 from .planner import Outcome, Situation, ms, solve
 
@@ -62,6 +65,7 @@ NOT_GRANTED = "not_granted"      # served, set off to or queued a task never gra
 SERVED_TWICE = "served_twice"    # served a task another robot reported served first
 IMPOSSIBLE = "impossible"        # served a task it cannot serve (capability, capacity)
 UNKNOWN_TASK = "unknown_task"    # named a task the instance does not have (refused whole)
+VERSION_NOT_SENT = "version_not_sent"  # applied a queue version the dispatcher never sent
 
 
 @dataclass
@@ -129,6 +133,7 @@ class Dispatcher(Coordinator):
     decisions: list[Decision] = field(default_factory=list)
     start: float | None = None
     _triggers: list[str] = field(default_factory=list)
+    _resend: set[str] = field(default_factory=set)  # robots owed a queue under a new version
 
     listens = ("progress",)
 
@@ -158,6 +163,11 @@ class Dispatcher(Coordinator):
         if any(t not in self._task for t in (*message.queue, *message.served)) \
                 or (message.task and message.task not in self._task):
             return False  # names a task the instance does not have: refused whole
+        if message.version > self.version:
+            self.refuse("progress", sender, VERSION_NOT_SENT)
+            if message.version <= MAX_VERSION // 2:
+                self.version = message.version
+                self._resend.add(sender)
         before = view.report
         view.report, view.heard = message, at
         sent = self.sent.get(sender)
@@ -367,10 +377,12 @@ class Dispatcher(Coordinator):
                 continue
             tasks = self.queue_for(r.id)
             sent = self.sent.get(r.id)
-            if sent is not None and sent.tasks == tasks \
+            stale = r.id in self._resend
+            self._resend.discard(r.id)
+            if sent is not None and sent.tasks == tasks and not stale \
                     and now - sent.at < self.params.resend_period - EPSILON:
                 continue
-            if sent is None or sent.tasks != tasks:
+            if sent is None or sent.tasks != tasks or stale:
                 self.version += 1
                 unacked = [] if sent is None else sent.unacked
                 sent = self.sent[r.id] = Sent(self.version, tasks, now,

@@ -2,7 +2,10 @@
 
 * `Queue` — the dispatcher to one robot (`dispatcher/central/queue/<robot>`): the tasks it is
   to serve, in order, under a version that only grows. Repeated every `resend_period`, so a
-  lost one is repaired by the next and a robot knows the dispatcher is there.
+  lost one is repaired by the next and a robot knows the dispatcher is there. A version more
+  than VERSION_JUMP ahead of the one applied is believed only when heard again later (the
+  dispatcher repeats its queues; a forged version 2^62 said once is not), and none above
+  MAX_VERSION (docs/security.md).
 * `Progress` (`route_msgs/Progress`, shared with SSI and CBBA) — a robot to the dispatcher
   (`robotN/central/progress`): what it is on, its whole queue, what it served (in order), where
   it is, the queue version it applied. Sent at every change and every `report_period`: its
@@ -21,6 +24,10 @@ from mrta_zenoh.messages import Finite, Header, Message, message
 
 # a robot's progress and its queued tasks are every route-serving architecture's messages
 from ..route.messages import Progress, Queued  # noqa: F401  (re-exported: central's kinds)
+
+
+VERSION_JUMP = 100_000  # versions ahead of the applied one a queue is believed at once
+MAX_VERSION = 2 ** 48   # no queue version above: a run issues fewer by far
 
 
 @message("central_msgs/Queue")
