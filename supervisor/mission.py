@@ -52,6 +52,7 @@ from mrta_zenoh.failure import (FAULTS_ENV, RETIRED_CRASH_ENV, ROLES, Failure, F
 from mrta_zenoh.codec import DecodeError, decode
 from mrta_zenoh.fault_roles import ASSIGNED
 from mrta_zenoh.fault_tally import TALLY
+from mrta_zenoh.refusal_tally import REFUSED
 from mrta_zenoh.identity import OBSERVER
 from mrta_zenoh.lockstep.protocol import STATUS, LockstepStatus
 from mrta_zenoh.node import Node, NodeTime
@@ -65,7 +66,7 @@ from mrta_zenoh.toolchain.runner import start_nodes
 from mrta_zenoh.yamlfile import did_you_mean
 
 from .api import Refresh, attach
-from .fault_effects import fault_effects
+from .fault_effects import fault_effects, refused_traffic
 from .ground_truth import decisions, intervals_from
 from .plots import ROBOTS_TITLE, Panel, TimeBase, draw_timeline
 from . import roles
@@ -74,8 +75,8 @@ from .run_watch import Readiness, RunWatch, check_simulator_end, crashed_itself,
 from .entities import Serving
 from .state import Supervisor
 from .tasks import TaskWatch
-from .summary import (COMPLETE, Coverage, Disturbance, FailureReport, MessageRates, Span, Summary,
-                      checked_sections, write_summary)
+from .summary import (COMPLETE, DISTURBED, Coverage, Disturbance, FailureReport, MessageRates,
+                      Span, Summary, checked_sections, write_summary)
 
 log = logging.getLogger("mrta.mission")
 MISSIONS_GROUP = "mrta.missions"
@@ -407,6 +408,8 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
     failure = faults.primary
     failed_at: float | None = None
     t_wall0 = time.monotonic()
+    # where the run's bus is: for `mrta echo --connect`, a debugger, a test's forger
+    log.info("the run's processes meet at %s", rendezvous)
     with ProcessGroup(env) as hub, \
             Node(_meeting(hub, rendezvous, routed), OBSERVER, time=NodeTime.SIM,
                  stop=stop) as node, \
@@ -457,13 +460,15 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
         # the crashed subjects: those named (robots, the architecture's processes) and, for an
         # @first crash, the robot that crashed itself
         targets = roles.crash_targets(faults, {r: crashed_itself(c) for r, c in agents.items()})
-        disturbances = watch.disturbances(named, targets)
+        disturbances = watch.disturbances(named, targets, set(named))
+        strangers = watch.strangers(set(named))
         crashed = group.failed(ignore=[named[t].name for t in targets if t in named])
         if crashed:
             raise MrtaRuntimeError("; ".join(f"{c.name} {c.describe_exit()}"
                                              for c in crashed) + ":\n"
                                    + "\n".join(f"[{c.name}]\n{c.tail(10)}" for c in crashed))
-    summary = analyse(run, failure, failed_at, time.monotonic() - t_wall0, before, disturbances)
+    summary = analyse(run, failure, failed_at, time.monotonic() - t_wall0, before, disturbances,
+                      strangers)
     return run, summary
 
 
@@ -554,10 +559,13 @@ def mission_sections(run: MissionRun, records: list) -> Any:
 
 def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
             wall: float, before: dict[str, tuple[int, int, int]] | None = None,
-            disturbances: Sequence[Disturbance] = ()) -> Summary:
+            disturbances: Sequence[Disturbance] = (), strangers: Sequence[str] = ()
+            ) -> Summary:
     """The summary of a recorded run, written to summary.json; `before` is the output
     folder's state before the run (folder_state), so `files` lists what this run wrote;
-    `disturbances`: what the run's processes lost while it was on (run_watch.py)."""
+    `disturbances`: what the run's processes lost while it was on, `strangers`: tokens of
+    names that are none of them (run_watch.py). A run whose processes refused forged
+    coordination traffic (fault_effects.refused_traffic) is disturbed too."""
     output = run.options.output
     records = read_recording(output / "run.mcap")
     tb = TimeBase(records)
@@ -570,6 +578,9 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
     t1 = (run.options.duration if recorded_until is None else recorded_until) \
         if ended_at is None else end
     status = run_status(list(disturbances), recorded_until, end)
+    refused = refused_traffic(records, [*run.robots, *run.arch.processes])
+    if status == COMPLETE and any(r.forged for r in refused):
+        status = DISTURBED
     role, failure = failure, roles.struck(failure, faults_of(run), records)
     if role is not None and failure is None:  # an @first fault that struck nobody
         failed_at = None
@@ -616,6 +627,7 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
         ended_at=None if ended_at is None else round(end, 3),
         decisions=decisions(records, run.arch, end),
         fault_effects=fault_effects(records, [*run.robots, *run.arch.processes], end),
+        refused=refused, strangers=list(strangers),
         metrics=run.mission.metrics(run, records), failure=report,
         output=str(output), files=[], sections=mission_sections(run, records))
     # what this run wrote: new or changed files (an earlier run's are neither), and the
@@ -707,9 +719,9 @@ def is_traffic(key: str) -> bool:
     two runs of one seed differ in their rates (and results.csv in its bytes). Nor the fault
     channel's own words (`robotN/faults/…`: an `@first` announcement, a tally): the
     experiment's instrument, not the architecture's traffic — a fault would raise the counts
-    it is compared on."""
+    it is compared on; nor a process's tally of what it refused (`<name>/refused/tally`)."""
     return not key.startswith("@") and key not in UNCOUNTED \
-        and not key.endswith((f"/{ASSIGNED}", f"/{TALLY}"))
+        and not key.endswith((f"/{ASSIGNED}", f"/{TALLY}", f"/{REFUSED}"))
 
 
 class _Stamp(msgspec.Struct):

@@ -182,6 +182,25 @@ _EFFECT_WORDS = {"lost": "lost", "delayed": "heard late", "cut_off": "cut off by
                  "out_of_range": "out of range"}
 
 
+def refused_lines(s: Summary, most: int = 6) -> list[str]:
+    """What the run's processes refused (summary.json's `refused`), the largest first, and the
+    strangers' tokens seen: each a line of the printed summary."""
+    out = []
+    if s.refused:
+        total = sum(r.count for r in s.refused)
+        forged = sum(r.count for r in s.refused if r.forged)
+        out.append(f"refused: {total} samples or claims ({forged} forged)")
+        for r in sorted(s.refused, key=lambda r: (not r.forged, -r.count))[:most]:
+            out.append(f"  {r.receiver} refused {r.count} {r.kind} of {r.sender}: {r.reason}"
+                       + (" (forged)" if r.forged else ""))
+        if len(s.refused) > most:
+            out.append(f"  … and {len(s.refused) - most} more (summary.json, `refused`)")
+    if s.strangers:
+        out.append(f"strangers' tokens (no process of the run; not counted against it): "
+                   f"{', '.join(s.strangers)}")
+    return out
+
+
 def print_summary(console: Console, s: Summary, title: str, arch_title: str,
                   extra: list[str]) -> None:
     simulated = (f"{s.duration:.0f} s simulated" if s.ended_at is None else
@@ -218,6 +237,8 @@ def print_summary(console: Console, s: Summary, title: str, arch_title: str,
         said = ", ".join(f"{n} {_EFFECT_WORDS[c]}" for c, n in s.fault_effects.items() if n)
         console.print(f"  injected faults: {s.faults}; coordination messages {said}",
                       highlight=False)
+    for line in refused_lines(s):
+        console.print(f"  {line}", highlight=False)
     problem = run_problem(s)
     if problem is not None:
         console.print(f"  NOT EXACT: {problem}" + ("; this run may not replay"

@@ -15,7 +15,10 @@ lockstep runs are not called exact, `mrta demo` exits 1 on an incomplete summary
 
 Whose tokens: each robot's agent token (the architecture's `agent_tokens`), every lockstep
 participant's (agents, and any other participant: a dispatcher), the recorder's and the
-simulator's clock source — a process is up while any of its tokens lives. What is no
+simulator's clock source — a process is up while any of its tokens lives. A token under a name
+that is no process of the run (a stranger's participant token, a robot off the team) is no
+disturbance: `strangers` reports it apart — one stranger on a shared bus must not make every
+run inexact (and `mrta experiment` run it again and again). What is no
 disturbance: the final loss of a crash target whose process died by a SIGKILL this runner did
 not send (the crash itself), and the simulator's token going at the end of its run (the runner
 checks that it then exits cleanly, or by the SIGTERM the runner sent it once the work was done),
@@ -45,6 +48,7 @@ from mrta_zenoh.lifecycle import Closing
 from mrta_zenoh.lockstep.protocol import PARTICIPANT
 from mrta_zenoh.presence import RobotPresence
 from mrta_zenoh.processes import Child, ProcessGroup
+from mrta_zenoh.untrusted import visible
 
 from .summary import COMPLETE, DISTURBED, INCOMPLETE, Disturbance
 
@@ -52,6 +56,8 @@ READY_TIMEOUT = 60.0  # wall seconds for every process to come up
 RECORDER = "recorder"
 SIMULATOR = "simulator"
 END_SLACK = 1.0  # simulated s: a recording that ends earlier than this before the end is cut
+MAX_STRANGERS = 20  # strangers' names a summary lists
+MAX_NAME = 60       # characters of a stranger's name kept
 
 
 class Readiness(Closing):
@@ -130,14 +136,17 @@ class RunWatch(Closing):
         with self._lock:
             self._judging = False
 
-    def disturbances(self, children: dict[str, Child],
-                     crashes: set[str] = frozenset()) -> list[Disturbance]:
+    def disturbances(self, children: dict[str, Child], crashes: set[str] = frozenset(),
+                     processes: set[str] | None = None) -> list[Disturbance]:
         """Every loss that was no crash the run injected nor the simulator's end (module
         docstring). `children`: the processes by name (robot ids for agents), to tell a crash
-        target that crashed itself from one that was stopped."""
+        target that crashed itself from one that was stopped; `processes`: the names of the
+        run's processes (None: every name seen is one; the recorder and the simulator always
+        are) — another's loss is a stranger's, no disturbance."""
         out = []
         with self._lock:
-            events = {p: [list(e) for e in es] for p, es in self._events.items()}
+            events = {p: [list(e) for e in es] for p, es in self._events.items()
+                      if _of_the_run(p, processes)}
         for process, lost in sorted(events.items()):
             for i, (lost_at, back_at) in enumerate(lost):
                 final = back_at is None and i == len(lost) - 1
@@ -150,9 +159,20 @@ class RunWatch(Closing):
                                        None if back_at is None else round(back_at, 2)))
         return out
 
+    def strangers(self, processes: set[str]) -> list[str]:
+        """The names whose tokens came while the run was on and that are none of `processes`
+        (module docstring), escaped, at most MAX_STRANGERS."""
+        with self._lock:
+            names = sorted(p for p in self._held if not _of_the_run(p, processes))
+        return [visible(n, MAX_NAME) for n in names[:MAX_STRANGERS]]
+
     def close(self) -> None:
         for w in self._watches:
             w.close()
+
+
+def _of_the_run(process: str, processes: set[str] | None) -> bool:
+    return processes is None or process in processes or process in (RECORDER, SIMULATOR)
 
 
 def _last_chunk(key: str) -> str:

@@ -97,6 +97,19 @@ class Disturbance(msgspec.Struct, forbid_unknown_fields=True, omit_defaults=True
     back_at: float | None = None
 
 
+class Refusal(msgspec.Struct, forbid_unknown_fields=True):
+    """What a process of the run (`receiver`: a robot, a dispatcher) refused of what it heard:
+    `count` samples or claims of `kind` from `sender` for `reason` (mrta_zenoh/refusal_tally.py;
+    `forged`: no process of the run would have said it, which makes the run disturbed)."""
+
+    receiver: str
+    sender: str
+    kind: str
+    reason: str
+    count: int
+    forged: bool
+
+
 class MessageRates(msgspec.Struct, forbid_unknown_fields=True):
     """Samples per simulated second on the bus: all of them, what robots tell each other
     (the architecture's `coordination` kinds, sub-keys included), and everything under its
@@ -163,6 +176,12 @@ class Summary(msgspec.Struct, forbid_unknown_fields=True):
     # what injected faults did to coordination messages, summed over the robots by cause
     # (fault_effects.py: lost, delayed, cut_off, out_of_range); {}: nothing was touched
     fault_effects: dict[str, int] = {}
+    # what the run's processes refused of what they heard, by receiver, sender, kind and reason
+    # (fault_effects.refused_traffic); a forged entry makes the run disturbed
+    refused: list[Refusal] = []
+    # lockstep participant tokens of names that are no process of the run, seen while it was
+    # on: reported, never a disturbance (a stranger cannot make a run inexact)
+    strangers: list[str] = []
     schema: int = SCHEMA
     # the application's own sections (its Mission's `summary_sections` type): written at the
     # top level of summary.json, not under this name (write_summary / read_summary)
@@ -170,6 +189,7 @@ class Summary(msgspec.Struct, forbid_unknown_fields=True):
 
 
 SECTIONS_FIELD = "sections"
+QUIET_WHEN_EMPTY = ("refused", "strangers")  # written only when there is something to say
 FRAMEWORK_KEYS = frozenset(f.encode_name for f in msgspec.structs.fields(Summary)
                            if f.name != SECTIONS_FIELD)
 
@@ -235,6 +255,9 @@ def summary_json(summary: Summary) -> bytes:
     """summary.json's bytes: the framework's fields, then the application's sections at the top
     level, indented for people."""
     data = msgspec.to_builtins(summary)
+    for key in QUIET_WHEN_EMPTY:  # a run with nothing refused and no stranger says nothing
+        if not data.get(key):
+            data.pop(key, None)
     sections = data.pop(SECTIONS_FIELD, None) or {}
     data.update(sections)
     return msgspec.json.format(msgspec.json.encode(data), indent=2)
@@ -298,13 +321,29 @@ def run_problem(summary: Summary) -> str | None:
         return (f"the recording does not cover the whole mission ({until}"
                 + (f"; {lost}" if lost else "") + ")")
     if summary.run_status == DISTURBED:
-        return (f"a process of the run was stopped or cut off ({lost}): the run is not what "
-                "its seed gives")
+        forged = forged_traffic(summary)
+        causes = ([f"a process of the run was stopped or cut off ({lost})"] if lost else []) \
+            + ([f"it refused forged coordination traffic ({forged})"] if forged else [])
+        return "; ".join(causes or ["disturbed"]) + ": the run is not what its seed gives"
     if summary.lockstep_exact is False:
+        why = (f"strangers' participant tokens were on the bus ({', '.join(summary.strangers)}):"
+               " a token nobody answers for is waited for, then given up" if summary.strangers
+               else "the machine was too busy for the lockstep timeouts")
         return (f"lockstep was not exact: {summary.lockstep_given_up} participant(s) given up, "
-                f"{summary.lockstep_forgiven} claim(s) forgiven — the machine was too busy for "
-                "the lockstep timeouts")
+                f"{summary.lockstep_forgiven} claim(s) forgiven — {why}")
     return None
+
+
+def forged_traffic(summary: Summary, most: int = 4) -> str:
+    """The forged refusals in one phrase ("" none): how many, and the largest entries."""
+    forged = sorted((r for r in summary.refused if r.forged), key=lambda r: -r.count)
+    if not forged:
+        return ""
+    parts = [f"{r.receiver} refused {r.count} {r.kind} of {r.sender}: {r.reason}"
+             for r in forged[:most]]
+    more = len(forged) - most
+    return f"{sum(r.count for r in forged)} in all: " + ", ".join(parts) + (
+        f", and {more} more" if more > 0 else "")
 
 
 def flat_metrics(summary: Summary) -> dict[str, Any]:

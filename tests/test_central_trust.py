@@ -205,3 +205,23 @@ def test_a_robot_fooled_by_a_repeated_forged_queue_is_noticed_and_brought_back()
     d = team.dispatcher
     assert d.version > 10 ** 9
     assert refused(d)[("robot1", VERSION_NOT_SENT)] >= 1
+
+
+def test_the_dispatcher_says_what_it_refused_and_the_team_serves_every_task():
+    """A `Progress` of robot2's saying every task served, on the bus under robot2's key: it
+    stopped the dispatcher ("is on the routes of"); now robot2's own task only counts, the rest
+    is refused, and the dispatcher's tally says so."""
+    from mrta_zenoh.refusal_tally import EVERY_REFUSED, RefusedTally
+    team = Team(SQUARE)
+    heard: list[RefusedTally] = []
+    watcher = InProcBus(team.net)
+    watcher.subscribe(EVERY_REFUSED, lambda s: heard.append(s.message), msg_type=RefusedTally)
+    team.step(10)
+    forge(team, Progress(Header("robot2", team.clock.now(), 999), "", "", (), EVERY, 10.0,
+                         0.0, 0.0, 0), kind="progress", subkey=None)
+    team.until(team.all_served)
+    team.step(10)
+    assert sorted(team.served_tasks()) == sorted(EVERY)
+    last = [m for m in heard if m.header.frame_id == DISPATCHER][-1]
+    assert last.entries() == {("progress", "robot2", NOT_GRANTED, True): 3}
+    watcher.close()

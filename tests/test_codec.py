@@ -18,6 +18,7 @@ from mrta_agent.ssi.messages import Bid as SsiBid, Round
 from mrta_agent.cbba.messages import Bids
 from mrta_zenoh.fault_roles import Assigned
 from mrta_zenoh.fault_tally import FaultTally
+from mrta_zenoh.refusal_tally import RefusedTally
 
 EXAMPLES = [
     Header("robot1", 12.5, 7),
@@ -25,6 +26,8 @@ EXAMPLES = [
     Clock(3.25),
     Assigned(Header("robot2", 4.5, 1), "t3"),
     FaultTally(Header("robot2", 4.5, 1), lost=3, delayed=40, cut_off=2, out_of_range=1),
+    RefusedTally(Header("dispatcher", 4.5, 1), ("progress",), ("robot2",), ("not_granted",), (1,),
+                 (3,)),
     Pose2D(1.0, -2.0, math.pi / 3),
     Twist(0.4, -0.2),
     Odometry(Header("robot2", 1.0, 1), Pose2D(1.0, 2.0, 0.5), Twist(0.1, 0.2)),

@@ -60,3 +60,42 @@ def test_a_report_shows_the_faults_dose_only_when_asked(tmp_path):
     f.write_text("run,seed,status,failure,faults.lost,messages_per_second,takeover_seconds\n"
                  "1,1,ok,loss:0.2,12,3.0,2.5\n")
     assert default_metrics(read_results(f)) == ["takeover_seconds"]
+
+
+# ------------------------------------------------------------------ what processes refused
+def refusal_tally(name: str, stamp: float, entries: dict, frame: str | None = None):
+    from mrta_zenoh.refusal_tally import refused_key, tally as refusal
+    msg = refusal(Header(frame or name, stamp, 1), entries)
+    return (refused_key(name), "application/msgpack;mrta_msgs/RefusedTally", 0, encode(msg))
+
+
+def test_what_each_process_refused_is_listed_forged_first_and_makes_the_run_disturbed():
+    from mrta_supervisor.fault_effects import refused_traffic
+    from mrta_supervisor.mission_cli import refused_lines
+    from mrta_supervisor.summary import DISTURBED, run_problem
+    records = [
+        refusal_tally("dispatcher", 1.0, {("progress", "robot2", "not_granted", True): 1}),
+        refusal_tally("dispatcher", 3.0, {("progress", "robot2", "not_granted", True): 3,
+                                          ("progress", "robot1", "served_twice", False): 1}),
+        refusal_tally("robot1", 2.0, {("queue", "dispatcher", "version_ahead", True): 9},
+                      frame="robot2"),                    # its header names another: dropped
+        refusal_tally("robot7", 2.0, {("bids", "robot1", "done_not_won", True): 9}),  # no process
+        tally("robot1", 1.0, lost=3),                     # a fault tally: not a refusal
+    ]
+    refused = refused_traffic(records, ["robot1", "robot2", "dispatcher"])
+    assert [(r.receiver, r.sender, r.reason, r.count, r.forged) for r in refused] == [
+        ("dispatcher", "robot2", "not_granted", 3, True),
+        ("dispatcher", "robot1", "served_twice", 1, False)]
+    s = Summary(mission="delivery", application="delivery_central", architecture="central",
+                duration=60.0, speed=0.0, seed=1, wall_seconds=1.0, robots=["robot1"],
+                who_did_what={"robot1": []}, first_full_allocation=None, coverage={},
+                messages=MessageRates(1.0, 0.5, "central"), output="o", files=[],
+                refused=refused, run_status=DISTURBED, lockstep_exact=False)
+    problem = run_problem(s)
+    assert "forged coordination traffic" in problem and "not_granted" in problem
+    assert "busy" not in problem  # not the machine's load
+    lines = refused_lines(s)
+    assert lines[0] == "refused: 4 samples or claims (3 forged)"
+    assert "dispatcher refused 3 progress of robot2: not_granted (forged)" in lines[1]
+    from mrta_supervisor.mission import is_traffic
+    assert not is_traffic("dispatcher/refused/tally")

@@ -231,3 +231,17 @@ def test_an_experiment_runs_a_disturbed_or_incomplete_run_again_then_marks_it(
     again = experiment._collect({0: (run, child, time.monotonic(), out)}, results, {0})
     assert again == [] and results.rows[0]["status"] == marked
     assert says in results.rows[0]["error"]
+
+
+def test_a_strangers_participant_token_is_reported_apart_and_disturbs_nothing():
+    """One token `@mrta/lockstep/participant/evil` coming and going while the run is on made
+    the run `disturbed`, and `mrta experiment` dropped it from the statistics."""
+    run = Run()
+    run.start()
+    run.up("evil", f"{PARTICIPANT}/evil")
+    run.down("evil", 12.0)
+    run.watch.end()
+    processes = {"robot1", "robot2"}
+    assert run.watch.disturbances({}, set(), processes) == []
+    assert run.watch.strangers(processes) == ["evil"]
+    assert run.watch.disturbances({}, set()) == [Disturbance("evil", 12.0)]  # all the run's

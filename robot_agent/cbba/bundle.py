@@ -55,12 +55,15 @@ from mrta_zenoh.planning import Problem
 from mrta_zenoh.planning.insertion import (DiscountedRoute, Origin, prefix_scores, ranks,
                                            travel_times)
 
+from mrta_zenoh.refusal_tally import MALFORMED
+
 from .messages import Bids
 from .table import NONE, RESET, UPDATE, View, higher, resolve
 
 # why a message, or a claim in it, was not believed (`Cbba.refused`)
 BID_OUT_OF_RANGE = "bid_out_of_range"  # a winning bid below 0 or above the task's reward
 NOT_WON = "done_not_won"               # a task said served that its sender never won
+SUPERSEDED = "superseded"              # older than its sender's latest (late, or a replay)
 ROUNDING = 1e-9
 
 
@@ -162,7 +165,10 @@ class Cbba:
         k = self.index.get(sender)
         if k is None:
             return False
-        if kind != "bids" or not isinstance(msg, Bids) or k == self.i or not self._valid(msg):
+        if kind != "bids" or not isinstance(msg, Bids) or k == self.i:
+            return False
+        if not self._valid(msg):
+            self.refused[("bids", sender, MALFORMED, True)] += 1
             return False
         if k in self.departed:
             return True
@@ -172,6 +178,7 @@ class Cbba:
             return True
         if msg.header.stamp < self.latest.get(k, -math.inf):
             self.superseded += 1  # delivered out of order: a later one was applied already
+            self.refused[("bids", sender, SUPERSEDED, False)] += 1
             return True
         tasks = self.problem.tasks
         if any(not -ROUNDING <= y <= tasks[j].reward + ROUNDING for j, _, y in msg.winners):

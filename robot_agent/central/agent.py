@@ -24,6 +24,7 @@ import logging
 from typing import Iterable
 
 from mrta_zenoh.clock import EPSILON
+from mrta_zenoh.refusal_tally import MISADDRESSED
 from mrta_zenoh.timetext import at
 
 from ..runtime.coordinator import Coordinator, Say
@@ -77,6 +78,7 @@ class CentralCoordinator(Coordinator):
     def hear(self, kind: str, sender: str, message, at: float) -> bool:
         if sender != self.dispatcher or not isinstance(message, Queue) \
                 or message.robot != self.robot_id:
+            self.refuse("queue", sender, MISADDRESSED)
             return False
         if message.version > MAX_VERSION:
             self.refuse("queue", sender, VERSION_OUT_OF_RANGE)

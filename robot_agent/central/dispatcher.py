@@ -162,6 +162,7 @@ class Dispatcher(Coordinator):
             return False
         if any(t not in self._task for t in (*message.queue, *message.served)) \
                 or (message.task and message.task not in self._task):
+            self.refuse("progress", sender, UNKNOWN_TASK)
             return False  # names a task the instance does not have: refused whole
         if message.version > self.version:
             self.refuse("progress", sender, VERSION_NOT_SENT)

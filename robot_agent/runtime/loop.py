@@ -19,6 +19,12 @@ what every architecture needs and none should write twice:
   joins: the open behaviour, right on a bus only the team uses (a secured fleet's ACL sees
   to that), wrong on one shared with strangers;
 * sender checks: a message's key names its sender, and its header must agree;
+* what it refused: every sample the checks dropped and every claim the logic did not believe
+  (`Coordinator.refuse`), by kind, sender and reason, said on `<name>/refused/tally`
+  (mrta_zenoh/refusal_tally.py) when it changed — at most every TALLY_PERIOD, and as it
+  stops — so that every summary shows it (a message from a teammate whose token has not come
+  yet, or one the logic does not take without a reason — ALLIANCE's broadcast of a task this
+  robot does not serve — is only counted here and logged: no evidence of anything);
 * publishing: every message the logic says goes out on `robotN/<namespace>/<kind>` with a header
   carrying the robot, the time and a per-key sequence number;
 * the low level: plugins' set-up and shutdown, the active task's layers, a restart of time;
@@ -34,6 +40,7 @@ from __future__ import annotations
 
 import collections
 import logging
+import math
 import threading
 import time
 from typing import TYPE_CHECKING, Callable, Iterable, Iterator
@@ -45,6 +52,8 @@ from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.failure import FaultKind, FaultPlan, crash_now
 from mrta_zenoh.keys import first_chunk
 from mrta_zenoh.messages import Header
+from mrta_zenoh.fault_tally import TALLY_PERIOD
+from mrta_zenoh.refusal_tally import MISMATCH, OFF_ROSTER, Refusals, refused_key, tally
 from mrta_zenoh.seeds import robot_rng
 from mrta_zenoh.timetext import at
 from mrta_zenoh.untrusted import visible
@@ -101,6 +110,11 @@ class Agent:
         # teammates' coordination messages that reached this agent, by kind (whatever became of
         # them): the cost of what it subscribes to (docs/murdoch.md, Messages heard)
         self.received: collections.Counter[str] = collections.Counter()
+        # what it refused (`_drop`; network threads add under _token_lock), what it last said
+        # of it and when (tell_refusals)
+        self.refusals = Refusals()
+        self._refusals_told: dict = {}
+        self._refusals_at = -math.inf
         self._last_drop_log: dict[str, float] = {}
         self._seq: dict[str, int] = collections.defaultdict(int)
         self._inbox = Inbox()  # filled by network callbacks, drained by the loop thread only
@@ -229,7 +243,7 @@ class Agent:
             return False
         if alive:
             self._drop("ignored_outsiders", "ignoring %s: %s is not on the team (--team)", key,
-                       robot)
+                       robot, entry=("token", robot, OFF_ROSTER, False))
         return True
 
     def _on_token(self, key: str, alive: bool) -> None:
@@ -277,11 +291,13 @@ class Agent:
             self.received[kind] += 1
         if msg.header.frame_id.strip("/") != sender:
             self._drop("ignored_mismatch", "ignoring %s on %s with frame_id '%s'",
-                       type(msg).__name__, sample.key, msg.header.frame_id)
+                       type(msg).__name__, sample.key, msg.header.frame_id,
+                       entry=(kind, sender, MISMATCH, True))
             return
         if self.roster is not None and sender not in self.roster:
             self._drop("ignored_outsiders", "ignoring %s from %s, which is not on the team "
-                       "(--team)", type(msg).__name__, sender)
+                       "(--team)", type(msg).__name__, sender, entry=(kind, sender, OFF_ROSTER,
+                                                                      False))
             return
         if sender not in self._alive:  # before it takes inbox space (checked again at the tick)
             self._drop("ignored_strangers", "ignoring %s from %s, which holds no agent token",
@@ -306,10 +322,15 @@ class Agent:
         """Every queued message due at `now`, in order (`Inbox.take_due`)."""
         return self._inbox.take_due(now, self.in_lockstep(), self.injector.delayed)
 
-    def _drop(self, counter: str, reason: str, *args) -> None:
-        """Count a dropped message in `counter`; log at most one line per DROP_LOG_PERIOD wall
-        seconds per counter, so a flood (a forger, a misconfigured teammate) cannot flood the
-        log. Names from the network are shown escaped (mrta_zenoh.untrusted)."""
+    def _drop(self, counter: str, reason: str, *args,
+              entry: tuple[str, str, str, bool] | None = None) -> None:
+        """Count a dropped message in `counter` and, under `entry` (kind, sender, reason,
+        forged), in what the agent says it refused; log at most one line per DROP_LOG_PERIOD
+        wall seconds per counter, so a flood (a forger, a misconfigured teammate) cannot flood
+        the log. Names from the network are shown escaped (mrta_zenoh.untrusted)."""
+        with self._token_lock:  # network callbacks run on several threads
+            if entry is not None:
+                self.refusals.add(*entry)
         n = getattr(self, counter) + 1
         setattr(self, counter, n)
         wall = time.monotonic()
@@ -320,6 +341,18 @@ class Agent:
                              *(visible(a, 200) if isinstance(a, str) else a for a in args), n)
 
     # ------------------------------------------------------------ one decision step
+    def tell_refusals(self, now: float, final: bool = False) -> None:
+        """Say what this agent refused (module docstring), when it changed — at most every
+        TALLY_PERIOD, or now as it stops. Nothing refused, nothing said."""
+        if not final and now < self._refusals_at + TALLY_PERIOD:
+            return
+        with self._token_lock:
+            counts = self.refusals.merged(self.coordinator.refusals())
+        if counts == self._refusals_told:
+            return
+        self._refusals_told, self._refusals_at = counts, now
+        self.bus.publish(refused_key(self.robot_id), tally(Header(self.robot_id, now, 1), counts))
+
     def tick_high(self, now: float) -> None:
         with self._token_lock:
             changes, self._token_changes = self._token_changes, {}
@@ -340,11 +373,14 @@ class Agent:
                 continue
             self.injector.heard_late(item.key, what.header.seq)
             if not self.coordinator.hear(item.kind, item.sender, what, item.at):
+                # not taken: ALLIANCE's broadcast of a task this robot does not serve is no
+                # evidence; what is, the logic counts under its reason (Coordinator.refuse)
                 self._drop("refused", "refused %s from %s", type(what).__name__, item.sender)
         for say in self.coordinator.tick(now):
             self.send(say, now)
         self.switch_layers(self.coordinator.active_task, now)
         self.injector.announce(now, self.coordinator.active_task)
+        self.tell_refusals(now)
 
     def _apply_subjects(self, robots: set[str], changes: dict[tuple[str, str], bool]) -> None:
         """Tell the coordinator what changed of its teammates' subjects: a subject counts while
@@ -430,6 +466,9 @@ class Agent:
             sensor.forget()
         self._inbox.clear()
         self.injector.restart()  # an @first fault is resolved again, the tally counts afresh
+        with self._token_lock:
+            self.refusals = Refusals()  # counted afresh, like the fault tally
+        self._refusals_told, self._refusals_at = {}, -math.inf
         self.coordinator = self._make_coordinator()
         for robot in sorted(self.team):
             self.coordinator.teammate(robot, True)
@@ -442,6 +481,7 @@ class Agent:
         plugin close what it opened (py_trees' terminate, then shutdown), stop listening."""
         self.injector.final_tally()
         now = self.clock.now()
+        self.tell_refusals(now, final=True)
         for layer in self.layers_of(self.active_task):
             layer.on_deactivate(now)
         if not self.is_process:

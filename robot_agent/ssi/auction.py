@@ -57,6 +57,7 @@ from typing import Callable, NamedTuple
 from mrta_zenoh.planning import Problem
 from mrta_zenoh.planning.insertion import Origin, minsum_insertion, ranks
 from mrta_zenoh import timetext
+from mrta_zenoh.refusal_tally import MALFORMED
 
 from .messages import DONE, OPEN, UNKNOWN, Bid, Round
 
@@ -188,6 +189,7 @@ class Ssi:
         n_robots, n_tasks = len(self.problem.robots), len(self.problem.tasks)
         if (len(msg.owners) != n_tasks or not all(DONE <= w < n_robots for w in msg.owners)
                 or not -1 <= msg.award < n_tasks):
+            self.refused[("round", self.problem.robots[k].id, MALFORMED, True)] += 1
             return False
         sender = self.problem.robots[k].id
         if k != self.auctioneer():
@@ -211,6 +213,7 @@ class Ssi:
         n_tasks = len(self.problem.tasks)
         if (not -1 <= msg.task < n_tasks or not all(0 <= j < n_tasks for j in msg.served)
                 or msg.ms < 0):
+            self.refused[("bid", self.problem.robots[k].id, MALFORMED, True)] += 1
             return False
         if msg.auctioneer != self.id:
             return True

@@ -1,0 +1,50 @@
+"""A forger on the bus of a real `mrta demo` (issue 51): one session on the run's rendezvous
+(the runner logs where it is) publishing, once, what the hostile probe sent under the demo's
+keys — copied from a real message of the run (tests/procs/coordination_forger.py). Every task
+of the default delivery instance is still delivered, the run does not stop, and the summary
+names what was refused and calls the run disturbed (not complete and exact, and not the
+machine's fault). The in-process tests of each rule: tests/test_central_trust.py,
+tests/test_believed_claims.py."""
+
+from __future__ import annotations
+
+import json
+import re
+
+import pytest
+
+pytestmark = [pytest.mark.multiprocess]
+
+TASKS = "t1,t2,t3,t4"
+
+
+def attacked_demo(children, tmp_path, arch: str, mode: str, arg: str) -> dict:
+    out = tmp_path / arch
+    demo = children.mrta("demo", "--application", "delivery", "--architecture", arch,
+                         "--duration", "60", "--speed", "0", "--no-live", "--no-plots",
+                         "--output", str(out), name="demo")
+    line = demo.wait_stderr(lambda s: "processes meet at" in s, 120)
+    rendezvous = re.search(r"tcp/127\.0\.0\.1:\d+", line).group(0)
+    forger = children.python("coordination_forger.py", mode, arg, rendezvous, name="forger")
+    forger.wait_json(lambda o: "forged" in o, 120)
+    assert demo.wait(300) == 0, demo.tail(30)
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["metrics"]["completed"] == summary["metrics"]["tasks"], summary["metrics"]
+    assert summary["run_status"] == "disturbed" and summary["lockstep_exact"] is False
+    printed = "\n".join(demo.stdout)
+    assert "refused:" in printed and "forged coordination traffic" in printed, printed
+    return summary
+
+
+def test_a_progress_saying_every_task_served_neither_stops_the_dispatcher_nor_the_run(
+        children, tmp_path):
+    """It raised in the dispatcher ("task … is on the routes of …"): exit 1, no summary."""
+    s = attacked_demo(children, tmp_path, "central", "central-served", TASKS)
+    refused = [(r["receiver"], r["sender"], r["reason"], r["forged"]) for r in s["refused"]]
+    assert ("dispatcher", "robot2", "not_granted", True) in refused
+
+
+@pytest.mark.slow
+def test_a_round_numbered_2_62_does_not_stop_ssi(children, tmp_path):
+    s = attacked_demo(children, tmp_path, "ssi", "ssi-round", "-")
+    assert any(r["reason"] == "round_ahead" and r["sender"] == "robot1" for r in s["refused"])
