@@ -36,7 +36,7 @@ def test_without_a_plan_every_hook_is_a_no_op():
     inj, bus, clock, handles, tallies = injector(None)
     assert handles == [] and inj.plan is None and not inj.delayed
     assert inj.on_receipt(KEY, 1, "robot2", 2.5) == 2.5
-    assert inj.strikes(100.0) is None and not inj.cut("robot2", 1.0)
+    assert inj.strikes(100.0) is None and not inj.cut("robot2", 1.0, 1.0)
     inj.heard_late(KEY, 1)
     inj.announce(1.0, "a")
     inj.tally(10.0)
@@ -95,7 +95,8 @@ def test_a_partition_cuts_what_it_hears_and_what_its_peers_hear_from_it():
     assert inj.on_receipt(KEY, 3, "robot2", 5.0) == 5.0
     peer, *_ = injector("partition:robot2@2+3")  # robot1 drops what robot2 sends then
     assert peer.on_receipt(KEY, 2, "robot2", 3.0) == 3.0  # not on receipt: at the tick
-    assert peer.cut("robot2", 3.0) and not peer.cut("robot2", 5.0) and not peer.cut("robot3", 3.0)
+    assert peer.cut("robot2", 3.0, 3.0) and not peer.cut("robot2", 5.0, 5.0)
+    assert not peer.cut("robot3", 3.0, 3.0)
     assert (inj.dropped, peer.counts[Cause.CUT_OFF]) == (1, 1)
 
 
@@ -153,7 +154,20 @@ def test_first_is_resolved_at_its_time_from_the_announcements_on_the_roster_only
 def test_an_at_first_partition_of_a_teammate_becomes_a_peer_cut():
     inj, bus, *_ = injector("partition:@first@2+3")
     bus.publish(assigned_key("robot2"), Assigned(Header("robot2", 0.5, 1), "b"))
-    assert not inj.cut("robot2", 2.5)  # not resolved before its time
+    assert not inj.cut("robot2", 2.5, 2.5)  # not resolved before its time
     assert inj.strikes(2.0) is None
-    assert inj.cut("robot2", 2.5) and not inj.cut("robot2", 1.5)
+    assert inj.cut("robot2", 2.5, 2.5) and not inj.cut("robot2", 1.5, 1.5)
     assert inj.on_receipt(KEY, 1, "robot2", 2.5) == 2.5  # robot1 itself is not cut off
+
+
+def test_what_arrived_before_an_at_first_partition_struck_this_robot_is_cut_at_the_tick():
+    """A teammate's message stamped at the fault's time may arrive before the loop resolves
+    `@first`: on receipt it passes, at the tick it is cut — as if it had arrived after."""
+    inj, bus, *_ = injector("partition:@first@2+3")
+    inj.announce(0.5, "a")  # robot1 is first
+    early = inj.on_receipt(KEY, 1, "robot2", 2.0)  # the network thread, before the loop
+    assert early == 2.0 and inj.dropped == 0
+    assert inj.strikes(2.0) is None and inj.plan.partitions == ((2.0, 5.0),)
+    assert inj.on_receipt(KEY, 2, "robot2", 2.0) is None  # after: dropped on receipt
+    assert inj.cut("robot2", 2.0, early) and not inj.cut("robot2", 1.9, 1.9)
+    assert inj.dropped == 2 and inj.counts[Cause.CUT_OFF] == 2

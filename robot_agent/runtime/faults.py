@@ -160,12 +160,17 @@ class FaultInjector:
         self.plan = plan.resolved(who)
         return self.plan
 
-    def cut(self, sender: str, stamp: float) -> bool:
-        """Whether what `sender` sent at `stamp` is dropped, its sender cut off then by its
-        partition (counted). At the tick, not on receipt: an `@first` partition is resolved by
-        then."""
+    def cut(self, sender: str, stamp: float, heard: float) -> bool:
+        """Whether a message `sender` sent at `stamp`, heard at `heard`, is dropped by a
+        partition (counted): its sender's, or this robot's own. At the tick, not on receipt: an
+        `@first` partition is resolved by then. This robot's own partition is also applied on
+        receipt (`on_receipt`), which is all a partition named in the spec needs; checked here
+        again, it catches what arrived before an `@first` partition struck this robot — a
+        teammate's message stamped at the fault's very time races the loop's resolution, and
+        what was heard, and the tally, changed from run to run of one seed."""
         plan = self.plan
-        if plan is not None and plan.peers_cut and plan.sender_cut(sender, stamp):
+        if plan is not None and (plan.cut_off(heard) or (
+                plan.peers_cut and plan.sender_cut(sender, stamp))):
             self.counts[Cause.CUT_OFF] += 1
             return True
         return False

@@ -365,7 +365,7 @@ class Agent:
             self._apply_subjects(set(changes) | {r for r, _ in subject_changes}, subject_changes)
         for item in self.take_due(now):
             what = item.message
-            if self.injector.cut(item.sender, what.header.stamp):
+            if self.injector.cut(item.sender, what.header.stamp, item.at):
                 continue
             if item.sender not in self.team:
                 self._drop("ignored_strangers", "ignoring %s from %s, which holds no agent token",
