@@ -26,7 +26,7 @@ import msgspec
 from .errors import ConfigError
 from .files import write_text
 from .codec import validation_fault
-from .yamlfile import did_you_mean, load_yaml
+from .yamlfile import YamlDoc, did_you_mean, load_yaml
 
 GROUP = "mrta.instances"
 
@@ -36,8 +36,9 @@ class InstanceKind:
 
     application: ClassVar[str] = ""
 
-    def load(self, path: Path) -> Any:
-        """The checked document (ConfigError naming file, line and key)."""
+    def load(self, doc: YamlDoc) -> Any:
+        """The checked document from its parsed file (ConfigError naming file, line and key):
+        the file is read once, by `load`, for its kind and its document alike."""
         raise NotImplementedError
 
     def name(self, doc: Any) -> str:
@@ -103,12 +104,12 @@ def kinds() -> dict[str, InstanceKind]:
     return {g.kind.application: g.kind for g in generators().values()}
 
 
-def kind_of(path: Path, application: str | None = None) -> InstanceKind:
-    """The kind a file is read as: `application` when given, else the file's own
+def kind_of(doc: YamlDoc, application: str | None = None) -> InstanceKind:
+    """The kind a parsed file is read as: `application` when given, else the file's own
     `application:` key, else the only registered kind."""
     known = kinds()
+    path = doc.path
     if application is None:
-        doc = load_yaml(path)
         data = doc.data.get("instance", doc.data) if isinstance(doc.data, dict) else None
         named = data.get("application") if isinstance(data, dict) else None
         if isinstance(named, str):
@@ -134,9 +135,10 @@ class Loaded:
 
 
 def load(path: Path, application: str | None = None) -> Loaded:
-    """Read and check an instance file (`mrta instance validate`)."""
-    kind = kind_of(path, application)
-    doc = kind.load(path)
+    """Read and check an instance file (`mrta instance validate`), reading it once."""
+    parsed = load_yaml(path)
+    kind = kind_of(parsed, application)
+    doc = kind.load(parsed)
     return Loaded(path, kind, doc, kind.name(doc))
 
 

@@ -30,7 +30,8 @@ def typed_sections(*classes, layers_file=LAYERS_FILE) -> dict:
 
 class LayerRun:
     def __init__(self, sim: Simulation, robot: str, layer_cls, seed: int = 0,
-                 task_id: str | None = None):
+                 task_id: str | None = None, instance=None):
+        """`instance`: the robot's instance document (ctx.instance: a delivery layer's)."""
         self.sim, self.robot = sim, robot
         self.clock = ManualClock(0.0)
         self.net = InProcNetwork()
@@ -38,7 +39,8 @@ class LayerRun:
         self.sonar = PointCloudSensor(SensorParams("alliance/point_cloud", "sonar", 1.0, 1.0))
         self.odom = OdometrySensor(SensorParams("alliance/odometry", "odom", 1.0, 1.0))
         self.ctx = AgentContext(robot, self.bus, self.clock, np.random.default_rng(seed),
-                                {"sonar": self.sonar, "odom": self.odom}, typed_sections(layer_cls))
+                                {"sonar": self.sonar, "odom": self.odom}, typed_sections(layer_cls),
+                                instance=instance)
         self.bus.subscribe(keys.cmd_vel(robot), self._on_cmd, msg_type=Twist)
         self.layer = layer_cls()
         self.layer.task_id = task_id  # as the agent's loader does

@@ -35,7 +35,7 @@ PARAMS = load_instance()
 
 def context(robot: str, net: InProcNetwork, clock: ManualClock, odom: OdometrySensor):
     return AgentContext(robot, InProcBus(net), clock, np.random.default_rng(0), {"odom": odom},
-                        {("Delivery", DeliveryParams): PARAMS})
+                        instance=PARAMS)
 
 
 def evaluator(task: str, robot: str, net, clock):
@@ -54,7 +54,7 @@ def test_task_open_follows_arrival_capability_completion_and_sensors():
     params = load_instance()
     params.tasks["t2"].arrival = 5.0  # an online task
     ev, odom = evaluator("t2", "robot2", net, clock)
-    ev.ctx.sections[("Delivery", DeliveryParams)] = params
+    ev.ctx.instance = params
     ev.setup(ev.ctx)
     assert not ev.is_applicable(0.0)          # not arrived yet
     clock.set(5.0)
@@ -83,7 +83,7 @@ def test_a_robot_that_delivered_serves_another_task_up_to_the_instances_cap():
     assert ev.is_applicable(1.0)              # unlimited by default
     for cap, applicable in ((1, False), (2, True)):
         capped = msgspec.structs.replace(load_instance(), max_tasks_per_robot=cap)
-        ev.ctx.sections[("Delivery", DeliveryParams)] = capped
+        ev.ctx.instance = capped
         ev.setup(ev.ctx)
         assert ev.is_applicable(1.0) is applicable, cap
 
@@ -91,10 +91,10 @@ def test_a_robot_that_delivered_serves_another_task_up_to_the_instances_cap():
 def test_deliver_drives_to_its_task_serves_it_and_tells_the_team(monkeypatch):
     import tests.layer_harness as harness
     monkeypatch.setattr(harness, "typed_sections",
-                        lambda *classes: {("Delivery", DeliveryParams): PARAMS})
+                        lambda *classes: {("Delivery", DeliveryParams): DeliveryParams()})
     world = load_world(PKG / "worlds" / "delivery.yaml")
     sim = Simulation(world, {"robot2": Pose(-5.0, -1.5, 0.0)}, seed=1)
-    run = LayerRun(sim, "robot2", Deliver, task_id="t4")
+    run = LayerRun(sim, "robot2", Deliver, task_id="t4", instance=PARAMS)
     heard = []
     InProcBus(run.net).subscribe("*/delivery/*", lambda s: heard.append(
         (s.key, s.message.event, round(s.message.header.stamp, 2))), msg_type=TaskEvent)

@@ -9,7 +9,7 @@ import msgspec
 
 from mrta_agent.route.messages import Progress
 from mrta_agent.ssi.architecture import SSI
-from mrta_delivery.instance import DeliveryParams
+from mrta_delivery.instance import InstanceBody
 from mrta_delivery.metrics import allocation_log
 from mrta_delivery.objectives import overlaps
 from mrta_supervisor.roles import as_struck
@@ -22,7 +22,7 @@ PARAMS = msgspec.convert({
     "robots": {"robot1": {"start": [0.0, 0.0], "speed": 0.5},
                "robot2": {"start": [4.0, 0.0], "speed": 0.5}},
     "tasks": {"t1": {"position": [1.0, 0.0], "service": 2.0},
-              "t2": {"position": [3.0, 0.0], "service": 2.0}}}, DeliveryParams)
+              "t2": {"position": [3.0, 0.0], "service": 2.0}}}, InstanceBody)
 
 
 def progress(robot: str, at: float, task: str, queue: tuple[str, ...]):

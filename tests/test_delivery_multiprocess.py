@@ -24,8 +24,9 @@ def run_demo(children, out: Path, *args: str) -> dict:
 def recorded_analysis(summary: dict, out: Path):
     """The allocation and metrics recomputed here from the recording and the package's
     instance (the hook's own functions, but from the files the run left)."""
+    from mrta_agent.runtime.instance import named_instance
     from mrta_agent.runtime.params import load_layers_params
-    from mrta_delivery.instance import DeliveryParams
+    from mrta_delivery.instance import load_document
     from mrta_delivery.metrics import analyse
     from mrta_zenoh.architectures import architecture
     from mrta_zenoh.recording import read_recording
@@ -33,7 +34,7 @@ def recorded_analysis(summary: dict, out: Path):
     arch = architecture(summary["architecture"])
     layers = (Registry().find(summary["application"]).path / "config"
               / f"layers_{arch.param_stem}_params.yaml")
-    params = load_layers_params(layers).convert(("Delivery",), DeliveryParams)
+    params = load_document(named_instance(load_layers_params(layers))).body()
     return analyse(read_recording(out / "run.mcap"), arch, params, summary["duration"])
 
 

@@ -10,7 +10,7 @@ import math
 import pytest
 
 from mrta_delivery.generate import world_yaml
-from mrta_delivery.instance import DeliveryParams, RobotSpec, TaskSpec, WorldSpec
+from mrta_delivery.instance import DeliveryParams, InstanceBody, RobotSpec, TaskSpec, WorldSpec
 from mrta_delivery.keys import event_key
 from mrta_delivery.layers import Deliver
 from mrta_delivery.messages import TaskEvent
@@ -22,7 +22,7 @@ from mrta_zenoh.planning.geometry import ROBOT_RADIUS, segment_distance
 from tests.layer_harness import LayerRun
 
 WALL = (0.0, -2.5, 0.0, 1.5)   # between the start and the task, open above
-PARAMS = DeliveryParams(
+PARAMS = InstanceBody(
     robots={"robot1": RobotSpec((-3.0, 0.0), 0.6)},
     tasks={"t1": TaskSpec((3.0, 0.0), service=1.0)},
     world=WorldSpec((12.0, 8.0), (WALL,)))
@@ -38,13 +38,13 @@ def point_wall(p) -> float:
 def test_a_robot_drives_around_a_wall_to_a_task_behind_it(tmp_path, monkeypatch):
     import tests.layer_harness as harness
     monkeypatch.setattr(harness, "typed_sections",
-                        lambda *classes: {("Delivery", DeliveryParams): PARAMS})
+                        lambda *classes: {("Delivery", DeliveryParams): DeliveryParams()})
     assert RobotModel().radius == pytest.approx(ROBOT_RADIUS)  # the margin is for this robot
     assert segment_distance((-3.0, 0.0, 3.0, 0.0), WALL) == 0.0  # straight ahead: blocked
     world_file = tmp_path / "world.yaml"
     world_file.write_bytes(world_yaml(PARAMS))
     sim = Simulation(load_world(world_file), {"robot1": Pose(-3.0, 0.0, 0.0)}, seed=1)
-    run = LayerRun(sim, "robot1", Deliver, task_id="t1")
+    run = LayerRun(sim, "robot1", Deliver, task_id="t1", instance=PARAMS)
     heard, closest = [], [math.inf]
     InProcBus(run.net).subscribe("*/delivery/*", lambda s: heard.append(
         (s.key, round(s.message.header.stamp, 2))), msg_type=TaskEvent)

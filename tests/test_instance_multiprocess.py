@@ -84,7 +84,7 @@ def test_a_generated_instance_with_a_wall_runs_under_both_architectures_and_roun
         assert least > ROBOT_RADIUS + 0.05  # and no robot touched its wall
     # the section read back is the same instance (its cost and cost_model ignored)
     again = load_document(tmp_path / "alliance" / "summary.json")
-    assert again.params() == doc.params()
+    assert again.body() == doc.body()
     # and run again, it gives the same run: the same seed, the same allocation
     rerun = run_demo(children, tmp_path / "rerun", "--instance",
                      str(tmp_path / "alliance" / "summary.json"))

@@ -141,15 +141,15 @@ def test_the_summary_section_reads_back_as_the_same_instance(tmp_path):
     f = generated(tmp_path, "i.yaml", "--robots", "3", "--tasks", "4", "--walls", "1",
                   "--rate", "0.2", "--seed", "1")
     doc = load_document(f)
-    section = instance_json(doc.params(), doc.problem())
+    section = instance_json(doc.body(), doc.problem())
     assert len(section["cost"]) == 3 and "around the walls" in section["cost_model"]
     summary = tmp_path / "summary.json"
     summary.write_text(json.dumps({"mission": "delivery", "robots": ["x"], "instance": section}))
     again = load_document(summary)
-    assert again.params() == doc.params() and again.name == doc.name
+    assert again.body() == doc.body() and again.name == doc.name
     alone = tmp_path / "section.json"
     alone.write_text(json.dumps(section))
-    assert load_document(alone).params() == doc.params()
+    assert load_document(alone).body() == doc.body()
 
 
 def test_derived_packages_carry_the_instance_and_its_world(tmp_path):
@@ -158,26 +158,27 @@ def test_derived_packages_carry_the_instance_and_its_world(tmp_path):
     doc = load_document(f)
     folder = tmp_path / "run" / "instance"
     derive(doc, folder)
-    for pkg, stem in (("delivery", "alliance"), ("delivery_murdoch", "murdoch")):
+    for pkg, stem in (("delivery", "alliance"), ("delivery_murdoch", "murdoch"),
+                      ("delivery_central", "central"), ("delivery_ssi", "ssi"),
+                      ("delivery_cbba", "cbba")):
         launch = (folder / pkg / "launch" / "delivery_sim.launch").read_text()
-        assert launch.count("<include ") == 4  # one agent per robot of the instance
+        assert launch.count('<arg name="robot_id"') == 4  # one agent per robot of the instance
         assert "--robot robot4=" in launch
-        layers = load_document_from_layers(folder / pkg / "config" /
-                                           f"layers_{stem}_params.yaml")
-        assert layers == doc.params()
+        assert instance_named_by_layers(folder / pkg / "config" /
+                                        f"layers_{stem}_params.yaml") == doc.body()
     world = (folder / "delivery" / "worlds" / "delivery.yaml").read_text()
     assert f"segment: {list(doc.world.walls[0])}".replace("(", "[") in world
     # all or nothing: a bad instance leaves the folder as it was
-    bad = doc.params()
+    bad = doc.body()
     with pytest.raises(ConfigError):
         derive(type(doc)(robots={}, tasks=bad.tasks, world=bad.world), folder)
     assert (folder / "delivery" / "worlds" / "delivery.yaml").read_text() == world
 
 
-def load_document_from_layers(path):
+def instance_named_by_layers(path):
+    from mrta_agent.runtime.instance import named_instance
     from mrta_agent.runtime.params import load_layers_params
-    from mrta_delivery.instance import DeliveryParams
-    return load_layers_params(path).convert(("Delivery",), DeliveryParams)
+    return load_document(named_instance(load_layers_params(path))).body()
 
 
 SOLOMON = """C1MINI

@@ -116,13 +116,13 @@ def test_patrols_watch_says_a_report_is_done_for_its_period():
 
 
 def test_deliverys_watch_says_delivered_tasks_are_done_and_late_ones_waiting():
-    from mrta_delivery.instance import DeliveryParams, TaskSpec
+    from mrta_delivery.instance import InstanceBody, TaskSpec
     from mrta_delivery.messages import TaskEvent
     from mrta_delivery.mission import DeliveryWatch
 
-    watch = DeliveryWatch(DeliveryParams(tasks={"t1": TaskSpec(position=(0.0, 0.0)),
-                                                 "t2": TaskSpec(position=(1.0, 0.0),
-                                                                arrival=40.0)}))
+    watch = DeliveryWatch(InstanceBody(tasks={"t1": TaskSpec(position=(0.0, 0.0)),
+                                               "t2": TaskSpec(position=(1.0, 0.0),
+                                                              arrival=40.0)}))
     assert watch.schedule() == [TaskStatus("t2", "waiting", 40.0)]
     done = TaskEvent(Header("robot2", 9.0, 3), "t1", "done")
     assert watch.read("robot2/delivery/done", done) == TaskStatus("t1", "done")

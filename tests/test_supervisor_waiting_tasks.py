@@ -8,7 +8,7 @@ from __future__ import annotations
 import pytest
 
 from mrta_agent.murdoch.messages import Claim
-from mrta_delivery.instance import DeliveryParams, RobotSpec, TaskSpec
+from mrta_delivery.instance import InstanceBody, RobotSpec, TaskSpec
 from mrta_delivery.messages import TaskEvent
 from mrta_delivery.mission import DeliveryWatch
 from mrta_supervisor.api import resolve_application
@@ -20,14 +20,14 @@ ROBOTS = ("robot1", "robot2", "robot3", "robot4", "robot5")
 UNATTENDED = 30.0
 
 
-def delivery_params() -> DeliveryParams:
+def delivery_params() -> InstanceBody:
     """t3 needs `cold`, which only robot1 and robot2 have."""
     robots = {r: RobotSpec(start=(float(k), 0.0), speed=0.5,
                            capabilities=("cold",) if r in ("robot1", "robot2") else ())
               for k, r in enumerate(ROBOTS)}
     tasks = {t: TaskSpec(position=(1.0, 1.0), capability="cold" if t == "t3" else "")
              for t in ("t1", "t2", "t3", "t4")}
-    return DeliveryParams(robots=robots, tasks=tasks)
+    return InstanceBody(robots=robots, tasks=tasks)
 
 
 @pytest.fixture

@@ -58,8 +58,8 @@ def test_a_bad_marker_names_file_and_line(tmp_path, extra, line, message):
 
 
 def test_deliverys_world_marks_every_task_of_its_instance():
-    """The shipped delivery world (written from instance.yaml by the generator) lists each task
-    at its position, read here from the instance file itself."""
-    tasks = yaml.safe_load((DELIVERY / "instance.yaml").read_text())["tasks"]
+    """The shipped delivery world (written from config/instance.yaml by the generator) lists
+    each task at its position, read here from the instance file itself."""
+    tasks = yaml.safe_load((DELIVERY / "config" / "instance.yaml").read_text())["tasks"]
     world = load_world(DELIVERY / "worlds" / "delivery.yaml")
     assert world.markers == {tid: tuple(map(float, t["position"])) for tid, t in tasks.items()}

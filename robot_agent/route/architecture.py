@@ -6,6 +6,7 @@ from __future__ import annotations
 
 from typing import Any, ClassVar
 
+from mrta_zenoh import instances
 from mrta_zenoh.architectures import Doing
 
 from ..runtime.architecture import AgentArchitecture, Prepared
@@ -21,11 +22,12 @@ class RouteArchitecture(AgentArchitecture):
     doing_kinds = ("progress",)
     doing_stale_after = 2.5  # a robot reports every report_period (1 s by default)
 
-    def route_prepared(self, robot_id: str, params: Any) -> Prepared:
+    def route_prepared(self, robot_id: str, params: Any,
+                       instance: instances.Loaded | None = None) -> Prepared:
         """What `prepare` gives for parameters with `robot` (sensors, evaluators, rates),
-        `tasks`, `layers` and `warnings`."""
+        `tasks`, `layers` and `warnings`; `instance`: the robot's, when already read."""
         plugins = Plugins(params.robot.sensors, params.robot.evaluators, params.tasks,
-                          params.layers)
+                          params.layers, instance)
         return Prepared(robot_id, params, plugins, params.robot.spin_rate,
                         params.robot.control_rate,
                         f"{self.title}, {len(params.robot.evaluators)} tasks it can serve",

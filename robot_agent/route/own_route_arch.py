@@ -24,8 +24,9 @@ class OwnRouteArchitecture(RouteArchitecture):
     progress_type = Progress
 
     def prepare(self, options: AgentOptions) -> Prepared:
-        return self.route_prepared(options.robot_id, self.params.load_params(
-            options.robot_id, options.robot_params, options.tasks_params, options.layers_params))
+        params = self.params.load_params(options.robot_id, options.robot_params,
+                                         options.tasks_params, options.layers_params)
+        return self.route_prepared(options.robot_id, params, params.instance)
 
     def _plugins(self, robot_params: Path, tasks_params: Path) -> Plugins:
         """The robot's plugins from its robot and tasks files alone (load_files): the instance

@@ -25,6 +25,7 @@ from mrta_zenoh.paramdoc import Duration, Text
 from mrta_zenoh.planning import Problem
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean
 
+from ..runtime.instance import same_instance
 from ..runtime.params import (EvaluatorSpec, SensorParams, TaskParams, load_layers_params,
                               load_tasks_params, require_task, sensor_params)
 from .executor import RouteRobotFile, route_tasks
@@ -75,6 +76,7 @@ class OwnRouteParams:
     tasks: dict[str, TaskParams]
     layers: YamlDoc | None = None
     warnings: list[str] = field(default_factory=list)
+    instance: instances.Loaded | None = None  # what `problem` came from, read once
 
 
 def load_robot(path: Path | str, what: str, keys: type) -> OwnRouteRobot:
@@ -108,7 +110,10 @@ def load_params(robot_id: str, robot_file, tasks_file, layers_file, what: str, k
     if not robot.instance.is_file():
         raise ConfigError(f"{robot_file}: its instance file {robot.instance} does not exist "
                           "(the key `instance`, relative to the robot file)")
-    problem = instances.problem(robot.instance)
+    layers = load_layers_params(layers_file)
+    same_instance(robot.instance, layers, robot_file)
+    loaded = instances.load(robot.instance)  # once: the plugins read the same (`instance`)
+    problem = loaded.kind.problem(loaded.doc)
     if not isinstance(problem, Problem):
         raise ConfigError(f"{robot.instance}: its instance kind gave a "
                           f"{type(problem).__name__}, not a mrta_zenoh.planning.Problem")
@@ -116,4 +121,4 @@ def load_params(robot_id: str, robot_file, tasks_file, layers_file, what: str, k
     if robot_id not in ids:
         raise ConfigError(f"{robot_file}: robot {robot_id} is not in its instance "
                           f"{robot.instance} ({', '.join(ids)})" + did_you_mean(robot_id, ids))
-    return OwnRouteParams(robot, problem, tasks, load_layers_params(layers_file))
+    return OwnRouteParams(robot, problem, tasks, layers, instance=loaded)

@@ -19,6 +19,8 @@ from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.paramdoc import Document, Duration, Id, Text, sized
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, load_yaml
 
+from .instance import KEY as INSTANCE_KEY
+
 
 @dataclass(frozen=True)
 class SensorParams:
@@ -152,13 +154,16 @@ def load_tasks_params(path: Path | str) -> dict[str, TaskParams]:
 
 def load_layers_params(path: Path | str | None) -> YamlDoc | None:
     """The layers file: a mapping of sections, each a mapping (its keys are checked by the
-    plugins' typed parameters once the plugins are known)."""
+    plugins' typed parameters once the plugins are known), and the `instance` file it names
+    (runtime.instance)."""
     if path is None:
         return None
     doc = load_yaml(path)
     if not isinstance(doc.data, dict):
         raise doc.error((), "a layers parameter file must be a mapping of layer sections")
     for name, section in doc.data.items():
+        if name == INSTANCE_KEY:  # the instance file it names, not a section
+            continue
         if not isinstance(section, dict):
             raise doc.error((name,), f"section {name!r} must be a mapping of parameters, "
                             f"got {type(section).__name__}")

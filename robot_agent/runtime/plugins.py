@@ -41,7 +41,7 @@ from typing import TYPE_CHECKING, Any, ClassVar, Sequence
 
 import msgspec
 
-from mrta_zenoh import keys
+from mrta_zenoh import instances, keys
 from mrta_zenoh.architectures import Architecture
 from mrta_zenoh.bus import Bus, Subscription
 from mrta_zenoh.clock import Clock
@@ -50,6 +50,8 @@ from mrta_zenoh.messages import Message, Twist
 from mrta_zenoh.seeds import prepare
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean
 
+from .instance import KEY as INSTANCE_KEY
+from .instance import read_instance
 from .params import EvaluatorSpec, SensorParams, TaskParams
 
 if TYPE_CHECKING:
@@ -105,6 +107,9 @@ class AgentContext:
     # the architecture the robot runs (mrta_zenoh.architectures): what a plugin may ask of it
     # (its "who is doing what" feed, its agent tokens) without naming it
     architecture: Architecture | None = None
+    # the robot's instance document (runtime.instance: the file its layers file names, read
+    # once), for the plugins that declare `instance_type`; None: it names none
+    instance: Any = None
 
     def publish_cmd(self, linear: float, angular: float) -> None:
         self.bus.publish(keys.cmd_vel(self.robot_id), Twist(float(linear), float(angular)))
@@ -128,6 +133,9 @@ class Plugin:
     # that second at 0.22× real time, and a real robot's first command would wait
     # for the import. A plugin that never draws leaves numpy unloaded.
     draws: ClassVar[bool] = False
+    # the instance document this plugin reads (ctx.instance), e.g. delivery's InstanceDoc: the
+    # robot is refused at load when its layers file names no instance of this type
+    instance_type: ClassVar[type | None] = None
 
     def __init__(self) -> None:
         self._subscriptions: list[Subscription] = []
@@ -300,9 +308,13 @@ class Plugins:
     Architecture-neutral: ALLIANCE builds it from behaviour sets, MURDOCH from its skills; both give sensors, one evaluator per task and each task's layers."""
 
     def __init__(self, sensors: Sequence[SensorParams], evaluators: Sequence[EvaluatorSpec],
-                 tasks: dict[str, TaskParams], layers_doc: YamlDoc | None):
+                 tasks: dict[str, TaskParams], layers_doc: YamlDoc | None,
+                 instance: instances.Loaded | None = None):
+        """`instance`: the robot's instance when its architecture has read it already (an
+        own-route robot plans on it); else the one the layers file names is read here."""
         self.sections: dict[tuple[str, type], Any] = {}
         self._doc = layers_doc
+        self.instance = instance if instance is not None else read_instance(layers_doc)
         self.sensors: dict[str, Sensor] = {}
         for sp in sensors:
             cls = self._load("sensor", sp.plugin_name, sp.where)
@@ -318,8 +330,24 @@ class Plugins:
                                        for name, where in zip(task.layers, task.where)]
             for layer in self.layers[ev.task_id]:
                 layer.task_id = ev.task_id
-        read = {name for name, _ in self.sections}
+        read = {name for name, _ in self.sections} | {INSTANCE_KEY}
         self.unread_sections = [n for n in (self._doc.data if self._doc else {}) if n not in read]
+        if layers_doc is not None:  # a run (a file check without a layers file has no instance)
+            self._check_instance(layers_doc)
+
+    def _check_instance(self, layers_doc: YamlDoc) -> None:
+        for plugin in self.all():
+            kind = plugin.instance_type
+            if kind is None:
+                continue
+            if self.instance is None:
+                raise layers_doc.error((), f"{type(plugin).__name__} reads the robot's instance: "
+                                       f"name its file with `{INSTANCE_KEY}: FILE` (relative "
+                                       "to this file)")
+            if not isinstance(self.instance.doc, kind):
+                raise ConfigError(f"{type(plugin).__name__} reads a {kind.__name__} instance, "
+                                  f"but {self.instance.path} is a {self.instance.kind.application!r} "
+                                  "one", file=str(layers_doc.path))
 
     def unread_warnings(self) -> list[str]:
         """One warning per section of the layers file that none of these plugins reads."""
@@ -342,6 +370,7 @@ class Plugins:
     def setup(self, ctx: AgentContext) -> None:
         ctx.sensors = self.sensors
         ctx.sections = self.sections
+        ctx.instance = self.instance.doc if self.instance is not None else None
         for plugin in self.all():
             plugin.setup(ctx)
         if any(plugin.draws for plugin in self.all()):

@@ -18,15 +18,15 @@ from mrta_zenoh.clock import EPSILON
 from mrta_agent.runtime.plugins import AgentContext, SensoryEvaluator
 
 from .board import Board
-from .instance import DeliveryParams
+from .instance import InstanceBody
 
 
 class TaskOpen(SensoryEvaluator):
-    sections = {"Delivery": DeliveryParams}
+    instance_type = InstanceBody
 
     def setup(self, ctx: AgentContext) -> None:
         super().setup(ctx)
-        params = ctx.section("Delivery", DeliveryParams)
+        params: InstanceBody = ctx.instance
         self.arrival = params.task(self.task_id).arrival
         self.capable = params.capable(ctx.robot_id, self.task_id)
         self.cap = params.max_tasks_per_robot

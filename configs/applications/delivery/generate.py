@@ -7,11 +7,13 @@ The rqt_mrta files (package.xml, rqt_mrta.xml, the robots' parameter files, the 
 per-robot launch files; central's dispatcher file) come from the toolchain's own generator
 (`mrta app new`'s `build_application`), fed with answers computed from the instance — central's
 are also written as `delivery_central_answers.yaml` beside the packages, from which `mrta app
-new --answers` makes the same files; the layers file (the instance as its `Delivery` section),
+new --answers` makes the same files; every package's `config/instance.yaml` (the instance, its
+one copy in the package: the layers file, SSI's and CBBA's robot files and central's dispatcher
+name it), the layers file (naming it; its `Delivery` section is how the layer drives),
 `launch/delivery_sim.launch` (the simulator with the instance's starts, one agent per robot of
-the instance, and central's dispatcher), central's `config/instance.yaml` (what its dispatcher
-plans on) and, in the ALLIANCE package, `worlds/delivery.yaml` (the instance's room and walls,
-the world the simulator loads by name) are written beside them. The Python modules of
+the instance, and central's dispatcher) and, in the ALLIANCE package, `worlds/delivery.yaml`
+(the instance's room and walls, the world the simulator loads by name) are written beside
+them. The Python modules of
 `mrta_delivery` are not touched. tests/test_delivery.py checks that the shipped packages are
 exactly what this writes.
 
@@ -55,11 +57,11 @@ from mrta_zenoh.seeds import SEED_ENV
 from mrta_zenoh.toolchain.generator import Answers, build_application
 from mrta_zenoh.toolchain.registry import Registry
 
-from .instance import (DeliveryParams, InstanceDoc, document_data, document_yaml, flow,
-                       load_document)
+from .instance import (DeliveryParams, InstanceBody, InstanceDoc, document_data,
+                       document_yaml, flow, load_document)
 
 HERE = Path(__file__).resolve().parent
-INSTANCE = HERE / "instance.yaml"
+INSTANCE = HERE / "config" / "instance.yaml"  # the shipped packages' instance: this package's
 THETA = 10.0          # ALLIANCE threshold
 SPIN = 10.0           # Hz, both architectures' decision rate
 ALPHA = 0.2           # s of ALLIANCE activation delay per s of travel cost
@@ -71,11 +73,11 @@ COMMON = dict(version="1.0.0", maintainer="mrta-zenoh maintainers",
               email="maintainers@mrta-zenoh.dev", license="Apache-2.0")
 
 
-def load_instance(path: Path = INSTANCE) -> DeliveryParams:
-    return load_document(path).params()
+def load_instance(path: Path = INSTANCE) -> InstanceBody:
+    return load_document(path).body()
 
 
-def with_poisson_arrivals(params: DeliveryParams, rate: float, seed: int) -> DeliveryParams:
+def with_poisson_arrivals(params: InstanceBody, rate: float, seed: int) -> InstanceBody:
     """The same robots and tasks with Poisson arrivals (rate tasks/s) drawn from `seed`'s own
     stream, in task order (the agents read the times from the file, never draw them)."""
     from .instances import poisson_arrivals
@@ -88,7 +90,7 @@ def with_poisson_arrivals(params: DeliveryParams, rate: float, seed: int) -> Del
     return msgspec.structs.replace(params, tasks=tasks)
 
 
-def _costs(params: DeliveryParams) -> dict[tuple[str, str], float]:
+def _costs(params: InstanceBody) -> dict[tuple[str, str], float]:
     """Each robot's travel time to each task from where it will be (`where_it_will_be`): the
     planning problem's travel times (around the walls when there are any)."""
     problem = params.problem()
@@ -112,7 +114,7 @@ def _sig(x: float) -> float:
     return float(f"{x:.4g}")
 
 
-def _robot_tasks(params: DeliveryParams) -> dict[str, list[str]]:
+def _robot_tasks(params: InstanceBody) -> dict[str, list[str]]:
     out = {rid: [tid for tid in params.tasks if params.capable(rid, tid)]
            for rid in params.robots}
     idle = [rid for rid, tasks in out.items() if not tasks]
@@ -122,7 +124,7 @@ def _robot_tasks(params: DeliveryParams) -> dict[str, list[str]]:
     return out
 
 
-def _tasks_list(params: DeliveryParams, murdoch: bool) -> list[dict]:
+def _tasks_list(params: InstanceBody, murdoch: bool) -> list[dict]:
     out = []
     for tid, t in params.tasks.items():
         task = {"id": tid, "name": f"Delivery {tid}"}
@@ -134,7 +136,7 @@ def _tasks_list(params: DeliveryParams, murdoch: bool) -> list[dict]:
     return out
 
 
-def alliance_answers(params: DeliveryParams, package: str = "delivery") -> Answers:
+def alliance_answers(params: InstanceBody, package: str = "delivery") -> Answers:
     robots = _robot_tasks(params)
     costs = _costs(params)
     per_robot = {}
@@ -163,7 +165,7 @@ def alliance_answers(params: DeliveryParams, package: str = "delivery") -> Answe
                    + (["delivery"] if package != "delivery" else []), **COMMON)
 
 
-def central_answers(params: DeliveryParams, package: str = "delivery_central") -> Answers:
+def central_answers(params: InstanceBody, package: str = "delivery_central") -> Answers:
     robots = _robot_tasks(params)
     per_robot = {}
     for k, (rid, tasks) in enumerate(robots.items()):
@@ -190,7 +192,7 @@ OWN_ROUTE = {  # SSI and CBBA: each robot plans on the instance itself
                      "discounted reward and agrees on the winners with its teammates")}
 
 
-def own_route_answers(params: DeliveryParams, arch: str, package: str) -> Answers:
+def own_route_answers(params: InstanceBody, arch: str, package: str) -> Answers:
     """SSI's or CBBA's answers: one task entry per task the robot can serve (its evaluator),
     the instance beside the robot files (`config/instance.yaml`), the defaults otherwise."""
     robots = _robot_tasks(params)
@@ -215,9 +217,9 @@ def answers_yaml(answers: Answers) -> bytes:
     """An answers file (`mrta app new --answers`) holding `answers`."""
     head = (f"# Answers for `mrta app new --answers`: the rqt_mrta files of "
             f"configs/applications/{answers.package}\n# (written by `python -m "
-            "mrta_delivery.generate_cli` from instance.yaml; docs/delivery.md). The package "
-            "also holds\n# the layers file, its delivery_sim.launch and the instance its "
-            "dispatcher plans on,\n# which the generator writes beside these.\n")
+            "mrta_delivery.generate_cli` from config/instance.yaml; docs/delivery.md). The "
+            "package also holds\n# the layers file, its delivery_sim.launch and the instance "
+            "the robots serve,\n# which the generator writes beside these.\n")
     body = {"package": answers.package, "name": answers.name, "version": answers.version,
             "description": answers.description, "maintainer": answers.maintainer,
             "email": answers.email, "license": answers.license,
@@ -227,7 +229,7 @@ def answers_yaml(answers: Answers) -> bytes:
                                   width=100)).encode()
 
 
-def murdoch_answers(params: DeliveryParams, package: str = "delivery_murdoch") -> Answers:
+def murdoch_answers(params: InstanceBody, package: str = "delivery_murdoch") -> Answers:
     robots = _robot_tasks(params)
     per_robot = {}
     for k, (rid, tasks) in enumerate(robots.items()):
@@ -250,13 +252,19 @@ def murdoch_answers(params: DeliveryParams, package: str = "delivery_murdoch") -
                    depends=["simulator", "supervisor", "delivery"], **COMMON)
 
 
-def layers_yaml(params: DeliveryParams, stem: str) -> bytes:
-    head = (f"# layers_{stem}_params: the delivery instance (written by `python -m "
-            "mrta_delivery.generate_cli` from instance.yaml; docs/delivery.md)\n")
-    return (head + "Delivery:\n" + document_yaml(document_data(params), "  ")).encode()
+def layers_yaml(stem: str) -> bytes:
+    """The layers file: the instance file it names (the package's one copy, beside it) and how
+    the delivery layer drives (DeliveryParams, at its defaults)."""
+    head = (f"# layers_{stem}_params: the delivery layers' parameters (written by `python -m "
+            "mrta_delivery.generate_cli`; docs/delivery.md)\n")
+    driving = msgspec.to_builtins(DeliveryParams())
+    return (head + "# the instance the robots serve, relative to this file\n"
+            "instance: instance.yaml\n"
+            "Delivery:\n" + "".join(f"  {k}: {flow(v)}\n" for k, v in driving.items())
+            ).encode()
 
 
-def world_yaml(params: DeliveryParams) -> bytes:
+def world_yaml(params: InstanceBody) -> bytes:
     """The simulator's world (docs/worlds.md): the instance's room and walls, and its tasks as
     markers (the snapshot, world.png, marks where they are)."""
     w, h = params.world.size
@@ -275,7 +283,7 @@ def world_yaml(params: DeliveryParams) -> bytes:
     return (head + "\n".join(lines) + "\n").encode()
 
 
-def sim_launch(params: DeliveryParams, package: str, arch_pkg: str, stem: str,
+def sim_launch(params: InstanceBody, package: str, arch_pkg: str, stem: str,
                dispatcher: bool = False) -> bytes:
     starts = " ".join(f"--robot {rid}={r.start[0]:g},{r.start[1]:g},{r.heading:g}"
                       for rid, r in params.robots.items())
@@ -320,37 +328,37 @@ def sim_launch(params: DeliveryParams, package: str, arch_pkg: str, stem: str,
     return ("\n".join(lines) + "\n").encode()
 
 
-def package_files(params: DeliveryParams, answers: Answers, registry: Registry | None = None
+def package_files(params: InstanceBody, answers: Answers, registry: Registry | None = None
                   ) -> dict[str, bytes]:
     """Every generated file of one package (relative path → bytes)."""
     reg = registry or Registry()
     arch_pkg, arch = reg.architecture(answers.architecture)
     stem = answers.architecture
     # the architecture's layers template (ALLIANCE's carries the patrol layers' sections) is
-    # not this application's: its layers file is the instance, written below
+    # not this application's: its layers file names the instance, written below
     arch = dataclasses.replace(arch, configs=[c for c in arch.configs
                                               if c.id != f"layers_{stem}_params"])
     _, files = build_application(arch_pkg, arch, answers)
-    files[f"config/layers_{stem}_params.yaml"] = layers_yaml(params, stem)
+    files[f"config/layers_{stem}_params.yaml"] = layers_yaml(stem)
     planned = bool(arch.config(f"dispatcher_{stem}_params"))  # an architecture with a dispatcher
     files["launch/delivery_sim.launch"] = sim_launch(params, answers.package, arch_pkg.name, stem,
                                                      dispatcher=planned)
-    if planned or answers.architecture in OWN_ROUTE:
-        files["config/instance.yaml"] = instance_yaml(params)
+    files["config/instance.yaml"] = instance_yaml(params)
     return files
 
 
-def instance_yaml(params: DeliveryParams) -> bytes:
-    """The instance as a document (what a dispatcher plans on, `--instance`)."""
-    head = ("# The delivery instance this package runs (written by `python -m "
-            "mrta_delivery.generate_cli` from instance.yaml; docs/delivery.md)\n")
+def instance_yaml(params: InstanceBody) -> bytes:
+    """The instance as a document: the package's one copy, which its layers file, its robot
+    files (SSI, CBBA) and its dispatcher (central) name."""
+    head = ("# The delivery instance this package runs: its one copy, named by the layers file "
+            "(and the\n# robot files or the dispatcher that plan on it). Written by `python -m "
+            "mrta_delivery.generate_cli`\n# from delivery's config/instance.yaml; "
+            "docs/delivery.md.\n")
     body = {"application": "delivery", **document_data(params)}
-    for key in ("tolerance", "turn_rate"):
-        body.pop(key, None)
     return (head + document_yaml(body)).encode()
 
 
-def all_files(params: DeliveryParams, alliance: str = "delivery",
+def all_files(params: InstanceBody, alliance: str = "delivery",
               murdoch: str = "delivery_murdoch",
               central: str = "delivery_central", ssi: str = "delivery_ssi",
               cbba: str = "delivery_cbba") -> dict[str, bytes]:
@@ -371,7 +379,7 @@ def all_files(params: DeliveryParams, alliance: str = "delivery",
     return files
 
 
-def generate(params: DeliveryParams, folder: Path, name: str = "delivery") -> list[Path]:
+def generate(params: InstanceBody, folder: Path, name: str = "delivery") -> list[Path]:
     """Write every package's generated files into `folder`: NAME (ALLIANCE), NAME_murdoch,
     NAME_central and NAME_central_answers.yaml. Everything is built before the first file is
     written, so a bad instance writes nothing; each file is replaced atomically (the package
@@ -392,4 +400,4 @@ def derive(doc: InstanceDoc, folder: Path) -> list[Path]:
     `delivery_murdoch` and `delivery_central` in `folder`, replacing it whole or not at all.
     Put first on the package path, they shadow the installed ones for that run; nothing is
     written into those."""
-    return write_folder(folder, all_files(doc.params()))
+    return write_folder(folder, all_files(doc.body()))

@@ -1,12 +1,13 @@
 """The delivery instance document (docs/delivery.md, "Instances"): robots (start, heading, speed,
 capabilities), tasks (position, arrival, service, capability, reward) and the world (room size,
-walls), as a YAML file states it, as the agents' layers file carries it (section `Delivery`) and
-as summary.json's `instance` section writes it back. Typed (msgspec), so a bad value is an error
-naming file, line and key before anything runs.
+walls), as a YAML file states it and as summary.json's `instance` section writes it back.
+Typed (msgspec), so a bad value is an error naming file, line and key before anything runs.
 
-Every package derived from an instance (ALLIANCE's `delivery`, MURDOCH's `delivery_murdoch`)
-carries the same section, so every robot, whatever its architecture, and the mission hook read
-one instance. The travel model is `mrta_zenoh.planning`'s: straight lines in an open room,
+Every package derived from an instance (one per architecture) holds it once, as
+`config/instance.yaml`, which its layers file names (mrta_agent.runtime.instance) and the
+delivery plugins read as `ctx.instance`; the layers file's `Delivery` section holds only how the
+layer drives (`DeliveryParams`). So every robot, whatever its architecture, and the mission hook
+read one instance. The travel model is `mrta_zenoh.planning`'s: straight lines in an open room,
 shortest drivable paths around the walls otherwise (`planning.geometry`).
 """
 
@@ -140,8 +141,9 @@ class InstanceBody(msgspec.Struct, forbid_unknown_fields=True):
         return "straight-line distance / speed (s)"
 
 
-class DeliveryParams(InstanceBody, forbid_unknown_fields=True):
-    """The layers file's `Delivery` section: the instance and how the layer drives."""
+class DeliveryParams(msgspec.Struct, forbid_unknown_fields=True):
+    """The layers file's `Delivery` section: how the layer drives (the instance it serves is
+    the file the layers file names)."""
 
     tolerance: Annotated[float, msgspec.Meta(gt=0.0, le=5.0)] = 0.3  # m: "at the task"
     turn_rate: Annotated[float, msgspec.Meta(gt=0.0, le=3.0)] = 1.2   # rad/s at most
@@ -156,15 +158,20 @@ class InstanceDoc(InstanceBody, forbid_unknown_fields=True):
     cost: Any = None
     cost_model: Any = None
 
-    def params(self) -> DeliveryParams:
-        return DeliveryParams(self.robots, self.tasks, self.world, self.name,
-                              self.max_tasks_per_robot)
+    def body(self) -> InstanceBody:
+        """The instance alone (what a package is derived from), without where it came from."""
+        return InstanceBody(self.robots, self.tasks, self.world, self.name,
+                            self.max_tasks_per_robot)
 
 
 def load_document(path: Path | str) -> InstanceDoc:
     """An instance file, checked (ConfigError naming file, line and key). A summary.json is
     read too: its `instance` section is the document. The name defaults to the file's stem."""
-    doc = load_yaml(path)
+    return document_of(load_yaml(path))
+
+
+def document_of(doc: YamlDoc) -> InstanceDoc:
+    """load_document's, from the parsed file."""
     base: tuple = ()
     if isinstance(doc.data, dict) and isinstance(doc.data.get("instance"), dict):
         base = ("instance",)  # a summary.json (an instance document has no such key)
@@ -179,7 +186,7 @@ def load_document(path: Path | str) -> InstanceDoc:
                         "not a delivery one")
     raise_faults(doc, base, inst)
     if not inst.name:
-        inst = msgspec.structs.replace(inst, name=Path(path).stem)
+        inst = msgspec.structs.replace(inst, name=Path(doc.path).stem)
     return inst
 
 

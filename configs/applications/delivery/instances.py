@@ -19,10 +19,11 @@ import msgspec
 
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.instances import InstanceGenerator, InstanceKind
+from mrta_zenoh.yamlfile import YamlDoc
 from mrta_zenoh.planning.geometry import CLEARANCE, point_segment_distance, segment_distance
 
 from .instance import (InstanceDoc, RobotSpec, TaskSpec, WorldSpec, document_data,
-                       document_yaml, load_document)
+                       document_of, document_yaml)
 
 WALL_GAP = 2 * CLEARANCE + 0.3   # m between walls: a corridor two robots' clearances wide
 POINT_GAP = CLEARANCE + 0.2      # m from a start or task to any wall
@@ -62,8 +63,8 @@ def describe(doc: InstanceDoc, *, exact_limit: int, time_limit: float,
 class DeliveryKind(InstanceKind):
     application = "delivery"
 
-    def load(self, path: Path) -> InstanceDoc:
-        return load_document(path)
+    def load(self, doc: YamlDoc) -> InstanceDoc:
+        return document_of(doc)
 
     def name(self, doc: InstanceDoc) -> str:
         return doc.name

@@ -4,8 +4,8 @@ The robot drives the path the cost model prices (docs/delivery.md, "Cost model")
 step after each activation it plans a shortest drivable path from where it is to the task
 around the world's walls (`mrta_zenoh.planning.geometry`, the same visibility graph the
 instance's cost matrix comes from; a straight line in an open room) and follows its waypoints
-in turn — turning towards the next, driving straight at its own speed (`Delivery/robots/<id>/
-speed`, its commanded cap: the simulator's robot model has one speed limit for every robot,
+in turn — turning towards the next, driving straight at its own speed (the instance's
+`robots/<id>/speed`, its commanded cap: the simulator's robot model has one speed limit for every robot,
 0.75 m/s, so robots differ in speed by what their layer commands). It reads only odometry: the
 walls are known from the instance. Within `tolerance` of the task it stops, says `started`,
 waits `service` seconds and says `done` (reliably: that is what makes the task inapplicable
@@ -28,7 +28,7 @@ from mrta_agent.runtime.builtin import odometry_pose
 from mrta_agent.runtime.plugins import AgentContext, Layer
 
 from .board import Board
-from .instance import DeliveryParams
+from .instance import DeliveryParams, InstanceBody
 from .keys import Event, event_key
 from .messages import TaskEvent
 
@@ -44,16 +44,18 @@ def _clip(v: float, lo: float, hi: float) -> float:
 class Deliver(Layer):
     params_section = "Delivery"
     Params = DeliveryParams
+    instance_type = InstanceBody
 
     def setup(self, ctx: AgentContext) -> None:
         super().setup(ctx)
         if self.task_id is None:
             raise ConfigError("delivery/deliver does not know its task: it serves a task only "
                               "when loaded from a tasks file")
-        task = self.params.task(self.task_id)
+        self.instance: InstanceBody = ctx.instance
+        task = self.instance.task(self.task_id)
         self.goal = (float(task.position[0]), float(task.position[1]))
         self.service = task.service
-        self.speed = self.params.robot(ctx.robot_id).speed
+        self.speed = self.instance.robot(ctx.robot_id).speed
         self.board = Board.of(self)
         self.paths = path_map_of(self)
         self.seq = 0
@@ -146,5 +148,5 @@ def path_map_of(layer: Deliver) -> PathMap | None:
     delivery layer and shared by the others, as the board is."""
     ctx = layer.ctx
     if PATHS not in ctx.__dict__:
-        ctx.__dict__[PATHS] = layer.params.path_map()
+        ctx.__dict__[PATHS] = layer.instance.path_map()
     return ctx.__dict__[PATHS]

@@ -33,7 +33,7 @@ from mrta_zenoh.planning.assignment import (greedy_online, ia_costs, murdoch_uti
                                             optimal_assignment)
 from mrta_supervisor.ground_truth import stretches_from
 
-from .instance import DeliveryParams, document_data
+from .instance import InstanceBody, document_data
 from .keys import Event
 from .messages import TaskEvent
 from .objectives import objective_metrics, objective_section, overlaps
@@ -78,7 +78,7 @@ class Entry:
 
 @dataclass
 class RunAnalysis:
-    params: DeliveryParams
+    params: InstanceBody
     instance: Problem
     log: list[Entry]
     metrics: dict[str, Any] = field(default_factory=dict)
@@ -210,7 +210,7 @@ def measure(instance: Problem, log: list[Entry], distance: dict[str, float]) -> 
     }
 
 
-def analyse(records: list, arch: Architecture, params: DeliveryParams, end: float,
+def analyse(records: list, arch: Architecture, params: InstanceBody, end: float,
             faults: Faults = Faults(), objective: str | None = None) -> RunAnalysis:
     """The log, the metrics and the objectives of a recorded run that ended at `end`;
     `objective`: the one its architecture optimised (default: its contract's, else MinSum)."""
@@ -234,14 +234,12 @@ def done_at(records: list, instance: Problem) -> float | None:
     return max((first[t.id] for t in instance.tasks), default=None)
 
 
-def instance_json(params: DeliveryParams, instance: Problem) -> dict[str, Any]:
+def instance_json(params: InstanceBody, instance: Problem) -> dict[str, Any]:
     """summary.json's `instance`: the instance document (fed back as `--instance`, it gives the
     same run), plus the travel-time matrix (robot × task, s; null: cannot serve) and how it was
     computed — which a document read back ignores."""
     cost = ia_costs(instance)
     body = document_data(params)
-    for key in ("tolerance", "turn_rate"):
-        body.pop(key, None)
     return {"application": "delivery", **body,
             "cost": [[round(float(c), 3) if math.isfinite(c) else None for c in row]
                      for row in cost],

@@ -2,9 +2,9 @@
 registered under `mrta.missions` as `delivery`. The framework's runner launches, records,
 supervises and writes the summary; this hook adds what only a delivery run can measure — the
 allocation log and the metrics against the optimal assignment (metrics.py) — from the
-recording. Both packages (delivery, delivery_murdoch) hold `launch/delivery_sim.launch` and a
-layers file whose `Delivery` section is the instance; `derive` writes a run's own pair from an
-instance file (`mrta demo --instance FILE`).
+recording. Every delivery package holds `launch/delivery_sim.launch`, its instance
+(`config/instance.yaml`) and a layers file naming it; `derive` writes a run's own packages from
+an instance file (`mrta demo --instance FILE`).
 
 `metrics` lands in summary.json's `metrics` (scalars: also `mrta experiment`'s columns);
 `sections` is the instance, the allocation log, the objectives and the overlaps, the top-level
@@ -19,12 +19,15 @@ A run ends when every task is done (`ended_at`: the last first completion, from 
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 from typing import Any
 
 import msgspec
 
+from mrta_agent.runtime.instance import named_instance
 from mrta_agent.runtime.params import load_layers_params
+from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.keys import first_chunk
 from mrta_supervisor.ground_truth import decisions
 from mrta_supervisor.mission import Mission, MissionRun, faults_of
@@ -33,7 +36,7 @@ from mrta_supervisor.tasks import TaskStatus, TaskWatch
 from mrta_supervisor.summary import SummarySections
 
 from .generate import derive
-from .instance import DeliveryParams, InstanceDoc, load_document
+from .instance import InstanceBody, InstanceDoc, load_document
 from .keys import ALL_DONE, Event
 from .messages import TaskEvent
 from .metrics import RunAnalysis, analyse, done_at, instance_json
@@ -127,13 +130,22 @@ class DeliverySections(SummarySections):
                 raise ValueError(f"instance: {current}") from None
 
 
-def run_instance(run: MissionRun) -> DeliveryParams:
-    doc = load_layers_params(run.layers_params)
-    if doc is None:
-        return DeliveryParams()
-    params = doc.convert(("Delivery",), DeliveryParams)
-    params.check()
-    return params
+def run_instance(run: MissionRun) -> InstanceBody:
+    """The instance the run's robots serve: the file its layers file names, read once however
+    often the runner asks (the task watch, the end of the run, the analysis)."""
+    layers = load_layers_params(run.layers_params)
+    path = named_instance(layers)
+    if path is None:
+        raise ConfigError(f"{layers.path}: names no instance (`instance: FILE`): a delivery "
+                          "run needs the instance its robots serve")
+    stat = path.stat()
+    return _read_instance(path.resolve(), stat.st_mtime_ns, stat.st_size)
+
+
+@functools.lru_cache(maxsize=4)
+def _read_instance(path: Path, _mtime_ns: int, _size: int) -> InstanceBody:
+    """An instance file's body, read once per version of the file (the cache key)."""
+    return load_document(path).body()
 
 
 class DeliveryWatch(TaskWatch):
@@ -141,7 +153,7 @@ class DeliveryWatch(TaskWatch):
 
     served_in_turn = True  # more tasks than robots: a task may wait for a robot to be free
 
-    def __init__(self, params: DeliveryParams):
+    def __init__(self, params: InstanceBody):
         self.params = params
         self.arrivals = {tid: t.arrival for tid, t in params.tasks.items()}
 
