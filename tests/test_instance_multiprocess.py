@@ -74,7 +74,7 @@ def test_a_generated_instance_with_a_wall_runs_under_both_architectures_and_roun
         assert (s["mission"], s["application"], s["architecture"]) == ("delivery", pkg, arch)
         assert sorted(s["who_did_what"]) == ["robot1", "robot2", "robot3"]  # the instance's 3
         assert s["metrics"]["completed"] == s["metrics"]["tasks"] == 3, s["metrics"]
-        assert s["instance"]["name"] == "delivery-r3-t3-2"
+        assert s["instance"]["name"] == "delivery-r3-t3-w1-2"  # a walled instance says so
         assert s["instance"]["world"]["walls"] == walls
         assert "around the walls" in s["instance"]["cost_model"]
         out = tmp_path / arch
