@@ -16,6 +16,7 @@ command-line options, so a generator needs no command-line code of its own.
 
 from __future__ import annotations
 
+import hashlib
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
 from pathlib import Path
@@ -58,6 +59,13 @@ class InstanceKind:
                  solutions: int) -> dict[str, Any]:
         """What `mrta instance show` prints (JSON values): sizes, costs, reference values."""
         return {}
+
+    def digest(self, doc: Any) -> str:
+        """What says which instance this is, on the wire (messages naming robots and tasks by
+        their index in it carry it: messages.IndexedMessage): 16 hex digits of the SHA-256 of
+        the document as JSON, in its own order (the order indices count in). Override to leave
+        out what does not change the indices' meaning."""
+        return hashlib.sha256(msgspec.json.encode(doc)).hexdigest()[:DIGEST_LENGTH]
 
     def problem(self, doc: Any) -> Any:
         """The planning problem the document poses (`mrta_zenoh.planning.Problem`: robots,
@@ -132,6 +140,10 @@ class Loaded:
     kind: InstanceKind
     doc: Any
     name: str = field(default="")
+    digest: str = ""  # InstanceKind.digest
+
+
+DIGEST_LENGTH = 16
 
 
 def load(path: Path, application: str | None = None) -> Loaded:
@@ -139,7 +151,7 @@ def load(path: Path, application: str | None = None) -> Loaded:
     parsed = load_yaml(path)
     kind = kind_of(parsed, application)
     doc = kind.load(parsed)
-    return Loaded(path, kind, doc, kind.name(doc))
+    return Loaded(path, kind, doc, kind.name(doc), kind.digest(doc))
 
 
 def problem(path: Path, application: str | None = None) -> Any:

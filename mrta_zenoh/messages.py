@@ -50,6 +50,18 @@ class Message(msgspec.Struct, frozen=True, forbid_unknown_fields=True, gc=False)
     TYPE_NAME: ClassVar[str] = ""
 
 
+class IndexedMessage(Message, kw_only=True, frozen=True):
+    """A message that names robots and tasks by their index in the run's instance (SSI's rounds
+    and bids, CBBA's bids): small on the wire, and meaningless on another instance — robot 2 of
+    one is not robot 2 of another. So it says which instance it counts in: `instance`, the
+    digest of the sender's (mrta_zenoh.instances.Loaded.digest). The agent runtime stamps it on
+    every such message it sends and refuses one whose digest is not its own robot's, counting it
+    (`ignored_other_instance`), instead of misreading it. Keyword-only, so it comes after the
+    subclass's own fields and positional construction is unchanged."""
+
+    instance: str = ""
+
+
 _REGISTRY: dict[str, type[Message]] = {}
 _lock = threading.Lock()
 # Loading imports modules whose @message takes `_lock`, and such a module may itself decode

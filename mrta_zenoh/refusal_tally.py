@@ -36,6 +36,7 @@ MISMATCH = "key_header_mismatch"  # its key names one sender, its header another
 OFF_ROSTER = "off_roster"         # its sender is not on the team (--team): a stranger
 MALFORMED = "malformed"           # an index or a name outside the instance: refused whole
 MISADDRESSED = "misaddressed"     # from a sender, or to a receiver, it cannot come from or go to
+OTHER_INSTANCE = "other_instance"  # counts robots and tasks in another instance (its digest)
 
 Entry = tuple[str, str, str, bool]  # (kind, sender, reason, forged)
 

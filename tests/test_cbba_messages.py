@@ -14,6 +14,7 @@ from mrta_agent.cbba.bundle import Cbba
 from mrta_agent.cbba.messages import MESSAGES, Bids
 from mrta_agent.cbba.synchronous import run_rounds
 from mrta_zenoh.codec import decode, encode
+from mrta_zenoh.instances import DIGEST_LENGTH
 from mrta_zenoh.messages import Header
 from mrta_zenoh.planning import Problem, Robot, Task
 from mrta_zenoh.planning.insertion import Origin
@@ -44,11 +45,13 @@ def test_the_message_round_trips_and_grows_with_tasks_won_not_with_the_instance(
     team = {r.id: Cbba(p, r.id, resend_period=0.0, bundle_limit=6) for r in p.robots}
     run_rounds(team)
     fields = team["r0"].tick(1000.0)[0].fields
-    size = len(encode(Bids(Header("r0", 1000.0, 1), *fields)))
-    base = len(encode(Bids(Header("r0", 1000.0, 1), (), *fields[1:])))
+    digest = "0" * DIGEST_LENGTH
+    size = len(encode(Bids(Header("r0", 1000.0, 1), *fields, instance=digest)))
+    base = len(encode(Bids(Header("r0", 1000.0, 1), (), *fields[1:], instance=digest)))
     assert len(fields[0]) == 60 and len(fields[1]) == 10  # every task won; every robot heard
     assert size - base <= 12 * 60 + 2  # + a longer array header past 15 entries
-    assert base <= 212  # header, stamps of 10 robots, position, the decision's ms
+    # header, stamps of 10 robots, position, the decision's ms, the instance's digest (27 bytes)
+    assert base <= 239
 
 
 def test_a_malformed_message_is_refused_whole():

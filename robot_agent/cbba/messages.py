@@ -5,16 +5,17 @@ of, the winning robot and bid (the paper's z and y), its time stamps of the late
 from each robot (s), and the tasks served. Tasks and robots are named by their index in the
 instance every robot reads (tasks and robots in file order): a winner entry is three small
 numbers, and a task nobody has won is left out (the paper's "none"), so a message grows with the
-tasks won, not with the instance.
+tasks won, not with the instance. It carries that instance's digest (IndexedMessage: a robot on
+another instance is refused, not misread).
 """
 
 from __future__ import annotations
 
-from mrta_zenoh.messages import Finite, Header, Message, message
+from mrta_zenoh.messages import Finite, Header, IndexedMessage, message
 
 
 @message("cbba_msgs/Bids")
-class Bids(Message):
+class Bids(IndexedMessage):
     """`winners`: (task, robot, winning bid) for each task the sender knows a winner of;
     `stamps`: (robot, time) — when the sender last had information from each robot it heard
     from, itself included (its send time); `done`: tasks served, by anyone, as far as it knows;

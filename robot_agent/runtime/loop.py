@@ -25,6 +25,11 @@ what every architecture needs and none should write twice:
   stops — so that every summary shows it (a message from a teammate whose token has not come
   yet, or one the logic does not take without a reason — ALLIANCE's broadcast of a task this
   robot does not serve — is only counted here and logged: no evidence of anything);
+* the instance: a message naming robots and tasks by index (messages.IndexedMessage: SSI's,
+  CBBA's) goes out with the digest of the robot's instance (runtime.instance), and one from a
+  teammate on another instance is ignored and counted (`ignored_other_instance`, and in what
+  it refused: reason `other_instance`) with a warning naming both digests — read, it would be
+  misread silently;
 * publishing: every message the logic says goes out on `robotN/<namespace>/<kind>` with a header
   carrying the robot, the time and a per-key sequence number;
 * the low level: plugins' set-up and shutdown, the active task's layers, a restart of time;
@@ -51,9 +56,10 @@ from mrta_zenoh.clock import EPSILON, Clock
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.failure import FaultKind, FaultPlan, crash_now
 from mrta_zenoh.keys import first_chunk
-from mrta_zenoh.messages import Header
+from mrta_zenoh.messages import Header, IndexedMessage
 from mrta_zenoh.fault_tally import TALLY_PERIOD
-from mrta_zenoh.refusal_tally import MISMATCH, OFF_ROSTER, Refusals, refused_key, tally
+from mrta_zenoh.refusal_tally import (MISMATCH, OFF_ROSTER, OTHER_INSTANCE, Refusals, refused_key,
+                                      tally)
 from mrta_zenoh.seeds import robot_rng
 from mrta_zenoh.timetext import at
 from mrta_zenoh.untrusted import visible
@@ -105,6 +111,9 @@ class Agent:
         self.ignored_mismatch = 0
         self.ignored_strangers = 0
         self.ignored_outsiders = 0  # tokens and messages of robots off the roster
+        self.ignored_other_instance = 0  # index-based messages counting in another instance
+        # the digest of the robot's instance, stamped on its index-based messages ("": none)
+        self.instance_digest = plugins.instance.digest if plugins.instance is not None else ""
         self.refused = 0
         self.injector = FaultInjector(robot_id, bus, clock, logger)  # `faults` sets its plan
         # teammates' coordination messages that reached this agent, by kind (whatever became of
@@ -303,6 +312,13 @@ class Agent:
             self._drop("ignored_strangers", "ignoring %s from %s, which holds no agent token",
                        type(msg).__name__, sender)
             return
+        if isinstance(msg, IndexedMessage) and msg.instance != self.instance_digest:
+            self._drop("ignored_other_instance", "ignoring %s from %s: it counts robots and "
+                       "tasks in instance %s, this robot in %s — the team runs two instances",
+                       type(msg).__name__, sender, msg.instance or "(none)",
+                       self.instance_digest or "(none)",
+                       entry=(kind, sender, OTHER_INSTANCE, False))
+            return
         heard = self.injector.on_receipt(sample.key, msg.header.seq, sender,
                                          self.heard_at(msg.header.stamp))
         if heard is not None:  # else a fault dropped it (counted by the injector)
@@ -410,8 +426,10 @@ class Agent:
         if say.watched and self._seq[key] == 1:
             self.bus.leave_unclaimed(key)
         header = Header(self.robot_id, now, self._seq[key])
-        self.bus.publish(key, self.architecture.messages[say.kind](header, *say.fields),
-                         lossy=say.lossy)
+        kind = self.architecture.messages[say.kind]
+        msg = kind(header, *say.fields, instance=self.instance_digest) \
+            if issubclass(kind, IndexedMessage) else kind(header, *say.fields)
+        self.bus.publish(key, msg, lossy=say.lossy)
 
     @property
     def active_task(self) -> str | None:

@@ -3,18 +3,20 @@
 The auctioneer (the lowest-id live robot) publishes a `Round`: its number and the state of every
 task, which is all a bidder needs; each robot answers with a `Bid` addressed to it (its key's
 sub-key) for that round. Tasks and robots are named by their index in the instance every robot
-reads (tasks and robots in file order), so a round is one small number per task.
+reads (tasks and robots in file order), so a round is one small number per task; each message
+carries that instance's digest (IndexedMessage: a robot on another instance is refused, not
+misread).
 """
 
 from __future__ import annotations
 
-from mrta_zenoh.messages import Finite, Header, Message, message
+from mrta_zenoh.messages import Finite, Header, IndexedMessage, message
 
 OPEN, UNKNOWN, DONE = -1, -2, -3  # a task's state in Round.owners besides its owner's index
 
 
 @message("ssi_msgs/Round")
-class Round(Message):
+class Round(IndexedMessage):
     """`owners[j]`: the index of the robot task j was awarded to, or OPEN (to bid on), UNKNOWN
     (not arrived yet) or DONE (served); `award`: the task this round's opening awarded (its
     winner is its owner; −1: none), `cost` its winning bid and `ms` the computation time of
@@ -29,7 +31,7 @@ class Round(Message):
 
 
 @message("ssi_msgs/Bid")
-class Bid(Message):
+class Bid(IndexedMessage):
     """A robot's bid in `round` of `auctioneer`'s: what adding `task` to its path costs (task −1:
     nothing it can serve is open), and the tasks it served that the last Round it heard did not
     yet show DONE (so a task served just before its server died is not auctioned again);

@@ -66,6 +66,11 @@ class DeliveryKind(InstanceKind):
     def load(self, doc: YamlDoc) -> InstanceDoc:
         return document_of(doc)
 
+    def digest(self, doc: InstanceDoc) -> str:
+        """The instance alone (InstanceDoc.body): where it came from (`generator`, a summary's
+        `cost`) changes no index, so a run of a summary.json talks to one of its instance."""
+        return super().digest(doc.body())
+
     def name(self, doc: InstanceDoc) -> str:
         return doc.name
 
