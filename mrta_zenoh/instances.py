@@ -60,6 +60,12 @@ class InstanceKind:
         """What `mrta instance show` prints (JSON values): sizes, costs, reference values."""
         return {}
 
+    def task_positions(self, doc: Any) -> dict[str, tuple[float, float]]:
+        """Where each task is done, for what prices or draws a task by where it is (MURDOCH's
+        bids when its tasks file gives no `locations`, the simulator's markers): {} by
+        default — an application whose tasks are no points."""
+        return {}
+
     def digest(self, doc: Any) -> str:
         """What says which instance this is, on the wire (messages naming robots and tasks by
         their index in it carry it: messages.IndexedMessage): 16 hex digits of the SHA-256 of

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import logging
 import math
 import threading
@@ -10,7 +11,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
-from mrta_zenoh import keys
+from mrta_zenoh import instances, keys
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.clock import run_id as new_run_id
 from mrta_zenoh.errors import ConfigError, MrtaRuntimeError
@@ -102,7 +103,8 @@ class SimOptions:
     """Everything `mrta sim` is asked to do, checked once when built (bad values are bad input,
     exit 2, before anything opens): the verb builds one from its options, a Python caller
     directly. `robots`: `ID`, `ID=START` or `ID=x,y[,theta_degrees]` (parse_robot); `ros2`: the
-    robots served as ROS 2 robots instead of on our keys."""
+    robots served as ROS 2 robots instead of on our keys; `markers`: an instance file whose
+    tasks the snapshot marks (with_instance_markers)."""
 
     world: str
     robots: tuple[str, ...]
@@ -118,6 +120,7 @@ class SimOptions:
     ros2_domain: int = 0
     ros2_sonar_type: str = "pointcloud"
     ros2_distro: str = "jazzy"
+    markers: Path | None = None
 
     def __post_init__(self) -> None:
         # sequences given as lists stay usable, and the options stay hashable
@@ -138,6 +141,16 @@ class SimOptions:
                               f"{', '.join(SONAR_TYPES)}")
 
 
+def with_instance_markers(world: World, instance: Path) -> World:
+    """The world with an instance's tasks as markers beside its own (`--markers FILE`): an
+    application's package states where its tasks are once, in its instance, and the
+    simulator reads them through the core's instance registry (InstanceKind.task_positions),
+    knowing no application."""
+    loaded = instances.load(instance)
+    return dataclasses.replace(world, markers={**world.markers,
+                                               **loaded.kind.task_positions(loaded.doc)})
+
+
 def run_simulator(options: SimOptions, bus_options: BusOptions,
                   stop: threading.Event | None = None) -> RunStats:
     """Load the world, place the robots and run the simulation on the bus until the duration
@@ -147,6 +160,8 @@ def run_simulator(options: SimOptions, bus_options: BusOptions,
         raise ConfigError(f"--snapshot {o.snapshot}: folder {Path(o.snapshot).parent} does not "
                           "exist")
     world = load_world(resolve_world(o.world))
+    if o.markers is not None:
+        world = with_instance_markers(world, Path(o.markers))
     robots = place_robots(world, [parse_robot(s) for s in o.robots])
     ros2_ids = [keys.normalize_robot_id(r) for r in o.ros2]
     for rid in ros2_ids:

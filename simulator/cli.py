@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 
+from pathlib import Path
+
 import click
 
 from mrta_zenoh.bus import BusOptions
@@ -30,6 +32,10 @@ from .api import SimOptions, run_simulator
 @click.option("--snapshot", type=OutputPath(folder=False),
               help="On exit, write a PNG of the world with robots, sonar beams and trails.")
 @click.option("--rear-sonars", is_flag=True, help="Also simulate the 8 rear transducers.")
+@click.option("--markers", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              metavar="INSTANCE",
+              help="Mark this instance file's tasks on the snapshot (an application's package "
+                   "names its instance: the tasks' places are stated there once).")
 @click.option("--lockstep", is_flag=True,
               help="Advance only when every agent following simulation time is done with the "
                    "current step: runs reproducible whatever the machine's load.")

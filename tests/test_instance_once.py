@@ -103,3 +103,68 @@ def test_a_delivery_robot_whose_layers_name_no_instance_is_refused_before_it_run
     layers.write_text(layers.read_text().replace("instance: instance.yaml\n", ""))
     with pytest.raises(ConfigError, match="reads the robot's instance: name its file"):
         architecture("murdoch").prepare(options(config, "murdoch"))
+
+
+def numbers(value) -> list[tuple[float, float]]:
+    """Every point a parsed YAML value holds: a pair of numbers, or a mapping with x and y."""
+    out = []
+    if isinstance(value, dict):
+        if {"x", "y"} <= set(value):
+            out.append((value["x"], value["y"]))
+        for v in value.values():
+            out += numbers(v)
+    elif isinstance(value, list):
+        if len(value) == 2 and all(isinstance(v, (int, float)) for v in value):
+            out.append(tuple(value))
+        for v in value:
+            out += numbers(v)
+    return out
+
+
+def xml_points(text: str) -> set[tuple[float, float]]:
+    """The points an rqt_mrta.xml states: an element whose parameters include `x` and `y`."""
+    import xml.etree.ElementTree as ET
+    out = set()
+    for el in ET.fromstring(text).iter():
+        values = {c.findtext("name"): c.findtext("value") for c in el
+                  if c.findtext("name") in ("x", "y") and c.findtext("value") is not None}
+        if len(values) == 2:
+            out.add((float(values["x"]), float(values["y"])))
+    return out
+
+
+DELIVERY_PACKAGES = sorted(p for p in APPS.iterdir()
+                           if p.is_dir() and (p / "config" / "instance.yaml").is_file()
+                           and p.name.startswith("delivery"))
+
+
+def test_every_delivery_package_in_configs_is_checked():
+    assert {p.name for p in DELIVERY_PACKAGES} == {f"delivery{s}" for s in
+                                                   ("", "_murdoch", "_central", "_ssi", "_cbba")}
+
+
+@pytest.mark.parametrize("package", DELIVERY_PACKAGES, ids=lambda p: p.name)
+def test_a_delivery_packages_task_positions_appear_in_one_of_its_files_only(package):
+    """The done-when of issue 46.7: every file of the package but its Python modules (parameter
+    files, launch files, rqt_mrta.xml, the world) is read — YAML as data, points as pairs or
+    x/y mappings; the others as text, a point as `x,y` or `x, y` — and only config/instance.yaml
+    holds a task's position."""
+    import yaml
+    tasks = yaml.safe_load((package / "config" / "instance.yaml").read_text())["tasks"]
+    positions = {tuple(map(float, t["position"])) for t in tasks.values()}
+    assert positions
+    holding = set()
+    for f in sorted(package.rglob("*")):
+        if not f.is_file() or f.suffix in (".py", ".pyc"):
+            continue
+        text = f.read_text()
+        if f.suffix == ".yaml":
+            found = {tuple(map(float, p)) for p in numbers(yaml.safe_load(text))}
+        else:  # launch files: a point written out; rqt_mrta.xml: x/y parameter pairs too
+            found = {p for p in positions
+                     if any(sep.join(f"{c:g}" for c in p) in text for sep in (",", ", "))}
+            if f.suffix == ".xml":
+                found |= xml_points(text)
+        if found & positions:
+            holding.add(f.relative_to(package).as_posix())
+    assert holding == {"config/instance.yaml"}

@@ -1,5 +1,6 @@
-"""A world's named markers: points an application places in its world file (delivery's tasks),
-marked on the simulator's snapshot (world.png) — the simulator knows no application by them."""
+"""A world's named markers: points a world file names, or an instance's tasks (`mrta sim
+--markers INSTANCE`: delivery's), marked on the simulator's snapshot (world.png) — the simulator
+knows no application by them."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import pytest
 import yaml
 
 from mrta_simulator import snapshot
+from mrta_simulator.api import with_instance_markers
 from mrta_simulator.engine import Simulation
 from mrta_simulator.world import Pose, load_world
 from mrta_zenoh.errors import ConfigError
@@ -57,9 +59,14 @@ def test_a_bad_marker_names_file_and_line(tmp_path, extra, line, message):
     assert err.value.line == line and message in str(err.value) and str(f) in str(err.value)
 
 
-def test_deliverys_world_marks_every_task_of_its_instance():
-    """The shipped delivery world (written from config/instance.yaml by the generator) lists
-    each task at its position, read here from the instance file itself."""
-    tasks = yaml.safe_load((DELIVERY / "config" / "instance.yaml").read_text())["tasks"]
-    world = load_world(DELIVERY / "worlds" / "delivery.yaml")
-    assert world.markers == {tid: tuple(map(float, t["position"])) for tid, t in tasks.items()}
+def test_deliverys_simulator_marks_every_task_of_its_packages_instance():
+    """The delivery launch files give the simulator their package's instance (`--markers`):
+    each task is marked where the instance places it, and the world file places none."""
+    instance = DELIVERY / "config" / "instance.yaml"
+    tasks = yaml.safe_load(instance.read_text())["tasks"]
+    plain = load_world(DELIVERY / "worlds" / "delivery.yaml")
+    assert plain.markers == {}
+    marked = with_instance_markers(plain, instance)
+    assert marked.markers == {tid: tuple(map(float, t["position"])) for tid, t in tasks.items()}
+    launch = (DELIVERY / "launch" / "delivery_sim.launch").read_text()
+    assert "--markers $(find delivery)/config/instance.yaml" in launch

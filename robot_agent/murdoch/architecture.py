@@ -7,8 +7,10 @@ renewal_period; docs/murdoch.md) and releases.
 
 from __future__ import annotations
 
+import dataclasses
 from pathlib import Path
 
+from mrta_zenoh import instances
 from mrta_zenoh.architectures import Doing, Takeover, TakeoverBound
 from mrta_zenoh.codec import DecodeError, decode, type_from_encoding
 
@@ -23,6 +25,17 @@ from .messages import Announcement, Award, Bid, Claim, Release, Revoke
 def murdoch_plugins(params: murdoch_params.MurdochParams) -> Plugins:
     """Sensors, one progress evaluator and one layer stack per skill."""
     return Plugins(params.robot.sensors, params.evaluators(), params.task_layers(), params.layers)
+
+
+def located(params: murdoch_params.MurdochParams, instance: instances.Loaded | None
+            ) -> murdoch_params.MurdochParams:
+    """A task its tasks file gives no `locations` is done where the robot's instance places it
+    (InstanceKind.task_positions), so a package derived from an instance states its tasks'
+    positions once — in the instance — and MURDOCH still prices its bids by distance."""
+    where = {} if instance is None else instance.kind.task_positions(instance.doc)
+    tasks = {tid: dataclasses.replace(t, locations=(where[tid],))
+             if not t.locations and tid in where else t for tid, t in params.tasks.items()}
+    return dataclasses.replace(params, tasks=tasks)
 
 
 SUBJECT_KINDS = ("announcement", "bid")  # published under a sub-key (agent.subjects)
@@ -51,6 +64,7 @@ class MurdochArchitecture(AgentArchitecture):
         params = murdoch_params.load_params(options.robot_params, options.tasks_params,
                                             options.layers_params)
         plugins = murdoch_plugins(params)
+        params = located(params, plugins.instance)
         return Prepared(options.robot_id, params, plugins, params.robot.spin_rate,
                         params.robot.control_rate, f"MURDOCH, {len(params.robot.skills)} skills",
                         params.warnings + plugins.unread_warnings())

@@ -43,7 +43,6 @@ How the instance becomes each architecture's parameters (docs/delivery.md):
 from __future__ import annotations
 
 import dataclasses
-import json
 import random
 from pathlib import Path
 
@@ -125,12 +124,13 @@ def _robot_tasks(params: InstanceBody) -> dict[str, list[str]]:
 
 
 def _tasks_list(params: InstanceBody, murdoch: bool) -> list[dict]:
+    """The tasks file's entries. MURDOCH's name no `locations`: its robots price a task where
+    the instance (the package's one copy) places it (mrta_agent.murdoch.architecture.located)."""
     out = []
-    for tid, t in params.tasks.items():
+    for tid in params.tasks:
         task = {"id": tid, "name": f"Delivery {tid}"}
         if murdoch:
             task["resources"] = [{"topic_name": "odom"}]
-            task["locations"] = [{"x": float(t.position[0]), "y": float(t.position[1])}]
         task["layers"] = [{"plugin_name": "delivery/deliver"}]
         out.append(task)
     return out
@@ -265,21 +265,19 @@ def layers_yaml(stem: str) -> bytes:
 
 
 def world_yaml(params: InstanceBody) -> bytes:
-    """The simulator's world (docs/worlds.md): the instance's room and walls, and its tasks as
-    markers (the snapshot, world.png, marks where they are)."""
+    """The simulator's world (docs/worlds.md): the instance's room and walls. Its tasks are no
+    markers here: the launch file gives the simulator the package's instance (`--markers`),
+    which states where they are once."""
     w, h = params.world.size
     room = [[-w / 2, -h / 2], [w / 2, -h / 2], [w / 2, h / 2], [-w / 2, h / 2]]
     head = (f"# The delivery world: a {w:g} m × {h:g} m room"
             + (f" with {len(params.world.walls)} walls inside" if params.world.walls
                else ", open")
             + " (written by mrta_delivery.generate from the instance; docs/delivery.md).\n"
-            "# Starts come from the instance (the launch file's --robot options).\n")
+            "# Starts come from the instance (the launch file's --robot options), and so do the\n"
+            "# tasks the snapshot marks (its --markers option).\n")
     lines = ["name: delivery", "walls:", f"  - polygon: {flow(room)}"]
     lines += [f"  - segment: {flow(list(map(float, wall)))}" for wall in params.world.walls]
-    if params.tasks:
-        lines.append("markers:")
-        lines += [f"  {json.dumps(tid)}: {flow(list(map(float, t.position)))}"  # "1" stays text
-                  for tid, t in params.tasks.items()]
     return (head + "\n".join(lines) + "\n").encode()
 
 
@@ -304,8 +302,8 @@ def sim_launch(params: InstanceBody, package: str, arch_pkg: str, stem: str,
         f'  <env name="{SEED_ENV}" value="$(arg seed)"/>',
         "  <!-- the simulator is required: the launch ends when it does -->",
         '  <node name="sim" pkg="simulator" type="sim" required="true"',
-        f'        args="--world delivery {starts} --speed $(arg speed) '
-        '--wait-robots 60 $(arg sim_args)"/>']
+        f'        args="--world delivery {starts} --markers $(find {package})/config/instance.yaml '
+        '--speed $(arg speed) --wait-robots 60 $(arg sim_args)"/>']
     for rid in params.robots:
         lines += [
             f'  <include file="$(find {arch_pkg})/launch/{arch_pkg}.launch">',

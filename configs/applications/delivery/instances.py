@@ -66,6 +66,10 @@ class DeliveryKind(InstanceKind):
     def load(self, doc: YamlDoc) -> InstanceDoc:
         return document_of(doc)
 
+    def task_positions(self, doc: InstanceDoc) -> dict[str, tuple[float, float]]:
+        return {tid: (float(t.position[0]), float(t.position[1]))
+                for tid, t in doc.tasks.items()}
+
     def digest(self, doc: InstanceDoc) -> str:
         """The instance alone (InstanceDoc.body): where it came from (`generator`, a summary's
         `cost`) changes no index, so a run of a summary.json talks to one of its instance."""
