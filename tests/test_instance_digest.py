@@ -17,6 +17,7 @@ from mrta_zenoh.architectures import architecture
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.clock import ManualClock
 from mrta_zenoh.messages import IndexedMessage
+from mrta_zenoh.refusal_tally import OTHER_INSTANCE
 from tests.helpers import CONFIGS
 
 APPS = CONFIGS / "applications"
@@ -89,5 +90,10 @@ def test_a_teammate_on_another_instance_is_refused_counted_and_named(arch, tmp_p
                  and (s.key.count("/") == 2 or s.key.endswith("/" + rid))]
         assert agent.ignored_other_instance == len(heard)
     assert agents["robot2"].ignored_other_instance > 0
+    # and what it says it refused (every summary's `refused`) names the sender and the reason
+    told = agents["robot2"].refusals.merged({})
+    assert sum(n for (_, sender, reason, forged), n in told.items()
+               if (sender, reason, forged) == ("robot1", OTHER_INSTANCE, False)) \
+        == agents["robot2"].ignored_other_instance
     warned = [r.getMessage() for r in caplog.records if "two instances" in r.getMessage()]
     assert any(digests["robot1"] in w and digests["robot2"] in w for w in warned)
