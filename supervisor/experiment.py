@@ -42,7 +42,6 @@ from typing import Any
 
 from mrta_zenoh.errors import ConfigError, Interrupted
 from mrta_zenoh.instances import kinds as instance_kinds
-from mrta_zenoh.keys import normalize_robot_id
 from mrta_zenoh.limits import MAX_RUNS, SEED
 from mrta_zenoh.processes import ProcessGroup
 from mrta_zenoh.toolchain.registry import Registry
@@ -149,7 +148,7 @@ def prepare_experiment(exp: Experiment, output: Path, shard: Shard | None = None
                                                        exp.file.parent, Path(staging), exp.doc))
         with tempfile.TemporaryDirectory(prefix="mrta-derived-") as tmp:
             for run in resolved.values():
-                robots = [normalize_robot_id(r.id) for r in run.app.robots]
+                robots = [r.id for r in run.app.robots]
                 exp.check_against(robots, tuple(run.arch.processes))
                 check_overrides(exp, *_overridden(exp, run, Path(tmp), robots))
         runs = exp.runs()

@@ -179,7 +179,7 @@ def natural(text: str) -> list:
 def draw_timeline(output: Path, app: ApplicationFile, panels: list[Panel],
                   span: tuple[float, float], xlabel: str) -> Path:
     """Panels of rows (one per robot) of task bars, offline periods hatched, one legend."""
-    robots = [keys.normalize_robot_id(r.id) for r in app.robots]
+    robots = [r.id for r in app.robots]
     for p in panels:
         robots += sorted(set(p.intervals) - set(robots))
     tasks = sorted(set(app.tasks()) | {t for p in panels for iv in p.intervals.values()

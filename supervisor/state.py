@@ -80,7 +80,7 @@ class Supervisor:
                                  "mrta.supervisor.replay"))
         self._fresh(now)
         for r in app.robots:
-            rid = keys.normalize_robot_id(r.id)
+            rid = r.id
             self.robots[rid] = self._robot(rid, now)
         for t in app.tasks():
             self.tasks[t] = self._task(t, now)

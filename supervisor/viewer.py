@@ -40,7 +40,7 @@ from mrta_zenoh.clock import EPSILON, SimClock
 from mrta_zenoh.codec import DecodeError
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.identity import OBSERVER
-from mrta_zenoh.keys import CLOCK, RECORDER_TOKEN, normalize_robot_id
+from mrta_zenoh.keys import CLOCK, RECORDER_TOKEN
 from mrta_zenoh.lifecycle import Closing
 from mrta_zenoh.messages import Clock, Odometry, PointCloud, Twist
 from mrta_zenoh.node import Node, NodeTime
@@ -177,7 +177,7 @@ def known_channels(app_model) -> list[tuple[str, tuple[str, str, bytes], str]]:
     architecture's (a kind with sub-keys once per task: ALLIANCE's motivation/<task>), and the
     derived channels. Advertised when the server starts, so a layout finds its topics at once.
     An architecture with no registered contract (an rqt_mrta file only) adds none of its own."""
-    robots = [normalize_robot_id(r.id) for r in app_model.robots]
+    robots = [r.id for r in app_model.robots]
     try:
         arch = architecture(app_model.architecture)
     except ConfigError:
@@ -218,7 +218,7 @@ def run_view(options: ViewOptions, bus_options: BusOptions, *,
     with node, contextlib.ExitStack() as handles:
         bus, stop = node.bus, node.stop
         # closed in reverse order: subscriptions and tokens, then the recording and the server
-        robots = [normalize_robot_id(r.id) for r in application[0].robots] \
+        robots = [r.id for r in application[0].robots] \
             if application is not None else None
         live = handles.enter_context(LiveChannels(
             options.host, options.port,

@@ -35,7 +35,11 @@ def test_reference_models_hold_what_the_files_say(reference):
     assert sensors.children[0].value == "@array_size@"
     app = load_rqt_mrta(REFERENCE / "dissertation_examples/b_app_config-rqt_mrta.xml")
     assert isinstance(app, ApplicationFile) and app.name == "Patrulha na UNIFEI"
-    assert [r.id for r in app.robots] == ["/robot1", "/robot2", "/robot3"]
+    # ids normalised where the file is read (one key chunk everywhere after), written back as
+    # the file wrote them
+    assert [r.id for r in app.robots] == ["robot1", "robot2", "robot3"]
+    assert [r.written for r in app.robots] == ["/robot1", "/robot2", "/robot3"]
+    assert b"<id>/robot1</id>" in to_xml(app)
     assert app.tasks() == ["wander", "border_protection", "report"]
     assert len(app.configs) == 5 and len(app.launches) == 3
 

@@ -18,7 +18,6 @@ from typing import Iterator
 from ..architectures import Architecture as Contract
 from ..architectures import architecture, architecture_names
 from ..errors import ConfigError
-from ..keys import normalize_robot_id
 from ..yamlfile import YamlDoc, load_yaml
 from .model import ApplicationFile
 
@@ -51,7 +50,7 @@ def check_robot_files(package: Path, app: ApplicationFile) -> list[str]:
     tasks, layers = config / f"tasks_{stem}_params.yaml", config / f"layers_{stem}_params.yaml"
     checked = []
     for robot in app.robots:
-        rid = normalize_robot_id(robot.id)
+        rid = robot.id
         params = config / f"{rid}_{stem}_params.yaml"
         if not (params.is_file() and tasks.is_file()):
             continue
@@ -95,7 +94,7 @@ def read_layer_sections(files: dict[str, bytes], app: ApplicationFile) -> frozen
     with scratch_package(files) as root:
         config = root / "config"
         for robot in app.robots:
-            rid = normalize_robot_id(robot.id)
+            rid = robot.id
             try:
                 sections = arch.layer_sections(rid, config / f"{rid}_{stem}_params.yaml",
                                                config / f"tasks_{stem}_params.yaml")

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 
-from ..keys import validate_key_expr
+from ..keys import normalize_robot_id, validate_key_expr
 
 PARAM_TYPES = ("bool", "int", "double", "string")
 ROBOT_TYPES = ("ST", "MT")       # single-task / multi-task robots
@@ -132,8 +132,18 @@ class ArchitectureFile:
 
 @dataclass
 class RobotEntry:
+    """A robot of an application file. `id` is normalised here, once (`/robot1`, as the
+    original project's files write it, is robot1: one key chunk, as every process, key and
+    summary names it); `written` keeps the file's spelling, which a rewritten file keeps."""
+
     id: str
     tasks: list[str] = field(default_factory=list)
+    written: str | None = field(default=None, compare=False, repr=False)
+
+    def __post_init__(self) -> None:
+        rid = normalize_robot_id(self.id)  # KeyExprError (a ConfigError) for a bad id
+        if rid != self.id:
+            self.written, self.id = self.written or self.id, rid
 
 
 @dataclass

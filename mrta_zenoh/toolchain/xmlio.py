@@ -19,7 +19,7 @@ from lxml import etree
 
 from ..errors import ConfigError
 from ..fieldpath import FieldPath
-from ..keys import normalize_robot_id, task_chunk
+from ..keys import task_chunk
 from ..limits import DURATION, QUEUE_SIZE
 from ..yamlfile import did_you_mean
 from .model import (
@@ -311,16 +311,15 @@ def _application(r: _Reader, el, configs, launches, path) -> ApplicationFile:
                     if task in tasks:
                         raise r.error(t, f"task {task!r} is listed twice for this robot")
                     tasks.append(task)
-            raw = r.text(rb, "id")
             try:
-                rid = normalize_robot_id(raw)  # `/robot1` is robot1, as the supervisor reads it
+                robot = RobotEntry(r.text(rb, "id"), tasks)  # `/robot1` is robot1 from here on
             except ConfigError as exc:
                 raise r.error(r.one(rb, "id"), str(exc)) from None
-            if rid in first_line:  # one process, one token, one row per robot id
-                raise r.error(rb, f"robot {rid!r} appears twice (first on line "
-                                  f"{first_line[rid]})")
-            first_line[rid] = rb.sourceline
-            robots.append(RobotEntry(raw, tasks))
+            if robot.id in first_line:  # one process, one token, one row per robot id
+                raise r.error(rb, f"robot {robot.id!r} appears twice (first on line "
+                                  f"{first_line[robot.id]})")
+            first_line[robot.id] = rb.sourceline
+            robots.append(robot)
     return ApplicationFile(r.text(el, "architecture"), r.text(el, "name"), robots, configs,
                            launches, source=str(path),
                            architecture_line=r.one(el, "architecture").sourceline)
@@ -420,7 +419,7 @@ def to_xml(model: ArchitectureFile | ApplicationFile) -> bytes:
         rbs = _sub(a, "robots")
         for i, r in enumerate(model.robots):
             re_ = _sub(rbs, f"robot_{i}")
-            _sub(re_, "id", r.id)
+            _sub(re_, "id", r.written or r.id)
             ts = _sub(re_, "tasks")
             for j, t in enumerate(r.tasks):
                 _sub(_sub(ts, f"task_{j}"), "id", t)

@@ -37,13 +37,13 @@ import sys
 import threading
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
-from typing import TYPE_CHECKING, Any, ClassVar, Sequence
+from typing import TYPE_CHECKING, Any, Callable, ClassVar, Sequence, TypeVar
 
 import msgspec
 
 from mrta_zenoh import instances, keys
 from mrta_zenoh.architectures import Architecture
-from mrta_zenoh.bus import Bus, Subscription
+from mrta_zenoh.bus import Bus, LivelinessWatch, Subscription
 from mrta_zenoh.clock import Clock
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.messages import Message, Twist
@@ -56,6 +56,8 @@ from .params import EvaluatorSpec, SensorParams, TaskParams
 
 if TYPE_CHECKING:
     import numpy as np  # annotations only: numpy loads when a plugin draws (mrta_zenoh.seeds)
+
+T = TypeVar("T")
 
 GROUPS = {
     "sensor": "mrta.plugins.sensors",
@@ -94,8 +96,8 @@ class NoParams(msgspec.Struct, forbid_unknown_fields=True):
 
 @dataclass
 class AgentContext:
-    """What plugins may use: the robot's id, the bus, the clock, its sensors, a seeded RNG and
-    the typed sections of the layers file."""
+    """What plugins may use: the robot's id, the bus, the clock, its sensors, a seeded RNG, the
+    typed sections of the layers file, and a blackboard its plugins share (`share`)."""
 
     robot_id: str
     bus: Bus
@@ -110,6 +112,16 @@ class AgentContext:
     # the robot's instance document (runtime.instance: the file its layers file names, read
     # once), for the plugins that declare `instance_type`; None: it names none
     instance: Any = None
+    # the robot's blackboard: what several of its plugins share (delivery's board of tasks
+    # done, its path map), under a key the plugins' package owns; read and made with share()
+    shared: dict[str, Any] = field(default_factory=dict)
+
+    def share(self, key: str, make: Callable[[], T]) -> T:
+        """The blackboard's value under `key`, made by `make()` by the first plugin to ask
+        (plugins are set up one after the other, on one thread)."""
+        if key not in self.shared:
+            self.shared[key] = make()
+        return self.shared[key]
 
     def publish_cmd(self, linear: float, angular: float) -> None:
         self.bus.publish(keys.cmd_vel(self.robot_id), Twist(float(linear), float(angular)))
@@ -138,7 +150,7 @@ class Plugin:
     instance_type: ClassVar[type | None] = None
 
     def __init__(self) -> None:
-        self._subscriptions: list[Subscription] = []
+        self._subscriptions: list[Subscription | LivelinessWatch] = []
         self.ctx: AgentContext | None = None
 
     def setup(self, ctx: AgentContext) -> None:
@@ -149,6 +161,13 @@ class Plugin:
         sub = self.ctx.bus.subscribe(key_expr, handler, **kwargs)
         self._subscriptions.append(sub)
         return sub
+
+    def watch_liveliness(self, key_expr: str, on_change: Callable[[str, bool], None],
+                         **kwargs) -> LivelinessWatch:
+        """ctx.bus.watch_liveliness, remembered so shutdown() closes it."""
+        watch = self.ctx.bus.watch_liveliness(key_expr, on_change, **kwargs)
+        self._subscriptions.append(watch)
+        return watch
 
     def shutdown(self) -> None:
         for sub in self._subscriptions:

@@ -16,7 +16,7 @@ from mrta_agent.runtime.plugins import Plugin
 from .keys import ALL_DONE, Event
 from .messages import TaskEvent
 
-ATTRIBUTE = "_delivery_board"  # where the board hangs on the robot's AgentContext
+ATTRIBUTE = "delivery.board"  # its key on the robot's blackboard (AgentContext.share)
 
 
 class Board:
@@ -31,12 +31,7 @@ class Board:
     def of(cls, owner: Plugin) -> "Board":
         """The robot's board, made by the first delivery plugin set up (which then owns its
         subscription: plugins are shut down together)."""
-        ctx = owner.ctx
-        board = ctx.__dict__.get(ATTRIBUTE)
-        if board is None:
-            board = cls(owner)
-            ctx.__dict__[ATTRIBUTE] = board
-        return board
+        return owner.ctx.share(ATTRIBUTE, lambda: cls(owner))
 
     def _on_done(self, sample) -> None:
         msg = sample.message

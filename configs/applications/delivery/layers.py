@@ -34,7 +34,7 @@ from .messages import TaskEvent
 
 ALIGNED = 0.35  # rad: beyond this heading error the robot turns (almost) in place
 CORNER = 0.1    # m: a corner counts as passed this close (the path keeps 0.14 m of margin)
-PATHS = "_delivery_paths"  # where the robot's path map hangs on its AgentContext
+PATHS = "delivery.paths"  # its key on the robot's blackboard (AgentContext.share)
 
 
 def _clip(v: float, lo: float, hi: float) -> float:
@@ -146,7 +146,4 @@ class Deliver(Layer):
 def path_map_of(layer: Deliver) -> PathMap | None:
     """The robot's path map of the instance's world (None: an open room), built by its first
     delivery layer and shared by the others, as the board is."""
-    ctx = layer.ctx
-    if PATHS not in ctx.__dict__:
-        ctx.__dict__[PATHS] = layer.instance.path_map()
-    return ctx.__dict__[PATHS]
+    return layer.ctx.share(PATHS, layer.instance.path_map)

@@ -178,8 +178,7 @@ class PatrolLedger:
         owner.subscribe(keys.odom(self.robot_id), self._on_odom, msg_type=Odometry)
         owner.subscribe(ALL_LOGS, self._on_log, msg_type=PatrolLog)
         if arch is not None:
-            owner._subscriptions.append(ctx.bus.watch_liveliness(arch.agent_tokens,
-                                                                 self._on_token))
+            owner.watch_liveliness(arch.agent_tokens, self._on_token)
 
     def _own_part(self, arch: Architecture, key_expr: str) -> str:
         """This robot's part of a doing-feed key expression: `*/alliance/motivation/**` →
