@@ -43,6 +43,23 @@ def test_the_shipped_coordinators_are_coordinators_and_say_what_they_hear():
     assert MurdochCoordinator.hears_subjects()
 
 
+
+def test_the_own_route_logics_are_route_logics_with_no_op_hooks():
+    """SSI's auction and CBBA's bundle are `RouteLogic`s (the Coordinator's hooks and `route`,
+    `served`), driven by the own-route adapter without probing: the defaults do nothing, and a
+    misspelt route hook is refused when its class is defined like any other."""
+    from mrta_agent.cbba.bundle import Cbba
+    from mrta_agent.route.own_route import RouteLogic
+    from mrta_agent.ssi.auction import Ssi
+    assert issubclass(Ssi, RouteLogic) and issubclass(Cbba, RouteLogic)
+    assert issubclass(RouteLogic, Coordinator)
+    bare = RouteLogic()
+    assert bare.route() == [] and bare.served("t1", 1.0) is None and list(bare.tick(0.0)) == []
+    with pytest.raises(TypeError, match="routes.*did you mean 'route'"):
+        class Typo(RouteLogic):  # noqa: F841 - its definition is the test
+            def routes(self):
+                return []
+
 class _Tally(_RecordingBus):
     """What an agent declares and watches (tests/test_murdoch_subjects.py), and subscribes to."""
 

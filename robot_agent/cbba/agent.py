@@ -1,5 +1,5 @@
 """CBBA in execution: one robot's bundle logic (`bundle.Cbba`) driving its route
-(mrta_agent.route.messages: the logic's path to the RouteExecutor once settled, served tasks
+(mrta_agent.route.own_route: the logic's path to the RouteExecutor once settled, served tasks
 fed back with `served(task, at)`, teammates without progress told as gone, reports).
 
 Settled, for CBBA: its winning-bid table (winners, bids, path, tasks served) has not changed for
@@ -20,9 +20,9 @@ import logging
 
 from mrta_zenoh.planning.insertion import Origin
 
+from ..route.executor import Readings
 from ..route.own_route import OwnRouteCoordinator
 from ..route.own_route_params import OwnRouteParams
-from ..route.executor import Readings
 from .bundle import Cbba
 
 

@@ -49,14 +49,14 @@ from __future__ import annotations
 import collections
 import math
 import time
-from typing import NamedTuple
-
 from mrta_zenoh.planning import Problem
 from mrta_zenoh.planning.insertion import (DiscountedRoute, Origin, prefix_scores, ranks,
                                            travel_times)
 
 from mrta_zenoh.refusal_tally import MALFORMED
 
+from ..route.own_route import RouteLogic
+from ..runtime.coordinator import Say
 from .messages import Bids
 from .table import NONE, RESET, UPDATE, View, higher, resolve
 
@@ -67,14 +67,7 @@ SUPERSEDED = "superseded"              # older than its sender's latest (late, o
 ROUNDING = 1e-9
 
 
-class Out(NamedTuple):
-    """A message to publish: its kind (a key chunk) and the fields after its header."""
-
-    kind: str
-    fields: tuple
-
-
-class Cbba:
+class Cbba(RouteLogic):
     """One robot's CBBA. `problem` is the instance every robot reads; `discount` λ per second;
     `bundle_limit` L_t (None: unlimited); a task is known from `lookahead` seconds before its
     arrival (0: from its arrival; math.inf: all from the start); `diminishing`: bid the
@@ -236,7 +229,7 @@ class Cbba:
         self.changed = True
 
     # ------------------------------------------------------------------ one iteration
-    def tick(self, now: float) -> list[Out]:
+    def tick(self, now: float) -> list[Say]:
         started = time.perf_counter()  # wall time: a computation's cost is the machine's
         candidates = self._candidates(now)
         self._release()
@@ -254,7 +247,7 @@ class Cbba:
         winners = tuple((j, w, self.y[j]) for j, w in enumerate(self.z)
                         if w != NONE and j not in self.done)
         stamps = tuple(sorted((m, t) for m, t in self.stamps.items() if m not in self.departed))
-        return [Out("bids", (winners, stamps, tuple(sorted(self.done)), *self.position, ms))]
+        return [Say("bids", (winners, stamps, tuple(sorted(self.done)), *self.position, ms))]
 
     def _candidates(self, now: float) -> list[int]:
         """The tasks this robot may bid on: known by now, unserved, within its capabilities."""

@@ -1,8 +1,8 @@
 """A robot serving the route its *own* decision logic keeps (SSI's auction wins, CBBA's bundle):
-the thin adapter between a pure logic (`listens`, `hear`, `teammate`, `tick(now) -> [Out]`,
-`route()`, `served(task, at)`) and the `RouteExecutor`. The logic decides; this class only
-carries its messages, hands its route to the executor once the logic says it is *settled*, feeds
-served tasks back, watches its teammates' progress and reports its own.
+the thin adapter between a pure logic (a `RouteLogic`: `listens`, `hear`, `teammate`,
+`tick(now) -> [Say]`, `route()`, `served(task, at)`) and the `RouteExecutor`. The logic decides;
+this class only carries its messages, hands its route to the executor once the logic says it is
+*settled*, feeds served tasks back, watches its teammates' progress and reports its own.
 
 Rules, each for a reason:
 
@@ -61,13 +61,29 @@ class Watch:
         self.busy = bool(msg.task)
 
 
+class RouteLogic(Coordinator):
+    """A pure decision logic keeping this robot's own route (SSI's auction, CBBA's bundle), as
+    `OwnRouteCoordinator` drives it: the Coordinator's hooks (what it hears, its teammates, its
+    `tick` returning the runtime's `Say`) and two of its own, no-op by default like the others
+    (py_trees' Behaviour): `route()`, the tasks in the order it would serve them, and
+    `served(task, at)`, this robot finished one."""
+
+    HOOKS: ClassVar[tuple[str, ...]] = Coordinator.HOOKS + ("route", "served")
+
+    def route(self) -> list[str]:
+        return []
+
+    def served(self, task_id: str, at: float) -> None:
+        pass
+
+
 class OwnRouteCoordinator(Coordinator):
     """Subclasses set `logic_kinds` (what the logic hears) and implement `settled`."""
 
     logic_kinds: ClassVar[tuple[str, ...]] = ()
     log: ClassVar[logging.Logger] = logging.getLogger("mrta.agent")
 
-    def __init__(self, robot_id: str, logic, readings: Readings, report_period: float,
+    def __init__(self, robot_id: str, logic: RouteLogic, readings: Readings, report_period: float,
                  progress_timeout: float):
         self.robot_id = robot_id
         self.logic = logic
@@ -134,7 +150,7 @@ class OwnRouteCoordinator(Coordinator):
             if before and not self.told[robot]:
                 self.log.warning("%s: %s made no progress for %g s: counted as gone %s",
                                  self.robot_id, robot, self.progress_timeout, at(now))
-        out = [Say(o.kind, o.fields, getattr(o, "subject", None)) for o in self.logic.tick(now)]
+        out = list(self.logic.tick(now))
         changed = False
         if self.settled(now) and self.route.queue != self._wanted():
             for change in self.route.assign(self._wanted(), now):

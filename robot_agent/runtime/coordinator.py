@@ -61,9 +61,9 @@ class Coordinator:
     def __init_subclass__(cls, **kwargs) -> None:
         super().__init_subclass__(**kwargs)
         for name in vars(cls):
-            if name.startswith("_") or name in Coordinator.HOOKS:
+            if name.startswith("_") or name in cls.HOOKS:
                 continue
-            close = difflib.get_close_matches(name, Coordinator.HOOKS, n=1, cutoff=0.85)
+            close = difflib.get_close_matches(name, cls.HOOKS, n=1, cutoff=0.85)
             if close:
                 raise TypeError(f"{cls.__qualname__}.{name}: not a Coordinator hook — did you "
                                 f"mean {close[0]!r}? (the driver would never call it)")

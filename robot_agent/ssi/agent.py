@@ -1,5 +1,5 @@
 """SSI in execution: one robot's auction logic (`auction.Ssi`) driving its route
-(mrta_agent.route.messages: the logic's path to the RouteExecutor once settled, served tasks
+(mrta_agent.route.own_route: the logic's path to the RouteExecutor once settled, served tasks
 fed back with `served(task, at)`, teammates without progress told as gone, reports).
 
 Settled, for SSI: the robot has a Round (heard, or made as the auctioneer) and no task that a
@@ -14,9 +14,9 @@ import logging
 
 from mrta_zenoh.planning.insertion import Origin
 
+from ..route.executor import Readings
 from ..route.own_route import OwnRouteCoordinator
 from ..route.own_route_params import OwnRouteParams
-from ..route.executor import Readings
 from .auction import Ssi
 from .messages import OPEN
 

@@ -1,6 +1,6 @@
 """SSI for one robot, as pure logic on an injected time (like MURDOCH's auction.Murdoch):
 messages heard go in through `hear`, teammates through `teammate`, and `tick(now)` returns what
-to send. No bus, no clock, no threads.
+to send (the runtime's `Say`; the hooks are `RouteLogic`'s). No bus, no clock, no threads.
 
 The auction (Lagoudakis et al. 2005; Koenig, Tovey et al. 2006; docs/ssi.md):
 
@@ -59,6 +59,8 @@ from mrta_zenoh.planning.insertion import Origin, minsum_insertion, ranks
 from mrta_zenoh import timetext
 from mrta_zenoh.refusal_tally import MALFORMED
 
+from ..route.own_route import RouteLogic
+from ..runtime.coordinator import Say
 from .messages import DONE, OPEN, UNKNOWN, Bid, Round
 
 log = logging.getLogger("mrta.ssi")
@@ -74,15 +76,6 @@ NEGATIVE_COST = "negative_cost"
 NEGATIVE = -1e-9  # a cost below this is negative (an insertion's cost is ≥ 0 but for rounding)
 
 
-class Out(NamedTuple):
-    """A message to publish: its kind (a key chunk), the fields after its header, and the
-    sub-key it goes to (a bid: its auctioneer's id)."""
-
-    kind: str
-    fields: tuple
-    subject: str | None = None
-
-
 class Award(NamedTuple):
     round: int
     task: int
@@ -91,7 +84,7 @@ class Award(NamedTuple):
     ms: float = 0.0  # its computation time (module docstring, "Decision time")
 
 
-class Ssi:
+class Ssi(RouteLogic):
     """One robot's SSI. `problem` is the instance every robot reads; a task is known from
     `lookahead` seconds before its arrival (math.inf: all from the start); `resend_period`: how
     often a Round still missing bids, or an unacknowledged report of served tasks, is
@@ -99,7 +92,7 @@ class Ssi:
     has not seen yet; `origin`: where and when this robot's path begins; `timer`: the wall
     clock (seconds) decision times are measured with."""
 
-    listens = ("round", "bid")
+    listens = ("round", "bid")  # a bid goes to its auctioneer's sub-key
 
     def __init__(self, problem: Problem, robot_id: str, *, lookahead: float = 0.0,
                  resend_period: float = 0.5, join_wait: float = 1.0, origin: Origin = Origin(),
@@ -281,10 +274,10 @@ class Ssi:
         return best if best is not None else (-1, 0.0)
 
     # ------------------------------------------------------------------ one tick
-    def tick(self, now: float) -> list[Out]:
+    def tick(self, now: float) -> list[Say]:
         if self.started is None:
             self.started = now
-        out: list[Out] = []
+        out: list[Say] = []
         if self.auctioneer() == self.i:
             out += self._lead(now)
         else:
@@ -314,7 +307,7 @@ class Ssi:
                             "opened again %s", self.id, self.problem.robots[k].id, self.round,
                             self.silence, timetext.at(now))
 
-    def _lead(self, now: float) -> list[Out]:
+    def _lead(self, now: float) -> list[Say]:
         owners = list(self.owners)
         reopened = not self.leading  # a new auctioneer opens a round of its own
         self.leading = True
@@ -358,10 +351,10 @@ class Ssi:
         self.lagging = False
         self.last_round = now
         last = self.awards[-1] if self.awards and self.awards[-1].round == self.round else None
-        return [Out("round", (self.round, tuple(self.owners), last.task if last else -1,
+        return [Say("round", (self.round, tuple(self.owners), last.task if last else -1,
                               last.cost if last else 0.0, last.ms if last else 0.0))]
 
-    def _bid(self, now: float) -> list[Out]:
+    def _bid(self, now: float) -> list[Say]:
         """The answer to each Round heard from the auctioneer — a bid, or task −1 when nothing
         is open: either way its acknowledgement (the auctioneer repeats a Round until every
         robot answered it, so a lost Round or a lost bid costs one resend_period) — and the
@@ -378,5 +371,5 @@ class Ssi:
         task, cost = self.best_bid() if OPEN in self.owners else (-1, 0.0)
         ms = (self.timer() - began) * 1000.0
         name = self.problem.robots[target].id
-        return [Out("bid", (name, self.round, task, cost, tuple(sorted(self.unacked)), ms),
+        return [Say("bid", (name, self.round, task, cost, tuple(sorted(self.unacked)), ms),
                     name)]
