@@ -88,7 +88,7 @@ def one(n: int, m: int, seed: int, limit: int | None, rules: str,
     fields = team["r0"].tick(10_000.0)[0].fields
     return {"round": [t for _, _, t in timings], "first": max(t for r, _, t in timings if r == 1),
             "rounds": rounds, "team": sum(converged), "sga": sga,
-            "bytes": len(encode(Bids(Header("r0", 10_000.0, 1), *fields))),
+            "bytes": len(encode(Bids(header=Header("r0", 10_000.0, 1), **fields))),
             "same": {p.robot_index(r): c.path for r, c in team.items()} == routes}
 
 

@@ -40,13 +40,12 @@ class LogicTeam:
             self.inbox[robot] = []
             for out in logic.tick(self.now):
                 self.seq[robot] = self.seq.get(robot, 0) + 1
-                msg = self.messages[out.kind](Header(robot, self.now, self.seq[robot]), *out.fields)
+                msg = out.message(self.messages, Header(robot, self.now, self.seq[robot]))
                 said.append((robot, out, msg))
         for robot, out, msg in said:
             self.sent.append((out.kind, msg))
-            subject = getattr(out, "subject", None)
             for other in self.logics:
-                if other == robot or (subject is not None and subject != other):
+                if other == robot or (out.subkey is not None and out.subkey != other):
                     continue
                 if not self.neighbours(robot, other):
                     continue

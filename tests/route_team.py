@@ -97,8 +97,7 @@ class RouteTeam:
             self.inbox[robot] = []
             for say in coord.tick(self.now):
                 self.seq[robot] = self.seq.get(robot, 0) + 1
-                msg = self.messages[say.kind](Header(robot, self.now, self.seq[robot]),
-                                              *say.fields)
+                msg = say.message(self.messages, Header(robot, self.now, self.seq[robot]))
                 said.append((robot, say, msg))
         for robot, say, msg in said:
             self.sent.append((say.kind, msg))

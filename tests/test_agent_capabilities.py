@@ -5,6 +5,8 @@ is refused when its class is defined, instead of silently disabling its feature.
 
 from __future__ import annotations
 
+import ast
+
 import pytest
 
 from mrta_agent.alliance.agent import AllianceCoordinator
@@ -16,6 +18,7 @@ from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.clock import Clock, ManualClock, SimClock, WallClock
 from mrta_zenoh.lockstep.participant import LockstepClock
 from mrta_zenoh.messages import Header, Odometry, Pose2D, Twist
+from tests.helpers import ROOT
 from tests.test_murdoch_subjects import _RecordingBus
 
 
@@ -60,6 +63,38 @@ def test_the_own_route_logics_are_route_logics_with_no_op_hooks():
             def routes(self):
                 return []
 
+
+def test_a_say_builds_its_message_by_field_name():
+    """One way to say: a Say's fields are named, so a misnamed or missing field fails where the
+    message is built instead of landing, shifted, in its neighbour."""
+    from mrta_agent.alliance.messages import InterRobotCommunication
+    types = {"irc": InterRobotCommunication}
+    said = Say("irc", dict(expected_duration=2.0, task_id="a")).message(types, Header("r", 1, 1))
+    assert (said.task_id, said.expected_duration, said.active_since) == ("a", 2.0, -1.0)
+    with pytest.raises(TypeError, match="expected_durration"):
+        Say("irc", dict(task_id="a", expected_durration=2.0)).message(types, Header("r", 1, 1))
+    with pytest.raises(TypeError, match="expected_duration"):
+        Say("irc", dict(task_id="a")).message(types, Header("r", 1, 1))
+
+
+def dispatch_by_name(tree: ast.AST) -> list[int]:
+    """Lines where an attribute is looked up by a name built from text (`getattr(o, "on_" +
+    kind)`), or a message type named `Out` is defined: a second way to hear or to say."""
+    return [n.lineno for n in ast.walk(tree)
+            if (isinstance(n, ast.Call) and isinstance(n.func, ast.Name)
+                and n.func.id in ("getattr", "hasattr") and len(n.args) >= 2
+                and isinstance(n.args[1], (ast.BinOp, ast.JoinedStr)))
+            or (isinstance(n, ast.ClassDef) and n.name == "Out")]
+
+
+def test_one_way_to_say_and_to_hear_in_the_agent():
+    assert dispatch_by_name(ast.parse('getattr(self.core, "on_" + kind)(sender, msg, at)')) \
+        == [1]
+    assert dispatch_by_name(ast.parse('class Out(NamedTuple):\n    kind: str')) == [1]
+    bad = [f"{f.relative_to(ROOT)}:{line}" for f in sorted((ROOT / "robot_agent").rglob("*.py"))
+           for line in dispatch_by_name(ast.parse(f.read_text(encoding="utf-8")))]
+    assert not bad, bad
+
 class _Tally(_RecordingBus):
     """What an agent declares and watches (tests/test_murdoch_subjects.py), and subscribes to."""
 
@@ -78,7 +113,8 @@ class Bare(Coordinator):
     listens = ("inter_robot_communication",)
 
     def tick(self, now):
-        return [Say("inter_robot_communication", ("a", 1.0, now))]
+        return [Say("inter_robot_communication",
+                    dict(task_id="a", expected_duration=1.0, active_since=now))]
 
 
 class Subjects(Bare):

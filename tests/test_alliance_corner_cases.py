@@ -212,16 +212,18 @@ def test_an_auctioneer_counts_its_unclaimed_winners_as_busy(tmp_path):
         for hear in heard:
             hear(t)
         out, _ = core.tick(t, _Idle())
-        awards.update({t: o.fields for o in out if o.kind == "award"})
+        awards.update({t: tuple(o.fields.values()) for o in out if o.kind == "award"})
         return out
 
     # t=0.0: robot1 (rank 0) announces a (#1, closes at 0.5); b is held by robot3
-    assert [o.fields[:2] for o in at(0.0) if o.kind == "announcement"] == [(1, "a")]
+    assert [(o.fields["auction"], o.fields["task_id"])
+            for o in at(0.0) if o.kind == "announcement"] == [(1, "a")]
     # t=0.1: robot2 bids 0.9 for a; robot3 releases b → b unheld from 0.1
     at(0.1, lambda t: core.hear("bid", "robot2", Bid(Header("robot2", t, 1), "robot1", 1, "a", 0.9), t),
        lambda t: core.hear("release", "robot3", Release(Header("robot3", t, 1), "b", "done"), t))
     # t=0.2: b announced (#2, closes at 0.7)
-    assert [o.fields[:2] for o in at(0.2) if o.kind == "announcement"] == [(2, "b")]
+    assert [(o.fields["auction"], o.fields["task_id"])
+            for o in at(0.2) if o.kind == "announcement"] == [(2, "b")]
     # t=0.3: robot2 bids 0.8 for b, robot3 0.4
     at(0.3, lambda t: core.hear("bid", "robot2", Bid(Header("robot2", t, 2), "robot1", 2, "b", 0.8), t),
        lambda t: core.hear("bid", "robot3", Bid(Header("robot3", t, 2), "robot1", 2, "b", 0.4), t))

@@ -46,9 +46,11 @@ def test_the_message_round_trips_and_grows_with_tasks_won_not_with_the_instance(
     run_rounds(team)
     fields = team["r0"].tick(1000.0)[0].fields
     digest = "0" * DIGEST_LENGTH
-    size = len(encode(Bids(Header("r0", 1000.0, 1), *fields, instance=digest)))
-    base = len(encode(Bids(Header("r0", 1000.0, 1), (), *fields[1:], instance=digest)))
-    assert len(fields[0]) == 60 and len(fields[1]) == 10  # every task won; every robot heard
+    size = len(encode(Bids(header=Header("r0", 1000.0, 1), **fields, instance=digest)))
+    base = len(encode(Bids(header=Header("r0", 1000.0, 1), **{**fields, "winners": ()},
+                           instance=digest)))
+    assert len(fields["winners"]) == 60 and len(fields["stamps"]) == 10  # every task won,
+    # every robot heard
     assert size - base <= 12 * 60 + 2  # + a longer array header past 15 entries
     # header, stamps of 10 robots, position, the decision's ms, the instance's digest (27 bytes)
     assert base <= 239
@@ -154,19 +156,19 @@ def test_a_bids_after_a_change_carries_its_decisions_cost_and_a_resend_none():
     p = two_robots()
     logic = Cbba(p, "r1", resend_period=1.0)
     first = logic.tick(0.0)[0].fields
-    assert first[-1] > 0.0  # it built its first bundle
+    assert first["ms"] > 0.0  # it built its first bundle
     assert logic.tick(0.5) == []  # nothing changed, not due
     again = logic.tick(1.5)[0].fields  # the periodic resend of the same table
-    assert again[0] == first[0] and again[-1] == 0.0  # the same winners (stamps move on)
-    sent = Bids(Header("r1", 0.0, 1), *first)
+    assert again["winners"] == first["winners"] and again["ms"] == 0.0  # stamps move on
+    sent = Bids(header=Header("r1", 0.0, 1), **first)
     d = CBBA.decision("r1", "r1/cbba/bids", sent)
-    assert d is not None and d.ms == first[-1] and d.decider == "r1"
-    assert CBBA.decision("r1", "r1/cbba/bids", Bids(Header("r1", 1.5, 2), *again)) is None
+    assert d is not None and d.ms == first["ms"] and d.decider == "r1"
+    assert CBBA.decision("r1", "r1/cbba/bids", Bids(header=Header("r1", 1.5, 2), **again)) is None
     # what a run's summary counts from the recording (supervisor/ground_truth.decisions)
     from mrta_supervisor.ground_truth import decisions
     from mrta_zenoh.codec import encode
     enc = "application/msgpack;" + Bids.TYPE_NAME
     records = [("r1/cbba/bids", enc, 0, encode(sent)),
-               ("r1/cbba/bids", enc, 0, encode(Bids(Header("r1", 1.5, 2), *again)))]
+               ("r1/cbba/bids", enc, 0, encode(Bids(header=Header("r1", 1.5, 2), **again)))]
     summary = decisions(records, CBBA, end=10.0)
-    assert (summary.count, summary.max_ms) == (1, round(first[-1], 3))
+    assert (summary.count, summary.max_ms) == (1, round(first["ms"], 3))

@@ -245,7 +245,7 @@ def progress(task: str, queue: tuple[str, ...], version: int, x: float, served=(
 
 
 def queues(out) -> dict[str, tuple[str, ...]]:
-    return {s.fields[0]: s.fields[2] for s in out if s.kind == "queue"}
+    return {s.fields["robot"]: s.fields["tasks"] for s in out if s.kind == "queue"}
 
 
 def test_a_task_another_robot_may_still_serve_is_not_granted_until_it_lets_go():

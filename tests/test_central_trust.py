@@ -32,7 +32,7 @@ def progress(task="", queue=(), version=0, x=0.0, served=()) -> Progress:
 
 
 def queues(out) -> dict[str, tuple[str, ...]]:
-    return {s.fields[0]: s.fields[2] for s in out if s.kind == "queue"}
+    return {s.fields["robot"]: s.fields["tasks"] for s in out if s.kind == "queue"}
 
 
 def started(problem: Problem = SQUARE, timeout: float = 5.0) -> Dispatcher:

@@ -51,8 +51,11 @@ def test_a_participants_answer_carries_only_the_claimed_keys():
 
     class Says(Coordinator):
         def tick(self, now):
-            return [Say("inter_robot_communication", ("t", 1.0, 0.0)),
-                    Say("motivation", ("t", 0.0, False, False, False, True, 0.0, 1.0, False),
+            return [Say("inter_robot_communication",
+                        dict(task_id="t", expected_duration=1.0, active_since=0.0)),
+                    Say("motivation", dict(task_id="t", impatience=0.0, acquiescent=False,
+                                           suppressed=False, resetted=False, applicable=True,
+                                           motivation=0.0, threshold=1.0, active=False),
                         subkey="t", lossy=True, watched=True)]
 
     from mrta_agent.alliance.architecture import ALLIANCE

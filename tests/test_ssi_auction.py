@@ -247,7 +247,7 @@ def test_a_bid_from_a_robot_that_left_does_not_win():
     chief.teammate("r2", False)
     out = chief.tick(0.2)
     assert chief.route() == ["a"]  # r2's 1.0 would have won; it left before the round closed
-    assert out[0].kind == "round" and out[0].fields[2] == 0
+    assert out[0].kind == "round" and out[0].fields["award"] == 0
 
 
 def test_messages_round_trip_the_wire_codec():

@@ -57,7 +57,8 @@ class AllianceCoordinator(Coordinator):
         for task, ev in self.plugins.evaluators.items():
             applicable = bool(ev.is_applicable(now))
             self.high.on_feedback(task, applicable, now)
-            out.append(Say("sensory_feedback", (task, applicable), lossy=True, watched=True))
+            out.append(Say("sensory_feedback", dict(task_id=task, applicable=applicable),
+                           lossy=True, watched=True))
         before = self.high.active_task
         states, transitions = self.high.tick(now)
         for st in states:
@@ -65,9 +66,12 @@ class AllianceCoordinator(Coordinator):
             # does what (the mission's ground truth, ground_truth.py): that one must arrive
             changed = self._was_active.get(st.task_id) != st.active
             self._was_active[st.task_id] = st.active
-            out.append(Say("motivation", (st.task_id, st.impatience, st.acquiescent,
-                                          st.suppressed, st.resetted, st.applicable,
-                                          st.motivation, st.threshold, st.active),
+            out.append(Say("motivation", dict(task_id=st.task_id, impatience=st.impatience,
+                                              acquiescent=st.acquiescent,
+                                              suppressed=st.suppressed, resetted=st.resetted,
+                                              applicable=st.applicable,
+                                              motivation=st.motivation,
+                                              threshold=st.threshold, active=st.active),
                            subkey=task_chunk(st.task_id), lossy=not changed, watched=True))
         for tr in transitions:
             self.history.append((now, tr))
@@ -92,5 +96,6 @@ class AllianceCoordinator(Coordinator):
             return []
         self._last_broadcast = now
         return [Say("inter_robot_communication",
-                    (task, self.high.sets[task].params.expected_duration,
-                     self.high.active_since()))]
+                    dict(task_id=task,
+                         expected_duration=self.high.sets[task].params.expected_duration,
+                         active_since=self.high.active_since()))]

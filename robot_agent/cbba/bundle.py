@@ -247,7 +247,9 @@ class Cbba(RouteLogic):
         winners = tuple((j, w, self.y[j]) for j, w in enumerate(self.z)
                         if w != NONE and j not in self.done)
         stamps = tuple(sorted((m, t) for m, t in self.stamps.items() if m not in self.departed))
-        return [Say("bids", (winners, stamps, tuple(sorted(self.done)), *self.position, ms))]
+        x, y = self.position
+        return [Say("bids", dict(winners=winners, stamps=stamps, done=tuple(sorted(self.done)),
+                                 x=x, y=y, ms=ms))]
 
     def _candidates(self, now: float) -> list[int]:
         """The tasks this robot may bid on: known by now, unserved, within its capabilities."""

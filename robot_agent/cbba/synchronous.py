@@ -58,7 +58,7 @@ def run_rounds(team: Mapping[str, Cbba], neighbours: Neighbours = full, max_roun
             for out in said:
                 seq[robot] += 1
                 header = Header(robot, float(rnd), seq[robot])
-                outbox.append((robot, out.kind, MESSAGES[out.kind](header, *out.fields)))
+                outbox.append((robot, out.kind, out.message(MESSAGES, header)))
         for sender, kind, message in outbox:
             for robot in team:
                 if robot != sender and neighbours(sender, robot):

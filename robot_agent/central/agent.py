@@ -27,9 +27,9 @@ from mrta_zenoh.clock import EPSILON
 from mrta_zenoh.refusal_tally import MISADDRESSED
 from mrta_zenoh.timetext import at
 
+from ..route.executor import PluginReadings, Readings, RouteExecutor
 from ..runtime.coordinator import Coordinator, Say
 from ..runtime.plugins import Plugins
-from ..route.executor import PluginReadings, Readings, RouteExecutor
 from .messages import MAX_VERSION, VERSION_JUMP, Queue
 from .params import CentralParams
 
@@ -128,9 +128,9 @@ class CentralCoordinator(Coordinator):
             self.params.report_period - EPSILON
         if not (changed or due or state != self._reported):
             return []
-        out = [Say("progress", (*state[:4], *pose, self.applied, self.holding))]
+        out = [r.progress(pose, version=self.applied, holding=self.holding)]
         self._reported = state
         if due:
             self._report_at = now
-            out += [Say("queued", (task, place), task) for place, task in enumerate(r.queue)]
+            out += r.queued(lossy=False)
         return out

@@ -332,8 +332,10 @@ class Dispatcher(Coordinator):
             log.info("%s: nobody available may serve %s %s", self.name,
                      ", ".join(outcome.unassigned), at(now))
         routes = tuple(f"{rid}:{','.join(self.wanted(rid))}" for rid in situation.available)
-        return Say("plan", (self.version, trigger, p.objective.value, outcome.value,
-                            outcome.method, ms(outcome.seconds), routes))
+        return Say("plan", dict(version=self.version, trigger=trigger,
+                                objective=p.objective.value, value=outcome.value,
+                                method=outcome.method, solve_ms=ms(outcome.seconds),
+                                routes=routes))
 
     # ------------------------------------------------------------ queues
     def wanted(self, rid: str) -> list[str]:
@@ -391,7 +393,7 @@ class Dispatcher(Coordinator):
                 view.granted.update(tasks)
             else:
                 sent.at = now
-            out.append(Say("queue", (r.id, sent.version, tasks), r.id))
+            out.append(Say("queue", dict(robot=r.id, version=sent.version, tasks=tasks), r.id))
         return out
 
 

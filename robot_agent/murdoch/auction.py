@@ -275,7 +275,7 @@ class Murdoch:
 
     def _become(self, task: str, now: float, out: list[Say], changes: list[Change], why: str) -> None:
         self.task, self.since, self.last_claim, self.stalled_since = task, now, now, None
-        out.append(Say("claim", (task, now, self.p.lease_timeout)))
+        out.append(Say("claim", dict(task_id=task, since=now, lease=self.p.lease_timeout)))
         changes.append(Change("won", task, why))
 
     def _release(self, reason: str, now: float, out: list[Say], changes: list[Change]) -> None:
@@ -283,7 +283,7 @@ class Murdoch:
         self.task = None
         self.held_until[task] = max((lease.expiry() for lease in self.leases[task].values()),
                                     default=now)
-        out.append(Say("release", (task, reason)))
+        out.append(Say("release", dict(task_id=task, reason=reason)))
         changes.append(Change("released", task, reason))
 
     def _take_awards(self, now: float, out: list[Say], changes: list[Change]) -> None:
@@ -294,7 +294,8 @@ class Murdoch:
                 self._become(award.task_id, now, out, changes,
                              f"won auction {auctioneer}#{award.auction} with {award.utility:.3g}")
             elif award.task_id != self.task:
-                out.append(Say("release", (award.task_id, f"busy with {self.task}")))
+                out.append(Say("release", dict(task_id=award.task_id,
+                                               reason=f"busy with {self.task}")))
 
     def _take_revocations(self, now: float, out: list[Say], changes: list[Change]) -> None:
         revocations, self._revocations = self._revocations, []
@@ -320,7 +321,8 @@ class Murdoch:
                 if now - first < timeout + wait - EPSILON:
                     continue
                 reason = f"no progress: held {now - first:.1f} s, progress_timeout {timeout:g} s"
-                out.append(Say("revoke", (task, holder, since, reason)))
+                out.append(Say("revoke", dict(task_id=task, holder=holder, since=since,
+                                              reason=reason)))
                 self._end_contract(task, holder, since, now)
 
     def _keep_or_release(self, now: float, readings: Readings, out: list[Say],
@@ -345,7 +347,8 @@ class Murdoch:
                 return
         if now - self.last_claim >= self.p.renewal_period - EPSILON:
             self.last_claim = now
-            out.append(Say("claim", (self.task, self.since, self.p.lease_timeout)))
+            out.append(Say("claim", dict(task_id=self.task, since=self.since,
+                                         lease=self.p.lease_timeout)))
 
     def _bid(self, now: float, readings: Readings, out: list[Say]) -> None:
         pending, self._announcements = self._announcements, []
@@ -356,8 +359,9 @@ class Murdoch:
                 continue
             if not all(readings.fresh(r, now) for r in ann.resources):
                 continue
-            out.append(Say("bid", (auctioneer, ann.auction, ann.task_id,
-                                   self.utility(ann.task_id, readings)), auctioneer))
+            out.append(Say("bid", dict(auctioneer=auctioneer, auction=ann.auction,
+                                       task_id=ann.task_id,
+                                       utility=self.utility(ann.task_id, readings)), auctioneer))
 
     def _close_auctions(self, now: float, readings: Readings, out: list[Say],
                         changes: list[Change]) -> None:
@@ -378,7 +382,8 @@ class Murdoch:
                 continue
             done_tasks.add(task)
             busy.add(robot)
-            out.append(Say("award", (number, task, robot, -neg_u)))
+            out.append(Say("award", dict(auction=number, task_id=task, winner=robot,
+                                         utility=-neg_u)))
             if robot != self.id:
                 self.awarded[robot] = (task, now + self.p.lease_timeout)
             self.held_until[task] = max(self.held_until.get(task, now), now + self.p.lease_timeout)
@@ -412,7 +417,8 @@ class Murdoch:
             auction = OpenAuction(number, task, now + self.p.bid_window)
             self.open[number] = auction
             self.last_announced[task] = now
-            out.append(Say("announcement", (number, task, self.tasks[task].resources,
-                                            self.p.bid_window), task))
+            out.append(Say("announcement", dict(auction=number, task_id=task,
+                                                resources=self.tasks[task].resources,
+                                                bid_window=self.p.bid_window), task))
             if self.task is None and self.capable(task, now, readings):
                 auction.bids[self.id] = self.utility(task, readings)

@@ -30,6 +30,7 @@ from typing import NamedTuple, Protocol, Sequence
 from mrta_zenoh.messages import Odometry
 from mrta_zenoh.paramdoc import Document, Duration, Id, Rate, Text, sized
 
+from ..runtime.coordinator import Say
 from ..runtime.params import (Doc, EvaluatorDoc, EvaluatorSpec, SensorParams, Sensors,
                               evaluator_spec, pose_topic_of)
 from ..runtime.plugins import Plugins
@@ -120,6 +121,19 @@ class RouteExecutor:
             self.current, self.since = self.route.pop(0), now
             changes.append(Change("set_off", self.current, now))
         return changes
+
+    def progress(self, pose: tuple[float, float, float], version: int = 0,
+                 holding: bool = False) -> Say:
+        """The `Progress` (route/messages.py) that reports this route from `pose`."""
+        return Say("progress", dict(task=self.current or "", last=self.last or "",
+                                    queue=tuple(self.queue), served=tuple(self.served_ids()),
+                                    x=pose[0], y=pose[1], theta=pose[2], version=version,
+                                    holding=holding))
+
+    def queued(self, lossy: bool) -> list[Say]:
+        """One `Queued` per task of the queue, under the task's sub-key."""
+        return [Say("queued", dict(task_id=task, place=place), task, lossy=lossy)
+                for place, task in enumerate(self.queue)]
 
     def active(self, now: float, readings: Readings) -> str | None:
         """The task whose layers run now: the current one while its evaluator holds (held

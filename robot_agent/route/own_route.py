@@ -180,10 +180,9 @@ class OwnRouteCoordinator(Coordinator):
         due = self._report_at is None or now - self._report_at >= self.report_period - EPSILON
         if not (changed or due or state != self._reported):
             return []
-        out = [Say("progress", (*state, *pose))]
+        out = [r.progress(pose)]
         self._reported = state
         if due:
             self._report_at = now
-            out += [Say("queued", (task, place), task, lossy=True)
-                    for place, task in enumerate(r.queue)]
+            out += r.queued(lossy=True)
         return out

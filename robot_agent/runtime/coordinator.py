@@ -12,21 +12,32 @@ from __future__ import annotations
 
 import collections
 import difflib
-from typing import ClassVar, Iterable, Mapping, NamedTuple
+from typing import Any, ClassVar, Iterable, Mapping, NamedTuple
+
+from mrta_zenoh.messages import Header, Message
 
 
 class Say(NamedTuple):
     """One message the decision logic wants sent: its kind (a key chunk under the
-    architecture's namespace, with an optional sub-key), the fields after the header, and
-    whether it may be dropped under pressure (monitoring) or must arrive (coordination), and
-    whether it is for observers only (`watched`: the supervisor, the recorder, the plots — no
-    teammate's decision reads it, so lockstep holds no step for it: Bus.leave_unclaimed)."""
+    architecture's namespace, with an optional sub-key), the fields after the header *by name*
+    (a field added, renamed or moved in the message type fails where the message is built, not
+    silently shifted into its neighbour), and whether it may be dropped under pressure
+    (monitoring) or must arrive (coordination), and whether it is for observers only
+    (`watched`: the supervisor, the recorder, the plots — no teammate's decision reads it, so
+    lockstep holds no step for it: Bus.leave_unclaimed)."""
 
     kind: str
-    fields: tuple
+    fields: Mapping[str, Any]
     subkey: str | None = None
     lossy: bool = False
     watched: bool = False
+
+    def message(self, types: Mapping[str, type[Message]], header: Header,
+                **stamped: Any) -> Message:
+        """The message said, of its kind's type in `types` (an architecture's `messages`), with
+        the fields the driver stamps on it besides the header (`stamped`: an indexed message's
+        instance digest, which the logic does not know)."""
+        return types[self.kind](header=header, **self.fields, **stamped)
 
 
 class Coordinator:

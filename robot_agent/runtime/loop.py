@@ -427,9 +427,9 @@ class Agent:
             self.bus.leave_unclaimed(key)
         header = Header(self.robot_id, now, self._seq[key])
         kind = self.architecture.messages[say.kind]
-        msg = kind(header, *say.fields, instance=self.instance_digest) \
-            if issubclass(kind, IndexedMessage) else kind(header, *say.fields)
-        self.bus.publish(key, msg, lossy=say.lossy)
+        stamped = {"instance": self.instance_digest} if issubclass(kind, IndexedMessage) else {}
+        self.bus.publish(key, say.message(self.architecture.messages, header, **stamped),
+                         lossy=say.lossy)
 
     @property
     def active_task(self) -> str | None:

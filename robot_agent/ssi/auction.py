@@ -351,8 +351,9 @@ class Ssi(RouteLogic):
         self.lagging = False
         self.last_round = now
         last = self.awards[-1] if self.awards and self.awards[-1].round == self.round else None
-        return [Say("round", (self.round, tuple(self.owners), last.task if last else -1,
-                              last.cost if last else 0.0, last.ms if last else 0.0))]
+        return [Say("round", dict(round=self.round, owners=tuple(self.owners),
+                                  award=last.task if last else -1,
+                                  cost=last.cost if last else 0.0, ms=last.ms if last else 0.0))]
 
     def _bid(self, now: float) -> list[Say]:
         """The answer to each Round heard from the auctioneer — a bid, or task −1 when nothing
@@ -371,5 +372,5 @@ class Ssi(RouteLogic):
         task, cost = self.best_bid() if OPEN in self.owners else (-1, 0.0)
         ms = (self.timer() - began) * 1000.0
         name = self.problem.robots[target].id
-        return [Say("bid", (name, self.round, task, cost, tuple(sorted(self.unacked)), ms),
-                    name)]
+        return [Say("bid", dict(auctioneer=name, round=self.round, task=task, cost=cost,
+                                served=tuple(sorted(self.unacked)), ms=ms), name)]

@@ -78,7 +78,7 @@ class FixedCoordinator(Coordinator):
         if self._last_said is not None and now - self._last_said < self.period - EPSILON:
             return []
         self._last_said = now
-        return [Say("doing", (self.active_task,))]
+        return [Say("doing", dict(task_id=self.active_task))]
 
 
 class FixedArchitecture(AgentArchitecture):
