@@ -95,6 +95,32 @@ def test_one_way_to_say_and_to_hear_in_the_agent():
            for line in dispatch_by_name(ast.parse(f.read_text(encoding="utf-8")))]
     assert not bad, bad
 
+
+def message_types(trees) -> set[str]:
+    """The names of the classes deriving from `Message` in `trees`."""
+    return {n.name for tree in trees for n in ast.walk(tree) if isinstance(n, ast.ClassDef)
+            and any(isinstance(b, ast.Name) and b.id == "Message" for b in n.bases)}
+
+
+def test_the_agent_builds_every_message_by_field_name():
+    """Not `Bids(header, winners, stamps, ...)`: a field added or moved in the type would shift
+    every value after it into its neighbour, silently (msgspec does not validate on build)."""
+    sources = {f: ast.parse(f.read_text(encoding="utf-8"))
+               for root in ("robot_agent", "mrta_zenoh") for f in (ROOT / root).rglob("*.py")}
+    types = message_types(sources.values())
+    assert {"Header", "Bids", "Progress", "Twist", "Assigned"} <= types
+    bad = []
+    for f, tree in sorted(sources.items()):
+        if not f.is_relative_to(ROOT / "robot_agent"):
+            continue
+        # a file's own class of the same name is not the message (ssi's Award, murdoch's)
+        here = types - {n.name for n in ast.walk(tree) if isinstance(n, ast.ClassDef)} \
+            | message_types([tree])
+        bad += [f"{f.relative_to(ROOT)}:{n.lineno}: {n.func.id}" for n in ast.walk(tree)
+                if isinstance(n, ast.Call) and isinstance(n.func, ast.Name)
+                and n.func.id in here and n.args]
+    assert not bad, bad
+
 class _Tally(_RecordingBus):
     """What an agent declares and watches (tests/test_murdoch_subjects.py), and subscribes to."""
 

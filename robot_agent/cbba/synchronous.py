@@ -57,7 +57,7 @@ def run_rounds(team: Mapping[str, Cbba], neighbours: Neighbours = full, max_roun
                 timings.append((rnd, robot, time.perf_counter() - began))
             for out in said:
                 seq[robot] += 1
-                header = Header(robot, float(rnd), seq[robot])
+                header = Header(frame_id=robot, stamp=float(rnd), seq=seq[robot])
                 outbox.append((robot, out.kind, out.message(MESSAGES, header)))
         for sender, kind, message in outbox:
             for robot in team:

@@ -187,7 +187,8 @@ class FaultInjector:
             return
         self._announced = True
         self.bus.publish(assigned_key(self.robot_id),
-                         Assigned(Header(self.robot_id, now, 1), task))
+                         Assigned(header=Header(frame_id=self.robot_id, stamp=now, seq=1),
+                                  task_id=task))
 
     # ------------------------------------------------------------ the tally
     @property
@@ -223,8 +224,8 @@ class FaultInjector:
         if counts == self._told_counts or not any(counts.values()):
             return
         self._told_counts, self._told_at = counts, now
-        self.bus.publish(tally_key(self.robot_id), FaultTally(Header(self.robot_id, now, 1),
-                                                              **counts))
+        header = Header(frame_id=self.robot_id, stamp=now, seq=1)
+        self.bus.publish(tally_key(self.robot_id), FaultTally(header=header, **counts))
 
     def final_tally(self) -> None:
         """The robot stops: say the tally once more."""

@@ -425,7 +425,7 @@ class Agent:
         self._seq[key] += 1
         if say.watched and self._seq[key] == 1:
             self.bus.leave_unclaimed(key)
-        header = Header(self.robot_id, now, self._seq[key])
+        header = Header(frame_id=self.robot_id, stamp=now, seq=self._seq[key])
         kind = self.architecture.messages[say.kind]
         stamped = {"instance": self.instance_digest} if issubclass(kind, IndexedMessage) else {}
         self.bus.publish(key, say.message(self.architecture.messages, header, **stamped),

@@ -124,7 +124,8 @@ class AgentContext:
         return self.shared[key]
 
     def publish_cmd(self, linear: float, angular: float) -> None:
-        self.bus.publish(keys.cmd_vel(self.robot_id), Twist(float(linear), float(angular)))
+        self.bus.publish(keys.cmd_vel(self.robot_id),
+                         Twist(linear=float(linear), angular=float(angular)))
 
     def section(self, name: str, kind: type) -> Any:
         """The layers file's section `name` as `kind` (checked at load; defaults if absent)."""
