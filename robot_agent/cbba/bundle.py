@@ -52,7 +52,6 @@ import time
 from mrta_zenoh.planning import Problem
 from mrta_zenoh.planning.insertion import (DiscountedRoute, Origin, prefix_scores, ranks,
                                            travel_times)
-
 from mrta_zenoh.refusal_tally import MALFORMED
 
 from ..route.own_route import RouteLogic

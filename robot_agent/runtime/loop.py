@@ -367,7 +367,8 @@ class Agent:
         if counts == self._refusals_told:
             return
         self._refusals_told, self._refusals_at = counts, now
-        self.bus.publish(refused_key(self.robot_id), tally(Header(self.robot_id, now, 1), counts))
+        header = Header(frame_id=self.robot_id, stamp=now, seq=1)
+        self.bus.publish(refused_key(self.robot_id), tally(header, counts))
 
     def tick_high(self, now: float) -> None:
         with self._token_lock:
