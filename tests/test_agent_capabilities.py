@@ -97,9 +97,15 @@ def test_one_way_to_say_and_to_hear_in_the_agent():
 
 
 def message_types(trees) -> set[str]:
-    """The names of the classes deriving from `Message` in `trees`."""
-    return {n.name for tree in trees for n in ast.walk(tree) if isinstance(n, ast.ClassDef)
-            and any(isinstance(b, ast.Name) and b.id == "Message" for b in n.bases)}
+    """The names of the classes deriving from `Message` in `trees`, through any depth
+    (`IndexedMessage`'s)."""
+    classes = {n.name: {b.id for b in n.bases if isinstance(b, ast.Name)}
+               for tree in trees for n in ast.walk(tree) if isinstance(n, ast.ClassDef)}
+    found, grew = {"Message"}, True
+    while grew:
+        more = {name for name, bases in classes.items() if bases & found} - found
+        found, grew = found | more, bool(more)
+    return found - {"Message"}
 
 
 def test_the_agent_builds_every_message_by_field_name():
@@ -114,8 +120,9 @@ def test_the_agent_builds_every_message_by_field_name():
         if not f.is_relative_to(ROOT / "robot_agent"):
             continue
         # a file's own class of the same name is not the message (ssi's Award, murdoch's)
-        here = types - {n.name for n in ast.walk(tree) if isinstance(n, ast.ClassDef)} \
-            | message_types([tree])
+        here = types - {n.name for n in ast.walk(tree) if isinstance(n, ast.ClassDef)
+                        and not {b.id for b in n.bases if isinstance(b, ast.Name)}
+                        & (types | {"Message"})}
         bad += [f"{f.relative_to(ROOT)}:{n.lineno}: {n.func.id}" for n in ast.walk(tree)
                 if isinstance(n, ast.Call) and isinstance(n.func, ast.Name)
                 and n.func.id in here and n.args]
