@@ -64,7 +64,7 @@ def test_a_run_killed_midway_resumes_to_the_uninterrupted_rows(children, tmp_pat
     got = rows(out)
     assert sorted(int(r["run"]) for r in got) == [0, 1, 2]  # 0 duplicates, 0 missing
     assert [r["status"] for r in got] == ["ok"] * 3, got
-    whole = children.mrta("experiment", f, "--output", tmp_path / "whole", "--jobs", "1",
+    whole = children.mrta("experiment", f, "--output", tmp_path / "whole", "--jobs", "2",
                           "--no-plots", name="uninterrupted")
     assert whole.wait(600) == 0, whole.tail(20)
     assert same(got) == same(rows(tmp_path / "whole")), differ(got, rows(tmp_path / "whole"))
