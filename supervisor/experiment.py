@@ -202,7 +202,7 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
         if jobs is not None or scheduler is not None:
             raise ConfigError("--backend slurm runs every run as an array task: --jobs (this "
                               "machine) and --scheduler (Dask) are for the other backends")
-        slurm.check()
+        slurm.check(output)
     if shard is not None and until:
         raise ConfigError(f"--until-ci with --shard {shard}: the blocks depend on every row of "
                           "the matrix; run --until-ci on the shards' folders reported together "

@@ -21,11 +21,15 @@ A task is done when submitit's result file is there; a task that left the queue 
 (killed for its time limit, a node that died) is a failed row once `squeue` has not listed it
 for two looks in a row — submitit's own check reads `sacct`, which a cluster without
 accounting storage does not have. Ctrl-C cancels the tasks not yet ended (`scancel`) and keeps
-the rows of those that had, as on the other backends.
+the rows of those that had, as on the other backends. The tasks of one output folder share a
+job name (`job_name`): a run into a folder whose earlier tasks are still queued or running (this
+process killed, its tasks going on) is refused before anything is written, since both would
+write the same run folders.
 """
 
 from __future__ import annotations
 
+import hashlib
 import logging
 import shutil
 import subprocess
@@ -37,6 +41,7 @@ from typing import Any
 
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.processes import ProcessGroup
+from mrta_zenoh.yamlfile import plural
 from mrta_zenoh.toolchain.registry import Registry
 
 from .experiment_file import Run
@@ -135,10 +140,28 @@ class SlurmOptions:
     array_size: int | None = None     # at most this many tasks an array (and the cluster's max)
     time_limit: int = TIME_LIMIT      # minutes a task may take
 
-    def check(self) -> None:
-        """Before anything is written: submitit installed, SLURM reachable."""
+    def check(self, output: Path) -> None:
+        """Before anything is written: submitit installed, SLURM reachable, and no task of an
+        earlier run into `output` still queued or running — it would write the run folder a
+        resumed run writes (this process killed while its tasks went on)."""
         require_submitit()
         max_array_size()
+        name = job_name(output)
+        left = _queued(name=name)
+        if left is None:
+            raise ConfigError("--backend slurm: squeue cannot say which tasks are queued")
+        if left:
+            raise ConfigError(f"{plural(len(left), 'SLURM task')} of an earlier run into "
+                              f"{output} still queued or running (job name {name}): they write "
+                              f"the run folders this one would; wait for them, or `scancel "
+                              f"--name {name}`, then run this again")
+
+
+def job_name(output: Path) -> str:
+    """The tasks' job name: the output folder's name and a digest of its full path, so the
+    tasks of one folder are found by name (SlurmOptions.check, `scancel --name`)."""
+    path = output.resolve()
+    return f"mrta-{path.name[:40]}-{hashlib.sha1(str(path).encode()).hexdigest()[:6]}"
 
 
 def run_on_slurm(*, packages: dict, duration: float, runs: list[Run], output: Path,
@@ -154,7 +177,7 @@ def run_on_slurm(*, packages: dict, duration: float, runs: list[Run], output: Pa
         size = min(size, options.array_size)
     executor = submitit.SlurmExecutor(folder=output / FOLDER / "%j")
     params: dict[str, Any] = {"time": options.time_limit, "cpus_per_task": 1,
-                              "ntasks_per_node": 1, "job_name": f"mrta-{output.name}"[:60]}
+                              "ntasks_per_node": 1, "job_name": job_name(output)}
     if options.partition is not None:
         params["partition"] = options.partition
     executor.update_parameters(**params)
@@ -191,11 +214,12 @@ def run_on_slurm(*, packages: dict, duration: float, runs: list[Run], output: Pa
         _cancel(pending)
 
 
-def _queued(arrays: set[str]) -> set[str] | None:
-    """The array tasks squeue lists (one line each, -r), as submitit names them (ID_INDEX);
-    None when squeue cannot say."""
+def _queued(arrays: set[str] | None = None, name: str | None = None) -> set[str] | None:
+    """The tasks squeue lists (one line each, -r) of these jobs or arrays, or of this job
+    name, as submitit names them (ID_INDEX); None when squeue cannot say."""
+    which = ["-j", ",".join(sorted(arrays))] if arrays is not None else ["-n", str(name)]
     try:
-        out = subprocess.run(["squeue", "-h", "-r", "-o", "%i", "-j", ",".join(sorted(arrays))],
+        out = subprocess.run(["squeue", "-h", "-r", "-o", "%i", *which],
                              capture_output=True, text=True, timeout=60)
     except (OSError, subprocess.TimeoutExpired):
         return None

@@ -222,3 +222,27 @@ def test_runs_go_in_arrays_no_larger_than_asked():
     runs = [Run(i, 1, "none", ()) for i in range(7)]
     parts = experiment_slurm.chunks(runs, 3)
     assert [[r.index for r in p] for p in parts] == [[0, 1, 2], [3, 4, 5], [6]]
+
+
+@pytest.mark.multiprocess
+def test_a_folder_whose_earlier_tasks_still_run_is_refused_naming_them(tmp_path, monkeypatch):
+    """This process killed, its tasks go on: a second run into the folder would write the same
+    run folders. Stand-in scontrol, sbatch and squeue (squeue lists two tasks of the job name)."""
+    pytest.importorskip("submitit")
+    bin_ = tmp_path / "bin"
+    bin_.mkdir()
+    out = tmp_path / "o"
+    name = experiment_slurm.job_name(out)
+    for tool, body in (("scontrol", "echo 'MaxArraySize            = 4'"), ("sbatch", "exit 1"),
+                       ("squeue", f'case "$*" in *"-n {name}"*) printf "7_0\\n7_1\\n";; esac')):
+        (bin_ / tool).write_text(f"#!/bin/sh\n{body}\n")
+        (bin_ / tool).chmod(0o755)
+    monkeypatch.setenv("PATH", f"{bin_}:{os.environ['PATH']}")
+    f = tmp_path / "exp.yaml"
+    f.write_text(MATRIX)
+    res = CliRunner().invoke(cli, ["experiment", str(f), "--output", str(out), "--backend",
+                                   "slurm"])
+    assert res.exit_code == 2, res.output
+    assert "2 SLURM tasks of an earlier run" in res.output and f"scancel --name {name}" in \
+        res.output and len(res.output.strip().splitlines()) == 1
+    assert not out.exists()
