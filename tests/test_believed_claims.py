@@ -126,3 +126,15 @@ def test_a_bids_with_a_winning_bid_above_the_tasks_reward_is_refused_whole():
     forged = Bids(Header("r3", 0.0, 99), ((0, 2, 1e9), (1, 2, 1e9)), ((2, 0.0),), (), 10.0, 0.0)
     assert team.deliver("r1", "bids", forged)
     assert team.logics["r1"].z[0] != 2 and refused([team.logics["r1"]], BID_OUT_OF_RANGE) == 1
+
+
+def test_a_bids_stamped_far_ahead_is_refused_and_does_not_silence_its_sender():
+    """Out of lockstep a message counts as heard now; one stamped an hour ahead made every real
+    message of its sender look older ("superseded") until then."""
+    team = cbba_team()
+    forged = Bids(Header("r3", 3600.0, 99), (), ((2, 3600.0),), (), 10.0, 0.0)
+    assert team.logics["r1"].hear("bids", "r3", forged, 0.0)  # heard at 0
+    assert refused([team.logics["r1"]], "stamp_ahead") == 1
+    team.run()
+    assert {j for logic in team.logics.values() for j in logic.bundle} == {0, 1, 2, 3}
+    assert team.logics["r1"].superseded == 0

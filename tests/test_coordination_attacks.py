@@ -48,3 +48,9 @@ def test_a_progress_saying_every_task_served_neither_stops_the_dispatcher_nor_th
 def test_a_round_numbered_2_62_does_not_stop_ssi(children, tmp_path):
     s = attacked_demo(children, tmp_path, "ssi", "ssi-round", "-")
     assert any(r["reason"] == "round_ahead" and r["sender"] == "robot1" for r in s["refused"])
+
+
+@pytest.mark.slow
+def test_a_bids_saying_the_tasks_others_won_done_does_not_end_cbba(children, tmp_path):
+    s = attacked_demo(children, tmp_path, "cbba", "cbba-done", "4")
+    assert any(r["reason"] == "done_not_won" and r["sender"] == "robot2" for r in s["refused"])

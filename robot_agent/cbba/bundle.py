@@ -36,12 +36,14 @@ Departures from the paper, each for a reason given in docs/cbba.md:
 * **what a message is believed for** (docs/security.md): a message whose winning bids are out
   of range (below 0, or above the task's reward: a marginal score is at most that) is refused
   whole; a task in its `done` counts as served only if its sender had won it as this robot
-  knew it before the message, or a third robot holds it (a relay, which cannot take this
-  robot's own work, nor a task nobody has won, from it), or two robots said so (a robot
-  counted gone and back — a stall — never learns who won its tasks meanwhile; every other
-  robot relays their completion). A claim believed on none of these grounds is refused and
-  counted (`refused`), once per task and sender. The paper trusts every message: one robot saying every task done would
-  otherwise end the mission with nothing served.
+  knew it before the message, or once more than half of its teammates not known gone said so
+  (a robot counted gone — a stall — never learns who won its tasks meanwhile, and every other
+  robot relays their completion; a relay alone is not believed, or one liar's claim, relayed
+  by those who believed it, would reach the majority). A claim believed on neither ground is
+  refused and counted (`refused`), once per task and sender; a message stamped more than STAMP_SLACK
+  after it was heard is refused (it would supersede its sender's real ones until then). The
+  paper trusts every message: one robot saying every task done would otherwise end the
+  mission with nothing served.
 """
 
 from __future__ import annotations
@@ -63,6 +65,8 @@ from .table import NONE, RESET, UPDATE, View, higher, resolve
 BID_OUT_OF_RANGE = "bid_out_of_range"  # a winning bid below 0 or above the task's reward
 NOT_WON = "done_not_won"               # a task said served that its sender never won
 SUPERSEDED = "superseded"              # older than its sender's latest (late, or a replay)
+STAMP_AHEAD = "stamp_ahead"            # stamped later than it was heard, by more than the slack
+STAMP_SLACK = 1.0  # s: a teammate's clock may run this far ahead of this robot's hearing it
 ROUNDING = 1e-9
 
 
@@ -168,6 +172,9 @@ class Cbba(RouteLogic):
                 and math.dist(self.position, (msg.x, msg.y)) > self.comm_range):
             self.out_of_range += 1
             return True
+        if msg.header.stamp > at + STAMP_SLACK:
+            self.refused[("bids", sender, STAMP_AHEAD, True)] += 1
+            return True  # it would supersede its sender's real messages until then
         if msg.header.stamp < self.latest.get(k, -math.inf):
             self.superseded += 1  # delivered out of order: a later one was applied already
             self.refused[("bids", sender, SUPERSEDED, False)] += 1
@@ -181,12 +188,11 @@ class Cbba(RouteLogic):
             if j in self.done:
                 continue
             claims = self.done_claims.setdefault(j, set())
-            if k not in claims and not (k in self.won.get(j, ()) or self.z[j] not in
-                                        (NONE, self.i, k)):
+            won = k in self.won.get(j, ())
+            if k not in claims and not won:
                 self.refused[("bids", sender, NOT_WON, True)] += 1
             claims.add(k)
-            if k in self.won.get(j, ()) or self.z[j] not in (NONE, self.i, k) \
-                    or len(claims) >= 2:
+            if won or len(claims - self.departed) > self._others() / 2:
                 self._mark_done(j)
         theirs = {j: View(w, y) for j, w, y in msg.winners}
         s_k = dict(msg.stamps)
@@ -354,6 +360,10 @@ class Cbba(RouteLogic):
             self.changed = True
             if winner != NONE:
                 self.won.setdefault(j, set()).add(winner)
+
+    def _others(self) -> int:
+        """The teammates not known to have left (what a majority is counted over)."""
+        return len(self.problem.robots) - 1 - len(self.departed)
 
     def _view(self, view: View) -> View:
         """A winner that left the team reads as none."""

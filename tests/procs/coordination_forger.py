@@ -7,6 +7,11 @@ argv: MODE ARG RENDEZVOUS (the run's, which this session connects to)
   central-served  TASKS   a `Progress` of robot2's saying every task of TASKS (comma-separated)
                           served (it crashed the dispatcher)
   ssi-round       -       a `Round` of robot1's (the auctioneer) numbered 2^62
+  cbba-done       N       a `Bids` of robot2's saying every task of 0…N-1 it has not won done
+                          (what it won, robot2 may say it served: docs/security.md), copied
+                          from its latest and stamped 5 s after the run's clock (in lockstep it then counts
+                          at that time, after everything its sender said before: not
+                          superseded)
 Prints {"ready": true} once subscribed, {"forged": KEY} once sent."""
 
 import json
@@ -24,29 +29,37 @@ mode, arg, rendezvous = sys.argv[1], sys.argv[2], sys.argv[3]
 session = open_session(BusOptions(connect=[rendezvous]))
 ENC = "application/msgpack;"
 SOURCES = {"central-served": ("robot2/central/progress", "route_msgs/Progress"),
-           "ssi-round": ("robot1/ssi/round", "ssi_msgs/Round")}
+           "ssi-round": ("robot1/ssi/round", "ssi_msgs/Round"),
+           "cbba-done": ("robot2/cbba/bids", "cbba_msgs/Bids")}
 key, type_name = SOURCES[mode]
 real: list[dict] = []
 heard = threading.Event()
 
 
 def on_sample(sample) -> None:
-    if not heard.is_set():
-        real.append(msgpack.unpackb(sample.payload.to_bytes()))
-        heard.set()
+    real.append(msgpack.unpackb(sample.payload.to_bytes()))
+    heard.set()
 
 
+now = [0.0]
 sub = session.declare_subscriber(key, on_sample)
+clock = session.declare_subscriber(
+    "clock", lambda s: now.__setitem__(0, msgpack.unpackb(s.payload.to_bytes())["stamp"]))
 print(json.dumps({"ready": True}), flush=True)
 heard.wait(120)
-msg = dict(real[0])
+time.sleep(0.2)
+msg = dict(real[0] if mode != "cbba-done" else real[-1])
 msg["header"] = {**msg["header"], "seq": msg["header"]["seq"] + 1000}
 if mode == "central-served":
     msg["served"] = arg.split(",")
-else:
+elif mode == "ssi-round":
     msg["round"] = 2 ** 62
     msg["owners"] = [-1] * len(msg["owners"])
     msg["award"] = -1
+else:
+    won = {j for j, w, _ in msg["winners"] if w == 1}  # robot2 is robot index 1
+    msg["done"] = [j for j in range(int(arg)) if j not in won]
+    msg["header"]["stamp"] = max(msg["header"]["stamp"], now[0]) + 5.0
 pub = session.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK)
 time.sleep(0.3)  # the publisher's matching declarations travel first
 pub.put(msgpack.packb(msg), encoding=zenoh.Encoding(ENC + type_name))
