@@ -69,11 +69,13 @@ class Node:
     id, a dispatcher's name — checked against its certificate and, in lockstep, its
     participant id; `robots`: a bridge's robots; `stop`: an event to stop on besides the
     signals (tests, a caller's thread); `bus`: an open bus to use instead of opening one (its
-    caller's to close; no identity is checked: it was opened elsewhere)."""
+    caller's to close; no identity is checked: it was opened elsewhere); `speaks_for`: in lockstep,
+    the robots this participant answers for besides itself (an agent host's)."""
 
     def __init__(self, bus_options: BusOptions, role: str, *, name: str | None = None,
                  robots: Sequence[str] = (), time: NodeTime = NodeTime.WALL,
-                 stop: threading.Event | None = None, bus: Bus | None = None) -> None:
+                 stop: threading.Event | None = None, bus: Bus | None = None,
+                 speaks_for: Sequence[str] = ()) -> None:
         enable_faulthandler()
         time = NodeTime(time)
         if time is NodeTime.LOCKSTEP and not name:
@@ -81,7 +83,8 @@ class Node:
         if bus is None:
             check_identity(bus_options, role, name, tuple(robots))
         self.bus_options, self.role, self.name, self.time = bus_options, role, name, time
-        self.clock: Clock = (_lockstep_clock(name) if time is NodeTime.LOCKSTEP
+        self.clock: Clock = (_lockstep_clock(name, tuple(speaks_for))
+                             if time is NodeTime.LOCKSTEP
                              else SimClock() if time is NodeTime.SIM else WallClock())
         self._given_bus = bus
         self._stack: contextlib.ExitStack | None = None
@@ -131,9 +134,9 @@ class Node:
         return True
 
 
-def _lockstep_clock(name: str) -> Clock:
+def _lockstep_clock(name: str, speaks_for: tuple[str, ...]) -> Clock:
     """A participant's clock, its module loaded only by a participant: an observer (supervisor,
     recorder) starts a node too and must not load the participant's books (the lockstep
     package's own lazy loading, mrta_zenoh.lockstep)."""
     from .lockstep.participant import LockstepClock
-    return LockstepClock(name)
+    return LockstepClock(name, speaks_for=speaks_for)

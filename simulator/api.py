@@ -197,10 +197,11 @@ def run_simulator(options: SimOptions, bus_options: BusOptions,
                 # two different runs (the first tick at 0.0 or 0.1, depending on load)
                 expected = set(robots) - set(ros2_ids)
                 deadline = time.monotonic() + o.wait_robots
-                while not expected <= barrier.participants and not stop.is_set() \
+                # a robot answered for by an agent host (lockstep SPEAKS) counts as joined
+                while not expected <= barrier.voiced() and not stop.is_set() \
                         and time.monotonic() < deadline:
                     stop.wait(0.05)
-                missing = sorted(expected - barrier.participants)
+                missing = sorted(expected - barrier.voiced())
                 if barrier.participants and missing:
                     raise MrtaRuntimeError(
                         f"lockstep: {', '.join(missing)} did not join within {o.wait_robots:g} s "

@@ -71,6 +71,7 @@ from .ground_truth import decisions, intervals_from
 from .plots import ROBOTS_TITLE, Panel, TimeBase, draw_timeline
 from . import roles
 from .overrides import apply_overrides
+from .hosting import host_nodes, hosted_crash
 from .run_watch import Readiness, RunWatch, check_simulator_end, crashed_itself, run_status
 from .entities import Serving
 from .state import Supervisor
@@ -166,6 +167,9 @@ class MissionOptions:
     instance: Path | None = None      # an instance file the run's packages are derived from
     plots: bool = True                # the pictures (world, timeline, the architecture's own)
     overrides: tuple[tuple[str, Any], ...] = ()  # set in the instance's packages (overrides.py)
+    # robots' agents per process: 1, a process per robot (real robots' way); K > 1, agent hosts
+    # of K robots each (supervisor hosting), with the same summary but for machine fields
+    agents_per_process: int = 1
 
 
 def instance_folder(options: MissionOptions) -> Path:
@@ -392,6 +396,10 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
         run.package.path / "launch" / run.mission.launch, launch_args)
     check_executables(nodes)
     check_seeds(nodes, options.seed)
+    hosted: dict[str, str] = {}  # robot → its host's node name (agent hosts)
+    if options.agents_per_process > 1:
+        nodes, hosted = host_nodes(nodes, run.robots, options.agents_per_process,
+                                   output / "hosts")
     rendezvous = private_rendezvous()
     routed = len(run.robots) >= ROUTER_FROM
     client = ["--mode", "client", "--connect", rendezvous] if routed else []
@@ -432,21 +440,30 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
         for h in attach(sup, bus, clock):
             live.callback(h.close)
         children = start_nodes(group, nodes)
-        agents = {rid: next(c for c in children if c.name.startswith(rid + "/"))
-                  for rid in run.robots}
+        agents = {rid: next(c for c in children if c.name == hosted.get(rid)
+                            or c.name.startswith(rid + "/")) for rid in run.robots}
         # the architecture's own processes (a dispatcher), by name: fault subjects as robots are
         named = {**agents, **{c.name: c for c in children if c.name in run.arch.processes}}
+
+        def struck(subject: str) -> bool:  # its injected crash struck: its process, or its host
+            if subject in hosted:
+                return hosted_crash(named.get(subject), subject)
+            return crashed_itself(named.get(subject))
+
+        def own_process(targets) -> list[str]:  # a host goes on when one of its robots crashes
+            return [named[t].name for t in targets if t in named and t not in hosted]
+
         sim = next(c for c, n in zip(children, nodes) if n.required)  # the launch's end
         # a crash the run injected may strike before this runner saw everyone up (a busy
         # machine, lockstep at full speed): the crashed subject is no start-up failure
         def injected() -> set[str]:
-            itself = {r: crashed_itself(c) for r, c in named.items()}
+            itself = {r: struck(r) for r in named}
             return {t for t in roles.crash_targets(faults, itself) if itself.get(t)}
 
         ready.wait(lambda: not set(ready.presence.missing()) - injected(), "the robots' agents",
-                   group, stop, ignore=lambda: [named[t].name for t in injected()])
+                   group, stop, ignore=lambda: own_process(injected()))
         ready.wait(ready.clock.is_set, "the simulator", group, stop,
-                   ignore=lambda: [named[t].name for t in injected()])
+                   ignore=lambda: own_process(injected()))
         failed_at = _watch(sim, sup, clock, failure, stop, progress)
         watch.end()
         live.close()
@@ -459,10 +476,10 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
         group.stop_all()
         # the crashed subjects: those named (robots, the architecture's processes) and, for an
         # @first crash, the robot that crashed itself
-        targets = roles.crash_targets(faults, {r: crashed_itself(c) for r, c in agents.items()})
-        disturbances = watch.disturbances(named, targets, set(named))
+        targets = roles.crash_targets(faults, {r: struck(r) for r in agents})
+        disturbances = watch.disturbances(lambda p: p in targets and struck(p), set(named))
         strangers = watch.strangers(set(named))
-        crashed = group.failed(ignore=[named[t].name for t in targets if t in named])
+        crashed = group.failed(ignore=own_process(targets))
         if crashed:
             raise MrtaRuntimeError("; ".join(f"{c.name} {c.describe_exit()}"
                                              for c in crashed) + ":\n"

@@ -67,6 +67,11 @@ from .view import render
 @click.option("--foxglove", "foxglove_port", type=click.IntRange(0, 65535), is_flag=False,
               flag_value=8765, default=None, metavar="[PORT]",
               help="Also serve the run live to Foxglove / Lichtblick (ws://127.0.0.1:8765).")
+@click.option("--agents-per-process", type=click.IntRange(min=1), default=1, show_default=True,
+              metavar="K",
+              help="Run the robots' agents K per process (agent hosts: one Zenoh session and "
+                   "one lockstep participant for K robots; the same summary as K = 1 but for "
+                   "machine fields). 1: a process per robot, as on real robots.")
 @click.option("--plots/--no-plots", default=True, show_default=True,
               help="Draw the run's pictures (world, timeline, the architecture's plots); "
                    "the recording and summary.json are written either way.")

@@ -136,13 +136,15 @@ class RunWatch(Closing):
         with self._lock:
             self._judging = False
 
-    def disturbances(self, children: dict[str, Child], crashes: set[str] = frozenset(),
+    def disturbances(self, struck: Callable[[str], bool],
                      processes: set[str] | None = None) -> list[Disturbance]:
         """Every loss that was no crash the run injected nor the simulator's end (module
-        docstring). `children`: the processes by name (robot ids for agents), to tell a crash
-        target that crashed itself from one that was stopped; `processes`: the names of the
-        run's processes (None: every name seen is one; the recorder and the simulator always
-        are) — another's loss is a stranger's, no disturbance."""
+        docstring). `struck(process)`: whether that process (a robot id for an agent) is a
+        crash target whose crash struck as injected (its process crashed itself,
+        `crashed_itself`; a hosted robot's is told by its host, supervisor hosting);
+        `processes`: the names of the run's processes (None: every name seen is one; the
+        recorder and the simulator always are) — another's loss is a stranger's, no
+        disturbance."""
         out = []
         with self._lock:
             events = {p: [list(e) for e in es] for p, es in self._events.items()
@@ -151,7 +153,7 @@ class RunWatch(Closing):
             for i, (lost_at, back_at) in enumerate(lost):
                 final = back_at is None and i == len(lost) - 1
                 if final and (process == SIMULATOR or (
-                        process in crashes and crashed_itself(children.get(process)))):
+                        struck(process))):
                     continue
                 if back_at is not None and back_at <= 0.0:  # back before the run was on
                     continue

@@ -13,7 +13,7 @@ import pytest
 
 from mrta_agent.alliance.architecture import ALLIANCE
 from mrta_supervisor.run_watch import (RECORDER, SIMULATOR, RunWatch, check_simulator_end,
-                                       run_status)
+                                       crashed_itself, run_status)
 from mrta_supervisor.summary import (COMPLETE, DISTURBED, INCOMPLETE, Disturbance, Summary,
                                      run_problem)
 from mrta_zenoh.bus import InProcBus
@@ -54,6 +54,11 @@ class Run:
         self.up(SIMULATOR, f"{CLOCK_SOURCE_TOKEN}/1234-x0")
 
 
+
+def crash_struck(children, crashes):
+    """What the mission runner tells the watch for processes of their own."""
+    return lambda process: process in crashes and crashed_itself(children.get(process))
+
 def test_a_quiet_run_with_an_injected_crash_is_undisturbed():
     run = Run()
     run.start()
@@ -62,7 +67,7 @@ def test_a_quiet_run_with_an_injected_crash_is_undisturbed():
     run.watch.end()
     run.down("robot1", 60.5)                      # the runner stops the rest
     run.down(RECORDER, 60.5)
-    assert run.watch.disturbances({"robot2": CRASHED}, {"robot2"}) == []
+    assert run.watch.disturbances(crash_struck({"robot2": CRASHED}, {"robot2"})) == []
 
 
 def test_a_token_lost_and_back_is_a_disturbance_even_for_a_crash_target():
@@ -76,7 +81,7 @@ def test_a_token_lost_and_back_is_a_disturbance_even_for_a_crash_target():
     run.up("robot2", "robot2/alliance/agent")
     run.down("robot2", 30.0)                      # then its crash
     run.watch.end()
-    assert run.watch.disturbances({"robot2": CRASHED}, {"robot2"}) == [
+    assert run.watch.disturbances(crash_struck({"robot2": CRASHED}, {"robot2"})) == [
         Disturbance("robot1", 21.3, 35.0), Disturbance("robot2", 12.0, 14.0)]
 
 
@@ -89,7 +94,7 @@ def test_a_final_loss_is_a_crash_only_if_the_process_killed_itself():
         run.start()
         run.down("robot2", 30.0)
         run.watch.end()
-        assert run.watch.disturbances({"robot2": child}, crashes) == expected
+        assert run.watch.disturbances(crash_struck({"robot2": child}, crashes)) == expected
 
 
 def test_the_recorder_or_the_simulator_losing_its_session_is_seen():
@@ -100,7 +105,7 @@ def test_the_recorder_or_the_simulator_losing_its_session_is_seen():
     run.clock.set(52.0)
     run.up(SIMULATOR, f"{CLOCK_SOURCE_TOKEN}/1234-x0")  # the simulator was stopped: back
     run.watch.end()
-    d = run.watch.disturbances({}, set())
+    d = run.watch.disturbances(crash_struck({}, set()))
     assert d == [Disturbance(RECORDER, 34.0), Disturbance(SIMULATOR, 40.0, 52.0)]
     assert run_status(d, 60.0, 60.0) == INCOMPLETE  # the recorder's gap is lost for good
     assert run_status(d[1:], 60.0, 60.0) == DISTURBED
@@ -111,7 +116,7 @@ def test_what_goes_after_the_end_or_before_it_came_is_not_counted():
     run.up("robot1", "robot1/alliance/agent")
     run.watch.end()
     run.down("robot1", 70.0)
-    assert run.watch.disturbances({}, set()) == []
+    assert run.watch.disturbances(crash_struck({}, set())) == []
     run.watch.close()
 
 
@@ -129,7 +134,7 @@ def test_a_token_seen_going_and_coming_before_the_clock_moved_is_no_disturbance(
     run.down(SIMULATOR, 20.0)
     run.up(SIMULATOR, f"{CLOCK_SOURCE_TOKEN}/1234-x0")
     run.watch.end()
-    d = run.watch.disturbances({}, set())
+    d = run.watch.disturbances(crash_struck({}, set()))
     assert d == [Disturbance("robot1", 0.0, 4.0), Disturbance(SIMULATOR, 20.0, 20.0)]
 
 
@@ -242,6 +247,6 @@ def test_a_strangers_participant_token_is_reported_apart_and_disturbs_nothing():
     run.down("evil", 12.0)
     run.watch.end()
     processes = {"robot1", "robot2"}
-    assert run.watch.disturbances({}, set(), processes) == []
+    assert run.watch.disturbances(crash_struck({}, set()), processes) == []
     assert run.watch.strangers(processes) == ["evil"]
-    assert run.watch.disturbances({}, set()) == [Disturbance("evil", 12.0)]  # all the run's
+    assert run.watch.disturbances(crash_struck({}, set())) == [Disturbance("evil", 12.0)]  # all the run's

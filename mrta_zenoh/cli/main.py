@@ -118,6 +118,10 @@ SHORT_HELP = {
     "mrta_agent.cbba.cli:cbba":
         "Run ROBOT_ID's CBBA agent: build its bundle, reach consensus with its teammates, "
         "serve its bundle's path.",
+    "mrta_agent.runtime.host_cli:host":
+        "Run the agents of the robots SPEC lists in this one process (an agent host): each robot "
+        "keeps its keys, tokens, parameters, seed stream and faults; one Zenoh session and one "
+        "lockstep participant serve them all.",
     "mrta_supervisor.plot_cli:plot":
         "Plots from a recording made with `mrta record` (or `mrta demo`).",
     "mrta_zenoh.cli.record:record":

@@ -24,7 +24,7 @@ from ..lifecycle import Closing
 from .books import Books
 from .ledger import Ledger
 from .protocol import (BARRIER, DEFAULT_TIMEOUT, DONE, MAX_KEYS, MAX_NAMES, NEXT_HORIZON,
-                       PARTICIPANT, REPORT_AFTER, STATUS, STEP, LockstepStatus, Rejections, Step,
+                       PARTICIPANT, REPORT_AFTER, SPEAKS, STATUS, STEP, LockstepStatus, Rejections, Step,
                        StepDone, count_wait, log)
 from .table import Claims, KeyTable, count_of
 
@@ -74,6 +74,8 @@ class Barrier(Closing):
         self.counts = bus.enable_counting(self._poke)
         self.books = Books(self.counts, wall)
         self.handles = [
+            # before the participants': a host declares what it speaks for before it takes part
+            bus.watch_liveliness(f"{SPEAKS}/*/*", self._on_voice),
             bus.watch_liveliness(f"{PARTICIPANT}/*", self._on_participant),
             bus.subscribe(f"{DONE}/*", self._on_done, msg_type=StepDone),
             bus.watch_liveliness(f"{CLOCK_SOURCE_TOKEN}/*", self._on_source),
@@ -92,6 +94,27 @@ class Barrier(Closing):
                 self._cond.wait(min(quiet, max(0.0, deadline - self._wall())))
                 if self._changed == changed and self._wall() - self._changed_at >= quiet:
                     return
+
+    def _on_voice(self, key: str, alive: bool) -> None:
+        """A participant says it answers for a robot (an agent host), or no longer does."""
+        name, robot = key[len(SPEAKS) + 1:].split("/", 1)
+        with self._cond:
+            if not self.ledger.speaks_for(name, robot, alive):
+                self.dropped(f"{_printable(name)!r} speaks for too many robots: "
+                             f"{_printable(robot)!r} ignored")
+                return
+            self._changed += 1
+            self._changed_at = self._wall()
+            self._cond.notify_all()
+
+    def voiced(self) -> set[str]:
+        """The robots some participant answers for: the participants themselves and those their
+        hosts speak for (the simulator's `--wait-robots` waits for these)."""
+        with self._cond:
+            out = set(self.participants)
+            for name in self.participants:
+                out |= self.ledger.voices.get(name, set())
+            return out
 
     def _on_participant(self, key: str, alive: bool) -> None:
         name = key.rsplit("/", 1)[-1]

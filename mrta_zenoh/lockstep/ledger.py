@@ -13,11 +13,19 @@ characters, CLAIM_CHARS in all, and only as long as the run's key table has room
 come first served). A StepDone over a cap still answers the step: its claims are dropped —
 counted, logged, and once per participant and run counted as forgiven (the run is then
 inexact) — and the Steps stay what the other participants can read.
+
+An agent host answers for several robots (protocol.SPEAKS): its claims may be under each of
+their names too, and its caps grow with them (one robot's caps per name), so a host of K robots
+claims what K processes would. Whoever may declare a speaks token may claim under that robot's
+name: on an open bus that is anybody, who could publish under the name anyway; a secured fleet's
+access control grants a robot its own participant token only, so there nobody speaks for
+another (and agent hosts refuse secured fleets).
 """
 
 from __future__ import annotations
 
-from .protocol import CLAIM_CHARS, CLAIM_KEY_CHARS, CLAIM_KEYS, MAX_KEYS, StepDone
+from .protocol import (CLAIM_CHARS, CLAIM_KEY_CHARS, CLAIM_KEYS, MAX_KEYS, MAX_NAMES,
+                       MAX_SPEAKS_FOR, StepDone)
 
 
 class Ledger:
@@ -28,21 +36,48 @@ class Ledger:
         self.done: dict[str, StepDone] = {}
         self.claims: dict[str, int] = {}
         self.capped: set[str] = set()  # participants whose claims were dropped in this run
+        self.voices: dict[str, set[str]] = {}  # participant → robots it answers for (SPEAKS)
+
+    def speaks_for(self, name: str, robot: str, alive: bool) -> bool:
+        """`name`'s token saying it answers for `robot` came (or went); False if refused (too
+        many names, or too many robots for one participant: a flood costs bounded memory)."""
+        if not alive:
+            robots = self.voices.get(name)
+            if robots is not None:
+                robots.discard(robot)
+                if not robots:
+                    del self.voices[name]
+            return True
+        robots = self.voices.get(name)
+        if robots is None:
+            if len(self.voices) >= MAX_NAMES:
+                return False
+            robots = self.voices[name] = set()
+        if robot not in robots and len(robots) >= MAX_SPEAKS_FOR:
+            return False
+        robots.add(robot)
+        return True
+
+    def names_of(self, name: str) -> set[str]:
+        """The names `name` may claim under: its own and those of the robots it answers for."""
+        return {name, *self.voices.get(name, ())}
 
     def over_cap(self, name: str, sent: dict[str, int], own) -> str | None:
         """Why `name` may not claim `sent` (None: it may). `own`: the keys the simulator
         publishes itself — its own count is theirs, whoever claims them."""
-        if len(sent) > CLAIM_KEYS:
-            return f"{len(sent)} keys (at most {CLAIM_KEYS})"
-        prefix, chars = name + "/", 0
+        names = self.names_of(name)
+        scale = len(names)
+        if len(sent) > CLAIM_KEYS * scale:
+            return f"{len(sent)} keys (at most {CLAIM_KEYS * scale})"
+        chars = 0
         for key in sent:
-            if not key.startswith(prefix):
+            if key.split("/", 1)[0] not in names or "/" not in key:
                 return f"{key[:80]!r} is not under its own name"
             if len(key) > CLAIM_KEY_CHARS:
                 return f"a key of {len(key)} characters (at most {CLAIM_KEY_CHARS})"
             chars += len(key)
-        if chars > CLAIM_CHARS:
-            return f"keys of {chars} characters in all (at most {CLAIM_CHARS})"
+        if chars > CLAIM_CHARS * scale:
+            return f"keys of {chars} characters in all (at most {CLAIM_CHARS * scale})"
         new = sum(k not in self.claims and k not in own for k in sent)
         if new and len(self.claims) + new + len(own) > MAX_KEYS:
             return f"the run's key table is full ({MAX_KEYS} keys)"

@@ -11,7 +11,7 @@ from typing import Callable
 from ..clock import CEILING, EPSILON, SimClock, run_rate
 from ..untrusted import visible
 from .books import Books
-from .protocol import (BARRIER, DONE, MAX_KEYS, MAX_NAMES, PARTICIPANT, STEP,
+from .protocol import (BARRIER, DONE, MAX_KEYS, MAX_NAMES, PARTICIPANT, SPEAKS, STEP,
                        STEP_BURST, STEP_SLACK, Rejections, Step, StepDone, count_wait, log)
 from .sequence import Sequence
 from .table import Claims, KeyTable, count_of
@@ -51,9 +51,14 @@ class LockstepClock(SimClock):
     """A participant's clock: simulation time that also moves in lockstep when the simulator
     runs it (and follows the plain `clock` key otherwise)."""
 
-    def __init__(self, participant: str, wall=time.monotonic) -> None:
+    def __init__(self, participant: str, wall=time.monotonic,
+                 speaks_for: tuple[str, ...] = ()) -> None:
         super().__init__(wall=wall)
         self.participant = participant
+        # the robots this participant answers for besides itself (an agent host's): one SPEAKS
+        # token each, declared before its participant token, so the barrier takes its claims
+        # under their names from its first answer
+        self.speaks_for = tuple(r for r in speaks_for if r != participant)
         self.lockstep = threading.Event()
         self.run: str | None = None           # the lockstep run whose steps move time
         self.rejected_steps = Rejections(f"step for {visible(participant, 80)}")
@@ -98,6 +103,8 @@ class LockstepClock(SimClock):
         self._publish_done = publish_done
         handles = [bus.watch_liveliness(f"{BARRIER}/*", self._on_barrier),
                    bus.subscribe(STEP, self._on_step, msg_type=Step)]
+        handles.extend(bus.declare_token(f"{SPEAKS}/{self.participant}/{robot}")
+                       for robot in self.speaks_for)
         handles.append(bus.declare_token(f"{PARTICIPANT}/{self.participant}"))
         stack = contextlib.ExitStack()
         stack.callback(counts.close)

@@ -15,6 +15,9 @@ STEP = "@mrta/lockstep/step"
 DONE = "@mrta/lockstep/done"           # /<participant>
 PARTICIPANT = "@mrta/lockstep/participant"  # /<participant>: liveliness
 BARRIER = "@mrta/lockstep/barrier"      # /<run>: liveliness of a lockstep simulator
+# /<participant>/<robot>: liveliness — the participant answers for that robot too (an agent host
+# runs several robots' agents behind one participant: its claims may then be under their names)
+SPEAKS = "@mrta/lockstep/speaks"
 STATUS = "lockstep/status"
 
 # A participant silent this long (wall s) is given up — but only a live one reaches it: a dead or
@@ -30,6 +33,7 @@ NEXT_HORIZON = 10.0     # simulated s: the longest `next` a StepDone may announc
 MAX_IN_FLIGHT = 10_000  # samples a claim may be ahead of what arrived and still be waited for
 MAX_KEYS = 4096         # keys a Step or StepDone may count
 MAX_NAMES = 1024        # participants and runs remembered (a flood of tokens costs bounded memory)
+MAX_SPEAKS_FOR = 1024   # robots one participant may answer for (an agent host's team)
 FORGIVE_WINDOW = 60.0   # wall s: after a forgiveness, a claimant's unmet claims are not waited for
 # What one participant may claim in a StepDone (more drops its claims, not the Steps): keys, the
 # characters of one key, and of all of them. A patrol agent claims about 11 keys of ≈ 30

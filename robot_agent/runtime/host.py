@@ -9,7 +9,7 @@ import logging
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import TYPE_CHECKING, Callable, Protocol
+from typing import TYPE_CHECKING, Callable, Iterable, Iterator, Protocol
 
 from mrta_zenoh.bus import Bus, BusOptions
 from mrta_zenoh.clock import Clock, SimClock
@@ -67,12 +67,17 @@ class HostedAgent(Protocol):
     faults: FaultPlan | None
     ctx: object
     is_process: bool  # one of the architecture's processes (a dispatcher), not a robot
+    withdrawn: bool  # crashed in an agent host (runtime.agent_host)
+    on_crash: Callable[[float], None]
 
     def limit_team(self, team) -> None: ...
     def start(self) -> None: ...
     def declare_alive(self) -> None: ...
     def await_team(self, stop: threading.Event) -> list[str]: ...
     def run(self, stop: threading.Event, until: float | None = None) -> None: ...
+    def schedule(self, until: float | None = None) -> Iterator[float]: ...
+    def withdraw(self) -> None: ...
+    def hears_alive(self, robot: str) -> bool: ...
     def shutdown(self) -> None: ...
 
 
@@ -105,8 +110,8 @@ def host(make_agent: Callable[[Bus, Clock, np.random.Generator], HostedAgent],
             logger.info("%s: faults to inject: %s", robot_id, faults)
         watchdog = None
         if sim_time:
-            watchdog = threading.Thread(target=_clock_watchdog, args=(agent, node.clock,
-                                                                      node.stop),
+            watchdog = threading.Thread(target=clock_watchdog, args=(lambda: (agent,),
+                                                                     node.clock, node.stop),
                                         name="clock-watchdog", daemon=True)
             watchdog.start()
         try:
@@ -125,19 +130,23 @@ def host(make_agent: Callable[[Bus, Clock, np.random.Generator], HostedAgent],
     return 0
 
 
-def _clock_watchdog(agent: HostedAgent, clock: SimClock, stop: threading.Event) -> None:
-    """Say once that the clock stopped, and command zero velocity; say when it is back."""
+def clock_watchdog(agents: Callable[[], Iterable[HostedAgent]], clock: SimClock,
+                   stop: threading.Event) -> None:
+    """Say once that the clock stopped, and command zero velocity to every robot `agents()`
+    gives (one, or an agent host's robots still running); say when it is back."""
     stopped = False
     while not stop.wait(0.25):
         if clock.stalled(CLOCK_WATCHDOG):
             if not stopped:
                 stopped = True
-                agent.log.warning("%s: the simulation clock stopped at t=%.2f (no sample for "
-                                  "%.0f s): robot stopped until it comes back", agent.robot_id,
-                                  clock.now(), CLOCK_WATCHDOG)
-                if not agent.is_process:  # a dispatcher has no body to stop
-                    agent.ctx.publish_cmd(0.0, 0.0)
+                for agent in agents():
+                    agent.log.warning("%s: the simulation clock stopped at t=%.2f (no sample "
+                                      "for %.0f s): robot stopped until it comes back",
+                                      agent.robot_id, clock.now(), CLOCK_WATCHDOG)
+                    if not agent.is_process:  # a dispatcher has no body to stop
+                        agent.ctx.publish_cmd(0.0, 0.0)
         elif stopped:
             stopped = False
-            agent.log.warning("%s: the simulation clock is back at t=%.2f", agent.robot_id,
-                              clock.now())
+            for agent in agents():
+                agent.log.warning("%s: the simulation clock is back at t=%.2f", agent.robot_id,
+                                  clock.now())

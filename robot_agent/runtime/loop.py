@@ -87,6 +87,7 @@ class Agent:
     and layers."""
 
     stalled = False  # the stall fault struck: the layers no longer run
+    withdrawn = False  # crashed in an agent host: its tokens and subscriptions are gone
     roster: frozenset[str] | None = None  # the only robots that may join the team (limit_team)
 
     def __init__(self, robot_id: str, architecture: Architecture,
@@ -495,6 +496,24 @@ class Agent:
             for subject in sorted(subjects):
                 self.coordinator.teammate_subject(robot, subject, True)
 
+    def on_crash(self, now: float) -> None:
+        """The crash fault strikes: the process dies (SIGKILL), its tokens with its session. An
+        agent host replaces this with a crash of this robot alone (runtime.agent_host)."""
+        crash_now(self.robot_id, now, self.log)
+
+    def withdraw(self) -> None:
+        """This robot crashed in an agent host: its tokens and subscriptions go, as with its
+        process — no zero-velocity command, no final tally, no plugin shutdown."""
+        self.withdrawn = True
+        for h in self._handles:
+            h.close()
+        self._handles.clear()
+
+    def hears_alive(self, robot: str) -> bool:
+        """Whether `robot`'s agent token is alive as this agent's callbacks heard it."""
+        with self._token_lock:
+            return robot in self._alive
+
     def shutdown(self) -> None:
         """Stop the robot: deactivate the running layers, command zero velocity, let every
         plugin close what it opened (py_trees' terminate, then shutdown), stop listening."""
@@ -536,7 +555,7 @@ class Agent:
             now = self.clock.now()
             strike = self.injector.strikes(now)
             if strike is FaultKind.CRASH:
-                crash_now(self.robot_id, now, self.log)  # a real crash: no shutdown, no goodbye
+                self.on_crash(now)  # a real crash: no shutdown, no goodbye
             if strike is FaultKind.STALL and not self.stalled:
                 self.stall(now)
             if self.clock.restarts != epoch:

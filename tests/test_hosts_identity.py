@@ -1,0 +1,93 @@
+"""Agent hosts give the summary one process per robot gives (issue 47's identity): the same seed
+run with `--agents-per-process 1` and with one host for the team (K = 5) — or 2 hosts of 3 and
+2 — must agree field for field but for what measures the machine (wall time, computation
+milliseconds, the output path, how far the recording reached in wall terms). The CI tier runs
+one architecture with a hosted robot's crash; the slow tier every architecture under every
+fault model of the grammar."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+pytestmark = [pytest.mark.multiprocess]
+
+DURATION = "25"  # simulated s: the default instance's tasks are served by ≈ 23 s
+MACHINE = ("wall_seconds", "output", "recorded_until")
+
+
+def flat(value, path=""):
+    if isinstance(value, dict):
+        for k, v in value.items():
+            yield from flat(v, f"{path}.{k}" if path else k)
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            yield from flat(v, f"{path}[{i}]")
+    else:
+        yield path, value
+
+
+def machine(field: str) -> bool:
+    """A field that measures the machine: it differs between two runs of one process layout."""
+    parts = field.replace("[", ".").split(".")
+    return any(p in MACHINE or p.endswith("_ms") or p == "ms" for p in parts)
+
+
+def differences(a: dict, b: dict) -> list[str]:
+    fa, fb = dict(flat(a)), dict(flat(b))
+    return [f"{k}: {fa.get(k)!r} != {fb.get(k)!r}" for k in sorted(fa.keys() | fb.keys())
+            if not machine(k) and fa.get(k) != fb.get(k)]
+
+
+def run(children, out: Path, architecture: str, fail: str, k: int) -> dict:
+    demo = children.mrta("-q", "demo", "--application", "delivery", "--architecture",
+                         architecture, "--fail", fail, "--duration", DURATION, "--speed", "0",
+                         "--seed", "3", "--no-live", "--no-plots", "--agents-per-process",
+                         str(k), "--output", str(out), name=f"demo-k{k}")
+    assert demo.wait(240) == 0, demo.tail(30)
+    return json.loads((out / "summary.json").read_text())
+
+
+def check_identity(children, tmp_path, architecture, fail, k=5):
+    one = run(children, tmp_path / "k1", architecture, fail, 1)
+    hosted = run(children, tmp_path / f"k{k}", architecture, fail, k)
+    assert (tmp_path / f"k{k}" / "hosts" / "host1.yaml").exists()  # it did run in hosts
+    assert hosted["run_status"] == "complete" and hosted["lockstep_exact"] is True
+    assert differences(one, hosted) == []
+    return one, hosted
+
+
+def test_machine_fields_are_told_apart():
+    assert machine("wall_seconds") and machine("metrics.decision_ms.median")
+    assert machine("decisions.robot1.ms") and not machine("metrics.makespan")
+    assert differences({"a": [1, {"b_ms": 2}]}, {"a": [1, {"b_ms": 3}]}) == []
+    assert differences({"a": [1, 2]}, {"a": [1, 3]}) == ["a[1]: 2 != 3"]
+
+
+@pytest.mark.timeout(600)
+def test_a_hosted_crash_gives_the_summary_of_a_process_crash(children, tmp_path):
+    one, hosted = check_identity(children, tmp_path, "ssi", "robot4@10")
+    # the crash struck in both (a hosted robot's crash is that robot's, not its host's)
+    assert hosted["failure"]["robot"] == "robot4" and hosted["failure"]["killed_at"] == 10.0
+    assert hosted["failure"]["taken_over_by"] not in (None, "robot4")
+
+
+FAULTS = ["none", "robot2@10", "stall:robot2@8", "partition:robot2@8+6", "loss:0.3",
+          "latency:0.3±0.1", "range:4"]
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(900)
+@pytest.mark.parametrize("fail", FAULTS)
+@pytest.mark.parametrize("architecture", ["alliance", "murdoch", "central", "ssi", "cbba"])
+def test_every_architecture_and_fault_model_gives_the_same_summary_in_hosts(
+        children, tmp_path, architecture, fail):
+    check_identity(children, tmp_path, architecture, fail)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(900)
+def test_two_hosts_and_the_dispatchers_crash(children, tmp_path):
+    check_identity(children, tmp_path, "central", "crash:dispatcher@10", k=3)
