@@ -1,7 +1,8 @@
 """Agent hosts give the summary one process per robot gives (issue 47's identity): the same seed
 run with `--agents-per-process 1` and with one host for the team (K = 5) — or 2 hosts of 3 and
 2 — must agree field for field but for what measures the machine (wall time, computation
-milliseconds, the output path, how far the recording reached in wall terms). The CI tier runs
+milliseconds, the output path, how far the recording reached in wall terms: the golden
+summaries' comparison, tests/process/test_golden_summaries.py). The CI tier runs
 one architecture with a hosted robot's crash; the slow tier every architecture under every
 fault model of the grammar."""
 
@@ -12,33 +13,11 @@ from pathlib import Path
 
 import pytest
 
+from tests.process.test_golden_summaries import differences, normalized
+
 pytestmark = [pytest.mark.multiprocess]
 
 DURATION = "25"  # simulated s: the default instance's tasks are served by ≈ 23 s
-MACHINE = ("wall_seconds", "output", "recorded_until")
-
-
-def flat(value, path=""):
-    if isinstance(value, dict):
-        for k, v in value.items():
-            yield from flat(v, f"{path}.{k}" if path else k)
-    elif isinstance(value, list):
-        for i, v in enumerate(value):
-            yield from flat(v, f"{path}[{i}]")
-    else:
-        yield path, value
-
-
-def machine(field: str) -> bool:
-    """A field that measures the machine: it differs between two runs of one process layout."""
-    parts = field.replace("[", ".").split(".")
-    return any(p in MACHINE or p.endswith("_ms") or p == "ms" for p in parts)
-
-
-def differences(a: dict, b: dict) -> list[str]:
-    fa, fb = dict(flat(a)), dict(flat(b))
-    return [f"{k}: {fa.get(k)!r} != {fb.get(k)!r}" for k in sorted(fa.keys() | fb.keys())
-            if not machine(k) and fa.get(k) != fb.get(k)]
 
 
 def run(children, out: Path, architecture: str, fail: str, k: int) -> dict:
@@ -55,15 +34,8 @@ def check_identity(children, tmp_path, architecture, fail, k=5):
     hosted = run(children, tmp_path / f"k{k}", architecture, fail, k)
     assert (tmp_path / f"k{k}" / "hosts" / "host1.yaml").exists()  # it did run in hosts
     assert hosted["run_status"] == "complete" and hosted["lockstep_exact"] is True
-    assert differences(one, hosted) == []
+    assert differences(normalized(one), normalized(hosted)) == []
     return one, hosted
-
-
-def test_machine_fields_are_told_apart():
-    assert machine("wall_seconds") and machine("metrics.decision_ms.median")
-    assert machine("decisions.robot1.ms") and not machine("metrics.makespan")
-    assert differences({"a": [1, {"b_ms": 2}]}, {"a": [1, {"b_ms": 3}]}) == []
-    assert differences({"a": [1, 2]}, {"a": [1, 3]}) == ["a[1]: 2 != 3"]
 
 
 @pytest.mark.timeout(600)
