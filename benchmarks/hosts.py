@@ -1,0 +1,197 @@
+"""Agent hosts (issue 47): what a run costs with one process per robot and with the team in hosts.
+
+Each figure is a whole mission (`mrta demo --instance FILE --speed 0 --no-plots`: simulator,
+agents, recorder, supervisor, summary), a child process ended by its PID; its CPU is read from
+/proc every 0.2 s for the demo and every process under it, by role (the agents — robots'
+processes or hosts —, the simulator, the recorder, the runner with its supervisor and
+analysis), its wall time the command's. Printed, one JSON line per figure:
+
+* `run_cost` — a 5-robot × 10-task delivery run (seed 1 instance) with `--agents-per-process 1`
+  (the baseline, same run) and with one host for the team: CPU-s, wall s, and whether the two
+  summaries agree but for the machine's fields;
+* `team_size` — with `--sizes`: N robots and N tasks (room grown with N) under each of
+  `--architectures` with the team in hosts of `--per-host` robots (default: all in one), the
+  whole mission: wall time, the real-time factor (simulated over wall seconds, start-up
+  included), CPU-s, and the summary's `run_status` and `lockstep_exact`.
+
+Each line carries the load average when it was measured (others may share the machine).
+
+Run: python benchmarks/hosts.py [--repeat 2] [--sizes 5 10 20 50 100] [--architectures cbba
+                                alliance] [--per-host 0] [--duration 20]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+MACHINE = ("wall_seconds", "output", "recorded_until")
+
+
+TICK = os.sysconf("SC_CLK_TCK")
+ROLES = (("agents", ("/agent ", "/host ")), ("simulator", ("simulator/sim",)),
+         ("recorder", (" view ",)), ("router", (" router",)))
+
+
+def role(cmdline: str) -> str:
+    return next((name for name, marks in ROLES if any(m in cmdline for m in marks)), "runner")
+
+
+def tree(root: int) -> list[int]:
+    kids: dict[int, list[int]] = {}
+    for d in os.listdir("/proc"):
+        if d.isdigit():
+            try:
+                with open(f"/proc/{d}/stat") as f:
+                    kids.setdefault(int(f.read().rsplit(")", 1)[1].split()[1]), []).append(int(d))
+            except OSError:
+                continue
+    out, stack = [], [root]
+    while stack:
+        pid = stack.pop()
+        out.append(pid)
+        stack.extend(kids.get(pid, []))
+    return out
+
+
+def sample(root: int, seen: dict[int, tuple[float, str]]) -> None:
+    """Each process's CPU seconds so far and its role (first seen), under `root`."""
+    for pid in tree(root):
+        try:
+            with open(f"/proc/{pid}/stat") as f:
+                fields = f.read().rsplit(")", 1)[1].split()
+            cpu = (int(fields[11]) + int(fields[12])) / TICK
+            name = seen[pid][1] if pid in seen else role(
+                open(f"/proc/{pid}/cmdline").read().replace("\0", " "))
+        except (OSError, IndexError):
+            continue
+        seen[pid] = (cpu, name)
+
+
+def mrta(*args: str) -> list[str]:
+    return [sys.executable, "-m", "mrta_zenoh.cli.main", *args]
+
+
+def instance(folder: Path, robots: int, tasks: int) -> Path:
+    """A delivery instance of `robots` and `tasks`, its room grown with the team."""
+    side = max(1.0, (max(robots, tasks) / 5) ** 0.5)
+    path = folder / f"i{robots}x{tasks}.yaml"
+    subprocess.run(mrta("instance", "generate", "delivery", "--robots", str(robots), "--tasks",
+                        str(tasks), "--room", f"{12 * side:.1f}", f"{8 * side:.1f}", "--seed",
+                        "1", "-o", str(path)), check=True, capture_output=True)
+    return path
+
+
+def demo(inst: Path, out: Path, arch: str, per_process: int, duration: float) -> dict:
+    """One whole mission; its wall, CPU and summary."""
+    t0, seen = time.monotonic(), {}
+    proc = subprocess.Popen(mrta("-q", "demo", "--application", "delivery", "--instance", str(inst),
+                                 "--architecture", arch,
+                                 "--fail", "none", "--duration", str(duration), "--speed", "0",
+                                 "--no-plots", "--no-live", "--seed", "1",
+                                 "--agents-per-process", str(per_process), "--output", str(out)),
+                            stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    try:
+        while proc.poll() is None:
+            sample(proc.pid, seen)
+            time.sleep(0.2)
+        err = proc.stderr.read()
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    wall = time.monotonic() - t0
+    by_role: dict[str, float] = {}
+    for c, name in seen.values():
+        by_role[name] = round(by_role.get(name, 0.0) + c, 2)
+    cpu = round(sum(by_role.values()), 2)
+    summary = json.loads((out / "summary.json").read_text()) if proc.returncode == 0 else {}
+    return {"rc": proc.returncode, "wall_s": round(wall, 2), "cpu_s": cpu, "cpu_by_role": by_role,
+            "summary": summary, "error": err.strip().splitlines()[-1:] if proc.returncode else []}
+
+
+def flat(value, path=""):
+    if isinstance(value, dict):
+        for k, v in value.items():
+            yield from flat(v, f"{path}.{k}" if path else k)
+    elif isinstance(value, list):
+        for i, v in enumerate(value):
+            yield from flat(v, f"{path}[{i}]")
+    else:
+        yield path, value
+
+
+def machine(field: str) -> bool:
+    parts = field.replace("[", ".").split(".")
+    return any(p in MACHINE or p.endswith("_ms") or p == "ms" for p in parts)
+
+
+def same_but_machine(a: dict, b: dict) -> bool:
+    fa, fb = dict(flat(a)), dict(flat(b))
+    return bool(fa) and all(fa.get(k) == fb.get(k) for k in fa.keys() | fb.keys()
+                            if not machine(k))
+
+
+def emit(**figure) -> None:
+    figure["load"] = round(os.getloadavg()[0], 1)
+    print(json.dumps(figure), flush=True)
+
+
+def run_cost(folder: Path, repeat: int, duration: float, arch: str) -> None:
+    inst = instance(folder, 5, 10)
+    for i in range(repeat):
+        one = demo(inst, folder / f"k1-{i}", arch, 1, duration)
+        host = demo(inst, folder / f"k5-{i}", arch, 5, duration)
+        emit(figure="run_cost", architecture=arch, robots=5, tasks=10, duration=duration,
+             per_process_cpu_s=one["cpu_s"], per_process_wall_s=one["wall_s"],
+             hosted_cpu_s=host["cpu_s"], hosted_wall_s=host["wall_s"],
+             cpu_ratio=round(one["cpu_s"] / host["cpu_s"], 2) if host["cpu_s"] else None,
+             per_process_by_role=one["cpu_by_role"], hosted_by_role=host["cpu_by_role"],
+             agents_cpu_ratio=round(one["cpu_by_role"].get("agents", 0)
+                                    / host["cpu_by_role"]["agents"], 2)
+             if host["cpu_by_role"].get("agents") else None,
+             identical=same_but_machine(one["summary"], host["summary"]),
+             rc=[one["rc"], host["rc"]], error=one["error"] + host["error"])
+
+
+def team_size(folder: Path, sizes: list[int], archs: list[str], per_host: int,
+              duration: float) -> None:
+    for n in sizes:
+        inst = instance(folder, n, n)
+        for arch in archs:
+            k = per_host or n
+            r = demo(inst, folder / f"n{n}-{arch}", arch, k, duration)
+            s = r["summary"]
+            emit(figure="team_size", architecture=arch, robots=n, tasks=n, per_host=k,
+                 duration=duration, wall_s=r["wall_s"], cpu_s=r["cpu_s"],
+                 cpu_by_role=r["cpu_by_role"],
+                 real_time_factor=round(duration / r["wall_s"], 3),
+                 run_status=s.get("run_status"), lockstep_exact=s.get("lockstep_exact"),
+                 completed=s.get("metrics", {}).get("completed"), rc=r["rc"], error=r["error"])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--repeat", type=int, default=2)
+    ap.add_argument("--duration", type=float, default=30.0)
+    ap.add_argument("--architecture", default="cbba", help="run_cost's architecture")
+    ap.add_argument("--sizes", type=int, nargs="*", default=[])
+    ap.add_argument("--architectures", nargs="+", default=["cbba", "alliance"])
+    ap.add_argument("--per-host", type=int, default=0, help="robots per host (0: the team)")
+    args = ap.parse_args()
+    with tempfile.TemporaryDirectory(prefix="mrta-hosts-") as tmp:
+        folder = Path(tmp)
+        if args.repeat:
+            run_cost(folder, args.repeat, args.duration, args.architecture)
+        if args.sizes:
+            team_size(folder, args.sizes, args.architectures, args.per_host, args.duration)
+
+
+if __name__ == "__main__":
+    main()
