@@ -8,8 +8,9 @@ import threading
 from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
 from mrta_zenoh.clock import run_id
 from mrta_zenoh.keys import CLOCK_SOURCE_TOKEN
-from mrta_zenoh.lockstep import (CLAIM_KEYS, DONE, MAX_SPEAKS_FOR, SPEAKS, Barrier,
-                                 LockstepClock, StepDone)
+from mrta_zenoh.lockstep.barrier import Barrier
+from mrta_zenoh.lockstep.participant import LockstepClock
+from mrta_zenoh.lockstep.protocol import CLAIM_KEYS, DONE, MAX_SPEAKS_FOR, StepDone
 from mrta_zenoh.lockstep.ledger import Ledger
 from mrta_zenoh.messages import Twist
 from tests.helpers import Wall, wait_for

@@ -9,8 +9,8 @@ The protocol (docs/architecture.md, "lockstep"):
   `@mrta/lockstep/participant/<id>`; the simulator waits for exactly those. An agent host
   (robot_agent/runtime/agent_host.py: several robots' agents in one process) is one participant
   that answers for each of its robots, saying so first with a token
-  `@mrta/lockstep/speaks/<id>/<robot>` per robot: its claims may be under those robots' names. A token gone (the
-  process died) is no longer waited for. An `@` key is matched by no wildcard, so observers
+  `@mrta/lockstep/speaks/<id>/<robot>` per robot: its claims may be under those robots' names.
+  A token gone (the process died) is no longer waited for. An `@` key is matched by no wildcard, so observers
   (`echo '**'`, the recorder) neither see lockstep traffic nor take part in it.
 * After each physics step — sensor data published first, on the same link — the simulator
   publishes `Step(stamp, step, counts, keys, base, table_digest)` reliably on
