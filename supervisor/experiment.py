@@ -40,6 +40,8 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+import msgspec
+
 from mrta_zenoh.errors import ConfigError, Interrupted
 from mrta_zenoh.instances import kinds as instance_kinds
 from mrta_zenoh.limits import MAX_RUNS, SEED
@@ -184,14 +186,16 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
                    scheduler: str | None = None, max_runs: int = MAX_RUNS,
                    until: dict[str, float] | None = None, block: int = 1, plots: bool = True,
                    report: Options = Options(), shard: Shard | None = None,
-                   slurm: experiment_slurm.SlurmOptions | None = None) -> list[dict]:
+                   slurm: experiment_slurm.SlurmOptions | None = None,
+                   agents_per_process: int | None = None) -> list[dict]:
     """Every run of FILE's matrix (and, with `until`, the blocks of seeds it takes), `jobs` at
     once here or, with `scheduler` (a Dask scheduler's address), as tasks on that cluster;
     or, with `slurm`, as SLURM array tasks (experiment_slurm.py);
     returns the rows (also in OUTPUT/results.csv) and writes the report beside them. A matrix
     of more than `max_runs` runs is refused before anything starts. Runs OUTPUT's results.csv
     already has a row for are not run again (resuming: experiment_resume); with `shard`, only
-    that shard's runs are this call's."""
+    that shard's runs are this call's. `agents_per_process`: the file's `agents_per_process:`
+    replaced (its rows are the same either way: agent hosts)."""
     if scheduler is not None:
         if jobs is not None:
             raise ConfigError("--jobs is for runs on this machine; with --scheduler the "
@@ -208,6 +212,9 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
                           "the matrix; run --until-ci on the shards' folders reported together "
                           "(mrta experiment report DIR… --output OUT), then resume OUT")
     exp = load_experiment(file)
+    if agents_per_process is not None:
+        exp = replace(exp, spec=msgspec.structs.replace(exp.spec,
+                                                        agents_per_process=agents_per_process))
     exp.check_runs(max_runs)
     exp, resolved, done = prepare_experiment(exp, output, shard)
     stop = stop or threading.Event()

@@ -155,6 +155,10 @@ def experiment() -> None:
 @click.option("--max-runs", type=click.IntRange(min=1), default=MAX_RUNS, show_default=True,
               help="Refuse a matrix of more runs than this (seeds × failures × overrides); "
                    "with --until-ci, the cap on every run it adds too.")
+@click.option("--agents-per-process", type=click.IntRange(min=1), default=None, metavar="K",
+              show_default="the file's agents_per_process:, else 10",
+              help="Run each run's robots' agents K per process (agent hosts: the same rows, "
+                   "less CPU); 1: a process per robot. results.csv says which.")
 @click.option("--until-ci", "until", multiple=True, metavar="METRIC:HALF_WIDTH",
               callback=_targets,
               help="Add seeds in blocks until the 95 % bootstrap interval of METRIC (a "
@@ -168,9 +172,9 @@ def experiment() -> None:
 @report_options
 def run(file: Path, output: Path, jobs: int | None, scheduler: str | None,
         backend: str | None, partition: str | None, array_size: int | None,
-        time_limit: int | None, max_runs: int, until: dict[str, float], block: int,
-        shard: Shard | None, baseline: str | None, metrics: tuple[str, ...] | None,
-        plots: bool) -> None:
+        time_limit: int | None, max_runs: int, agents_per_process: int | None,
+        until: dict[str, float], block: int, shard: Shard | None, baseline: str | None,
+        metrics: tuple[str, ...] | None, plots: bool) -> None:
     """Run the matrix of FILE (seeds × failures × parameter overrides) and summarise it; on a
     folder holding an interrupted run of FILE, run only the runs it lacks."""
     slurm = _slurm_options(backend, scheduler, partition, array_size, time_limit)
@@ -178,6 +182,7 @@ def run(file: Path, output: Path, jobs: int | None, scheduler: str | None,
         rows = run_experiment(file=file, output=output, jobs=jobs, stop=stop, progress=progress,
                               scheduler=scheduler, max_runs=max_runs, until=until or None,
                               block=block, plots=plots, shard=shard, slurm=slurm,
+                              agents_per_process=agents_per_process,
                               report=Options(baseline=baseline, metrics=metrics))
     failed = sum(r["status"] != "ok" for r in rows)
     click.echo(f"{plural(len(rows), 'run')} ({failed} failed): {output / 'results.csv'}, "

@@ -56,6 +56,11 @@ from .experiment_instances import count as instance_count
 from .results import measure_problem
 
 
+# an experiment's runs put their robots' agents this many per process unless the file says
+# otherwise: a team up to this size in one host, a larger one spread over its hosts' cores
+AGENTS_PER_PROCESS = 10
+
+
 class ExperimentSpec(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
     """The experiment file as written."""
 
@@ -68,6 +73,9 @@ class ExperimentSpec(msgspec.Struct, forbid_unknown_fields=True, kw_only=True):
     architectures: list[str] | None = None
     instances: InstancesSpec | None = None
     robots: list[int] | int | None = None   # the team size the file was written for (checked)
+    # robots' agents per process (agent hosts): the same rows as one process per robot, for a
+    # fraction of the CPU; 1 when a study is about process deaths as such
+    agents_per_process: int = AGENTS_PER_PROCESS
 
 
 FIELDS = tuple(f.encode_name for f in msgspec.structs.fields(ExperimentSpec))
@@ -78,7 +86,8 @@ SHAPE = {"application": "a name", "architecture": "a name (mrta arch list)",
          "seeds": "a non-empty list, or N (seeds 1 to N)",
          "failures": "a non-empty list", "robots": "a number, or a non-empty list",
          "instances": "a mapping: generator: with robots:, or files:",
-         "overrides": "a mapping of PARAMETER_FILE_GLOB.KEY.PATH to lists"}
+         "overrides": "a mapping of PARAMETER_FILE_GLOB.KEY.PATH to lists",
+         "agents_per_process": "a whole number of robots' agents per process, at least 1"}
 ITEM = {"seeds": "int", "failures": "str", "robots": "int", "architectures": "str"}
 
 
@@ -110,6 +119,7 @@ class Run:
     overrides: tuple[tuple[str, Any], ...]
     architecture: str | None = None
     instance: Instance | None = None
+    agents_per_process: int = 1  # how its robots' agents run (mrta demo --agents-per-process)
 
     @property
     def cell(self) -> Cell:
@@ -178,7 +188,8 @@ class Experiment:
         seeds = self.spec.seeds if seeds is None else seeds
         combos = [(cell, inst, seed) for cell in self.cells()
                   for inst in self.instances_of(cell, instances) for seed in seeds]
-        return [Run(first + i, seed, cell.failure, cell.overrides, cell.architecture, inst)
+        return [Run(first + i, seed, cell.failure, cell.overrides, cell.architecture, inst,
+                    self.spec.agents_per_process)
                 for i, (cell, inst, seed) in enumerate(combos)]
 
     def instance_count(self) -> int:
@@ -315,6 +326,9 @@ def check(doc: YamlDoc, spec: ExperimentSpec, base: Path) -> None:
     problem = RUN_DURATION.problem(spec.duration)  # 1e308 is finite, and never ends
     if problem:
         raise doc.error(("duration",), f"duration (simulated seconds) {problem}")
+    if spec.agents_per_process < 1:
+        raise doc.error(("agents_per_process",), f"agents_per_process must be "
+                        f"{SHAPE['agents_per_process']}, got {spec.agents_per_process}")
     for key, problem_of in (("seeds", SEED.problem), ("failures", _failure_problem),
                             ("robots", None), ("architectures", _name_problem)):
         values = getattr(spec, key)

@@ -59,7 +59,8 @@ def demo_args(package: str, duration: float, run: Run, out: Path, plots: bool = 
     packages the run derives from it (`--override`: overrides.py)."""
     return (["-q", "demo", "--application", package, "--duration", str(duration), "--speed",
              "0", "--fail", run.failure, "--seed", str(run.seed), "--output", str(out),
-             "--no-live"] + ([] if plots else ["--no-plots"])
+             "--no-live", "--agents-per-process", str(run.agents_per_process)]
+            + ([] if plots else ["--no-plots"])
             + ([] if instance is None else ["--instance", str(instance)]
                + [a for k, v in run.overrides for a in ("--override", override_text(k, v))]))
 
@@ -107,6 +108,7 @@ def row_for(run: Run, out: Path, wall: float, error: str = "",
         row.update({"instance": run.instance.name, "n_robots": run.instance.n_robots,
                     "n_tasks": run.instance.n_tasks})
     row["failure"] = run.failure
+    row["agents_per_process"] = run.agents_per_process
     row.update({k: v for k, v in run.overrides})
     row.update({"status": "failed" if error else "ok", "error": error,
                 "wall_seconds": round(wall, 2)})

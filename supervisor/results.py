@@ -34,8 +34,9 @@ from mrta_zenoh.yamlfile import did_you_mean
 
 log = logging.getLogger("mrta.experiment")
 
+# `agents_per_process`: how the run's agents were hosted, which changes no result (agent hosts)
 BOOKKEEPING = ("run", "config", "seed", "status", "error", "wall_seconds", "taken_over_by",
-               "failed_robot")
+               "failed_robot", "agents_per_process")
 MEASURES = ("takeover_seconds", "first_full_allocation", "messages", "messages_per_second",
             "coordination_messages_per_second", "namespace_messages_per_second", "ended_at",
             "decisions", "decision_ms_median", "decision_ms_max")
