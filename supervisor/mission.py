@@ -477,8 +477,9 @@ def _run_in(run: MissionRun, faults: Faults, reg: Registry,
         # the crashed subjects: those named (robots, the architecture's processes) and, for an
         # @first crash, the robot that crashed itself
         targets = roles.crash_targets(faults, {r: struck(r) for r in agents})
-        disturbances = watch.disturbances(lambda p: p in targets and struck(p), set(named))
-        strangers = watch.strangers(set(named))
+        ours = set(named) | set(hosted.values())  # the run's processes, its hosts among them
+        disturbances = watch.disturbances(lambda p: p in targets and struck(p), ours)
+        strangers = watch.strangers(ours)
         crashed = group.failed(ignore=own_process(targets))
         if crashed:
             raise MrtaRuntimeError("; ".join(f"{c.name} {c.describe_exit()}"
