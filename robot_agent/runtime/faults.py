@@ -32,7 +32,7 @@ from typing import Callable
 
 from mrta_zenoh import keys
 from mrta_zenoh.bus import Bus, Sample
-from mrta_zenoh.clock import Clock
+from mrta_zenoh.clock import EPSILON, Clock
 from mrta_zenoh.failure import FaultKind, FaultPlan
 from mrta_zenoh.fault_roles import EVERY_ASSIGNED, Assigned, assigned_key, first_assigned
 from mrta_zenoh.fault_tally import TALLY_PERIOD, Cause, FaultTally, tally_key
@@ -42,6 +42,7 @@ from mrta_zenoh.messages import Header, Odometry
 from .inbox import is_due
 
 MAX_ASSIGNED = 1_000  # robots whose first assignment is tracked: invented ids beyond are ignored
+TRUTHS_KEPT = 32  # ground truths kept per robot (range:R): a message is judged at its own stamp
 
 
 class FaultInjector:
@@ -68,7 +69,8 @@ class FaultInjector:
         # under _lock) and whether this robot announced its own
         self._assigned: dict[str, float] = {}
         self._announced = False
-        self._where: dict[str, tuple[float, float]] = {}  # robot → its ground truth (range:R)
+        # robot → its last ground truths (stamp, x, y), oldest first (range:R, `_pose_at`)
+        self._where: dict[str, collections.deque[tuple[float, float, float]]] = {}
 
     def give(self, plan: FaultPlan | None) -> None:
         """The run's plan for this agent (mrta_zenoh.failure.plan_for), before `listen`."""
@@ -108,8 +110,32 @@ class FaultInjector:
 
     def _on_truth(self, sample: Sample) -> None:
         """A robot's ground truth, for the range fault (failure.py, `range:R`)."""
-        pose = sample.message.pose
-        self._where[first_chunk(sample.key)] = (pose.x, pose.y)
+        msg = sample.message
+        robot = first_chunk(sample.key)
+        poses = self._where.get(robot)
+        if poses is None:
+            if len(self._where) >= MAX_ASSIGNED:  # invented robots beyond: ignored
+                return
+            poses = self._where[robot] = collections.deque(maxlen=TRUTHS_KEPT)
+        poses.append((msg.header.stamp, msg.pose.x, msg.pose.y))
+
+    def _pose_at(self, robot: str, t: float) -> tuple[float, float] | None:
+        """Where `robot` was at `t` (its latest ground truth stamped no later; the latest of
+        all out of lockstep). Not simply the latest in lockstep: a message is judged on the
+        network thread that delivers it, and the next step's ground truth may come in before
+        it (the simulator's link is not the sender's; in an agent host, the host's own
+        delivery may lag its answer to the step) — the range would then depend on the
+        network's timing, where lockstep makes everything else depend on the seed alone."""
+        poses = self._where.get(robot)
+        if not poses:
+            return None
+        best = None
+        for stamp, x, y in list(poses):
+            if stamp <= t + EPSILON or best is None:
+                best = (x, y)
+            if stamp > t + EPSILON:
+                break
+        return best
 
     # ------------------------------------------------------------ on receipt (network threads)
     def on_receipt(self, key: str, seq: int, sender: str, heard: float) -> float | None:
@@ -121,10 +147,11 @@ class FaultInjector:
             return heard
         if plan.lost(key, seq):
             return self._drop(heard, Cause.LOST)
+        at = heard if self.clock.in_lockstep() else math.inf  # where both were when it was said
         heard += plan.delay(key, seq)
         if plan.cut_off(heard):
             return self._drop(heard, Cause.CUT_OFF)
-        if plan.out_of_range(self._where.get(self.robot_id), self._where.get(sender)):
+        if plan.out_of_range(self._pose_at(self.robot_id, at), self._pose_at(sender, at)):
             return self._drop(heard, Cause.OUT_OF_RANGE)
         return heard
 
