@@ -66,7 +66,7 @@ def test_an_instance_run_gets_the_folder_beside_its_instance(tmp_path, monkeypat
         name, path = "delivery", tmp_path
 
     class Run:
-        index, overrides, failure, seed, instance = 0, (), "none", 1, None
+        index, overrides, failure, seed, instance, agents_per_process = 0, (), "none", 1, None, 1
 
     monkeypatch.delenv(REFERENCE_CACHE_ENV, raising=False)
     group = Group()
