@@ -203,7 +203,7 @@ def struct_decoder(cls: type[Message]) -> Callable[[bytes], Any]:
     once crash the process (a segfault; Zenoh delivers samples on several threads, and a
     100-agent swarm hit it when many robots' first logs arrived together). Reproduced with 8
     threads making Decoder(cls) of a fresh Struct: 3 crashes in 3 runs, none with the lock
-    (tests/test_codec_threads.py)."""
+    (tests/process/test_codec_threads.py)."""
     dec = _decoders.get(cls)
     if dec is None:
         with _decoders_lock:

@@ -70,7 +70,7 @@ def message_schema(cls: type) -> bytes:
     msgspec builds the class's type information to write its schema (a Decoder of it), and two
     threads building one type's at once crash the process: a recorder's writer thread asking
     for a channel's schema while Zenoh's threads decode the same types' first samples killed
-    `mrta record` with SIGSEGV (tests/test_recorder_crash.py). So the class's decoder is built
+    `mrta record` with SIGSEGV (tests/process/test_recorder_crash.py). So the class's decoder is built
     first, the codec's way, and the schema under the codec's lock."""
     codec.struct_decoder(cls)
     with codec.TYPE_INFO_LOCK:

@@ -3,7 +3,7 @@
 Registered under the `mrta.secure.roles` entry points, so the keys the simulator publishes and
 the tokens it holds are stated here, beside the code that uses them, and the core's access-control
 generator never has to know a simulator's topics. A key the simulator starts publishing must be
-added here, or a secured router will silently drop it (tests/test_secure_fleet.py runs the
+added here, or a secured router will silently drop it (tests/process/test_secure_fleet.py runs the
 lockstep mission through a secured router and compares it with an open one).
 """
 

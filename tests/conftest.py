@@ -9,7 +9,7 @@ import subprocess
 
 import pytest
 
-from tests.helpers import REFERENCE, Children, Tokens
+from tests.harness.helpers import REFERENCE, Children, Tokens
 
 
 class UnmarkedMultiprocess(BaseException):
@@ -78,7 +78,7 @@ def children():
 
 @pytest.fixture
 def tokens(children):
-    """Liveliness tokens on the children's bus (tests.helpers.Tokens): readiness, not log lines."""
+    """Liveliness tokens on the children's bus (tests.harness.helpers.Tokens): readiness, not log lines."""
     t = Tokens(children.rendezvous)
     try:
         yield t

@@ -18,7 +18,7 @@ from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.clock import Clock, ManualClock, SimClock, WallClock
 from mrta_zenoh.lockstep.participant import LockstepClock
 from mrta_zenoh.messages import Header, Odometry, Pose2D, Twist
-from tests.helpers import ROOT
+from tests.harness.helpers import ROOT
 from tests.test_murdoch_subjects import _RecordingBus
 
 

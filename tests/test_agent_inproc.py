@@ -12,7 +12,7 @@ from mrta_agent.alliance.messages import InterRobotCommunication
 from mrta_agent.alliance.architecture import ALLIANCE
 from mrta_agent.runtime.host import AgentOptions
 from mrta_agent.runtime.plugins import Layer
-from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
+from tests.harness.alliance_fixtures import robot_yaml, tasks_yaml, write
 
 
 class DriveLayer(Layer):

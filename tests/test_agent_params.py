@@ -5,7 +5,7 @@ from click.testing import CliRunner
 from mrta_zenoh.cli.main import cli
 from mrta_zenoh.errors import ConfigError
 from mrta_agent.alliance.params import load_agent_params
-from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
+from tests.harness.alliance_fixtures import robot_yaml, tasks_yaml, write
 
 
 def test_all_reference_files_load_unchanged(reference):

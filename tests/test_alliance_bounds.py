@@ -26,8 +26,8 @@ from mrta_zenoh.clock import ManualClock
 from mrta_zenoh.codec import encode, encoding_for
 from mrta_zenoh.failure import parse_faults, plan_for
 from mrta_zenoh.messages import Header
-from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
-from tests.alliance_team import Network, Spec, Team
+from tests.harness.alliance_fixtures import robot_yaml, tasks_yaml, write
+from tests.harness.alliance_team import Network, Spec, Team
 
 EXAMPLES = int(os.environ.get("MRTA_PROPERTY_EXAMPLES", "30"))  # more on demand
 # ρ=10 Hz, τ=3, θ=21, δ_fast=1.5 → 14 ticks: bound 3 + (14 + 1)/10 = 4.5 s

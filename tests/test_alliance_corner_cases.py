@@ -17,9 +17,9 @@ from mrta_agent.murdoch.auction import Murdoch
 from mrta_agent.murdoch.messages import Bid, Claim, Release
 from mrta_agent.runtime import loop
 from mrta_zenoh.messages import Header
-from tests.alliance_fixtures import bset, robot, robot_yaml, write
-from tests.alliance_team import Network, Spec, Team
-from tests.murdoch_team import robot_doc, tasks_doc
+from tests.harness.alliance_fixtures import bset, robot, robot_yaml, write
+from tests.harness.alliance_team import Network, Spec, Team
+from tests.harness.murdoch_team import robot_doc, tasks_doc
 
 
 def tick(hl: HighLevel, now: float, heard=()):

@@ -6,7 +6,7 @@ import math
 import pytest
 
 from mrta_agent.alliance.high_level import HighLevel
-from tests.alliance_fixtures import bset, robot
+from tests.harness.alliance_fixtures import bset, robot
 
 
 def run(hl, t0, ticks, applicable=True, others=(), spin=1.0):

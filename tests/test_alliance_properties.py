@@ -1,4 +1,4 @@
-"""ALLIANCE's guarantees as properties, on virtual time (tests/alliance_team.py): random valid
+"""ALLIANCE's guarantees as properties, on virtual time (tests/harness/alliance_team.py): random valid
 parameters, random start phases (or identical robots in phase), latency, jitter up to half the
 broadcast period, loss, deaths and partitions. Each invariant carries its bound.
 
@@ -16,7 +16,7 @@ import os
 import pytest
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from tests.alliance_team import Network, Spec, Team
+from tests.harness.alliance_team import Network, Spec, Team
 
 pytestmark = pytest.mark.slow  # 20 s of CPU at these example counts: not in the fast tier
 

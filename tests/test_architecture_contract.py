@@ -29,7 +29,7 @@ from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.clock import ManualClock
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.messages import Header
-from tests.helpers import ROOT
+from tests.harness.helpers import ROOT
 
 PLUGINS = ROOT / "tests" / "data" / "plugins"
 PATROL_FIXED = PLUGINS / "patrol_fixed" / "config"
@@ -290,7 +290,7 @@ def test_the_motivation_sample_where_a_robot_starts_or_stops_a_task_is_not_lossy
     """Motivations are monitoring (lossy: a stopped observer must not stall a robot), but the
     ground truth reads who does what from them: the sample where `active` changes must reach
     the recorder even when it falls behind, or a takeover is measured a tick late."""
-    from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
+    from tests.harness.alliance_fixtures import robot_yaml, tasks_yaml, write
     from tests.test_agent_inproc import feed
     rf = write(tmp_path / "r.yaml", robot_yaml([{"task": "a", "fast": 50.0}], spin=10.0,
                                                 broadcast=5.0, tau=1.0))

@@ -1,7 +1,7 @@
 """SSI and CBBA believe a message only for what its sender can claim (issue 51; the module
 docstrings of mrta_agent.ssi.auction and mrta_agent.cbba.bundle, docs/security.md): each rule
 forges the message the hostile probe sent — once, on a team of real logics exchanging real
-messages in virtual time (tests/logic_team.py) — and checks that the team still allocates every
+messages in virtual time (tests/harness/logic_team.py) — and checks that the team still allocates every
 task, and that the forgery was counted."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from mrta_agent.ssi.auction import (CANNOT_SERVE, NEGATIVE_COST, NOT_HELD, ROUND
 from mrta_agent.ssi.messages import MESSAGES as SSI_MESSAGES, OPEN, Bid, Round
 from mrta_zenoh.messages import Header
 from mrta_zenoh.planning import Problem, Robot, Task
-from tests.logic_team import LogicTeam
+from tests.harness.logic_team import LogicTeam
 
 LINE = Problem((Robot("r1", (0.0, 0.0), 1.0), Robot("r2", (5.0, 0.0), 1.0),
                 Robot("r3", (10.0, 0.0), 1.0, frozenset({"lift"}))),

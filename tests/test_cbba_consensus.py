@@ -3,7 +3,7 @@ IEEE T-RO 25(4), 2009): in synchronous rounds (mrta_agent.cbba.synchronous, the 
 paper's theorem) a team converges to the sequential greedy algorithm's assignment and paths —
 on a full graph and on connected ones, within N_min · D rounds — and scores at least half the
 exact optimum. The greedy algorithm, the score and the optimum are restated from their
-definitions in tests/cbba_reference.py; nothing of mrta_zenoh.planning.insertion computes what
+definitions in tests/harness/cbba_reference.py; nothing of mrta_zenoh.planning.insertion computes what
 is checked."""
 
 from __future__ import annotations
@@ -21,7 +21,7 @@ from mrta_agent.cbba.synchronous import run_rounds
 from mrta_agent.cbba.table import NONE
 from mrta_zenoh.messages import Header
 from mrta_zenoh.planning import Problem, Robot, Task
-from tests.cbba_reference import LAMBDA, greedy, marginal, optimum, random_instance, score
+from tests.harness.cbba_reference import LAMBDA, greedy, marginal, optimum, random_instance, score
 
 
 # ------------------------------------------------------------------ teams

@@ -1,7 +1,7 @@
 """CBBA in execution (robot_agent/cbba/agent.py): a team of CbbaCoordinators on the in-process
-exchange and a manual clock (tests/route_team.py) serving instances to completion; the served
+exchange and a manual clock (tests/harness/route_team.py) serving instances to completion; the served
 orders checked against the sequential greedy assignment restated from its definition
-(tests/cbba_reference.greedy), which converged CBBA equals (docs/cbba.md)."""
+(tests/harness/cbba_reference.greedy), which converged CBBA equals (docs/cbba.md)."""
 
 from __future__ import annotations
 
@@ -14,8 +14,8 @@ from mrta_agent.cbba.agent import CbbaCoordinator
 from mrta_agent.cbba.architecture import CBBA
 from mrta_agent.cbba.params import CbbaKeys
 
-from tests.cbba_reference import greedy
-from tests.route_team import RouteTeam, params_for
+from tests.harness.cbba_reference import greedy
+from tests.harness.route_team import RouteTeam, params_for
 
 
 def instance(seed: int, n: int = 3, m: int = 6) -> Problem:

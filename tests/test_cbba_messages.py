@@ -1,7 +1,7 @@
 """CBBA on the bus: its message on the wire (small, strict), what a robot does with a malformed,
 late or out-of-range message, served tasks, moving its origin, and a team ticking
-asynchronously in virtual time (tests/logic_team.py) under message loss, which still ends as the
-sequential greedy assignment (tests/cbba_reference.py)."""
+asynchronously in virtual time (tests/harness/logic_team.py) under message loss, which still ends as the
+sequential greedy assignment (tests/harness/cbba_reference.py)."""
 
 from __future__ import annotations
 
@@ -18,8 +18,8 @@ from mrta_zenoh.instances import DIGEST_LENGTH
 from mrta_zenoh.messages import Header
 from mrta_zenoh.planning import Problem, Robot, Task
 from mrta_zenoh.planning.insertion import Origin
-from tests.cbba_reference import greedy, random_instance
-from tests.logic_team import LogicTeam
+from tests.harness.cbba_reference import greedy, random_instance
+from tests.harness.logic_team import LogicTeam
 
 
 def two_robots(gap: float = 10.0) -> Problem:

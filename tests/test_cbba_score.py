@@ -1,5 +1,5 @@
 """The discounted score CBBA bids (mrta_zenoh.planning.insertion) against its definition
-restated in tests/cbba_reference.py, and against schedule.route_visits' timing: marginal scores
+restated in tests/harness/cbba_reference.py, and against schedule.route_visits' timing: marginal scores
 at the best place (arrivals, waits, service times, rewards, distance matrices with and without
 the triangle inequality), their least over a bundle's stages, and the sequential greedy
 algorithm."""
@@ -14,7 +14,7 @@ import pytest
 from mrta_zenoh.planning import Problem, Robot, Task, route_visits
 from mrta_zenoh.planning.insertion import (DiscountedRoute, Origin, discounted_value,
                                            prefix_scores, ranks, sequential_greedy, starts)
-from tests.cbba_reference import LAMBDA, TIE, greedy, marginal, random_instance, score
+from tests.harness.cbba_reference import LAMBDA, TIE, greedy, marginal, random_instance, score
 
 
 def routed(rng: random.Random, twisted: bool = False) -> tuple[Problem, list[int], int]:

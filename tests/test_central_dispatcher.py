@@ -1,4 +1,4 @@
-"""central on virtual time (tests/central_team.py: the real dispatcher and robot logic in the real
+"""central on virtual time (tests/harness/central_team.py: the real dispatcher and robot logic in the real
 agent driver, on the in-process bus and a manual clock, kinematic robots): the executed routes
 are the optimum (computed here by brute force, timing re-implemented), a crashed or stalled
 robot's tasks go to the others, the dispatcher's crash leaves robots finishing their queues,
@@ -20,7 +20,7 @@ from mrta_agent.central.params import DispatcherParams
 from mrta_zenoh.failure import FaultPlan
 from mrta_zenoh.messages import Header
 from mrta_zenoh.planning import Problem, Robot, Task
-from tests.central_team import Team
+from tests.harness.central_team import Team
 
 
 # ------------------------------------------------------------------ the definitions, restated

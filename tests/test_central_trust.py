@@ -17,7 +17,7 @@ from mrta_agent.central.params import DispatcherParams
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.messages import Header
 from mrta_zenoh.planning import Problem, Robot, Task
-from tests.central_team import Body, Team, robot_params
+from tests.harness.central_team import Body, Team, robot_params
 
 SQUARE = Problem(
     (Robot("robot1", (0.0, 0.0), 0.5), Robot("robot2", (10.0, 0.0), 0.5)),

@@ -15,7 +15,7 @@ from mrta_zenoh.cli.main import cli
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.files import check_writable
 from mrta_zenoh.seeds import seed_sequence
-from tests.helpers import PATROL, free_port
+from tests.harness.helpers import PATROL, free_port
 
 CONFIG = PATROL / "config"
 AGENT = ["agent", "robot1", "--robot-params", CONFIG / "robot1_alliance_params.yaml",

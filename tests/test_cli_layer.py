@@ -22,7 +22,7 @@ from mrta_zenoh.cli.main import RootGroup, cli, run
 from mrta_zenoh.errors import ConfigError, Interrupted, MrtaError, MrtaRuntimeError
 from mrta_zenoh.fieldpath import FieldPathError
 from mrta_zenoh.keys import KeyExprError
-from tests.helpers import ROOT, free_port
+from tests.harness.helpers import ROOT, free_port
 
 # Where the framework's and the shipped applications' code lives.
 SOURCES = [ROOT / "mrta_zenoh", ROOT / "robot_agent", ROOT / "simulator", ROOT / "supervisor",

@@ -23,8 +23,8 @@ from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.clock import ManualClock
 from mrta_zenoh.messages import Twist
 from mrta_zenoh.timetext import at
-from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
-from tests.helpers import free_port
+from tests.harness.alliance_fixtures import robot_yaml, tasks_yaml, write
+from tests.harness.helpers import free_port
 from tests.test_agent_inproc import step
 
 WALL = 1_795_715_420.53  # a wall-clock stamp: 2026-11-26

@@ -15,7 +15,7 @@ import pytest
 
 from mrta_zenoh.errors import ConfigError
 from mrta_supervisor.experiment_file import load_experiment
-from tests.helpers import ROOT
+from tests.harness.helpers import ROOT
 
 TAKEOVER = {"alliance": [3.05, 3.10, 3.05], "murdoch": [2.30, 2.30, 2.30]}
 

@@ -7,8 +7,8 @@ import pytest
 from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
-from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
-from tests.helpers import free_port
+from tests.harness.alliance_fixtures import robot_yaml, tasks_yaml, write
+from tests.harness.helpers import free_port
 
 def run(*args):
     """The command in-process; every case must fail before a bus opens (a private rendezvous
@@ -115,7 +115,7 @@ def test_finite_but_absurd_behaviour_set_values(tmp_path, field, value, what):
 
 def test_the_documented_ranges_are_the_ones_enforced():
     from mrta_zenoh.limits import ranges_table
-    from tests.helpers import ROOT
+    from tests.harness.helpers import ROOT
 
     assert ranges_table() in (ROOT / "docs" / "toolchain.md").read_text()
 

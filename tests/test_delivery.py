@@ -26,8 +26,8 @@ from mrta_zenoh.clock import ManualClock
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.messages import Header, Odometry, Pose2D, Twist
 from mrta_zenoh.planning.assignment import ia_costs
-from tests.helpers import CONFIGS
-from tests.layer_harness import LayerRun
+from tests.harness.helpers import CONFIGS
+from tests.harness.layer_harness import LayerRun
 
 PKG = CONFIGS / "applications" / "delivery"
 PARAMS = load_instance()
@@ -89,7 +89,7 @@ def test_a_robot_that_delivered_serves_another_task_up_to_the_instances_cap():
 
 
 def test_deliver_drives_to_its_task_serves_it_and_tells_the_team(monkeypatch):
-    import tests.layer_harness as harness
+    import tests.harness.layer_harness as harness
     monkeypatch.setattr(harness, "typed_sections",
                         lambda *classes: {("Delivery", DeliveryParams): DeliveryParams()})
     world = load_world(PKG / "worlds" / "delivery.yaml")

@@ -1,5 +1,5 @@
 """A delivery robot drives the path its cost model prices: around a wall between its start and
-its task, in the simulator stepped in-process (tests/layer_harness.py), never closer to the wall
+its task, in the simulator stepped in-process (tests/harness/layer_harness.py), never closer to the wall
 than its margin, reaching the task in about the path's length over its speed — and the wall
 is a real one: the straight line crosses it."""
 
@@ -19,7 +19,7 @@ from mrta_simulator.robot_model import RobotModel
 from mrta_simulator.world import Pose, load_world
 from mrta_zenoh.bus.inproc import InProcBus
 from mrta_zenoh.planning.geometry import ROBOT_RADIUS, segment_distance
-from tests.layer_harness import LayerRun
+from tests.harness.layer_harness import LayerRun
 
 WALL = (0.0, -2.5, 0.0, 1.5)   # between the start and the task, open above
 PARAMS = InstanceBody(
@@ -36,7 +36,7 @@ def point_wall(p) -> float:
 
 
 def test_a_robot_drives_around_a_wall_to_a_task_behind_it(tmp_path, monkeypatch):
-    import tests.layer_harness as harness
+    import tests.harness.layer_harness as harness
     monkeypatch.setattr(harness, "typed_sections",
                         lambda *classes: {("Delivery", DeliveryParams): DeliveryParams()})
     assert RobotModel().radius == pytest.approx(ROBOT_RADIUS)  # the margin is for this robot

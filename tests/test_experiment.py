@@ -10,7 +10,7 @@ from click.testing import CliRunner
 from mrta_zenoh.cli.main import cli
 from mrta_supervisor.experiment import load_experiment
 from mrta_supervisor.stats import mean_ci
-from tests.helpers import kill_descendant
+from tests.harness.helpers import kill_descendant
 
 
 @pytest.mark.multiprocess
@@ -299,7 +299,7 @@ def test_an_unreachable_scheduler_is_a_runtime_error(tmp_path):
     from mrta_zenoh.errors import MrtaRuntimeError
     from mrta_supervisor.experiment import Results
     from mrta_supervisor.experiment_dask import run_on_cluster
-    from tests.helpers import free_port
+    from tests.harness.helpers import free_port
 
     pytest.importorskip("distributed")
     address = f"tcp://127.0.0.1:{free_port()}"  # nothing listens there

@@ -235,7 +235,7 @@ def test_the_backends_share_the_run_helpers_without_an_import_circle():
     """The Dask backend imports the run helpers, not the module that imports it."""
     import ast
 
-    from tests.helpers import ROOT
+    from tests.harness.helpers import ROOT
 
     def imports(name: str) -> set[str]:
         tree = ast.parse((ROOT / "supervisor" / f"{name}.py").read_text())

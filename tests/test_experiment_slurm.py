@@ -24,7 +24,7 @@ from click.testing import CliRunner
 from mrta_zenoh.cli.main import cli
 from mrta_supervisor import experiment_slurm
 from mrta_supervisor.results import MACHINE_TIME
-from tests.helpers import free_port
+from tests.harness.helpers import free_port
 
 MATRIX = "application: patrol\nduration: 10\nseeds: [1, 2, 3]\nfailures: [robot2@5]\n"
 DAEMONS = ("munged", "slurmctld", "slurmd", "sbatch", "scontrol", "squeue", "srun")

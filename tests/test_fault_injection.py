@@ -22,7 +22,7 @@ from mrta_zenoh.failure import (FAULTS_ENV, SYNTAX, Failure, FaultKind, FaultPla
                                 plan_from_env)
 from mrta_zenoh.fault_tally import TALLY_PERIOD, Cause, tally_key
 from mrta_zenoh.messages import Header, Odometry, PointCloud, Pose2D, Twist
-from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
+from tests.harness.alliance_fixtures import robot_yaml, tasks_yaml, write
 
 IRC = "inter_robot_communication"
 

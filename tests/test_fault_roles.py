@@ -24,7 +24,7 @@ from mrta_zenoh.fault_roles import Assigned, assigned_key, draw_random, first_as
 from mrta_zenoh.fault_tally import Cause
 from mrta_zenoh.messages import Header, Odometry, PointCloud, Pose2D, Twist
 from mrta_supervisor import roles
-from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
+from tests.harness.alliance_fixtures import robot_yaml, tasks_yaml, write
 
 
 # ------------------------------------------------------------------ the grammar

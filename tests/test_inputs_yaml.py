@@ -22,8 +22,8 @@ from mrta_supervisor.experiment import load_experiment
 from mrta_zenoh.cli.main import cli
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.yamlfile import MAX_BYTES, load_yaml
-from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
-from tests.helpers import free_port
+from tests.harness.alliance_fixtures import robot_yaml, tasks_yaml, write
+from tests.harness.helpers import free_port
 
 # (name, the text, the line the error names, a fragment of its message)
 HOSTILE = [

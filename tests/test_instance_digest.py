@@ -18,7 +18,7 @@ from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.clock import ManualClock
 from mrta_zenoh.messages import IndexedMessage
 from mrta_zenoh.refusal_tally import OTHER_INSTANCE
-from tests.helpers import CONFIGS
+from tests.harness.helpers import CONFIGS
 
 APPS = CONFIGS / "applications"
 

@@ -15,7 +15,7 @@ import mrta_zenoh.yamlfile as yamlfile
 from mrta_agent.runtime.host import AgentOptions
 from mrta_zenoh.architectures import architecture
 from mrta_zenoh.errors import ConfigError
-from tests.helpers import CONFIGS
+from tests.harness.helpers import CONFIGS
 
 APPS = CONFIGS / "applications"
 PACKAGES = {"alliance": "delivery", "murdoch": "delivery_murdoch",

@@ -13,7 +13,7 @@ from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.toolchain.launchfile import (MAX_DEPTH, MAX_INCLUDES, MAX_NODES, MAX_TEXT,
                                              LaunchEvaluator, check_executables)
 from mrta_zenoh.keys import matches
-from tests.helpers import REFERENCE
+from tests.harness.helpers import REFERENCE
 
 
 def write(tmp_path, text, name="x.launch"):
@@ -170,7 +170,7 @@ AGENT = ('<node name="agent" pkg="robot_agent" type="agent" ns="robot1" args="ro
 
 
 def agent_node() -> str:
-    from tests.helpers import PATROL
+    from tests.harness.helpers import PATROL
     return AGENT.format(c=PATROL / "config")
 
 

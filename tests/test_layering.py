@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.helpers import ROOT
+from tests.harness.helpers import ROOT
 
 PACKAGES = {
     "mrta_zenoh": ROOT / "mrta_zenoh",

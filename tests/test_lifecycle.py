@@ -8,7 +8,7 @@ import pytest
 
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.lifecycle import Closing
-from tests.helpers import ROOT
+from tests.harness.helpers import ROOT
 
 SOURCES = [ROOT / "mrta_zenoh", ROOT / "robot_agent", ROOT / "simulator", ROOT / "supervisor",
            ROOT / "configs", ROOT / "examples", ROOT / "tests", ROOT / "benchmarks"]

@@ -23,12 +23,12 @@ from mrta_zenoh.messages import Twist
 from mrta_supervisor import experiment
 from mrta_supervisor.mission import lockstep_trouble
 from mrta_supervisor.summary import MessageRates, Summary, write_summary
-from tests import helpers
-from tests.helpers import Wall
+from tests.harness import helpers
+from tests.harness.helpers import Wall
 
 
 def wait_for(cond):
-    """tests.helpers.wait_for with room for a loaded machine's thread scheduling."""
+    """tests.harness.helpers.wait_for with room for a loaded machine's thread scheduling."""
     helpers.wait_for(cond, timeout=20.0, poll=0.005)
 
 

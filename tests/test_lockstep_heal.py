@@ -1,7 +1,7 @@
 """Lockstep heals from any single forged sample: each forgery a hostile probe sent on
 an open bus, on the in-process bus with a hand-moved wall clock, so a bound in wall seconds is
 checked by how far the wall clock had to be moved — not by how long the machine took.
-tests/test_lockstep_attacks.py replays them with processes."""
+tests/process/test_lockstep_attacks.py replays them with processes."""
 
 import threading
 
@@ -12,7 +12,7 @@ from mrta_zenoh.lockstep.protocol import (DONE, FORGIVE_WINDOW, PARTICIPANT, REP
                                           Step, StepDone, count_wait)
 from mrta_zenoh.lockstep.table import Claims, KeyTable
 from mrta_zenoh.messages import Twist
-from tests.helpers import wait_for
+from tests.harness.helpers import wait_for
 from tests.test_lockstep_trust import Fleet
 
 
@@ -95,7 +95,7 @@ def test_while_every_participant_is_given_up_the_whole_table_still_goes_out():
     resend promised every REPORT_AFTER never came."""
     from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
     from mrta_zenoh.lockstep.barrier import Barrier
-    from tests.helpers import Wall
+    from tests.harness.helpers import Wall
 
     net, wall, stop = InProcNetwork(), Wall(), threading.Event()
     barrier = Barrier(InProcBus(net), "run1-x1", 2.5, wall=wall)
@@ -215,7 +215,7 @@ def test_a_participant_may_claim_only_under_its_own_name():
 def test_books_forgive_a_claimant_at_once_within_its_window():
     """The participant's side of the window: its books, for the claims a step carries."""
     from mrta_zenoh.bus.inproc import InProcBus
-    from tests.helpers import Wall
+    from tests.harness.helpers import Wall
 
     wall = Wall()
     with InProcBus() as bus:

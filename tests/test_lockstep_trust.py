@@ -1,6 +1,6 @@
 """Lockstep and the clock trust only their source: the pure logic on the
 in-process bus, with a hand-moved wall clock. Each test is one attack or fault an independent
-probe measured on a real fleet; tests/test_lockstep_attacks.py replays them with processes."""
+probe measured on a real fleet; tests/process/test_lockstep_attacks.py replays them with processes."""
 
 import threading
 import time
@@ -16,7 +16,7 @@ from mrta_zenoh.lockstep.barrier import Barrier
 from mrta_zenoh.lockstep.participant import LockstepClock
 from mrta_zenoh.lockstep.protocol import DONE, NEXT_HORIZON, STEP, Step, StepDone, count_wait
 from mrta_zenoh.messages import Twist
-from tests.helpers import Wall, claiming_step, wait_for
+from tests.harness.helpers import Wall, claiming_step, wait_for
 
 
 

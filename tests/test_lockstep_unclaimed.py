@@ -13,7 +13,7 @@ from mrta_zenoh.clock import ManualClock
 from mrta_zenoh.messages import Header
 from mrta_zenoh.lockstep.participant import LockstepClock
 from mrta_zenoh.lockstep.protocol import StepDone
-from tests.alliance_team import IRC, TASK, Spec, make_agent
+from tests.harness.alliance_team import IRC, TASK, Spec, make_agent
 
 
 def test_a_bus_claims_what_it_sent_less_the_keys_left_unclaimed():

@@ -1,5 +1,5 @@
 """MURDOCH's auctions and leases in virtual time: real agents on the in-process bus and a manual
-clock (tests/murdoch_team.py), the pure auction logic, and the parameter files' errors."""
+clock (tests/harness/murdoch_team.py), the pure auction logic, and the parameter files' errors."""
 
 import tempfile
 from pathlib import Path
@@ -11,8 +11,8 @@ from mrta_agent.murdoch.messages import Claim
 from mrta_agent.murdoch.params import load_params, load_robot, takeover_bound
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.messages import Header
-from tests.alliance_fixtures import write
-from tests.murdoch_team import Team, robot_doc, tasks_doc
+from tests.harness.alliance_fixtures import write
+from tests.harness.murdoch_team import Team, robot_doc, tasks_doc
 
 TICK = 0.1
 
@@ -198,7 +198,7 @@ def test_a_skill_for_a_task_the_tasks_file_lacks_is_refused(tmp_path):
 
 def test_the_shipped_patrol_parameters_load_and_bound_the_takeover():
     from mrta_zenoh.architectures import architecture
-    from tests.helpers import CONFIGS
+    from tests.harness.helpers import CONFIGS
     bound_of = architecture("murdoch").takeover_bound
     cfg = CONFIGS / "applications" / "patrol_murdoch" / "config"
     for rid in ("robot1", "robot2", "robot3"):

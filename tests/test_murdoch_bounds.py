@@ -1,7 +1,7 @@
 """MURDOCH's takeover bound with its condition on delivery delays: lease + bid window + 3 ticks
 + 2·D, D the largest delivery delay, from the holder's death — holding only while
 2·D + a tick < the bid window (a bid heard after its window is dropped and the task waits for
-another auction). Real agents on the in-process bus and a manual clock (tests/murdoch_team.py),
+another auction). Real agents on the in-process bus and a manual clock (tests/harness/murdoch_team.py),
 every coordination message delayed as an adversary chooses, so messages overtake each other."""
 
 from __future__ import annotations
@@ -16,8 +16,8 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 from mrta_agent.murdoch.architecture import MURDOCH
 from mrta_zenoh.architectures import Takeover
 from mrta_zenoh.failure import parse_faults
-from tests.alliance_fixtures import write
-from tests.murdoch_team import Team, robot_doc
+from tests.harness.alliance_fixtures import write
+from tests.harness.murdoch_team import Team, robot_doc
 
 EXAMPLES = int(os.environ.get("MRTA_PROPERTY_EXAMPLES", "30"))  # more on demand
 TICK = 0.1  # the team harness steps 10 Hz, the agents' spin_rate

@@ -2,7 +2,7 @@
 task within the task's progress_timeout loses it — its auctioneer (ranked among the task's
 other servers) revokes the contract, the task is auctioned again, and the holder gives it back
 and may not win it again for a progress_timeout. Real agents on the in-process bus and a manual
-clock (tests/murdoch_team.py), the ticks computed by hand in the comments."""
+clock (tests/harness/murdoch_team.py), the ticks computed by hand in the comments."""
 
 from __future__ import annotations
 
@@ -13,8 +13,8 @@ from mrta_agent.murdoch.messages import Claim, Revoke
 from mrta_agent.murdoch.params import PROGRESS_TIMEOUT, load_params
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.messages import Header
-from tests.alliance_fixtures import write
-from tests.murdoch_team import Team, robot_doc, tasks_doc
+from tests.harness.alliance_fixtures import write
+from tests.harness.murdoch_team import Team, robot_doc, tasks_doc
 
 
 def sent(team: Team, kind: str, after: float = 0.0) -> list[tuple[float, str]]:

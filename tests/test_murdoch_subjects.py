@@ -2,7 +2,7 @@
 task's subject and reach only the robots with a skill for it; bids go to their auctioneer only;
 each robot advertises its subjects (liveliness tokens), and a task's auctioneers are ranked
 among the robots that serve it.
-Real agents on the in-process bus and a manual clock (tests/murdoch_team.py), with every sample
+Real agents on the in-process bus and a manual clock (tests/harness/murdoch_team.py), with every sample
 each agent's subscriptions deliver recorded at the agent (before any check of its own)."""
 
 from mrta_agent.murdoch.architecture import MURDOCH
@@ -10,8 +10,8 @@ from mrta_agent.murdoch.params import takeover_bound
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.clock import ManualClock
 from mrta_zenoh.keys import first_chunk
-from tests.alliance_team import Spec, make_agent
-from tests.murdoch_team import Team
+from tests.harness.alliance_team import Spec, make_agent
+from tests.harness.murdoch_team import Team
 
 SKILLS = {"robot1": {"a": 0.2, "b": 0.3},   # rank 0: serves both, auctions both
           "robot2": {"a": 0.9},             # never hears b's announcements

@@ -9,7 +9,7 @@ from click.testing import CliRunner
 
 from mrta_agent.murdoch.params import load_params
 from mrta_zenoh.cli.main import cli
-from tests.helpers import CONFIGS
+from tests.harness.helpers import CONFIGS
 
 ANSWERS = CONFIGS / "applications" / "patrol_murdoch_answers.yaml"
 SHIPPED = CONFIGS / "applications" / "patrol_murdoch"

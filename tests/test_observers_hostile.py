@@ -1,6 +1,6 @@
 """Observers survive any input, and the team is known: the pure state
 on a manual clock and the in-process bus. The same attacks against real processes are in
-tests/test_observers_attack.py."""
+tests/process/test_observers_attack.py."""
 
 import io
 import logging
@@ -27,7 +27,7 @@ from mrta_agent.runtime.host import AgentOptions
 from mrta_supervisor.api import resolve_application
 from mrta_supervisor.state import Supervisor
 from mrta_supervisor.view import render
-from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
+from tests.harness.alliance_fixtures import robot_yaml, tasks_yaml, write
 
 BAD_TOKEN = "@ros2_lv/0/abcd/2/2/NN/%/%a-b/node"  # namespace /a-b is no ROS name
 HASH = "RIHS01_" + "0" * 64

@@ -8,7 +8,7 @@ import pytest
 from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
 from mrta_zenoh.clock import ManualClock
 from mrta_zenoh.messages import Header, Point2D, PointCloud
-from tests.helpers import PATROL_WORLD
+from tests.harness.helpers import PATROL_WORLD
 from mrta_agent.runtime.builtin import PointCloudSensor
 from mrta_agent.runtime.params import SensorParams
 from mrta_patrol.evaluators import ReportDue, WallInRange
@@ -17,7 +17,7 @@ from mrta_patrol.messages import Report
 from mrta_agent.runtime.plugins import AgentContext
 from mrta_simulator.engine import Simulation
 from mrta_simulator.world import load_world
-from tests.layer_harness import LayerRun, typed_sections
+from tests.harness.layer_harness import LayerRun, typed_sections
 
 WORLD = load_world(PATROL_WORLD)
 

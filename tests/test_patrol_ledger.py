@@ -15,7 +15,7 @@ from mrta_agent.alliance.messages import Motivation
 from mrta_agent.runtime.plugins import AgentContext
 from mrta_patrol.layers import ReportLayer
 from mrta_patrol.messages import PatrolLog, TaskTime
-from tests.layer_harness import typed_sections
+from tests.harness.layer_harness import typed_sections
 
 ALLIANCE = architecture("alliance")
 CELLS = 208  # the patrol border, 40 m × 12 m, in 0.5 m cells

@@ -1,6 +1,6 @@
 """The README's fresh-machine commands are what CI runs."""
 
-from tests.helpers import ROOT
+from tests.harness.helpers import ROOT
 
 
 def _code_lines(text):

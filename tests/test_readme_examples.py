@@ -14,7 +14,7 @@ import shlex
 
 import pytest
 
-from tests.helpers import ROOT
+from tests.harness.helpers import ROOT
 
 README = ROOT / "README.md"
 WALL = re.compile(r"(at speed )(\S+)( in )\d+( s)")

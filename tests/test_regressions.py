@@ -24,7 +24,7 @@ from mrta_zenoh import codec, messages, secure
 from mrta_zenoh.cli.main import cli
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
-from tests.helpers import ROOT
+from tests.harness.helpers import ROOT
 
 # Framework and application code (not tests, benchmarks): where the single-definition rules hold.
 SOURCES = [ROOT / "mrta_zenoh", ROOT / "robot_agent", ROOT / "simulator", ROOT / "supervisor",

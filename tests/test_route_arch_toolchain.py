@@ -9,7 +9,7 @@ import pytest
 from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
-from tests.helpers import CONFIGS
+from tests.harness.helpers import CONFIGS
 
 HAND_WRITTEN = {"__init__.py", "config/layers_{a}_params.yaml", "config/instance.yaml",
                 "launch/delivery_sim.launch"}

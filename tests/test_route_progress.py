@@ -8,7 +8,7 @@ from mrta_agent.cbba.architecture import CBBA
 from mrta_agent.central.architecture import CENTRAL
 from mrta_agent.route.messages import Progress, Queued
 from mrta_agent.ssi.architecture import SSI
-from tests.central_team import Team
+from tests.harness.central_team import Team
 from tests.test_central_dispatcher import SQUARE
 
 

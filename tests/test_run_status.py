@@ -2,7 +2,7 @@
 while the run was on — other than an injected crash, or the simulator ending its run — makes
 the run disturbed; a recorder that lost its session, or a recording that ends early, makes it
 incomplete. Pure parts on the in-process bus and a manual clock; the real processes, stopped
-with SIGSTOP, in tests/test_run_status_multiprocess.py."""
+with SIGSTOP, in tests/process/test_run_status_multiprocess.py."""
 
 from __future__ import annotations
 

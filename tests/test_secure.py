@@ -19,7 +19,7 @@ from mrta_zenoh.cli.main import cli
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.identity import check_identity
 from mrta_zenoh.keys import matches
-from tests.helpers import PATROL, ROOT, Tokens, free_port
+from tests.harness.helpers import PATROL, ROOT, Tokens, free_port
 
 CONFIG = PATROL / "config"
 

@@ -266,7 +266,7 @@ def test_a_batch_on_the_inproc_bus_counts_and_delivers_like_publish():
 def test_a_batch_on_zenoh_arrives_with_each_keys_encoding_and_is_counted():
     from mrta_zenoh.bus import BusOptions, open_bus
     from mrta_zenoh.errors import MrtaRuntimeError
-    from tests.helpers import free_port
+    from tests.harness.helpers import free_port
 
     end = f"tcp/127.0.0.1:{free_port()}"
     odom_enc, bump_enc = (codec.encoding_for(Odometry.TYPE_NAME),

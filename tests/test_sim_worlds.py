@@ -8,7 +8,7 @@ from mrta_zenoh.cli.main import cli
 from mrta_zenoh.errors import ConfigError
 from mrta_simulator.api import parse_robot, place_robots
 from mrta_simulator.world import Pose, load_world
-from tests.helpers import PATROL_WORLD, REFERENCE
+from tests.harness.helpers import PATROL_WORLD, REFERENCE
 
 MAPS = {"map1.map": (12, 3), "map2.map": (32, 11), "map3.map": (25, 0), "office.map": (101, 1)}
 

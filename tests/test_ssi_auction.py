@@ -1,5 +1,5 @@
 """SSI's decision logic (mrta_agent.ssi.auction) against the algorithm's definition: a team of
-logics exchanging their real messages in virtual time (tests/logic_team.py) ends with exactly
+logics exchanging their real messages in virtual time (tests/harness/logic_team.py) ends with exactly
 the allocation of a direct sequential simulation written here, on random instances, with late
 tasks, with robots (and the auctioneer) leaving, under message loss; a line instance computed
 by hand; the MinSum identity; malformed messages dropped."""
@@ -17,7 +17,7 @@ from mrta_agent.ssi.messages import DONE, MESSAGES, OPEN, UNKNOWN, Bid, Round
 from mrta_zenoh.messages import Header
 from mrta_zenoh.planning import Problem, Robot, Task, evaluate, route_visits
 from mrta_zenoh.planning.insertion import minsum_insertion
-from tests.logic_team import LogicTeam
+from tests.harness.logic_team import LogicTeam
 
 
 def direct_ssi(p: Problem, tasks=None, routes=None, robots=None):

@@ -1,5 +1,5 @@
 """SSI in execution (robot_agent/ssi/agent.py): a team of SsiCoordinators on the in-process
-exchange and a manual clock (tests/route_team.py) serving instances to completion; the served
+exchange and a manual clock (tests/harness/route_team.py) serving instances to completion; the served
 orders checked against SSI restated from its definition (tests/test_ssi_auction.direct_ssi)."""
 
 from __future__ import annotations
@@ -14,7 +14,7 @@ from mrta_agent.ssi.architecture import SSI
 from mrta_agent.ssi.messages import OPEN, UNKNOWN
 from mrta_agent.ssi.params import SsiKeys
 
-from tests.route_team import RouteTeam, params_for
+from tests.harness.route_team import RouteTeam, params_for
 from tests.test_ssi_auction import direct_ssi
 
 

@@ -9,7 +9,7 @@ from mrta_zenoh.bus.inproc import InProcBus, InProcNetwork
 from mrta_zenoh.clock import ManualClock, SimClock
 from mrta_zenoh.messages import GenericMessage, Header, Twist
 from mrta_agent.alliance.messages import InterRobotCommunication
-from tests.helpers import ALLIANCE_ARCH
+from tests.harness.helpers import ALLIANCE_ARCH
 from mrta_zenoh.toolchain.model import ApplicationFile, RobotEntry
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
 from mrta_supervisor.api import CLOCK_STALL, Refresh, attach, resolve_application

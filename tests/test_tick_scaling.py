@@ -3,7 +3,7 @@ incremental bookkeeping decides exactly what a rescan of every record decides.
 
 No timing: the work is counted (`HighLevel.visits`, the records a tick looked at), and the
 behaviour is compared tick by tick with the previous, rescanning implementation
-(tests/alliance_tick_oracle.py) on random histories (fixed seed, as the other properties).
+(tests/harness/alliance_tick_oracle.py) on random histories (fixed seed, as the other properties).
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from hypothesis import HealthCheck, given, settings, strategies as st
 
 from robot_agent.alliance.high_level import UNKNOWN, HighLevel
 from robot_agent.alliance.params import BehaviourSetParams, RobotParams
-from tests import alliance_tick_oracle as oracle
+from tests.harness import alliance_tick_oracle as oracle
 
 EXAMPLES = int(os.environ.get("MRTA_PROPERTY_EXAMPLES", "60"))
 SETTINGS = settings(max_examples=EXAMPLES, derandomize=True, deadline=None,

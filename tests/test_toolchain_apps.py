@@ -11,10 +11,10 @@ import yaml
 from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
-from tests.helpers import ALLIANCE_ARCH, CONFIGS
+from tests.harness.helpers import ALLIANCE_ARCH, CONFIGS
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
 from mrta_agent.alliance.params import load_agent_params
-from tests.helpers import REFERENCE
+from tests.harness.helpers import REFERENCE
 
 PATROL_ANSWERS = CONFIGS / "applications" / "patrol_answers.yaml"
 

@@ -5,10 +5,10 @@ from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
 from mrta_zenoh.errors import ConfigError
-from tests.helpers import ALLIANCE_ARCH, ROOT
+from tests.harness.helpers import ALLIANCE_ARCH, ROOT
 from mrta_zenoh.toolchain.model import ApplicationFile, ArchitectureFile, Array, Param, Params
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta, to_xml
-from tests.helpers import REFERENCE
+from tests.harness.helpers import REFERENCE
 
 # every rqt_mrta file the original project ships (alliance_test's package.xml exports an
 # application file it never shipped: test_toolchain_apps checks the registry says so)

@@ -11,7 +11,7 @@ from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
-from tests.helpers import ALLIANCE_ARCH, CONFIGS
+from tests.harness.helpers import ALLIANCE_ARCH, CONFIGS
 
 PATROL_ANSWERS = CONFIGS / "applications" / "patrol_answers.yaml"
 

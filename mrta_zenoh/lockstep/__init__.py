@@ -74,7 +74,7 @@ REPORT_AFTER to send the whole table while any participant is given up.
 The package, by concern. Each name is imported from the module that defines it (`from
 mrta_zenoh.lockstep.protocol import STEP`): the package itself exports nothing, so an agent
 loads the participant's modules only, the supervisor and the access-control generator the
-protocol only (tests/test_lockstep.py says so):
+protocol only (tests/process/test_lockstep.py says so):
 * `protocol` — keys, messages (Step, StepDone, LockstepStatus) and limits;
 * `table` — the run's key table and a step's claims by index (KeyTable, Claims);
 * `books` — what a process received of what was claimed, less what it forgave (Books);

@@ -540,7 +540,7 @@ class Agent:
     def schedule(self, until: float | None = None) -> Iterator[float]:
         """The loop itself, as a generator: yields the next time it must wake at, and does the
         work due once resumed at that time. `run` sleeps between the two; a virtual-time
-        harness (tests/alliance_team.py) sets a manual clock instead, so tests drive this very
+        harness (tests/harness/alliance_team.py) sets a manual clock instead, so tests drive this very
         loop — its rates, its catch-up rule, fault injection, a restart of time — rather than a
         copy of it."""
         high_period, ctrl_period = self.high_period, self.ctrl_period

@@ -47,7 +47,7 @@ def needs() -> str | None:
 def recording(tmp_path_factory):
     """The demo's run.mcap, 20 simulated seconds (robot2 fails at 10 s: the communication_lost
     alarm)."""
-    from tests.helpers import Children
+    from tests.harness.helpers import Children
     why = needs()
     if why:
         pytest.skip(why)

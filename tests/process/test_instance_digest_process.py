@@ -11,7 +11,7 @@ import shutil
 import pytest
 
 from mrta_zenoh import instances
-from tests.helpers import CONFIGS
+from tests.harness.helpers import CONFIGS
 
 pytestmark = pytest.mark.multiprocess
 

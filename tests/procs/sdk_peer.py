@@ -1,5 +1,5 @@
 """An independent ROS 2 peer: zenoh-ros2-sdk (ROBOTIS), speaking rmw_zenoh from plain Python,
-with vendored message files (tests/ros2_msgs.py) so it never downloads anything.
+with vendored message files (tests/harness/ros2_msgs.py) so it never downloads anything.
 
     sdk_peer.py MSGS_DIR ROUTER_PORT sub-twist TOPIC          print each Twist as a JSON line
     sdk_peer.py MSGS_DIR ROUTER_PORT pub-odom TOPIC N         publish N Odometry at 20 Hz

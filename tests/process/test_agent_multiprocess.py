@@ -7,7 +7,7 @@ import time
 import pytest
 
 from mrta_zenoh.processes import ChildExited
-from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
+from tests.harness.alliance_fixtures import robot_yaml, tasks_yaml, write
 
 pytestmark = pytest.mark.multiprocess
 

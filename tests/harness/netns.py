@@ -14,8 +14,8 @@ import sys
 
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.lifecycle import Closing
-from tests.helpers import Child, Tokens, free_port
-from tests.test_network_faults import NO_GOSSIP, Fleet
+from tests.harness.helpers import Child, Tokens, free_port
+from tests.process.test_network_faults import NO_GOSSIP, Fleet
 
 PREFIX = f"mrta{os.getpid() % 100000}"
 
@@ -82,7 +82,7 @@ class NamespaceFleet(Fleet, Closing):
 
     def _start(self, robot: str | None, name: str, verb: str | None, *args: str) -> Child:
         if verb is None:  # the sensor feeder script
-            from tests.helpers import PROCS
+            from tests.harness.helpers import PROCS
             cmd = [sys.executable, str(PROCS / "sensor_feeder.py"), *args]
         else:
             cmd = [sys.executable, "-m", "mrta_zenoh.cli.main", verb, *args]

@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 from mrta_zenoh.yamlfile import plural
-from tests.helpers import free_port
+from tests.harness.helpers import free_port
 
 distributed = pytest.importorskip("distributed")
 

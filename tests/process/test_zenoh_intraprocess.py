@@ -12,7 +12,7 @@ from mrta_zenoh import codec
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.bus.zenoh_bus import ZenohBus
 from mrta_zenoh.messages import Twist
-from tests.helpers import free_port
+from tests.harness.helpers import free_port
 
 pytestmark = pytest.mark.multiprocess
 

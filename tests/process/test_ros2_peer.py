@@ -9,7 +9,7 @@ import struct
 
 import pytest
 
-from tests.ros2_msgs import write_msgs
+from tests.harness.ros2_msgs import write_msgs
 
 pytestmark = pytest.mark.multiprocess
 

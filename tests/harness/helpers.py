@@ -19,9 +19,10 @@ from mrta_zenoh import processes
 from mrta_zenoh.errors import MrtaRuntimeError
 from mrta_zenoh.keys import matches
 
-ROOT = Path(__file__).resolve().parent.parent
-PROCS = Path(__file__).resolve().parent / "procs"
-REFERENCE = Path(__file__).resolve().parent / "data" / "reference"  # the original project's files
+TESTS = Path(__file__).resolve().parent.parent
+ROOT = TESTS.parent
+PROCS = TESTS / "procs"
+REFERENCE = TESTS / "data" / "reference"  # the original project's files
 CONFIGS = ROOT / "configs"
 ALLIANCE_ARCH = ROOT / "robot_agent" / "alliance"
 PATROL = CONFIGS / "applications" / "patrol"

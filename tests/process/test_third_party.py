@@ -12,7 +12,7 @@ import sys
 import msgpack
 import pytest
 
-from tests.helpers import ROOT
+from tests.harness.helpers import ROOT
 
 pytestmark = pytest.mark.multiprocess
 

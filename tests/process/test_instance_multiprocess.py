@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.helpers import CONFIGS
+from tests.harness.helpers import CONFIGS
 
 pytestmark = [pytest.mark.multiprocess, pytest.mark.slow]
 

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from mrta_supervisor.results import MACHINE_TIME
-from tests.helpers import descendants
+from tests.harness.helpers import descendants
 
 pytestmark = pytest.mark.multiprocess
 

@@ -16,7 +16,7 @@ from mrta_agent.runtime.builtin import OdometrySensor, PointCloudSensor
 from mrta_agent.runtime.params import SensorParams, load_layers_params
 from mrta_agent.runtime.plugins import AgentContext, declared_sections
 from mrta_simulator.engine import DT, SENSOR_EVERY, Simulation
-from tests.helpers import PATROL
+from tests.harness.helpers import PATROL
 
 LAYERS_FILE = PATROL / "config" / "layers_alliance_params.yaml"
 

@@ -12,7 +12,7 @@ import tempfile
 
 import pytest
 
-from tests.helpers import Child
+from tests.harness.helpers import Child
 
 pytestmark = pytest.mark.multiprocess
 

@@ -21,9 +21,9 @@ from dataclasses import dataclass
 import pytest
 
 from mrta_zenoh.bus import BusOptions
-from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
-from tests.fault_proxy import FaultProxy
-from tests.helpers import REFERENCE, Tokens, free_port
+from tests.harness.alliance_fixtures import robot_yaml, tasks_yaml, write
+from tests.harness.fault_proxy import FaultProxy
+from tests.harness.helpers import REFERENCE, Tokens, free_port
 
 pytestmark = [pytest.mark.multiprocess, pytest.mark.slow]  # fleets of a dozen processes
 
@@ -270,7 +270,7 @@ def test_a_partition_in_network_namespaces(children, tmp_path):
     """The same partition with real separate network stacks: each robot's island (router,
     agent, sensors) in its own namespace, a veth pair to the host where the central router
     listens on the host end's address; the partition takes robot1's link down."""
-    from tests.netns import NamespaceFleet
+    from tests.harness.netns import NamespaceFleet
 
     if not _netns_available():  # probed here, not at collection: no `ip netns add` in -m tiers
         pytest.skip("needs root and ip netns")

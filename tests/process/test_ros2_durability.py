@@ -11,7 +11,7 @@ from mrta_zenoh.bus import BusOptions, open_bus
 from mrta_zenoh.ros2.names import KEEP_LAST, RELIABLE, TRANSIENT_LOCAL, Qos
 from mrta_zenoh.ros2.node import Ros2Node
 from mrta_zenoh.ros2.types import Ros2Types
-from tests.helpers import free_port
+from tests.harness.helpers import free_port
 
 pytestmark = pytest.mark.multiprocess
 

@@ -11,7 +11,7 @@ import pytest
 
 from mrta_zenoh import codec
 from mrta_zenoh.recording import read_recording
-from tests.helpers import PATROL
+from tests.harness.helpers import PATROL
 
 pytestmark = pytest.mark.multiprocess
 

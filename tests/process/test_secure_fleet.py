@@ -11,8 +11,8 @@ from click.testing import CliRunner
 
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.cli.main import cli
-from tests.helpers import PATROL, Tokens, free_port
-from tests.test_lockstep import trace
+from tests.harness.helpers import PATROL, Tokens, free_port
+from tests.process.test_lockstep import trace
 from tests.test_secure import wait_accepting
 
 pytestmark = pytest.mark.multiprocess

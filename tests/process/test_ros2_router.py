@@ -9,7 +9,7 @@ nothing (a peer gets 0 samples and 0 tokens through such a router, measured)."""
 
 import pytest
 
-from tests.helpers import free_port
+from tests.harness.helpers import free_port
 
 pytestmark = pytest.mark.multiprocess
 

@@ -11,7 +11,7 @@ import time
 
 import pytest
 
-from tests.helpers import PATROL
+from tests.harness.helpers import PATROL
 from tests.test_mission_hygiene import children_of
 
 pytestmark = pytest.mark.multiprocess

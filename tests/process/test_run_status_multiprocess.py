@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.helpers import descendants
+from tests.harness.helpers import descendants
 
 pytestmark = [pytest.mark.multiprocess, pytest.mark.slow]
 

@@ -17,7 +17,7 @@ from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.bus.inproc import InProcNetwork
 from mrta_zenoh.clock import ManualClock
 from mrta_zenoh.messages import Header, Odometry, PointCloud, Pose2D, Twist
-from tests.alliance_fixtures import write
+from tests.harness.alliance_fixtures import write
 
 TIMING = {"spin_rate": 10.0, "bid_window": 0.5, "renewal_period": 0.5, "lease_timeout": 2.0,
           "reannounce_period": 2.0, "give_up_delay": 3.0}

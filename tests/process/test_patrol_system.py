@@ -5,7 +5,7 @@ import random
 
 import pytest
 
-from tests.helpers import CONFIGS, png_size
+from tests.harness.helpers import CONFIGS, png_size
 
 pytestmark = pytest.mark.multiprocess
 

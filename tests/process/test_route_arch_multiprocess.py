@@ -2,7 +2,7 @@
 --architecture ssi|cbba --instance FILE` in lockstep serves a 3-robot × 6-task instance — each
 robot exactly the tasks of the plan the architecture converges to, in its order, computed here
 from the instance (SSI restated in tests/test_ssi_auction.direct_ssi, CBBA's sequential greedy
-assignment in tests/cbba_reference.greedy) — and under a crash every task is still served."""
+assignment in tests/harness/cbba_reference.greedy) — and under a crash every task is still served."""
 
 from __future__ import annotations
 
@@ -13,7 +13,7 @@ import pytest
 
 from mrta_zenoh import instances
 
-from tests.cbba_reference import greedy
+from tests.harness.cbba_reference import greedy
 from tests.test_ssi_auction import direct_ssi
 
 pytestmark = [pytest.mark.multiprocess]

@@ -9,7 +9,7 @@ import msgpack
 import pytest
 
 from mrta_zenoh.recording import read_recording
-from tests.helpers import PATROL
+from tests.harness.helpers import PATROL
 
 pytestmark = pytest.mark.multiprocess
 

@@ -7,7 +7,7 @@ import signal
 import pytest
 
 from mrta_agent.murdoch.architecture import MURDOCH
-from tests.helpers import CONFIGS
+from tests.harness.helpers import CONFIGS
 
 pytestmark = pytest.mark.multiprocess
 

@@ -17,7 +17,7 @@ from mrta_zenoh.keys import LIVELINESS_PREFIX
 from mrta_zenoh.recording import read_recording
 from mrta_supervisor.api import resolve_application
 from mrta_supervisor.plots import TimeBase, replay
-from tests.helpers import free_port
+from tests.harness.helpers import free_port
 
 pytestmark = pytest.mark.multiprocess
 
@@ -25,7 +25,7 @@ pytestmark = pytest.mark.multiprocess
 @pytest.fixture(scope="module")
 def recorded(tmp_path_factory):
     """One short demo run (robot2 killed at 18 s) and its recording."""
-    from tests.helpers import Children
+    from tests.harness.helpers import Children
     children = Children()
     out = tmp_path_factory.mktemp("fox") / "run"
     try:

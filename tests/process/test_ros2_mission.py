@@ -9,7 +9,7 @@ import signal
 
 import pytest
 
-from tests.helpers import CONFIGS
+from tests.harness.helpers import CONFIGS
 
 pytestmark = pytest.mark.multiprocess
 

@@ -10,7 +10,7 @@ import time
 
 import pytest
 
-from tests.helpers import PATROL, PROCS, Child
+from tests.harness.helpers import PATROL, PROCS, Child
 
 pytestmark = pytest.mark.multiprocess
 
@@ -229,7 +229,7 @@ def test_a_certified_robot_claiming_thousands_of_keys_cannot_freeze_a_secured_fl
     from click.testing import CliRunner
 
     from mrta_zenoh.cli.main import cli
-    from tests.helpers import free_port
+    from tests.harness.helpers import free_port
     from tests.test_secure import wait_accepting
 
     folder, endpoint = tmp_path / "fleet", f"tls/127.0.0.1:{free_port()}"

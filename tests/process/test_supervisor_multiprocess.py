@@ -8,7 +8,7 @@ import pytest
 from mcap.reader import make_reader
 
 from mrta_zenoh.keys import LIVELINESS_PREFIX
-from tests.helpers import png_size
+from tests.harness.helpers import png_size
 
 pytestmark = pytest.mark.multiprocess
 

@@ -17,7 +17,7 @@ from mrta_zenoh.lockstep.protocol import STATUS, LockstepStatus
 from mrta_zenoh.messages import Header
 from mrta_zenoh.ros2 import names
 from mrta_zenoh.untrusted import visible
-from tests.alliance_fixtures import robot_yaml, tasks_yaml, write
+from tests.harness.alliance_fixtures import robot_yaml, tasks_yaml, write
 
 pytestmark = pytest.mark.multiprocess
 

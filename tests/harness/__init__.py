@@ -1,0 +1,1 @@
+"""What tests share: teams on the in-process bus, fixtures, child-process helpers (tests/README.md)."""
