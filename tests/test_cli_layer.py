@@ -22,6 +22,7 @@ from mrta_zenoh.cli.main import RootGroup, cli, run
 from mrta_zenoh.errors import ConfigError, Interrupted, MrtaError, MrtaRuntimeError
 from mrta_zenoh.fieldpath import FieldPathError
 from mrta_zenoh.keys import KeyExprError
+from tests.harness import source_tree
 from tests.harness.helpers import ROOT, free_port
 
 # Where the framework's and the shipped applications' code lives.
@@ -52,7 +53,7 @@ VERB_MODULES = {
 def library_modules() -> list[Path]:
     out = []
     for root in SOURCES:
-        for f in sorted(root.rglob("*.py")):
+        for f in source_tree.python_files(root):
             rel = f.relative_to(ROOT).as_posix()
             if CLI_PACKAGE in f.parents or rel in VERB_MODULES:
                 continue
@@ -96,7 +97,7 @@ def cli_violations(source: str, rel: Path) -> list[str]:
 @pytest.mark.slow
 def test_nothing_below_the_cli_imports_it_prints_or_exits():
     bad = [v for f in library_modules()
-           for v in cli_violations(f.read_text(encoding="utf-8"), f.relative_to(ROOT))]
+           for v in cli_violations(source_tree.text(f), f.relative_to(ROOT))]
     assert not bad, "\n".join(bad)
 
 

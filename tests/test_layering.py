@@ -14,6 +14,7 @@ from pathlib import Path
 
 import pytest
 
+from tests.harness import source_tree
 from tests.harness.helpers import ROOT
 
 PACKAGES = {
@@ -92,7 +93,7 @@ def imports_of(path: Path, package: str) -> set[str]:
     if path.name != "__init__.py":
         here = here[:-1]
     out = set()
-    for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+    for node in source_tree.nodes(path):
         if isinstance(node, ast.Import):
             out |= {a.name for a in node.names}
         elif isinstance(node, ast.ImportFrom):
@@ -109,7 +110,7 @@ def hits(imported: set[str], forbidden: set[str]) -> set[str]:
 @pytest.mark.parametrize("package", list(PACKAGES))
 def test_no_package_imports_what_it_must_not_know(package):
     bad = []
-    for f in sorted(PACKAGES[package].rglob("*.py")):
+    for f in source_tree.python_files(PACKAGES[package]):
         hit = hits(imports_of(f, package), FORBIDDEN[package])
         if hit:
             bad.append(f"{f.relative_to(ROOT)} imports {', '.join(sorted(hit))}")
@@ -129,7 +130,7 @@ def test_the_runtime_holds_no_route_family_module():
                   if "route" in f.stem)
     assert not left, left
     for f in PACKAGES["mrta_agent.runtime"].glob("*.py"):
-        names = {n.name for n in ast.walk(ast.parse(f.read_text(encoding="utf-8")))
+        names = {n.name for n in source_tree.nodes(f)
                  if isinstance(n, (ast.ClassDef, ast.FunctionDef))}
         assert not {"RouteArchitecture", "RouteExecutor", "Progress", "Queued"} & names, f
 
@@ -155,13 +156,9 @@ def test_the_framework_has_no_patrol_specific_code():
     for package in ("mrta_zenoh", "mrta_agent.runtime", "mrta_agent.alliance",
                     "mrta_agent.murdoch", "mrta_agent.central", "mrta_simulator",
                     "mrta_supervisor"):
-        for f in sorted(PACKAGES[package].rglob("*.py")):
-            tree = ast.parse(f.read_text(encoding="utf-8"))
-            docstrings = {id(n.body[0].value) for n in ast.walk(tree)
-                          if isinstance(n, (ast.Module, ast.ClassDef, ast.FunctionDef))
-                          and n.body and isinstance(n.body[0], ast.Expr)
-                          and isinstance(n.body[0].value, ast.Constant)}
-            for node in ast.walk(tree):
+        for f in source_tree.python_files(PACKAGES[package]):
+            docstrings = source_tree.docstrings(f)
+            for node in source_tree.nodes(f):
                 if isinstance(node, ast.Constant) and isinstance(node.value, str) \
                         and id(node) not in docstrings \
                         and any(w in node.value for w in ("patrol_msgs", "patrol/", "wander",

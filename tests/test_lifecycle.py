@@ -8,6 +8,7 @@ import pytest
 
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.lifecycle import Closing
+from tests.harness import source_tree
 from tests.harness.helpers import ROOT
 
 SOURCES = [ROOT / "mrta_zenoh", ROOT / "robot_agent", ROOT / "simulator", ROOT / "supervisor",
@@ -65,8 +66,8 @@ def _pair_written_out(cls: ast.ClassDef) -> bool:
 
 def test_no_class_writes_the_closing_pair_again():
     found = [f"{f.relative_to(ROOT)}:{node.lineno} {node.name}"
-             for folder in SOURCES for f in sorted(folder.rglob("*.py"))
+             for folder in SOURCES for f in source_tree.python_files(folder)
              if f.name != "lifecycle.py"
-             for node in ast.walk(ast.parse(f.read_text(encoding="utf-8")))
+             for node in source_tree.nodes(f)
              if isinstance(node, ast.ClassDef) and _pair_written_out(node)]
     assert not found, "derive from mrta_zenoh.lifecycle.Closing instead:\n" + "\n".join(found)

@@ -24,6 +24,7 @@ from mrta_zenoh import codec, messages, secure
 from mrta_zenoh.cli.main import cli
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
+from tests.harness import source_tree
 from tests.harness.helpers import ROOT
 
 # Framework and application code (not tests, benchmarks): where the single-definition rules hold.
@@ -33,19 +34,14 @@ SOURCES = [ROOT / "mrta_zenoh", ROOT / "robot_agent", ROOT / "simulator", ROOT /
 
 def source_files():
     for folder in SOURCES:
-        for f in sorted(folder.rglob("*.py")):
+        for f in source_tree.python_files(folder):
             yield f, f.relative_to(ROOT).as_posix()
 
 
 def constants(path: Path):
     """(node, value) of every constant in a file, docstrings left out (they may quote things)."""
-    tree = ast.parse(path.read_text(encoding="utf-8"))
-    docstrings = {id(n.body[0].value) for n in ast.walk(tree)
-                  if isinstance(n, (ast.Module, ast.ClassDef, ast.FunctionDef,
-                                    ast.AsyncFunctionDef))
-                  and n.body and isinstance(n.body[0], ast.Expr)
-                  and isinstance(n.body[0].value, ast.Constant)}
-    return [(n, n.value) for n in ast.walk(tree)
+    docstrings = source_tree.docstrings(path)
+    return [(n, n.value) for n in source_tree.nodes(path)
             if isinstance(n, ast.Constant) and id(n) not in docstrings]
 
 
@@ -183,7 +179,7 @@ RENAMES_A_TEMPORARY = re.compile(r"os\.replace\(|os\.rename\(|\.rename\(|mkdtemp
 def test_only_the_files_module_moves_temporaries_into_place():
     bad = [f"{rel}:{n}: {line.strip()}"
            for f, rel in source_files() if rel != "mrta_zenoh/files.py"
-           for n, line in enumerate(f.read_text(encoding="utf-8").splitlines(), 1)
+           for n, line in enumerate(source_tree.text(f).splitlines(), 1)
            if RENAMES_A_TEMPORARY.search(line)]
     assert not bad, "write through mrta_zenoh.files instead:\n" + "\n".join(bad)
 
@@ -248,7 +244,7 @@ def test_a_bad_parameter_in_a_list_is_reported_on_its_own_line(tmp_path):
 
 def test_no_other_module_parses_msgspecs_error_text():
     bad = [f"{rel}:{n}" for f, rel in source_files() if rel != "mrta_zenoh/codec.py"
-           for n, line in enumerate(f.read_text(encoding="utf-8").splitlines(), 1)
+           for n, line in enumerate(source_tree.text(f).splitlines(), 1)
            if re.search(r"at `\\?\$|missing required field|contains unknown field", line)]
     assert not bad, "use mrta_zenoh.codec.validation_fault:\n" + "\n".join(bad)
 
@@ -274,7 +270,7 @@ def test_time_comparisons_use_the_clocks_epsilon():
     elsewhere (a wall's length, nanoseconds to seconds, a division guard) means something else."""
     bad = []
     for f, rel in source_files():
-        for node in ast.walk(ast.parse(f.read_text(encoding="utf-8"))):
+        for node in source_tree.nodes(f):
             if not isinstance(node, ast.Compare):
                 continue
             for side in [node.left, *node.comparators]:
