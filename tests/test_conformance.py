@@ -1,0 +1,249 @@
+"""The conformance suite: what every registered architecture (`mrta.architectures`) must do, one
+test per architecture, parametrized over `mrta_zenoh.architectures.architectures()` — so an
+architecture is tested here the day it registers, with no list to edit (tests/README.md).
+
+- its contract attributes are consistent (names, keys, kinds among its messages);
+- `check_files` accepts every robot of every shipped application package configured for it,
+  and refuses a misspelt key naming the file;
+- its robots' agents, built through the contract (`prepare`, `agent`) from that package's files,
+  run N ticks in-process (the in-process bus, one manual clock, odometry fed as a simulator
+  would): every robot sees its whole team, talks on its namespace under its own name with a
+  sequence number per key, and the feed (`read_doing`) reads what it said;
+- a crash: a robot's agent stops (its token goes); every survivor drops it from its team, a
+  survivor takes over its task, and the architecture's `takeover_check` holds for that takeover.
+
+What needs a process of its own beside the robots (central's dispatcher, `Architecture.processes`)
+is not built by the contract in-process: the crash's takeover is then left to the end-to-end
+runs (tests/process/test_golden_summaries.py, whose CI-tier case is central's stall).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mrta_agent.runtime.host import AgentOptions
+from mrta_zenoh import keys
+from mrta_zenoh.architectures import Architecture, Takeover, TakeoverBound, architectures
+from mrta_zenoh.bus import InProcBus
+from mrta_zenoh.bus.inproc import InProcNetwork
+from mrta_zenoh.clock import ManualClock
+from mrta_zenoh.codec import encode
+from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.failure import parse_faults
+from mrta_zenoh.keys import first_chunk
+from mrta_zenoh.messages import Header, Odometry, Pose2D, Twist
+from mrta_zenoh.toolchain.registry import Registry
+
+ARCHS = architectures()
+TICK = 0.1
+N = 50  # ticks before anything is checked: 5 simulated seconds
+HORIZON = 120.0  # simulated seconds a crash is watched for at most
+
+
+@pytest.fixture(scope="module")
+def registry() -> Registry:
+    return Registry()
+
+
+@dataclasses.dataclass(frozen=True)
+class Shipped:
+    """One shipped application package configured for an architecture: its robots' files."""
+
+    name: str
+    config: Path
+    robots: tuple[str, ...]
+    stem: str
+
+    def robot_params(self, robot: str) -> Path:
+        return self.config / f"{robot}_{self.stem}_params.yaml"
+
+    @property
+    def tasks_params(self) -> Path:
+        return self.config / f"tasks_{self.stem}_params.yaml"
+
+    @property
+    def layers_params(self) -> Path:
+        return self.config / f"layers_{self.stem}_params.yaml"
+
+
+def shipped(registry: Registry, arch: Architecture) -> list[Shipped]:
+    return sorted((Shipped(pkg.name, pkg.path / "config", tuple(r.id for r in app.robots),
+                           arch.param_stem)
+                   for pkg, app in registry.applications() if app.architecture == arch.name),
+                  key=lambda s: s.name)
+
+
+def first_package(registry: Registry, arch: Architecture) -> Shipped:
+    packages = shipped(registry, arch)
+    assert packages, f"no shipped application package is configured for {arch.name}"
+    return packages[0]
+
+
+@pytest.mark.parametrize("name", sorted(ARCHS))
+def test_the_contract_attributes_are_consistent(name):
+    arch = ARCHS[name]
+    assert arch.name == name
+    for attr in ("title", "namespace", "executable", "command", "param_stem", "bound_formula"):
+        value = getattr(arch, attr)
+        assert isinstance(value, str) and value.strip(), f"{name}.{attr} = {value!r}"
+    assert re.fullmatch(r"[a-z][a-z0-9_]*", arch.namespace), arch.namespace
+    assert arch.messages and all(isinstance(t, type) for t in arch.messages.values())
+    for kinds in (arch.doing_kinds, arch.coordination, arch.decision_kinds):
+        assert set(kinds) <= set(arch.messages), (kinds, sorted(arch.messages))
+    assert arch.doing_kinds, "who is doing what is read from at least one of its messages"
+    assert arch.doing_stale_after > 0
+    assert isinstance(arch.processes, tuple) and all(isinstance(p, str) for p in arch.processes)
+    assert arch.objective in (None, "minsum", "makespan", "flowtime")
+    # its keys are its own and say which robot speaks
+    for kind in arch.coordination:
+        key = arch.key("robot1", kind)
+        assert arch.is_coordination_key(key) and arch.is_namespace_key(key)
+        assert key.startswith(f"robot1/{arch.namespace}/")
+    assert arch.agent_token("robot1") == f"robot1/{arch.namespace}/agent"
+    assert not arch.is_namespace_key(arch.agent_token("robot1"))
+    # two architectures never share a namespace (their robots would hear each other)
+    assert [a.name for a in ARCHS.values() if a.namespace == arch.namespace] == [name]
+
+
+@pytest.mark.parametrize("name", sorted(ARCHS))
+def test_check_files_accepts_the_shipped_packages_and_names_a_misspelt_key(name, registry,
+                                                                          tmp_path):
+    arch = ARCHS[name]
+    for pkg in shipped(registry, arch):
+        for robot in pkg.robots:
+            arch.check_files(robot, pkg.robot_params(robot), pkg.tasks_params,
+                             pkg.layers_params if pkg.layers_params.exists() else None)
+    pkg = first_package(registry, arch)
+    robot = pkg.robots[0]
+    text = pkg.robot_params(robot).read_text()
+    key = re.search(r"^([A-Za-z_][A-Za-z0-9_]*):", text, re.MULTILINE)
+    assert key, f"no top-level key in {pkg.robot_params(robot)}"
+    bad = tmp_path / pkg.robot_params(robot).name
+    bad.write_text(text[:key.start()] + key.group(1) + "_typo" + text[key.end(1):])
+    with pytest.raises(ConfigError) as err:
+        arch.check_files(robot, bad, pkg.tasks_params, None)
+    assert bad.name in str(err.value) and key.group(1) in str(err.value)
+
+
+class Team:
+    """The package's robots, each in its architecture's agent on one in-process network and one
+    manual clock; every robot is fed odometry at a fixed point of its own, as a simulator whose
+    robots stand still would (some architectures bid by distance)."""
+
+    def __init__(self, arch: Architecture, pkg: Shipped):
+        self.arch, self.package = arch, pkg
+        self.clock, self.net = ManualClock(0.0), InProcNetwork()
+        self.world = InProcBus(self.net)
+        self.said: list[tuple[str, object]] = []
+        self.world.subscribe(f"*/{arch.namespace}/**",
+                             lambda s: self.said.append((s.key, s.message)))
+        self.agents = {}
+        self.buses = {}
+        for robot in pkg.robots:
+            prepared = arch.prepare(AgentOptions(
+                robot, pkg.robot_params(robot), pkg.tasks_params,
+                pkg.layers_params if pkg.layers_params.exists() else None))
+            self.buses[robot] = InProcBus(self.net)
+            agent = arch.agent(prepared, self.buses[robot], self.clock, np.random.default_rng(0))
+            agent.start()
+            agent.declare_alive()
+            self.agents[robot] = agent
+        self.seq = 0
+
+    def tick(self, n: int = 1, watch=None) -> None:
+        for _ in range(n):
+            self.seq += 1
+            now = self.clock.now()
+            for k, robot in enumerate(self.agents):
+                self.world.publish(keys.odom(robot), Odometry(
+                    Header(robot, now, self.seq), Pose2D(float(k), 0.0, 0.0), Twist(0.0, 0.0)))
+            for agent in self.agents.values():
+                agent.tick_high(now)
+            if watch is not None:
+                watch(now)
+            self.clock.advance(TICK)
+
+    def crash(self, robot: str) -> None:
+        """`robot`'s agent is gone, as after SIGKILL: it says nothing more, its token goes."""
+        self.agents.pop(robot)
+        self.buses.pop(robot).close()
+
+    def close(self) -> None:
+        for agent in self.agents.values():
+            agent.shutdown()
+        for bus in self.buses.values():
+            bus.close()
+        self.world.close()
+
+
+@pytest.fixture
+def team(request, registry):
+    arch = ARCHS[request.param]
+    t = Team(arch, first_package(registry, arch))
+    yield t
+    t.close()
+
+
+@pytest.mark.parametrize("team", sorted(ARCHS), indirect=True)
+def test_the_robots_run_n_ticks_in_process_and_say_who_they_are(team):
+    arch = team.arch
+    team.tick(N)
+    robots = set(team.agents)
+    for robot, agent in team.agents.items():
+        assert agent.team == robots - {robot}, robot
+    assert team.said, f"{arch.name}'s robots said nothing in {N} ticks"
+    speakers = {first_chunk(key) for key, _ in team.said}
+    assert speakers <= robots
+    last: dict[str, int] = {}
+    for key, message in team.said:
+        header = message.header
+        assert header.frame_id == first_chunk(key), (key, header)
+        assert header.seq > last.get(key, 0), (key, header.seq, last.get(key))
+        last[key] = header.seq
+        assert 0.0 <= header.stamp <= team.clock.now()
+    feed = [arch.read_doing(key, m) for key, m in team.said
+            if key.split("/")[2] in arch.doing_kinds]
+    assert feed, f"nothing {arch.name}'s robots said is on its feed ({arch.doing_kinds})"
+    assert all(d.robot in robots for d in feed if d is not None)
+
+
+@pytest.mark.parametrize("team", sorted(ARCHS), indirect=True)
+def test_a_crashed_robot_leaves_every_team_and_its_task_is_taken_within_the_check(team):
+    arch = team.arch
+    team.tick(N)
+    held = {robot: agent.active_task for robot, agent in team.agents.items()
+            if agent.active_task is not None}
+    if arch.processes and not held:
+        pytest.skip(f"{arch.name} allocates through {', '.join(arch.processes)}, which the "
+                    "contract does not build in-process: its takeover is the golden stall run's")
+    assert held, f"no robot of {arch.name} holds a task after {N} ticks"
+    failed, task = sorted(held.items())[0]
+    failed_at = team.clock.now()
+    team.crash(failed)
+    taken: list[tuple[float, str]] = []
+
+    def watch(now):
+        if not taken:
+            taken.extend((now, r) for r, a in sorted(team.agents.items()) if a.active_task == task)
+
+    for _ in range(int(HORIZON / TICK)):  # a bounded wait: whether the take is in time is the check's
+        team.tick(1, watch)
+        if taken and not any(failed in a.team for a in team.agents.values()):
+            break
+    for robot, agent in team.agents.items():
+        assert failed not in agent.team, robot
+    assert taken, f"nobody took {task} over from {failed} under {arch.name}"
+    taken_at, taker = taken[0]
+    records = [(key, "", int(round(m.header.stamp * 1e9)), encode(m)) for key, m in team.said]
+    check = arch.takeover_check(Takeover(
+        task, failed, failed_at, taker, taken_at, team.package.robot_params(taker), records,
+        lambda ns: ns / 1e9, parse_faults("crash:%s@%g" % (failed, failed_at)), 0, True))
+    assert isinstance(check, TakeoverBound)
+    assert check.since <= taken_at
+    assert check.holds(taken_at) is not False, (arch.name, check, taken_at)
+
