@@ -3,7 +3,8 @@
 on real networking; an unmarked one fails, saying so. The fast tier, like the CI tier (`pytest`,
 pyproject.toml's addopts), leaves out the tests marked `slow`, so it stays under a minute; they
 run in the whole suite (`pytest -m "not browser"`), or alone with `pytest -m slow` (an expression
-that names `slow` keeps them)."""
+that names `slow` keeps them). The folders, the harnesses and the conformance suite:
+tests/README.md."""
 
 import subprocess
 

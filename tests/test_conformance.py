@@ -3,8 +3,9 @@ test per architecture, parametrized over `mrta_zenoh.architectures.architectures
 architecture is tested here the day it registers, with no list to edit (tests/README.md).
 
 - its contract attributes are consistent (names, keys, kinds among its messages);
-- `check_files` accepts every robot of every shipped application package configured for it,
-  and refuses a misspelt key naming the file;
+- `mrta arch validate` accepts it; `check_files` accepts every robot of every shipped application
+  package configured for it, and refuses a misspelt key naming the file; a package shipped with
+  an answers file is what `mrta app new --answers` writes, and `mrta app validate` accepts it;
 - its robots' agents, built through the contract (`prepare`, `agent`) from that package's files,
   run N ticks in-process (the in-process bus, one manual clock, odometry fed as a simulator
   would): every robot sees its whole team, talks on its namespace under its own name with a
@@ -25,12 +26,14 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from click.testing import CliRunner
 
 from mrta_agent.runtime.host import AgentOptions
 from mrta_zenoh import keys
 from mrta_zenoh.architectures import Architecture, Takeover, TakeoverBound, architectures
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.bus.inproc import InProcNetwork
+from mrta_zenoh.cli.main import cli
 from mrta_zenoh.clock import ManualClock
 from mrta_zenoh.codec import encode
 from mrta_zenoh.errors import ConfigError
@@ -55,9 +58,13 @@ class Shipped:
     """One shipped application package configured for an architecture: its robots' files."""
 
     name: str
-    config: Path
+    path: Path
     robots: tuple[str, ...]
     stem: str
+
+    @property
+    def config(self) -> Path:
+        return self.path / "config"
 
     def robot_params(self, robot: str) -> Path:
         return self.config / f"{robot}_{self.stem}_params.yaml"
@@ -72,7 +79,7 @@ class Shipped:
 
 
 def shipped(registry: Registry, arch: Architecture) -> list[Shipped]:
-    return sorted((Shipped(pkg.name, pkg.path / "config", tuple(r.id for r in app.robots),
+    return sorted((Shipped(pkg.name, pkg.path, tuple(r.id for r in app.robots),
                            arch.param_stem)
                    for pkg, app in registry.applications() if app.architecture == arch.name),
                   key=lambda s: s.name)
@@ -128,6 +135,36 @@ def test_check_files_accepts_the_shipped_packages_and_names_a_misspelt_key(name,
     with pytest.raises(ConfigError) as err:
         arch.check_files(robot, bad, pkg.tasks_params, None)
     assert bad.name in str(err.value) and key.group(1) in str(err.value)
+
+
+def mrta(*args: str):
+    return CliRunner().invoke(cli, list(args))
+
+
+@pytest.mark.parametrize("name", sorted(ARCHS))
+def test_its_rqt_mrta_package_validates(name):
+    res = mrta("arch", "validate", name)
+    assert res.exit_code == 0, res.output
+
+
+@pytest.mark.parametrize("name", sorted(ARCHS))
+def test_its_shipped_packages_are_what_their_answers_write_and_validate(name, registry,
+                                                                        tmp_path):
+    """What `mrta app new --answers` writes is shipped byte for byte (the rest of a package —
+    its mission's launch file, the layers' parameters — is written by hand)."""
+    for pkg in shipped(registry, ARCHS[name]):
+        answers = pkg.path.parent / f"{pkg.name}_answers.yaml"
+        if answers.exists():
+            out = tmp_path / pkg.name
+            res = mrta("app", "new", "--answers", str(answers), "--output", str(out))
+            assert res.exit_code == 0, res.output
+            written = sorted(f for f in (out / pkg.name).rglob("*") if f.is_file())
+            assert written
+            for f in written:
+                rel = f.relative_to(out / pkg.name)
+                assert (pkg.path / rel).read_bytes() == f.read_bytes(), f"{pkg.name}/{rel}"
+        res = mrta("app", "validate", pkg.name)
+        assert res.exit_code == 0, res.output
 
 
 class Team:

@@ -1,7 +1,8 @@
 """SSI and CBBA through the toolchain: registered by entry point and listed by `mrta arch list`
-(a TA architecture each), valid by `mrta arch validate`, their delivery applications generated
-from the answers files beside the others (byte for byte what is shipped) and valid, each robot
-file naming the instance its decision logic plans on."""
+(a TA architecture each), their delivery applications generated from the answers files beside
+the others (exactly the shipped files but the hand-written ones), each robot file naming the
+instance its decision logic plans on. That every architecture validates and its packages are
+what their answers write, byte for byte: tests/test_conformance.py."""
 
 import json
 
@@ -24,12 +25,11 @@ def test_arch_list_lists_ssi_and_cbba_as_task_allocation():
     found = {json.loads(line)["name"]: json.loads(line) for line in out.splitlines()}
     assert {"ssi", "cbba"} <= set(found)
     assert found["ssi"]["taxonomy"] == found["cbba"]["taxonomy"] == "ST-SR-TA"
-    assert run("arch", "validate", "ssi").exit_code == 0
-    assert run("arch", "validate", "cbba").exit_code == 0
+    # `mrta arch validate`: the conformance suite's, for every architecture
 
 
 @pytest.mark.parametrize("arch", ["ssi", "cbba"])
-def test_the_answers_generate_the_shipped_application_which_validates(tmp_path, arch):
+def test_the_answers_generate_the_shipped_application_but_its_hand_written_files(tmp_path, arch):
     from importlib import import_module
     load_params = import_module(f"mrta_agent.{arch}.params").load_params
     package = f"delivery_{arch}"
@@ -42,9 +42,7 @@ def test_the_answers_generate_the_shipped_application_which_validates(tmp_path, 
     on_disk = {str(f.relative_to(shipped)) for f in shipped.rglob("*")
                if f.is_file() and "__pycache__" not in f.parts}
     assert on_disk == generated | {h.format(a=arch) for h in HAND_WRITTEN}
-    for rel in sorted(generated):
-        assert (shipped / rel).read_bytes() == (pkg / rel).read_bytes(), f"{rel} differs"
-    assert run("app", "validate", package).exit_code == 0
+    # byte for byte and `mrta app validate`: the conformance suite's, for every architecture
     params = load_params("robot3", shipped / "config" / f"robot3_{arch}_params.yaml",
                          shipped / "config" / f"tasks_{arch}_params.yaml")
     assert [r.id for r in params.problem.robots] == [f"robot{k}" for k in range(1, 6)]
