@@ -1,6 +1,6 @@
 """The agent host's pure parts: its loop (`drive`) on a clock that moves by physics steps, the
 seats it accepts, the spec `mrta host` reads, and how the mission runner regroups a launch's
-agent nodes into hosts. The whole host on real processes: tests/test_hosts_identity.py."""
+agent nodes into hosts. The whole host on real processes: tests/process/test_hosts_identity.py."""
 
 import math
 import threading

@@ -13,7 +13,7 @@ from mrta_zenoh.lockstep.participant import LockstepClock
 from mrta_zenoh.lockstep.protocol import CLAIM_KEYS, DONE, MAX_SPEAKS_FOR, StepDone
 from mrta_zenoh.lockstep.ledger import Ledger
 from mrta_zenoh.messages import Twist
-from tests.helpers import Wall, wait_for
+from tests.harness.helpers import Wall, wait_for
 
 
 def test_a_participant_claims_under_the_robots_it_speaks_for_only():

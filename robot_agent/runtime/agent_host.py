@@ -19,7 +19,7 @@ what makes each of them a robot:
   the single-robot process runs, not a copy of it. A robot's messages at time t are heard by
   its teammates at their next tick, in a host as across processes (`loop.is_due`), so the order
   the host resumes them in changes nothing: a run with one host for the team gives the same
-  summary as one process per robot (tests/test_hosts_identity.py);
+  summary as one process per robot (tests/process/test_hosts_identity.py);
 * a robot's crash (fault injection) stops its agent and withdraws its tokens and subscriptions
   at the end of that round, with no goodbye — no zero-velocity command, no final tally — as the
   process death it stands for; the host and its other robots go on. The withdrawal is seen by
