@@ -34,7 +34,12 @@ def check_identity(children, tmp_path, architecture, fail, k=5):
     hosted = run(children, tmp_path / f"k{k}", architecture, fail, k)
     assert (tmp_path / f"k{k}" / "hosts" / "host1.yaml").exists()  # it did run in hosts
     assert hosted["run_status"] == "complete" and hosted["lockstep_exact"] is True
-    assert differences(normalized(one), normalized(hosted)) == []
+    a, b = normalized(one), normalized(hosted)
+    # the bus's whole count: each robot's last unstamped command may fall either side of the
+    # recording's end, in either layout (as in the golden comparison)
+    total, hosted_total = a["messages"].pop("total"), b["messages"].pop("total")
+    assert abs(total - hosted_total) <= len(one["robots"]), (total, hosted_total)
+    assert differences(a, b) == []
     return one, hosted
 
 
