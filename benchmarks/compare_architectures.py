@@ -36,7 +36,7 @@ parameters (experiment overrides; the shipped packages are not touched):
     MURDOCH   renewal_period 0.5 s (2 Hz), lease_timeout 2 s
 
 Delivery is matched the same way (overrides set in each run's derived packages,
-supervisor/overrides.py), pinned to the values below so a change of the generator's defaults
+supervisor/mission/overrides.py), pinned to the values below so a change of the generator's defaults
 cannot unmatch the study:
 
     ALLIANCE  broadcast_rate 2 Hz, timeout_duration τ = 2 s
@@ -57,7 +57,7 @@ says which): the combined results.csv gains `metrics.gap_<objective>` — achiev
 in % — and `metrics.reference_objective_<objective>`, the reference under the name the report
 pairs with `metrics.objective_<objective>` (its performance profile against the reference).
 
-The tables are the experiment report's (mrta_supervisor.report_md, docs/statistics.md): all
+The tables are the experiment report's (mrta_supervisor.experiment.report_md, docs/statistics.md): all
 architectures' rows of a mission go into OUTPUT/<mission>/results.csv, and the report made from
 it — per cell the mean with its bootstrap interval over instances, runs missing a figure counted
 apart; each architecture against `--baseline` paired by instance and seed, Wilcoxon p
@@ -99,10 +99,10 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 from mrta_zenoh.architectures import architecture_names  # noqa: E402
 from mrta_zenoh.errors import ConfigError, MrtaRuntimeError  # noqa: E402
 from mrta_zenoh.files import write_atomically, write_text  # noqa: E402
-from mrta_supervisor.experiment import run_experiment  # noqa: E402
-from mrta_supervisor.report import Options, Report  # noqa: E402
-from mrta_supervisor.report_md import write_report  # noqa: E402
-from mrta_supervisor.results import read_results, write_csv  # noqa: E402
+from mrta_supervisor.experiment.api import run_experiment  # noqa: E402
+from mrta_supervisor.experiment.report import Options, Report  # noqa: E402
+from mrta_supervisor.experiment.report_md import write_report  # noqa: E402
+from mrta_supervisor.experiment.results import read_results, write_csv  # noqa: E402
 
 from study_tables import (delivery_tables, headline, json_lines, mission_tables,  # noqa: E402
                           replace_block)

@@ -18,8 +18,8 @@ import resource
 import time
 
 from mrta_zenoh.ros2 import names
-from mrta_supervisor.api import resolve_application
-from mrta_supervisor.state import Supervisor
+from mrta_supervisor.live.api import resolve_application
+from mrta_supervisor.live.state import Supervisor
 
 HASH = "RIHS01_" + "0" * 64
 

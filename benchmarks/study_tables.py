@@ -1,5 +1,5 @@
 """The architecture study's tables (benchmarks/compare_architectures.py), made from the
-experiment report of each mission (mrta_supervisor.report): every figure is the report's — a
+experiment report of each mission (mrta_supervisor.experiment.report): every figure is the report's — a
 cell's mean and bootstrap interval, a paired comparison's difference, Holm-adjusted p and A12 —
 laid out by fault, team size and architecture; nothing here computes a statistic."""
 
@@ -12,8 +12,8 @@ from pathlib import Path
 
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.files import write_text
-from mrta_supervisor.report import Cell, Report
-from mrta_supervisor.report_md import brief, interval_text, num, p_text, share, title
+from mrta_supervisor.experiment.report import Cell, Report
+from mrta_supervisor.experiment.report_md import brief, interval_text, num, p_text, share, title
 
 FAULT_ORDER = ("none", "crash", "stall", "partition", "loss", "latency", "range", "dispatcher")
 # the fault models only some architectures can suffer, and what their other rows say instead

@@ -35,7 +35,7 @@ def patrol():
     """The patrol application's monitors, with the 1,000 robots the publisher speaks for (robots
     outside the application would only raise `unknown_robot` alarms)."""
     from mrta_zenoh.toolchain.model import ApplicationFile, RobotEntry
-    from mrta_supervisor.api import resolve_application
+    from mrta_supervisor.live.api import resolve_application
     app, arch = resolve_application("patrol")
     robots = [RobotEntry(f"robot{i}", app.tasks()) for i in range(1000)]
     return ApplicationFile(app.architecture, app.name, robots), arch
@@ -126,8 +126,8 @@ def child_ours_receiver() -> None:
     its own like the raw baseline's, timing the first and last sample the same way."""
     from mrta_zenoh.bus import BusOptions, open_bus
     from mrta_zenoh.clock import WallClock
-    from mrta_supervisor.api import attach
-    from mrta_supervisor.state import Supervisor
+    from mrta_supervisor.live.api import attach
+    from mrta_supervisor.live.state import Supervisor
 
     app, arch = patrol()
     clock = WallClock()
@@ -181,8 +181,8 @@ def _run_receiver(env: dict, n: int, role: str) -> tuple[float, int]:
 def run_latency(env: dict, rate: float, seconds: float) -> dict:
     from mrta_zenoh.bus import BusOptions, open_bus
     from mrta_zenoh.clock import WallClock
-    from mrta_supervisor.api import attach
-    from mrta_supervisor.state import Supervisor
+    from mrta_supervisor.live.api import attach
+    from mrta_supervisor.live.state import Supervisor
 
     app, arch = patrol()
     clock = WallClock()

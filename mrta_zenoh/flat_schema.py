@@ -12,7 +12,7 @@ live channel carries goes through `flatten` first.
 What flattening gives up, on purpose:
 * nullable values: a field `X | None` is declared as X and left out of `required` (the parsers
   have no way to say "or null"; a null value is shown as empty). The viewers' own channels
-  (supervisor/foxglove.py) drop null values from their messages instead, so their messages
+  (supervisor/live/foxglove.py) drop null values from their messages instead, so their messages
   also validate against their schemas;
 * enums and constants: declared as their values' type (the panels show the value);
 * shapes the parsers cannot describe (a tuple of mixed types, an array of arrays, a recursive

@@ -11,7 +11,7 @@ from click.testing import CliRunner
 
 from mrta_agent.runtime.agent_host import Crashed, Seat, check_seats, drive, refuse_secured
 from mrta_agent.runtime.host import AgentOptions
-from mrta_supervisor.hosting import HOST_EXECUTABLE, hosted_crash, host_nodes
+from mrta_supervisor.mission.hosting import HOST_EXECUTABLE, hosted_crash, host_nodes
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.cli.main import cli
 from mrta_zenoh.clock import ManualClock

@@ -165,7 +165,7 @@ def test_a_bids_after_a_change_carries_its_decisions_cost_and_a_resend_none():
     assert d is not None and d.ms == first["ms"] and d.decider == "r1"
     assert CBBA.decision("r1", "r1/cbba/bids", Bids(header=Header("r1", 1.5, 2), **again)) is None
     # what a run's summary counts from the recording (supervisor/ground_truth.decisions)
-    from mrta_supervisor.ground_truth import decisions
+    from mrta_supervisor.mission.ground_truth import decisions
     from mrta_zenoh.codec import encode
     enc = "application/msgpack;" + Bids.TYPE_NAME
     records = [("r1/cbba/bids", enc, 0, encode(sent)),

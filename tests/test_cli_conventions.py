@@ -254,7 +254,7 @@ def snapshot(t: float) -> dict:
 
 
 def test_supervise_shows_times_from_its_start_and_json_names_its_clocks():
-    from mrta_supervisor.cli import ChangeLines, relative, with_clocks
+    from mrta_supervisor.live.cli import ChangeLines, relative, with_clocks
     origin = 1795480671.6
     rel = relative(snapshot(origin + 10.0), origin)
     assert rel["time"] == pytest.approx(10.0) and rel["alarms"][0]["since"] == pytest.approx(9.0)

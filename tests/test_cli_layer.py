@@ -42,10 +42,10 @@ VERB_MODULES = {
     "robot_agent/cbba/cli.py",          # mrta cbba
     "robot_agent/runtime/host_cli.py",  # mrta host (a robot's arguments parsed by its verb)
     "simulator/cli.py",                 # mrta sim
-    "supervisor/cli.py",                # mrta supervise, mrta view
-    "supervisor/plot_cli.py",           # mrta plot, mrta plot timeline
-    "supervisor/mission_cli.py",        # mrta demo
-    "supervisor/experiment_cli.py",     # mrta experiment
+    "supervisor/live/cli.py",           # mrta supervise, mrta view
+    "supervisor/mission/plot_cli.py",   # mrta plot, mrta plot timeline
+    "supervisor/mission/cli.py",        # mrta demo
+    "supervisor/experiment/cli.py",     # mrta experiment
     "configs/applications/delivery/generate_cli.py",  # python -m mrta_delivery.generate_cli
 }
 

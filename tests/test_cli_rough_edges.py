@@ -17,7 +17,7 @@ from mrta_agent.runtime.host import AgentOptions
 from mrta_simulator.engine import Simulation
 from mrta_simulator.node import SimNode
 from mrta_simulator.world import Pose, World
-from mrta_supervisor.mission import LOCK_FILE, output_lock
+from mrta_supervisor.mission.runner import LOCK_FILE, output_lock
 from mrta_zenoh import keys
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.clock import ManualClock

@@ -14,7 +14,7 @@ from pathlib import Path
 import pytest
 
 from mrta_zenoh.errors import ConfigError
-from mrta_supervisor.experiment_file import load_experiment
+from mrta_supervisor.experiment.file import load_experiment
 from tests.harness.helpers import ROOT
 
 TAKEOVER = {"alliance": [3.05, 3.10, 3.05], "murdoch": [2.30, 2.30, 2.30]}

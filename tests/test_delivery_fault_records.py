@@ -12,7 +12,7 @@ from mrta_agent.ssi.architecture import SSI
 from mrta_delivery.instance import InstanceBody
 from mrta_delivery.metrics import allocation_log
 from mrta_delivery.objectives import overlaps
-from mrta_supervisor.roles import as_struck
+from mrta_supervisor.mission.roles import as_struck
 from mrta_zenoh.codec import encode, encoding_for
 from mrta_zenoh.failure import parse_faults
 from mrta_zenoh.fault_roles import Assigned, assigned_key

@@ -8,8 +8,8 @@ import pytest
 from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
-from mrta_supervisor.experiment import load_experiment
-from mrta_supervisor.stats import mean_ci
+from mrta_supervisor.experiment.api import load_experiment
+from mrta_supervisor.experiment.stats import mean_ci
 from tests.harness.helpers import kill_descendant
 
 
@@ -52,7 +52,7 @@ def test_a_tiny_matrix_gives_one_row_per_run_and_records_a_failed_run(children, 
 
 
 def test_a_failed_runs_error_names_the_process_and_its_exit_code_even_under_a_long_tail():
-    from mrta_supervisor.experiment import error_of
+    from mrta_supervisor.experiment.api import error_of
     lines = ["Error: record exited with code 1:", "[record]"] + [f"line {i}" for i in range(12)]
     cell = error_of(1, lines)
     assert cell.startswith("exit 1: Error: record exited with code 1:") and "line 11" in cell
@@ -85,9 +85,9 @@ def test_ctrl_c_keeps_exactly_the_finished_runs(children, tmp_path):
 
 
 def test_summary_pairs_configurations_by_seed_and_names_only_the_seeds_that_ran(tmp_path):
-    from mrta_supervisor.report import Options
-    from mrta_supervisor.report_md import write_report
-    from mrta_supervisor.results import write_csv
+    from mrta_supervisor.experiment.report import Options
+    from mrta_supervisor.experiment.report_md import write_report
+    from mrta_supervisor.experiment.results import write_csv
     rows = [{"run": i, "config": f"fail={c}", "seed": seed, "failure": c, "status": "ok",
              "takeover_seconds": t, "wander.exactly_one": 0.9, "metrics.collisions_total": 0}
             for i, (c, seed, t) in enumerate([("a", 1, 3.0), ("a", 2, 4.0), ("a", 3, 5.0),
@@ -115,7 +115,7 @@ def test_an_override_changes_the_files_of_that_run_only(tmp_path):
     import yaml
 
     from mrta_zenoh.toolchain.registry import Registry
-    from mrta_supervisor.experiment import package_copy
+    from mrta_supervisor.experiment.api import package_copy
     pkg, _ = Registry().application("patrol")
     copy = package_copy(pkg.path, tmp_path, (("robot*.timeout_duration", 4.5),))
     for i in (1, 2, 3):
@@ -192,8 +192,7 @@ def test_an_output_folder_that_cannot_be_made_is_bad_input_not_a_traceback(tmp_p
 
 def fake_runs(monkeypatch, n: int):
     """run_experiment replaced by one that reports `n` finished runs, as the real one does."""
-    from mrta_supervisor import experiment_cli
-
+    from mrta_supervisor.experiment import cli as experiment_cli
     def fake(*, file, output, progress=None, **_):
         rows = [{"run": i, "status": "ok", "wall_seconds": 1.5 + i} for i in range(n)]
         for i, row in enumerate(rows):
@@ -260,7 +259,7 @@ def test_scheduler_usage_errors_exit_2(tmp_path, args, what):
 
 def test_a_cluster_without_the_runs_resource_is_refused_and_an_empty_one_waited_for():
     from mrta_zenoh.errors import ConfigError
-    from mrta_supervisor.experiment_dask import check_workers
+    from mrta_supervisor.experiment.dask_backend import check_workers
 
     class Client:
         def __init__(self, workers):
@@ -277,7 +276,7 @@ def test_a_cluster_without_the_runs_resource_is_refused_and_an_empty_one_waited_
 
 def test_a_run_folder_from_a_worker_stays_inside_its_folder(tmp_path):
     from mrta_zenoh.errors import MrtaRuntimeError
-    from mrta_supervisor.experiment_dask import read_folder, write_folder
+    from mrta_supervisor.experiment.dask_backend import read_folder, write_folder
 
     src = tmp_path / "src"
     (src / "package" / "config").mkdir(parents=True)
@@ -297,8 +296,8 @@ def test_an_unreachable_scheduler_is_a_runtime_error(tmp_path):
     import threading
 
     from mrta_zenoh.errors import MrtaRuntimeError
-    from mrta_supervisor.experiment import Results
-    from mrta_supervisor.experiment_dask import run_on_cluster
+    from mrta_supervisor.experiment.api import Results
+    from mrta_supervisor.experiment.dask_backend import run_on_cluster
     from tests.harness.helpers import free_port
 
     pytest.importorskip("distributed")
@@ -315,7 +314,7 @@ def test_results_rows_carry_coordination_and_namespace_traffic_and_older_summari
     under the architecture's namespace (a summary from before that count reads as blank)."""
     import json as _json
 
-    from mrta_supervisor.summary import flat_metrics, read_summary
+    from mrta_supervisor.mission.summary import flat_metrics, read_summary
     s = {"mission": "patrol", "application": "patrol", "architecture": "alliance",
          "duration": 10.0, "speed": 0.0, "seed": 1, "wall_seconds": 1.0, "robots": ["robot1"],
          "who_did_what": {"robot1": []}, "first_full_allocation": None, "coverage": {},

@@ -10,10 +10,10 @@ from pathlib import Path
 import pytest
 from click.testing import CliRunner
 
-from mrta_supervisor.experiment import load_experiment
-from mrta_supervisor.experiment_file import AGENTS_PER_PROCESS
-from mrta_supervisor.experiment_runs import demo_args
-from mrta_supervisor.results import kind
+from mrta_supervisor.experiment.file import load_experiment
+from mrta_supervisor.experiment.file import AGENTS_PER_PROCESS
+from mrta_supervisor.experiment.runs import demo_args
+from mrta_supervisor.experiment.results import kind
 from mrta_zenoh.cli.main import cli
 
 
@@ -42,7 +42,7 @@ def test_a_bad_agents_per_process_is_refused_at_its_line(tmp_path, value, what):
 
 
 def test_the_command_line_replaces_the_files_value(tmp_path, monkeypatch):
-    from mrta_supervisor import experiment
+    from mrta_supervisor.experiment import api as experiment
     seen = []
 
     def stop_before_running(exp, output, shard=None):

@@ -13,9 +13,9 @@ import pytest
 from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
-from mrta_supervisor import experiment
-from mrta_supervisor.experiment_file import load_experiment
-from mrta_supervisor.summary import (Coverage, FailureReport, MessageRates, Summary,
+from mrta_supervisor.experiment import api as experiment
+from mrta_supervisor.experiment.file import load_experiment
+from mrta_supervisor.mission.summary import (Coverage, FailureReport, MessageRates, Summary,
                                      write_summary)
 
 
@@ -244,7 +244,7 @@ def test_until_ci_adds_instances_when_the_file_has_a_generator_and_scalars_read_
     """`seeds: 2`, `robots: 2` read as [1, 2] and [2]; `makespan` is metrics.makespan; the
     blocks add instances (the generator's next seeds after the file's), never seeds: the
     makespan here varies by instance alone, which more seeds could not narrow."""
-    from mrta_supervisor.summary import read_summary
+    from mrta_supervisor.mission.summary import read_summary
 
     inner = experiment.start_run
 

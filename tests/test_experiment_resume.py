@@ -1,4 +1,4 @@
-"""Resuming `mrta experiment` (experiment_resume.py) with the missions replaced by the stand-in
+"""Resuming `mrta experiment` (supervisor/experiment/resume.py) with the missions replaced by the stand-in
 of tests/test_experiment_runs.py: an interrupted folder resumed runs exactly the missing runs
 and ends with an uninterrupted run's rows; results.csv alone is enough; a torn last line is
 run again; a folder of another file, or of another matrix's rows, is refused with nothing
@@ -15,8 +15,9 @@ from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
 from mrta_zenoh.errors import Interrupted
-from mrta_supervisor import experiment, experiment_resume
-from mrta_supervisor.results import MACHINE_TIME
+from mrta_supervisor.experiment import api as experiment
+from mrta_supervisor.experiment import resume as experiment_resume
+from mrta_supervisor.experiment.results import MACHINE_TIME
 from tests.test_experiment_runs import exp_file, missions, rows  # noqa: F401 (a fixture)
 
 

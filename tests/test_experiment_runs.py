@@ -14,9 +14,9 @@ import scipy.stats
 from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
-from mrta_supervisor import experiment
-from mrta_supervisor.stats import SEED
-from mrta_supervisor.summary import (Coverage, FailureReport, MessageRates, Summary,
+from mrta_supervisor.experiment import api as experiment
+from mrta_supervisor.experiment.stats import SEED
+from mrta_supervisor.mission.summary import (Coverage, FailureReport, MessageRates, Summary,
                                      write_summary)
 
 
@@ -83,8 +83,7 @@ def test_the_bar_shows_the_total_from_the_start(monkeypatch):
 
     from rich.console import Console
 
-    from mrta_supervisor import experiment_cli
-
+    from mrta_supervisor.experiment import cli as experiment_cli
     out = io.StringIO()
     monkeypatch.setattr(experiment_cli, "console",
                         lambda stderr=False: Console(file=out, force_terminal=True, width=80))
@@ -109,8 +108,8 @@ def test_pictures_are_drawn_by_the_first_run_of_each_cell_and_none_with_no_plots
 
 
 def test_a_run_without_plots_asks_the_mission_for_none():
-    from mrta_supervisor.experiment_file import Run
-    from mrta_supervisor.experiment_runs import demo_args
+    from mrta_supervisor.experiment.file import Run
+    from mrta_supervisor.experiment.runs import demo_args
 
     run = Run(0, 1, "none", ())
     assert "--no-plots" in demo_args("patrol", 10.0, run, Path("o"), plots=False)
@@ -238,13 +237,13 @@ def test_the_backends_share_the_run_helpers_without_an_import_circle():
     from tests.harness.helpers import ROOT
 
     def imports(name: str) -> set[str]:
-        tree = ast.parse((ROOT / "supervisor" / f"{name}.py").read_text())
+        tree = ast.parse((ROOT / "supervisor" / "experiment" / f"{name}.py").read_text())
         return {node.module for node in ast.walk(tree)
                 if isinstance(node, ast.ImportFrom) and node.level == 1 and node.module}
 
-    assert "experiment" not in imports("experiment_dask")
-    assert "experiment" not in imports("experiment_runs") | imports("experiment_file")
-    assert {"experiment_file", "experiment_runs"} <= imports("experiment_dask")
+    assert "api" not in imports("dask_backend")
+    assert "api" not in imports("runs") | imports("file")
+    assert {"file", "runs"} <= imports("dask_backend")
 
 
 @pytest.mark.slow

@@ -22,8 +22,8 @@ import pytest
 from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
-from mrta_supervisor import experiment_slurm
-from mrta_supervisor.results import MACHINE_TIME
+from mrta_supervisor.experiment import slurm_backend as experiment_slurm
+from mrta_supervisor.experiment.results import MACHINE_TIME
 from tests.harness.helpers import free_port
 
 MATRIX = "application: patrol\nduration: 10\nseeds: [1, 2, 3]\nfailures: [robot2@5]\n"
@@ -218,7 +218,7 @@ def test_without_slurm_or_submitit_the_backend_says_what_is_missing(tmp_path, mo
 
 
 def test_runs_go_in_arrays_no_larger_than_asked():
-    from mrta_supervisor.experiment_file import Run
+    from mrta_supervisor.experiment.file import Run
     runs = [Run(i, 1, "none", ()) for i in range(7)]
     parts = experiment_slurm.chunks(runs, 3)
     assert [[r.index for r in p] for p in parts] == [[0, 1, 2], [3, 4, 5], [6]]

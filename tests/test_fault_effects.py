@@ -3,9 +3,9 @@ the team; forged, stray, late and malformed tallies do not count."""
 
 from __future__ import annotations
 
-from mrta_supervisor.fault_effects import fault_effects
-from mrta_supervisor.results import kind
-from mrta_supervisor.summary import MessageRates, Summary, flat_metrics
+from mrta_supervisor.mission.fault_effects import fault_effects
+from mrta_supervisor.experiment.results import kind
+from mrta_supervisor.mission.summary import MessageRates, Summary, flat_metrics
 from mrta_zenoh.codec import encode
 from mrta_zenoh.fault_tally import FaultTally, tally_key
 from mrta_zenoh.messages import Header
@@ -48,14 +48,14 @@ def test_results_rows_carry_each_cause_as_a_measure():
 
 
 def test_the_fault_channels_own_words_are_not_the_architectures_traffic():
-    from mrta_supervisor.mission import is_traffic
+    from mrta_supervisor.mission.runner import is_traffic
     assert not is_traffic("robot1/faults/tally") and not is_traffic("robot1/faults/assigned")
     assert is_traffic("robot1/alliance/inter_robot_communication")
 
 
 def test_a_report_shows_the_faults_dose_only_when_asked(tmp_path):
-    from mrta_supervisor.report import default_metrics
-    from mrta_supervisor.results import read_results
+    from mrta_supervisor.experiment.report import default_metrics
+    from mrta_supervisor.experiment.results import read_results
     f = tmp_path / "results.csv"
     f.write_text("run,seed,status,failure,faults.lost,messages_per_second,takeover_seconds\n"
                  "1,1,ok,loss:0.2,12,3.0,2.5\n")
@@ -70,9 +70,9 @@ def refusal_tally(name: str, stamp: float, entries: dict, frame: str | None = No
 
 
 def test_what_each_process_refused_is_listed_forged_first_and_makes_the_run_disturbed():
-    from mrta_supervisor.fault_effects import refused_traffic
-    from mrta_supervisor.mission_cli import refused_lines
-    from mrta_supervisor.summary import DISTURBED, run_problem
+    from mrta_supervisor.mission.fault_effects import refused_traffic
+    from mrta_supervisor.mission.cli import refused_lines
+    from mrta_supervisor.mission.summary import DISTURBED, run_problem
     records = [
         refusal_tally("dispatcher", 1.0, {("progress", "robot2", "not_granted", True): 1}),
         refusal_tally("dispatcher", 3.0, {("progress", "robot2", "not_granted", True): 3,
@@ -97,5 +97,5 @@ def test_what_each_process_refused_is_listed_forged_first_and_makes_the_run_dist
     lines = refused_lines(s)
     assert lines[0] == "refused: 4 samples or claims (3 forged)"
     assert "dispatcher refused 3 progress of robot2: not_granted (forged)" in lines[1]
-    from mrta_supervisor.mission import is_traffic
+    from mrta_supervisor.mission.analysis import is_traffic
     assert not is_traffic("dispatcher/refused/tally")

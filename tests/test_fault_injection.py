@@ -11,8 +11,8 @@ from mrta_agent.alliance.architecture import ALLIANCE
 from mrta_agent.alliance.messages import InterRobotCommunication
 from mrta_agent.runtime.host import AgentOptions
 from mrta_agent.runtime.plugins import Layer
-from mrta_supervisor.experiment import _failure_problem
-from mrta_supervisor.mission import parse_fail
+from mrta_supervisor.experiment.api import _failure_problem
+from mrta_supervisor.mission.runner import parse_fail
 from mrta_zenoh import keys
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.clock import ManualClock
@@ -304,7 +304,7 @@ def test_latency_delays_each_message_by_its_seeded_draw(tmp_path):
 
 
 def test_an_experiment_takes_every_fault_and_refuses_bad_ones_at_load(tmp_path):
-    from mrta_supervisor.experiment import load_experiment
+    from mrta_supervisor.experiment.api import load_experiment
     specs = ["none", "robot2@30", "stall:robot2@30",
              "partition:robot1@10+5,loss:0.1,latency:0.2±0.1"]
     good = tmp_path / "good.yaml"

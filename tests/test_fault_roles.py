@@ -23,7 +23,7 @@ from mrta_zenoh.failure import (FAULTS_ENV, Failure, FaultKind, faults_problem, 
 from mrta_zenoh.fault_roles import Assigned, assigned_key, draw_random, first_assigned
 from mrta_zenoh.fault_tally import Cause
 from mrta_zenoh.messages import Header, Odometry, PointCloud, Pose2D, Twist
-from mrta_supervisor import roles
+from mrta_supervisor.mission import roles
 from tests.harness.alliance_fixtures import robot_yaml, tasks_yaml, write
 
 

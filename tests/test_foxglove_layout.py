@@ -10,8 +10,8 @@ from pathlib import Path
 
 import pytest
 
-from mrta_supervisor.api import resolve_application
-from mrta_supervisor.viewer import known_channels
+from mrta_supervisor.live.api import resolve_application
+from mrta_supervisor.live.viewer import known_channels
 
 LAYOUT = Path(__file__).resolve().parents[1] / "configs/applications/patrol/foxglove_layout.json"
 

@@ -27,7 +27,7 @@ from mrta_zenoh import codec
 from mrta_zenoh.flat_schema import flatten, object_schema
 from mrta_zenoh.messages import message_class
 from mrta_zenoh.recording import LIVELINESS_SCHEMA, json_channel
-from mrta_supervisor.foxglove import ROBOT_TASK_SCHEMA, SUPERVISOR_SNAPSHOT_SCHEMA
+from mrta_supervisor.live.foxglove import ROBOT_TASK_SCHEMA, SUPERVISOR_SNAPSHOT_SCHEMA
 
 SCALAR = {"boolean", "string", "number", "integer"}
 

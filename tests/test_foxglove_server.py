@@ -1,4 +1,4 @@
-"""The live Foxglove server (supervisor/foxglove_server.py), in-process on loopback: both
+"""The live Foxglove server (supervisor/live/foxglove_server.py), in-process on loopback: both
 generations of clients connect, a late subscriber gets the latest message of every
 channel (38.3), and a client that does not read costs only itself (42.5)."""
 
@@ -11,7 +11,7 @@ import struct
 import pytest
 import websockets
 
-from mrta_supervisor.foxglove_server import SUB_QUEUE, FoxgloveServer
+from mrta_supervisor.live.foxglove_server import SUB_QUEUE, FoxgloveServer
 
 SCHEMA = ("x_msgs/Alarm", "jsonschema",
           json.dumps({"type": "object", "properties": {"n": {"type": "integer"}}}).encode())

@@ -1,10 +1,10 @@
-"""`first_full_allocation` (supervisor/mission.py) is measured only for missions whose tasks all
+"""`first_full_allocation` (supervisor/mission/runner.py) is measured only for missions whose tasks all
 need a robot at once: patrol's, not delivery's, whose tasks are served in turn."""
 
 from __future__ import annotations
 
 from mrta_delivery.mission import DELIVERY
-from mrta_supervisor.mission import full_allocation, missions
+from mrta_supervisor.mission.runner import full_allocation, missions
 
 
 def patrol():

@@ -18,7 +18,7 @@ from hypothesis import strategies as st
 from mrta_agent.alliance.params import load_robot_params
 from mrta_agent.runtime.params import load_layers_params, load_tasks_params
 from mrta_simulator.world import load_world
-from mrta_supervisor.experiment import load_experiment
+from mrta_supervisor.experiment.api import load_experiment
 from mrta_zenoh.cli.main import cli
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.yamlfile import MAX_BYTES, load_yaml

@@ -1,4 +1,4 @@
-"""Parameter overrides on runs of an instance (supervisor/overrides.py): a run derives its
+"""Parameter overrides on runs of an instance (supervisor/mission/overrides.py): a run derives its
 packages from its instance into its own folder, and the overrides are set there — in the run's
 architecture's package only, never in an installed package; an experiment passes its cell's
 overrides to each run of an instance as `mrta demo --override`. The mission itself is replaced
@@ -17,12 +17,12 @@ from mrta_zenoh import instances
 from mrta_zenoh.cli.main import cli
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.toolchain.registry import Registry
-from mrta_supervisor import mission
-from mrta_supervisor.experiment_file import load_experiment
-from mrta_supervisor.experiment import prepare_experiment
-from mrta_supervisor.experiment_runs import start_run
-from mrta_supervisor.mission import MissionOptions, run_mission
-from mrta_supervisor.overrides import override_text, parse_override
+from mrta_supervisor.mission import runner as mission
+from mrta_supervisor.experiment.file import load_experiment
+from mrta_supervisor.experiment.api import prepare_experiment
+from mrta_supervisor.experiment.runs import start_run
+from mrta_supervisor.mission.runner import MissionOptions, run_mission
+from mrta_supervisor.mission.overrides import override_text, parse_override
 
 
 @pytest.fixture

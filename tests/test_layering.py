@@ -28,6 +28,9 @@ PACKAGES = {
     "mrta_agent.cbba": ROOT / "robot_agent" / "cbba",
     "mrta_simulator": ROOT / "simulator",
     "mrta_supervisor": ROOT / "supervisor",
+    "mrta_supervisor.live": ROOT / "supervisor" / "live",
+    "mrta_supervisor.mission": ROOT / "supervisor" / "mission",
+    "mrta_supervisor.experiment": ROOT / "supervisor" / "experiment",
     "mrta_patrol": ROOT / "configs" / "applications" / "patrol",
     "mrta_patrol_murdoch": ROOT / "configs" / "applications" / "patrol_murdoch",
     "mrta_delivery": ROOT / "configs" / "applications" / "delivery",
@@ -58,6 +61,12 @@ FORBIDDEN = {
                         "mrta_agent.central", "mrta_simulator", "mrta_supervisor"} | APPS,
     "mrta_simulator": {"mrta_agent", "mrta_supervisor"} | APPS,
     "mrta_supervisor": {"mrta_agent", "mrta_simulator"} | APPS,
+    # supervisor/'s three rooms (supervisor/__init__.py): the live supervisor knows no experiment
+    # and runs no mission; a mission knows no experiment; an experiment knows nothing live
+    "mrta_supervisor.live": {"mrta_agent", "mrta_simulator", "mrta_supervisor.experiment"} | APPS,
+    "mrta_supervisor.mission": {"mrta_agent", "mrta_simulator", "mrta_supervisor.experiment"}
+    | APPS,
+    "mrta_supervisor.experiment": {"mrta_agent", "mrta_simulator", "mrta_supervisor.live"} | APPS,
     # an application reaches an architecture only through its registered contract
     "mrta_patrol": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_patrol_murdoch"},
     "mrta_patrol_murdoch": {"mrta_zenoh", "mrta_agent", "mrta_simulator", "mrta_supervisor",
@@ -115,6 +124,27 @@ def test_no_package_imports_what_it_must_not_know(package):
         if hit:
             bad.append(f"{f.relative_to(ROOT)} imports {', '.join(sorted(hit))}")
     assert not bad, "\n".join(bad)
+
+
+# What the experiment system may reach of a mission: the runner's entry point (the hook a run is
+# resolved with and the `mrta demo` argv it starts), the summary.json schema it reads back and
+# the parameter overrides it writes into a package copy — never the runner's inside.
+EXPERIMENT_REACHES = {"mrta_supervisor.mission", "mrta_supervisor.mission.runner",
+                      "mrta_supervisor.mission.summary", "mrta_supervisor.mission.overrides"}
+
+
+def test_the_experiment_system_reaches_missions_only_through_the_entry_point():
+    package = "mrta_supervisor.experiment"
+    modules = {f"mrta_supervisor.mission.{p.stem}"
+               for p in PACKAGES["mrta_supervisor.mission"].glob("*.py") if p.name != "__init__.py"}
+    bad, reached = [], set()
+    for f in sorted(PACKAGES[package].rglob("*.py")):
+        for m in imports_of(f, package):
+            if m == "mrta_supervisor.mission" or m in modules:
+                reached.add(m)
+                if m not in EXPERIMENT_REACHES:
+                    bad.append(f"{f.relative_to(ROOT)} imports {m}")
+    assert reached and not bad, "\n".join(bad)
 
 
 def test_relative_imports_are_resolved():

@@ -12,7 +12,7 @@ from pathlib import Path
 
 import pytest
 
-from mrta_supervisor.mission import MissionOptions, failure_of, output_lock, resolve
+from mrta_supervisor.mission.runner import MissionOptions, failure_of, output_lock, resolve
 from mrta_zenoh.errors import ConfigError
 
 
@@ -125,7 +125,7 @@ def test_every_node_of_a_mission_gets_the_runs_seed_from_the_runner_not_from_its
     from mrta_zenoh.toolchain.launchfile import LaunchEvaluator
     from mrta_zenoh.toolchain.registry import Registry
 
-    from mrta_supervisor.mission import check_seeds
+    from mrta_supervisor.mission.runner import check_seeds
 
     reg = Registry()
     launch = reg.find(package).path / "launch" / ("patrol_sim.launch" if "patrol" in package
@@ -142,7 +142,7 @@ def test_every_node_of_a_mission_gets_the_runs_seed_from_the_runner_not_from_its
 
 
 def test_a_node_given_another_seed_by_its_launch_file_is_refused():
-    from mrta_supervisor.mission import check_seeds
+    from mrta_supervisor.mission.runner import check_seeds
     from mrta_zenoh.toolchain.launchfile import NodeSpec
 
     def node(*args, **env):

@@ -15,7 +15,7 @@ import pytest
 from mrta_zenoh.messages import Header, Odometry, Point2D, PointCloud, Pose2D, Twist
 from mrta_zenoh.recording import McapRecorder, read_recording
 import mrta_zenoh.recording as recording
-from mrta_supervisor.foxglove import MAX_SCENE_ROBOTS, FoxgloveOutputs, Scene
+from mrta_supervisor.live.foxglove import MAX_SCENE_ROBOTS, FoxgloveOutputs, Scene
 
 TEAM = ["robot1", "robot2", "robot3"]
 SONAR = tuple(Point2D(0.1 * i, 0.2) for i in range(16))

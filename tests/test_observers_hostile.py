@@ -24,9 +24,9 @@ from mrta_zenoh.untrusted import visible
 from mrta_agent.alliance.architecture import ALLIANCE
 from mrta_agent.alliance.messages import InterRobotCommunication
 from mrta_agent.runtime.host import AgentOptions
-from mrta_supervisor.api import resolve_application
-from mrta_supervisor.state import Supervisor
-from mrta_supervisor.view import render
+from mrta_supervisor.live.api import resolve_application
+from mrta_supervisor.live.state import Supervisor
+from mrta_supervisor.live.view import render
 from tests.harness.alliance_fixtures import robot_yaml, tasks_yaml, write
 
 BAD_TOKEN = "@ros2_lv/0/abcd/2/2/NN/%/%a-b/node"  # namespace /a-b is no ROS name
@@ -389,8 +389,7 @@ def test_agents_launched_from_the_application_get_its_robots_as_their_team(packa
 def test_invented_keys_cannot_grow_the_live_view_without_bound(monkeypatch):
     """`mrta view` serves one Foxglove channel per key: keys come from the network, so new ones
     are refused (counted) beyond MAX_LIVE_CHANNELS, while the derived channels still go out."""
-    from mrta_supervisor import viewer
-
+    from mrta_supervisor.live import viewer
     monkeypatch.setattr(viewer, "MAX_LIVE_CHANNELS", 3)
     schema = ("mrta.Any", "jsonschema", b'{"type": "object"}')
     with viewer.LiveChannels("127.0.0.1", 0) as live:

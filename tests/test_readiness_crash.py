@@ -7,7 +7,7 @@ import threading
 
 import pytest
 
-from mrta_supervisor.run_watch import Readiness
+from mrta_supervisor.mission.run_watch import Readiness
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.errors import MrtaRuntimeError
 

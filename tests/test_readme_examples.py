@@ -34,7 +34,7 @@ def samples() -> list[tuple[list[str], list[str]]]:
 
 
 def default_speed() -> float:
-    from mrta_supervisor.mission_cli import demo
+    from mrta_supervisor.mission.cli import demo
     return next(p.default for p in demo.params if p.name == "speed")
 
 

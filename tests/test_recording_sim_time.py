@@ -23,8 +23,8 @@ from mrta_zenoh.keys import CLOCK, CLOCK_SOURCE_TOKEN
 from mrta_zenoh.messages import Clock, Header, Odometry, Pose2D, Twist
 from mrta_zenoh.recording import HOLD_MAX, McapRecorder, read_recording
 from mrta_zenoh.sim_log_time import NS, RESTART_GAP_NS, SimLogTime
-from mrta_supervisor import viewer
-from mrta_supervisor.foxglove import FoxgloveOutputs
+from mrta_supervisor.live import viewer
+from mrta_supervisor.live.foxglove import FoxgloveOutputs
 from mrta_simulator.messages import Segment, World
 
 S = NS  # one simulated second in log-time nanoseconds
@@ -464,9 +464,9 @@ def test_the_derived_json_channels_have_schemas_their_messages_fit():
     (the snapshot without its nulls: foxglove._without_nulls) fits them."""
     import jsonschema
 
-    from mrta_supervisor.api import resolve_application, to_json
-    from mrta_supervisor.foxglove import ROBOT_TASK, SUPERVISOR_SNAPSHOT
-    from mrta_supervisor.state import Supervisor
+    from mrta_supervisor.live.api import resolve_application, to_json
+    from mrta_supervisor.live.foxglove import ROBOT_TASK, SUPERVISOR_SNAPSHOT
+    from mrta_supervisor.live.state import Supervisor
 
     app, arch = resolve_application("patrol")
     sup = Supervisor(arch, app, 0.0)

@@ -59,7 +59,7 @@ def test_another_problem_or_budget_is_another_entry(tmp_path, monkeypatch, solve
 
 
 def test_an_instance_run_gets_the_folder_beside_its_instance(tmp_path, monkeypatch):
-    from mrta_supervisor.experiment_runs import REFERENCES, start_run
+    from mrta_supervisor.experiment.runs import REFERENCES, start_run
     from tests.test_instance_overrides import Group
 
     class Pkg:

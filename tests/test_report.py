@@ -14,7 +14,7 @@ import scipy.stats
 from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
-from mrta_supervisor.stats import SEED
+from mrta_supervisor.experiment.stats import SEED
 from tests.test_stats import holm_by_definition
 
 TAKEOVER = {"alliance": [3.1, 2.9, 3.4, 3.0, 3.8, 2.7], "murdoch": [2.3, 2.4, 2.3, 2.2, 2.9, 2.3]}
@@ -208,8 +208,7 @@ def test_report_usage_errors_exit_2(tmp_path):
 def test_experiment_runs_a_file_and_report_rebuilds_through_one_group(tmp_path, monkeypatch):
     """`mrta experiment FILE` (the default command) and `mrta experiment report DIR` both
     work; `--help` lists both."""
-    from mrta_supervisor import experiment_cli
-
+    from mrta_supervisor.experiment import cli as experiment_cli
     called = {}
     monkeypatch.setattr(experiment_cli, "run_experiment",
                         lambda **kw: called.setdefault("run", kw) and [])

@@ -8,9 +8,9 @@ import itertools
 
 import numpy as np
 
-from mrta_supervisor.report import Options, build
-from mrta_supervisor.report_plots import plot_team_size, team_size_series
-from mrta_supervisor.results import read_results
+from mrta_supervisor.experiment.report import Options, build
+from mrta_supervisor.experiment.report_plots import plot_team_size, team_size_series
+from mrta_supervisor.experiment.results import read_results
 from tests.test_report import write
 
 ARCHS = ("cbba", "central", "murdoch")

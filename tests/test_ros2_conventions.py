@@ -5,8 +5,8 @@ unless RELIABLE + KEEP_ALL, ROS_DOMAIN_ID and client mode in `mrta ros2`, and `b
 import pytest
 from click.testing import CliRunner
 
-from mrta_supervisor.api import resolve_application
-from mrta_supervisor.state import Supervisor
+from mrta_supervisor.live.api import resolve_application
+from mrta_supervisor.live.state import Supervisor
 from mrta_zenoh.cli.main import cli
 from mrta_zenoh.ros2 import names
 from mrta_zenoh.ros2.attachment import Attachment

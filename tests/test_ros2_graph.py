@@ -5,8 +5,8 @@ offline (in-process, driven token by token)."""
 from mrta_zenoh.ros2 import names
 from mrta_zenoh.ros2.graph import Ros2Graph
 from mrta_zenoh.ros2.names import COMMANDS, SENSOR_DATA
-from mrta_supervisor.api import resolve_application
-from mrta_supervisor.state import Supervisor
+from mrta_supervisor.live.api import resolve_application
+from mrta_supervisor.live.state import Supervisor
 
 HASH = "RIHS01_" + "0" * 64
 DRIVER = names.node_token(0, "z1", 1, "/robot2", "pioneer_driver")
@@ -65,7 +65,7 @@ def test_the_live_view_has_a_ros2_line_once_there_are_nodes():
 
     from rich.console import Console
 
-    from mrta_supervisor.view import render
+    from mrta_supervisor.live.view import render
 
     app, arch = resolve_application("patrol")
     sup = Supervisor(arch, app, 0.0)

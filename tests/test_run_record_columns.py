@@ -5,9 +5,9 @@ README's experiment table once grew a cell per coordination count)."""
 
 from __future__ import annotations
 
-from mrta_supervisor import summary as summary_module
-from mrta_supervisor.results import kind
-from mrta_supervisor.summary import Decisions, Summary, flat_metrics
+from mrta_supervisor.mission import summary as summary_module
+from mrta_supervisor.experiment.results import kind
+from mrta_supervisor.mission.summary import Decisions, Summary, flat_metrics
 
 
 def test_a_runs_record_columns_are_measures_not_parameters():

@@ -1,4 +1,4 @@
-"""An honest run status (supervisor/run_watch.py): a process of the run that lost its token
+"""An honest run status (supervisor/mission/run_watch.py): a process of the run that lost its token
 while the run was on — other than an injected crash, or the simulator ending its run — makes
 the run disturbed; a recorder that lost its session, or a recording that ends early, makes it
 incomplete. Pure parts on the in-process bus and a manual clock; the real processes, stopped
@@ -12,10 +12,10 @@ from types import SimpleNamespace
 import pytest
 
 from mrta_agent.alliance.architecture import ALLIANCE
-from mrta_supervisor.run_watch import (RECORDER, SIMULATOR, RunWatch, check_simulator_end,
-                                       crashed_itself, run_status)
-from mrta_supervisor.summary import (COMPLETE, DISTURBED, INCOMPLETE, Disturbance, Summary,
-                                     run_problem)
+from mrta_supervisor.mission.run_watch import (RECORDER, SIMULATOR, RunWatch,
+                                               check_simulator_end, crashed_itself, run_status)
+from mrta_supervisor.mission.summary import (COMPLETE, DISTURBED, INCOMPLETE, Disturbance, Summary,
+                                             run_problem)
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.bus.inproc import InProcNetwork
 from mrta_zenoh.clock import ManualClock
@@ -173,7 +173,7 @@ def test_a_recording_that_ends_early_or_holds_nothing_is_incomplete(recorded_unt
 
 
 def summary(**fields) -> Summary:
-    from mrta_supervisor.summary import MessageRates
+    from mrta_supervisor.mission.summary import MessageRates
     return Summary(mission="patrol", application="patrol", architecture="alliance",
                    duration=60.0, speed=0.0, seed=0, wall_seconds=1.0, robots=["robot1"],
                    who_did_what={}, first_full_allocation=None, coverage={},
@@ -220,8 +220,8 @@ def test_an_experiment_runs_a_disturbed_or_incomplete_run_again_then_marks_it(
         tmp_path, status, rc, marked, says):
     import time
 
-    from mrta_supervisor import experiment
-    from mrta_supervisor.summary import write_summary
+    from mrta_supervisor.experiment import api as experiment
+    from mrta_supervisor.mission.summary import write_summary
     out = tmp_path / "run000"
     out.mkdir()
     write_summary(out / "summary.json", summary(

@@ -11,7 +11,7 @@ from mrta_agent.ssi.messages import MESSAGES, Round
 from mrta_agent.ssi.params import SsiKeys
 from mrta_zenoh.codec import encode, encoding_for
 from mrta_zenoh.messages import Header
-from supervisor.ground_truth import decisions
+from mrta_supervisor.mission.ground_truth import decisions
 from tests.harness.logic_team import LogicTeam
 from tests.harness.route_team import RouteTeam, params_for
 from tests.test_ssi_execution import instance

@@ -10,9 +10,7 @@ import numpy as np
 import pytest
 import scipy.stats
 
-from mrta_supervisor import stats
-
-
+from mrta_supervisor.experiment import stats
 def test_one_level_bounds_are_scipys_bca_on_the_same_data_and_seed():
     x = [3.1, 2.9, 3.4, 3.0, 3.8, 2.7, 3.3, 3.05]
     direct = scipy.stats.bootstrap((np.array(x),), np.mean, n_resamples=10_000,

@@ -13,8 +13,8 @@ import msgspec
 import pytest
 
 from mrta_zenoh.errors import ConfigError
-from mrta_supervisor import summary as summary_module
-from mrta_supervisor.summary import (FRAMEWORK_KEYS, Summary, SummarySections, checked_sections,
+from mrta_supervisor.mission import summary as summary_module
+from mrta_supervisor.mission.summary import (FRAMEWORK_KEYS, Summary, SummarySections, checked_sections,
                                      check_sections_type, read_summary, summary_json,
                                      write_summary)
 

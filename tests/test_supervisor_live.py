@@ -17,10 +17,10 @@ from rich.text import Text
 from mrta_agent.alliance.messages import InterRobotCommunication
 from mrta_zenoh.cli.common import SafeFormatter
 from mrta_zenoh.messages import Header
-from mrta_supervisor.api import resolve_application
-from mrta_supervisor.cli import LiveScreen
-from mrta_supervisor.state import Supervisor
-from mrta_supervisor.view import render
+from mrta_supervisor.live.api import resolve_application
+from mrta_supervisor.live.cli import LiveScreen
+from mrta_supervisor.live.state import Supervisor
+from mrta_supervisor.live.view import render
 
 HEADER = "mrta demo · simulated"
 
@@ -141,7 +141,7 @@ def test_piped_demo_lines_come_at_each_tenth_simulated_second_with_the_alarms():
     """Not on a terminal the demo prints a `t=` line at the first refresh past each 10th
     simulated second — the README's "every 10 simulated seconds" — naming the alarms up (the
     alarm log lines are off: the views name them)."""
-    from mrta_supervisor.mission_cli import _Lines
+    from mrta_supervisor.mission.cli import _Lines
 
     out = io.StringIO()
     lines = _Lines(Console(file=out, width=200, color_system=None))

@@ -6,8 +6,8 @@ from __future__ import annotations
 import csv
 import pytest
 
-from mrta_supervisor import report, report_plots
-from mrta_supervisor.results import read_results
+from mrta_supervisor.experiment import report, report_plots
+from mrta_supervisor.experiment.results import read_results
 
 
 @pytest.mark.slow

@@ -8,9 +8,9 @@ import pytest
 from mrta_agent.alliance.messages import InterRobotCommunication
 from mrta_zenoh.clock import SimClock
 from mrta_zenoh.messages import Header
-from mrta_supervisor.api import CLOCK_STALL, Elapsed, Refresh, resolve_application
-from mrta_supervisor.state import Supervisor
-from mrta_supervisor.tasks import TaskStatus, TaskWatch, application_watch
+from mrta_supervisor.live.api import CLOCK_STALL, Elapsed, Refresh, resolve_application
+from mrta_supervisor.live.state import Supervisor
+from mrta_supervisor.live.tasks import TaskStatus, TaskWatch, application_watch
 
 IRC = "alliance_msgs/InterRobotCommunication"
 

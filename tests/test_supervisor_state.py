@@ -12,9 +12,9 @@ from mrta_agent.alliance.messages import InterRobotCommunication
 from tests.harness.helpers import ALLIANCE_ARCH
 from mrta_zenoh.toolchain.model import ApplicationFile, RobotEntry
 from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
-from mrta_supervisor.api import CLOCK_STALL, Refresh, attach, resolve_application
-from mrta_supervisor.holders import SampleHolder
-from mrta_supervisor.state import Supervisor
+from mrta_supervisor.live.api import CLOCK_STALL, Refresh, attach, resolve_application
+from mrta_supervisor.live.holders import SampleHolder
+from mrta_supervisor.live.state import Supervisor
 from mrta_zenoh.toolchain.model import Topic
 
 IRC = "alliance_msgs/InterRobotCommunication"
@@ -266,7 +266,7 @@ def test_live_view_fits_80_by_24_with_ten_robots(patrol):
 
     from rich.console import Console
 
-    from mrta_supervisor.view import render
+    from mrta_supervisor.live.view import render
 
     app, arch = patrol
     app = ApplicationFile(app.architecture, app.name,
@@ -294,7 +294,7 @@ def test_ids_with_markup_and_escape_codes_are_shown_as_plain_text(patrol):
 
     from rich.console import Console
 
-    from mrta_supervisor.view import render
+    from mrta_supervisor.live.view import render
 
     app, arch = patrol
     sup = Supervisor(arch, app, 0.0)
@@ -316,7 +316,7 @@ def test_a_route_executing_robot_shows_the_task_it_serves_not_the_first_it_holds
     from mrta_zenoh.architectures import architecture
     from mrta_zenoh.toolchain.registry import Registry
     from mrta_agent.route.messages import Progress, Queued
-    from mrta_supervisor.entities import Serving
+    from mrta_supervisor.live.entities import Serving
 
     ssi = architecture("ssi")
     app = ApplicationFile("delivery", "Delivery", [RobotEntry("robot1", ["t1", "t2", "t3"]),

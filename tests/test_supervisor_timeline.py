@@ -14,8 +14,8 @@ from mrta_zenoh.keys import CLOCK
 from mrta_zenoh.messages import Clock, Header
 from mrta_zenoh.recording import McapRecorder, SimLogTime
 from mrta_zenoh.toolchain.model import ApplicationFile, RobotEntry
-from mrta_supervisor import plots
-from mrta_supervisor.api import resolve_application
+from mrta_supervisor.mission import plots
+from mrta_supervisor.live.api import resolve_application
 
 NS = 1_000_000_000
 TICK = 0.1

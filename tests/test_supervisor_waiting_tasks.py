@@ -1,5 +1,5 @@
 """A task nobody holds while every robot able to serve it is busy waits for a robot to be free
-(supervisor/tasks.py, waits_for_a_robot): under MURDOCH, which keeps no queue, a time-extended
+(supervisor/live/tasks.py, waits_for_a_robot): under MURDOCH, which keeps no queue, a time-extended
 delivery (more tasks than robots) runs that way, and the supervisor raises no
 `task_unattended` for it. A capable robot idle beside it, or none online, is still an alarm."""
 
@@ -11,9 +11,9 @@ from mrta_agent.murdoch.messages import Claim
 from mrta_delivery.instance import InstanceBody, RobotSpec, TaskSpec
 from mrta_delivery.messages import TaskEvent
 from mrta_delivery.mission import DeliveryWatch
-from mrta_supervisor.api import resolve_application
-from mrta_supervisor.state import Supervisor
-from mrta_supervisor.tasks import waits_for_a_robot
+from mrta_supervisor.live.api import resolve_application
+from mrta_supervisor.live.state import Supervisor
+from mrta_supervisor.live.tasks import waits_for_a_robot
 from mrta_zenoh.messages import Header
 
 ROBOTS = ("robot1", "robot2", "robot3", "robot4", "robot5")
@@ -99,7 +99,7 @@ def test_a_continuous_task_left_alone_while_the_others_are_busy_is_unattended():
     """Patrol's tasks never end, so no robot becomes free of one: its watch does not serve
     tasks in turn, and wander, left by robot2 when it went offline, is unattended although
     every online robot is busy."""
-    from mrta_supervisor.tasks import application_watch
+    from mrta_supervisor.live.tasks import application_watch
     app, arch = resolve_application("patrol_murdoch")
     watch = application_watch(app)
     assert watch is not None and not watch.served_in_turn

@@ -160,7 +160,7 @@ def test_app_validate_refuses_what_the_runtime_refuses_with_its_line(tmp_path, t
     res = CliRunner().invoke(cli, ["app", "validate", str(f)])
     assert res.exit_code == 2 and f"{f}:{line}" in res.output and message in res.output, res.output
     # and the runtime refuses it the same way, for it reads the file through the same reader
-    from supervisor.api import resolve_application
+    from mrta_supervisor.live.api import resolve_application
 
     with pytest.raises(ConfigError) as err:
         resolve_application(str(f))

@@ -1,8 +1,8 @@
 """The channels `mrta view APP` advertises before any message: what the layout's
 panels name is there as soon as a client connects."""
 
-from mrta_supervisor.api import resolve_application
-from mrta_supervisor.viewer import known_channels
+from mrta_supervisor.live.api import resolve_application
+from mrta_supervisor.live.viewer import known_channels
 
 
 def test_the_applications_channels_are_known_before_any_message():

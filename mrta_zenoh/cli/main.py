@@ -94,10 +94,10 @@ SHORT_HELP = {
         "Run ROBOT_ID's ALLIANCE agent: motivational behaviours, sensors, evaluators and layers.",
     "mrta_zenoh.cli.toolchain:app": "Registered MRTA applications; create new ones.",
     "mrta_zenoh.cli.toolchain:arch": "Registered MRTA architectures (rqt_mrta's plugins).",
-    "mrta_supervisor.mission_cli:demo":
+    "mrta_supervisor.mission.cli:demo":
         "A mission end to end: simulator, agents and supervisor, then a summary.",
     "mrta_zenoh.cli.echo:echo": "!Print the samples on a key expression or ROS topic.",
-    "mrta_supervisor.experiment_cli:experiment":
+    "mrta_supervisor.experiment.cli:experiment":
         "!Run an experiment file's matrix of runs, or rebuild its report.",
     "mrta_zenoh.cli.instance:instance":
         "Problem instances: generate them, look at them, check them (`mrta demo --instance`).",
@@ -122,7 +122,7 @@ SHORT_HELP = {
         "Run the agents of the robots SPEC lists in this one process (an agent host): each robot "
         "keeps its keys, tokens, parameters, seed stream and faults; one Zenoh session and one "
         "lockstep participant serve them all.",
-    "mrta_supervisor.plot_cli:plot":
+    "mrta_supervisor.mission.plot_cli:plot":
         "Plots from a recording made with `mrta record` (or `mrta demo`).",
     "mrta_zenoh.cli.record:record":
         "Record every sample on KEYEXPR… (default: everything) to an MCAP file.",
@@ -136,15 +136,15 @@ SHORT_HELP = {
         "Authenticated, authorised fleets: certificates and Zenoh configs (docs/security.md).",
     "mrta_simulator.cli:sim":
         "Simulate Pioneer 3-DX robots: cmd_vel in; clock, sonar, odom, ground_truth, bumper out.",
-    "mrta_supervisor.cli:supervise":
+    "mrta_supervisor.live.cli:supervise":
         "Supervise APP (a registered application or its rqt_mrta.xml): robots, tasks, alarms,\n"
         "    and the ROS 2 graph (a robot whose ROS 2 driver node is gone is offline).",
-    "mrta_supervisor.cli:view":
+    "mrta_supervisor.live.cli:view":
         "Serve APP's robots, scene and supervisor to Foxglove (ws://HOST:PORT), live.",
     # `mrta plot` kinds (mrta.plots)
     "mrta_agent.alliance.plot_cli:motivation":
         "rqt_alliance's seven panels for one robot and task, over time.",
-    "mrta_supervisor.plot_cli:timeline":
+    "mrta_supervisor.mission.plot_cli:timeline":
         "Which robot did which task when (a Gantt chart), with offline periods hatched.",
 }
 

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from mrta_supervisor.results import MACHINE_TIME
+from mrta_supervisor.experiment.results import MACHINE_TIME
 from tests.harness.helpers import descendants
 
 pytestmark = pytest.mark.multiprocess

@@ -51,7 +51,7 @@ def assert_stood_still_from(out: Path, robot: str, at: float) -> None:
 
 @pytest.mark.timeout(300)
 def test_alliance_takes_over_the_task_of_a_stalled_robot(children, tmp_path):
-    from mrta_supervisor.experiment import package_copy
+    from mrta_supervisor.experiment.api import package_copy
     from mrta_zenoh.toolchain.registry import Registry
     package_copy(Registry().find("patrol").path, tmp_path / "pkg",
                  (("robot*.behaviour_sets.behaviour_set0.task_expected_duration", WANDER_PHI),))

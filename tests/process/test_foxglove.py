@@ -15,8 +15,8 @@ from mcap.reader import make_reader
 
 from mrta_zenoh.keys import LIVELINESS_PREFIX
 from mrta_zenoh.recording import read_recording
-from mrta_supervisor.api import resolve_application
-from mrta_supervisor.plots import TimeBase, replay
+from mrta_supervisor.live.api import resolve_application
+from mrta_supervisor.mission.plots import TimeBase, replay
 from tests.harness.helpers import free_port
 
 pytestmark = pytest.mark.multiprocess

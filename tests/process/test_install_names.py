@@ -23,14 +23,14 @@ FOLDERS = ("supervisor", "simulator", "robot_agent")
 PROBE = f"""
 import importlib.metadata as md, importlib.util, json
 import supervisor.options            # supervisord's
-import mrta_supervisor.state         # ours
+import mrta_supervisor.live.state         # ours
 ours = md.distribution({DIST!r})
 top_level = (ours.read_text("top_level.txt") or "").split()
 owners = md.packages_distributions()
 print(json.dumps({{
     "supervisor": supervisor.options.__file__,
     "supervisor_dist": md.distribution("supervisor").locate_file("supervisor/options.py").__str__(),
-    "mrta_supervisor": mrta_supervisor.state.__file__,
+    "mrta_supervisor": mrta_supervisor.live.state.__file__,
     "top_level": top_level,
     "owners": {{name: owners.get(name, []) for name in {FOLDERS!r}}},
     "specs": {{name: getattr(importlib.util.find_spec(name), "origin", None)

@@ -122,7 +122,7 @@ print(",".join(sorted(m for m in sys.modules if m.startswith("mrta_zenoh.lockste
      "mrta_zenoh.lockstep.books,mrta_zenoh.lockstep.participant,mrta_zenoh.lockstep.protocol,"
      "mrta_zenoh.lockstep.sequence,mrta_zenoh.lockstep.table"),
     # observers and the access-control generator: the protocol only
-    ("mrta_supervisor.api, mrta_supervisor.mission, mrta_zenoh.secure", "observer", "SIM",
+    ("mrta_supervisor.live.api, mrta_supervisor.mission.runner, mrta_zenoh.secure", "observer", "SIM",
      "mrta_zenoh.lockstep.protocol"),
 ])
 def test_each_process_loads_only_the_lockstep_it_needs(modules, role, time, loaded):

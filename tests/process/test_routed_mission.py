@@ -1,4 +1,4 @@
-"""A mission through the run's own router (supervisor/mission.py, ROUTER_FROM): from that many
+"""A mission through the run's own router (supervisor/mission/runner.py, ROUTER_FROM): from that many
 robots the run's processes are the router's clients instead of a peer mesh, whose N² links cost
 every process CPU in proportion to N (benchmarks/README.md, team sizes)."""
 

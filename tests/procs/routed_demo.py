@@ -3,7 +3,7 @@ the router topology on a team small enough for a test."""
 
 import sys
 
-from mrta_supervisor import mission
+from mrta_supervisor.mission import runner as mission
 from mrta_zenoh.cli.main import cli
 
 mission.ROUTER_FROM = 1

@@ -31,7 +31,7 @@ from mrta_zenoh.failure import FaultKind, Faults
 from mrta_zenoh.planning import Problem
 from mrta_zenoh.planning.assignment import (greedy_online, ia_costs, murdoch_utility,
                                             optimal_assignment)
-from mrta_supervisor.ground_truth import stretches_from
+from mrta_supervisor.mission.ground_truth import stretches_from
 
 from .instance import InstanceBody, document_data
 from .keys import Event

@@ -29,11 +29,11 @@ from mrta_agent.runtime.instance import named_instance
 from mrta_agent.runtime.params import load_layers_params
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.keys import first_chunk
-from mrta_supervisor.ground_truth import decisions
+from mrta_supervisor.mission.ground_truth import decisions
 from mrta_supervisor.mission import Mission, MissionRun, faults_of
-from mrta_supervisor.roles import as_struck
-from mrta_supervisor.tasks import TaskStatus, TaskWatch
-from mrta_supervisor.summary import SummarySections
+from mrta_supervisor.mission.roles import as_struck
+from mrta_supervisor.live.tasks import TaskStatus, TaskWatch
+from mrta_supervisor.mission.summary import SummarySections
 
 from .generate import derive
 from .instance import InstanceBody, InstanceDoc, load_document

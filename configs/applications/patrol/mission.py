@@ -1,5 +1,5 @@
 """The patrol mission as `mrta demo` and `mrta experiment` run it: registered under
-`mrta.missions` as `patrol`. The framework's mission runner (mrta_supervisor.mission) launches,
+`mrta.missions` as `patrol`. The framework's mission runner (mrta_supervisor.mission.runner) launches,
 records, supervises, injects the failure and writes the summary; this hook adds what only the
 patrol application can measure — collisions (the simulator's bumper counters) and the share of
 the border the team came near — from the recording.
@@ -16,7 +16,7 @@ from typing import Any
 from mrta_agent.runtime.params import load_layers_params
 from mrta_zenoh.keys import first_chunk
 from mrta_supervisor.mission import Mission, MissionRun
-from mrta_supervisor.tasks import TaskStatus, TaskWatch
+from mrta_supervisor.live.tasks import TaskStatus, TaskWatch
 
 from .keys import ALL_REPORTS
 from .layers import BorderParams, ReportParams

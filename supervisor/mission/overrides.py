@@ -1,5 +1,5 @@
 """Parameter overrides: `GLOB.KEY.PATH` = value, set in an application package's parameter
-files (config/*.yaml) — an experiment's `overrides:` (experiment_file.py) and `mrta demo
+files (config/*.yaml) — an experiment's `overrides:` (experiment/file.py) and `mrta demo
 --override` alike.
 
 GLOB matches a file's stem, or its stem up to the architecture's suffix (`robot*` matches
@@ -9,7 +9,7 @@ file, or a path missing from a file it matches, is a ConfigError naming both: an
 silently did nothing would make every run of its cell a copy of the default's.
 
 Where they are applied: a run without an instance gets its own copy of the installed package
-(experiment_runs.package_copy); a run of an instance (`mrta demo --instance`) derives its
+(runs.package_copy); a run of an instance (`mrta demo --instance`) derives its
 packages into its own folder, and the overrides are applied there, after the derivation
 (mission.run_mission) — the installed packages are never written.
 """

@@ -8,14 +8,14 @@ every error names the file, the line and the key, with a "did you mean" for a mi
     seeds: [1, 2, 3, 4, 5]   # or seeds: 5 (1 to 5); one value stands for a one-item list
     failures: [none, robot2@40, "stall:@first@5", "partition:robot2@40+10,loss:0.1"]
                            # each one fault spec (docs/delivery.md, "Fault grammar")
-    instances:             # optional: the instances runs serve (experiment_instances.py)
+    instances:             # optional: the instances runs serve (instances.py)
       generator: delivery
       robots: [5, 10, 20]
       tasks_per_robot: [1, 2]
       count: 3
       seed: 7
     overrides:             # optional sweeps: <parameter file glob>.<key path>: [values]
-      robot*.timeout_duration: [2.0, 4.0]   # (overrides.py; with instances, set in each
+      robot*.timeout_duration: [2.0, 4.0]   # (mission/overrides.py; with instances, set in each
                            # run's derived packages)
     robots: [3]            # optional, without instances: the team size the file expects
                            # (checked, not varied)
@@ -30,7 +30,7 @@ that defines a run but its instance and its seed (`Cell`: the architecture, the 
 its runs are every instance of its size × every seed. The cells are the product of the axes
 (`Experiment.axes`: architecture, size, failure, then each override key in sorted order), and
 runs are numbered cell by cell, instance by instance, seed by seed. Seeds added later (`mrta
-experiment --until-ci`, experiment.py) continue the numbering: `runs(seeds, first)`. The
+experiment --until-ci`, api.py) continue the numbering: `runs(seeds, first)`. The
 instances of a block are made once, into the output folder, before the runs
 (`Experiment.with_instances`); until then the matrix is counted, not listed.
 """
@@ -51,8 +51,8 @@ from mrta_zenoh.failure import faults_problem, parse_faults
 from mrta_zenoh.limits import MAX_RUNS, RUN_DURATION, SEED
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, load_yaml, plural
 
-from .experiment_instances import Instance, InstancesSpec, Size, as_lists, check_block
-from .experiment_instances import count as instance_count
+from .instances import Instance, InstancesSpec, Size, as_lists, check_block
+from .instances import count as instance_count
 from .results import measure_problem
 
 
@@ -147,7 +147,7 @@ class Experiment:
         return list(self.spec.architectures) if self.spec.architectures else [None]
 
     def with_instances(self, instances: tuple[Instance, ...]) -> "Experiment":
-        """This experiment with its instances made (experiment_instances.prepare)."""
+        """This experiment with its instances made (instances.prepare)."""
         return replace(self, instances=instances)
 
     def sizes(self) -> list[Size | None]:

@@ -2,16 +2,16 @@
 submitit (the optional `slurm` extra: `pip install 'mrta-zenoh[slurm]'`).
 
 University clusters are built around the job array: their schedulers, quotas and fair-share
-count array tasks, not the long-lived workers a Dask cluster keeps (experiment_dask.py, kept for
+count array tasks, not the long-lived workers a Dask cluster keeps (dask_backend.py, kept for
 a lab's own machines). A run is one array task, for the reason it is one Dask task: `mrta demo`
 and the processes it starts share one private loopback rendezvous, so they stay on one node.
 The task (`run_task`) starts exactly the argv the local backend starts
-(experiment_runs.start_run), writing straight into OUTPUT/runNNN — OUTPUT must be on a file
+(runs.start_run), writing straight into OUTPUT/runNNN — OUTPUT must be on a file
 system the nodes share, as submitit's own folder (OUTPUT/slurm: its pickles and the tasks'
 logs) must be — and, like the local backend, runs a run whose lockstep was not exact once
 more before it returns. This process submits the arrays, then writes each run's row as its
-task ends (experiment_runs.Results, the row the local backend makes), so the same seeds give
-the same rows; resuming and shards (experiment_resume.py) work as on every backend: an
+task ends (runs.Results, the row the local backend makes), so the same seeds give
+the same rows; resuming and shards (resume.py) work as on every backend: an
 interrupted study is resumed by the same command, which submits only the runs without a row.
 
 Arrays: a cluster refuses an array larger than its MaxArraySize (`scontrol show config`), so
@@ -44,8 +44,8 @@ from mrta_zenoh.processes import ProcessGroup
 from mrta_zenoh.yamlfile import plural
 from mrta_zenoh.toolchain.registry import Registry
 
-from .experiment_file import Run
-from .experiment_runs import Results, error_of, inexact, start_run
+from .file import Run
+from .runs import Results, error_of, inexact, start_run
 
 log = logging.getLogger("mrta.experiment.slurm")
 

@@ -13,7 +13,7 @@ Channels, for a recording (McapRecorder) and for the live WebSocket server alike
   (`foxglove.Log`: each alarm raised or cleared, for the Log panel).
 
 The scene and poses are one frame (`scene_frame`), the supervisor's channels another
-(`supervisor_frame`): the caller samples each at its own rate (supervisor/viewer.py: per
+(`supervisor_frame`): the caller samples each at its own rate (supervisor/live/viewer.py: per
 simulated period on simulated time). Every JSON channel has a real JSON Schema (ROBOT_TASK,
 SUPERVISOR_SNAPSHOT below), so Foxglove's panels offer their fields.
 
@@ -69,7 +69,7 @@ ROBOT_TASK = {
                "activity": {**_STRING, "description": "the task while busy, else the state: "
                             "one State Transitions row per robot says both"}}),
 }
-# the supervisor's counts (supervisor/state.py); a newer supervisor's other counts still
+# the supervisor's counts (supervisor/live/state.py); a newer supervisor's other counts still
 # validate (additionalProperties), though the panels offer only these
 COUNTS = ("samples", "wrong_type", "field_errors", "key_mismatch", "unknown", "unknown_overflow",
           "bad_keys", "stranger_tokens")

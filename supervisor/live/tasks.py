@@ -5,7 +5,7 @@ alarm is raised for it.
 The supervisor is generic: it knows no application. An application that has such tasks (a
 delivery is done once delivered; a task of an online instance is waiting until it arrives; a
 periodic report is not due again until its period has passed) gives a `TaskWatch` from its
-mission hook (`Mission.task_watch`, supervisor/mission.py): the keys to read and what each
+mission hook (`Mission.task_watch`, supervisor/mission/runner.py): the keys to read and what each
 sample says, plus what is known in advance. A status holds for `seconds` from when it is
 heard (None: for good), on the supervisor's clock, so a supervisor on wall time watching a
 simulated run is not misled by the senders' simulated stamps. A task on which a robot works
@@ -76,7 +76,7 @@ def application_watch(app: ApplicationFile, registry: Registry | None = None) ->
     (the mission registered for it or for a package it depends on, as `mrta demo` finds it);
     None when it has no mission, or its mission watches nothing — then every task always
     needs a robot, as rqt_mrta's supervisor assumed."""
-    from .mission import MissionOptions, missions, resolve  # the runner imports this module
+    from ..mission.runner import MissionOptions, missions, resolve  # the runner imports this module
     reg = registry or Registry()
     source = Path(app.source).resolve().parent if app.source else None
     pkg = next((p for p, _ in reg.applications()

@@ -40,8 +40,8 @@ import msgspec
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.files import write_text
 
-from .experiment_file import Experiment, Run
-from .experiment_runs import prepare_output
+from .file import Experiment, Run
+from .runs import prepare_output
 from .results import ResultsTable, read_results, write_csv
 
 log = logging.getLogger("mrta.experiment")

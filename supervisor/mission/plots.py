@@ -32,8 +32,8 @@ from mrta_zenoh.recording import TimeBase, read_recording  # noqa: E402
 from mrta_zenoh.toolchain.model import ApplicationFile, ArchitectureFile  # noqa: E402
 
 from .ground_truth import intervals_from  # noqa: E402
-from .state import Supervisor  # noqa: E402
-from .tasks import TaskWatch  # noqa: E402
+from ..live.state import Supervisor  # noqa: E402
+from ..live.tasks import TaskWatch  # noqa: E402
 
 Intervals = dict[str, list[tuple[str, float, float]]]  # robot → [(task, start, end)]
 Spans = dict[str, list[tuple[float, float]]]           # robot → [(start, end)]

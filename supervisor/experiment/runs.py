@@ -1,6 +1,6 @@
-"""One run of an experiment, the same whichever backend starts it — here (experiment.py,
-`--jobs`) or on a Dask worker (experiment_dask.py, `--scheduler`): where a run's parameter
-overrides go (a package copy, or its instance's derived packages: overrides.py), the `mrta demo` argv, how a run is started, and how what it
+"""One run of an experiment, the same whichever backend starts it — here (api.py,
+`--jobs`) or on a Dask worker (dask_backend.py, `--scheduler`): where a run's parameter
+overrides go (a package copy, or its instance's derived packages: mission/overrides.py), the `mrta demo` argv, how a run is started, and how what it
 left becomes a row of results.csv. Both backends import this module and nothing of each other.
 """
 
@@ -17,10 +17,10 @@ from mrta_zenoh.failure import ROLES
 from mrta_zenoh.planning.reference import REFERENCE_CACHE_ENV
 from mrta_zenoh.processes import ProcessGroup, mrta_argv
 
-from .experiment_file import Run
-from .overrides import Overrides, apply_overrides, override_text
+from .file import Run
+from ..mission.overrides import Overrides, apply_overrides, override_text
 from .results import COVERAGE, write_csv
-from .summary import COMPLETE, INCOMPLETE, flat_metrics, read_summary, run_problem
+from ..mission.summary import COMPLETE, INCOMPLETE, flat_metrics, read_summary, run_problem
 
 
 REFERENCES = "references"  # beside a run's instance file: its solved reference values
@@ -56,7 +56,7 @@ def demo_args(package: str, duration: float, run: Run, out: Path, plots: bool = 
     exactly the same mission. Without `plots` the run draws no picture (its recording and
     summary are the same: pictures are drawn from them). `instance`: the run's instance file
     as this machine has it (a Dask worker writes its own copy); its overrides go to the
-    packages the run derives from it (`--override`: overrides.py)."""
+    packages the run derives from it (`--override`: mission/overrides.py)."""
     return (["-q", "demo", "--application", package, "--duration", str(duration), "--speed",
              "0", "--fail", run.failure, "--seed", str(run.seed), "--output", str(out),
              "--no-live", "--agents-per-process", str(run.agents_per_process)]
@@ -158,7 +158,7 @@ class Results:
     """The rows of the runs that ended, in results.csv as soon as each ends (a Ctrl-C or a
     crash keeps them), the progress callback told: `progress(done, total, row)`, and
     `progress(done, total, None)` when the total is known or grows (a block of --until-ci).
-    `rows`: those results.csv already held (a resumed folder: experiment_resume.done_rows), as
+    `rows`: those results.csv already held (a resumed folder: resume.done_rows), as
     read (strings), under their own columns first."""
 
     def __init__(self, path: Path, total: int, progress=None, context: Context = Context(),

@@ -24,7 +24,7 @@ from mrta_zenoh.yamlfile import did_you_mean
 
 from . import stats
 from .results import INSTANCE, ResultsTable, column_named, kind
-from .summary import mission_hook
+from ..mission.summary import mission_hook
 
 ARCHITECTURE = "architecture"
 REFERENCE = "metrics.reference_"  # metrics.reference_X: the reference value of metrics.X

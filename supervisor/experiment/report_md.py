@@ -25,7 +25,7 @@ BETTER_WORDS = {stats.LOWER: "lower is better", stats.HIGHER: "higher is better"
 
 @dataclass
 class Precision:
-    """What `--until-ci` asked and what it reached (experiment.py), for summary.md."""
+    """What `--until-ci` asked and what it reached (api.py), for summary.md."""
 
     targets: dict[str, float]
     runs: int

@@ -15,7 +15,7 @@ version, or rows of several experiments put together, read the same way: a measu
 one of the framework's own or ends in a coverage share or starts with `metrics.`,
 `messages.` or `faults.`; bookkeeping
 is the fixed list; every other column is a parameter. An override whose key would read as a
-measure is refused by the experiment file (experiment_file.py), so the split is exact.
+measure is refused by the experiment file (file.py), so the split is exact.
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ MEASURES = ("takeover_seconds", "first_full_allocation", "messages", "messages_p
 COVERAGE = (".exactly_one", ".none", ".more_than_one")
 APPLICATION_PREFIX = "metrics."
 MESSAGES_PREFIX = "messages."  # coordination messages of each kind (summary.flat_metrics)
-FAULTS_PREFIX = "faults."  # what injected faults did to them, by cause (fault_effects.py)
+FAULTS_PREFIX = "faults."  # what injected faults did to them, by cause (mission/fault_effects.py)
 # what the machine, not the run, decides: two runs of one seed differ in these alone — wall
 # and computing time, and the whole bus's counts, whose edges (the recording's first and last
 # messages) fall where the machine's timing puts them (a message more or less in ~2700)

@@ -1,5 +1,5 @@
 """`mrta experiment FILE.yaml` and `mrta experiment report DIR`: thin click wrappers over
-mrta_supervisor.experiment (the runs) and mrta_supervisor.report_md (the report alone).
+mrta_supervisor.experiment.api (the runs) and mrta_supervisor.experiment.report_md (the report alone).
 
 `experiment` is a group whose default command runs a file, so both spellings work: a first
 argument that is not `report` (nor `run`, nor --help) is a file to run. Progress goes to
@@ -23,10 +23,10 @@ from mrta_zenoh.errors import ConfigError, MrtaRuntimeError
 from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.limits import MAX_RUNS
 
-from .experiment import parse_target, run_experiment
-from .experiment_resume import Shard, merge_folders, parse_shard
-from .experiment_runs import prepare_output
-from .experiment_slurm import TIME_LIMIT, SlurmOptions
+from .api import parse_target, run_experiment
+from .resume import Shard, merge_folders, parse_shard
+from .runs import prepare_output
+from .slurm_backend import TIME_LIMIT, SlurmOptions
 from .report import Options
 from .report_md import write_report
 

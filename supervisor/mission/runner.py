@@ -65,7 +65,7 @@ from mrta_zenoh.toolchain.registry import Package, Registry
 from mrta_zenoh.toolchain.runner import start_nodes
 from mrta_zenoh.yamlfile import did_you_mean
 
-from .api import Refresh, attach
+from ..live.api import Refresh, attach
 from .fault_effects import fault_effects, refused_traffic
 from .ground_truth import decisions, intervals_from
 from .plots import ROBOTS_TITLE, Panel, TimeBase, draw_timeline
@@ -73,9 +73,9 @@ from . import roles
 from .overrides import apply_overrides
 from .hosting import host_nodes, hosted_crash
 from .run_watch import Readiness, RunWatch, check_simulator_end, crashed_itself, run_status
-from .entities import Serving
-from .state import Supervisor
-from .tasks import TaskWatch
+from ..live.entities import Serving
+from ..live.state import Supervisor
+from ..live.tasks import TaskWatch
 from .summary import (COMPLETE, DISTURBED, Coverage, Disturbance, FailureReport, MessageRates,
                       Span, Summary, checked_sections, write_summary)
 
@@ -137,7 +137,7 @@ class Mission:
         return None
 
     def task_watch(self, run: "MissionRun") -> "TaskWatch | None":
-        """What tells the supervisor a task is done or not due yet (supervisor/tasks.py), so
+        """What tells the supervisor a task is done or not due yet (supervisor/live/tasks.py), so
         that it raises no `task_unattended` for it. It also ends a run early: once it says
         every task is done for good, the runner stops the simulator (END_MARGIN later) rather
         than run to the duration. Default: none — every task always needs a robot."""

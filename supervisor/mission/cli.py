@@ -22,11 +22,11 @@ from mrta_zenoh.cli.common import SEED_TYPE, OutputPath, finite_float, verbosity
 from mrta_zenoh.errors import MrtaRuntimeError
 from mrta_zenoh.failure import FaultKind
 
-from .cli import LiveScreen, quiet_alarms, state_line
-from .mission import MissionOptions, run_mission
+from ..live.cli import LiveScreen, quiet_alarms, state_line
+from .runner import MissionOptions, run_mission
 from .overrides import parse_override
 from .summary import COMPLETE, INCOMPLETE, Summary, run_problem
-from .view import render
+from ..live.view import render
 
 
 @click.command()

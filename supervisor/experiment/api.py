@@ -1,12 +1,12 @@
 """`mrta experiment`: a matrix of reproducible runs of an application, in parallel, and its
 report.
 
-The experiment file (experiment_file.py) gives the matrix: every cell (a failure × parameter
-overrides) × seed is one run — the application's mission (mission.py), run as `mrta demo …
---speed 0 --no-live` in a child process (experiment_runs.py: its own private rendezvous,
+The experiment file (file.py) gives the matrix: every cell (a failure × parameter
+overrides) × seed is one run — the application's mission (mrta_supervisor.mission), run as `mrta demo …
+--speed 0 --no-live` in a child process (runs.py: its own private rendezvous,
 lockstep at full speed; with overrides, its own copy of the application package). Runs go on
 this machine, `jobs` at once, or with `scheduler` as tasks on a Dask cluster
-(experiment_dask.py); both run the same argv and make the same rows, so the same seeds give the
+(dask_backend.py); both run the same argv and make the same rows, so the same seeds give the
 same rows whichever ran them. Each row lands in `results.csv` as its run ends (a Ctrl-C keeps
 the finished rows); a run that fails is a row with its error and the others go on. At the end
 the report is made from results.csv alone (report_md.write_report: summary.md, cells.csv,
@@ -49,14 +49,14 @@ from mrta_zenoh.processes import ProcessGroup
 from mrta_zenoh.toolchain.registry import Registry
 from mrta_zenoh.yamlfile import did_you_mean, plural
 
-from . import experiment_dask, experiment_slurm
-from .experiment_file import (Experiment, Run, _failure_problem, load_experiment)  # noqa: F401
-from .experiment_runs import (Context, Results, error_of, inexact, package_copy,
+from . import dask_backend, slurm_backend
+from .file import (Experiment, Run, _failure_problem, load_experiment)  # noqa: F401
+from .runs import (Context, Results, error_of, inexact, package_copy,
                               prepare_output, start_run)
-from .experiment_instances import place as place_instances, prepare as prepare_instances
-from .experiment_resume import (Shard, check_block, check_folder, done_rows, identity_of,
-                                write_identity)
-from .mission import MissionOptions, MissionRun, resolve
+from .instances import place as place_instances, prepare as prepare_instances
+from .resume import (Shard, check_block, check_folder, done_rows, identity_of,
+                     write_identity)
+from ..mission.runner import MissionOptions, MissionRun, resolve
 from .report import Options, build
 from .report_md import Precision, write_report
 from .results import COVERAGE, MEASURES, column_named, kind, read_results
@@ -132,7 +132,7 @@ def prepare_experiment(exp: Experiment, output: Path, shard: Shard | None = None
                        ) -> tuple[Experiment, dict, list[dict]]:
     """Everything checked before the first run, then the instances made into OUTPUT: the
     experiment with its instances, the run set-up of each architecture, and the rows OUTPUT's
-    results.csv already holds (a resumed run: experiment_resume). The instances are made in a
+    results.csv already holds (a resumed run: resume.py). The instances are made in a
     staging folder first, so a folder holding another experiment is refused with nothing
     written."""
     resolved = resolve_all(exp)
@@ -168,7 +168,7 @@ def prepare_experiment(exp: Experiment, output: Path, shard: Shard | None = None
 def _overridden(exp: Experiment, run: MissionRun, tmp: Path, robots: list[str]):
     """The package the overrides of `run`'s architecture are checked against, with its robots:
     the installed one, or — with instances, whose runs set them in the packages each derives
-    (overrides.py) — the first instance's, derived into `tmp`."""
+    (mission/overrides.py) — the first instance's, derived into `tmp`."""
     if not exp.spec.overrides or not exp.instances:
         return run.package.path, run.arch, robots
     inst = exp.instances[0]
@@ -186,22 +186,22 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
                    scheduler: str | None = None, max_runs: int = MAX_RUNS,
                    until: dict[str, float] | None = None, block: int = 1, plots: bool = True,
                    report: Options = Options(), shard: Shard | None = None,
-                   slurm: experiment_slurm.SlurmOptions | None = None,
+                   slurm: slurm_backend.SlurmOptions | None = None,
                    agents_per_process: int | None = None) -> list[dict]:
     """Every run of FILE's matrix (and, with `until`, the blocks of seeds it takes), `jobs` at
     once here or, with `scheduler` (a Dask scheduler's address), as tasks on that cluster;
-    or, with `slurm`, as SLURM array tasks (experiment_slurm.py);
+    or, with `slurm`, as SLURM array tasks (slurm_backend.py);
     returns the rows (also in OUTPUT/results.csv) and writes the report beside them. A matrix
     of more than `max_runs` runs is refused before anything starts. Runs OUTPUT's results.csv
-    already has a row for are not run again (resuming: experiment_resume); with `shard`, only
+    already has a row for are not run again (resuming: resume.py); with `shard`, only
     that shard's runs are this call's. `agents_per_process`: the file's `agents_per_process:`
     replaced (its rows are the same either way: agent hosts)."""
     if scheduler is not None:
         if jobs is not None:
             raise ConfigError("--jobs is for runs on this machine; with --scheduler the "
                               "workers' `runs` resources say how many run at once")
-        experiment_dask.check_address(scheduler)
-        experiment_dask.require_distributed()  # before anything is written
+        dask_backend.check_address(scheduler)
+        dask_backend.require_distributed()  # before anything is written
     if slurm is not None:
         if jobs is not None or scheduler is not None:
             raise ConfigError("--backend slurm runs every run as an array task: --jobs (this "
@@ -343,7 +343,7 @@ class _Backend:
 
     def __init__(self, packages: dict, duration: float, output: Path, jobs: int | None,
                  scheduler: str | None, stop: threading.Event, results: Results,
-                 pictures: set[int], slurm: experiment_slurm.SlurmOptions | None = None):
+                 pictures: set[int], slurm: slurm_backend.SlurmOptions | None = None):
         self.packages, self.duration, self.output = packages, duration, output
         self.jobs = max(1, jobs or os.cpu_count() or 1)
         self.scheduler, self.stop, self.results, self.pictures = scheduler, stop, results, pictures
@@ -353,12 +353,12 @@ class _Backend:
         if self.stop.is_set() or not runs:
             return
         if self.slurm is not None:
-            experiment_slurm.run_on_slurm(packages=self.packages, duration=self.duration,
-                                          runs=runs, output=self.output, stop=self.stop,
-                                          results=self.results, pictures=self.pictures,
-                                          options=self.slurm)
+            slurm_backend.run_on_slurm(packages=self.packages, duration=self.duration,
+                                       runs=runs, output=self.output, stop=self.stop,
+                                       results=self.results, pictures=self.pictures,
+                                       options=self.slurm)
         elif self.scheduler is not None:
-            experiment_dask.run_on_cluster(self.scheduler, packages=self.packages,
+            dask_backend.run_on_cluster(self.scheduler, packages=self.packages,
                                            duration=self.duration, runs=runs,
                                            output=self.output, stop=self.stop,
                                            results=self.results, pictures=self.pictures)

@@ -1,5 +1,5 @@
 """`summary.json`: what one mission run did, defined once (msgspec Structs) next to the runner
-that writes it (mission.py) and read back from here by `mrta experiment` and the plots.
+that writes it (runner.py) and read back from here by `mrta experiment` and the plots.
 
 Generic over applications and architectures: who did what, coverage, the first full allocation,
 the failure and its takeover beside the architecture's bound, bus traffic. What only an
@@ -81,7 +81,7 @@ class FailureReport(msgspec.Struct, forbid_unknown_fields=True, omit_defaults=Tr
     role: str | None = None
 
 
-# run_status (supervisor/run_watch.py): every process ran throughout and the recording covers
+# run_status (supervisor/mission/run_watch.py): every process ran throughout and the recording covers
 # the mission; a process lost its token while the run was on (stopped or cut off: the run is not
 # what its seed says); the recording does not cover the mission (the figures cover part of it)
 COMPLETE, DISTURBED, INCOMPLETE = "complete", "disturbed", "incomplete"
@@ -201,7 +201,7 @@ def check_sections_type(mission: str, kind: Any) -> type[SummarySections] | None
         return None
     if not (isinstance(kind, type) and issubclass(kind, SummarySections)):
         raise ConfigError(f"mission {mission!r}: summary_sections must be a subclass of "
-                          f"mrta_supervisor.summary.SummarySections, got {kind!r:.60}")
+                          f"mrta_supervisor.mission.summary.SummarySections, got {kind!r:.60}")
     clash = sorted({f.encode_name for f in msgspec.structs.fields(kind)} & FRAMEWORK_KEYS)
     if clash:
         raise ConfigError(f"mission {mission!r}: its summary sections {', '.join(clash)} "

@@ -13,9 +13,9 @@ import click
 from mrta_zenoh.cli.common import OutputPath
 from mrta_zenoh.cli.main import EntryPointGroup
 
-from .api import resolve_application
+from ..live.api import resolve_application
 from .plots import VIEWS, plot_timeline
-from .tasks import application_watch
+from ..live.tasks import application_watch
 
 
 class PlotGroup(EntryPointGroup):

@@ -3,11 +3,11 @@
 
 A run is one task, because a run is `mrta demo` plus the processes it starts (simulator, agents,
 recorder) on one private loopback rendezvous: they must all be on one machine. The task
-(`run_task`) runs on a worker exactly the argv the local backend runs (experiment_runs.demo_args),
+(`run_task`) runs on a worker exactly the argv the local backend runs (runs.demo_args),
 as a child of the worker, in a scratch folder under the worker's local directory, and returns
 the exit code, the end of the output and the run folder's files as bytes (a few MB: run.mcap,
 pictures, summary.json); the client writes them into OUTPUT/runNNN and makes the row the same
-way the local backend does (experiment_runs.row_for), so the same seeds give the same rows. A run
+way the local backend does (runs.row_for), so the same seeds give the same rows. A run
 of an instance (an experiment's `instances:` block) carries its instance file's bytes in the task:
 the worker writes its own copy beside the run folder and hands it to `mrta demo --instance`, so
 a worker on another machine needs no shared file system. Workers need mrta-zenoh and the
@@ -46,8 +46,8 @@ from mrta_zenoh.files import write_folder as files_write_folder
 from mrta_zenoh.processes import ProcessGroup
 from mrta_zenoh.toolchain.registry import Registry
 
-from .experiment_file import Run
-from .experiment_runs import Results, error_of, package_copy, start_run
+from .file import Run
+from .runs import Results, error_of, package_copy, start_run
 
 log = logging.getLogger("mrta.experiment.dask")
 
@@ -169,7 +169,7 @@ def write_folder(folder: Path, files: dict[str, bytes]) -> None:
 def _summary_here(out: Path) -> None:
     """summary.json names the folder the run wrote into: here, not the worker's scratch folder
     (gone with the task), as a run of the local backend names its own."""
-    from .summary import read_summary, write_summary
+    from ..mission.summary import read_summary, write_summary
 
     path = out / "summary.json"
     if path.is_file():

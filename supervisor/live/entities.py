@@ -32,7 +32,7 @@ class TaskInfo:
     state: str = "unallocated"
     robots: tuple[str, ...] = ()
     since: float = 0.0
-    # what the application said of the task (supervisor/tasks.py): "done" or "waiting", up to
+    # what the application said of the task (supervisor/live/tasks.py): "done" or "waiting", up to
     # `until` (None: for good); a task that is neither needs a robot
     status: str | None = None
     until: float | None = None

@@ -1,7 +1,7 @@
 """`mrta view`: the bus, the scene and the supervisor, served live to Foxglove / Lichtblick over
-the Foxglove WebSocket protocol (supervisor/foxglove_server.py: either subprotocol name, latched
+the Foxglove WebSocket protocol (supervisor/live/foxglove_server.py: either subprotocol name, latched
 channels; loopback by default) and/or written to an MCAP file with the same channels
-(supervisor/foxglove.py lists them; docs/foxglove.md says why they are as they are).
+(supervisor/live/foxglove.py lists them; docs/foxglove.md says why they are as they are).
 
 Time. On the wall clock, log times are wall time and the derived channels (scene, poses,
 supervisor) are refreshed `rate` times a wall second. On simulated time (`--sim-time`: the
