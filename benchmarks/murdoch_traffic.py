@@ -35,7 +35,7 @@ sys.path.insert(0, str(ROOT))
 
 from mrta_agent.murdoch.architecture import MURDOCH  # noqa: E402
 from mrta_agent.murdoch.params import load_robot  # noqa: E402
-from mrta_supervisor.mission.runner import MissionOptions, resolve  # noqa: E402
+from mrta_supervisor.mission.hook import MissionOptions, resolve  # noqa: E402
 from mrta_zenoh.codec import decoder_for  # noqa: E402
 from mrta_zenoh.keys import first_chunk  # noqa: E402
 from mrta_zenoh.recording import read_recording  # noqa: E402

@@ -22,7 +22,7 @@ from mrta_agent.murdoch.messages import Claim, Release
 from mrta_agent.runtime import loop
 from mrta_agent.runtime.host import AgentOptions
 from mrta_agent.runtime.plugins import load_plugin
-from mrta_supervisor.mission.runner import MissionOptions, resolve
+from mrta_supervisor.mission.hook import MissionOptions, resolve
 from mrta_zenoh import architectures, messages
 from mrta_zenoh.architectures import Doing, architecture, architectures as registered
 from mrta_zenoh.bus import InProcBus
@@ -80,7 +80,7 @@ def test_coordination_is_what_robots_tell_each_other_sub_keys_included():
     assert not MURDOCH.is_coordination_key("robot1/murdoch")
     assert not MURDOCH.is_coordination_key("robot1/delivery/done")
 
-    from mrta_supervisor.mission.runner import message_rates
+    from mrta_supervisor.mission.analysis import message_rates
     records = [(k, "", 0, b"") for k in (
         "robot1/alliance/inter_robot_communication", "robot2/alliance/inter_robot_communication",
         "robot1/alliance/motivation/wander", "robot1/alliance/motivation/report",

@@ -166,6 +166,6 @@ def test_the_agent_loader_gives_each_delivery_layer_its_task():
 
 
 def test_a_bare_demo_runs_the_default_mission_among_several():
-    from mrta_supervisor.mission.runner import default_application, missions
+    from mrta_supervisor.mission.hook import default_application, missions
     assert {"patrol", "delivery"} <= set(missions())
     assert default_application() == "patrol"  # Patrol.default; delivery is asked for by name

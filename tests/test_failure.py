@@ -4,7 +4,7 @@ shorthand for a crash item naming the agent itself."""
 
 import pytest
 
-from mrta_supervisor.mission.runner import parse_fail
+from mrta_supervisor.mission.hook import parse_fail
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.failure import (FAULTS_ENV, RETIRED_CRASH_ENV, Failure, FaultKind,
                                 parse_failure, plan_from_env)

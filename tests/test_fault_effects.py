@@ -48,7 +48,7 @@ def test_results_rows_carry_each_cause_as_a_measure():
 
 
 def test_the_fault_channels_own_words_are_not_the_architectures_traffic():
-    from mrta_supervisor.mission.runner import is_traffic
+    from mrta_supervisor.mission.analysis import is_traffic
     assert not is_traffic("robot1/faults/tally") and not is_traffic("robot1/faults/assigned")
     assert is_traffic("robot1/alliance/inter_robot_communication")
 

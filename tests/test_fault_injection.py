@@ -12,7 +12,7 @@ from mrta_agent.alliance.messages import InterRobotCommunication
 from mrta_agent.runtime.host import AgentOptions
 from mrta_agent.runtime.plugins import Layer
 from mrta_supervisor.experiment.api import _failure_problem
-from mrta_supervisor.mission.runner import parse_fail
+from mrta_supervisor.mission.hook import parse_fail
 from mrta_zenoh import keys
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.clock import ManualClock

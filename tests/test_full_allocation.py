@@ -4,7 +4,8 @@ need a robot at once: patrol's, not delivery's, whose tasks are served in turn."
 from __future__ import annotations
 
 from mrta_delivery.mission import DELIVERY
-from mrta_supervisor.mission.runner import full_allocation, missions
+from mrta_supervisor.mission.analysis import full_allocation
+from mrta_supervisor.mission.hook import missions
 
 
 def patrol():

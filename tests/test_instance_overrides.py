@@ -21,7 +21,8 @@ from mrta_supervisor.mission import runner as mission
 from mrta_supervisor.experiment.file import load_experiment
 from mrta_supervisor.experiment.api import prepare_experiment
 from mrta_supervisor.experiment.runs import start_run
-from mrta_supervisor.mission.runner import MissionOptions, run_mission
+from mrta_supervisor.mission.hook import MissionOptions
+from mrta_supervisor.mission.runner import run_mission
 from mrta_supervisor.mission.overrides import override_text, parse_override
 
 
@@ -37,7 +38,7 @@ def no_launch(monkeypatch):
     """The mission's launch replaced: records the run it would have started."""
     started = []
 
-    def _run_in(run, faults, reg, stop, progress, before):
+    def _run_in(run, reg, stop, progress, before):
         started.append(run)
         return run, None
 

@@ -126,15 +126,20 @@ def test_no_package_imports_what_it_must_not_know(package):
     assert not bad, "\n".join(bad)
 
 
-# What the experiment system may reach of a mission: the runner's entry point (the hook a run is
-# resolved with and the `mrta demo` argv it starts), the summary.json schema it reads back and
-# the parameter overrides it writes into a package copy — never the runner's inside.
-EXPERIMENT_REACHES = {"mrta_supervisor.mission", "mrta_supervisor.mission.runner",
-                      "mrta_supervisor.mission.summary", "mrta_supervisor.mission.overrides"}
+# What another room of supervisor/ may reach of a mission. The experiment system: the hook a
+# run is resolved with (it starts each run as a `mrta demo` child, never through the runner's
+# inside), the summary.json schema it reads back and the parameter overrides it writes into a
+# package copy. The live supervisor: the hook alone, to ask an application for its TaskWatch.
+REACHES_OF_A_MISSION = {
+    "mrta_supervisor.experiment": {"mrta_supervisor.mission", "mrta_supervisor.mission.hook",
+                                   "mrta_supervisor.mission.summary",
+                                   "mrta_supervisor.mission.overrides"},
+    "mrta_supervisor.live": {"mrta_supervisor.mission.hook"},
+}
 
 
-def test_the_experiment_system_reaches_missions_only_through_the_entry_point():
-    package = "mrta_supervisor.experiment"
+@pytest.mark.parametrize("package", list(REACHES_OF_A_MISSION))
+def test_a_room_reaches_missions_only_through_their_entry_points(package):
     modules = {f"mrta_supervisor.mission.{p.stem}"
                for p in PACKAGES["mrta_supervisor.mission"].glob("*.py") if p.name != "__init__.py"}
     bad, reached = [], set()
@@ -142,9 +147,60 @@ def test_the_experiment_system_reaches_missions_only_through_the_entry_point():
         for m in imports_of(f, package):
             if m == "mrta_supervisor.mission" or m in modules:
                 reached.add(m)
-                if m not in EXPERIMENT_REACHES:
+                if m not in REACHES_OF_A_MISSION[package]:
                     bad.append(f"{f.relative_to(ROOT)} imports {m}")
     assert reached and not bad, "\n".join(bad)
+
+
+def import_circles(package: str) -> list[set[str]]:
+    """The circles of `package`'s module import graph (lazy imports included): its strongly
+    connected components of more than one module."""
+    files = {module_of(f, package): f for f in PACKAGES[package].rglob("*.py")}
+    graph = {}
+    for name, f in files.items():
+        out = set()
+        for m in imports_of(f, package):
+            while m and m not in files:
+                m = m.rpartition(".")[0]
+            if m and m not in (name, package):
+                out.add(m)
+        graph[name] = out
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    circles = []
+
+    def visit(v: str) -> None:  # Tarjan
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        for w in graph[v]:
+            if w not in index:
+                visit(w)
+                low[v] = min(low[v], low[w])
+            elif w in stack:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            part = {stack.pop()}
+            while v not in part:
+                part.add(stack.pop())
+            if len(part) > 1:
+                circles.append(part)
+
+    for v in sorted(graph):
+        if v not in index:
+            visit(v)
+    return circles
+
+
+def test_no_import_circle_runs_through_a_mission_or_the_live_supervisor():
+    """The mission hook no longer reaches back: the live supervisor asks the hook for an
+    application's TaskWatch (mission/hook.py, application_watch), and the hook imports only the
+    TaskWatch type of the live room (live/tasks.py), which imports nothing of a mission."""
+    circles = import_circles("mrta_supervisor")
+    assert not [c for c in circles
+                if any(m.startswith(("mrta_supervisor.mission", "mrta_supervisor.live"))
+                       for m in c)], circles
+    assert import_circles("mrta_supervisor.mission") == []  # the checker on the room alone
 
 
 def test_relative_imports_are_resolved():

@@ -21,7 +21,7 @@ from mrta_zenoh.lockstep.participant import LockstepClock
 from mrta_zenoh.lockstep.protocol import REPORT_AFTER, STATUS, LockstepStatus
 from mrta_zenoh.messages import Twist
 from mrta_supervisor.experiment import api as experiment
-from mrta_supervisor.mission.runner import lockstep_trouble
+from mrta_supervisor.mission.analysis import lockstep_trouble
 from mrta_supervisor.mission.summary import MessageRates, Summary, write_summary
 from tests.harness import helpers
 from tests.harness.helpers import Wall
@@ -193,7 +193,7 @@ def test_an_agent_in_lockstep_waits_for_its_roster_before_its_first_tick():
 
 def test_the_clock_and_lockstep_status_are_not_traffic():
     from mrta_agent.alliance.architecture import ALLIANCE
-    from mrta_supervisor.mission.runner import is_traffic, message_rates
+    from mrta_supervisor.mission.analysis import is_traffic, message_rates
     assert not is_traffic("clock") and not is_traffic(STATUS)
     assert not is_traffic("@liveliness/robot1/alliance/agent")
     assert is_traffic("robot1/odom") and is_traffic("robot1/alliance/inter_robot_communication")

@@ -15,7 +15,7 @@ from mrta_zenoh import codec
 from mrta_zenoh.messages import Header, Odometry, Pose2D, Twist
 from mrta_agent.alliance.architecture import ALLIANCE
 from mrta_agent.alliance.messages import InterRobotCommunication
-from mrta_supervisor.mission.runner import message_rates
+from mrta_supervisor.mission.analysis import message_rates
 
 S = 1_000_000_000
 

@@ -12,7 +12,8 @@ from pathlib import Path
 
 import pytest
 
-from mrta_supervisor.mission.runner import MissionOptions, failure_of, output_lock, resolve
+from mrta_supervisor.mission.hook import MissionOptions, resolve
+from mrta_supervisor.mission.runner import output_lock
 from mrta_zenoh.errors import ConfigError
 
 
@@ -44,10 +45,10 @@ def test_the_default_failure_fits_the_duration():
     """The default failure scales with the duration: at a fixed 30 s, `mrta demo --duration 20`
     would exit 2."""
     for duration, spec in ((20.0, "robot2@10"), (60.0, "robot2@30"), (7.0, "robot2@3.5")):
-        f = failure_of(resolve(MissionOptions(duration=duration)))
+        f = resolve(MissionOptions(duration=duration)).faults.primary
         assert (f.robot, f.at, f.spec) == ("robot2", float(spec.split("@")[1]), spec)
     with pytest.raises(ConfigError, match="not before the end"):
-        failure_of(resolve(MissionOptions(duration=10.0, fail="robot2@10")))
+        resolve(MissionOptions(duration=10.0, fail="robot2@10"))
 
 
 def test_an_output_folder_in_use_is_refused_and_freed_when_its_run_ends(tmp_path):

@@ -10,7 +10,8 @@ from mrta_zenoh.clock import SimClock
 from mrta_zenoh.messages import Header
 from mrta_supervisor.live.api import CLOCK_STALL, Elapsed, Refresh, resolve_application
 from mrta_supervisor.live.state import Supervisor
-from mrta_supervisor.live.tasks import TaskStatus, TaskWatch, application_watch
+from mrta_supervisor.live.tasks import TaskStatus, TaskWatch
+from mrta_supervisor.mission.hook import application_watch
 
 IRC = "alliance_msgs/InterRobotCommunication"
 

@@ -99,7 +99,7 @@ def test_a_continuous_task_left_alone_while_the_others_are_busy_is_unattended():
     """Patrol's tasks never end, so no robot becomes free of one: its watch does not serve
     tasks in turn, and wander, left by robot2 when it went offline, is unattended although
     every online robot is busy."""
-    from mrta_supervisor.live.tasks import application_watch
+    from mrta_supervisor.mission.hook import application_watch
     app, arch = resolve_application("patrol_murdoch")
     watch = application_watch(app)
     assert watch is not None and not watch.served_in_turn

@@ -56,7 +56,7 @@ from .runs import (Context, Results, error_of, inexact, package_copy,
 from .instances import place as place_instances, prepare as prepare_instances
 from .resume import (Shard, check_block, check_folder, done_rows, identity_of,
                      write_identity)
-from ..mission.runner import MissionOptions, MissionRun, resolve
+from ..mission.hook import MissionOptions, MissionRun, resolve
 from .report import Options, build
 from .report_md import Precision, write_report
 from .results import COVERAGE, MEASURES, column_named, kind, read_results

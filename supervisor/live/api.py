@@ -25,7 +25,7 @@ from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
 
 from .entities import Serving
 from .state import Supervisor
-from .tasks import application_watch
+from ..mission.hook import application_watch
 
 log = logging.getLogger("mrta.supervisor")
 CLOCK_STALL = 2.0  # wall seconds without a clock sample: the `clock_stopped` alarm

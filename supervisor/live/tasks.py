@@ -5,7 +5,7 @@ alarm is raised for it.
 The supervisor is generic: it knows no application. An application that has such tasks (a
 delivery is done once delivered; a task of an online instance is waiting until it arrives; a
 periodic report is not due again until its period has passed) gives a `TaskWatch` from its
-mission hook (`Mission.task_watch`, supervisor/mission/runner.py): the keys to read and what each
+mission hook (`Mission.task_watch`, supervisor/mission/hook.py): the keys to read and what each
 sample says, plus what is known in advance. A status holds for `seconds` from when it is
 heard (None: for good), on the supervisor's clock, so a supervisor on wall time watching a
 simulated run is not misled by the senders' simulated stamps. A task on which a robot works
@@ -16,11 +16,7 @@ nobody needs to.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any, Literal, Mapping
-
-from mrta_zenoh.toolchain.model import ApplicationFile
-from mrta_zenoh.toolchain.registry import Registry
 
 
 @dataclass(frozen=True)
@@ -69,22 +65,3 @@ def waits_for_a_robot(servers: frozenset[str] | None, states: Mapping[str, str])
     supervisor's state (busy, idle, offline, unknown)."""
     able = [s for r, s in states.items() if servers is None or r in servers]
     return "busy" in able and "idle" not in able
-
-
-def application_watch(app: ApplicationFile, registry: Registry | None = None) -> TaskWatch | None:
-    """The TaskWatch of the application package `app` was loaded from, from its mission hook
-    (the mission registered for it or for a package it depends on, as `mrta demo` finds it);
-    None when it has no mission, or its mission watches nothing — then every task always
-    needs a robot, as rqt_mrta's supervisor assumed."""
-    from ..mission.runner import MissionOptions, missions, resolve  # the runner imports this module
-    reg = registry or Registry()
-    source = Path(app.source).resolve().parent if app.source else None
-    pkg = next((p for p, _ in reg.applications()
-                if source is not None and Path(p.path).resolve() == source), None)
-    if pkg is None:
-        return None  # an rqt_mrta.xml outside every registered package: no mission either
-    eps = missions()
-    if not any(name in eps for name in (pkg.name, *pkg.depends)):
-        return None
-    run = resolve(MissionOptions(application=pkg.name), reg)
-    return run.mission.task_watch(run)

@@ -51,7 +51,7 @@ from .api import Refresh, attach, resolve_application, serving_of
 from .foxglove import FoxgloveOutputs, derived_channels
 from .foxglove_server import FoxgloveServer
 from .state import Supervisor
-from .tasks import application_watch
+from ..mission.hook import application_watch
 
 log = logging.getLogger("mrta.view")
 SCENE_KEYS = ("world", "*/ground_truth", "*/sonar")

@@ -23,7 +23,8 @@ from mrta_zenoh.errors import MrtaRuntimeError
 from mrta_zenoh.failure import FaultKind
 
 from ..live.cli import LiveScreen, quiet_alarms, state_line
-from .runner import MissionOptions, run_mission
+from .hook import MissionOptions
+from .runner import run_mission
 from .overrides import parse_override
 from .summary import COMPLETE, INCOMPLETE, Summary, run_problem
 from ..live.view import render

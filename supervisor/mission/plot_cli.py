@@ -15,7 +15,7 @@ from mrta_zenoh.cli.main import EntryPointGroup
 
 from ..live.api import resolve_application
 from .plots import VIEWS, plot_timeline
-from ..live.tasks import application_watch
+from .hook import application_watch
 
 
 class PlotGroup(EntryPointGroup):

@@ -15,7 +15,7 @@ from collections.abc import Iterable, Mapping
 from mrta_zenoh import instances
 from mrta_zenoh.codec import DecodeError, decode, type_from_encoding
 from mrta_zenoh.errors import ConfigError
-from mrta_zenoh.failure import FIRST, Failure, FaultKind, Faults
+from mrta_zenoh.failure import FIRST, RANDOM, Failure, FaultKind, Faults
 from mrta_zenoh.fault_roles import ASSIGNED, Assigned, draw_random, resolve_first
 from mrta_zenoh.keys import first_chunk
 
@@ -27,16 +27,16 @@ def instance_name(run) -> str:
     return instances.load(run.options.instance, run.mission.name).name
 
 
-def with_random_drawn(run, faults: Faults):
-    """`run` with its `@random` fault naming the robot drawn (its options' `fail` rewritten,
-    so every later look at its faults, and every process, reads the id)."""
-    if faults.of("@random") is None:
+def with_random_drawn(run):
+    """`run` with its `@random` fault naming the robot drawn: drawn on the run's typed faults
+    (MissionRun.faults), so every later look at them, and every process, reads the id."""
+    if run.faults.of(RANDOM) is None:
         return run
     try:
-        drawn = draw_random(faults, run.robots, instance_name(run))
+        drawn = draw_random(run.faults, run.robots, instance_name(run))
     except ValueError as exc:
         raise ConfigError(f"--fail {exc}") from None
-    return dataclasses.replace(run, options=dataclasses.replace(run.options, fail=drawn.spec))
+    return dataclasses.replace(run, faults=drawn)
 
 
 def crash_targets(faults: Faults, crashed_itself: Mapping[str, bool]) -> set[str]:

@@ -1,5 +1,5 @@
-"""`summary.json`: what one mission run did, defined once (msgspec Structs) next to the runner
-that writes it (runner.py) and read back from here by `mrta experiment` and the plots.
+"""`summary.json`: what one mission run did, defined once (msgspec Structs) next to the analysis
+that writes it (analysis.py) and read back from here by `mrta experiment` and the plots.
 
 Generic over applications and architectures: who did what, coverage, the first full allocation,
 the failure and its takeover beside the architecture's bound, bus traffic. What only an

@@ -30,7 +30,7 @@ from mrta_agent.runtime.params import load_layers_params
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.keys import first_chunk
 from mrta_supervisor.mission.ground_truth import decisions
-from mrta_supervisor.mission import Mission, MissionRun, faults_of
+from mrta_supervisor.mission import Mission, MissionRun
 from mrta_supervisor.mission.roles import as_struck
 from mrta_supervisor.live.tasks import TaskStatus, TaskWatch
 from mrta_supervisor.mission.summary import SummarySections
@@ -214,7 +214,7 @@ class Delivery(Mission):
         ended = done_at(records, params.problem())
         end = run.options.duration if ended is None else min(ended, run.options.duration)
         made = decisions(records, run.arch, end)
-        result = analyse(records, run.arch, params, end, as_struck(faults_of(run), records),
+        result = analyse(records, run.arch, params, end, as_struck(run.faults, records),
                          made.objective if made is not None and made.objective else None)
         self._last = (id(records), result)
         return result
