@@ -9,9 +9,10 @@ Each entry says whether it is *forged*: evidence that someone said what no proce
 would (a header that disagrees with its key, a served task its sender never held, a round far
 ahead). A run that refused forged traffic is not the run its seed describes (`run_status`
 disturbed, the cause named). Other refusals are counted and shown but judge nothing: a message
-from a robot whose token has not come yet (a start-up race), one from a robot off the roster (a
-stranger on a shared bus), a report two robots cut off from each other both made (central's
-`served_twice`).
+from a robot off the roster (a stranger on a shared bus), a report two robots cut off from each
+other both made (central's `served_twice`). A message from a teammate whose token has not come
+yet is not in the tally (a start-up race whose count depends on the machine): the driver
+counts and logs it.
 
 Bounded whatever a flood sends: senders from the network are escaped and cut, and beyond
 MAX_ENTRIES distinct entries the rest are counted under the sender OTHERS.
