@@ -16,7 +16,6 @@ command-line options, so a generator needs no command-line code of its own.
 
 from __future__ import annotations
 
-import hashlib
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
 from pathlib import Path
@@ -71,7 +70,7 @@ class InstanceKind:
         their index in it carry it: messages.IndexedMessage): 16 hex digits of the SHA-256 of
         the document as JSON, in its own order (the order indices count in). Override to leave
         out what does not change the indices' meaning."""
-        return hashlib.sha256(msgspec.json.encode(doc)).hexdigest()[:DIGEST_LENGTH]
+        return _sha256(msgspec.json.encode(doc)).hexdigest()[:DIGEST_LENGTH]
 
     def problem(self, doc: Any) -> Any:
         """The planning problem the document poses (`mrta_zenoh.planning.Problem`: robots,
@@ -193,3 +192,15 @@ def generate(name: str, options: dict[str, Any], seed: int, output: Path | None)
     if output is not None:
         write_text(output, text)
     return text
+
+
+def _sha256(data: bytes):
+    """sha256 from Python's own module, not OpenSSL's `_hashlib` (≈ 3 MB of RSS a robot's agent
+    does not load: tests/test_agent_imports.py); the same digest either way. The module is
+    `_sha256` up to Python 3.11 and `_sha2` from 3.12."""
+    try:
+        from _sha256 import sha256
+    except ImportError:
+        from _sha2 import sha256
+    return sha256(data)
+
