@@ -432,8 +432,14 @@ def plan_from_env(subject: str, seed: int, crash_at: float | None = None,
         raise ConfigError(f"${FAULTS_ENV}: {exc}") from None
 
 
+def say_crash(subject: str, now: float, log: logging.Logger) -> None:
+    """The line a crash is told by, a process's or a hosted robot's alike (the mission runner
+    reads it for a hosted robot: supervisor/mission/hosting.py)."""
+    log.warning("%s: crashing %s as asked (fault injection)", subject, at(now))
+
+
 def crash_now(subject: str, now: float, log: logging.Logger) -> None:
     """The crash itself: SIGKILL, no shutdown, no goodbye — its token goes with its session."""
-    log.warning("%s: crashing %s as asked (fault injection)", subject, at(now))
+    say_crash(subject, now, log)
     logging.shutdown()
     os.kill(os.getpid(), signal.SIGKILL)

@@ -46,11 +46,10 @@ from typing import TYPE_CHECKING
 from mrta_zenoh.bus import Bus, BusOptions
 from mrta_zenoh.clock import EPSILON, Clock
 from mrta_zenoh.errors import ConfigError
-from mrta_zenoh.failure import plan_from_env
+from mrta_zenoh.failure import plan_from_env, say_crash
 from mrta_zenoh.identity import ROBOT, certified
 from mrta_zenoh.node import Node, NodeTime
 from mrta_zenoh.seeds import robot_rng
-from mrta_zenoh.timetext import at
 
 from .host import AgentOptions, HostedAgent, clock_watchdog
 from .loop import TEAM_WAIT
@@ -177,7 +176,7 @@ def host_agents(seats: Sequence[Seat], bus_options: BusOptions, *, name: str,
 def _crash_in_host(agent: HostedAgent, now: float) -> None:
     """A hosted robot's crash: said as a robot's own process says it (the mission runner reads
     that line: supervisor hosting), then its agent stops (`drive` withdraws it)."""
-    agent.log.warning("%s: crashing %s as asked (fault injection)", agent.robot_id, at(now))
+    say_crash(agent.robot_id, now, agent.log)
     raise Crashed(agent.robot_id)
 
 

@@ -505,9 +505,7 @@ class Agent:
         """This robot crashed in an agent host: its tokens and subscriptions go, as with its
         process — no zero-velocity command, no final tally, no plugin shutdown."""
         self.withdrawn = True
-        for h in self._handles:
-            h.close()
-        self._handles.clear()
+        self._close_handles()
 
     def hears_alive(self, robot: str) -> bool:
         """Whether `robot`'s agent token is alive as this agent's callbacks heard it."""
@@ -525,6 +523,10 @@ class Agent:
         if not self.is_process:
             self.ctx.publish_cmd(0.0, 0.0)
         self.plugins.shutdown()
+        self._close_handles()
+
+    def _close_handles(self) -> None:
+        """Stop listening and withdraw its tokens (shutdown, or a crash in a host)."""
         for h in self._handles:
             h.close()
         self._handles.clear()
