@@ -3,9 +3,11 @@ timing and objectives, shortest paths around walls (pure Python, what agents use
 reference values a run is compared with (`reference.py`: the exact recursion, or OR-Tools
 routing, loaded only where called)."""
 
-from .problem import Point, Problem, Robot, Task, straight_line
+from .problem import Point, Problem, Robot, Task, Windows, straight_line
 from .reference import Reference, reference
-from .schedule import Evaluation, Objective, Visit, check_routes, evaluate, route_visits, routes_by_id
+from .schedule import (Evaluation, Objective, Visit, WindowCounts, check_routes, evaluate,
+                       route_visits, routes_by_id, window_counts)
 
-__all__ = ["Point", "Problem", "Robot", "Task", "straight_line", "Evaluation", "Objective", "Visit",
-           "check_routes", "evaluate", "route_visits", "routes_by_id", "Reference", "reference"]
+__all__ = ["Point", "Problem", "Robot", "Task", "Windows", "straight_line", "Evaluation",
+           "Objective", "Visit", "WindowCounts", "check_routes", "evaluate", "route_visits",
+           "routes_by_id", "window_counts", "Reference", "reference"]

@@ -4,8 +4,8 @@ sequential greedy algorithm (SGA) that CBBA provably reproduces.
 
 A route is served in order from an *origin*: the robot's start at time 0 before it has served
 anything, later the last task it served and when it finished it (`Origin`). The timing along a
-route is `schedule.py`'s (reach, then start = max(reach, arrival), then end = start + service),
-from the origin instead of from the start at 0.
+route is `schedule.py`'s (reach, then start = max(reach, arrival, earliest), then end = start +
+service), from the origin instead of from the start at 0.
 
 * **MinSum insertion** (SSI's bid, Lagoudakis et al. 2005): the increase in the route's travel
   time when task j goes between two consecutive stops, at the cheapest place.
@@ -75,7 +75,7 @@ def starts(problem: Problem, i: int, route: Sequence[int],
     now, at = origin.time, origin.task
     for j in route:
         task = problem.tasks[j]
-        start = max(now + problem.travel(i, at, j), task.arrival)
+        start = max(now + problem.travel(i, at, j), task.opens)
         out.append(start)
         now, at = start + task.service, j
     return out
@@ -116,7 +116,7 @@ class DiscountedRoute:
         now, at = origin.time, self.home
         for j, row in zip(self.route, self.point):
             reach = now + self.times[at][row]
-            start = max(reach, tasks[j].arrival)
+            start = max(reach, tasks[j].opens)
             self.reach.append(reach)
             self.starts.append(start)
             now, at = start + tasks[j].service, row
@@ -132,7 +132,7 @@ class DiscountedRoute:
     def insertion(self, j: int) -> tuple[float, int]:
         """(marginal score, place) of task j at its best place; the earliest place on ties."""
         tasks, route, lam, times = self.problem.tasks, self.route, self.discount, self.times
-        row_j, arrival, service, reward = (len(self.problem.robots) + j, tasks[j].arrival,
+        row_j, arrival, service, reward = (len(self.problem.robots) + j, tasks[j].opens,
                                            tasks[j].service, tasks[j].reward)
         length = len(route)
         best, where = -math.inf, 0
@@ -165,7 +165,7 @@ class DiscountedRoute:
                 change += (lam ** delay - 1.0) * (self._weight[nxt] - self._weight[k])
                 k = nxt
                 continue
-            moved = max(self.reach[k] + delay, tasks[self.route[k]].arrival)
+            moved = max(self.reach[k] + delay, tasks[self.route[k]].opens)
             if moved == self.starts[k]:
                 break  # the wait absorbed it: the rest of the route keeps its timing
             change += (lam ** moved - lam ** self.starts[k]) * tasks[self.route[k]].reward
@@ -177,7 +177,7 @@ class DiscountedRoute:
         tasks, lam = self.problem.tasks, self.discount
         change = 0.0
         for k in range(k, len(self.route)):
-            moved = max(self.reach[k] + delay, tasks[self.route[k]].arrival)
+            moved = max(self.reach[k] + delay, tasks[self.route[k]].opens)
             if moved == self.starts[k]:
                 break
             change += (lam ** moved - lam ** self.starts[k]) * tasks[self.route[k]].reward

@@ -1,6 +1,6 @@
 """The ST-SR-TA problem every delivery-like mission poses, as planners and architectures read it:
 robots (start, speed, capabilities), point tasks (position, arrival, service time, capability,
-reward) and the travel-time model between any two of their points.
+reward, time window) and the travel-time model between any two of their points.
 
 Generic — no application, no architecture: the delivery application builds a `Problem` from its
 instance document; `central`, `ssi` and `cbba` plan on one; the mission's analysis evaluates the
@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from enum import Enum
 from typing import Callable, Sequence
 
 from ..errors import ConfigError
@@ -44,6 +45,27 @@ class Task:
     service: float = 0.0                  # s: how long a robot must stay at it
     capability: str = ""                  # what a robot needs to serve it ("": nothing)
     reward: float = 1.0                   # what serving it is worth (CBBA's score)
+    # its time window (docs/delivery.md, "Time windows"): service may not start before
+    # `earliest` (a robot there sooner waits) and must start by `due` (inf: no due)
+    earliest: float = 0.0
+    due: float = math.inf
+
+    @property
+    def windowed(self) -> bool:
+        return self.earliest > 0 or math.isfinite(self.due)
+
+    @property
+    def opens(self) -> float:
+        """The earliest its service may start: after it arrived and its window opened."""
+        return max(self.arrival, self.earliest)
+
+
+class Windows(str, Enum):
+    """How a due binds (docs/delivery.md, "Time windows"): `hard` — a task not started by its
+    due is missed (not served); `soft` — it is served late and its lateness counted."""
+
+    HARD = "hard"
+    SOFT = "soft"
 
 
 def straight_line(a: Point, b: Point) -> float:
@@ -58,6 +80,7 @@ class Problem:
     robots: tuple[Robot, ...]
     tasks: tuple[Task, ...]
     distance: tuple[tuple[float, ...], ...] = field(default=(), repr=False)
+    windows: Windows = Windows.HARD       # how every task's due binds
 
     def __post_init__(self) -> None:
         for what, items in (("robot", self.robots), ("task", self.tasks)):
@@ -79,8 +102,14 @@ class Problem:
                 value = getattr(t, name)
                 if not (math.isfinite(value) and value >= 0):
                     raise ConfigError(f"task {t.id}: {name} must be ≥ 0, got {value!r}")
+            if not (math.isfinite(t.earliest) and t.earliest >= 0):
+                raise ConfigError(f"task {t.id}: earliest must be ≥ 0, got {t.earliest!r}")
+            if not t.due >= t.opens:  # NaN too
+                raise ConfigError(f"task {t.id}: due ({t.due!r}) must be ≥ its arrival and "
+                                  f"earliest ({t.opens!r}): it could never be started")
             if not math.isfinite(t.reward):
                 raise ConfigError(f"task {t.id}: reward must be a finite number, got {t.reward!r}")
+        object.__setattr__(self, "windows", Windows(self.windows))
         n = len(self.robots) + len(self.tasks)
         if not self.distance:
             points = self.points
@@ -106,6 +135,11 @@ class Problem:
     def online(self) -> bool:
         """Whether some task arrives after the start."""
         return any(t.arrival > 0 for t in self.tasks)
+
+    @property
+    def windowed(self) -> bool:
+        """Whether some task has a time window (an earliest start or a due)."""
+        return any(t.windowed for t in self.tasks)
 
     def robot_index(self, robot_id: str) -> int:
         for i, r in enumerate(self.robots):
@@ -134,4 +168,5 @@ class Problem:
         n = len(self.robots)
         keep = list(range(n)) + [n + self.task_index(t) for t in task_ids]
         return Problem(self.robots, tuple(self.tasks[k - n] for k in keep[n:]),
-                       tuple(tuple(self.distance[a][b] for b in keep) for a in keep))
+                       tuple(tuple(self.distance[a][b] for b in keep) for a in keep),
+                       self.windows)

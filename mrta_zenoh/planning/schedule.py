@@ -1,10 +1,12 @@
-"""Routes, their timing and the three objectives, defined once (docs/delivery.md, "Objectives").
+"""Routes, their timing, the three objectives and the time-window counts, defined once
+(docs/delivery.md, "Objectives" and "Time windows").
 
 A robot's *route* is the order in which it serves its tasks. Along it, robot i leaves its start at
 0 and, for each task j in turn:
 
 * `reach`  = when it gets there: the previous task's completion (or 0) + travel time;
-* `start`  = when service begins: `reach`, or the task's arrival if that is later (it waits);
+* `start`  = when service begins: `reach`, or the task's arrival or its window's `earliest` if
+  that is later (it waits);
 * `end`    = the task's **completion**: `start` + service time.
 
 This is the offline model with hindsight (a robot may reach a task before it arrives and wait):
@@ -16,11 +18,23 @@ summary alone. Objectives (all in seconds):
 * **makespan**: the last completion;
 * **flowtime**: the sum of completions.
 
+Time windows (`window_counts`, from any service starts — a route's timing here, or the starts a
+run's allocation records show, so a summary's counts can be recomputed from its records):
+
+* **served in window**: served, its service started within [earliest, due];
+* **late** / **lateness**: served, started after its due / Σ of how long after (s) — under soft
+  windows what lateness costs; under hard windows a late start is a violation (none expected);
+* **early**: served, started before its earliest — a violation under either kind (robots wait);
+* **missed**: not served, and its due passed (before `end`: a run's end; a plan has none).
+
+Starts are compared with `WINDOW_TOLERANCE` of slack: allocation records are rounded to the ms.
+
 Pure Python (agents evaluate routes while they bid).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import Enum
 from typing import Mapping, Sequence
@@ -53,11 +67,54 @@ def route_visits(problem: Problem, i: int, route: Sequence[int]) -> list[Visit]:
     for j in route:
         leg = problem.travel(i, at, j)
         reach = now + leg
-        start = max(reach, problem.tasks[j].arrival)
+        start = max(reach, problem.tasks[j].opens)
         end = start + problem.tasks[j].service
         visits.append(Visit(i, j, leg, reach, start, end))
         now, at = end, j
     return visits
+
+
+WINDOW_TOLERANCE = 1e-3  # s: the resolution of allocation records' times
+
+
+@dataclass(frozen=True)
+class WindowCounts:
+    """How served tasks' starts sat in their windows (module docstring)."""
+
+    served_in_window: int
+    missed: int
+    late: int
+    lateness: float      # s
+    early: int
+
+    @property
+    def violations(self) -> int:
+        """Starts outside the window a hard window forbids (late or early)."""
+        return self.late + self.early
+
+    def to_json(self) -> dict[str, int | float]:
+        return {"served_in_window": self.served_in_window, "missed": self.missed,
+                "late": self.late, "lateness": round(self.lateness, 3), "early": self.early}
+
+
+def window_counts(problem: Problem, starts: Mapping[int, float],
+                  end: float = math.inf) -> WindowCounts:
+    """The window counts of serving task j from `starts[j]` (task index → start of service; a
+    task not in it was not served) as of `end` (module docstring)."""
+    in_window = missed = late = early = 0
+    lateness = 0.0
+    for j, task in enumerate(problem.tasks):
+        start = starts.get(j)
+        if start is None:
+            missed += task.due < end
+        elif start < task.earliest - WINDOW_TOLERANCE:
+            early += 1
+        elif start > task.due + WINDOW_TOLERANCE:
+            late += 1
+            lateness += start - task.due
+        else:
+            in_window += 1
+    return WindowCounts(in_window, missed, late, lateness, early)
 
 
 @dataclass(frozen=True)
@@ -67,6 +124,7 @@ class Evaluation:
     makespan: float
     flowtime: float
     served: int
+    windows: WindowCounts              # tasks off every route count as missed if they have a due
 
     def value(self, objective: Objective | str) -> float:
         objective = Objective(objective)
@@ -107,7 +165,8 @@ def evaluate(problem: Problem, routes: Mapping[int, Sequence[int]]) -> Evaluatio
     visits = [v for i in sorted(routes) for v in route_visits(problem, i, routes[i])]
     return Evaluation(tuple(visits), sum(v.travel for v in visits),
                       max((v.end for v in visits), default=0.0),
-                      sum(v.end for v in visits), len(visits))
+                      sum(v.end for v in visits), len(visits),
+                      window_counts(problem, {v.task: v.start for v in visits}))
 
 
 def routes_by_id(problem: Problem, routes: Mapping[str, Sequence[str]]) -> dict[int, list[int]]:

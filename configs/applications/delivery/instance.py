@@ -1,6 +1,6 @@
 """The delivery instance document (docs/delivery.md, "Instances"): robots (start, heading, speed,
-capabilities), tasks (position, arrival, service, capability, reward) and the world (room size,
-walls), as a YAML file states it and as summary.json's `instance` section writes it back.
+capabilities), tasks (position, arrival, service, capability, reward, time window: `earliest`,
+`due`), whether windows are `hard` or `soft`, and the world (room size, walls), as a YAML file states it and as summary.json's `instance` section writes it back.
 Typed (msgspec), so a bad value is an error naming file, line and key before anything runs.
 
 Every package derived from an instance (one per architecture) holds it once, as
@@ -15,14 +15,14 @@ from __future__ import annotations
 
 import math
 from pathlib import Path
-from typing import Annotated, Any
+from typing import Annotated, Any, Literal
 
 import msgspec
 import yaml
 
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.messages import Finite
-from mrta_zenoh.planning import Problem, Robot, Task
+from mrta_zenoh.planning import Problem, Robot, Task, Windows
 from mrta_zenoh.planning.geometry import PathMap, room_walls
 from mrta_zenoh.yamlfile import YamlDoc, get_path, load_yaml
 
@@ -46,7 +46,9 @@ class TaskSpec(msgspec.Struct, forbid_unknown_fields=True):
     service: NonNegative = 0.0           # s: how long a robot must stay at it
     capability: str = ""                 # what it needs ("": any robot)
     reward: Finite = 1.0                 # what serving it is worth
-    due: NonNegative | None = None       # s: a due time (Solomon files), kept for later use
+    # its time window (docs/delivery.md, "Time windows"); None: no bound
+    earliest: NonNegative | None = None  # s: service may not start before (a robot waits)
+    due: NonNegative | None = None       # s: service must start by (hard) or is late (soft)
 
 
 class WorldSpec(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
@@ -68,6 +70,8 @@ class InstanceBody(msgspec.Struct, forbid_unknown_fields=True):
     # the most tasks one robot serves (None: as many as it likes — time-extended assignment;
     # 1: instantaneous assignment, each robot one task)
     max_tasks_per_robot: Annotated[int, msgspec.Meta(ge=1, le=1_000_000)] | None = None
+    # how a due binds: hard (not started by its due: missed) or soft (served late, counted)
+    windows: Literal["hard", "soft"] = Windows.HARD.value
 
     def robot(self, robot_id: str) -> RobotSpec:
         spec = self.robots.get(robot_id)
@@ -94,12 +98,19 @@ class InstanceBody(msgspec.Struct, forbid_unknown_fields=True):
 
     def faults(self) -> list[tuple[tuple, str]]:
         """What the types cannot say, as (key path, message): every task some robot can serve,
-        every start and task inside the room and clear of its walls."""
+        and startable within its window, every start and task inside the room and clear of its
+        walls."""
         out = []
-        for tid in self.tasks:
+        for tid, t in self.tasks.items():
             if not any(self.capable(rid, tid) for rid in self.robots):
                 out.append((("tasks", tid, "capability"),
-                            f"no robot has capability {self.tasks[tid].capability!r}"))
+                            f"no robot has capability {t.capability!r}"))
+            opens = max(t.arrival, t.earliest or 0.0)
+            if t.due is not None and t.due < opens:
+                out.append((("tasks", tid, "due"),
+                            f"due {t.due:g} s is before the task "
+                            f"{'arrives' if opens == t.arrival else 'may start'} ({opens:g} s): "
+                            "it could never be served"))
         paths = PathMap(self.world.all_walls())
         w, h = self.world.size
         where = [(("robots", rid, "start"), f"robot {rid}", r.start)
@@ -127,12 +138,13 @@ class InstanceBody(msgspec.Struct, forbid_unknown_fields=True):
                              frozenset(r.capabilities), capacity=self.max_tasks_per_robot)
                        for rid, r in self.robots.items())
         tasks = tuple(Task(tid, (float(t.position[0]), float(t.position[1])), t.arrival,
-                           t.service, t.capability, t.reward) for tid, t in self.tasks.items())
+                           t.service, t.capability, t.reward, t.earliest or 0.0,
+                           math.inf if t.due is None else t.due)
+                      for tid, t in self.tasks.items())
         paths = self.path_map()
-        if paths is None:
-            return Problem(robots, tasks)
-        return Problem(robots, tasks, paths.matrix([r.start for r in robots]
-                                                   + [t.position for t in tasks]))
+        distance = () if paths is None else paths.matrix([r.start for r in robots]
+                                                         + [t.position for t in tasks])
+        return Problem(robots, tasks, distance, Windows(self.windows))
 
     def travel_model(self) -> str:
         if self.world.walls:
@@ -161,7 +173,7 @@ class InstanceDoc(InstanceBody, forbid_unknown_fields=True):
     def body(self) -> InstanceBody:
         """The instance alone (what a package is derived from), without where it came from."""
         return InstanceBody(self.robots, self.tasks, self.world, self.name,
-                            self.max_tasks_per_robot)
+                            self.max_tasks_per_robot, self.windows)
 
 
 def load_document(path: Path | str) -> InstanceDoc:
@@ -205,12 +217,15 @@ def document_data(inst: InstanceBody) -> dict[str, Any]:
         r["capabilities"] = list(r["capabilities"])
     for t in body["tasks"].values():
         t["position"] = list(t["position"])
-        if t.get("due") is None:
-            t.pop("due", None)
+        for key in ("earliest", "due"):
+            if t.get(key) is None:
+                t.pop(key, None)
     body["world"] = {"size": list(inst.world.size), "walls": [list(w) for w in inst.world.walls]}
     for key in ("application", "generator", "cost", "cost_model", "max_tasks_per_robot"):
         if not body.get(key):
             body.pop(key, None)
+    if body.get("windows") == Windows.HARD.value:  # the default: today's files stay as they are
+        body.pop("windows")
     return body
 
 

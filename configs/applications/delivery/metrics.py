@@ -10,7 +10,7 @@ the metrics").
   (`ended_at`, `reason`: done, released, lost — its robot crashed or was cut off —, stalled,
   or unfinished when the run ended). A task handed over appears once per holder.
 * The metrics: the time-extended objectives along the routes robots served against their
-  reference values, and overlaps (objectives.py); makespan (the last completion), total
+  reference values, the time-window counts and overlaps (objectives.py); makespan (the last completion), total
   distance (ground truth), mean waiting time, completed; and the instantaneous-assignment
   figures — the achieved cost (Σ cost of each task's *first* assignment, from the robot's
   start), the IA optimum (scipy's linear_sum_assignment) and their ratio, `ia_optimality`,
@@ -36,7 +36,7 @@ from mrta_supervisor.mission.ground_truth import stretches_from
 from .instance import InstanceBody, document_data
 from .keys import Event
 from .messages import TaskEvent
-from .objectives import objective_metrics, objective_section, overlaps
+from .objectives import objective_metrics, objective_section, overlaps, window_metrics
 
 MATCH_SLACK = 1.0  # s: an event this long after its holder's interval still belongs to it
 
@@ -218,7 +218,8 @@ def analyse(records: list, arch: Architecture, params: InstanceBody, end: float,
     log = allocation_log(records, arch, instance, end, faults)
     distance = paths(records, {r.id for r in instance.robots})
     section = objective_section(instance, log, objective or arch.objective or "minsum")
-    metrics = {**measure(instance, log, distance), **objective_metrics(section)}
+    metrics = {**measure(instance, log, distance), "windowed": instance.windowed,
+               **window_metrics(instance, log, end), **objective_metrics(section)}
     return RunAnalysis(params, instance, log, metrics, section)
 
 

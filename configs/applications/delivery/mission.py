@@ -242,7 +242,17 @@ class Delivery(Mission):
                 f"{metrics['makespan'] if metrics['makespan'] is not None else '—'} s; "
                 f"{name} {value if value is not None else '—'} vs {label} "
                 f"{metrics.get(f'reference_{name}')} (optimality "
-                f"{opt if opt is not None else '—'}); overlaps {metrics.get('overlaps', 0)}"]
+                f"{opt if opt is not None else '—'}); overlaps {metrics.get('overlaps', 0)}"
+                ] + window_lines(metrics)
+
+
+def window_lines(metrics: dict[str, Any]) -> list[str]:
+    """The printed summary's window counts, for an instance with windows (docs/delivery.md)."""
+    if not metrics.get("windowed"):
+        return []
+    return [f"windows: {metrics['served_in_window']} served in window, {metrics['missed']} "
+            f"missed, {metrics['late']} late (lateness {metrics['lateness']} s), "
+            f"{metrics['early']} early"]
 
 
 DELIVERY = Delivery()

@@ -12,6 +12,11 @@ robots at once — all from the allocation log, so that a summary alone gives th
   never called optimal). `optimality` = reference / achieved for the objective the
   architecture optimises (its decisions' record, else its contract's `objective`, else MinSum),
   and only when every task was served: a partial run's value is not comparable.
+* **Window counts** (`window_metrics`: served in window, missed, late, lateness, early —
+  `planning.schedule.window_counts`) from when each task's service actually began: the
+  `reached_at` of the stretch that completed it first (its robot's `started` event), as of the
+  run's end. Not along the model's timing: a robot that waited or drove slower than the model
+  started where it started, and whether a window held is about that.
 * **Overlaps.** A stretch is *executed* from when its robot set off to the task until it
   completed it or the task left it (`started_at` → `done_at`, else `ended_at`); two robots'
   executions of one task that overlap by more than a tick are an overlap.
@@ -25,7 +30,7 @@ from typing import Any, Iterable, Protocol
 
 from mrta_zenoh.planning import Problem
 from mrta_zenoh.planning.reference import EXACT_LIMIT, reference
-from mrta_zenoh.planning.schedule import Objective, evaluate
+from mrta_zenoh.planning.schedule import Objective, evaluate, window_counts
 
 SOLUTIONS = 200       # the routing search's budget above EXACT_LIMIT (central's dispatcher's)
 TIME_LIMIT = 30.0     # its safety cap (s)
@@ -38,17 +43,23 @@ class Stretch(Protocol):
     started_at: float | None
     done_at: float | None
     ended_at: float
+    reached_at: float | None
+
+
+def completing(log: Iterable[Stretch]) -> dict[str, Stretch]:
+    """task → the stretch that completed it first (the earliest `done_at`)."""
+    firsts: dict[str, Stretch] = {}
+    for e in log:
+        if e.done_at is not None and (e.task not in firsts or e.done_at < firsts[e.task].done_at):
+            firsts[e.task] = e
+    return firsts
 
 
 def served_routes(log: Iterable[Stretch]) -> dict[str, list[str]]:
     """robot → the tasks it completed, in the order it completed them (each task once)."""
-    firsts: dict[str, tuple[float, str]] = {}
-    for e in log:
-        if e.done_at is not None and (e.task not in firsts or e.done_at < firsts[e.task][0]):
-            firsts[e.task] = (e.done_at, e.robot)
     routes: dict[str, list[tuple[float, str]]] = {}
-    for task, (at, robot) in firsts.items():
-        routes.setdefault(robot, []).append((at, task))
+    for task, e in completing(log).items():
+        routes.setdefault(e.robot, []).append((e.done_at, task))
     return {robot: [t for _, t in sorted(done)] for robot, done in sorted(routes.items())}
 
 
@@ -57,6 +68,23 @@ def objective_values(problem: Problem, served: dict[str, list[str]]) -> dict[str
     ev = evaluate(problem, {problem.robot_index(r): [problem.task_index(t) for t in route]
                             for r, route in served.items()})
     return {o.value: ev.value(o) for o in Objective}
+
+
+def service_starts(problem: Problem, log: Iterable[Stretch]) -> dict[int, float]:
+    """task index → when its service began (module docstring): the completing stretch's
+    `reached_at`; a completion whose `started` event the recording lacks began its service's
+    length before it ended (the layer serves exactly that long)."""
+    out = {}
+    for task, e in completing(log).items():
+        j = problem.task_index(task)
+        out[j] = e.reached_at if e.reached_at is not None \
+            else e.done_at - problem.tasks[j].service
+    return out
+
+
+def window_metrics(problem: Problem, log: Iterable[Stretch], end: float) -> dict[str, Any]:
+    """The run's window counts as of its end (module docstring), for `metrics`."""
+    return window_counts(problem, service_starts(problem, log), end).to_json()
 
 
 @dataclass(frozen=True)
