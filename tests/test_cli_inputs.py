@@ -127,3 +127,16 @@ def test_the_delivery_generator_takes_the_same_checked_options(tmp_path, args, o
     argv = ["--arrivals", "poisson", "--name", "x", "--output", str(tmp_path), *args]
     assert_usage_error(CliRunner().invoke(main, argv), option)
     assert list(tmp_path.iterdir()) == []
+
+
+def test_demo_rendezvous_is_checked_and_bare_means_the_shared_one(monkeypatch):
+    """`mrta demo --rendezvous`: a malformed endpoint is bad input naming the option; bare, it
+    is the rendezvous every command meets at ($MRTA_RENDEZVOUS); absent, the run is private."""
+    from mrta_zenoh.errors import ConfigError
+    from mrta_supervisor.mission.cli import shared_rendezvous
+    with pytest.raises(ConfigError, match="--rendezvous endpoint 'nonsense'"):
+        shared_rendezvous("nonsense")
+    monkeypatch.setenv("MRTA_RENDEZVOUS", "tcp/127.0.0.1:17999")
+    assert shared_rendezvous("") == "tcp/127.0.0.1:17999"
+    assert shared_rendezvous("tcp/127.0.0.1:18000") == "tcp/127.0.0.1:18000"
+    assert shared_rendezvous(None) is None

@@ -17,6 +17,7 @@ import click
 from rich.console import Console, Group
 from rich.text import Text
 
+from mrta_zenoh.bus.options import BusOptions, check_endpoint
 from mrta_zenoh.cli.common import console as make_console
 from mrta_zenoh.cli.common import SEED_TYPE, OutputPath, finite_float, verbosity
 from mrta_zenoh.errors import MrtaRuntimeError
@@ -68,6 +69,12 @@ from ..live.view import render
 @click.option("--foxglove", "foxglove_port", type=click.IntRange(0, 65535), is_flag=False,
               flag_value=8765, default=None, metavar="[PORT]",
               help="Also serve the run live to Foxglove / Lichtblick (ws://127.0.0.1:8765).")
+@click.option("--rendezvous", default=None, is_flag=False, flag_value="", metavar="[ENDPOINT]",
+              callback=lambda _ctx, _param, value: shared_rendezvous(value),
+              help="Run on this rendezvous (e.g. tcp/127.0.0.1:7447) instead of a private one, "
+                   "so `mrta supervise`, `mrta view`, `mrta echo` and `mrta task` started in "
+                   "other terminals reach the running mission. Bare: the one every other "
+                   "command meets at ($MRTA_RENDEZVOUS, else tcp/127.0.0.1:7447).")
 @click.option("--agents-per-process", type=click.IntRange(min=1), default=1, show_default=True,
               metavar="K",
               help="Run the robots' agents K per process (agent hosts: one Zenoh session and "
@@ -86,6 +93,9 @@ def demo(live: bool | None, **kwargs) -> None:
             else _Lines(console))
     if quiet < 0:  # the supervisor's lines are progress too (the recording keeps the alarms)
         logging.getLogger("mrta.supervisor").setLevel(logging.ERROR)
+    if options.rendezvous is not None and quiet > -2:  # where other terminals reach the run
+        console.print(f"the run's bus: {options.rendezvous} (MRTA_RENDEZVOUS={options.rendezvous} "
+                      "mrta supervise|view|echo|task … reach it)", highlight=False, markup=False)
     if options.foxglove_port is not None and quiet > -2:
         console.print(f"Foxglove / Lichtblick: Open connection → "
                       f"ws://127.0.0.1:{options.foxglove_port}", highlight=False)
@@ -100,6 +110,17 @@ def demo(live: bool | None, **kwargs) -> None:
     if summary.run_status == INCOMPLETE:  # the figures cover part of the mission only
         raise MrtaRuntimeError(f"{run_problem(summary)}; {summary.output}/summary.json says "
                                "what happened")
+
+
+def shared_rendezvous(value: str | None) -> str | None:
+    """--rendezvous: None (absent) keeps the run private; "" (bare) is the rendezvous every
+    command meets at without options ($MRTA_RENDEZVOUS or the default); an endpoint is checked
+    (exit 2 naming it when malformed)."""
+    if value is None:
+        return None
+    if value.strip():
+        return check_endpoint(value.strip(), "--rendezvous endpoint")
+    return BusOptions().rendezvous_endpoint
 
 
 class _Silent:

@@ -120,6 +120,10 @@ class MissionOptions:
     # robots' agents per process: 1, a process per robot (real robots' way); K > 1, agent hosts
     # of K robots each (supervisor hosting), with the same summary but for machine fields
     agents_per_process: int = 1
+    # where the run's processes meet: None, a private loopback rendezvous of its own (nobody
+    # else reaches the run); an endpoint, that one, so other terminals' `mrta supervise`,
+    # `mrta view`, `mrta echo` and `mrta task` reach the running mission
+    rendezvous: str | None = None
 
 
 def instance_folder(options: MissionOptions) -> Path:

@@ -3,8 +3,9 @@ demo` and every run of `mrta experiment` do (`run_mission`).
 
 It runs the application package's mission launch file (the simulator and one agent per robot)
 through the runner `mrta launch` uses, plus a recorder, all as separate processes on a private
-loopback rendezvous (from ROUTER_FROM robots on, through a router of the run's own); this
-process is the supervisor. Readiness is read from liveliness tokens (each robot's token, the
+loopback rendezvous (from ROUTER_FROM robots on, through a router of the run's own) — or on the
+rendezvous the run is given (`--rendezvous`), where other terminals reach it; this process is
+the supervisor. Readiness is read from liveliness tokens (each robot's token, the
 recorder's, the clock source's), never from log lines; the simulator itself starts the clock
 only once every robot is up. Every process of the run gets the run's seed ($MRTA_SEED,
 mrta_zenoh.seeds) and its faults ($MRTA_FAULTS: crash, stall, partition, loss, latency —
@@ -145,7 +146,7 @@ def _run_in(run: MissionRun, reg: Registry,
     if options.agents_per_process > 1:
         nodes, hosted = host_nodes(nodes, run.robots, options.agents_per_process,
                                    output / "hosts")
-    rendezvous = private_rendezvous()
+    rendezvous = options.rendezvous or private_rendezvous()
     routed = len(run.robots) >= ROUTER_FROM
     client = ["--mode", "client", "--connect", rendezvous] if routed else []
     for n in nodes:
