@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 
-from mrta_agent.cbba.bundle import BID_OUT_OF_RANGE, NOT_WON, Cbba
+from mrta_agent.cbba.bundle import BID_OUT_OF_RANGE, NOT_WON, TOO_EARLY, UNCONFIRMED, Cbba
 from mrta_agent.cbba.messages import MESSAGES as CBBA_MESSAGES, Bids
 from mrta_agent.ssi.auction import (CANNOT_SERVE, NEGATIVE_COST, NOT_HELD, ROUND_AHEAD, Ssi)
 from mrta_agent.ssi.messages import MESSAGES as SSI_MESSAGES, OPEN, Bid, Round
@@ -109,6 +109,8 @@ def cbba_team(p: Problem = LINE) -> LogicTeam:
 
 
 def test_a_bids_saying_every_task_done_from_a_robot_that_won_none_of_them_is_not_believed():
+    """Not believed alone (it waits, unconfirmed); once the tasks are really served, the claim
+    made long before is refused as forged — by each robot it was told to, once per task."""
     team = cbba_team()
     forged = Bids(Header("r3", 0.0, 99), (), ((2, 0.0),), (0, 1, 2, 3), 10.0, 0.0)
     for robot in ("r1", "r2"):
@@ -118,7 +120,53 @@ def test_a_bids_saying_every_task_done_from_a_robot_that_won_none_of_them_is_not
         assert not logic.done
     won = {j for logic in team.logics.values() for j in logic.bundle}
     assert won == {0, 1, 2, 3}
+    assert refused(team.logics.values(), UNCONFIRMED) == 8 and not refused(
+        team.logics.values(), NOT_WON)
+    team.run(until=team.now + 30.0)  # every winner could have served its tasks by then
+    for logic in team.logics.values():
+        for j in list(logic.bundle):
+            logic.served(LINE.tasks[j].id, team.now)
+    team.run()
+    assert all(logic.done == {0, 1, 2, 3} for logic in team.logics.values())
     assert refused(team.logics.values(), NOT_WON) == 8  # 4 tasks, told to 2 robots
+    assert not refused(team.logics.values(), UNCONFIRMED)
+
+
+def test_a_relayed_done_to_a_robot_that_missed_who_won_is_not_called_forged():
+    """The golden cbba-stall run: the stalled robot1 still believes it won t1 when robot3,
+    which took it over, and then the others say it served. Those claims are honest: once a
+    majority says so the task is done, and nothing is counted as forged (it was, as
+    `done_not_won`, making the run `disturbed`)."""
+    r1 = Cbba(LINE, "r1", lookahead=math.inf, resend_period=1.0)
+    for other in ("r2", "r3"):
+        r1.teammate(other, True)
+    r1.tick(0.0)
+    j = r1.bundle[0]
+    assert r1.z[j] == 0
+    served = Bids(Header("r2", 40.0, 50), (), ((1, 40.0),), (j,), 12.0, 0.0)
+    relayed = Bids(Header("r3", 40.1, 50), (), ((2, 40.1),), (j,), 10.0, 0.0)
+    assert r1.hear("bids", "r2", served, 40.0) and j not in r1.done  # one claim: not yet
+    assert r1.hear("bids", "r3", relayed, 40.1)
+    assert j in r1.done
+    assert not [e for e in r1.refused if e[3]], r1.refused
+
+
+def test_a_winner_saying_its_task_served_before_it_could_have_reached_it_is_not_believed():
+    """A certified robot saying a task it won served at once (docs/security.md): believed
+    only from when it could have served it — from its start, at its speed."""
+    r1 = Cbba(LINE, "r1", lookahead=math.inf, resend_period=1.0)
+    for other in ("r2", "r3"):
+        r1.teammate(other, True)
+    c = 2  # (12, 0): r2, from (5, 0) at 1 m/s, reaches it at 7 s at the earliest
+    assert r1.earliest(1, c) == 7.0
+    bid = Bids(Header("r2", 0.1, 1), ((c, 1, 0.9),), ((1, 0.1),), (), 5.0, 0.0)
+    assert r1.hear("bids", "r2", bid, 0.1) and r1.z[c] == 1
+    at_once = Bids(Header("r2", 0.2, 2), (), ((1, 0.2),), (c,), 12.0, 0.0)
+    assert r1.hear("bids", "r2", at_once, 0.2)
+    assert c not in r1.done and refused([r1], TOO_EARLY) == 1
+    later = Bids(Header("r2", 7.5, 3), (), ((1, 7.5),), (c,), 12.0, 0.0)
+    assert r1.hear("bids", "r2", later, 7.5) and c in r1.done
+    assert refused([r1], TOO_EARLY) == 1
 
 
 def test_a_bids_with_a_winning_bid_above_the_tasks_reward_is_refused_whole():

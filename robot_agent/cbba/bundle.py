@@ -36,11 +36,17 @@ Departures from the paper, each for a reason given in docs/cbba.md:
 * **what a message is believed for** (docs/security.md): a message whose winning bids are out
   of range (below 0, or above the task's reward: a marginal score is at most that) is refused
   whole; a task in its `done` counts as served only if its sender had won it as this robot
-  knew it before the message, or once more than half of its teammates not known gone said so
+  knew it before the message — and no earlier than that winner could have served it (from
+  its start, at its speed: `earliest`; a certified robot cannot end a task it won at once) —
+  or once more than half of its teammates not known gone said so
   (a robot counted gone — a stall — never learns who won its tasks meanwhile, and every other
   robot relays their completion; a relay alone is not believed, or one liar's claim, relayed
-  by those who believed it, would reach the majority). A claim believed on neither ground is
-  refused and counted (`refused`), once per task and sender; a message stamped more than STAMP_SLACK
+  by those who believed it, would reach the majority). A claim believed on neither ground waits,
+  counted once per task and sender as `done_unconfirmed` (not forged: an honest relay to a
+  robot that missed who won looks the same); once the task is served — by this robot, or
+  believed on either ground — a waiting claim stamped more than CLAIM_SLACK before that is
+  refused as forged (`done_not_won`: it said served what was not yet), the others were honest
+  and are forgotten. A message stamped more than STAMP_SLACK
   after it was heard is refused (it would supersede its sender's real ones until then). The
   paper trusts every message: one robot saying every task done would otherwise end the
   mission with nothing served.
@@ -63,10 +69,14 @@ from .table import NONE, RESET, UPDATE, View, higher, resolve
 
 # why a message, or a claim in it, was not believed (`Cbba.refused`)
 BID_OUT_OF_RANGE = "bid_out_of_range"  # a winning bid below 0 or above the task's reward
-NOT_WON = "done_not_won"               # a task said served that its sender never won
+NOT_WON = "done_not_won"               # a task said served before it was (module docstring)
+UNCONFIRMED = "done_unconfirmed"       # a task said served by a robot not its known winner:
+                                       # not believed alone, not forged until shown early
+TOO_EARLY = "done_too_early"           # said served by its winner before it could have been
 SUPERSEDED = "superseded"              # older than its sender's latest (late, or a replay)
 STAMP_AHEAD = "stamp_ahead"            # stamped later than it was heard, by more than the slack
 STAMP_SLACK = 1.0  # s: a teammate's clock may run this far ahead of this robot's hearing it
+CLAIM_SLACK = 3.0  # s: honest claims of a completion (its server's, the relays) come this close
 ROUNDING = 1e-9
 
 
@@ -120,7 +130,9 @@ class Cbba(RouteLogic):
         self.out_of_range = 0
         self._work = 0.0  # wall seconds spent on the bundle since the last Bids
         self.won: dict[int, set[int]] = {}  # task → every robot believed its winner so far
-        self.done_claims: dict[int, set[int]] = {}  # task → who said it served (not yet believed)
+        # task → who said it served and was not believed (yet) → the stamp it first said so
+        self.done_claims: dict[int, dict[int, float]] = {}
+        self.too_early: set[tuple[int, int]] = set()  # (winner, task) said served too early
         self.refused: collections.Counter[tuple[str, str, str, bool]] = collections.Counter()
 
     # ------------------------------------------------------------------ what it tells the runtime
@@ -184,16 +196,23 @@ class Cbba(RouteLogic):
             self.refused[("bids", sender, BID_OUT_OF_RANGE, True)] += 1
             return True  # refused whole, and counted here
         self.latest[k] = msg.header.stamp
+        stamp = msg.header.stamp
         for j in msg.done:
             if j in self.done:
                 continue
-            claims = self.done_claims.setdefault(j, set())
-            won = k in self.won.get(j, ())
-            if k not in claims and not won:
-                self.refused[("bids", sender, NOT_WON, True)] += 1
-            claims.add(k)
-            if won or len(claims - self.departed) > self._others() / 2:
-                self._mark_done(j)
+            if k in self.won.get(j, ()):
+                if stamp >= self.earliest(k, j) - CLAIM_SLACK:
+                    self._mark_done(j, stamp)
+                elif (k, j) not in self.too_early:  # counted once; believed once it could be
+                    self.too_early.add((k, j))
+                    self.refused[("bids", sender, TOO_EARLY, True)] += 1
+                continue
+            claims = self.done_claims.setdefault(j, {})
+            if k not in claims:
+                self.refused[("bids", sender, UNCONFIRMED, False)] += 1
+                claims[k] = stamp
+            if len(set(claims) - self.departed) > self._others() / 2:
+                self._mark_done(j, stamp)
         theirs = {j: View(w, y) for j, w, y in msg.winners}
         s_k = dict(msg.stamps)
         for j in range(len(self.problem.tasks)):
@@ -222,6 +241,7 @@ class Cbba(RouteLogic):
             self.path.remove(j)
         self.z[j] = self.i
         self.done.add(j)
+        self._settle(j, at)
         self.relocate(Origin(j, at))
         self.position = self.problem.tasks[j].position
 
@@ -369,16 +389,37 @@ class Cbba(RouteLogic):
         """A winner that left the team reads as none."""
         return View(NONE, 0.0) if view.winner in self.departed else view
 
-    def _mark_done(self, j: int) -> None:
-        """Another robot served j: served tasks are final. If this robot still held it (two
-        robots served one task before agreeing), it goes like an outbid one, with every task
-        added after it."""
+    def earliest(self, k: int, j: int) -> float:
+        """The earliest robot k could have finished task j: from its start at its speed (the
+        instance's; a shortest path, so no route through other tasks is faster), not before the
+        task arrived, plus its service."""
+        task = self.problem.tasks[j]
+        return max(self.problem.travel(k, None, j), task.arrival) + task.service
+
+    def _mark_done(self, j: int, at: float) -> None:
+        """Another robot served j (believed at `at`, the stamp of the message that said so):
+        served tasks are final. If this robot still held it (two robots served one task before
+        agreeing), it goes like an outbid one, with every task added after it."""
         if j in self.done:
             return
         self.done.add(j)
+        self._settle(j, at)
         self.changed = True
         if j in self.bundle:
             self._release_from(self.bundle.index(j))
+
+    def _settle(self, j: int, at: float) -> None:
+        """j is served, believed at `at`: each claim of it that waited (`done_claims`) was
+        honest if it came at most CLAIM_SLACK before, and is forgotten; an earlier one said
+        served what was not yet, and is refused as forged (module docstring)."""
+        for m, said in self.done_claims.pop(j, {}).items():
+            sender = self.problem.robots[m].id
+            unconfirmed = ("bids", sender, UNCONFIRMED, False)
+            self.refused[unconfirmed] -= 1
+            if self.refused[unconfirmed] <= 0:
+                del self.refused[unconfirmed]
+            if said < at - CLAIM_SLACK:
+                self.refused[("bids", sender, NOT_WON, True)] += 1
 
     def _valid(self, msg: Bids) -> bool:
         n_robots, n_tasks = len(self.problem.robots), len(self.problem.tasks)
