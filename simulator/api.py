@@ -29,7 +29,6 @@ from .node import RunStats, SimNode
 from .ros2 import Ros2Driver
 from .robot_model import RobotModel
 from .secure_role import SIMULATOR_ROLE
-from .snapshot import save_snapshot
 from .world import Pose, World, load_world
 
 log = logging.getLogger("mrta.sim")
@@ -235,6 +234,7 @@ def run_simulator(options: SimOptions, bus_options: BusOptions,
 
 
 def _snapshot(sim: Simulation, path: Path) -> None:
+    from .snapshot import save_snapshot  # matplotlib (≈ 1.5 CPU-s to import): only for a picture
     save_snapshot(sim, path)
     log.info("snapshot written to %s", path)
 

@@ -31,7 +31,6 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
-from scipy.optimize import linear_sum_assignment
 
 from .problem import Problem
 
@@ -71,6 +70,7 @@ def optimal_assignment(cost: np.ndarray) -> Assignment:
     if np.any(cost[finite] < 0):
         raise ValueError("costs must be ≥ 0")
     big = float(cost[finite].sum()) + 1.0 if finite.any() else 1.0
+    from scipy.optimize import linear_sum_assignment  # ≈ 1 CPU-s to import: only here
     rows, cols = linear_sum_assignment(np.where(finite, cost, big))
     pairs = tuple(sorted((int(i), int(j)) for i, j in zip(rows, cols) if finite[i, j]))
     return Assignment(pairs, assignment_cost(cost, pairs))
@@ -83,6 +83,7 @@ def optimal_utility_assignment(utility: np.ndarray) -> tuple[tuple[tuple[int, in
     if utility.size == 0:
         return (), 0.0
     feasible = np.isfinite(utility) & (utility > 0)
+    from scipy.optimize import linear_sum_assignment  # ≈ 1 CPU-s to import: only here
     rows, cols = linear_sum_assignment(np.where(feasible, utility, 0.0), maximize=True)
     pairs = tuple(sorted((int(i), int(j)) for i, j in zip(rows, cols) if feasible[i, j]))
     return pairs, float(sum(utility[i, j] for i, j in pairs))

@@ -20,20 +20,16 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import matplotlib
+from mrta_zenoh import codec, keys
+from mrta_zenoh.architectures import architecture, architecture_names
+from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.files import save_figure
+from mrta_zenoh.recording import TimeBase, read_recording
+from mrta_zenoh.toolchain.model import ApplicationFile, ArchitectureFile
 
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-from mrta_zenoh import codec, keys  # noqa: E402
-from mrta_zenoh.architectures import architecture, architecture_names  # noqa: E402
-from mrta_zenoh.errors import ConfigError  # noqa: E402
-from mrta_zenoh.files import save_figure  # noqa: E402
-from mrta_zenoh.recording import TimeBase, read_recording  # noqa: E402
-from mrta_zenoh.toolchain.model import ApplicationFile, ArchitectureFile  # noqa: E402
-
-from .ground_truth import intervals_from  # noqa: E402
-from ..live.state import Supervisor  # noqa: E402
-from ..live.tasks import TaskWatch  # noqa: E402
+from .ground_truth import intervals_from
+from ..live.state import Supervisor
+from ..live.tasks import TaskWatch
 
 Intervals = dict[str, list[tuple[str, float, float]]]  # robot → [(task, start, end)]
 Spans = dict[str, list[tuple[float, float]]]           # robot → [(start, end)]
@@ -179,6 +175,9 @@ def natural(text: str) -> list:
 def draw_timeline(output: Path, app: ApplicationFile, panels: list[Panel],
                   span: tuple[float, float], xlabel: str) -> Path:
     """Panels of rows (one per robot) of task bars, offline periods hatched, one legend."""
+    import matplotlib  # ≈ 1.5 CPU-s to import: only where a picture is drawn (not --no-plots)
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
     robots = [r.id for r in app.robots]
     for p in panels:
         robots += sorted(set(p.intervals) - set(robots))
