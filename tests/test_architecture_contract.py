@@ -19,7 +19,7 @@ from mrta_agent.alliance.architecture import ALLIANCE
 from mrta_agent.alliance.messages import InterRobotCommunication, Motivation
 from mrta_agent.murdoch.architecture import MURDOCH
 from mrta_agent.murdoch.messages import Claim, Release
-from mrta_agent.runtime import loop
+from mrta_agent.runtime import tokens
 from mrta_agent.runtime.host import AgentOptions
 from mrta_agent.runtime.plugins import load_plugin
 from mrta_supervisor.mission.hook import MissionOptions, resolve
@@ -224,9 +224,9 @@ def test_decision_history_and_inbox_are_bounded():
         coord.history.append((float(i), None))
     assert len(coord.history) == HISTORY
     agent = ALLIANCE.agent(prepared, InProcBus(), ManualClock())
-    for i in range(loop.MAX_TOKENS + 10):  # invented robots: tracked up to a bound, counted
+    for i in range(tokens.MAX_TOKENS + 10):  # invented robots: tracked up to a bound, counted
         agent._on_token(f"robot{i}/alliance/agent", True)
-    assert len(agent._alive) == loop.MAX_TOKENS and agent.ignored_tokens == 10
+    assert len(agent.tokens.alive) == tokens.MAX_TOKENS and agent.tokens.ignored == 10
 
 
 def test_a_flood_of_strangers_neither_fills_the_inbox_nor_pushes_teammates_out():

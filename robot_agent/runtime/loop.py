@@ -17,7 +17,8 @@ what every architecture needs and none should write twice:
   counted (`ignored_outsiders`), so robots of another application — or forged ones claiming
   every task — cannot hold the team back. Without a roster (None) anyone holding a token
   joins: the open behaviour, right on a bus only the team uses (a secured fleet's ACL sees
-  to that), wrong on one shared with strangers;
+  to that), wrong on one shared with strangers. What the tokens say is kept apart from the
+  inbox (tokens.py, `TeamTokens`), so a flood of messages cannot push a teammate out;
 * sender checks: a message's key names its sender, and its header must agree;
 * what it refused: every sample the checks dropped and every claim the logic did not believe
   (`Coordinator.refuse`), by kind, sender and reason, said on `<name>/refused/tally`
@@ -68,6 +69,7 @@ from .coordinator import Coordinator, Say
 from .faults import FaultInjector
 from .inbox import Heard, Inbox
 from .plugins import AgentContext, Layer, Plugins
+from .tokens import TeamTokens
 
 if TYPE_CHECKING:
     import numpy as np  # annotations only: numpy loads when a plugin draws (mrta_zenoh.seeds)
@@ -75,8 +77,6 @@ if TYPE_CHECKING:
 log = logging.getLogger("mrta.agent")
 
 TEAM_WAIT = 10.0  # wall s an agent in lockstep waits for its roster's tokens before its first tick
-MAX_TOKENS = 1_000  # robots whose tokens are tracked: invented ids beyond are ignored, counted
-MAX_SUBJECT_TOKENS = 10_000  # teammates' subject tokens tracked: a flood beyond is ignored, counted
 SUBJECT = "subject"  # subject tokens: robotN/<namespace>/subject/<subject> (never `…/agent`)
 DROP_LOG_PERIOD = 10.0  # wall seconds between two log lines about the same kind of drop
 
@@ -120,7 +120,7 @@ class Agent:
         # teammates' coordination messages that reached this agent, by kind (whatever became of
         # them): the cost of what it subscribes to (docs/murdoch.md, Messages heard)
         self.received: collections.Counter[str] = collections.Counter()
-        # what it refused (`_drop`; network threads add under _token_lock), what it last said
+        # what it refused (`_drop`; network threads add under _count_lock), what it last said
         # of it and when (tell_refusals)
         self.refusals = Refusals()
         self._refusals_told: dict = {}
@@ -128,21 +128,8 @@ class Agent:
         self._last_drop_log: dict[str, float] = {}
         self._seq: dict[str, int] = collections.defaultdict(int)
         self._inbox = Inbox()  # filled by network callbacks, drained by the loop thread only
-        # tokens are kept apart from the bounded inbox, so a flood of messages can never push
-        # a teammate out of the team: callbacks record the latest state per robot (`_alive` is
-        # their view, for dropping strangers before they take inbox space), the loop applies
-        # the changes at its next tick
-        self._token_lock = threading.Lock()
-        self._alive: set[str] = set()
-        self._token_changes: dict[str, bool] = {}
-        self.ignored_tokens = 0
-        # teammates' subject tokens, the same way: callbacks record changes per (robot,
-        # subject); the loop keeps who holds which (`_subject_tokens`, live tokens whatever the
-        # team) and what the coordinator was told (`_told_subjects`, only robots in the team)
-        self._subject_changes: dict[tuple[str, str], bool] = {}
-        self._subject_seen: set[tuple[str, str]] = set()  # callbacks' view (MAX_SUBJECT_TOKENS)
-        self._subject_tokens: dict[str, set[str]] = {}
-        self._told_subjects: dict[str, set[str]] = {}
+        self.tokens = TeamTokens()  # teammates' tokens, apart from the inbox (tokens.py)
+        self._count_lock = threading.Lock()  # network callbacks' counters (`_drop`, `received`)
         self._handles: list = []  # subscriptions and the agent's token, closed at shutdown
         self._layers_task: str | None = None
 
@@ -186,7 +173,7 @@ class Agent:
         for name in arch.processes:
             if name != self.robot_id:
                 self._handles.append(self.bus.watch_liveliness(
-                    arch.process_token(name), lambda _k, alive, n=name: self._record(n, alive)))
+                    arch.process_token(name), lambda _k, alive, n=name: self.tokens.record(n, alive)))
 
     def listen_keys(self, kind: str) -> list[str]:
         """The key expressions the agent subscribes to for `kind`: every robot's, or only the
@@ -241,8 +228,7 @@ class Agent:
             return []
         deadline = time.monotonic() + limit
         while True:
-            with self._token_lock:
-                missing = sorted(self.roster - self._alive - {self.robot_id})
+            missing = self.tokens.missing(self.roster, self.robot_id)
             if not missing or stop.is_set() or time.monotonic() >= deadline:
                 return missing
             stop.wait(0.01)
@@ -263,33 +249,15 @@ class Agent:
             return  # a process is on the team by its process token only, never as a robot
         if self._outsider(key, robot, alive):
             return
-        self._record(robot, alive)
-
-    def _record(self, robot: str, alive: bool) -> None:
-        """A teammate (a robot, or one of the architecture's processes) came or went."""
-        with self._token_lock:
-            if alive and robot not in self._alive and len(self._alive) >= MAX_TOKENS:
-                self.ignored_tokens += 1
-                return
-            (self._alive.add if alive else self._alive.discard)(robot)
-            self._token_changes[robot] = alive
+        self.tokens.record(robot, alive)
 
     def _on_subject_token(self, key: str, alive: bool) -> None:
         """A teammate's subject token came or went: recorded for the loop thread, which tells
-        the coordinator once the robot is on the team (`_apply_subjects`)."""
+        the coordinator once the robot is on the team (`TeamTokens.subjects_to_tell`)."""
         robot, subject = first_chunk(key), key.rsplit("/", 1)[-1]
         if robot == self.robot_id or self._outsider(key, robot, alive):
             return  # its own (the coordinator knows what it advertises), or an outsider's
-        pair = (robot, subject)
-        with self._token_lock:
-            if alive and pair not in self._subject_seen:
-                if len(self._subject_seen) >= MAX_SUBJECT_TOKENS:
-                    self.ignored_tokens += 1
-                    return
-                self._subject_seen.add(pair)
-            elif not alive:
-                self._subject_seen.discard(pair)
-            self._subject_changes[pair] = alive
+        self.tokens.record_subject(robot, subject, alive)
 
     def _on_message(self, kind: str, sample: Sample) -> None:
         sender = first_chunk(sample.key)
@@ -297,7 +265,7 @@ class Agent:
         if sender == self.robot_id:
             self.ignored_own += 1
             return
-        with self._token_lock:  # network callbacks run on several threads
+        with self._count_lock:  # network callbacks run on several threads
             self.received[kind] += 1
         if msg.header.frame_id.strip("/") != sender:
             self._drop("ignored_mismatch", "ignoring %s on %s with frame_id '%s'",
@@ -309,7 +277,7 @@ class Agent:
                        "(--team)", type(msg).__name__, sender, entry=(kind, sender, OFF_ROSTER,
                                                                       False))
             return
-        if sender not in self._alive:  # before it takes inbox space (checked again at the tick)
+        if sender not in self.tokens.alive:  # before it takes inbox space (checked again at the tick)
             self._drop("ignored_strangers", "ignoring %s from %s, which holds no agent token",
                        type(msg).__name__, sender)
             return
@@ -345,7 +313,7 @@ class Agent:
         forged), in what the agent says it refused; log at most one line per DROP_LOG_PERIOD
         wall seconds per counter, so a flood (a forger, a misconfigured teammate) cannot flood
         the log. Names from the network are shown escaped (mrta_zenoh.untrusted)."""
-        with self._token_lock:  # network callbacks run on several threads
+        with self._count_lock:  # network callbacks run on several threads
             if entry is not None:
                 self.refusals.add(*entry)
         n = getattr(self, counter) + 1
@@ -363,7 +331,7 @@ class Agent:
         TALLY_PERIOD, or now as it stops. Nothing refused, nothing said."""
         if not final and now < self._refusals_at + TALLY_PERIOD:
             return
-        with self._token_lock:
+        with self._count_lock:
             counts = self.refusals.merged(self.coordinator.refusals())
         if counts == self._refusals_told:
             return
@@ -372,15 +340,15 @@ class Agent:
         self.bus.publish(refused_key(self.robot_id), tally(header, counts))
 
     def tick_high(self, now: float) -> None:
-        with self._token_lock:
-            changes, self._token_changes = self._token_changes, {}
-            subject_changes, self._subject_changes = self._subject_changes, {}
+        changes, subject_changes = self.tokens.take()
         for robot, alive in sorted(changes.items()):  # not the network's order
             if robot != self.robot_id and (robot in self.team) != alive:
                 (self.team.add if alive else self.team.discard)(robot)
                 self.coordinator.teammate(robot, alive)
-        if changes or subject_changes:
-            self._apply_subjects(set(changes) | {r for r, _ in subject_changes}, subject_changes)
+        if changes or subject_changes:  # what changed of the team's subjects (tokens.py)
+            for robot, subject, held in self.tokens.subjects_to_tell(
+                    set(changes) | {r for r, _ in subject_changes}, subject_changes, self.team):
+                self.coordinator.teammate_subject(robot, subject, held)
         for item in self.take_due(now):
             what = item.message
             if self.injector.cut(item.sender, what.header.stamp, item.at):
@@ -399,27 +367,6 @@ class Agent:
         self.switch_layers(self.coordinator.active_task, now)
         self.injector.announce(now, self.coordinator.active_task)
         self.tell_refusals(now)
-
-    def _apply_subjects(self, robots: set[str], changes: dict[tuple[str, str], bool]) -> None:
-        """Tell the coordinator what changed of its teammates' subjects: a subject counts while
-        its token lives and its robot is on the team (holds its agent token) — one whose agent
-        token comes later counts from then, and all of a robot's go with its agent token."""
-        for (robot, subject), alive in sorted(changes.items()):
-            held = self._subject_tokens.setdefault(robot, set())
-            (held.add if alive else held.discard)(subject)
-            if not held:
-                del self._subject_tokens[robot]
-        for robot in sorted(robots):
-            want = self._subject_tokens.get(robot, set()) if robot in self.team else set()
-            told = self._told_subjects.get(robot, set())
-            for subject in sorted(told - want):
-                self.coordinator.teammate_subject(robot, subject, False)
-            for subject in sorted(want - told):
-                self.coordinator.teammate_subject(robot, subject, True)
-            if want:
-                self._told_subjects[robot] = set(want)
-            else:
-                self._told_subjects.pop(robot, None)
 
     def send(self, say: Say, now: float) -> None:
         key = self.architecture.key(self.robot_id, say.kind,
@@ -486,13 +433,13 @@ class Agent:
             sensor.forget()
         self._inbox.clear()
         self.injector.restart()  # an @first fault is resolved again, the tally counts afresh
-        with self._token_lock:
+        with self._count_lock:
             self.refusals = Refusals()  # counted afresh, like the fault tally
         self._refusals_told, self._refusals_at = {}, -math.inf
         self.coordinator = self._make_coordinator()
         for robot in sorted(self.team):
             self.coordinator.teammate(robot, True)
-        for robot, subjects in sorted(self._told_subjects.items()):
+        for robot, subjects in sorted(self.tokens.told_subjects.items()):
             for subject in sorted(subjects):
                 self.coordinator.teammate_subject(robot, subject, True)
 
@@ -509,8 +456,7 @@ class Agent:
 
     def hears_alive(self, robot: str) -> bool:
         """Whether `robot`'s agent token is alive as this agent's callbacks heard it."""
-        with self._token_lock:
-            return robot in self._alive
+        return self.tokens.hears_alive(robot)
 
     def shutdown(self) -> None:
         """Stop the robot: deactivate the running layers, command zero velocity, let every
