@@ -128,14 +128,23 @@ class PathMap:
         self.nodes: list[Point] = [c for k, o in enumerate(self.obstacles) for c in o.corners
                                    if not any(p.contains(c) for m, p in
                                               enumerate(self.obstacles) if m != k)]
-        n = len(self.nodes)
-        self.edges: list[list[tuple[int, float]]] = [[] for _ in range(n)]
-        for i in range(n):
-            for j in range(i + 1, n):
-                if self.visible(self.nodes[i], self.nodes[j]):
-                    d = math.dist(self.nodes[i], self.nodes[j])
-                    self.edges[i].append((j, d))
-                    self.edges[j].append((i, d))
+        self._edges: list[list[tuple[int, float]]] | None = None
+
+    @property
+    def edges(self) -> list[list[tuple[int, float]]]:
+        """The visibility graph's edges, built on first use: checking where points may be
+        (`check_point`, an instance's validation) needs none of it."""
+        if self._edges is None:
+            n = len(self.nodes)
+            edges: list[list[tuple[int, float]]] = [[] for _ in range(n)]
+            for i in range(n):
+                for j in range(i + 1, n):
+                    if self.visible(self.nodes[i], self.nodes[j]):
+                        d = math.dist(self.nodes[i], self.nodes[j])
+                        edges[i].append((j, d))
+                        edges[j].append((i, d))
+            self._edges = edges
+        return self._edges
 
     def visible(self, a: Point, b: Point, skip: Sequence[Obstacle] = ()) -> bool:
         return not any(o.blocks(a, b) for o in self.obstacles if o not in skip)

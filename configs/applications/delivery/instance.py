@@ -14,6 +14,7 @@ shortest drivable paths around the walls otherwise (`planning.geometry`).
 from __future__ import annotations
 
 import math
+from collections import Counter
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
@@ -21,8 +22,10 @@ import msgspec
 import yaml
 
 from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.keys import is_id
 from mrta_zenoh.messages import Finite
 from mrta_zenoh.planning import Problem, Robot, Task, Windows
+from mrta_zenoh.planning.flow import serves_all
 from mrta_zenoh.planning.geometry import PathMap, room_walls
 from mrta_zenoh.yamlfile import YamlDoc, get_path, load_yaml
 
@@ -31,6 +34,19 @@ NonNegative = Annotated[float, msgspec.Meta(ge=0.0, le=1e9)]
 Positive = Annotated[float, msgspec.Meta(gt=0.0, le=100.0)]
 Size = Annotated[float, msgspec.Meta(gt=0.0, le=10_000.0)]
 Wall = tuple[Finite, Finite, Finite, Finite]
+
+# An instance's sizes are bounded (issue 51.5): every process of a run holds the
+# (robots + tasks)² travel-time matrix, and every robot builds the visibility graph of the walls
+# (≈ 10 corners a wall, pairs of corners checked against every wall). Above these caps a file
+# is refused at once, naming the cap, rather than costing minutes or gigabytes in every process.
+MAX_ROBOTS = 200
+MAX_TASKS = 1000
+MAX_WALLS = 50
+MATRIX = "every process of a run holds the (robots + tasks)² travel-time matrix"
+CAPS = (("robots", "MAX_ROBOTS", MAX_ROBOTS, "robots", MATRIX),
+        ("tasks", "MAX_TASKS", MAX_TASKS, "tasks", MATRIX),
+        ("world/walls", "MAX_WALLS", MAX_WALLS, "inner walls",
+         "every robot builds the walls' visibility graph"))
 
 
 class RobotSpec(msgspec.Struct, forbid_unknown_fields=True):
@@ -53,7 +69,8 @@ class TaskSpec(msgspec.Struct, forbid_unknown_fields=True):
 
 class WorldSpec(msgspec.Struct, forbid_unknown_fields=True, frozen=True):
     size: tuple[Size, Size] = (12.0, 8.0)   # m: the room, centred on the origin (its 4 walls)
-    walls: tuple[Wall, ...] = ()            # m: walls inside it, x1, y1, x2, y2
+    # m: walls inside it, x1, y1, x2, y2
+    walls: Annotated[tuple[Wall, ...], msgspec.Meta(max_length=MAX_WALLS)] = ()
 
     def all_walls(self) -> list[tuple[float, float, float, float]]:
         return room_walls(*self.size) + [tuple(map(float, w)) for w in self.walls]
@@ -63,8 +80,8 @@ DEFAULT_WORLD = WorldSpec()
 
 
 class InstanceBody(msgspec.Struct, forbid_unknown_fields=True):
-    robots: dict[str, RobotSpec] = {}
-    tasks: dict[str, TaskSpec] = {}
+    robots: Annotated[dict[str, RobotSpec], msgspec.Meta(max_length=MAX_ROBOTS)] = {}
+    tasks: Annotated[dict[str, TaskSpec], msgspec.Meta(max_length=MAX_TASKS)] = {}
     world: WorldSpec = DEFAULT_WORLD
     name: str = ""                       # what results carry (a generator's, or the file's stem)
     # the most tasks one robot serves (None: as many as it likes — time-extended assignment;
@@ -99,8 +116,12 @@ class InstanceBody(msgspec.Struct, forbid_unknown_fields=True):
     def faults(self) -> list[tuple[tuple, str]]:
         """What the types cannot say, as (key path, message): every task some robot can serve,
         and startable within its window, every start and task inside the room and clear of its
-        walls."""
-        out = []
+        walls, ids that are one key chunk, capacity for every task."""
+        out = [((group, key), f"{what} id {key!r:.80} is not one key chunk: use up to 64 "
+                              "letters, digits, '_', '-' or '.' (ids appear in keys)")
+               for group, what, ids in (("robots", "robot", self.robots),
+                                        ("tasks", "task", self.tasks))
+               for key in ids if not is_id(key)]
         for tid, t in self.tasks.items():
             if not any(self.capable(rid, tid) for rid in self.robots):
                 out.append((("tasks", tid, "capability"),
@@ -111,6 +132,8 @@ class InstanceBody(msgspec.Struct, forbid_unknown_fields=True):
                             f"due {t.due:g} s is before the task "
                             f"{'arrives' if opens == t.arrival else 'may start'} ({opens:g} s): "
                             "it could never be served"))
+        if not any(key[-1] == "capability" for key, _ in out):
+            out += self._capacity_faults()
         paths = PathMap(self.world.all_walls())
         w, h = self.world.size
         where = [(("robots", rid, "start"), f"robot {rid}", r.start)
@@ -127,6 +150,24 @@ class InstanceBody(msgspec.Struct, forbid_unknown_fields=True):
             except ConfigError as exc:
                 out.append((key, str(exc)))
         return out
+
+    def _capacity_faults(self) -> list[tuple[tuple, str]]:
+        """max_tasks_per_robot too small for every task to have a capable robot with room:
+        what the reference's routing (and so every run) refuses. A flow check over task needs
+        and robots' capability sets (planning.flow.serves_all)."""
+        cap = self.max_tasks_per_robot
+        if cap is None or not self.tasks:
+            return []
+        needs = Counter(t.capability for t in self.tasks.values())
+        kinds = Counter(frozenset(r.capabilities) for r in self.robots.values())
+        served = serves_all(needs, {k: n * cap for k, n in kinds.items()},
+                            lambda need, caps: not need or need in caps)
+        if served >= len(self.tasks):
+            return []
+        return [(("max_tasks_per_robot",),
+                 f"{cap} tasks per robot leaves {len(self.tasks) - served} of "
+                 f"{len(self.tasks)} tasks without a capable robot with room: no run can serve "
+                 "every task")]
 
     def check(self) -> None:
         for _, message in self.faults()[:1]:
@@ -187,6 +228,12 @@ def document_of(doc: YamlDoc) -> InstanceDoc:
     base: tuple = ()
     if isinstance(doc.data, dict) and isinstance(doc.data.get("instance"), dict):
         base = ("instance",)  # a summary.json (an instance document has no such key)
+    for key, name, cap, what, why in CAPS:  # before any conversion: a huge file costs little
+        where = base + tuple(key.split("/"))
+        entries = get_path(doc.data, where)
+        if isinstance(entries, (dict, list)) and len(entries) > cap:
+            raise doc.error(where, f"{len(entries)} {what}: an instance has at most {cap} "
+                                   f"({name}: {why})")
     for group, kind in (("robots", RobotSpec), ("tasks", TaskSpec)):
         entries = get_path(doc.data, base + (group,))
         if isinstance(entries, dict):  # entry by entry: an error then names its entry's line

@@ -1,0 +1,92 @@
+"""Bounded instances (issue 51.5): an instance's sizes are capped in its schema (robots, tasks,
+inner walls), and `mrta instance validate` refuses — one line, exit 2, naming the cap or the
+key — what every run would refuse: ids that are not one key chunk, a `max_tasks_per_robot`
+that leaves a task without a capable robot with room. `mrta instance show` refuses the same
+files the same way (no MemoryError building a matrix)."""
+
+from __future__ import annotations
+
+import re
+
+import pytest
+from click.testing import CliRunner
+
+from mrta_delivery.instance import MAX_ROBOTS, MAX_TASKS, MAX_WALLS
+from mrta_zenoh.cli.main import cli
+
+HEAD = "application: delivery\n"
+ONE_ROBOT = "robots:\n  robot1: {start: [0.5, 0.5], speed: 0.5}\n"
+ONE_TASK = "tasks:\n  t1: {position: [3.5, 3.0]}\n"
+
+
+def refused(tmp_path, text: str, *verb: str) -> str:
+    f = tmp_path / "i.yaml"
+    f.write_text(text)
+    r = CliRunner().invoke(cli, ["instance", *(verb or ("validate",)), str(f)])
+    lines = r.output.strip().splitlines()
+    assert r.exit_code == 2, r.output
+    assert len(lines) == 1 and "Traceback" not in r.output, r.output
+    assert lines[0].startswith(f"Error: {f}:"), lines[0]
+    return lines[0]
+
+
+def walls(n: int) -> str:
+    rows = "".join(f"    - [{-150 + 3 * k}, 100, {-149 + 3 * k}, 101]\n" for k in range(n))
+    return HEAD + ONE_ROBOT + ONE_TASK + "world:\n  size: [400, 400]\n  walls:\n" + rows
+
+
+@pytest.mark.parametrize("verb", [("validate",), ("show", "--json")])
+def test_too_many_walls_tasks_or_robots_are_refused_naming_the_cap(tmp_path, verb):
+    line = refused(tmp_path, walls(MAX_WALLS + 250), *verb)
+    assert f"'world/walls': {MAX_WALLS + 250} inner walls: an instance has at most " \
+           f"{MAX_WALLS} (MAX_WALLS" in line
+    tasks = "".join(f"  t{k}: {{position: [{-5 + k % 10}, {-3 + k // 10 % 6}]}}\n"
+                    for k in range(10_000))
+    line = refused(tmp_path, HEAD + ONE_ROBOT + "tasks:\n" + tasks, *verb)
+    assert f"'tasks': 10000 tasks: an instance has at most {MAX_TASKS} (MAX_TASKS" in line
+    robots = "".join(f"  r{k}: {{start: [0, 0], speed: 1}}\n" for k in range(MAX_ROBOTS + 1))
+    line = refused(tmp_path, HEAD + "robots:\n" + robots + ONE_TASK, *verb)
+    assert f"at most {MAX_ROBOTS} (MAX_ROBOTS" in line
+
+
+def test_at_the_cap_an_instance_is_accepted(tmp_path):
+    f = tmp_path / "i.yaml"
+    f.write_text(walls(MAX_WALLS))
+    r = CliRunner().invoke(cli, ["instance", "validate", str(f)])
+    assert r.exit_code == 0, r.output
+
+
+@pytest.mark.parametrize("text, key", [
+    (HEAD + "robots:\n  robot 1: {start: [0.5, 0.5], speed: 0.5}\n" + ONE_TASK, "robots/robot 1"),
+    (HEAD + ONE_ROBOT + "tasks:\n  t/1: {position: [3.5, 3.0]}\n", "tasks/t/1"),
+    (HEAD + ONE_ROBOT + "tasks:\n  '*': {position: [3.5, 3.0]}\n", "tasks/*"),
+])
+def test_an_id_that_is_not_one_key_chunk_is_refused(tmp_path, text, key):
+    line = refused(tmp_path, text)
+    assert re.search(rf"'{re.escape(key)}': \w+ id .* is not one key chunk", line), line
+
+
+CAPACITY = HEAD + """max_tasks_per_robot: {cap}
+robots:
+  robot1: {{start: [0.5, 0.5], speed: 0.5, capabilities: [lift]}}
+  robot2: {{start: [-2.5, 0.5], speed: 0.5}}
+tasks:
+  t1: {{position: [3.5, 3.0], capability: lift}}
+  t2: {{position: [-3.5, 3.0], capability: lift}}
+  t3: {{position: [1.5, -3.0]}}
+"""
+
+
+def test_a_capacity_too_small_for_every_task_is_refused(tmp_path):
+    # three tasks, two robots of one task each: one task left over
+    line = refused(tmp_path, CAPACITY.format(cap=1))
+    assert "'max_tasks_per_robot': 1 tasks per robot leaves 1 of 3 tasks" in line
+    # enough places in all (2 × 2 ≥ 3), but both lift tasks need robot1: only by its capability
+    # is the capacity too small — still refused
+    line = refused(tmp_path, CAPACITY.format(cap=1).replace("t3: {position: [1.5, -3.0]}",
+                                                            "t3: {position: [1.5, -3.0]}\n"
+                                                            "  t4: {position: [1.5, 3.0]}"))
+    assert "leaves 2 of 4 tasks" in line
+    f = tmp_path / "ok.yaml"
+    f.write_text(CAPACITY.format(cap=2))
+    assert CliRunner().invoke(cli, ["instance", "validate", str(f)]).exit_code == 0
