@@ -21,15 +21,28 @@ Step 1 per objective: total travel ignores times, so one label per state (the le
 makespan keeps the earliest completion (completion is non-decreasing in the time the previous
 task ends, so the earliest dominates); flowtime keeps the Pareto set of (completion so far, sum
 of completions) — a later but cheaper prefix may still win, so no single label suffices.
+
+**Hard time windows** (docs/delivery.md, "Time windows"; `Problem.windows` hard and some task
+with a due). Service starts at max(reach, arrival, earliest) and a task whose start would pass
+its due cannot be added to the route (`_extend` gives no label). Then times matter to MinSum
+too: a prefix that travels less but ends later may miss a due a faster one makes, so MinSum
+keeps the Pareto set of (completion, travel) as flowtime does; makespan still keeps the
+earliest completion (an earlier end never closes a window waiting cannot). Not every task can
+always be served, so the reference is *hierarchical*: the most tasks served within their
+windows, then the least objective among those (`solve_exact` takes the best split over every
+set of tasks served, by (−tasks served, value)); a task nobody can reach by its due is missed.
+Under soft windows a due binds nothing here (a late start is counted, not forbidden): the
+earliest still delays service, and every task is served.
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Iterator
 
 from ..errors import ConfigError
-from .problem import Problem
+from .problem import Problem, Windows
 from .schedule import Objective
 
 
@@ -48,21 +61,35 @@ class _Label:
         return out[::-1]
 
 
+def binding(problem: Problem) -> bool:
+    """Whether a due can forbid a start: hard windows and some task with a due (module
+    docstring); then the reference is hierarchical (most tasks served first)."""
+    return problem.windows is Windows.HARD and any(math.isfinite(t.due) for t in problem.tasks)
+
+
 def _extend(problem: Problem, i: int, label: _Label | None, j: int,
-            objective: Objective) -> _Label:
+            objective: Objective, hard: bool = False) -> _Label | None:
+    """The label of serving task j next after `label` (None: first); None when `hard` and
+    its service would start after its due."""
     leg = problem.travel(i, None if label is None else label.task, j)
     task = problem.tasks[j]
     now = problem.robots[i].ready if label is None else label.time
-    end = max(now + leg, task.arrival) + task.service
+    start = max(now + leg, task.opens)
+    if hard and start > task.due:
+        return None
+    end = start + task.service
     before = 0.0 if label is None else label.value
     value = (before + leg if objective is Objective.MINSUM
              else end if objective is Objective.MAKESPAN else before + end)
     return _Label(end, value, j, label)
 
 
-def _keep(labels: list[_Label], new: _Label, objective: Objective) -> list[_Label]:
+def _keep(labels: list[_Label], new: _Label | None, objective: Objective,
+          hard: bool = False) -> list[_Label]:
     """The labels of one state once `new` is offered (see the module docstring)."""
-    if objective is Objective.MINSUM:
+    if new is None:
+        return labels
+    if objective is Objective.MINSUM and not hard:
         return [new] if not labels or new.value < labels[0].value else labels
     if objective is Objective.MAKESPAN:
         return [new] if not labels or new.time < labels[0].time else labels
@@ -85,9 +112,12 @@ def best_alone(problem: Problem, i: int, objective: Objective) -> dict[int, _Lab
     cap = problem.robots[i].capacity
     if cap == 0:
         return {}
+    hard = binding(problem)
     states: dict[tuple[int, int], list[_Label]] = {}
     for j in _bits(able):
-        states[(1 << j, j)] = [_extend(problem, i, None, j, objective)]
+        first = _keep([], _extend(problem, i, None, j, objective, hard), objective, hard)
+        if first:
+            states[(1 << j, j)] = first
     # masks in increasing order: every state's predecessors are complete before it is extended
     for mask in range(1, 1 << n):
         if mask & ~able or (cap is not None and mask.bit_count() >= cap):
@@ -96,8 +126,10 @@ def best_alone(problem: Problem, i: int, objective: Objective) -> dict[int, _Lab
             for label in states.get((mask, last), ()):
                 for j in _bits(able & ~mask):
                     key = (mask | 1 << j, j)
-                    states[key] = _keep(states.get(key, []), _extend(problem, i, label, j,
-                                                                     objective), objective)
+                    kept = _keep(states.get(key, []), _extend(problem, i, label, j, objective,
+                                                              hard), objective, hard)
+                    if kept:
+                        states[key] = kept
     best: dict[int, _Label] = {}
     for (mask, _), labels in states.items():
         for label in labels:
@@ -114,10 +146,13 @@ class Exact:
 
 def solve_exact(problem: Problem, objective: Objective | str) -> Exact:
     """The optimum over every assignment of every task to a capable robot and every order.
-    ConfigError when some task has no capable robot (no solution serves every task)."""
+    ConfigError when some task has no capable robot (no solution serves every task). Under
+    binding hard windows: the most tasks served within their windows, then the least value
+    (module docstring); a task no robot can serve is then missed, not an error."""
     objective = Objective(objective)
     n, m = len(problem.tasks), len(problem.robots)
-    for j in range(n):
+    hard = binding(problem)
+    for j in range(n if not hard else 0):
         if not any(problem.capable(i, j) for i in range(m)):
             raise ConfigError(f"task {problem.tasks[j].id}: no robot has capability "
                               f"{problem.tasks[j].capability!r}")
@@ -140,6 +175,8 @@ def solve_exact(problem: Problem, objective: Objective | str) -> Exact:
                         nxt[key] = (total, {**routes, i: label.route()})
                 sub = (sub - 1) & rest
         g = nxt
+    if hard:  # the most tasks served, then the least value; ties: the lower set of tasks
+        full = min(g, key=lambda u: (-u.bit_count(), g[u][0], u))
     if full not in g:
         raise ConfigError("the robots' capacities (max tasks per robot) cannot serve every task")
     value, routes = g[full]

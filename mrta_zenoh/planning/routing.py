@@ -10,6 +10,13 @@ breaks ties. PyVRP solves VRPTW with a genetic
 search and a fixed objective (distance, duration, fixed costs): neither makespan nor flowtime
 is among its objectives, and per-vehicle speeds need a profile per robot.
 
+Time windows: a task's time cumul (when its service starts) lies in [max(arrival, earliest),
+due]; under binding hard windows (`exact.binding`) each task is a disjunction whose drop costs
+`DROP` — more than any set of routes' whole cost — so the search serves the most tasks it
+can before it lowers the objective (the hierarchical reference, exact.py). OR-Tools times are
+rounded to the ms, so routes are checked again in floats (`_keep_in_windows`): a task whose
+start the rounding let pass its due is left off its route.
+
 Open routes (no return to the start, as the objectives define): every robot ends at one dummy
 node reached from anywhere at no cost. OR-Tools works on integers: times are in milliseconds
 (`SCALE`); the value reported is recomputed from the routes in floats by `schedule.evaluate`,
@@ -24,15 +31,18 @@ says so (`capped`), because then the result depends on the machine's speed. A be
 
 from __future__ import annotations
 
+import math
 import time
 from dataclasses import dataclass
 
 from ..errors import ConfigError
+from .exact import binding
 from .problem import Problem
-from .schedule import Objective
+from .schedule import Objective, route_visits
 
 SCALE = 1000.0          # OR-Tools integer units per second
 WEIGHT = 100            # makespan's span / flowtime's cumul cost per ms, over the travel tie-break (1)
+DROP = 10 ** 13         # a dropped task's cost under hard windows (module docstring)
 
 
 @dataclass(frozen=True)
@@ -51,7 +61,8 @@ def solve_routing(problem: Problem, objective: Objective | str, *, solutions: in
     m, n = len(problem.robots), len(problem.tasks)
     if m == 0 or n == 0:
         return BestFound({i: [] for i in range(m)}, False)
-    for j in range(n):
+    hard = binding(problem)
+    for j in range(n if not hard else 0):
         if not any(problem.capable(i, j) for i in range(m)):
             raise ConfigError(f"task {problem.tasks[j].id}: no robot has capability "
                               f"{problem.tasks[j].capability!r}")
@@ -85,7 +96,7 @@ def solve_routing(problem: Problem, objective: Objective | str, *, solutions: in
         routing.SetArcCostEvaluatorOfVehicle(travel_cb[i], i)
     ready = [round(r.ready * SCALE) for r in problem.robots]
     horizon = (sum(max(map(max, t)) for t in travel) + sum(service_ms(a) for a in nodes)
-               + round(max(t.arrival for t in problem.tasks) * SCALE) + max(ready)) * 2 + 1
+               + round(max(t.opens for t in problem.tasks) * SCALE) + max(ready)) * 2 + 1
     routing.AddDimensionWithVehicleTransits(time_cb, horizon, horizon, False, "time")
     clock = routing.GetDimensionOrDie("time")
     for i in range(m):  # a robot leaves its start at its ready time (0 for a fresh one)
@@ -98,7 +109,11 @@ def solve_routing(problem: Problem, objective: Objective | str, *, solutions: in
             "tasks")
     for j, task in enumerate(problem.tasks):
         index = manager.NodeToIndex(m + j)
-        clock.CumulVar(index).SetMin(round(task.arrival * SCALE))
+        clock.CumulVar(index).SetMin(round(task.opens * SCALE))
+        if hard:
+            clock.CumulVar(index).SetMax(min(horizon, round(task.due * SCALE))
+                                         if math.isfinite(task.due) else horizon)
+            routing.AddDisjunction([index], DROP)
         # the vehicles allowed at a node (SetAllowedVehiclesForIndex's effect; its Python
         # binding refuses a list in this release)
         routing.VehicleVar(index).RemoveValues([i for i in range(m) if not problem.capable(i, j)])
@@ -128,4 +143,24 @@ def solve_routing(problem: Problem, objective: Objective | str, *, solutions: in
                 route.append(j)
             index = solution.Value(routing.NextVar(index))
         routes[i] = route
+    if hard:
+        routes = _keep_in_windows(problem, routes)
     return BestFound(routes, time.perf_counter() - t0 >= 0.98 * time_limit)
+
+
+def _keep_in_windows(problem: Problem, routes: dict[int, list[int]]) -> dict[int, list[int]]:
+    """`routes` with every task whose start, timed in floats, passes its due left off (one at
+    a time, the first such on a route, until none does: leaving one off only moves later
+    starts earlier when travel keeps the triangle inequality, and checking again costs
+    nothing when it does not)."""
+    out = {}
+    for i, route in routes.items():
+        route = list(route)
+        while True:
+            late = [v.task for v in route_visits(problem, i, route)
+                    if v.start > problem.tasks[v.task].due]
+            if not late:
+                break
+            route.remove(late[0])
+        out[i] = route
+    return out
