@@ -215,13 +215,25 @@ def test_a_solomon_file_maps_depot_customers_times_and_scale(tmp_path):
     per_unit = scale / 0.5                            # s per Solomon time unit
     c3 = doc.tasks["c3"]
     assert c3.position == pytest.approx(((60 - cx) * scale, (56 - cy) * scale))
-    assert (c3.arrival, c3.service, c3.due) == pytest.approx((65 * per_unit, 90 * per_unit,
-                                                             146 * per_unit))
+    # ready time → earliest on a task known from the start; due date → due
+    assert (c3.arrival, c3.earliest, c3.service, c3.due) == pytest.approx(
+        (0.0, 65 * per_unit, 90 * per_unit, 146 * per_unit))
+    assert doc.windows == "hard"
     assert all(r.speed == 0.5 and r.capabilities == () for r in doc.robots.values())
     assert doc.name == "C1MINI-r2-t3"
     # the travel model keeps Solomon's times: a robot covers one unit in one (scaled) unit
     p = doc.problem()
     assert p.travel(0, 0, 1) == pytest.approx(math.dist((45, 68), (30, 70)) * per_unit)
+    online = tmp_path / "online.yaml"                 # today's arrival mapping, kept
+    r = mrta("instance", "generate", "solomon", "--file", str(src), "--robots", "2",
+             "--tasks", "3", "--speed", "0.5", "--ready", "arrival", "--windows", "soft",
+             "-o", str(online))
+    assert r.exit_code == 0, r.output
+    c3 = load_document(online).tasks["c3"]
+    assert (c3.arrival, c3.earliest, c3.due) == pytest.approx((65 * per_unit, None,
+                                                               146 * per_unit))
+    assert load_document(online).windows == "soft"
+    assert load_document(online).name == "C1MINI-r2-t3-online"
     bad = tmp_path / "bad.txt"
     bad.write_text("not a solomon file\n")
     r = CliRunner().invoke(cli, ["instance", "generate", "solomon", "--file", str(bad)])

@@ -197,3 +197,38 @@ def test_a_windowed_instance_checks_loaded_through_the_yaml_reader(tmp_path):
     f = tmp_path / "i.yaml"
     f.write_text(ROBOT + "tasks:\n  t1: {position: [1, 1], earliest: 2, due: 2}\n")
     assert KIND.load(load_yaml(f)).tasks["t1"].due == 2.0   # a window of one instant is fine
+
+
+# --- generated windows --------------------------------------------------------------------------
+
+def generated(tmp_path, name, *args):
+    out = tmp_path / name
+    r = CliRunner().invoke(cli, ["instance", "generate", "delivery", "--robots", "3",
+                                 "--tasks", "8", "--seed", "4", *args, "-o", str(out)],
+                           catch_exceptions=False)
+    assert r.exit_code == 0, r.output
+    return out
+
+
+def test_generated_windows_are_seeded_bounded_and_leave_the_rest_of_the_instance(tmp_path):
+    plain = load_document(generated(tmp_path, "plain.yaml"))
+    args = ("--window-share", "0.5", "--window-width", "5", "15", "--window-slack", "1", "3",
+            "--windows", "soft")
+    a = generated(tmp_path, "a.yaml", *args)
+    assert a.read_bytes() == generated(tmp_path, "b.yaml", *args).read_bytes()
+    doc = load_document(a)
+    assert doc.name == "delivery-r3-t8-tw50-4" and doc.windows == "soft"
+    assert "window_share" not in plain.generator and doc.generator["window_share"] == 0.5
+    p = doc.problem()
+    windowed = [j for j, t in enumerate(p.tasks) if t.windowed]
+    assert 0 < len(windowed) < len(p.tasks)
+    for j, t in enumerate(p.tasks):
+        same = plain.tasks[t.id]
+        assert (same.position, same.arrival, same.service) == (doc.tasks[t.id].position,
+                                                               t.arrival, t.service)
+        if j in windowed:  # opens slack after the fastest capable robot could be there
+            reach = min(p.travel(i, None, j) for i in range(3) if p.capable(i, j))
+            assert 1.0 - 0.06 <= t.earliest - t.arrival - reach <= 3.0 + 0.06
+            assert 5.0 - 0.1 <= t.due - t.earliest <= 15.0 + 0.1
+    r = CliRunner().invoke(cli, ["instance", "generate", "delivery", "--windows", "firm"])
+    assert r.exit_code == 2 and "--windows firm" in r.output

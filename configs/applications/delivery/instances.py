@@ -49,6 +49,9 @@ def describe(doc: InstanceDoc, *, exact_limit: int, time_limit: float,
     return {
         "robots": len(problem.robots), "tasks": len(problem.tasks),
         "online": problem.online,
+        **({"windows": {"kind": problem.windows.value,
+                        "tasks": sum(t.windowed for t in problem.tasks)}}
+           if problem.windowed else {}),
         "world": {"size": list(doc.world.size), "walls": len(doc.world.walls)},
         "cost_model": doc.travel_model(),
         "cost": {"min": round(min(finite), 3) if finite else None,
@@ -152,6 +155,19 @@ class DeliveryGeneratorParams(msgspec.Struct, forbid_unknown_fields=True):
         ge=0, le=50, description="Walls inside the room that robots drive around.")] = 0
     wall_length: Annotated[tuple[float, float], msgspec.Meta(
         description="Inner walls' lengths uniform in [MIN, MAX] m.")] = (2.0, 4.0)
+    window_share: Annotated[float, msgspec.Meta(
+        ge=0.0, le=1.0, description="Time windows: the share of tasks given one (Solomon's "
+                                    "density); 0: none.")] = 0.0
+    window_width: Annotated[tuple[float, float], msgspec.Meta(
+        description="A window's width (due − earliest) uniform in [MIN, MAX] s: its "
+                    "tightness.")] = (10.0, 30.0)
+    window_slack: Annotated[tuple[float, float], msgspec.Meta(
+        description="A window opens this long (uniform in [MIN, MAX] s) after the task could "
+                    "first be reached: its arrival plus the fastest capable robot's travel from "
+                    "its start.")] = (0.0, 10.0)
+    windows: Annotated[str, msgspec.Meta(
+        description="hard (a task not started by its due is missed) or soft (served "
+                    "late).")] = "hard"
 
 
 class DeliveryGenerator(InstanceGenerator):
@@ -173,7 +189,9 @@ class DeliveryGenerator(InstanceGenerator):
 
 def _check_ranges(p: DeliveryGeneratorParams) -> None:
     for name, (lo, hi), positive in (("speeds", p.speeds, True), ("service", p.service, False),
-                                     ("wall-length", p.wall_length, True)):
+                                     ("wall-length", p.wall_length, True),
+                                     ("window-width", p.window_width, False),
+                                     ("window-slack", p.window_slack, False)):
         if not (math.isfinite(lo) and math.isfinite(hi) and lo <= hi
                 and (lo > 0 if positive else lo >= 0)):
             raise ConfigError(f"--{name} {lo:g} {hi:g}: need {'0 <' if positive else '0 ≤'} "
@@ -181,6 +199,8 @@ def _check_ranges(p: DeliveryGeneratorParams) -> None:
     if not 0.01 <= p.speeds[0] <= p.speeds[1] <= 100:
         raise ConfigError(f"--speeds {p.speeds[0]:g} {p.speeds[1]:g}: speeds are written to the "
                           "cm/s, so 0.01 ≤ MIN ≤ MAX ≤ 100 m/s")
+    if p.windows not in ("hard", "soft"):
+        raise ConfigError(f"--windows {p.windows}: hard or soft")
     if not all(math.isfinite(x) and 0 < x <= 10_000 for x in p.room):
         raise ConfigError(f"--room {p.room[0]:g} {p.room[1]:g}: need sizes in (0, 10000] m")
 
@@ -251,16 +271,51 @@ def generate_document(p: DeliveryGeneratorParams, seed: int) -> InstanceDoc:
         service = rounded(p.service[0] + (p.service[1] - p.service[0]) * rng.random(), 1)
         tasks[f"t{j + 1}"] = TaskSpec(spot, arrivals[j], service, need)
     source = {"name": "delivery", "seed": seed, **msgspec.to_builtins(p)}
+    if not p.window_share:  # no windows: the file (its `generator` too) is what it was before
+        for key in WINDOW_PARAMS:
+            source.pop(key)
     for key, value in source.items():
         if isinstance(value, tuple):
             source[key] = list(value)
-    # walls in the name: the same sizes and seed with and without walls are two instances
+    # walls and windows in the name: the same sizes and seed with and without them differ
     walled = f"-w{p.walls}" if p.walls else ""
+    windowed = f"-tw{round(100 * p.window_share)}" if p.window_share else ""
     doc = InstanceDoc(robots, tasks, WorldSpec(tuple(p.room), tuple(walls)),
-                      f"delivery-r{p.robots}-t{p.tasks}{walled}-{seed}", generator=source)
+                      f"delivery-r{p.robots}-t{p.tasks}{walled}{windowed}-{seed}",
+                      generator=source, windows=p.windows)
     doc.check()
-    doc.problem()  # every task reachable: a ConfigError now rather than at the run
+    problem = doc.problem()  # every task reachable: a ConfigError now rather than at the run
+    if p.window_share:
+        doc = with_windows(doc, problem, p, seed)
     return doc
+
+
+WINDOW_PARAMS = ("window_share", "window_width", "window_slack", "windows")
+
+
+def with_windows(doc: InstanceDoc, problem, p: DeliveryGeneratorParams,
+                 seed: int) -> InstanceDoc:
+    """`doc` with a window on each task drawn with probability `window_share` (docs/delivery.md,
+    "Instances"): it opens `window_slack` after the task could first be reached — its arrival
+    plus the fastest capable robot's travel from its own start — and stays open
+    `window_width`. Drawn from a stream of their own
+    (`mrta.instances/delivery/<seed>/windows`), so the rest of the instance is the one the
+    same seed gives without windows."""
+    rng = random.Random(f"mrta.instances/delivery/{seed}/windows")
+    tasks = {}
+    for j, (tid, spec) in enumerate(doc.tasks.items()):
+        draws = [rng.random() for _ in range(3)]  # always three: a task's draws do not
+        if draws[0] >= p.window_share:           # depend on whether the last had a window
+            tasks[tid] = spec
+            continue
+        reach = min(problem.travel(i, None, j) for i in range(len(problem.robots))
+                    if problem.capable(i, j))
+        slack = p.window_slack[0] + (p.window_slack[1] - p.window_slack[0]) * draws[1]
+        width = p.window_width[0] + (p.window_width[1] - p.window_width[0]) * draws[2]
+        earliest = rounded(spec.arrival + reach + slack, 1)
+        tasks[tid] = msgspec.structs.replace(spec, earliest=earliest,
+                                             due=rounded(earliest + width, 1))
+    return msgspec.structs.replace(doc, tasks=tasks)
 
 
 GENERATOR = DeliveryGenerator()

@@ -6,8 +6,10 @@ reader, PyPI), mapped as docs/delivery.md ("Solomon files") says, registered und
 
 * the depot → the robots' starts (robots are bodies, so they stand on a circle around it, at
   least `START_GAP` apart; one robot stands on it);
-* customers 1…M (file order) → tasks `c<number>`: position, ready time → arrival, service time,
-  due date → `due` (kept for later use: nothing enforces it yet);
+* customers 1…M (file order) → tasks `c<number>`: position, service time, due date → `due`, and
+  ready time → `earliest` on a task known from the start (the VRPTW's own reading: customers
+  are known, their windows open later) — or, with `--ready arrival`, → `arrival` (the task
+  unknown until then: an online variant, what this reader did before windows);
 * coordinates scaled into the room (centred, 1 m from its walls): one factor s for both axes;
 * time: Solomon's vehicles cover one distance unit per time unit. A robot covers s metres in
   s / v seconds at speed v, so every time (ready, due, service) is multiplied by s / v: the
@@ -30,6 +32,8 @@ from .instance import InstanceDoc, RobotSpec, TaskSpec, WorldSpec
 from .instances import KIND, START_GAP, document_text, rounded
 
 MARGIN = 1.0  # m between the scaled points' box and the room's walls
+READY = ("earliest", "arrival")
+WINDOWS = ("hard", "soft")
 
 
 class SolomonParams(msgspec.Struct, forbid_unknown_fields=True):
@@ -41,6 +45,13 @@ class SolomonParams(msgspec.Struct, forbid_unknown_fields=True):
         description="Room WIDTH HEIGHT (m) the coordinates are scaled into.")] = (12.0, 8.0)
     speed: Annotated[float, msgspec.Meta(gt=0, le=100,
                                          description="Every robot's speed (m/s).")] = 0.5
+    ready: Annotated[str, msgspec.Meta(
+        description="What a customer's ready time becomes: earliest (its window opens; the "
+                    "task is known from the start) or arrival (the task appears then: "
+                    "online).")] = "earliest"
+    windows: Annotated[str, msgspec.Meta(
+        description="hard (a task not started by its due is missed) or soft (served "
+                    "late).")] = "hard"
 
 
 def _read(path: str):
@@ -54,6 +65,9 @@ def _read(path: str):
 
 
 def solomon_document(p: SolomonParams) -> InstanceDoc:
+    for flag, value, allowed in (("ready", p.ready, READY), ("windows", p.windows, WINDOWS)):
+        if value not in allowed:
+            raise ConfigError(f"--{flag} {value}: one of {', '.join(allowed)}")
     data = _read(p.file)
     coords = [tuple(map(float, xy)) for xy in data["node_coord"]]
     windows = [tuple(map(float, w)) for w in data["time_window"]]
@@ -88,15 +102,22 @@ def solomon_document(p: SolomonParams) -> InstanceDoc:
         start = (rounded(depot[0] + ring * math.cos(angle)) if i else depot[0],
                  rounded(depot[1] + ring * math.sin(angle)) if i else depot[1])
         robots[f"robot{i + 1}"] = RobotSpec(start, p.speed)
-    tasks = {f"c{k}": TaskSpec(place(k), rounded(windows[k][0] * times), rounded(service[k] * times),
-                               due=rounded(windows[k][1] * times))
-             for k in customers}
-    name = f"{data.get('name') or 'solomon'}-r{p.robots}-t{len(customers)}"
+    tasks = {}
+    for k in customers:
+        ready = rounded(windows[k][0] * times)
+        tasks[f"c{k}"] = TaskSpec(place(k), ready if p.ready == "arrival" else 0.0,
+                                  rounded(service[k] * times),
+                                  earliest=ready if p.ready == "earliest" and ready else None,
+                                  due=rounded(windows[k][1] * times))
+    online = "-online" if p.ready == "arrival" else ""
+    name = f"{data.get('name') or 'solomon'}-r{p.robots}-t{len(customers)}{online}"
     doc = InstanceDoc(robots, tasks, WorldSpec((w, h)), name,
                       generator={"name": "solomon", "file": p.file.rsplit("/", 1)[-1],
                                  "robots": p.robots, "tasks": p.tasks, "room": [w, h],
-                                 "speed": p.speed, "scale_m_per_unit": rounded(scale, 6),
-                                 "seconds_per_unit": rounded(times, 6)})
+                                 "speed": p.speed, "ready": p.ready, "windows": p.windows,
+                                 "scale_m_per_unit": rounded(scale, 6),
+                                 "seconds_per_unit": rounded(times, 6)},
+                      windows=p.windows)
     doc.check()
     return doc
 
@@ -104,8 +125,9 @@ def solomon_document(p: SolomonParams) -> InstanceDoc:
 class SolomonGenerator(InstanceGenerator):
     """Delivery instances from a Solomon-format VRPTW file (read by vrplib).
 
-    The depot holds the robots' starts, customers become tasks (ready time → arrival, service
-    time, due date kept), coordinates and times scaled into the room (docs/delivery.md)."""
+    The depot holds the robots' starts, customers become tasks (ready time → earliest, or
+    arrival with `--ready arrival`; service time; due date → due), coordinates and times scaled
+    into the room (docs/delivery.md)."""
 
     name = "solomon"
     kind = KIND
