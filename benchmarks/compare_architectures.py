@@ -105,7 +105,7 @@ from mrta_supervisor.experiment.report_md import write_report  # noqa: E402
 from mrta_supervisor.experiment.results import read_results, write_csv  # noqa: E402
 
 from study_tables import (delivery_tables, headline, json_lines, mission_tables,  # noqa: E402
-                          replace_block)
+                          references_line, replace_block, size_of)
 
 DELIVERY_ARCHITECTURES = ("alliance", "murdoch", "central", "ssi", "cbba")
 PATROL_ARCHITECTURES = ("alliance", "murdoch")  # continuous tasks: no routes to plan
@@ -287,6 +287,46 @@ def metrics_of(wanted: tuple[str, ...], path: Path) -> tuple[str, ...]:
     return tuple(out)
 
 
+def large_line(args, mission: str) -> str:
+    """The larger teams' part of delivery's matrix, in words (compare_architectures.large_args)."""
+    if mission != "delivery" or not getattr(args, "large_robots", None):
+        return ""
+    return (f"Larger teams beside them, N = {', '.join(map(str, args.large_robots))} (M = "
+            f"{', '.join(f'{k:g}' for k in args.tasks_per_robot)} × N): "
+            f"{args.large_instances} instance{'s' if args.large_instances > 1 else ''} per size "
+            f"and the faults {', '.join(args.large_faults)} only. ")
+
+
+def matrix_intro(report: Report, args: argparse.Namespace, mission: str) -> str:
+    """What a mission's rows are a matrix of, in words, from this command's options."""
+    rows = report.table.rows
+    failed = [r for r in rows if r.get("status") != "ok"]
+    archs = list(args.architectures)
+    sizes = sorted({size_of(c) for c in report.cells})
+    return (f"Delivery: {len(rows)} runs — {len(archs)} architectures ({', '.join(archs)}) × "
+            f"{len(sizes)} sizes (N robots, M tasks: "
+            + ", ".join(f"{n}/{m}" for n, m in sizes)
+            + f") × {args.instances} generated instances each (seed {args.instance_seed} on"
+            + (f", {args.walls} walls each" if args.walls else "") + ") × "
+            f"{len(args.faults)} fault models (by role or channel, at {args.fault_at:g} s; "
+            "the dispatcher crash under central only) × "
+            f"{len(args.seeds)} seed{'s' if len(args.seeds) > 1 else ''}, "
+            f"{args.duration:g} simulated s each, lockstep; {len(failed)} failed. Each cell: "
+            "the mean and its 95 % bootstrap interval over instances (docs/statistics.md); a "
+            "gap is the objective achieved over its reference − 1, in %. "
+            + large_line(args, mission) + references_line(report))
+
+
+def headline_intro(args: argparse.Namespace) -> str:
+    return (f"Generated delivery instances (N = {', '.join(map(str, args.robots))}, M = N and "
+            f"2N, {args.instances} instances each; N = "
+            f"{', '.join(map(str, getattr(args, 'large_robots', []) or ['–']))} with "
+            f"{getattr(args, 'large_instances', 0)}), every fault model, matched parameters, "
+            "lockstep; mean and 95 % bootstrap interval over instances "
+            "([docs/comparison.md](docs/comparison.md) has every figure, the paired "
+            "comparisons and what was scaled down). Patrol: ALLIANCE and MURDOCH only.")
+
+
 def parse(argv: list[str] | None) -> argparse.Namespace:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--missions", nargs="+", choices=("delivery", "walls", "patrol"),
@@ -345,6 +385,34 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     return args
 
 
+def write_docs(args: argparse.Namespace, table: str, short: str, out: Path,
+               delivery: bool) -> list[str]:
+    """docs/comparison.md's block (`args.doc`), the README's headline (`args.readme`) and the
+    plots the page shows (docs/img/study/, from OUT/delivery/); the pictures written."""
+    replace_block(args.doc, TABLE, table)
+    replace_block(args.readme, STUDY, short)
+    pictures = []
+    if delivery and not args.no_plots:
+        img = args.doc.parent / "img" / "study"
+        img.mkdir(parents=True, exist_ok=True)
+        for name in PICTURES:
+            if (out / "delivery" / name).is_file():
+                data = (out / "delivery" / name).read_bytes()
+                write_atomically(img / name, lambda tmp, data=data: tmp.write_bytes(data))
+                pictures.append(str(img / name))
+    return pictures
+
+
+def exit_code(main) -> int:
+    """`main()`'s code, a usage error one line and exit 2 as `mrta` does, a runtime error 1."""
+    try:
+        return main()
+    except ConfigError as exc:
+        return print(f"Error: {exc}", file=sys.stderr) or 2
+    except MrtaRuntimeError as exc:
+        return print(f"Error: {exc}", file=sys.stderr) or 1
+
+
 def main(argv: list[str] | None = None) -> int:
     args = parse(argv)
     out = args.output or Path(tempfile.mkdtemp(prefix="mrta-study-"))
@@ -369,23 +437,15 @@ def main(argv: list[str] | None = None) -> int:
         reports[mission] = write_report(path, out / mission, Options(
             baseline=baseline, metrics=metrics_of(wanted, path), plots=not args.no_plots))
         json_lines(mission, reports[mission])
-        sections += (delivery_tables(reports[mission], margs, mission) if routes
+        sections += (delivery_tables(reports[mission], list(args.architectures),
+                                     matrix_intro(reports[mission], margs, mission), mission)
+                     if routes
                      else mission_tables(mission, out / mission)) + [""]
     table = "\n".join(sections).rstrip()
-    short = "\n".join(headline(reports, args))
+    short = "\n".join(headline(reports, list(args.architectures), headline_intro(args)))
     write_text(out / "tables.md", table + "\n\n" + short + "\n")
-    pictures = []
-    if args.write_docs:
-        replace_block(args.doc, TABLE, table)
-        replace_block(args.readme, STUDY, short)
-        if "delivery" in reports and not args.no_plots:
-            img = args.doc.parent / "img" / "study"
-            img.mkdir(parents=True, exist_ok=True)
-            for name in PICTURES:
-                if (out / "delivery" / name).is_file():
-                    data = (out / "delivery" / name).read_bytes()
-                    write_atomically(img / name, lambda tmp, data=data: tmp.write_bytes(data))
-                    pictures.append(str(img / name))
+    pictures = write_docs(args, table, short, out, "delivery" in reports) \
+        if args.write_docs else []
     print(json.dumps({"tables": str(out / "tables.md"), "runs": str(out),
                       "docs_rewritten": [str(args.doc), str(args.readme)] + pictures
                       if args.write_docs else []}), flush=True)
@@ -393,9 +453,4 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    try:
-        sys.exit(main())
-    except ConfigError as exc:  # a usage error: one line, exit 2, as `mrta` does
-        sys.exit(print(f"Error: {exc}", file=sys.stderr) or 2)
-    except MrtaRuntimeError as exc:
-        sys.exit(print(f"Error: {exc}", file=sys.stderr) or 1)
+    sys.exit(exit_code(main))

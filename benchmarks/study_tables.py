@@ -50,7 +50,7 @@ def fault_kind(spec: str) -> str:
     return "dispatcher" if kind == "crash" and subject.startswith("dispatcher@") else kind
 
 
-def _size(cell: Cell) -> tuple[int, int]:
+def size_of(cell: Cell) -> tuple[int, int]:
     return int(cell.value("n_robots") or 0), int(cell.value("n_tasks") or 0)
 
 
@@ -58,19 +58,9 @@ def ordered(report: Report, archs: list[str]) -> list[Cell]:
     """The cells by fault model, team size, task count, then the study's architecture order."""
     def key(c: Cell):
         arch = c.value("architecture")
-        return (FAULT_ORDER.index(fault_kind(c.value("failure"))), _size(c),
+        return (FAULT_ORDER.index(fault_kind(c.value("failure"))), size_of(c),
                 archs.index(arch) if arch in archs else len(archs))
     return sorted(report.cells, key=key)
-
-
-def large_line(args, mission: str) -> str:
-    """The larger teams' part of delivery's matrix, in words (compare_architectures.large_args)."""
-    if mission != "delivery" or not getattr(args, "large_robots", None):
-        return ""
-    return (f"Larger teams beside them, N = {', '.join(map(str, args.large_robots))} (M = "
-            f"{', '.join(f'{k:g}' for k in args.tasks_per_robot)} × N): "
-            f"{args.large_instances} instance{'s' if args.large_instances > 1 else ''} per size "
-            f"and the faults {', '.join(args.large_faults)} only. ")
 
 
 def references_line(report: Report) -> str:
@@ -84,23 +74,11 @@ def references_line(report: Report) -> str:
             "best found — never called optimal.")
 
 
-def delivery_tables(report: Report, args, mission: str = "delivery") -> list[str]:
-    rows = report.table.rows
-    failed = [r for r in rows if r.get("status") != "ok"]
-    archs = list(args.architectures)
-    sizes = sorted({_size(c) for c in report.cells})
-    intro = (f"Delivery: {len(rows)} runs — {len(archs)} architectures ({', '.join(archs)}) × "
-             f"{len(sizes)} sizes (N robots, M tasks: "
-             + ", ".join(f"{n}/{m}" for n, m in sizes)
-             + f") × {args.instances} generated instances each (seed {args.instance_seed} on"
-             + (f", {args.walls} walls each" if args.walls else "") + ") × "
-             f"{len(args.faults)} fault models (by role or channel, at {args.fault_at:g} s; "
-             "the dispatcher crash under central only) × "
-             f"{len(args.seeds)} seed{'s' if len(args.seeds) > 1 else ''}, "
-             f"{args.duration:g} simulated s each, lockstep; {len(failed)} failed. Each cell: "
-             "the mean and its 95 % bootstrap interval over instances (docs/statistics.md); a "
-             "gap is the objective achieved over its reference − 1, in %. "
-             + large_line(args, mission) + references_line(report))
+def delivery_tables(report: Report, archs: list[str], intro: str,
+                                    mission: str = "delivery") -> list[str]:
+    """A mission's tables: one per fault model, a row per size and architecture (the cells of
+    `report`), then the paired comparisons; `intro` says what the rows are a matrix of."""
+    sizes = sorted({size_of(c) for c in report.cells})
     cols = [m for m in SHOWN if m in report.metrics]
     lines = [f"### {MISSION_TITLES.get(mission, mission)}", "", intro, ""]
     for fault in FAULT_ORDER:
@@ -113,10 +91,10 @@ def delivery_tables(report: Report, args, mission: str = "delivery") -> list[str
                   "| N | M | architecture | runs ok | " + " | ".join(map(head, shown))
                   + "".join(f" | {x}" for x in same) + " |",
                   "| --- | --- | --- | --- |" + " --- |" * (len(shown) + len(same))]
-        by_size = {_size(c): c for c in cells}
+        by_size = {size_of(c): c for c in cells}
         for n, m in sizes:
             for arch in archs:
-                c = next((c for c in cells if _size(c) == (n, m)
+                c = next((c for c in cells if size_of(c) == (n, m)
                           and c.value("architecture") == arch), None)
                 if c is None and (n, m) in by_size and arch not in ONLY.get(fault, (arch,)):
                     lines.append(f"| {n} | {m} | {arch} | {NOT_APPLICABLE[fault]} |"
@@ -203,30 +181,26 @@ def mission_tables(name: str, folder: Path) -> list[str]:
 
 # the README's headline: (mission, fault, N robots, tasks per robot, metric)
 HEADLINE = (("delivery", "none", 5, 1, "metrics.gap_minsum"),
+            ("delivery", "none", 5, 1, "metrics.makespan"),
+            ("delivery", "none", 5, 1, "metrics.coordination_per_robot"),
             ("delivery", "none", 5, 2, "metrics.gap_minsum"),
             ("delivery", "none", 5, 2, "metrics.makespan"),
-            ("delivery", "none", 5, 2, "metrics.coordination_per_robot"),
             ("delivery", "none", 10, 2, "metrics.gap_minsum"),
-            ("delivery", "crash", 5, 2, "takeover_seconds"),
-            ("delivery", "stall", 5, 2, "takeover_seconds"),
-            ("delivery", "partition", 5, 2, "metrics.completed"),
-            ("delivery", "loss", 5, 2, "metrics.makespan"),
-            ("delivery", "latency", 5, 2, "metrics.makespan"),
-            ("delivery", "range", 5, 2, "metrics.makespan"),
-            ("delivery", "dispatcher", 5, 2, "metrics.completed"),
+            ("delivery", "crash", 5, 1, "takeover_seconds"),
+            ("delivery", "stall", 5, 1, "takeover_seconds"),
+            ("delivery", "partition", 5, 1, "metrics.completed"),
+            ("delivery", "loss", 5, 1, "metrics.makespan"),
+            ("delivery", "latency", 5, 1, "metrics.makespan"),
+            ("delivery", "range", 5, 1, "metrics.makespan"),
+            ("delivery", "dispatcher", 5, 1, "metrics.completed"),
             ("walls", "none", 5, 1, "metrics.gap_minsum"),
             ("patrol", "crash", 0, 0, "takeover_seconds"))
 
 
-def headline(reports: dict[str, Report], args) -> list[str]:
-    archs = list(args.architectures)
-    lines = [f"Generated delivery instances (N = {', '.join(map(str, args.robots))}, M = N and "
-             f"2N, {args.instances} instances each; N = "
-             f"{', '.join(map(str, getattr(args, 'large_robots', []) or ['–']))} with "
-             f"{getattr(args, 'large_instances', 0)}), every fault model, matched parameters, "
-             "lockstep; mean and 95 % bootstrap interval over instances "
-             "([docs/comparison.md](docs/comparison.md) has every figure, the paired "
-             "comparisons and what was scaled down). Patrol: ALLIANCE and MURDOCH only.", "",
+def headline(reports: dict[str, Report], archs: list[str], intro: str) -> list[str]:
+    """The README's short table (HEADLINE's rows) under `intro`, the words on what it is
+    over."""
+    lines = [intro, "",
              "| mission | fault | N / M | figure | " + " | ".join(archs) + " |",
              "| --- | --- | --- | --- |" + " --- |" * len(archs)]
     for mission, fault, n, per_robot, metric in HEADLINE:
@@ -235,7 +209,7 @@ def headline(reports: dict[str, Report], args) -> list[str]:
             continue
         cells = [c for c in report.cells if fault_kind(c.value("failure")) == fault]
         if mission != "patrol":
-            cells = [c for c in cells if _size(c) == (n, n * per_robot)]
+            cells = [c for c in cells if size_of(c) == (n, n * per_robot)]
         by_arch = {c.value("architecture"): c for c in cells}
         if not by_arch:
             continue

@@ -8,7 +8,9 @@ lockstep at full speed; with overrides, its own copy of the application package)
 this machine, `jobs` at once, or with `scheduler` as tasks on a Dask cluster
 (dask_backend.py); both run the same argv and make the same rows, so the same seeds give the
 same rows whichever ran them. Each row lands in `results.csv` as its run ends (a Ctrl-C keeps
-the finished rows); a run that fails is a row with its error and the others go on. At the end
+the finished rows); a run that fails is a row with its error and the others go on. Runs start
+pairs first (`paired_first`: every cell's run of the first instance and seed, then the next),
+so an interrupted matrix holds whole pairs; their numbers do not change. At the end
 the report is made from results.csv alone (report_md.write_report: summary.md, cells.csv,
 comparisons.csv, plots), as `mrta experiment report` makes it.
 
@@ -235,7 +237,7 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
     backend = _Backend(packages, exp.spec.duration, output, jobs, scheduler, stop, results,
                        pictures, slurm)
     have = results.done()
-    backend.run([r for r in mine if r.index not in have])
+    backend.run(paired_first(exp, [r for r in mine if r.index not in have]))
     precision = None
     if until:
         precision = _until_precise(exp, backend, runs, until, block, max_runs, report)
@@ -247,6 +249,18 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
         raise Interrupted(f"stopped after {len(rows)} of {plural(results.total, 'run')}; "
                           f"{results.path} has them: the same command resumes")
     return rows
+
+
+def paired_first(exp: Experiment, runs: list[Run]) -> list[Run]:
+    """The order runs are started in (their numbers, and so results.csv, are unchanged): the
+    first instance and seed in every cell, then the next — so a matrix interrupted part-way (a
+    study that takes several sittings) holds whole pairs of every architecture and failure on
+    the instances it reached, rather than all of one cell and nothing of the next."""
+    rank = {i.name: n for size in exp.sizes() if size is not None
+            for n, i in enumerate(j for j in exp.instances if j.size == size)}
+    seeds = {s: n for n, s in enumerate(exp.spec.seeds)}
+    return sorted(runs, key=lambda r: (rank.get(r.instance.name, 0) if r.instance else 0,
+                                       seeds.get(r.seed, len(seeds) + r.seed), r.index))
 
 
 def _with_targets(metrics: tuple[str, ...] | None, until: dict[str, float] | None):
