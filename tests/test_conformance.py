@@ -7,20 +7,20 @@ architecture is tested here the day it registers, with no list to edit (tests/RE
   package configured for it, and refuses a misspelt key naming the file; a package shipped with
   an answers file is what `mrta app new --answers` writes, and `mrta app validate` accepts it;
 - its robots' agents, built through the contract (`prepare`, `agent`) from that package's files,
-  run N ticks in-process (the in-process bus, one manual clock, odometry fed as a simulator
-  would): every robot sees its whole team, talks on its namespace under its own name with a
-  sequence number per key, and the feed (`read_doing`) reads what it said;
+  and the agents of its own processes (`processes`, built by `process_agent` from the package's
+  config folder: central's dispatcher), run N ticks in-process (the in-process bus, one manual
+  clock, odometry fed as a simulator would): every robot sees its whole team, talks on its
+  namespace under its own name with a sequence number per key, and the feed (`read_doing`)
+  reads what it said;
 - a crash: a robot's agent stops (its token goes); every survivor drops it from its team, a
-  survivor takes over its task, and the architecture's `takeover_check` holds for that takeover.
-
-What needs a process of its own beside the robots (central's dispatcher, `Architecture.processes`)
-is not built by the contract in-process: the crash's takeover is then left to the end-to-end
-runs (tests/process/test_golden_summaries.py, whose CI-tier case is central's stall).
+  survivor takes over its task, and the architecture's `takeover_check` holds for that takeover
+  — through the dispatcher's re-plan where there is one.
 """
 
 from __future__ import annotations
 
 import dataclasses
+import math
 import re
 from pathlib import Path
 
@@ -169,8 +169,12 @@ def test_its_shipped_packages_are_what_their_answers_write_and_validate(name, re
 
 class Team:
     """The package's robots, each in its architecture's agent on one in-process network and one
-    manual clock; every robot is fed odometry at a fixed point of its own, as a simulator whose
-    robots stand still would (some architectures bid by distance)."""
+    manual clock, beside the architecture's own processes; every tick each agent takes its
+    decision step and its active task's layers run, and every robot moves as its last velocity
+    command says (a unicycle with no obstacles, from a point of its own) and is fed the
+    odometry a simulator would send. Robots that move serve tasks: a task queued behind
+    another (a route architecture's takeover) is reached in the end, and a dispatcher watching
+    progress does not take a robot that never moves for a stalled one."""
 
     def __init__(self, arch: Architecture, pkg: Shipped):
         self.arch, self.package = arch, pkg
@@ -181,6 +185,12 @@ class Team:
                              lambda s: self.said.append((s.key, s.message)))
         self.agents = {}
         self.buses = {}
+        self.poses = {robot: [float(k), 0.0, 0.0] for k, robot in enumerate(pkg.robots)}
+        self.cmds = {robot: Twist(0.0, 0.0) for robot in pkg.robots}
+        for robot in pkg.robots:
+            self.world.subscribe(keys.cmd_vel(robot),
+                                 lambda s, r=robot: self.cmds.__setitem__(r, s.message),
+                                 msg_type=Twist)
         for robot in pkg.robots:
             prepared = arch.prepare(AgentOptions(
                 robot, pkg.robot_params(robot), pkg.tasks_params,
@@ -190,20 +200,43 @@ class Team:
             agent.start()
             agent.declare_alive()
             self.agents[robot] = agent
+        self.processes = {}  # its own processes (a dispatcher), on the team but no robots
+        for name in arch.processes:
+            self.buses[name] = InProcBus(self.net)
+            agent = arch.process_agent(name, pkg.config, self.buses[name], self.clock,
+                                       np.random.default_rng(0))
+            agent.start()
+            agent.declare_alive()
+            self.processes[name] = agent
         self.seq = 0
 
     def tick(self, n: int = 1, watch=None) -> None:
         for _ in range(n):
             self.seq += 1
             now = self.clock.now()
-            for k, robot in enumerate(self.agents):
+            for robot in self.agents:
                 self.world.publish(keys.odom(robot), Odometry(
-                    Header(robot, now, self.seq), Pose2D(float(k), 0.0, 0.0), Twist(0.0, 0.0)))
-            for agent in self.agents.values():
+                    Header(robot, now, self.seq), Pose2D(*self.poses[robot]),
+                    self.cmds[robot]))
+            for agent in self.members():
                 agent.tick_high(now)
+                agent.step_layers(now, TICK)
             if watch is not None:
                 watch(now)
+            for robot in self.agents:
+                self.move(robot)
             self.clock.advance(TICK)
+
+    def move(self, robot: str) -> None:
+        """One step of `robot`'s body under its last command."""
+        pose, cmd = self.poses[robot], self.cmds[robot]
+        pose[0] += cmd.linear * math.cos(pose[2]) * TICK
+        pose[1] += cmd.linear * math.sin(pose[2]) * TICK
+        pose[2] = math.remainder(pose[2] + cmd.angular * TICK, math.tau)
+
+    def members(self) -> list:
+        """Every agent still running: the robots', then the processes'."""
+        return [*self.agents.values(), *self.processes.values()]
 
     def crash(self, robot: str) -> None:
         """`robot`'s agent is gone, as after SIGKILL: it says nothing more, its token goes."""
@@ -211,7 +244,7 @@ class Team:
         self.buses.pop(robot).close()
 
     def close(self) -> None:
-        for agent in self.agents.values():
+        for agent in self.members():
             agent.shutdown()
         for bus in self.buses.values():
             bus.close()
@@ -231,11 +264,15 @@ def test_the_robots_run_n_ticks_in_process_and_say_who_they_are(team):
     arch = team.arch
     team.tick(N)
     robots = set(team.agents)
+    processes = set(team.processes)
     for robot, agent in team.agents.items():
-        assert agent.team == robots - {robot}, robot
+        assert agent.team == (robots | processes) - {robot}, robot
+    for name, agent in team.processes.items():
+        assert agent.team == robots, name
     assert team.said, f"{arch.name}'s robots said nothing in {N} ticks"
     speakers = {first_chunk(key) for key, _ in team.said}
-    assert speakers <= robots
+    assert speakers <= robots | processes
+    assert speakers & robots, f"{arch.name}'s robots said nothing in {N} ticks"
     last: dict[str, int] = {}
     for key, message in team.said:
         header = message.header
@@ -255,9 +292,6 @@ def test_a_crashed_robot_leaves_every_team_and_its_task_is_taken_within_the_chec
     team.tick(N)
     held = {robot: agent.active_task for robot, agent in team.agents.items()
             if agent.active_task is not None}
-    if arch.processes and not held:
-        pytest.skip(f"{arch.name} allocates through {', '.join(arch.processes)}, which the "
-                    "contract does not build in-process: its takeover is the golden stall run's")
     assert held, f"no robot of {arch.name} holds a task after {N} ticks"
     failed, task = sorted(held.items())[0]
     failed_at = team.clock.now()
@@ -270,10 +304,10 @@ def test_a_crashed_robot_leaves_every_team_and_its_task_is_taken_within_the_chec
 
     for _ in range(int(HORIZON / TICK)):  # a bounded wait: whether the take is in time is the check's
         team.tick(1, watch)
-        if taken and not any(failed in a.team for a in team.agents.values()):
+        if taken and not any(failed in a.team for a in team.members()):
             break
-    for robot, agent in team.agents.items():
-        assert failed not in agent.team, robot
+    for agent in team.members():
+        assert failed not in agent.team, agent.robot_id
     assert taken, f"nobody took {task} over from {failed} under {arch.name}"
     taken_at, taker = taken[0]
     records = [(key, "", int(round(m.header.stamp * 1e9)), encode(m)) for key, m in team.said]

@@ -12,9 +12,11 @@ import logging
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from mrta_zenoh import instances
-from mrta_zenoh.bus import BusOptions
+from mrta_zenoh.bus import Bus, BusOptions
+from mrta_zenoh.clock import Clock
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.planning import Problem
 
@@ -24,6 +26,9 @@ from ..runtime.plugins import Plugins
 from .architecture import CENTRAL, DISPATCHER
 from .dispatcher import Dispatcher
 from .params import DispatcherParams, load_dispatcher
+
+if TYPE_CHECKING:
+    import numpy as np
 
 log = logging.getLogger("mrta.central")
 
@@ -61,6 +66,13 @@ def prepare(options: DispatcherOptions) -> tuple[DispatcherParams, Problem]:
     return load_dispatcher(options.params), load_problem(options.instance, options.application)
 
 
+def dispatcher_agent(name: str, params: DispatcherParams, problem: Problem, bus: Bus,
+                     clock: Clock, rng: np.random.Generator | None) -> Agent:
+    """The fixed driver given the dispatcher's logic: no plugins, no layers, no body."""
+    return Agent(name, CENTRAL, lambda: Dispatcher(problem, params, name), bus, clock, rng,
+                 Plugins((), (), {}, None), params.spin_rate, params.spin_rate, log)
+
+
 def run_dispatcher(options: DispatcherOptions, stop: threading.Event | None = None) -> int:
     params, problem = prepare(options)
     robots = tuple(r.id for r in problem.robots)
@@ -70,9 +82,7 @@ def run_dispatcher(options: DispatcherOptions, stop: threading.Event | None = No
                                  options.duration, None, team)
 
     def make(bus, clock, rng) -> Agent:
-        return Agent(options.name, CENTRAL, lambda: Dispatcher(problem, params, options.name),
-                     bus, clock, rng, Plugins((), (), {}, None), params.spin_rate,
-                     params.spin_rate, log)
+        return dispatcher_agent(options.name, params, problem, bus, clock, rng)
 
     return host(make, agent_options, warnings=[], stop=stop, logger=log, role=DISPATCHER,
                 describe=f"dispatcher of {len(robots)} robots and {len(problem.tasks)} tasks, "

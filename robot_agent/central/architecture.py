@@ -12,15 +12,22 @@ queue they join (docs/central.md, "Takeover").
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from mrta_zenoh.architectures import Decision, Takeover, TakeoverBound
+from mrta_zenoh.bus import Bus
+from mrta_zenoh.clock import Clock
 
 from ..route.architecture import RouteArchitecture
 from ..runtime.architecture import Prepared
 from ..runtime.host import AgentOptions
+from ..runtime.loop import Agent
 from . import params as central_params
 from .agent import CentralCoordinator
 from .messages import Plan, Progress, Queue, Queued
+
+if TYPE_CHECKING:
+    import numpy as np
 
 DISPATCHER = "dispatcher"  # the dispatcher's process name (and lockstep participant)
 SUBJECT_KINDS = ("queue", "queued")  # published under a sub-key: the robot, the task
@@ -55,6 +62,17 @@ class Central(RouteArchitecture):
     def coordinator(self, prepared: Prepared) -> CentralCoordinator:
         return CentralCoordinator(prepared.robot_id, prepared.params, prepared.plugins,
                                   DISPATCHER)
+
+    def process_agent(self, name: str, config: Path, bus: Bus, clock: Clock,
+                      rng: np.random.Generator | None = None) -> Agent:
+        """The dispatcher's agent from a package's config folder, the files its launch file
+        gives `mrta dispatcher` (its parameters, the instance; the instance's own
+        `application:` key names its kind)."""
+        from .api import DispatcherOptions, dispatcher_agent, prepare  # api imports this module
+        params, problem = prepare(DispatcherOptions(
+            config / f"dispatcher_{self.param_stem}_params.yaml", config / "instance.yaml",
+            name=name))
+        return dispatcher_agent(name, params, problem, bus, clock, rng)
 
     def decision(self, sender: str, key: str, message: object) -> Decision | None:
         if not isinstance(message, Plan) or sender != DISPATCHER:

@@ -4,7 +4,8 @@ from its parameter files, which decision logic the fixed driver (`loop.Agent`) i
 
 To add an architecture (docs/architecture.md, "Adding an architecture"): subclass
 AgentArchitecture, set the class attributes of `mrta_zenoh.architectures.Architecture`,
-implement `prepare`, `coordinator`, `doing` and `takeover_bound`, register the instance under
+implement `prepare`, `coordinator`, `doing` and `takeover_bound` (and `process_agent` if it
+names `processes`, such as a dispatcher), register the instance under
 `mrta.architectures` and its verb under `mrta.commands` / `mrta.executables`.
 """
 
@@ -75,6 +76,17 @@ class AgentArchitecture(Architecture):
         return Agent(prepared.robot_id, self, lambda: self.coordinator(prepared), bus,
                      clock, rng, prepared.plugins, prepared.spin_rate, prepared.control_rate,
                      logging.getLogger(self.logger_name))
+
+    def process_agent(self, name: str, config: Path, bus: Bus, clock: Clock,
+                      rng: np.random.Generator | None = None) -> Agent:
+        """The fixed driver for process `name` (one of `processes`: central's dispatcher), built
+        from an application package's config folder as its launch file builds it, so that the
+        process runs in-process beside the robots' agents (the conformance suite,
+        tests/test_conformance.py, crashes a robot with it there). An architecture with
+        processes overrides this; there is no default way to build one."""
+        raise NotImplementedError(
+            f"{self.name} names processes {list(self.processes)} but not how to build "
+            f"{name!r} in-process (AgentArchitecture.process_agent)")
 
     def run(self, options: AgentOptions, stop: threading.Event | None = None) -> int:
         """What the architecture's `mrta` verb does: prepare, then host the agent until stopped."""
