@@ -90,3 +90,11 @@ def test_a_capacity_too_small_for_every_task_is_refused(tmp_path):
     f = tmp_path / "ok.yaml"
     f.write_text(CAPACITY.format(cap=2))
     assert CliRunner().invoke(cli, ["instance", "validate", str(f)]).exit_code == 0
+
+
+def test_a_task_walled_in_is_refused_as_every_run_would_refuse_it(tmp_path):
+    box = "[[2, 1, 4, 1], [4, 1, 4, 3], [4, 3, 2, 3], [2, 3, 2, 1]]"
+    text = (HEAD + ONE_ROBOT + "tasks:\n  t1: {position: [-3.5, 3.0]}\n  t2: {position: [3, 2]}\n"
+            f"world: {{size: [12, 8], walls: {box}}}\n")
+    line = refused(tmp_path, text)
+    assert ":6: 'tasks/t2/position': task t2 at (3, 2) cannot be reached from robot robot1" in line

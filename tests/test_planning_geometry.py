@@ -163,3 +163,57 @@ def test_what_agents_import_loads_no_numpy_scipy_or_ortools():
                          timeout=120)
     assert out.returncode == 0, out.stderr
     assert out.stdout.strip() == "[]"
+
+
+def full_graph_lengths(m: PathMap, points) -> list[list[float]]:
+    """Shortest paths over the *full* visibility graph (every corner pair that sees each other,
+    every point to every corner it sees: no tangent pruning), by scipy's Dijkstra."""
+    nodes = list(m.nodes) + [tuple(p) for p in points]
+    n = len(nodes)
+    rows, cols, lens = [], [], []
+    for i in range(n):
+        for j in range(i + 1, n):
+            if m.visible(nodes[i], nodes[j]):
+                rows.append(i)
+                cols.append(j)
+                lens.append(math.dist(nodes[i], nodes[j]))
+    g = coo_matrix((lens, (rows, cols)), shape=(n, n)).tocsr()
+    d = dijkstra(g, directed=False, indices=list(range(len(m.nodes), n)))
+    return [[float(d[a][len(m.nodes) + b]) for b in range(len(points))]
+            for a in range(len(points))]
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_the_tangent_graph_gives_the_lengths_of_the_full_visibility_graph(seed):
+    """PathMap keeps only bitangent edges (issue 51.5: the graph's cost); on crowded maps with
+    overlapping, crossing and touching walls its lengths are the full graph's."""
+    rng = random.Random(seed)
+    walls = room_walls(12.0, 8.0)
+    for _ in range(8):
+        x, y = rng.uniform(-5, 5), rng.uniform(-3, 3)
+        ang, length = rng.choice([0.0, math.pi / 2, rng.uniform(0, math.pi)]), rng.uniform(0.5, 3)
+        walls.append((x, y, x + length * math.cos(ang), y + length * math.sin(ang)))
+    m = PathMap(walls)
+    points = [free_point(rng, walls) for _ in range(7)]
+    full = full_graph_lengths(m, points)
+    try:
+        got = m.matrix(points)
+    except ConfigError:  # some pair closed off: the full graph and `unreachable` say so too
+        assert any(math.isinf(x) for row in full for x in row)
+        assert m.unreachable(points) is not None
+        return
+    assert m.unreachable(points) is None
+    for i in range(len(points)):
+        for j in range(len(points)):
+            assert got[i][j] == pytest.approx(full[i][j], abs=1e-9), (i, j)
+
+
+def test_unreachable_names_a_point_walled_in_and_nothing_when_all_connect():
+    box = [(2.0, 1.0, 4.0, 1.0), (4.0, 1.0, 4.0, 3.0), (4.0, 3.0, 2.0, 3.0), (2.0, 3.0, 2.0, 1.0)]
+    m = PathMap(room_walls(12.0, 8.0) + box)
+    inside, a, b = (3.0, 2.0), (-3.0, 0.0), (0.0, -2.0)
+    assert m.unreachable([a, b, inside]) == (0, 2)
+    assert m.unreachable([inside, a]) == (0, 1)
+    assert m.unreachable([a, b, (5.0, 2.0)]) is None
+    with pytest.raises(ConfigError, match="no drivable path"):
+        m.matrix([a, b, inside])

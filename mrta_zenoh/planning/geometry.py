@@ -60,16 +60,21 @@ def _hull(points: list[Point]) -> list[Point]:
     return lower[:-1] + upper[:-1]
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class Obstacle:
-    """A wall inflated to a convex polygon (counter-clockwise corners)."""
+    """A wall inflated to a convex polygon (counter-clockwise corners). Its edges are kept as
+    half-planes (a, b, c): a point x lies `a·x₀ + b·x₁ + c` inside the edge's line."""
 
     corners: tuple[Point, ...]
     box: tuple[float, float, float, float] = field(init=False)
+    planes: tuple[tuple[float, float, float], ...] = field(init=False)
 
     def __post_init__(self) -> None:
         xs, ys = [c[0] for c in self.corners], [c[1] for c in self.corners]
         object.__setattr__(self, "box", (min(xs), min(ys), max(xs), max(ys)))
+        c = self.corners
+        object.__setattr__(self, "planes", tuple(_plane(c[k], c[(k + 1) % len(c)])
+                                                 for k in range(len(c))))
 
     @classmethod
     def around(cls, wall: Segment, clearance: float) -> "Obstacle":
@@ -82,21 +87,22 @@ class Obstacle:
 
     def contains(self, p: Point, eps: float = ON_OUTLINE) -> bool:
         """Whether p lies strictly inside (more than eps from the outline)."""
-        c = self.corners
-        return all(_edge_depth(c[k], c[(k + 1) % len(c)], p) > eps for k in range(len(c)))
+        x, y = p
+        return all(a * x + b * y + c > eps for a, b, c in self.planes)
 
     def blocks(self, a: Point, b: Point) -> bool:
         """Whether the segment a–b crosses the interior (Cyrus–Beck clipping against the
         half-planes, each shrunk by a tolerance so that a segment along an edge passes)."""
         x0, y0, x1, y1 = self.box
-        if (max(a[0], b[0]) <= x0 or min(a[0], b[0]) >= x1 or max(a[1], b[1]) <= y0
-                or min(a[1], b[1]) >= y1):
+        ax, ay = a
+        bx, by = b
+        if (max(ax, bx) <= x0 or min(ax, bx) >= x1 or max(ay, by) <= y0
+                or min(ay, by) >= y1):
             return False
         t_in, t_out = 0.0, 1.0
-        c = self.corners
-        for k in range(len(c)):
-            da = _edge_depth(c[k], c[(k + 1) % len(c)], a) - ON_OUTLINE
-            db = _edge_depth(c[k], c[(k + 1) % len(c)], b) - ON_OUTLINE
+        for pa, pb, pc in self.planes:
+            da = pa * ax + pb * ay + pc - ON_OUTLINE
+            db = pa * bx + pb * by + pc - ON_OUTLINE
             if da <= 0 and db <= 0:
                 return False
             if da < 0 or db < 0:
@@ -110,10 +116,12 @@ class Obstacle:
         return t_in < t_out - SLIVER
 
 
-def _edge_depth(p: Point, q: Point, x: Point) -> float:
-    """How far x lies on the inner (left) side of the edge p→q of a counter-clockwise polygon."""
+def _plane(p: Point, q: Point) -> tuple[float, float, float]:
+    """The edge p→q of a counter-clockwise polygon as (a, b, c): a·x + b·y + c is how far x lies
+    on its inner (left) side."""
     ex, ey = q[0] - p[0], q[1] - p[1]
-    return (ex * (x[1] - p[1]) - ey * (x[0] - p[0])) / math.hypot(ex, ey)
+    n = math.hypot(ex, ey)
+    return (-ey / n, ex / n, (ey * p[0] - ex * p[1]) / n)
 
 
 class PathMap:
@@ -125,26 +133,50 @@ class PathMap:
         self.walls = tuple(tuple(float(v) for v in w) for w in walls)
         self.clearance = clearance
         self.obstacles = [Obstacle.around(w, clearance) for w in self.walls]
-        self.nodes: list[Point] = [c for k, o in enumerate(self.obstacles) for c in o.corners
-                                   if not any(p.contains(c) for m, p in
-                                              enumerate(self.obstacles) if m != k)]
+        self.nodes: list[Point] = []
+        # each node's two neighbours on its polygon: whether a line through it is tangent
+        self._sides: list[tuple[Point, Point]] = []
+        for k, o in enumerate(self.obstacles):
+            c = o.corners
+            for i, corner in enumerate(c):
+                if not any(p.contains(corner) for m, p in enumerate(self.obstacles) if m != k):
+                    self.nodes.append(corner)
+                    self._sides.append((c[i - 1], c[(i + 1) % len(c)]))
         self._edges: list[list[tuple[int, float]]] | None = None
 
     @property
     def edges(self) -> list[list[tuple[int, float]]]:
         """The visibility graph's edges, built on first use: checking where points may be
-        (`check_point`, an instance's validation) needs none of it."""
+        (`check_point`, an instance's validation) needs none of it.
+
+        Only *bitangent* edges: a shortest path bends at a corner only by wrapping round its
+        polygon, so each of its legs lies on a line that leaves the polygon at either end wholly
+        on one side (a supporting line; Latombe, *Robot Motion Planning*, 1991, §4.1, the
+        reduced visibility graph). The other pairs are never on a shortest path and are not
+        tested for visibility — most of the pairs, and the visibility tests are the cost."""
         if self._edges is None:
             n = len(self.nodes)
             edges: list[list[tuple[int, float]]] = [[] for _ in range(n)]
             for i in range(n):
+                a = self.nodes[i]
                 for j in range(i + 1, n):
-                    if self.visible(self.nodes[i], self.nodes[j]):
-                        d = math.dist(self.nodes[i], self.nodes[j])
+                    b = self.nodes[j]
+                    if self._tangent(i, b) and self._tangent(j, a) and self.visible(a, b):
+                        d = math.dist(a, b)
                         edges[i].append((j, d))
                         edges[j].append((i, d))
             self._edges = edges
         return self._edges
+
+    def _tangent(self, i: int, p: Point) -> bool:
+        """Whether the line from node i towards p supports node i's polygon (its two
+        neighbouring corners not strictly on opposite sides; a leg along an edge counts)."""
+        (cx, cy), ((ux, uy), (wx, wy)) = self.nodes[i], self._sides[i]
+        dx, dy = p[0] - cx, p[1] - cy
+        s1 = dx * (uy - cy) - dy * (ux - cx)
+        s2 = dx * (wy - cy) - dy * (wx - cx)
+        eps = ON_OUTLINE * math.hypot(dx, dy)
+        return not ((s1 > eps and s2 < -eps) or (s1 < -eps and s2 > eps))
 
     def visible(self, a: Point, b: Point, skip: Sequence[Obstacle] = ()) -> bool:
         return not any(o.blocks(a, b) for o in self.obstacles if o not in skip)
@@ -158,9 +190,10 @@ class PathMap:
                     f"robot's radius and margin) to the wall {list(w)}: no robot can be there")
 
     def _seen(self, p: Point, skip: Sequence[Obstacle] = ()) -> list[tuple[int, float]]:
-        """The corners visible from p, with their distances."""
+        """The corners visible from p on a line tangent to their polygon (a shortest path's
+        first or last leg: `edges`), with their distances."""
         return [(i, math.dist(p, c)) for i, c in enumerate(self.nodes)
-                if self.visible(p, c, skip)]
+                if self._tangent(i, p) and self.visible(p, c, skip)]
 
     def _search(self, seen: list[tuple[int, float]]) -> tuple[list[float], list[int]]:
         """Dijkstra over the corners from a point that sees `seen`: (distance, predecessor;
@@ -218,6 +251,48 @@ class PathMap:
     def length(self, a: Point, b: Point) -> float:
         p = self.path(a, b)
         return sum(math.dist(p[k], p[k + 1]) for k in range(len(p) - 1))
+
+    def unreachable(self, points: Sequence[Point]) -> tuple[int, int] | None:
+        """A pair (0, k) of `points` with no drivable path between them (the first point cut off
+        from points[0]), None when every point reaches
+        every other: what `matrix` would refuse, without its searches. Union-find over the
+        graph's edges, each point joined to the corners it sees and to the points it sees."""
+        pts = [(float(p[0]), float(p[1])) for p in points]
+        n = len(self.nodes)
+        parent = list(range(n + len(pts)))
+
+        def root(x: int) -> int:
+            while parent[x] != x:
+                parent[x] = parent[parent[x]]
+                x = parent[x]
+            return x
+
+        def join(a: int, b: int) -> None:
+            parent[root(a)] = root(b)
+
+        def cut() -> int | None:
+            return next((k for k in range(1, len(pts)) if root(n + k) != root(n)), None)
+
+        for i, row in enumerate(self.edges):
+            for j, _ in row:
+                join(i, j)
+        for k, p in enumerate(pts):  # first, the nearest corner each point sees: usually enough
+            near = sorted(range(n), key=lambda i: math.dist(p, self.nodes[i]))
+            i = next((i for i in near if self._tangent(i, p) and self.visible(p, self.nodes[i])),
+                     None)
+            if i is not None:
+                join(n + k, i)
+        if cut() is None:
+            return None
+        for k, p in enumerate(pts):  # else as `matrix` joins them: every corner seen, every leg
+            for i, _ in self._seen(p):
+                join(n + k, i)
+        for k in range(len(pts)):
+            for m in range(k):
+                if root(n + m) != root(n + k) and self.visible(pts[m], pts[k]):
+                    join(n + m, n + k)
+        k = cut()
+        return None if k is None else (0, k)
 
     def matrix(self, points: Sequence[Point]) -> tuple[tuple[float, ...], ...]:
         """Path lengths between every pair of `points`: one search per point, symmetric (each

@@ -149,6 +149,12 @@ class InstanceBody(msgspec.Struct, forbid_unknown_fields=True):
                 paths.check_point(tuple(p), what)
             except ConfigError as exc:
                 out.append((key, str(exc)))
+        if self.world.walls and not out:  # what problem()'s matrix would refuse at every run
+            cut = paths.unreachable([p for _, _, p in where])
+            if cut is not None:
+                (_, first, a), (key, what, b) = where[cut[0]], where[cut[1]]
+                out.append((key, f"{what} at ({b[0]:g}, {b[1]:g}) cannot be reached from {first} "
+                                 f"at ({a[0]:g}, {a[1]:g}): walls close it off"))
         return out
 
     def _capacity_faults(self) -> list[tuple[tuple, str]]:
