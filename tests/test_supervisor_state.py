@@ -15,6 +15,7 @@ from mrta_zenoh.toolchain.xmlio import load_rqt_mrta
 from mrta_supervisor.live.api import CLOCK_STALL, Refresh, attach, resolve_application
 from mrta_supervisor.live.holders import SampleHolder
 from mrta_supervisor.live.state import Supervisor
+from mrta_supervisor.live.tasks import TaskStatus, TaskWatch
 from mrta_zenoh.toolchain.model import Topic
 
 IRC = "alliance_msgs/InterRobotCommunication"
@@ -246,6 +247,45 @@ def test_a_different_architecture_drives_the_same_supervisor_over_a_bus(tmp_path
         assert robots == {"amr1": ("offline", None), "amr2": ("offline", None)}
         assert ("messages_stopped", "amr2") in state(sup, 1.5)[2]
         for h in handles:
+            h.close()
+
+
+class _Done(TaskWatch):
+    """Task news on `fleet/news`: the message's job is done."""
+
+    def feed(self):
+        return [("fleet/news", None)]  # any type
+
+    def read(self, key, message):
+        return TaskStatus(message.data["job"], "done")
+
+
+def test_a_supervisor_nobody_sees_hears_only_the_task_news(tmp_path):
+    """A mission runner with no view (`mrta -q demo`, a study's run) attaches its supervisor
+    unshown: the monitors' samples are not decoded for nobody, the task news still end the run."""
+    (tmp_path / "arch.xml").write_text(OTHER_ARCH)
+    arch = load_rqt_mrta(tmp_path / "arch.xml")
+    app = ApplicationFile("market", "Warehouse", [RobotEntry("amr1", ["pick", "drop"])])
+    clock = ManualClock(0.0)
+    net = InProcNetwork()
+    with InProcBus(net) as watcher, InProcBus(net) as fleet:
+        sup = Supervisor(arch, app, 0.0, watch=_Done())
+        handles = attach(sup, watcher, clock, shown=False)
+        fleet.publish("fleet/amr1/heartbeat", GenericMessage("market_msgs/Heartbeat",
+                                                             {"robot": "amr1"}))
+        fleet.publish("market/award", GenericMessage("market_msgs/Award",
+                                                     {"winner": {"name": "amr1"}, "job": "pick"}))
+        assert sup.counts["samples"] == 0 and not sup.all_done()
+        for job in ("pick", "drop"):
+            fleet.publish("fleet/news", GenericMessage("market_msgs/News", {"job": job}))
+        assert sup.all_done() and sup.counts["task_news"] == 2
+        for h in handles:
+            h.close()
+        shown = attach(sup, watcher, clock)  # the same supervisor, seen: the monitors too
+        fleet.publish("fleet/amr1/heartbeat", GenericMessage("market_msgs/Heartbeat",
+                                                             {"robot": "amr1"}))
+        assert sup.counts["samples"] == 1
+        for h in shown:
             h.close()
 
 

@@ -68,20 +68,25 @@ def only_application(registry: Registry) -> str:
     return names[0]
 
 
-def attach(sup: Supervisor, bus: Bus, clock) -> list:
+def attach(sup: Supervisor, bus: Bus, clock, *, shown: bool = True) -> list:
     """Subscribe once per key expression for the monitors that read it, and to the
-    application's task news (its TaskWatch), and watch liveliness."""
+    application's task news (its TaskWatch), and watch liveliness. Not `shown` (a mission
+    runner with no view of it: `mrta -q demo`, every run of a study): the task news alone,
+    which is what tells the runner that every task is done (Supervisor.all_done) — the
+    monitors' samples (ALLIANCE's motivations: N² a second) would be decoded for nobody."""
+    handles = [bus.subscribe(key_expr, lambda s: sup.on_task_sample(s.key, s.message,
+                                                                    clock.now()),
+                             msg_type=msg_type)
+               for key_expr, msg_type in (sup.watch.feed() if sup.watch is not None else ())]
+    if not shown:
+        return handles
     by_key = defaultdict(list)
     for m in sup.monitors:
         by_key[m.key_expr].append(m)
-    handles = []
     for key_expr, monitors in by_key.items():
         handles.append(bus.subscribe(key_expr, sup.handler_for(monitors, clock.now)))
     for key_expr, msg_type in sup.serving.feed() if sup.serving is not None else ():
         handles.append(bus.subscribe(key_expr, lambda s: sup.on_doing_sample(
-            s.key, s.message, clock.now()), msg_type=msg_type))
-    for key_expr, msg_type in sup.watch.feed() if sup.watch is not None else ():
-        handles.append(bus.subscribe(key_expr, lambda s: sup.on_task_sample(
             s.key, s.message, clock.now()), msg_type=msg_type))
     handles.append(bus.watch_liveliness("**", lambda k, alive: sup.on_liveliness(k, alive,
                                                                                 clock.now())))

@@ -101,7 +101,8 @@ def demo(live: bool | None, **kwargs) -> None:
                       f"ws://127.0.0.1:{options.foxglove_port}", highlight=False)
     try:
         with quiet_alarms():  # every view names the alarms (or, with -q, none is wanted)
-            run, summary = run_mission(options, progress=view)
+            # -q: nobody sees the supervisor here, so it hears only the task news
+            run, summary = run_mission(options, progress=None if quiet < 0 else view)
     finally:
         view.close()
     if quiet > -2:

@@ -83,7 +83,20 @@ class GroundTruth:
 
 
 def reports(records: Iterable, arch: Architecture) -> list[Doing]:
-    """Every Doing in a recording, sorted by stamp (then robot, for a stable order)."""
+    """Every Doing in a recording, sorted by stamp (then robot, for a stable order); read once
+    per recording read (recording.Recovered.memo) — the intervals, the stretches and an
+    application's metrics all ask, and at 20 ALLIANCE robots each reading decodes ≈ 60,000
+    motivations."""
+    memo = getattr(records, "memo", None)
+    if memo is None:
+        return _reports(records, arch)
+    key = ("reports", arch.name)
+    if key not in memo:
+        memo[key] = _reports(records, arch)
+    return list(memo[key])
+
+
+def _reports(records: Iterable, arch: Architecture) -> list[Doing]:
     feed = [expr for expr, _ in arch.doing_feed()]
     marker = f"/{arch.namespace}/"  # a cheap test first: most of a recording is sensor data
     out = []

@@ -64,7 +64,10 @@ Progress = Callable[[float, Supervisor, "Failure | None", "float | None"], None]
 def run_mission(options: MissionOptions, *, stop: threading.Event | None = None,
                 progress: Progress | None = None) -> tuple[MissionRun, Summary]:
     """Run the mission; `progress(now, supervisor, failure, failed_at)` is called about 4 times
-    a wall second while it runs (the live view). Returns what ran and its summary."""
+    a wall second while it runs (the live view). Without one, this process's supervisor hears
+    only the application's task news, which ends the run once every task is done (the
+    recorder's own supervisor keeps the picture: live/api.attach). Returns what ran and its
+    summary."""
     reg = Registry()
     run = resolve(options, reg)  # its faults checked against the installed package's robots
     if not run.mission.launch:
@@ -182,8 +185,9 @@ def _run_in(run: MissionRun, reg: Registry,
         ready.wait(ready.recorder.is_set, "the recorder", group, stop)
         sup = Supervisor(run.arch_model, run.app, 0.0, unattended_after=30.0,
                          duplicate_after=5.0, watch=run.mission.task_watch(run),
+                         quiet=progress is None,  # nobody to tell its alarms to
                          serving=Serving(run.arch))
-        for h in attach(sup, bus, clock):
+        for h in attach(sup, bus, clock, shown=progress is not None):
             live.callback(h.close)
         children = start_nodes(group, nodes)
         agents = {rid: next(c for c in children if c.name == hosted.get(rid)
