@@ -4,6 +4,7 @@ run's duration."""
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import os
 import signal
@@ -155,3 +156,16 @@ def test_a_node_given_another_seed_by_its_launch_file_is_refused():
         with pytest.raises(ConfigError, match="x.launch:4: node robot1/alliance is given seed "
                                               "'0', but the run's seed is 3"):
             check_seeds([bad], 3)
+
+
+def test_a_launch_without_a_required_node_is_refused_naming_the_file():
+    """A mission run ends when its launch's required node (the simulator) ends: a launch with
+    none is bad input before anything starts, not a StopIteration once the processes are up."""
+    from mrta_supervisor.mission.runner import check_end
+    from mrta_zenoh.toolchain.launchfile import NodeSpec
+
+    sim = NodeSpec("sim", "simulator", "sim", [], required=True)
+    agent = NodeSpec("robot1/alliance", "robot_agent", "agent", [])
+    check_end([agent, sim], Path("x.launch"))
+    with pytest.raises(ConfigError, match=r"x\.launch: no node is required=\"true\""):
+        check_end([agent, dataclasses.replace(sim, required=False)], Path("x.launch"))

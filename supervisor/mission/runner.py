@@ -141,9 +141,10 @@ def _run_in(run: MissionRun, reg: Registry,
                    "sim_args": f"--duration {options.duration}"
                                + (f" --snapshot {output / 'world.png'}" if options.plots else "")
                                + (" --lockstep" if options.lockstep else "")}
-    nodes = LaunchEvaluator(lambda name: reg.find(name).path).run(
-        run.package.path / "launch" / run.mission.launch, launch_args)
+    launch = run.package.path / "launch" / run.mission.launch
+    nodes = LaunchEvaluator(lambda name: reg.find(name).path).run(launch, launch_args)
     check_executables(nodes)
+    check_end(nodes, launch)
     check_seeds(nodes, options.seed)
     hosted: dict[str, str] = {}  # robot → its host's node name (agent hosts)
     if options.agents_per_process > 1:
@@ -268,6 +269,14 @@ def _meeting(hub: ProcessGroup, rendezvous: str, routed: bool) -> BusOptions:
 
 
 READY_ROUTER = 60.0  # wall s for the run's router to accept connections
+
+
+def check_end(nodes: list[NodeSpec], launch: Path) -> None:
+    """A run ends when its launch's required node (the simulator) ends, as `mrta launch`'s
+    does: a launch with none is refused before anything starts, naming the file."""
+    if not any(n.required for n in nodes):
+        raise ConfigError('no node is required="true": a mission run ends when its launch\'s '
+                          "required node (the simulator) ends", file=str(launch))
 
 
 def check_seeds(nodes: list[NodeSpec], seed: int) -> None:
