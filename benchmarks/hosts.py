@@ -31,8 +31,7 @@ import tempfile
 import time
 from pathlib import Path
 
-MACHINE = ("wall_seconds", "output", "recorded_until")
-
+from mrta_supervisor.mission.compare import run_differences
 
 TICK = os.sysconf("SC_CLK_TCK")
 ROLES = (("agents", ("/agent ", "/host ")), ("simulator", ("simulator/sim",)),
@@ -116,28 +115,6 @@ def demo(inst: Path, out: Path, arch: str, per_process: int, duration: float) ->
             "summary": summary, "error": err.strip().splitlines()[-1:] if proc.returncode else []}
 
 
-def flat(value, path=""):
-    if isinstance(value, dict):
-        for k, v in value.items():
-            yield from flat(v, f"{path}.{k}" if path else k)
-    elif isinstance(value, list):
-        for i, v in enumerate(value):
-            yield from flat(v, f"{path}[{i}]")
-    else:
-        yield path, value
-
-
-def machine(field: str) -> bool:
-    parts = field.replace("[", ".").split(".")
-    return any(p in MACHINE or p.endswith("_ms") or p == "ms" for p in parts)
-
-
-def same_but_machine(a: dict, b: dict) -> bool:
-    fa, fb = dict(flat(a)), dict(flat(b))
-    return bool(fa) and all(fa.get(k) == fb.get(k) for k in fa.keys() | fb.keys()
-                            if not machine(k))
-
-
 def emit(**figure) -> None:
     figure["load"] = round(os.getloadavg()[0], 1)
     print(json.dumps(figure), flush=True)
@@ -156,7 +133,8 @@ def run_cost(folder: Path, repeat: int, duration: float, arch: str) -> None:
              agents_cpu_ratio=round(one["cpu_by_role"].get("agents", 0)
                                     / host["cpu_by_role"]["agents"], 2)
              if host["cpu_by_role"].get("agents") else None,
-             identical=same_but_machine(one["summary"], host["summary"]),
+             identical=bool(one["summary"]) and bool(host["summary"])
+             and not run_differences(one["summary"], host["summary"]),
              rc=[one["rc"], host["rc"]], error=one["error"] + host["error"])
 
 

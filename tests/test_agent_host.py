@@ -2,6 +2,7 @@
 seats it accepts, the spec `mrta host` reads, and how the mission runner regroups a launch's
 agent nodes into hosts. The whole host on real processes: tests/process/test_hosts_identity.py."""
 
+import dataclasses
 import math
 import threading
 
@@ -154,6 +155,17 @@ def test_the_runner_regroups_agent_nodes_k_per_host(tmp_path):
     spec = yaml.safe_load((tmp_path / "host1.yaml").read_text())
     assert spec == {"name": "host1", "agents": [["ssi", "robot1", "--sim-time"],
                                                 ["ssi", "robot2", "--sim-time"]]}
+
+
+def test_a_node_equal_to_a_hosted_agent_node_is_not_taken_for_it(tmp_path):
+    """The runner replaces the agent nodes it hosts by identity: a second node equal to one of
+    them field for field (a launch file that names it twice) is not silently dropped with it."""
+    nodes = _nodes()
+    twin = dataclasses.replace(nodes[1])
+    assert twin == nodes[1] and twin is not nodes[1]
+    out, _ = host_nodes([*nodes, twin], ["robot1", "robot2", "robot3"], 3, tmp_path)
+    assert [n.name for n in out] == ["sim", "host1", "dispatcher", "robot1/ssi"]
+    assert out[-1] is twin
 
 
 def test_robots_of_one_host_must_share_its_environment(tmp_path):

@@ -71,8 +71,9 @@ def host_nodes(nodes: list[NodeSpec], robots: list[str], per_host: int,
         pkg, type_ = HOST_EXECUTABLE.split("/")
         hosts.append(NodeSpec(name, pkg, type_, [str(spec)], env=env))
     out, placed = [], False
+    replaced = {id(agents[r]) for r in where}  # by identity: two equal nodes are two nodes
     for n in nodes:
-        if n in agents.values() and n.name.split("/", 1)[0] in where:
+        if id(n) in replaced:
             if not placed:
                 out.extend(hosts)
                 placed = True
