@@ -251,3 +251,28 @@ def test_the_framework_has_no_patrol_specific_code():
                                                           "border_protection", "patrol")):
                     bad.append(f"{f.relative_to(ROOT)}:{node.lineno}: {node.value[:60]!r}")
     assert not bad, "\n".join(bad)
+
+
+def _marks_multiprocess(node: ast.AST) -> bool:
+    return any(isinstance(n, ast.Attribute) and n.attr == "multiprocess" for n in ast.walk(node))
+
+
+def whole_file_multiprocess(path: Path) -> bool:
+    """Whether every test of the module is marked `multiprocess` (its `pytestmark`, or each
+    test function's decorators)."""
+    tree = source_tree.tree(path)
+    if any(isinstance(n, ast.Assign) and _marks_multiprocess(n.value)
+           and any(isinstance(t, ast.Name) and t.id == "pytestmark" for t in n.targets)
+           for n in tree.body):
+        return True
+    tests = [n for n in tree.body
+             if isinstance(n, (ast.FunctionDef, ast.AsyncFunctionDef)) and n.name.startswith("test_")]
+    return bool(tests) and all(any(map(_marks_multiprocess, t.decorator_list)) for t in tests)
+
+
+def test_no_whole_file_multiprocess_module_sits_at_the_top_of_tests():
+    """A module whose every test starts processes or opens real sessions lives in tests/process/
+    (tests/README.md), so a maintainer sees from the folder what a module costs to run."""
+    top = sorted(f.name for f in (ROOT / "tests").glob("test_*.py") if whole_file_multiprocess(f))
+    assert top == []
+    assert all(whole_file_multiprocess(f) for f in (ROOT / "tests" / "process").glob("test_*.py"))

@@ -10,6 +10,8 @@ import sys
 
 import pytest
 
+pytestmark = pytest.mark.multiprocess
+
 PROBE = """
 import sys
 import mrta_supervisor.mission.runner, mrta_supervisor.mission.cli
@@ -22,7 +24,6 @@ print(",".join(sorted(set(sys.modules) & set(sys.argv[1:]))))
 """
 
 
-@pytest.mark.multiprocess
 def test_the_observers_start_without_plotting_or_optimisation_libraries():
     out = subprocess.run([sys.executable, "-c", PROBE, "matplotlib", "scipy.optimize"],
                          capture_output=True, text=True, timeout=120)
