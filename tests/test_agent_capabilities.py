@@ -18,6 +18,7 @@ from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.clock import Clock, ManualClock, SimClock, WallClock
 from mrta_zenoh.lockstep.participant import LockstepClock
 from mrta_zenoh.messages import Header, Odometry, Pose2D, Twist
+from tests.harness import source_tree
 from tests.harness.helpers import ROOT
 from tests.test_murdoch_subjects import _RecordingBus
 
@@ -91,8 +92,8 @@ def test_one_way_to_say_and_to_hear_in_the_agent():
     assert dispatch_by_name(ast.parse('getattr(self.core, "on_" + kind)(sender, msg, at)')) \
         == [1]
     assert dispatch_by_name(ast.parse('class Out(NamedTuple):\n    kind: str')) == [1]
-    bad = [f"{f.relative_to(ROOT)}:{line}" for f in sorted((ROOT / "robot_agent").rglob("*.py"))
-           for line in dispatch_by_name(ast.parse(f.read_text(encoding="utf-8")))]
+    bad = [f"{f.relative_to(ROOT)}:{line}" for f in source_tree.python_files(ROOT / "robot_agent")
+           for line in dispatch_by_name(source_tree.tree(f))]
     assert not bad, bad
 
 
@@ -111,8 +112,9 @@ def message_types(trees) -> set[str]:
 def test_the_agent_builds_every_message_by_field_name():
     """Not `Bids(header, winners, stamps, ...)`: a field added or moved in the type would shift
     every value after it into its neighbour, silently (msgspec does not validate on build)."""
-    sources = {f: ast.parse(f.read_text(encoding="utf-8"))
-               for root in ("robot_agent", "mrta_zenoh") for f in (ROOT / root).rglob("*.py")}
+    sources = {f: source_tree.tree(f)  # parsed once per session (tests/harness/source_tree.py)
+               for root in ("robot_agent", "mrta_zenoh")
+               for f in source_tree.python_files(ROOT / root)}
     types = message_types(sources.values())
     assert {"Header", "Bids", "Progress", "Twist", "Assigned"} <= types
     bad = []
