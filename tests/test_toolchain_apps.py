@@ -181,3 +181,25 @@ def test_an_installed_distribution_adds_an_architecture_through_its_entry_point(
     assert out.returncode == 0, out.stderr
     assert "thirdparty_arch" in out.stdout and "MT-MR-TA" in out.stdout
     assert "entry point thirdparty_arch (thirdparty-arch)" in out.stdout
+
+
+def test_an_application_named_by_its_package_is_read_alone(monkeypatch):
+    """A run's observers look their application up by package name: only that package's file is
+    read (a derived 100-robot package's rqt_mrta.xml is ≈ 11 MB, 1.6 CPU-s to read, and an
+    instance derives five), and a run's architecture reads the dependents until one runs it."""
+    import mrta_zenoh.toolchain.registry as registry
+    from mrta_supervisor.mission.hook import MissionOptions, resolve
+
+    Registry = registry.Registry
+    read = []
+    real = registry.load_rqt_mrta
+    monkeypatch.setattr(registry, "load_rqt_mrta", lambda f: read.append(f) or real(f))
+    reg = Registry()
+    pkg, app = reg.application("delivery_cbba")
+    assert pkg.name == "delivery_cbba" and app.architecture == "cbba"
+    assert read == [pkg.application_file]
+    read.clear()
+    run = resolve(MissionOptions(application="delivery", architecture="cbba"), reg)
+    applications = [f for f in read if f.parent.name.startswith("delivery")]
+    assert run.package.name == "delivery_cbba"
+    assert len(applications) < len([p for p in reg.packages.values() if p.application_file])

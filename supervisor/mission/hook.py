@@ -210,14 +210,19 @@ def resolve(options: MissionOptions, reg: Registry | None = None) -> MissionRun:
     pkg, app = reg.application(application)
     if options.architecture is not None and options.architecture != app.architecture:
         arch = architecture(options.architecture)  # unknown names: ConfigError listing them
-        candidates = [(p, a) for p, a in reg.applications()
-                      if a.architecture == arch.name and application in p.depends]
+        # the first by name of the packages that depend on the application and run it under
+        # that architecture, read one by one (a derived 100-robot package's file is ≈ 11 MB)
+        dependents = sorted((p for p in reg.packages.values() if application in p.depends),
+                            key=lambda p: p.name)
+        candidates = next(([(p, a)] for d in dependents
+                           for p, a in reg.applications(lambda p, d=d: p is d)
+                           if a.architecture == arch.name), [])
         if not candidates:
             raise ConfigError(
                 f"no application package runs {application!r} under {arch.name!r}: "
                 f"register one whose rqt_mrta.xml names <architecture>{arch.name}</architecture> "
                 f"and whose package.xml depends on {application} (`mrta app new`)")
-        pkg, app = sorted(candidates, key=lambda c: c[0].name)[0]
+        pkg, app = candidates[0]
     arch = architecture(app.architecture)
     _, arch_model = reg.architecture(app.architecture)
     mission = _mission_of(reg, pkg)
@@ -265,8 +270,9 @@ def application_watch(app: ApplicationFile, registry: Registry | None = None) ->
     `mrta plot` ask of an application's hook."""
     reg = registry or Registry()
     source = Path(app.source).resolve().parent if app.source else None
-    pkg = next((p for p, _ in reg.applications()
-                if source is not None and Path(p.path).resolve() == source), None)
+    # by its folder: no application file read again (at 100 robots each is ≈ 11 MB of XML)
+    pkg = next((p for p in reg.packages.values() if p.application_file is not None
+                and source is not None and Path(p.path).resolve() == source), None)
     if pkg is None:
         return None  # an rqt_mrta.xml outside every registered package: no mission either
     eps = missions()
