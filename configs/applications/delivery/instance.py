@@ -39,7 +39,9 @@ Wall = tuple[Finite, Finite, Finite, Finite]
 # (robots + tasks)² travel-time matrix, and every robot builds the visibility graph of the walls
 # (≈ 10 corners a wall, pairs of corners checked against every wall). Above these caps a file
 # is refused at once, naming the cap, rather than costing minutes or gigabytes in every process.
-MAX_ROBOTS = 200
+# Robots go to 1,000 because agent hosts are for team sizes up to 1,000 (issue 47; a host speaks
+# for up to 1,024): 1,000 robots and 1,000 tasks make a 2,000² matrix of 32 MB, once per process.
+MAX_ROBOTS = 1000
 MAX_TASKS = 1000
 MAX_WALLS = 50
 MATRIX = "every process of a run holds the (robots + tasks)² travel-time matrix"
