@@ -26,7 +26,7 @@ import msgspec
 from .errors import ConfigError
 from .files import write_text
 from .codec import validation_fault
-from .yamlfile import YamlDoc, did_you_mean, load_yaml
+from .yamlfile import YamlDoc, did_you_mean, load_yaml, parse_yaml
 
 GROUP = "mrta.instances"
 
@@ -176,7 +176,8 @@ def show(path: Path, application: str | None = None, *, exact_limit: int = 10,
 
 def generate(name: str, options: dict[str, Any], seed: int, output: Path | None) -> str:
     """Run generator `name` on `options` (its Params' fields); write the text to `output`
-    (whole or not at all) when given; return it."""
+    (whole or not at all) when given, once it reads back as its kind's valid document;
+    return it."""
     gen = generator(name)
     try:
         params = msgspec.convert(options, gen.Params)
@@ -189,6 +190,11 @@ def generate(name: str, options: dict[str, Any], seed: int, output: Path | None)
         raise ConfigError(f"generator {name}: {flag} {value}: {what}" if fault.path
                           else f"generator {name}: {what}") from None
     text = gen.generate(params, seed)
+    try:  # a generator never writes what `validate` refuses (issue 51.5): its text, read back
+        gen.kind.load(parse_yaml(text, output or f"<{name} generator output>"))
+    except ConfigError as exc:
+        raise ConfigError(f"generator {name} made an instance validate would refuse, so "
+                          f"nothing is written: {exc}") from None
     if output is not None:
         write_text(output, text)
     return text

@@ -200,6 +200,13 @@ def load_yaml(path: Path | str, aliases: bool = False) -> YamlDoc:
     except UnicodeDecodeError as exc:
         raise ConfigError("not a UTF-8 text file", file=str(path),
                           line=raw.count(b"\n", 0, exc.start) + 1) from None
+    return parse_yaml(text, path, aliases)
+
+
+def parse_yaml(text: str, path: Path | str, aliases: bool = False) -> YamlDoc:
+    """load_yaml's, from text already read (what a generator is about to write): `path` is
+    what errors name."""
+    path = Path(path)
     try:
         loader = (_AliasLoader if aliases else _StrictLoader)(text)
         try:
@@ -212,8 +219,8 @@ def load_yaml(path: Path | str, aliases: bool = False) -> YamlDoc:
             _walk(node, (), lines, set())
     except yaml.reader.ReaderError as exc:  # a character YAML forbids: it gives no line
         name = "NUL" if exc.character == 0 else f"#x{exc.character:04x}"
-        raise ConfigError(f"invalid YAML: character {name} is not allowed",  # byte offset
-                          file=str(path), line=raw.count(b"\n", 0, exc.position) + 1) from None
+        raise ConfigError(f"invalid YAML: character {name} is not allowed",
+                          file=str(path), line=text.count("\n", 0, exc.position) + 1) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         problem = getattr(exc, "problem", None) or str(exc)

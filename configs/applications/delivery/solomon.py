@@ -21,15 +21,17 @@ reader, PyPI), mapped as docs/delivery.md ("Solomon files") says, registered und
 from __future__ import annotations
 
 import math
+from pathlib import Path
 from typing import Annotated
 
 import msgspec
 
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.instances import InstanceGenerator
+from mrta_zenoh.yamlfile import read_bounded
 
 from .instance import InstanceDoc, RobotSpec, TaskSpec, WorldSpec
-from .instances import KIND, START_GAP, document_text, rounded
+from .instances import KIND, POINT_GAP, START_GAP, document_text, rounded
 
 MARGIN = 1.0  # m between the scaled points' box and the room's walls
 READY = ("earliest", "arrival")
@@ -56,12 +58,32 @@ class SolomonParams(msgspec.Struct, forbid_unknown_fields=True):
 
 def _read(path: str):
     import vrplib
+    _check_numbers(path)
     try:
         return vrplib.read_instance(path, instance_format="solomon")
     except FileNotFoundError:
         raise ConfigError("no such file", file=path) from None
     except (ValueError, IndexError, KeyError, RuntimeError) as exc:
         raise ConfigError(f"not a Solomon-format instance ({exc})", file=path) from None
+
+
+def _check_numbers(path: str) -> None:
+    """Every value of the customer table a finite number (ConfigError naming file and line):
+    vrplib reads `nan` into an integer table as a plausible coordinate (-1), and `inf` or 1e308
+    would scale every point to nothing."""
+    lines = read_bounded(Path(path), "a Solomon file").decode("utf-8", "replace").splitlines()
+    header = next((n for n, line in enumerate(lines) if line.split()[:2] == ["CUST", "NO."]),
+                  None)
+    for n, line in enumerate(lines[header + 1:] if header is not None else [],
+                             start=(header or 0) + 2):
+        for value in line.split():
+            try:
+                x = float(value)
+            except ValueError:
+                x = math.nan
+            if not (math.isfinite(x) and abs(x) <= 1e9):
+                raise ConfigError(f"{value!r:.20} is not a finite number up to 1e9 (a Solomon "
+                                  "file's customer table holds numbers only)", file=path, line=n)
 
 
 def solomon_document(p: SolomonParams) -> InstanceDoc:
@@ -89,18 +111,21 @@ def solomon_document(p: SolomonParams) -> InstanceDoc:
     scale = min(room_x / span_x if span_x else math.inf, room_y / span_y if span_y else math.inf)
     scale = 1.0 if not math.isfinite(scale) else scale
     cx, cy = (max(xs) + min(xs)) / 2, (max(ys) + min(ys)) / 2
+    ring = 0.0 if p.robots == 1 else max(START_GAP, START_GAP * p.robots / (2 * math.pi))
+    ring_at = [(0.0, 0.0)] + [(ring * math.cos(2 * math.pi * i / p.robots),
+                               ring * math.sin(2 * math.pi * i / p.robots))
+                              for i in range(1, p.robots)]
+    scale = _depot_scale(scale, (coords[0][0] - cx, coords[0][1] - cy), ring_at, (w, h))
 
     def place(k: int) -> tuple[float, float]:
         return (rounded((coords[k][0] - cx) * scale), rounded((coords[k][1] - cy) * scale))
 
     times = scale / p.speed  # s per Solomon time unit
     depot = place(0)
-    ring = 0.0 if p.robots == 1 else max(START_GAP, START_GAP * p.robots / (2 * math.pi))
     robots = {}
-    for i in range(p.robots):
-        angle = 2 * math.pi * i / p.robots
-        start = (rounded(depot[0] + ring * math.cos(angle)) if i else depot[0],
-                 rounded(depot[1] + ring * math.sin(angle)) if i else depot[1])
+    for i, (ox, oy) in enumerate(ring_at):
+        start = (rounded(depot[0] + ox) if i else depot[0],
+                 rounded(depot[1] + oy) if i else depot[1])
         robots[f"robot{i + 1}"] = RobotSpec(start, p.speed)
     tasks = {}
     for k in customers:
@@ -120,6 +145,26 @@ def solomon_document(p: SolomonParams) -> InstanceDoc:
                       windows=p.windows)
     doc.check()
     return doc
+
+
+def _depot_scale(scale: float, depot: tuple[float, float], ring_at: list[tuple[float, float]],
+                 room: tuple[float, float]) -> float:
+    """`scale`, lowered where a robot on the ring round the depot would stand closer than
+    POINT_GAP to a wall (a depot at the edge of the customers' box: the margin alone does not
+    hold the ring — a robot inside the wall's margin, refused by validate)."""
+    for ox, oy in ring_at:
+        for d, o, size in ((depot[0], ox, room[0]), (depot[1], oy, room[1])):
+            limit = size / 2 - POINT_GAP  # how far from the centre a start may stand
+            if abs(o) > limit:
+                raise ConfigError(f"--room {room[0]:g} {room[1]:g}: too small for "
+                                  f"{len(ring_at)} robots round the depot (they stand "
+                                  f"{START_GAP:g} m apart, {POINT_GAP:g} m from the walls)")
+            if d:
+                scale = min(scale, ((limit if d > 0 else -limit) - o) / d)
+    if scale <= 0:
+        raise ConfigError(f"--room {room[0]:g} {room[1]:g}: too small for {len(ring_at)} robots "
+                          "round the depot")
+    return scale
 
 
 class SolomonGenerator(InstanceGenerator):
