@@ -336,12 +336,14 @@ def check(doc: YamlDoc, spec: ExperimentSpec, base: Path) -> None:
             continue
         if not values:
             raise doc.error((key,), f"{key} must be {SHAPE[key]}")
+        seen: set = set()  # linear: 100,000 seeds took 36 s as `v in values[:i]`
         for i, v in enumerate(values):
             problem = problem_of(v) if problem_of is not None else None
-            if problem is None and v in values[:i]:
+            if problem is None and v in seen:
                 problem = f"{v!r} is listed twice"
             if problem:
                 raise doc.error((key, i), f"{key}[{i}]: {problem}")
+            seen.add(v)
     if spec.instances is not None:
         if spec.robots is not None:
             raise doc.error(("robots",), "robots: with instances, the team sizes are the "

@@ -6,6 +6,7 @@ precision: a float's shortest exact text), and `write_report`, the one function 
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -52,6 +53,23 @@ def write_report(results: Path, output: Path | None = None, options: Options = O
     if options.plots:
         plot_report(report, output)
     return report
+
+
+# ------------------------------------------------------------------ text from results.csv
+_MD_SPECIAL = re.compile(r"([\\`*|<>\[\]])")
+
+
+def md(text: Any) -> str:
+    """Text read from results.csv (a cell's label, an error, a column's name) as Markdown shows
+    it: one line (a newline then `# Heading` stays in its cell, never a heading), the characters
+    a table or Markdown would read as markup escaped — `x|<b>` is shown as written, never as a
+    column or a tag (issue 51.5)."""
+    return _MD_SPECIAL.sub(r"\\\1", " ".join(str(text).split()))
+
+
+def code(text: Any) -> str:
+    """`text` as a code span: one line, no backtick to end it early, pipes escaped for tables."""
+    return "`" + " ".join(str(text).split()).replace("`", "'").replace("|", "\\|") + "`"
 
 
 # ------------------------------------------------------------------ numbers as text
@@ -104,15 +122,16 @@ def brief(f: stats.Describe, metric: str) -> str:
 # ------------------------------------------------------------------ summary.md
 def summary_md(report: Report, precision: Precision | None = None) -> str:
     rows = report.table.rows
-    lines = [f"# {_headline(report)}", "", _intro(report), ""]
+    lines = [f"# {md(_headline(report))}", "", _intro(report), ""]
     lines += _overview(report) + [""] + _details(report) + _comparisons(report)
     if precision is not None:
         lines += _precision(report, precision)
     failed = [r for r in rows if r.get("status") != "ok"]
     if failed:
         lines += ["## Failed runs", "", "Left out of every figure above.", ""]
-        lines += [f"- run {r.get('run', '?')} ({_cell_of(report, r).label}, seed {r['seed']}): "
-                  f"{r.get('status')}: {r.get('error', '')}" for r in failed]
+        lines += [f"- run {md(r.get('run', '?'))} ({md(_cell_of(report, r).label)}, seed "
+                  f"{r['seed']}): {md(r.get('status'))}: {md(r.get('error', ''))}"
+                  for r in failed]
     return "\n".join(lines).rstrip() + "\n"
 
 
@@ -153,10 +172,10 @@ def _bootstrap_note(report: Report, intervals: list[stats.Interval | None]) -> s
 def _overview(report: Report) -> list[str]:
     ms = report.metrics
     lines = ["## Overview", "", "Mean and 95 % bootstrap interval per cell.", "",
-             "| cell | runs (failed) | " + " | ".join(title(m) for m in ms) + " |",
+             "| cell | runs (failed) | " + " | ".join(md(title(m)) for m in ms) + " |",
              "| --- | --- |" + " --- |" * len(ms)]
     for cell in report.cells:
-        lines.append(f"| {cell.label} | {len(cell.rows)} ({len(cell.rows) - len(cell.ok)}) | "
+        lines.append(f"| {md(cell.label)} | {len(cell.rows)} ({len(cell.rows) - len(cell.ok)}) | "
                      + " | ".join(brief(report.figure(cell, m), m) for m in ms) + " |")
     lines += ["", _bootstrap_note(report, [f.figures.interval for f in report.figures])]
     if any(2 <= f.figures.n < SMALL and not f.figures.identical for f in report.figures):
@@ -169,7 +188,7 @@ def _overview(report: Report) -> list[str]:
 def _details(report: Report) -> list[str]:
     lines = ["## Per metric", ""]
     for m in report.metrics:
-        lines += [f"### {title(m)} — `{m}`, {BETTER_WORDS[report.better[m]]}", "",
+        lines += [f"### {md(title(m))} — {code(m)}, {BETTER_WORDS[report.better[m]]}", "",
                   "| cell | n | missing | mean | median | IQR [Q1, Q3] | IQM | 95 % bootstrap "
                   "| 95 % Student's t |", "| --- |" + " --- |" * 8]
         for cell in report.cells:
@@ -179,7 +198,7 @@ def _details(report: Report) -> list[str]:
             t = ("–" if math.isnan(f.t_half_width) else
                  f"[{num(f.mean - f.t_half_width, m)}, {num(f.mean + f.t_half_width, m)}]")
             iqr = "–" if f.n == 0 else f"{num(f.iqr, m)} [{num(f.q1, m)}, {num(f.q3, m)}]"
-            lines.append(f"| {cell.label} | {f.n} | {f.missing} | {num(f.mean, m)} | "
+            lines.append(f"| {md(cell.label)} | {f.n} | {f.missing} | {num(f.mean, m)} | "
                          f"{num(f.median, m)} | {iqr} | {num(f.iqm, m)} | {boot} | {t} |")
         lines.append("")
     return lines
@@ -188,9 +207,9 @@ def _details(report: Report) -> list[str]:
 def _comparisons(report: Report) -> list[str]:
     if not report.comparisons:
         return []
-    against = (f"each other {report.axis} against `{report.baseline}`, within each cell of "
+    against = (f"each other {report.axis} against {code(report.baseline)}, within each cell of "
                "the other parameters" if report.axis
-               else f"each cell against `{report.baseline}`")
+               else f"each cell against {code(report.baseline)}")
     lines = ["## Paired comparisons", "",
              f"Other − baseline, {against}, paired by instance and seed (the same world, "
              "random streams and faults). Differences: mean and 95 % bootstrap interval "
@@ -200,7 +219,7 @@ def _comparisons(report: Report) -> list[str]:
              "matched pairs where the other did better, ties counted half.", ""]
     for m in report.metrics:
         rows = [c for c in report.comparisons if c.metric == m]
-        lines += [f"### {title(m)} — `{m}`, {BETTER_WORDS[report.better[m]]}", "",
+        lines += [f"### {md(title(m))} — {code(m)}, {BETTER_WORDS[report.better[m]]}", "",
                   "| cell | baseline → other | pairs | other − baseline | Wilcoxon p | Holm p "
                   "| A12 | P(better) |", "| --- |" + " --- |" * 7]
         for c in rows:
@@ -208,11 +227,12 @@ def _comparisons(report: Report) -> list[str]:
                 f"{num(c.mean_difference, m)} (identical in every pair)" if c.identical else
                 f"{num(c.mean_difference, m)} " + ("(1 pair)" if c.pairs == 1
                                                    else interval_text(c.interval, m)))
-            lines.append(f"| {c.group or '–'} | {c.baseline} → {c.other} | {c.pairs} | {diff} | "
+            lines.append(f"| {md(c.group) or '–'} | {md(c.baseline)} → {md(c.other)} | "
+                         f"{c.pairs} | {diff} | "
                          f"{p_text(c.p)} | {p_text(c.p_holm)} | {share(c.a12)} | "
                          f"{share(c.improvement)} |")
         tested = sum(c.p is not None for c in rows)
-        lines += ["", f"Holm family: the {plural(tested, 'comparison')} of `{m}` with a p-value "
+        lines += ["", f"Holm family: the {plural(tested, 'comparison')} of {code(m)} with a p-value "
                       f"in this table ({len(rows) - tested} without one: no pair, or every "
                       "paired difference zero). " + _a12_words(report.better[m]), ""]
     return lines
@@ -227,7 +247,7 @@ def _a12_words(better: str | None) -> str:
 
 
 def _precision(report: Report, p: Precision) -> list[str]:
-    asked = ", ".join(f"`{m}` ≤ {num(h, m)}" for m, h in p.targets.items())
+    asked = ", ".join(f"{code(m)} ≤ {num(h, m)}" for m, h in p.targets.items())
     if not p.missed:
         return ["## Precision", "", f"Every cell reached the bootstrap half-width asked "
                 f"({asked}) after {plural(p.blocks, 'block')}, {plural(p.runs, 'run')} "
@@ -240,7 +260,7 @@ def _precision(report: Report, p: Precision) -> list[str]:
                 "leaves no room for another block") + ") these cells are wider:", "",
              "| cell | metric | half-width | asked |", "| --- | --- | --- | --- |"]
     for cell, m, hw in p.missed:
-        lines.append(f"| {cell} | `{m}` | "
+        lines.append(f"| {md(cell)} | {code(m)} | "
                      f"{'no interval (fewer than two values)' if hw is None else num(hw, m)} | "
                      f"{num(p.targets[m], m)} |")
     return lines + [""]

@@ -13,7 +13,9 @@
 
 from __future__ import annotations
 
+import hashlib
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -45,10 +47,29 @@ def plot_report(report: Report, output: Path) -> list[Path]:
     for m in report.metrics:
         ratios, against_ref = profile_data(report, m)
         if ratios:
-            written.append(plot_profile(m, ratios, against_ref, output / f"profile_{m}.png"))
+            written.append(plot_profile(m, ratios, against_ref,
+                                        output / f"profile_{file_part(m)}.png"))
         if TEAM in report.table.parameters:
-            written.append(plot_team_size(report, m, output / f"team_size_{m}.png"))
+            written.append(plot_team_size(report, m, output / f"team_size_{file_part(m)}.png"))
+    for stale in PICTURES:  # an earlier report's (other --metrics): not beside the new ones
+        for path in output.glob(stale):
+            if path not in written:
+                path.unlink()
     return written
+
+
+PICTURES = ("takeover.png", "coverage.png", "profile_*.png", "team_size_*.png")
+
+
+def file_part(column: str) -> str:
+    """A column's name as part of a file name (issue 51.5: a column `metrics.../../x` named a
+    file outside the folder): letters, digits, `.`, `_` and `-` kept, anything else `_`, no
+    leading dot, at most 80 characters; a name changed so gains 8 hex digits of its hash, so
+    two columns never share a file."""
+    part = re.sub(r"[^A-Za-z0-9._-]", "_", column).lstrip(".")[:80]
+    if part == column:
+        return part
+    return f"{part}-{hashlib.blake2s(column.encode(), digest_size=4).hexdigest()}"
 
 
 def plot_takeover(report: Report, path: Path) -> Path:

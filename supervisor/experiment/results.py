@@ -51,6 +51,10 @@ MACHINE_TIME = ("wall_seconds", "decision_ms_median", "decision_ms_max", "messag
                 "messages_per_second", "namespace_messages_per_second")
 INSTANCE, SEED, STATUS, OK = "instance", "seed", "status", "ok"
 REQUIRED = (SEED, STATUS)
+# Bounds (issue 51.5): a measure of 1e308 overflowed the report's sums (OverflowError), and a
+# results.csv is read whole — past these, one line naming the file (and line and column)
+MAX_MEASURE = 1e15
+MAX_RESULTS_BYTES = 64 * 2**20
 
 
 def kind(column: str) -> str:
@@ -137,6 +141,9 @@ class ResultsTable:
             raise self.error(row, column, f"not a number: {text!r:.40}") from None
         if not math.isfinite(value):
             raise self.error(row, column, f"not a finite number: {text!r:.40}")
+        if abs(value) > MAX_MEASURE:
+            raise self.error(row, column, f"{text!r:.40} is beyond ±{MAX_MEASURE:g}, no run's "
+                                          "figure (sums of such values overflow)")
         return value
 
     def error(self, row: dict[str, str] | None, column: str, message: str) -> ConfigError:
@@ -162,6 +169,11 @@ def read_results(path: Path, torn: bool = False) -> ResultsTable:
     newline, or a last row shorter than the header, is a row cut off mid-write: left out."""
     path = Path(path)
     try:
+        size = path.stat().st_size
+        if size > MAX_RESULTS_BYTES:
+            raise ConfigError(f"{size / 2**20:.0f} MiB: a results.csv is read whole, at most "
+                              f"{MAX_RESULTS_BYTES // 2**20} MiB (≈ 100,000 runs)",
+                              file=str(path))
         text = path.read_bytes().decode("utf-8")
     except OSError as exc:
         raise ConfigError(f"cannot read the results: {exc.strerror}", file=str(path)) from None

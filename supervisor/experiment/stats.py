@@ -30,6 +30,7 @@ from typing import Sequence
 import numpy as np
 
 RESAMPLES = 10_000
+BLOCK_CELLS = 1 << 21  # values drawn at once by the two-level bootstrap (16 MiB of floats)
 CONFIDENCE = 0.95
 SEED = 20211206  # fixed, written under every table (Agarwal et al.'s NeurIPS 2021, the date)
 LOWER, HIGHER = "lower", "higher"  # which direction of a metric is better
@@ -107,13 +108,18 @@ def bootstrap_two_level(groups: Sequence[Sequence[float]], seed: int = SEED,
     sums = np.zeros(resamples)
     counts = np.zeros(resamples)
     columns = np.arange(width)
+    # the draws of one instance slot, a block of resamples at a time: memory bounded by
+    # BLOCK_CELLS whatever the file's size (one cell of 50,000 runs asked for 6 GiB at once),
+    # and the same numbers as one draw of every resample (the generator's stream is sequential)
+    block = max(1, BLOCK_CELLS // width)
     for _ in range(k):
         pick = rng.integers(0, k, size=resamples)             # an instance per resample
-        n = sizes[pick][:, None]
-        within = (rng.random((resamples, width)) * n).astype(int)  # its runs, with replacement
-        drawn = padded[pick[:, None], within]
-        mask = columns[None, :] < n
-        sums += np.where(mask, drawn, 0.0).sum(axis=1)
+        for lo in range(0, resamples, block):
+            part = pick[lo:lo + block]
+            n = sizes[part][:, None]
+            within = (rng.random((part.size, width)) * n).astype(int)  # its runs, replaced
+            drawn = padded[part[:, None], within]
+            sums[lo:lo + block] += np.where(columns[None, :] < n, drawn, 0.0).sum(axis=1)
         counts += sizes[pick]
     means = sums / counts
     tail = (1 - confidence) / 2 * 100
