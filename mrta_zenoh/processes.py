@@ -232,12 +232,21 @@ class ProcessGroup:
         for c in self.children:
             c.signalled.add(signal.SIGINT)
 
-    def stop_all(self, grace: float = 5.0) -> None:
-        for c in reversed(self.children):
+    def stop_all(self, grace: float = 5.0, later: Iterable[Child] = (),
+                 later_grace: float = 5.0) -> None:
+        """SIGINT to every child, SIGKILL to one still running `grace` seconds later. The
+        children in `later` are signalled only once every other one has ended, and given
+        `later_grace`: a recorder takes what the others said last, then writes out what it
+        holds (killed after 5 s, a recorder behind on a busy machine lost the mission's end)."""
+        last = [c for c in later if c in self.children]
+        first = [c for c in reversed(self.children) if c not in last]
+        for c in first:
             if c.running():
                 c.signal(signal.SIGINT)
-        for c in reversed(self.children):
+        for c in first:
             c.stop(grace)
+        for c in last:
+            c.stop(later_grace)
 
     def __enter__(self) -> "ProcessGroup":
         return self

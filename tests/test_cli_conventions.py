@@ -303,3 +303,41 @@ def test_setup_logging_installs_the_escaping_formatter():
 
 def test_json_lines_stay_json():
     json.loads(jsonsafe.dumps({"x": float("inf")}, nonfinite=str))
+
+
+LATE = """
+import os, signal, sys, time
+agent = int(sys.argv[1])
+def on_int(*_):
+    try:
+        os.kill(agent, 0)
+        alive = "alive"
+    except ProcessLookupError:
+        alive = "gone"
+    time.sleep(6)  # writing out what it holds: longer than the 5 s every other child gets
+    print("agent", alive, flush=True)
+    sys.exit(0)
+signal.signal(signal.SIGINT, on_int)
+print("ready", flush=True)
+while True:
+    time.sleep(0.1)
+"""
+
+
+@pytest.mark.multiprocess
+def test_a_child_stopped_later_is_signalled_after_the_others_end_and_given_its_grace():
+    """A mission's recorder (issue 51, the newcomer's `--no-plots` run): stopped with the rest
+    and killed after 5 s, a recorder behind on a busy machine lost the mission's end. Stopped
+    `later`, it takes what the others said last and writes out what it holds."""
+    import sys
+    group = ProcessGroup()
+    agent = group.start([sys.executable, "-c", "import time; print('ready', flush=True); "
+                         "time.sleep(600)"], name="agent")
+    assert agent.wait_line(lambda line: line == "ready", 60)
+    rec = group.start([sys.executable, "-c", LATE, str(agent.proc.pid)], name="record")
+    assert rec.wait_line(lambda line: line == "ready", 60)
+    group.stop_all(later=[rec], later_grace=60.0)
+    assert agent.describe_exit() == "stopped" and rec.describe_exit() == "stopped"
+    assert rec.proc.returncode == 0  # ended on its own, not killed after 5 s
+    assert rec.wait_line(lambda line: line.startswith("agent "), 5, from_start=True) == "agent gone"
+    assert group.failed() == []

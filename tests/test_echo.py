@@ -282,3 +282,45 @@ def test_any_json_like_data_reads_back_and_prints_no_control_character(value):
     comparable = json.loads(as_json)  # NaN as "nan": equal to itself
     back = yaml.safe_load(text)
     assert json.loads(jsonsafe.dumps(back, nonfinite=str)) == comparable
+
+
+def test_a_field_the_type_has_not_ends_echo_with_one_error_not_a_warning_a_sample(monkeypatch):
+    """`mrta echo KEY --field pose.nonexistent --count 3` never ended and warned once per
+    sample (issue 51): the field is in no sample of the type, so it is a usage error at the
+    first sample, naming the key, the type and the fields there."""
+    from mrta_zenoh.bus import InProcBus
+    from mrta_zenoh.fieldpath import FieldPathError
+
+    bus = InProcBus()
+    with pytest.raises(FieldPathError, match=r"robot1/odom carries \S*Odometry: field path "
+                                             r"'pose.nonexistent': no 'nonexistent' in pose"):
+        _echo_on(bus, monkeypatch, [_odom(0), _odom(1)], lambda n: None, count=3,
+                 field="pose.nonexistent")
+
+
+def test_a_field_a_sample_lacks_by_value_is_said_once(monkeypatch):
+    """A path valid for the type but not for a sample's value (an index past a short list): the
+    sample is skipped, said once however many such samples come, and echo prints the others."""
+    import threading
+
+    from mrta_zenoh.bus import BusOptions, InProcBus
+    from mrta_zenoh.messages import Header, Point2D, PointCloud
+    from mrta_zenoh.tools.echo import run_echo
+
+    bus = InProcBus()
+    subscribe_raw = bus.subscribe_raw
+
+    def subscribed(*args, **kw):
+        sub = subscribe_raw(*args, **kw)
+        for n in (1, 1, 1, 2):
+            bus.publish("robot1/sonar", PointCloud(Header("robot1", 0.0, n),
+                                                   [Point2D(float(k), 0.0) for k in range(n)]))
+        return sub
+
+    monkeypatch.setattr(bus, "subscribe_raw", subscribed)
+    warnings, lines = [], []
+    printed = run_echo(bus_options=BusOptions(), key_expr="robot1/**", emit=lines.append,
+                       warn=warnings.append, field="points[1].x", count=1, bus=bus,
+                       stop=threading.Event())
+    assert printed == 1 and len(lines) == 1 and lines[0].endswith("1.0"), lines
+    assert len(warnings) == 1 and "points" in warnings[0], warnings

@@ -343,6 +343,21 @@ def test_frames_after_a_simulator_restart_follow_the_new_run_after_the_old_one()
     assert sum(1 for t in world if t >= 3 * S) >= 8
 
 
+def started_view(tmp_path):
+    """The recorder (run_view) on an in-process bus in a thread, ready: (bus, the recording's
+    path, its stop event, the thread)."""
+    bus = InProcBus()
+    bus.zid = "inproc"
+    out = tmp_path / "view.mcap"
+    stop, ready = threading.Event(), threading.Event()
+    th = threading.Thread(target=viewer.run_view, args=(
+        viewer.ViewOptions(app="patrol", port=None, output=out, sim_time=True), None),
+        kwargs=dict(stop=stop, on_ready=lambda url: ready.set(), bus=bus), daemon=True)
+    th.start()
+    assert ready.wait(30)
+    return bus, out, stop, th
+
+
 def test_run_view_records_the_bus_and_the_scene_in_simulated_time(tmp_path, monkeypatch):
     """The whole recorder on the in-process bus: clock samples and ground truth in, an MCAP
     file out whose log times are the simulated ones, with frames per simulated second."""
@@ -353,16 +368,7 @@ def test_run_view_records_the_bus_and_the_scene_in_simulated_time(tmp_path, monk
             super().__init__(clock)
             pacers.append(self)
     monkeypatch.setattr(viewer, "SimPacer", Pacer)
-    bus = InProcBus()
-    bus.zid = "inproc"
-    out = tmp_path / "view.mcap"
-    stop = threading.Event()
-    ready = threading.Event()
-    th = threading.Thread(target=viewer.run_view, args=(
-        viewer.ViewOptions(app="patrol", port=None, output=out, sim_time=True), None),
-        kwargs=dict(stop=stop, on_ready=lambda url: ready.set(), bus=bus), daemon=True)
-    th.start()
-    assert ready.wait(30)
+    bus, out, stop, th = started_view(tmp_path)
     token = bus.declare_token(f"{CLOCK_SOURCE_TOKEN}/run1")
     bus.publish("robot1/ground_truth",  # before the clock: held, logged at 0
                 Odometry(Header("world", 0.0, 0), Pose2D(0, 0, 0), Twist(0, 0)))
@@ -508,3 +514,27 @@ def test_a_recording_reads_back_in_log_time_order_with_ties_in_the_order_written
                    for _, c, m in make_reader(f).iter_messages(log_time_order=True)]
     assert [(k, t, p) for k, _, t, p in records] == library
     assert len(records) == len(times) and len({t for _, _, t, _ in records}) > 3
+
+
+def test_a_stopped_recorder_records_what_is_still_coming_until_the_clock_is_quiet(
+        tmp_path, monkeypatch):
+    """The newcomer's `--no-plots` run (issue 51): the mission runner stops the recorder as soon
+    as the simulator has ended; a recorder behind on a busy machine still had the last
+    simulated second to take, and closing at once cut the recording short of the mission. Here
+    the last second arrives after the stop: it is recorded, then the recorder ends once the
+    clock is quiet."""
+    monkeypatch.setattr(viewer, "DRAIN_QUIET", 3.0, raising=False)  # generous: any machine
+    monkeypatch.setattr(viewer, "DRAIN_MAX", 60.0, raising=False)
+    bus, out, stop, th = started_view(tmp_path)
+    token = bus.declare_token(f"{CLOCK_SOURCE_TOKEN}/run1")
+    for k in range(251):  # 5 simulated seconds before the stop
+        bus.publish(CLOCK, Clock(k * 0.02, "run1"))
+    stop.set()
+    for k in range(251, 301):  # the last simulated second, still on its way
+        time.sleep(0.02)
+        bus.publish(CLOCK, Clock(k * 0.02, "run1"))
+    th.join(60)
+    token.close()
+    assert not th.is_alive()
+    topics, _, _ = read(out)
+    assert max(t for t, _ in topics[CLOCK]) == 6 * S

@@ -24,7 +24,7 @@ from ..bus import Bus, BusOptions, open_bus
 from ..fieldpath import FieldPath, FieldPathError
 from ..keys import validate_key_expr
 from ..lifecycle import stop_on_signals
-from ..messages import is_message
+from ..messages import GenericMessage, is_message
 from .sample_text import json_text, yaml_text
 
 log = logging.getLogger("mrta.echo")
@@ -126,15 +126,30 @@ def run_echo(*, bus_options: BusOptions, key_expr: str, emit: Callable[[str], No
             warn(f"dropped malformed sample on {s.key}: {exc}")
             return None
 
+    checked: set[type] = set()  # message classes the field path was checked against
+    warned: set[str] = set()
+
     def line(s) -> str | None:
         decoded = decode(s)
         if decoded is None:
             return None
         type_name, message = decoded
+        if path is not None and type(message) is not GenericMessage \
+                and type(message) not in checked:
+            # a field a type has not is not there in any of its samples: a usage error (exit
+            # 2), not a warning per sample while `--count` is never reached (issue 51)
+            try:
+                path.validate(type(message))
+            except FieldPathError as exc:
+                raise FieldPathError(f"{s.key} carries {type_name}: {exc}") from None
+            checked.add(type(message))
         try:
             value = path.resolve(message) if path else message
-        except FieldPathError as exc:
-            warn(f"{s.key}: {exc}")
+        except FieldPathError as exc:  # this sample's value (a short list, a generic message)
+            text = f"{s.key}: {exc}"
+            if text not in warned and len(warned) < 64:  # once each, not once a sample
+                warned.add(text)
+                warn(text)
             return None
         return format_sample(s.key, type_name, _plain(value), as_json, path)
 

@@ -182,7 +182,7 @@ def _run_in(run: MissionRun, reg: Registry,
                 *client]
         view += (["--port", str(options.foxglove_port)] if options.foxglove_port is not None
                  else ["--no-server"])
-        group.start(mrta_argv(*view), name="record")
+        recorder = group.start(mrta_argv(*view), name="record")
         ready.wait(ready.recorder.is_set, "the recorder", group, stop)
         sup = Supervisor(run.arch_model, run.app, 0.0, unattended_after=30.0,
                          duplicate_after=5.0, watch=run.mission.task_watch(run),
@@ -224,7 +224,7 @@ def _run_in(run: MissionRun, reg: Registry,
             group.interrupted()
             raise Interrupted()
         check_simulator_end(sim)
-        group.stop_all()
+        group.stop_all(later=[recorder], later_grace=RECORDER_GRACE)
         # the crashed subjects: those named (robots, the architecture's processes) and, for an
         # @first crash, the robot that crashed itself
         targets = roles.crash_targets(faults, {r: struck(r) for r in agents})
@@ -295,6 +295,10 @@ def check_seeds(nodes: list[NodeSpec], seed: int) -> None:
                                   file=n.file or None, line=n.line)
 
 
+# wall s the recorder has to write out what it holds once every other process has ended: on a
+# busy machine it may be ~300,000 samples behind (20 robots at --speed 0); killed sooner, the
+# recording missed the mission's end (the newcomer's `--no-plots` run, issue 51)
+RECORDER_GRACE = 120.0
 END_MARGIN = 1.0  # simulated s the simulator runs on after every task is done: the recording
                   # then covers the end (run_watch.END_SLACK), however late the runner saw it
 
