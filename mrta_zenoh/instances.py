@@ -26,6 +26,7 @@ import msgspec
 from .errors import ConfigError
 from .files import write_text
 from .codec import validation_fault
+from .planning.reference import SOLUTIONS
 from .yamlfile import YamlDoc, did_you_mean, load_yaml, parse_yaml
 
 GROUP = "mrta.instances"
@@ -166,8 +167,10 @@ def problem(path: Path, application: str | None = None) -> Any:
 
 
 def show(path: Path, application: str | None = None, *, exact_limit: int = 10,
-         time_limit: float = 30.0, solutions: int = 1000) -> dict[str, Any]:
-    """What `mrta instance show` prints."""
+         time_limit: float = 30.0, solutions: int | None = None) -> dict[str, Any]:
+    """What `mrta instance show` prints. `solutions` defaults to the run's budget
+    (planning.reference.SOLUTIONS): show's "best found" is the one a run's summary compares with."""
+    solutions = SOLUTIONS if solutions is None else solutions
     loaded = load(path, application)
     return {"name": loaded.name, "application": loaded.kind.application,
             **loaded.kind.describe(loaded.doc, exact_limit=exact_limit, time_limit=time_limit,

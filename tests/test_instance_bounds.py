@@ -98,3 +98,26 @@ def test_a_task_walled_in_is_refused_as_every_run_would_refuse_it(tmp_path):
             f"world: {{size: [12, 8], walls: {box}}}\n")
     line = refused(tmp_path, text)
     assert ":6: 'tasks/t2/position': task t2 at (3, 2) cannot be reached from robot robot1" in line
+
+
+def test_show_and_a_run_compare_with_one_best_found(tmp_path):
+    """One instance, one "best found" (issue 51): `mrta instance show` searched 1,000 solutions
+    and a run's summary 200, so the two printed different references for the same instance.
+    Above the exact limit, show's default value is the run's (objectives.references)."""
+    import json
+
+    from mrta_delivery.instance import load_document
+    from mrta_delivery.objectives import references
+    from mrta_zenoh.planning.reference import EXACT_LIMIT
+
+    tasks = "".join(f"  t{k}: {{position: [{-5 + k % 10}.5, {-3 + 2 * (k // 10)}.5]}}\n"
+                    for k in range(EXACT_LIMIT + 2))
+    f = tmp_path / "i.yaml"
+    f.write_text(HEAD + "robots:\n  robot1: {start: [0, 0], speed: 0.5}\n"
+                 "  robot2: {start: [1, 0], speed: 0.4}\ntasks:\n" + tasks)
+    r = CliRunner().invoke(cli, ["instance", "show", str(f), "--json"])
+    assert r.exit_code == 0, r.output
+    shown = json.loads(r.output)["reference"]["minsum"]
+    run = references(load_document(f).problem())["minsum"]
+    assert shown["label"] == "best found" and not shown.get("stopped_by_time_limit")
+    assert shown["value"] == round(run["value"], 3)

@@ -88,13 +88,14 @@ APPLICATION = click.option("--application", help="Read FILE as this application'
 @APPLICATION
 @click.option("--exact-limit", type=click.IntRange(min=0), default=10, show_default=True,
               help="Solve exactly up to this many tasks; above it, the best routes found.")
-@click.option("--solutions", type=click.IntRange(min=1), default=1000, show_default=True,
-              help="The routing search's budget: accepted solutions (the same on any machine).")
+@click.option("--solutions", type=click.IntRange(min=1), default=None,
+              help="The routing search's budget: accepted solutions (the same on any machine). "
+                   "Default: a run's, 200, so this reference is the one its summary uses.")
 @click.option("--time-limit", type=click.FloatRange(min=0, min_open=True), default=30.0,
               show_default=True, help="The routing search's safety cap, seconds per objective "
                                       "(a search it stops depends on the machine's speed).")
 @click.option("--json", "as_json", is_flag=True, help="One JSON object.")
-def show(file: Path, application: str | None, exact_limit: int, solutions: int,
+def show(file: Path, application: str | None, exact_limit: int, solutions: int | None,
          time_limit: float, as_json: bool) -> None:
     """Sizes, the cost matrix's summary and the reference values of an instance file."""
     info = instances.show(file, application, exact_limit=exact_limit, time_limit=time_limit,

@@ -29,10 +29,9 @@ from dataclasses import dataclass
 from typing import Any, Iterable, Protocol
 
 from mrta_zenoh.planning import Problem
-from mrta_zenoh.planning.reference import EXACT_LIMIT, reference
+from mrta_zenoh.planning.reference import EXACT_LIMIT, SOLUTIONS, reference
 from mrta_zenoh.planning.schedule import Objective, evaluate, window_counts
 
-SOLUTIONS = 200       # the routing search's budget above EXACT_LIMIT (central's dispatcher's)
 TIME_LIMIT = 30.0     # its safety cap (s)
 OVERLAP_SLACK = 0.1   # s: a handover within one agent tick is no overlap
 
