@@ -121,3 +121,18 @@ def test_show_and_a_run_compare_with_one_best_found(tmp_path):
     run = references(load_document(f).problem())["minsum"]
     assert shown["label"] == "best found" and not shown.get("stopped_by_time_limit")
     assert shown["value"] == round(run["value"], 3)
+
+
+def test_a_demo_refused_for_its_instance_leaves_no_output_folder(tmp_path):
+    """A refused command leaves no empty output folder behind (issue 51, the newcomer's list)."""
+    f = tmp_path / "i.yaml"
+    f.write_text(CAPACITY.format(cap=1))
+    out = tmp_path / "out"
+    r = CliRunner().invoke(cli, ["demo", "--application", "delivery", "--instance", str(f),
+                                 "--output", str(out), "--no-live"])
+    assert r.exit_code == 2 and "max_tasks_per_robot" in r.output, r.output
+    assert not out.exists()
+    out.mkdir()  # a folder that was there stays
+    r = CliRunner().invoke(cli, ["demo", "--application", "delivery", "--instance", str(f),
+                                 "--output", str(out), "--no-live"])
+    assert r.exit_code == 2 and out.is_dir()

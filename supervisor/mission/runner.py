@@ -75,18 +75,28 @@ def run_mission(options: MissionOptions, *, stop: threading.Event | None = None,
     if options.overrides and options.instance is None:  # installed packages are never written
         raise ConfigError("--override sets parameters of the packages a run derives from its "
                           "--instance: give one (an experiment copies the package instead)")
+    created = not options.output.exists()
     options.output.mkdir(parents=True, exist_ok=True)
-    with output_lock(options.output):
-        if options.instance is not None:
-            run.mission.derive(options.instance, instance_folder(options))
-            reg = Registry([instance_folder(options)] + reg_path())
-            run = resolve(options, reg)
-            if options.overrides and instance_folder(options) not in run.package.path.parents:
-                raise ConfigError(f"--override: the instance derives no {run.package.name!r} "
-                                  "package to set it in")
-            apply_overrides(run.package.path, options.overrides)  # the run's own copy
-        run = roles.with_random_drawn(run)  # from the instance's own numbers
-        return _run_in(run, reg, stop, progress, folder_state(options.output))
+    try:
+        with output_lock(options.output):
+            if options.instance is not None:
+                run.mission.derive(options.instance, instance_folder(options))
+                reg = Registry([instance_folder(options)] + reg_path())
+                run = resolve(options, reg)
+                if options.overrides and \
+                        instance_folder(options) not in run.package.path.parents:
+                    raise ConfigError(f"--override: the instance derives no "
+                                      f"{run.package.name!r} package to set it in")
+                apply_overrides(run.package.path, options.overrides)  # the run's own copy
+            run = roles.with_random_drawn(run)  # from the instance's own numbers
+            return _run_in(run, reg, stop, progress, folder_state(options.output))
+    except ConfigError:
+        # a refused run (a bad instance, a bad override) leaves no empty folder behind (issue
+        # 51, the newcomer's list); a folder that was there, or holds anything, stays
+        if created:
+            with contextlib.suppress(OSError):
+                options.output.rmdir()
+        raise
 
 
 def reg_path() -> list[Path]:
