@@ -133,3 +133,22 @@ def test_a_missions_sections_are_checked_when_the_runner_stores_them():
         check_sections_type("bad", Shadow)
     with pytest.raises(ConfigError, match="must be a subclass of"):
         check_sections_type("bad", msgspec.Struct)
+
+
+@pytest.mark.parametrize("count, objective, words", [
+    (1, None, "1 allocation decision (for its own score, none of the objectives the run is "
+              "measured on)"),
+    (3, "minsum", "3 allocation decisions (for minsum)")])
+def test_the_printed_decisions_say_what_they_were_made_for_in_good_english(count, objective,
+                                                                           words):
+    """CBBA printed "(no objective)" beside "optimality 0.9589" against MinSum, and one
+    decision was "1 allocation decisions" (issue 51, the newcomer's list)."""
+    import io
+
+    from rich.console import Console
+
+    from mrta_supervisor.mission.cli import print_summary
+    out = io.StringIO()
+    s = summary(decisions=summary_module.Decisions(count, 1.5, 2.0, objective))
+    print_summary(Console(file=out, width=200), s, "Ping", "CBBA", [])
+    assert f"  {words}: computation median 1.5 ms, max 2 ms" in out.getvalue()

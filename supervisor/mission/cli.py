@@ -22,6 +22,7 @@ from mrta_zenoh.cli.common import console as make_console
 from mrta_zenoh.cli.common import SEED_TYPE, OutputPath, finite_float, verbosity
 from mrta_zenoh.errors import MrtaRuntimeError
 from mrta_zenoh.failure import FaultKind
+from mrta_zenoh.yamlfile import plural
 
 from ..live.cli import LiveScreen, quiet_alarms, state_line
 from .hook import MissionOptions
@@ -258,7 +259,12 @@ def print_summary(console: Console, s: Summary, title: str, arch_title: str,
         console.print(f"  {line}", highlight=False)
     d = s.decisions
     if d is not None and d.count:
-        console.print(f"  {d.count} allocation decisions ({d.objective or 'no objective'}): "
+        # an architecture that optimises a score of its own (CBBA: discounted rewards) made
+        # its decisions for none of the objectives the run is measured on below — said so, not
+        # "(no objective)" beside an optimality (issue 51, the newcomer's list)
+        aim = (f"for {d.objective}" if d.objective else
+               "for its own score, none of the objectives the run is measured on")
+        console.print(f"  {plural(d.count, 'allocation decision')} ({aim}): "
                       f"computation median {d.median_ms:g} ms, max {d.max_ms:g} ms",
                       highlight=False)
     if s.fault_effects:
