@@ -152,3 +152,18 @@ def test_the_printed_decisions_say_what_they_were_made_for_in_good_english(count
     s = summary(decisions=summary_module.Decisions(count, 1.5, 2.0, objective))
     print_summary(Console(file=out, width=200), s, "Ping", "CBBA", [])
     assert f"  {words}: computation median 1.5 ms, max 2 ms" in out.getvalue()
+
+
+def test_the_headline_says_what_was_simulated_and_when_the_work_was_over():
+    """The headline called the last completion "N s simulated" while the simulator ran on
+    past it (issue 51, the newcomer's list)."""
+    import io
+
+    from rich.console import Console
+
+    from mrta_supervisor.mission.cli import print_summary
+    out = io.StringIO()
+    print_summary(Console(file=out, width=200), summary(ended_at=41.2, recorded_until=42.3,
+                                                        duration=60.0), "Ping", "ALLIANCE", [])
+    assert ("Ping (ALLIANCE): 42.3 s simulated (every task done by 41.2 s, where the figures "
+            "end; --duration 60) at speed max") in out.getvalue()
