@@ -161,3 +161,24 @@ def test_an_answers_file_of_aliases_cannot_make_a_million_sensors(tmp_path):
     res = run("app", "new", "--answers", f, "--output", tmp_path / "out")
     assert_refused(res, tmp_path / "out", "robot1/sensors/sensor: 1,001 entries, more than 1,000")
     assert len(res.output) < 300
+
+
+def test_a_task_the_tasks_file_lacks_has_the_wizard_ask_the_tasks_file_again(tmp_path):
+    """The wizard asks again for the answers of the file a refusal names: a robot's task the
+    tasks file lacks is the tasks file's to fix — the wizard re-asked robot1's ~25 questions
+    forever, never the tasks file (issue 51, the newcomer's list)."""
+    from mrta_zenoh.toolchain.checks import PackageRefused, check_package_files
+    from mrta_zenoh.toolchain.generator import build_application, load_answers
+    from mrta_zenoh.toolchain.registry import Registry
+
+    def drop_report(d):
+        d["configs"]["tasks_alliance_params"]["tasks"] = [
+            t for t in d["configs"]["tasks_alliance_params"]["tasks"] if t["id"] != "report"]
+    f, _ = answers(tmp_path, drop_report)
+    a, _ = load_answers(f)
+    arch_pkg, arch = Registry().architecture(a.architecture)
+    app, files = build_application(arch_pkg, arch, a)
+    with pytest.raises(PackageRefused) as refused:
+        check_package_files(files, app)
+    assert refused.value.generated == "config/tasks_alliance_params.yaml"
+    assert "config/robot1_alliance_params.yaml" in str(refused.value)  # where it was found

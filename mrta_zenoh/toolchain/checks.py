@@ -129,16 +129,20 @@ def check_package_files(files: dict[str, bytes], app: ApplicationFile,
             what = f"{exc.element}: {exc.detail}" if exc.element else exc.detail
             where = f"{rel}:{line}" if line else rel
             note = at = None
+            generated = rel
             if exc.element == "'task_id'":  # a robot's task the tasks file lacks
                 note = (f"; the robots were given {', '.join(app.tasks())}, and the tasks file "
                         "must define each of them")
+                # the answers to ask again are the tasks file's: asked for robot1's file, the
+                # wizard re-asked its ~25 questions forever (issue 51, the newcomer's list)
+                generated = f"config/tasks_{contract_of(app).param_stem}_params.yaml"
                 if answers is not None:  # what to fix is the tasks file's answers
                     at = answers.line(("configs", f"tasks_{contract_of(app).param_stem}_params"))
             message = f"the package would not load: {where}: {what}{note or ''}"
             if answers is not None and file and line:
                 at = _answers_line(answers, load_yaml(file), line, rel)
-            raise PackageRefused(message, rel, file=str(answers.path) if answers else None,
-                                 line=at) from None
+            raise PackageRefused(message, generated,
+                                 file=str(answers.path) if answers else None, line=at) from None
     return True
 
 
