@@ -182,3 +182,38 @@ def test_a_task_the_tasks_file_lacks_has_the_wizard_ask_the_tasks_file_again(tmp
         check_package_files(files, app)
     assert refused.value.generated == "config/tasks_alliance_params.yaml"
     assert "config/robot1_alliance_params.yaml" in str(refused.value)  # where it was found
+
+
+def test_an_architecture_typed_at_a_filter_prompt_is_told_what_the_prompt_takes():
+    """Typing `alliance` at the first filter prompt said "--robots 'alliance'", a flag of
+    `mrta arch list` no prompt has (issue 51, the newcomer's list)."""
+    from mrta_zenoh.toolchain.registry import Registry
+    from mrta_zenoh.toolchain.wizard import InvalidAnswer, collect
+
+    said = []
+
+    class Script:
+        answers = iter(["mypkg", "My app", "", "", "Me", "me@example.com", "", "",
+                        "alliance"])
+
+        def step(self, title):
+            pass
+
+        def section(self, title):
+            pass
+
+        def say(self, text):
+            pass
+
+        def ask(self, question, check, default=None, show_default=True):
+            text = next(self.answers)
+            try:
+                return check(text if text or default is None else default)
+            except InvalidAnswer as exc:
+                said.append(str(exc))
+                raise
+
+    with pytest.raises(InvalidAnswer):
+        collect(Registry(), Script())
+    assert said == ["'alliance' is no robots type: give ST/MT, or nothing for any (an "
+                    "architecture is chosen by name next)"]

@@ -116,8 +116,10 @@ def collect(registry: Registry, ui: Prompter) -> tuple[Answers, Package, Archite
                 return None
             try:
                 return taxonomy_value(axis, v)
-            except ConfigError as exc:
-                raise InvalidAnswer(str(exc)) from None
+            except ConfigError:  # its text names `arch list`'s flag, no prompt's (issue 51)
+                raise InvalidAnswer(f"{v.strip()!r} is no {axis} type: give {options}, or "
+                                    "nothing for any (an architecture is chosen by name next)"
+                                    ) from None
         filters[axis] = ui.ask(f"Filter by {axis} type ({options}, empty for any)", proc,
                                default="", show_default=False)
     shown = [(p, a) for p, a in archs if matches_taxonomy(a, **filters)]
