@@ -96,8 +96,8 @@ WANDER_ONLY = [
     # robot1_alliance_params: an empty mandatory name, then a sensor plugin misspelt
     "", "Robot 1", "", "", "", "", "1", "alliance/odometri", "odom", "", "",
     "60", "20", "30", "60", "2", "", "1", "odom",
-    # tasks_alliance_params
-    "1", "wander", "Wander", "1", "patrol/wander",
+    # tasks_alliance_params: one entry per task given above, its id filled in
+    "Wander", "1", "patrol/wander",
     # refused: robot1's file is asked for again, the earlier answers offered as defaults
     "", "", "", "", "", "", "alliance/odometry", "", "", "",
     "", "", "", "", "", "", "", "",
@@ -184,6 +184,19 @@ def test_a_task_the_tasks_file_lacks_has_the_wizard_ask_the_tasks_file_again(tmp
     assert "config/robot1_alliance_params.yaml" in str(refused.value)  # where it was found
 
 
+class Quiet:
+    """A prompter that shows nothing: a test's own answers its `ask`."""
+
+    def step(self, title):
+        pass
+
+    def section(self, title):
+        pass
+
+    def say(self, text):
+        pass
+
+
 def test_an_architecture_typed_at_a_filter_prompt_is_told_what_the_prompt_takes():
     """Typing `alliance` at the first filter prompt said "--robots 'alliance'", a flag of
     `mrta arch list` no prompt has (issue 51, the newcomer's list)."""
@@ -192,18 +205,9 @@ def test_an_architecture_typed_at_a_filter_prompt_is_told_what_the_prompt_takes(
 
     said = []
 
-    class Script:
+    class Script(Quiet):
         answers = iter(["mypkg", "My app", "", "", "Me", "me@example.com", "", "",
                         "alliance"])
-
-        def step(self, title):
-            pass
-
-        def section(self, title):
-            pass
-
-        def say(self, text):
-            pass
 
         def ask(self, question, check, default=None, show_default=True):
             text = next(self.answers)
@@ -217,3 +221,32 @@ def test_an_architecture_typed_at_a_filter_prompt_is_told_what_the_prompt_takes(
         collect(Registry(), Script())
     assert said == ["'alliance' is no robots type: give ST/MT, or nothing for any (an "
                     "architecture is chosen by name next)"]
+
+
+def test_the_tasks_file_takes_the_task_ids_given_in_step_3_without_asking_them_again():
+    """Task ids were asked twice: in step 3 and again, with how many, in the tasks file (issue
+    51, the newcomer's list). The tasks file now has one entry per task given, ids filled in."""
+    from mrta_zenoh.toolchain.generator import Answers
+    from mrta_zenoh.toolchain.wizard import InvalidAnswer, _ask_config
+
+    asked = []
+
+    class Defaults(Quiet):
+        def ask(self, question, check, default=None, show_default=True):
+            asked.append(question)
+            for text in (default, "x", "1"):  # the default, else a word or a number
+                try:
+                    return check(text or "")
+                except InvalidAnswer:
+                    pass
+            raise AssertionError(question)
+
+    arch = load_rqt_mrta(ALLIANCE_ARCH / "rqt_mrta.xml")
+    a = Answers(package="p", name="P", architecture="alliance", configs={},
+                robots={"robot1": ["wander", "report"], "robot2": ["report", "clean"]})
+    _ask_config(Defaults(), a, arch, "tasks_alliance_params", {})
+    assert [t["id"] for t in a.configs["tasks_alliance_params"]["tasks"]["task"]] == \
+        ["wander", "report", "clean"]
+    assert not [q for q in asked if q.startswith("tasks_alliance_params/tasks: how many")
+                or q.split(" [")[0].endswith("/id")], asked
+    assert "tasks_alliance_params/tasks/task2/name [string] — Task display name." in asked

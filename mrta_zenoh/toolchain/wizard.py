@@ -206,7 +206,9 @@ def _ask_config(ui: Prompter, answers: Answers, arch: ArchitectureFile, config_i
                 per_robot[rid] = _ask_children(ui, c.children, rid, tasks, previous.get(rid))
     elif c.children:
         ui.section(c.id)
-        answers.configs[c.id] = _ask_children(ui, c.children, c.id, None, previous)
+        known = list(dict.fromkeys(t for ts in answers.robots.values() for t in ts))
+        answers.configs[c.id] = _ask_children(ui, c.children, c.id, None, previous,
+                                              task_ids=known)
 
 
 def ask_again(ui: Prompter, answers: Answers, arch: ArchitectureFile, generated: str) -> None:
@@ -224,7 +226,11 @@ def ask_again(ui: Prompter, answers: Answers, arch: ArchitectureFile, generated:
 
 
 def _ask_children(ui: Prompter, children: list[Node], path: str,
-                  tasks: list[str] | None, previous: Any = None) -> dict:
+                  tasks: list[str] | None, previous: Any = None,
+                  task_ids: list[str] | None = None, this_id: str | None = None) -> dict:
+    """The answers for `children`. `task_ids` (a file of the application's tasks): an array
+    whose entries have an `id` holds one entry per task given in step 3, its `id` filled in —
+    not asked twice (issue 51, the newcomer's list); `this_id`: that entry's id."""
     before = previous if isinstance(previous, dict) else {}
     out: dict[str, Any] = {}
     for child in children:
@@ -233,17 +239,24 @@ def _ask_children(ui: Prompter, children: list[Node], path: str,
                 continue  # sized from the array below / filled from the robot's tasks
             if child.value and "@" not in child.value:
                 continue  # fixed by the architecture
+            if this_id is not None and child.name == "id":
+                out["id"] = this_id  # the task's id, given in step 3
+                continue
             out[child.name] = _ask_param(ui, child, f"{path}/{child.name}",
                                          before.get(child.name))
         elif isinstance(child, Params):
             out[child.name] = _ask_children(ui, child.children, f"{path}/{child.name}", tasks,
-                                            before.get(child.name))
+                                            before.get(child.name), task_ids=task_ids)
         else:
             key = child.name.replace("@index@", "")
             earlier = before.get(key) if isinstance(before.get(key), list) else []
+            by_id = bool(task_ids) and tasks is None and any(
+                isinstance(c, Param) and c.name == "id" and not c.value for c in child.children)
             if tasks is not None and _has_task_id(child):
                 count = len(tasks)
                 labels = tasks
+            elif by_id:
+                count, labels = len(task_ids), task_ids
             else:
                 count = ui.ask(f"{path}: how many {key} entries", _count,
                                default=str(len(earlier)) if earlier else None)
@@ -252,7 +265,8 @@ def _ask_children(ui: Prompter, children: list[Node], path: str,
             for i in range(count):
                 ui.say(f"  {child.name.replace('@index@', str(i))} ({labels[i]})")
                 items.append(_ask_children(ui, child.children, f"{path}/{key}{i}", tasks,
-                                           earlier[i] if i < len(earlier) else None))
+                                           earlier[i] if i < len(earlier) else None,
+                                           this_id=labels[i] if by_id else None))
             out[key] = items
     return out
 
