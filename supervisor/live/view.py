@@ -52,6 +52,14 @@ def render(snap: dict, width: int = 120) -> Group:
         parts: list = [top]
     else:
         parts = [robots, tasks]
+    idle = [r for r in snap["robots"] if r["state"] == "idle"]
+    if idle:  # who stands idle, and whether work is waiting for a robot meanwhile (fairness)
+        open_tasks = sum(1 for task in snap["tasks"] if task["state"] == "unallocated")
+        line = Text("idle: ", style="bold yellow")
+        line.append(plain(", ".join(f"{r['id']} {t - r['since']:.0f}s" for r in idle)))
+        if open_tasks:
+            line.append(plain(f" · {open_tasks} task(s) unallocated"))
+        parts.append(line)
     if snap.get("processes"):
         line = Text("processes: ", style="bold")
         for p in snap["processes"]:

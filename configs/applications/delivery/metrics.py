@@ -15,6 +15,11 @@ the metrics").
   figures — the achieved cost (Σ cost of each task's *first* assignment, from the robot's
   start), the IA optimum (scipy's linear_sum_assignment) and their ratio, `ia_optimality`,
   with MURDOCH's greedy rule as a second reference.
+* The workload (issue 50, fairness): each robot's share of the work — tasks it served (each
+  task's first completion, to its robot), busy time (the union of its stretches from setting off
+  to the task's completion or the stretch's end) and distance driven — and the Gini coefficient
+  of each over the team (`gini_served`, `gini_busy`, `gini_distance`: 0 even, (n − 1)/n one robot
+  did everything; mrta_zenoh.planning.fairness).
 """
 
 from __future__ import annotations
@@ -29,6 +34,7 @@ from mrta_zenoh.clock import EPSILON
 from mrta_zenoh.codec import DecodeError, decode, type_from_encoding
 from mrta_zenoh.failure import FaultKind, Faults
 from mrta_zenoh.planning import Problem
+from mrta_zenoh.planning.fairness import gini
 from mrta_zenoh.planning.assignment import (greedy_online, ia_costs, murdoch_utility,
                                             optimal_assignment)
 from mrta_supervisor.mission.ground_truth import stretches_from
@@ -210,6 +216,41 @@ def measure(instance: Problem, log: list[Entry], distance: dict[str, float]) -> 
     }
 
 
+def workload(robots: list[str], log: list[Entry], distance: dict[str, float],
+             end: float) -> dict[str, dict[str, float]]:
+    """Each robot's share (module docstring): `served` (tasks whose first completion was its),
+    `busy` (simulated s: the union of its stretches from setting off to done or the stretch's
+    end, at most `end`), `idle` (the rest of `end`) and `distance` (m, ground truth)."""
+    first: dict[str, Entry] = {}
+    for e in sorted((e for e in log if e.done_at is not None), key=lambda e: (e.done_at, e.robot)):
+        first.setdefault(e.task, e)
+    spans: dict[str, list[tuple[float, float]]] = {r: [] for r in robots}
+    for e in log:
+        if e.started_at is not None and e.robot in spans:
+            stop = min(e.done_at if e.done_at is not None else e.ended_at, end)
+            if stop > e.started_at:
+                spans[e.robot].append((e.started_at, stop))
+    out = {}
+    for r in robots:
+        busy, reach = 0.0, -math.inf
+        for a, b in sorted(spans[r]):  # the union: stretches of one robot may overlap
+            if b > reach:
+                busy += b - max(a, reach)
+                reach = b
+        out[r] = {"served": sum(1 for e in first.values() if e.robot == r),
+                  "busy": round(busy, 3), "idle": round(max(0.0, end - busy), 3),
+                  "distance": round(distance.get(r, 0.0), 3)}
+    return out
+
+
+def fairness(shares: dict[str, dict[str, float]]) -> dict[str, Any]:
+    """The workload and its Gini coefficients over the robots (None for a team of none)."""
+    def g(what: str) -> float | None:
+        return round(gini(s[what] for s in shares.values()), 4) if shares else None
+    return {"workload": shares, "gini_served": g("served"), "gini_busy": g("busy"),
+            "gini_distance": g("distance")}
+
+
 def analyse(records: list, arch: Architecture, params: InstanceBody, end: float,
             faults: Faults = Faults(), objective: str | None = None) -> RunAnalysis:
     """The log, the metrics and the objectives of a recorded run that ended at `end`;
@@ -219,7 +260,8 @@ def analyse(records: list, arch: Architecture, params: InstanceBody, end: float,
     distance = paths(records, {r.id for r in instance.robots})
     section = objective_section(instance, log, objective or arch.objective or "minsum")
     metrics = {**measure(instance, log, distance), "windowed": instance.windowed,
-               **window_metrics(instance, log, end), **objective_metrics(section)}
+               **window_metrics(instance, log, end), **objective_metrics(section),
+               **fairness(workload([r.id for r in instance.robots], log, distance, end))}
     return RunAnalysis(params, instance, log, metrics, section)
 
 

@@ -188,7 +188,8 @@ class Delivery(Mission):
               "achieved_cost": "lower", "optimality": "higher", "ia_optimality": "higher",
               "completed": "higher", "assigned": "higher", "handovers": "lower",
               "overlaps": "lower", "objective_minsum": "lower", "objective_makespan": "lower",
-              "objective_flowtime": "lower"}
+              "objective_flowtime": "lower", "gini_served": "lower", "gini_busy": "lower",
+              "gini_distance": "lower"}
 
     def __init__(self) -> None:
         self._last: tuple[int, RunAnalysis] | None = None
@@ -243,7 +244,7 @@ class Delivery(Mission):
                 f"{name} {value if value is not None else '—'} vs {label} "
                 f"{metrics.get(f'reference_{name}')} (optimality "
                 f"{opt if opt is not None else '—'}); overlaps {metrics.get('overlaps', 0)}"
-                ] + window_lines(metrics)
+                ] + window_lines(metrics) + workload_lines(metrics)
 
 
 def window_lines(metrics: dict[str, Any]) -> list[str]:
@@ -253,6 +254,17 @@ def window_lines(metrics: dict[str, Any]) -> list[str]:
     return [f"windows: {metrics['served_in_window']} served in window, {metrics['missed']} "
             f"missed, {metrics['late']} late (lateness {metrics['lateness']} s), "
             f"{metrics['early']} early"]
+
+
+def workload_lines(metrics: dict[str, Any]) -> list[str]:
+    """Each robot's share and the Gini coefficients (a summary from before them: none)."""
+    shares = metrics.get("workload")
+    if not shares:
+        return []
+    each = ", ".join(f"{r} {s['served']} ({s['busy']:g} s busy, {s['distance']:g} m)"
+                     for r, s in shares.items())
+    return [f"workload: {each}; Gini served {metrics['gini_served']}, busy "
+            f"{metrics['gini_busy']}, distance {metrics['gini_distance']}"]
 
 
 DELIVERY = Delivery()
