@@ -18,6 +18,7 @@ from pathlib import Path
 from .errors import ConfigError
 
 ROBOT, OBSERVER, BRIDGE = "robot", "observer", "bridge"
+SUBMITTER = "submitter"  # who submits tasks at run time (`mrta task`): its certificate names it
 BRIDGE_URN = "urn:mrta-zenoh:bridge:"  # SAN URIs naming the robots a bridge certificate is for
 
 
@@ -90,7 +91,7 @@ def check_identity(options, role: str, name: str | None = None,
     cert = certified(options.user_config(), where)
     if cert is None:
         return
-    want = name if role == ROBOT else (role if role not in (OBSERVER, BRIDGE) else None)
+    want = name if role in (ROBOT, SUBMITTER) else (role if role not in (OBSERVER, BRIDGE) else None)
     holder = f"{cert.role} {cert.name}" if cert.role else cert.name
     if cert.role is not None and cert.role != role:
         raise ConfigError(f"its certificate {cert.path} is for {holder}, not for "

@@ -73,6 +73,19 @@ class InstanceKind:
         out what does not change the indices' meaning."""
         return _sha256(msgspec.json.encode(doc)).hexdigest()[:DIGEST_LENGTH]
 
+    def admit(self, doc: Any, task_id: str, fields: dict[str, Any]) -> None:
+        """Whether a task submitted at run time (mrta_zenoh.tasks) with these fields may enter
+        a run of `doc`: ConfigError saying why not (naming the field). Default: no application
+        task is taken at run time."""
+        raise ConfigError(f"{self.application or 'this application'} takes no tasks at run "
+                          "time")
+
+    def schedule(self, doc: Any) -> list:
+        """The changes `doc` schedules at run time (mrta_zenoh.tasks.intake.Scheduled: a
+        summary's `submitted`, what entered a live run and when), which a run of it replays
+        through its intake; [] by default."""
+        return []
+
     def problem(self, doc: Any) -> Any:
         """The planning problem the document poses (`mrta_zenoh.planning.Problem`: robots,
         point tasks, travel times), for a planner that runs beside the robots (central's

@@ -15,6 +15,10 @@ fails. Roles (docs/security.md has the table and what each rule stops):
   its keys; this module only turns them into rules, so it never names another package's topics.
 * **bridge** (`--bridge ROBOT` or `--bridge NAME=ROBOT,ROBOT`): a ROS 2 bridge for those robots
   only: their `odom` and `sonar` on our side, their ROS 2 topics, its own node's tokens.
+* **submitter** (`--submitter NAME`, `mrta task … --as NAME`): may send task requests on its
+  own `tasks/request/NAME` and hear the answers on `tasks/answer/NAME` (and whether the intake
+  is up) — nothing else: it cannot speak for a robot or read the fleet's traffic. A fleet with
+  submitters also gets the intake's certificate (`tasks`, the role mrta_zenoh.tasks registers).
 * **observer** (supervisor, recorder, viewer…): may subscribe and watch liveliness, and hold a
   recorder token (`@mrta/recorder/<zid>`: the recorder and the viewer announce themselves);
   may not publish.
@@ -45,7 +49,7 @@ from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 
 from .errors import ConfigError
 from .files import write_atomically, write_folder
-from .identity import BRIDGE, BRIDGE_URN, OBSERVER, ROBOT, bridge_node_name
+from .identity import BRIDGE, BRIDGE_URN, OBSERVER, ROBOT, SUBMITTER, bridge_node_name
 from .keys import (RECORDER_TOKEN, ROS2_BRIDGE_TOKEN, KeyExprError, is_id,
                    normalize_robot_id, odom, sonar, validate_key_expr)
 from .lockstep.protocol import DONE, PARTICIPANT
@@ -200,6 +204,10 @@ def rules_for(identity: Identity, ros2_domain: int = 0) -> list[dict]:
         subscribe = everything
     elif identity.role == OBSERVER:
         publish, tokens, subscribe = [], [f"{RECORDER_TOKEN}/*"], everything
+    elif identity.role == SUBMITTER:
+        from .tasks.messages import answer_key, request_key
+        from .tasks.server import TOKEN
+        publish, tokens, subscribe = [request_key(n)], [], [answer_key(n), TOKEN]
     elif identity.role == BRIDGE:
         rs = identity.robots
         publish = [k for r in rs for k in (odom(r), sonar(r), f"{ros2_domain}/{r}/**")]
@@ -284,7 +292,7 @@ def parse_bridge(spec: str) -> Identity:
 
 
 def _identities(robots: list[str], observers: list[str], bridges: list[str],
-                simulator: bool) -> list[Identity]:
+                simulator: bool, submitters: list[str] = ()) -> list[Identity]:
     ids = [Identity(normalize_robot_id(r), ROBOT) for r in robots]
     if simulator:
         registered_role(SIMULATOR)  # a missing or broken registration fails before any key is made
@@ -294,6 +302,14 @@ def _identities(robots: list[str], observers: list[str], bridges: list[str],
             raise ConfigError(f"observer name {o!r}: use letters, digits, '_', '-' or '.'")
         ids.append(Identity(o, OBSERVER))
     ids += [parse_bridge(b) for b in bridges]
+    for sub in submitters:
+        if not is_id(sub):
+            raise ConfigError(f"submitter name {sub!r}: use letters, digits, '_', '-' or '.'")
+        ids.append(Identity(sub, SUBMITTER))
+    if submitters:  # whoever submits needs the run's intake to answer it
+        from .tasks.messages import INTAKE
+        registered_role(INTAKE)
+        ids.append(Identity(INTAKE, INTAKE))
     names = [i.name for i in ids] + ["router", "ca"]
     dupes = sorted({n for n in names if names.count(n) > 1})
     if dupes:
@@ -315,6 +331,7 @@ MANIFEST = "fleet-files.txt"  # the fleet's files, one per line: what --force ma
 
 def init(folder: Path, robots: list[str], observers: list[str], *,
          bridges: list[str] = (), endpoint: str = DEFAULT_ENDPOINT, simulator: bool = True,
+         submitters: list[str] = (),
          force: bool = False, root: str | None = None, ros2_domain: int = 0) -> list[Path]:
     """Write ca.pem/ca.key, <name>.pem/.key per process, router.json5 and <name>.json5 into
     `folder` — all or nothing — and leave every other file there alone. Returns the files
@@ -330,7 +347,7 @@ def init(folder: Path, robots: list[str], observers: list[str], *,
         raise ConfigError(f"router endpoint {endpoint!r}: mutual TLS needs a tls/… endpoint")
     if not 0 <= ros2_domain <= 232:
         raise ConfigError(f"ROS 2 domain id {ros2_domain}: expected 0–232")
-    ids = _identities(list(robots), list(observers), list(bridges), simulator)
+    ids = _identities(list(robots), list(observers), list(bridges), simulator, list(submitters))
     folder = Path(folder)
     if folder.exists() and not folder.is_dir():
         raise ConfigError("exists and is not a folder", file=str(folder))

@@ -90,6 +90,8 @@ def run_callable(target: Callable[[list[str]], Any], args: list[str]) -> int:
 # tests/test_cli_help.py fails, printing the line to write, when a command of this distribution
 # is missing or its help changed.
 SHORT_HELP = {
+    "mrta_zenoh.cli.task:task":
+        "Tasks at run time: submit, cancel, reprioritise and list a running mission's tasks.",
     "mrta_agent.alliance.cli:agent":
         "Run ROBOT_ID's ALLIANCE agent: motivational behaviours, sensors, evaluators and layers.",
     "mrta_zenoh.cli.toolchain:app": "Registered MRTA applications; create new ones.",

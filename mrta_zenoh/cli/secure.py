@@ -25,6 +25,9 @@ def secure() -> None:
 @click.option("--bridge", "bridges", multiple=True, metavar="ROBOT|NAME=ROBOT,…",
               help="A ROS 2 bridge (`mrta ros2 bridge`) for those robots only (repeatable); "
                    "named bridge-ROBOT unless NAME is given.")
+@click.option("--submitter", "submitters", multiple=True, metavar="NAME",
+              help="Who may submit tasks at run time (`mrta task … --as NAME`): only on "
+                   "tasks/request/NAME (repeatable); adds the run's intake, `tasks`.")
 @click.option("--endpoint", default=DEFAULT_ENDPOINT, show_default=True,
               help="Where the router listens (a tls/ endpoint); its certificate names this host.")
 @click.option("--root", metavar="DIR",
@@ -38,10 +41,11 @@ def secure() -> None:
               help="Replace the files a previous `secure init` wrote in FOLDER (other files "
                    "there are left alone).")
 def secure_init(folder: Path, robots: tuple[str, ...], observers: tuple[str, ...],
-                bridges: tuple[str, ...], endpoint: str, root: str | None, ros2_domain: int,
+                bridges: tuple[str, ...], submitters: tuple[str, ...], endpoint: str, root: str | None, ros2_domain: int,
                 no_simulator: bool, force: bool) -> None:
     """Write a CA, a certificate per process, router.json5 and one NAME.json5 per process."""
-    files = init(folder, list(robots), list(observers), bridges=list(bridges), endpoint=endpoint,
+    files = init(folder, list(robots), list(observers), bridges=list(bridges),
+                 submitters=list(submitters), endpoint=endpoint,
                  simulator=not no_simulator, force=force, root=root, ros2_domain=ros2_domain)
     names = sorted(p.stem for p in files if p.suffix == ".json5" and p.stem != "router")
     click.echo(f"wrote {plural(len(files), 'file')} to {folder}")

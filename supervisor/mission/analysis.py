@@ -26,6 +26,8 @@ from mrta_zenoh.refusal_tally import REFUSED
 from mrta_zenoh.lockstep.protocol import STATUS, LockstepStatus
 from mrta_zenoh.recording import read_recording
 
+from mrta_zenoh.tasks.messages import INTAKE
+
 from . import roles
 from .fault_effects import fault_effects, refused_traffic
 from .ground_truth import decisions, intervals_from
@@ -76,7 +78,9 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
     t1 = (run.options.duration if recorded_until is None else recorded_until) \
         if ended_at is None else end
     status = run_status(list(disturbances), recorded_until, end)
-    refused = refused_traffic(records, [*run.robots, *run.arch.processes])
+    # the task intake's refusals (mrta_zenoh.tasks) are listed too; none of them is forged
+    # coordination: a refused request never entered the run
+    refused = refused_traffic(records, [*run.robots, *run.arch.processes, INTAKE])
     if status == COMPLETE and any(r.forged for r in refused):
         status = DISTURBED
     role, failure = failure, roles.struck(failure, run.faults, records)

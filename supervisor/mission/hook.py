@@ -93,6 +93,12 @@ class Mission:
         than run to the duration. Default: none — every task always needs a robot."""
         return None
 
+    def instance_file(self, run: "MissionRun") -> Path | None:
+        """The instance file the run's robots serve, for the run's task intake (tasks at run
+        time, mrta_zenoh.tasks: which tasks it may take, its schedule); None: the application
+        takes no tasks at run time."""
+        return None
+
     def ended_at(self, run: "MissionRun", records: list) -> float | None:
         """When the mission's work was over, in simulated seconds, from the recording (a point
         task mission: the last completion); None: it ran to the duration. The summary's

@@ -31,6 +31,7 @@ import time
 from pathlib import Path
 from typing import Callable
 
+from mrta_zenoh import instances
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.bus.options import private_rendezvous
 from mrta_zenoh.clock import SimClock
@@ -40,6 +41,8 @@ from mrta_zenoh.identity import OBSERVER
 from mrta_zenoh.node import Node, NodeTime
 from mrta_zenoh.processes import Child, ProcessGroup, mrta_argv
 from mrta_zenoh.seeds import SEED_ENV
+from mrta_zenoh.tasks.messages import INTAKE
+from mrta_zenoh.tasks.server import TOKEN as INTAKE_TOKEN
 from mrta_zenoh.toolchain.launchfile import LaunchEvaluator, NodeSpec, check_executables
 from mrta_zenoh.toolchain.registry import Registry
 from mrta_zenoh.toolchain.runner import start_nodes
@@ -184,6 +187,9 @@ def _run_in(run: MissionRun, reg: Registry,
             ProcessGroup(env) as group, contextlib.ExitStack() as live:
         bus, clock, stop = node.bus, node.clock, node.stop
         ready = live.enter_context(Readiness(bus, run.robots))
+        intake_up = threading.Event()
+        live.enter_context(bus.watch_liveliness(INTAKE_TOKEN, lambda _k, alive: alive
+                                                and intake_up.set()))
         # every process's token from before the first one starts: a loss is a disturbance
         watch = live.enter_context(RunWatch(bus, run.arch, clock))
         # the recording: the bus, the scene and the supervisor's channels, readable by Foxglove;
@@ -194,6 +200,9 @@ def _run_in(run: MissionRun, reg: Registry,
                  else ["--no-server"])
         recorder = group.start(mrta_argv(*view), name="record")
         ready.wait(ready.recorder.is_set, "the recorder", group, stop)
+        intake = _start_intake(run, group, client)
+        if intake is not None:  # up before any robot: every change enters at a step boundary
+            ready.wait(lambda: intake_up.is_set(), "the task intake", group, stop)
         sup = Supervisor(run.arch_model, run.app, 0.0, unattended_after=30.0,
                          duplicate_after=5.0, watch=run.mission.task_watch(run),
                          quiet=progress is None,  # nobody to tell its alarms to
@@ -225,7 +234,8 @@ def _run_in(run: MissionRun, reg: Registry,
                    group, stop, ignore=lambda: own_process(injected()))
         ready.wait(ready.clock.is_set, "the simulator", group, stop,
                    ignore=lambda: own_process(injected()))
-        failed_at = _watch(sim, sup, clock, failure, stop, progress)
+        # a run that takes tasks at run time goes on to its duration: more may come
+        failed_at = _watch(sim, sup, clock, failure, stop, progress, early_end=intake is None)
         watch.end()
         live.close()
         if stop.is_set() or sim.wait(30) in (-signal.SIGINT, 128 + signal.SIGINT):
@@ -238,7 +248,7 @@ def _run_in(run: MissionRun, reg: Registry,
         # the crashed subjects: those named (robots, the architecture's processes) and, for an
         # @first crash, the robot that crashed itself
         targets = roles.crash_targets(faults, {r: struck(r) for r in agents})
-        ours = set(named) | set(hosted.values())  # the run's processes, its hosts among them
+        ours = set(named) | set(hosted.values()) | {INTAKE}  # the run's processes
         disturbances = watch.disturbances(lambda p: p in targets and struck(p), ours)
         strangers = watch.strangers(ours)
         crashed = group.failed(ignore=own_process(targets))
@@ -249,6 +259,22 @@ def _run_in(run: MissionRun, reg: Registry,
     summary = analyse(run, failure, failed_at, time.monotonic() - t_wall0, before, disturbances,
                       strangers)
     return run, summary
+
+
+def _start_intake(run: MissionRun, group: ProcessGroup, client: list[str]) -> Child | None:
+    """The run's task intake (`mrta task serve`, a lockstep participant: mrta_zenoh.tasks) when
+    the run takes tasks at run time: it is reachable (`--rendezvous`) or its instance schedules
+    changes (a run repeated from its summary). None otherwise: every other run is as before."""
+    options = run.options
+    path = options.instance or run.mission.instance_file(run)
+    if path is None:
+        return None
+    if options.rendezvous is None:
+        loaded = instances.load(path)
+        if not loaded.kind.schedule(loaded.doc):
+            return None
+    return group.start(mrta_argv("task", "serve", "--instance", str(path), "--sim-time",
+                                 *client), name=INTAKE)
 
 
 # From this many robots a run's processes meet through a router of their own (`mrta router` on
@@ -314,7 +340,8 @@ END_MARGIN = 1.0  # simulated s the simulator runs on after every task is done: 
 
 
 def _watch(sim: Child, sup: Supervisor, clock: SimClock, failure: Failure | None,
-           stop: threading.Event, progress: Progress | None) -> float | None:
+           stop: threading.Event, progress: Progress | None,
+           early_end: bool = True) -> float | None:
     """Follow the run until the simulator ends — at its duration, or stopped here END_MARGIN
     after the application's task watch said every task is done (Mission.task_watch); return
     when `failure` struck (each process injects its own faults, at their simulated times)."""
@@ -328,7 +355,7 @@ def _watch(sim: Child, sup: Supervisor, clock: SimClock, failure: Failure | None
             failed_at = failure.at
         if progress is not None:
             progress(now, sup, failure, failed_at)
-        if all_done is None and sup.all_done():
+        if early_end and all_done is None and sup.all_done():
             all_done = now
         if all_done is not None and now >= all_done + END_MARGIN:
             # the time the summary reports (ended_at) is when the work was seen over, not

@@ -27,7 +27,7 @@ from mrta_zenoh.messages import Finite
 from mrta_zenoh.planning import Problem, Robot, Task, Windows
 from mrta_zenoh.planning.flow import serves_all
 from mrta_zenoh.planning.geometry import PathMap, room_walls
-from mrta_zenoh.yamlfile import YamlDoc, get_path, load_yaml
+from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, get_path, load_yaml
 
 Point = Annotated[tuple[Finite, Finite], msgspec.Meta(title="x, y in metres")]
 NonNegative = Annotated[float, msgspec.Meta(ge=0.0, le=1e9)]
@@ -210,19 +210,58 @@ class DeliveryParams(msgspec.Struct, forbid_unknown_fields=True):
     turn_rate: Annotated[float, msgspec.Meta(gt=0.0, le=3.0)] = 1.2   # rad/s at most
 
 
+class SubmittedChange(msgspec.Struct, forbid_unknown_fields=True, omit_defaults=True):
+    """One change that entered a live run at `at` (mrta_zenoh.tasks, `tasks/change`): a task
+    submitted (`task`, which arrives then), cancelled or given a new priority — as a summary's
+    instance keeps it, so that a run of that instance replays it through its intake."""
+
+    at: NonNegative
+    op: str                              # submit | cancel | reprioritize
+    id: str
+    task: TaskSpec | None = None         # submit: the task's fields (its arrival: `at`)
+    priority: int = 0
+    submitter: str = ""
+
+
 class InstanceDoc(InstanceBody, forbid_unknown_fields=True):
     """An instance file. `generator` says where it came from; `cost` and `cost_model` are what
-    summary.json adds to it — accepted and ignored, so a summary's section runs again as is."""
+    summary.json adds to it — accepted and ignored, so a summary's section runs again as is;
+    `submitted`, what entered a live run at run time and when, replays through the run's
+    intake (it is no part of the body: the packages and the digest are the instance's own)."""
 
     application: str = ""                # "delivery" (or nothing)
     generator: dict[str, Any] = {}
     cost: Any = None
     cost_model: Any = None
+    submitted: list[SubmittedChange] = []
 
     def body(self) -> InstanceBody:
         """The instance alone (what a package is derived from), without where it came from."""
         return InstanceBody(self.robots, self.tasks, self.world, self.name,
                             self.max_tasks_per_robot, self.windows)
+
+
+def admit_task(inst: InstanceBody, task_id: str, fields: dict[str, Any]) -> TaskSpec:
+    """A task submitted at run time (mrta_zenoh.tasks), checked as an instance file's task is:
+    its fields typed, some robot able to serve it, inside the room and clear of its walls
+    (ConfigError naming the field). Its `arrival` is the instant it enters the run, so the
+    field is not taken."""
+    known = [f for f in TaskSpec.__struct_fields__ if f != "arrival"]
+    for key in fields:
+        if key == "arrival":
+            raise ConfigError("arrival: a task submitted at run time arrives when it enters "
+                              "the run")
+        if key not in known:
+            raise ConfigError(f"unknown field {key!r}" + did_you_mean(str(key), known)
+                              + f" (fields: {', '.join(known)})")
+    try:
+        spec = msgspec.convert(fields, TaskSpec)
+    except msgspec.ValidationError as exc:
+        raise ConfigError(str(exc).replace("$.", "")) from None
+    probe = InstanceBody(inst.robots, {task_id: spec}, inst.world)
+    for key, message in probe.faults()[:1]:
+        raise ConfigError(f"{key[-1]}: {message}")
+    return spec
 
 
 def load_document(path: Path | str) -> InstanceDoc:

@@ -19,10 +19,12 @@ import msgspec
 
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.instances import InstanceGenerator, InstanceKind
+from mrta_zenoh.tasks.intake import Scheduled
+from mrta_zenoh.tasks.messages import Op
 from mrta_zenoh.yamlfile import YamlDoc
 from mrta_zenoh.planning.geometry import CLEARANCE, point_segment_distance, segment_distance
 
-from .instance import (InstanceDoc, RobotSpec, TaskSpec, WorldSpec, document_data,
+from .instance import (InstanceDoc, admit_task, RobotSpec, TaskSpec, WorldSpec, document_data,
                        document_of, document_yaml)
 
 WALL_GAP = 2 * CLEARANCE + 0.3   # m between walls: a corridor two robots' clearances wide
@@ -94,6 +96,19 @@ class DeliveryKind(InstanceKind):
 
     def problem(self, doc: InstanceDoc):
         return doc.problem()
+
+    def admit(self, doc: InstanceDoc, task_id: str, fields: dict[str, Any]) -> None:
+        admit_task(doc, task_id, fields)
+
+    def schedule(self, doc: InstanceDoc) -> list[Scheduled]:
+        """A summary's `submitted`: each change at its instant, a task with its fields."""
+        out = []
+        for c in doc.submitted:
+            fields = {} if c.task is None else {
+                k: v for k, v in msgspec.to_builtins(c.task).items()
+                if k != "arrival" and v is not None}
+            out.append(Scheduled(c.at, Op(c.op), c.id, fields, c.priority, c.submitter))
+        return out
 
 
 KIND = DeliveryKind()

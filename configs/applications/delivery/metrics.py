@@ -89,6 +89,9 @@ class RunAnalysis:
     log: list[Entry]
     metrics: dict[str, Any] = field(default_factory=dict)
     objectives: dict[str, Any] = field(default_factory=dict)
+    base: InstanceBody | None = None         # the instance before tasks at run time
+    submitted: list = field(default_factory=list)  # what entered at run time (runtime_tasks)
+    runtime: dict[str, Any] | None = None    # what became of it (runtime_tasks.accounting)
 
 
 def events(records: Iterable) -> list[tuple[str, str, str, float]]:

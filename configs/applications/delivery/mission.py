@@ -40,6 +40,7 @@ from .instance import InstanceBody, InstanceDoc, load_document
 from .keys import ALL_DONE, Event
 from .messages import TaskEvent
 from .metrics import RunAnalysis, analyse, done_at, instance_json
+from .runtime_tasks import accounting, changes, live_instance, submitted
 
 
 class _Section(msgspec.Struct, forbid_unknown_fields=True):
@@ -119,6 +120,8 @@ class DeliverySections(SummarySections):
     allocation: list[AllocationEntry]
     objectives: ObjectivesSection | None = None
     overlaps: list[OverlapEntry] = []
+    # what became of every task submitted or cancelled at run time (runtime_tasks.accounting)
+    tasks_at_run_time: dict[str, Any] | None = None
 
     def __post_init__(self) -> None:
         try:
@@ -202,21 +205,36 @@ class Delivery(Mission):
         """`mrta demo --instance FILE`: both packages derived from the file, into `folder`."""
         derive(load_document(instance), folder)
 
+    def instance_file(self, run: MissionRun) -> Path | None:
+        """The file the run's layers file names (a run of `--instance` derives it)."""
+        return named_instance(load_layers_params(run.layers_params))
+
     def ended_at(self, run: MissionRun, records: list) -> float | None:
-        """The last task's first completion, once every task is done (None: not all were)."""
-        return done_at(records, run_instance(run).problem())
+        """The last task's first completion, once every task is done (None: not all were);
+        the tasks submitted at run time among them."""
+        return done_at(records, live_instance(run_instance(run),
+                                              submitted(changes(records))).problem())
 
     def analysis(self, run: MissionRun, records: list) -> RunAnalysis:
         """Computed once per recording (metrics and sections both read it)."""
         if self._last is not None and self._last[0] == id(records):
             return self._last[1]
         # what is still held at the end of the run ends there (simulated seconds)
-        params = run_instance(run)
+        base = run_instance(run)
+        seen = submitted(changes(records))  # tasks at run time (runtime_tasks.py)
+        params = live_instance(base, seen)
         ended = done_at(records, params.problem())
         end = run.options.duration if ended is None else min(ended, run.options.duration)
         made = decisions(records, run.arch, end)
         result = analyse(records, run.arch, params, end, as_struck(run.faults, records),
                          made.objective if made is not None and made.objective else None)
+        result.base, result.submitted = base, seen
+        if seen:
+            result.runtime = accounting(seen, result.log, end)
+            result.metrics.update({f"submitted_{k}": n
+                                   for k, n in result.runtime["counts"].items()},
+                                  submitted=len(result.runtime["tasks"]),
+                                  served_after_cancel=len(result.runtime["served_after_cancel"]))
         self._last = (id(records), result)
         return result
 
@@ -226,7 +244,10 @@ class Delivery(Mission):
     def sections(self, run: MissionRun, records: list) -> DeliverySections:
         a = self.analysis(run, records)
         from .objectives import overlaps
-        return msgspec.convert({"instance": instance_json(a.params, a.instance),
+        instance = instance_json(a.base, a.base.problem())
+        if a.submitted:  # what entered at run time: a run of this section replays it
+            instance["submitted"] = msgspec.to_builtins(a.submitted)
+        return msgspec.convert({"instance": instance, "tasks_at_run_time": a.runtime,
                                 "allocation": [e.to_json() for e in a.log],
                                 "objectives": a.objectives,
                                 "overlaps": [o.to_json() for o in overlaps(a.log)]},
