@@ -168,3 +168,24 @@ def test_a_submitter_may_only_send_its_own_requests_in_a_secured_fleet():
     assert "tasks/change" in intake[("put", "delete")] and "tasks/answer/*" in intake[("put", "delete")]
     robot = {tuple(r["messages"]): r["key_exprs"] for r in rules_for(Identity("robot1", "robot"))}
     assert not any(k.startswith("tasks/") for k in robot[("put", "delete")])  # robots cannot submit
+
+
+def test_requests_are_taken_while_the_intake_checks_a_step():
+    """`release` checks outside the lock `offer` takes (the network's thread): a slow check does
+    not hold a receiving thread back (blocked past Zenoh's lease, it would lose its link)."""
+    import threading
+    started, go = threading.Event(), threading.Event()
+
+    def slow(task_id, fields):
+        started.set()
+        assert go.wait(10)
+
+    intake = Intake(slow, wall=Wall())
+    intake.offer("op", req(Op.SUBMIT, "a", {}))
+    worker = threading.Thread(target=intake.release, args=(1.0,))
+    worker.start()
+    assert started.wait(10)
+    assert intake.offer("op", req(Op.SUBMIT, "b", {})) is None  # not blocked by the check
+    go.set()
+    worker.join(10)
+    assert [c.task_id for c in intake.release(1.1)[1]] == ["b"]

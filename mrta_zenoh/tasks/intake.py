@@ -27,6 +27,7 @@ Rules, each for a reason:
 
 from __future__ import annotations
 
+import itertools
 import json
 import threading
 import time
@@ -115,7 +116,8 @@ class Intake:
         self._buckets: dict[str, _Bucket] = {}
         self._queue: deque[tuple[str, Request]] = deque()
         self._schedule = deque(sorted(schedule, key=lambda s: s.at))
-        self._seq = 0
+        self._seq = itertools.count(1)
+        self._count_lock = threading.Lock()
 
     # ------------------------------------------------------------------ the network's side
     def offer(self, submitter: str, req: Request) -> Answer | None:
@@ -145,7 +147,7 @@ class Intake:
 
     def refused(self) -> dict:
         """The refusal counts so far (refusal_tally entries), a copy."""
-        with self._lock:
+        with self._count_lock:
             return dict(self.refusals.counts)
 
     # ------------------------------------------------------------------ the step boundary
@@ -159,15 +161,17 @@ class Intake:
         changes that entered, each stamped `now` (a scheduled one: its own instant)."""
         answers: list[tuple[str, Answer]] = []
         changes: list[Change] = []
-        with self._lock:
+        with self._lock:  # taken whole: the checks below run without holding the network's
+            due = []      # threads (a receiver blocked past Zenoh's lease loses its link)
             while self._schedule and self._schedule[0].at <= now + EPSILON:
-                s = self._schedule.popleft()
-                req = Request(Header(s.submitter, s.at, 0), "", str(s.op), s.task_id,
-                              json.dumps(s.fields), s.priority)
-                self._take(s.submitter, req, s.at, changes)
-            while self._queue:
-                submitter, req = self._queue.popleft()
-                answers.append((submitter, self._take(submitter, req, now, changes)))
+                due.append(self._schedule.popleft())
+            queued, self._queue = self._queue, deque()
+        for s in due:
+            req = Request(Header(s.submitter, s.at, 0), "", str(s.op), s.task_id,
+                          json.dumps(s.fields), s.priority)
+            self._take(s.submitter, req, s.at, changes)
+        for submitter, req in queued:
+            answers.append((submitter, self._take(submitter, req, now, changes)))
         return answers, changes
 
     def _take(self, submitter: str, req: Request, now: float, changes: list[Change]) -> Answer:
@@ -228,14 +232,14 @@ class Intake:
 
     # ------------------------------------------------------------------ answers
     def _refuse(self, submitter: str, req: Request, reason: str, why: str) -> Answer:
-        self.refusals.add(KIND, submitter, reason, False)
+        with self._count_lock:  # both threads refuse
+            self.refusals.add(KIND, submitter, reason, False)
         return self._answer(req, Outcome.REFUSED, reason=f"{reason}: {why}")
 
     def _answer(self, req: Request, outcome: Outcome, *, reason: str = "", at: float = 0.0,
                 listing: str = "") -> Answer:
-        self._seq += 1
-        return Answer(Header(INTAKE, at, self._seq), req.request, str(outcome), req.task_id,
-                      reason[:300], at, listing)
+        return Answer(Header(INTAKE, at, next(self._seq)), req.request, str(outcome),
+                      req.task_id, reason[:300], at, listing)
 
     def _change(self, op: Op, entry: Ledger, now: float, submitter: str) -> Change:
         fields = json.dumps(entry.fields) if op is Op.SUBMIT else ""

@@ -13,6 +13,7 @@ shortest drivable paths around the walls otherwise (`planning.geometry`).
 
 from __future__ import annotations
 
+import functools
 import math
 from collections import Counter
 from pathlib import Path
@@ -258,10 +259,26 @@ def admit_task(inst: InstanceBody, task_id: str, fields: dict[str, Any]) -> Task
         spec = msgspec.convert(fields, TaskSpec)
     except msgspec.ValidationError as exc:
         raise ConfigError(str(exc).replace("$.", "")) from None
-    probe = InstanceBody(inst.robots, {task_id: spec}, inst.world)
-    for key, message in probe.faults()[:1]:
-        raise ConfigError(f"{key[-1]}: {message}")
+    if spec.capability and not any(spec.capability in r.capabilities
+                                   for r in inst.robots.values()):
+        raise ConfigError(f"capability: no robot has capability {spec.capability!r}")
+    if spec.due is not None and spec.earliest is not None and spec.due < spec.earliest:
+        raise ConfigError(f"due: {spec.due:g} s is before earliest ({spec.earliest:g} s): it "
+                          "could never be served")
+    p, (w, h) = spec.position, inst.world.size
+    if abs(p[0]) >= w / 2 or abs(p[1]) >= h / 2:
+        raise ConfigError(f"position: ({p[0]:g}, {p[1]:g}) is outside the {w:g} × {h:g} m room")
+    try:
+        _paths(inst.world).check_point(tuple(p), f"task {task_id}")
+    except ConfigError as exc:
+        raise ConfigError(f"position: {exc}") from None
     return spec
+
+
+@functools.lru_cache(maxsize=8)
+def _paths(world: WorldSpec) -> PathMap:
+    """A world's path map, made once (a submission is checked against it at run time)."""
+    return PathMap(world.all_walls())
 
 
 def load_document(path: Path | str) -> InstanceDoc:
