@@ -169,3 +169,22 @@ def test_a_bare_demo_runs_the_default_mission_among_several():
     from mrta_supervisor.mission.hook import default_application, missions
     assert {"patrol", "delivery"} <= set(missions())
     assert default_application() == "patrol"  # Patrol.default; delivery is asked for by name
+
+
+def test_a_task_cancelled_at_run_time_is_inapplicable_and_withdrawn_from_the_next_tick():
+    """The intake's cancellation (mrta_zenoh.tasks, `tasks/change`) counts from the tick after
+    its instant, the same for every robot (board.py: in lockstep one ticking at that very
+    instant may not have received it yet); a change on the key from anyone but the intake, or
+    another op, says nothing."""
+    from mrta_zenoh.tasks.messages import CHANGE, Change
+    net, clock = InProcNetwork(), ManualClock(0.0)
+    ev, _ = evaluator("t4", "robot2", net, clock)
+    other = InProcBus(net)
+    other.publish(CHANGE, Change(Header("someone", 2.0, 0), "cancel", "t4"))
+    other.publish(CHANGE, Change(Header("tasks", 2.0, 0), "reprioritize", "t4", priority=3))
+    assert ev.is_applicable(3.0) and not ev.withdrawn(3.0)
+    other.publish(CHANGE, Change(Header("tasks", 2.0, 0), "cancel", "t4"))
+    assert ev.is_applicable(2.0) and not ev.withdrawn(2.0)   # at its instant: not yet
+    assert not ev.is_applicable(2.1) and ev.withdrawn(2.1)   # from the next tick on
+    ev2, _ = evaluator("t2", "robot2", net, clock)
+    assert ev2.is_applicable(2.1)                            # only that task

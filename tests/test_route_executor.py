@@ -17,6 +17,10 @@ class Fake:
 
     blocked: set[str] = field(default_factory=set)
     finished: set[str] = field(default_factory=set)
+    cancelled: set[str] = field(default_factory=set)
+
+    def withdrawn(self, task_id: str, now: float) -> bool:
+        return task_id in self.cancelled
 
     def applicable(self, task_id: str, now: float) -> bool:
         return task_id not in self.blocked
@@ -139,3 +143,19 @@ def test_plugin_readings_ask_the_evaluator_the_layers_and_the_pose_sensor():
     assert readings.pose() == (1.5, -2.0, 0.25)
     assert PluginReadings(p, "/other").pose() is None   # no message yet
     assert PluginReadings(p, None).pose() is None
+
+
+def test_a_withdrawn_task_is_left_at_once_and_never_set_off_to_again():
+    """A task cancelled at run time (its evaluator's `withdrawn`): left if the robot is on it,
+    dropped from the route otherwise, and filtered out of every later route — a held head
+    would keep the robot standing by a task nobody may serve."""
+    r, world = RouteExecutor(), Fake()
+    r.assign(["a", "b", "c"], 0.0)
+    r.step(0.0, world)
+    world.cancelled |= {"a", "c"}
+    assert r.step(1.0, world) == [Change("left", "a", 1.0), Change("set_off", "b", 1.0)]
+    assert (r.queue, r.last, r.withdrawn) == (["b"], "a", {"a", "c"})
+    assert r.assign(["c", "a", "b", "d"], 2.0) == [] and r.queue == ["b", "d"]
+    world.finished.add("b")
+    r.step(3.0, world)
+    assert r.served_ids() == ["b"] and r.current == "d"

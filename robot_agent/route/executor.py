@@ -20,6 +20,9 @@ Rules, each for a reason:
   away because a re-plan listed it later: it moves to the head) and abandons it otherwise —
   the robot stops (its layers are terminated) and the task is *left*, for whoever is given it.
 * A served task is never served again: a route naming one is taken without it.
+* A withdrawn task (cancelled at run time: its evaluator's `withdrawn`) is left at once and
+  never set off to again, whatever route names it: held, it would keep the robot standing by a
+  task nobody may serve (issue 50).
 """
 
 from __future__ import annotations
@@ -42,6 +45,7 @@ class Readings(Protocol):
     def applicable(self, task_id: str, now: float) -> bool: ...
     def done(self, task_id: str, now: float) -> bool: ...
     def pose(self) -> tuple[float, float, float] | None: ...
+    def withdrawn(self, task_id: str, now: float) -> bool: ...
 
 
 class PluginReadings:
@@ -57,6 +61,10 @@ class PluginReadings:
 
     def done(self, task_id: str, now: float) -> bool:
         return any(layer.done(now) for layer in self.plugins.layers.get(task_id, ()))
+
+    def withdrawn(self, task_id: str, now: float) -> bool:
+        ev = self.plugins.evaluators.get(task_id)
+        return ev is not None and bool(ev.withdrawn(now))
 
     def pose(self) -> tuple[float, float, float] | None:
         sensor = self.plugins.sensors.get(self.pose_topic) if self.pose_topic else None
@@ -87,6 +95,7 @@ class RouteExecutor:
     since: float | None = None                        # when it set off to `current`
     served: list[Served] = field(default_factory=list)
     last: str | None = None                           # the task it last served or left
+    withdrawn: set[str] = field(default_factory=set)  # cancelled at run time: never again
 
     def served_ids(self) -> list[str]:
         return [s.task for s in self.served]
@@ -98,7 +107,7 @@ class RouteExecutor:
 
     def assign(self, route: Sequence[str], now: float) -> list[Change]:
         """A new route (module docstring: the current task kept if in it, left otherwise)."""
-        done = set(self.served_ids())
+        done = set(self.served_ids()) | self.withdrawn
         route = [t for t in dict.fromkeys(route) if t not in done]
         changes = []
         if self.current is not None:
@@ -113,6 +122,13 @@ class RouteExecutor:
     def step(self, now: float, readings: Readings) -> list[Change]:
         """Move on: the current task served (its layers say so), then set off to the next."""
         changes = []
+        for task in [t for t in self.queue if readings.withdrawn(t, now)]:
+            self.withdrawn.add(task)
+            if task == self.current:
+                changes.append(Change("left", task, now))
+                self.last, self.current, self.since = task, None, None
+            else:
+                self.route.remove(task)
         if self.current is not None and readings.done(self.current, now):
             self.served.append(Served(self.current, now))
             changes.append(Change("served", self.current, now))

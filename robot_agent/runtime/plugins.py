@@ -231,6 +231,12 @@ class SensoryEvaluator(Plugin):
     def is_applicable(self, now: float) -> bool:
         raise NotImplementedError
 
+    def withdrawn(self, now: float) -> bool:
+        """Whether the task was withdrawn for good by `now` (cancelled at run time,
+        mrta_zenoh.tasks): a robot serving a route then leaves it rather than wait for it
+        (mrta_agent.route.executor). No task is withdrawn by default."""
+        return False
+
 
 class Layer(Plugin):
     """A task's behaviour. `params` is the typed section `params_section` (Params); `task_id`

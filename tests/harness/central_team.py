@@ -45,6 +45,9 @@ class Body:
     def applicable(self, task_id: str, now: float) -> bool:
         return not self.blind
 
+    def withdrawn(self, task_id: str, now: float) -> bool:
+        return False  # nothing is cancelled at run time in these teams
+
     def done(self, task_id: str, now: float) -> bool:
         return task_id in self.finished
 

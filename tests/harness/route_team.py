@@ -45,6 +45,9 @@ class Body:
     def applicable(self, task_id: str, now: float) -> bool:
         return True
 
+    def withdrawn(self, task_id: str, now: float) -> bool:
+        return False  # nothing is cancelled at run time in these teams
+
     def done(self, task_id: str, now: float) -> bool:
         if self.stalled_at is not None and now >= self.stalled_at - EPS:
             return False

@@ -69,6 +69,7 @@ def test_a_burst_and_a_cancellation_from_other_terminals_are_accounted_for_and_r
     assert len(rows) == 201 and {r["state"] for r in rows.values()} <= STATES
     assert sum(runtime["counts"].values()) == 201
     assert rows["t3"]["cancelled_at"] is not None and rows["s0"]["entered_at"] is not None
+    assert runtime["served_after_cancel"] == []  # withdrawn from whoever held it
     # the malformed one is refused, counted and listed, never entered
     assert "x1" not in rows and any(r["receiver"] == "tasks" and r["reason"] == "malformed"
                                     for r in summary["refused"])

@@ -4,13 +4,20 @@ them at once — the robot's own from its layer directly, a teammate's from its 
 
 A `done` counts only on its sender's own key with a matching `header/frame_id` (a sample on
 robot1's key claiming to be robot2 says nothing); anything else is counted and dropped.
+
+It also knows the tasks cancelled at run time (mrta_zenoh.tasks: the intake's `tasks/change`),
+each from the instant after the one the change was stamped with: in lockstep every process has
+received a change before its time moves past that instant, but one ticking at that very instant
+may or may not have yet — so a cancellation counts from the next tick on, the same for all.
 """
 
 from __future__ import annotations
 
 import threading
 
+from mrta_zenoh.clock import EPSILON
 from mrta_zenoh.keys import first_chunk
+from mrta_zenoh.tasks.messages import CHANGE, INTAKE, Change, Op
 from mrta_agent.runtime.plugins import Plugin
 
 from .keys import ALL_DONE, Event
@@ -25,7 +32,9 @@ class Board:
         self._lock = threading.Lock()
         self.done: dict[str, tuple[str, float]] = {}   # task → (robot, stamp)
         self.rejected = 0
+        self.cancelled: dict[str, float] = {}          # task → the instant it was cancelled
         owner.subscribe(ALL_DONE, self._on_done, msg_type=TaskEvent)
+        owner.subscribe(CHANGE, self._on_change, msg_type=Change)
 
     @classmethod
     def of(cls, owner: Plugin) -> "Board":
@@ -41,6 +50,18 @@ class Board:
                 self.rejected += 1
             return
         self.mark_done(msg.task_id, sender, msg.header.stamp)
+
+    def _on_change(self, sample) -> None:
+        msg = sample.message
+        if msg.op == Op.CANCEL and msg.header.frame_id == INTAKE:
+            with self._lock:
+                self.cancelled.setdefault(msg.task_id, msg.header.stamp)
+
+    def is_cancelled(self, task_id: str, now: float) -> bool:
+        """Cancelled before `now` (module docstring: from the tick after its instant)."""
+        with self._lock:
+            at = self.cancelled.get(task_id)
+        return at is not None and now > at + EPSILON
 
     def mark_done(self, task_id: str, robot: str, stamp: float) -> None:
         with self._lock:
