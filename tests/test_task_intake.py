@@ -189,3 +189,34 @@ def test_requests_are_taken_while_the_intake_checks_a_step():
     go.set()
     worker.join(10)
     assert [c.task_id for c in intake.release(1.1)[1]] == ["b"]
+
+
+def test_a_run_gets_an_intake_only_when_reachable_or_scheduled(tmp_path):
+    """Every other run is as before: no intake process, no extra lockstep participant."""
+    from types import SimpleNamespace
+    from mrta_supervisor.mission.hook import MissionOptions
+    from mrta_supervisor.mission.runner import _start_intake
+
+    class Group:
+        def __init__(self):
+            self.started = []
+
+        def start(self, argv, name):
+            self.started.append((name, argv))
+            return name
+
+    def run(options, path=INSTANCE):
+        return SimpleNamespace(options=options,
+                               mission=SimpleNamespace(instance_file=lambda _run: path))
+
+    g = Group()
+    assert _start_intake(run(MissionOptions()), g, []) is None and g.started == []
+    assert _start_intake(run(MissionOptions(), path=None), g, []) is None
+    assert _start_intake(run(MissionOptions(rendezvous="tcp/127.0.0.1:1")), g, ["-x"]) == "tasks"
+    name, argv = g.started[-1]
+    assert "--sim-time" in argv and argv[-1] == "-x"
+    assert argv[argv.index("--instance") + 1] == str(INSTANCE)
+    scheduled = tmp_path / "replay.yaml"
+    scheduled.write_text(INSTANCE.read_text() + "submitted:\n  - {at: 1.5, op: cancel, id: t3}\n")
+    assert _start_intake(run(MissionOptions(instance=scheduled)), g, []) == "tasks"
+    assert str(scheduled) in g.started[-1][1]
