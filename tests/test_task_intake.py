@@ -143,9 +143,10 @@ def test_the_delivery_task_type_admits_what_an_instance_task_may_be():
 
 def test_requests_as_people_write_them(tmp_path):
     from mrta_zenoh.tasks.requests import requests_from_file, task_fields
-    assert task_fields(("position=[1, 2]", "service=4", "capability=lift"), None) == {
-        "position": [1, 2], "service": 4, "capability": "lift"}
-    assert task_fields(("service=5",), '{"service": 1, "reward": 2}') == {"service": 5, "reward": 2}
+    assert task_fields(("position=[1, 2]", "service=4", "capability=lift"), None) == ({
+        "position": [1, 2], "service": 4, "capability": "lift"}, None)
+    assert task_fields(("service=5",), '{"service": 1, "reward": 2}') == (
+        {"service": 5, "reward": 2}, None)
     with pytest.raises(ConfigError, match="expected FIELD=VALUE"):
         task_fields(("service",), None)
     f = tmp_path / "burst.yaml"
@@ -220,3 +221,23 @@ def test_a_run_gets_an_intake_only_when_reachable_or_scheduled(tmp_path):
     scheduled.write_text(INSTANCE.read_text() + "submitted:\n  - {at: 1.5, op: cancel, id: t3}\n")
     assert _start_intake(run(MissionOptions(instance=scheduled)), g, []) == "tasks"
     assert str(scheduled) in g.started[-1][1]
+
+
+def test_an_open_rmf_task_request_maps_to_a_point_task():
+    """Open-RMF's task_request JSON (delivery: its dropoff; compose: its go_to_place activity;
+    its priority), places as "X,Y"; what a simulated run cannot mean is refused with why."""
+    from mrta_zenoh.tasks.requests import task_fields
+    delivery = {"category": "delivery", "priority": {"type": "binary", "value": 1},
+                "description": {"pickup": {"place": "0,0", "handler": "h", "payload": []},
+                                "dropoff": {"place": "1.5,-2", "handler": "h", "payload": []}}}
+    assert task_fields((), json.dumps(delivery)) == ({"position": [1.5, -2.0]}, 1)
+    go = {"category": "compose", "description": {"category": "go_to_place", "phases": [
+        {"activity": {"category": "go_to_place", "description": {"waypoint": "3,0.5"}}}]}}
+    assert task_fields(("service=2",), json.dumps(go)) == ({"position": [3.0, 0.5],
+                                                            "service": 2}, None)
+    for bad, why in [({**go, "unix_millis_earliest_start_time": 17e11}, "wall-clock"),
+                     ({"category": "patrol", "description": {}}, "category 'patrol'"),
+                     ({**delivery, "description": {"dropoff": {"place": "lobby"}}},
+                      "no named places")]:
+        with pytest.raises(ConfigError, match=why):
+            task_fields((), json.dumps(bad))

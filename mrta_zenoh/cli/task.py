@@ -74,7 +74,8 @@ def _say(requests: list[TaskRequest], answers: list) -> None:
                    "service=4, capability=lift, reward, earliest, due); VALUE is YAML. "
                    "Repeatable.")
 @click.option("--json", "as_json", metavar="OBJECT",
-              help="The task's fields as one JSON object (an Open-RMF task_request too).")
+              help="The task's fields as one JSON object, or an Open-RMF task_request (delivery: "
+                   "its dropoff place; compose/go_to_place: its place; a place is \"X,Y\").")
 @click.option("--priority", type=int, default=0, show_default=True,
               help="Higher is more urgent.")
 @click.option("--file", "file", type=click.Path(exists=True, dir_okay=False, path_type=Path),
@@ -91,7 +92,9 @@ def submit(task_id: str | None, sets: tuple[str, ...], as_json: str | None, prio
     else:
         if not task_id:
             raise click.UsageError("give TASK_ID (or --file)")
-        requests = [TaskRequest(Op.SUBMIT, task_id, task_fields(sets, as_json), priority)]
+        fields, stated = task_fields(sets, as_json)
+        requests = [TaskRequest(Op.SUBMIT, task_id, fields,
+                                stated if stated is not None and priority == 0 else priority)]
     _say(requests, _ask(bus_options, name, requests, timeout))
 
 

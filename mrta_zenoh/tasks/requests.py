@@ -1,5 +1,11 @@
 """Requests as a person writes them: `--set FIELD=VALUE` pairs, a JSON object, a file of many
-(line-aware: an error names file, line and key)."""
+(line-aware: an error names file, line and key) — and an Open-RMF `task_request` (the JSON its
+fleet adapters take: `category`, `description`, optional `priority`), mapped to a point task.
+
+Open-RMF places are waypoint names of a navigation graph; a world of ours has none, so a place
+is given as its coordinates, "X,Y" (metres). What has no meaning in a simulated run is refused,
+not dropped: a wall-clock `unix_millis_earliest_start_time` (a simulated run's instants are not
+the epoch's)."""
 
 from __future__ import annotations
 
@@ -15,9 +21,59 @@ from .api import TaskRequest
 from .messages import Op
 
 
-def task_fields(sets: tuple[str, ...], as_json: str | None) -> dict[str, Any]:
-    """The fields of one task from --set pairs (YAML values) over a --json object."""
+RMF_CATEGORIES = ("delivery", "compose")   # compose: its go_to_place activity
+
+
+def _place(value: Any, where: str) -> list[float]:
+    name = value.get("waypoint") if isinstance(value, dict) else value
+    if isinstance(name, str):
+        x, sep, y = name.partition(",")
+        try:
+            if sep:
+                return [float(x), float(y)]
+        except ValueError:
+            pass
+    raise ConfigError(f"{where}: place {name!r:.60}: this world has no named places; give the "
+                      "place as \"X,Y\" (metres)")
+
+
+def from_rmf(request: dict[str, Any]) -> tuple[dict[str, Any], int | None]:
+    """An Open-RMF task_request → (the task's fields, its priority or None)."""
+    category, desc = request.get("category"), request.get("description")
+    if category not in RMF_CATEGORIES or not isinstance(desc, dict):
+        raise ConfigError(f"task_request: category {category!r}: expected delivery, or compose "
+                          "with a go_to_place activity, and a description object")
+    if request.get("unix_millis_earliest_start_time"):
+        raise ConfigError("task_request: unix_millis_earliest_start_time is wall-clock time, "
+                          "which a simulated run has no instant for: give `earliest` (s)")
+    if category == "delivery":
+        drop = desc.get("dropoff")
+        if not isinstance(drop, dict):
+            raise ConfigError("task_request: a delivery needs description.dropoff.place")
+        fields = {"position": _place(drop.get("place"), "description.dropoff")}
+    else:
+        phases = desc.get("phases") if desc.get("category") == "go_to_place" else None
+        activity = (phases[0].get("activity") if isinstance(phases, list) and phases
+                    and isinstance(phases[0], dict) else None)
+        if not isinstance(activity, dict) or activity.get("category") != "go_to_place":
+            raise ConfigError("task_request: compose: expected description.category go_to_place "
+                              "with phases[0].activity of category go_to_place")
+        fields = {"position": _place(activity.get("description"),
+                                     "description.phases[0].activity.description")}
+    priority = request.get("priority")
+    if isinstance(priority, dict):
+        priority = priority.get("value")
+    if priority is not None and type(priority) is not int:
+        raise ConfigError(f"task_request: priority {priority!r}: expected an integer value")
+    return fields, priority
+
+
+def task_fields(sets: tuple[str, ...], as_json: str | None
+                ) -> tuple[dict[str, Any], int | None]:
+    """The fields of one task from --set pairs (YAML values) over a --json object (an
+    Open-RMF task_request mapped by from_rmf), and the priority the request states (None)."""
     fields: dict[str, Any] = {}
+    priority = None
     if as_json is not None:
         try:
             fields = json.loads(as_json)
@@ -25,6 +81,8 @@ def task_fields(sets: tuple[str, ...], as_json: str | None) -> dict[str, Any]:
             raise ConfigError(f"--json: not JSON: {exc}") from None
         if not isinstance(fields, dict):
             raise ConfigError("--json: the task's fields must be a JSON object")
+        if "category" in fields and "description" in fields:
+            fields, priority = from_rmf(fields)
     for pair in sets:
         key, sep, value = pair.partition("=")
         if not sep or not key.strip():
@@ -33,7 +91,7 @@ def task_fields(sets: tuple[str, ...], as_json: str | None) -> dict[str, Any]:
             fields[key.strip()] = yaml.safe_load(value)
         except yaml.YAMLError:
             raise ConfigError(f"--set {pair!r}: the value is not YAML") from None
-    return fields
+    return fields, priority
 
 
 def requests_from_file(path: Path) -> list[TaskRequest]:
