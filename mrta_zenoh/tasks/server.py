@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections import deque
 import threading
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -34,6 +35,7 @@ log = logging.getLogger("mrta.tasks")
 PERIOD = 0.1          # simulated s between the step boundaries the intake is due at
 TOKEN = f"@mrta/{INTAKE}/intake"  # its liveliness token (up: it takes requests); an `@`
 # chunk, so no `**` watch takes it for a robot (the supervisor's robotN/**)
+MAX_REFUSED_ANSWERS = 10_000  # refusals answered a step at most (all are counted)
 ROLE = INTAKE         # its role in a secured fleet (mrta.secure.roles: `tasks`)
 
 
@@ -72,6 +74,11 @@ def serve(options: ServeOptions, stop: threading.Event | None = None) -> int:
     with Node(options.bus_options, ROLE, name=INTAKE, time=time, stop=stop) as node:
         bus, clock = node.bus, node.clock
 
+        # refusals are answered from the loop, not the network's thread (a publish there may
+        # wait on a slow submitter), and at most MAX_REFUSED_ANSWERS a step: a flood's
+        # refusals are all counted (the tally), its oldest beyond that go unanswered
+        refused: deque = deque(maxlen=MAX_REFUSED_ANSWERS)
+
         def on_request(sample) -> None:
             submitter = sample.key.rsplit("/", 1)[-1]
             req: Request = sample.message
@@ -81,7 +88,7 @@ def serve(options: ServeOptions, stop: threading.Event | None = None) -> int:
             else:
                 answer = intake.offer(submitter, req)
             if answer is not None:
-                bus.publish(answer_key(submitter), answer)
+                refused.append((submitter, answer))
 
         node.hold(bus.subscribe(f"{REQUEST}/*", on_request, msg_type=Request))
         node.declare_alive(TOKEN)
@@ -100,6 +107,8 @@ def serve(options: ServeOptions, stop: threading.Event | None = None) -> int:
             answers, changes = intake.release(t)
             for change in changes:
                 bus.publish(CHANGE, change)
+            while refused:
+                answers.append(refused.popleft())
             for submitter, answer in answers:
                 bus.publish(answer_key(submitter), answer)
             counts = intake.refused()

@@ -1,7 +1,8 @@
-"""Submissions on a secured fleet (issue 50.6): only a submitter's certificate may send task
-requests, on its own key; a robot's certificate cannot submit (refused at start by the identity
-check, and a request it publishes anyway is dropped by the router's access control — the intake
-never hears it)."""
+"""The entry point's reliability across processes (issue 50.6): on a secured fleet only a
+submitter's certificate may send task requests, on its own key — a robot's certificate cannot
+submit (refused at start by the identity check, and a request it publishes anyway is dropped by
+the router's access control: the intake never hears it); a flood beyond a submitter's bound is
+refused with its reason, counted, and does not hold another submitter back."""
 
 import sys
 
@@ -61,3 +62,21 @@ def test_only_a_submitters_certificate_submits(children, tmp_path):
     listing = task("list", "--json")
     assert listing.wait(90) == 0, listing.stderr[-5:]
     assert '"n1"' in listing.stdout[-1] and "forged" not in listing.stdout[-1]
+
+
+@pytest.mark.timeout(300)
+def test_a_flood_is_refused_counted_and_does_not_hold_others_back(children, tmp_path):
+    children.mrta("task", "serve", "--instance", INSTANCE, "--burst", "50", "--rate", "5",
+                  name="intake")
+    lines = ["tasks:"] + [f"  f{i}: {{position: [1.0, 0.5]}}" for i in range(300)]
+    (tmp_path / "flood.yaml").write_text("\n".join(lines) + "\n")
+    flood = children.mrta("task", "submit", "--file", tmp_path / "flood.yaml", "--as", "flood",
+                          "--timeout", "60", name="flood")
+    assert flood.wait(90) == 2, flood.stderr[-3:]
+    accepted = [line for line in flood.stdout if " accepted at " in line]
+    refused = [line for line in flood.stdout if " refused: rate: " in line]
+    assert len(accepted) + len(refused) == 300 and 50 <= len(accepted) < 80, flood.stdout[-3:]
+    assert "not accepted" in flood.stderr[-1]
+    calm = children.mrta("task", "submit", "c1", "--set", "position=[2.0,1.5]", "--as", "calm",
+                         name="calm")
+    assert calm.wait(90) == 0 and calm.stdout[-1].startswith("c1 accepted at ")
