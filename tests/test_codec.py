@@ -19,6 +19,7 @@ from mrta_agent.cbba.messages import Bids
 from mrta_zenoh.fault_roles import Assigned
 from mrta_zenoh.fault_tally import FaultTally
 from mrta_zenoh.refusal_tally import RefusedTally
+from mrta_zenoh.tasks.messages import Answer, Change, Request
 
 EXAMPLES = [
     Header("robot1", 12.5, 7),
@@ -62,6 +63,9 @@ EXAMPLES = [
     Bids(Header("robot2", 4.1, 9), ((0, 1, 0.75),), ((0, 4.0), (1, 4.1)), (3,), 1.5, -2.0),
     Progress(Header("robot2", 4.1, 9), "t3", "t5", ("t3", "t1"), ("t5",), 1.5, -2.0, 0.3),
     Queued(Header("robot2", 4.1, 10), "t1", 1),
+    Request(Header("ops", 1.0, 0), "r1", "submit", "n1", '{"position": [1, 2]}', 2),
+    Answer(Header("tasks", 2.5, 3), "r1", "accepted", "n1", "", 2.5, ""),
+    Change(Header("tasks", 2.5, 0), "submit", "n1", '{"position": [1, 2]}', 2, "ops"),
 ]
 
 

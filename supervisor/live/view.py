@@ -71,7 +71,7 @@ def render(snap: dict, width: int = 120) -> Group:
         line = Text("ALARM ", style="bold red")
         line.append(plain(f"{a['kind']} {a['subject']} since {a['since']:.1f}s"))
         parts.append(line)
-    room = 6 - min(3, len(snap["alarms"])) - (0 if width >= WIDE else 3)
+    room = 6 - min(3, len(snap["alarms"])) - (0 if width >= WIDE else 3) - (1 if idle else 0)
     for tr in snap["transitions"][-max(room, 1):]:
         text = plain(f"{tr['time']:9.1f}  {tr['kind']:<10} {tr['subject']:<24} "
                      f"{tr['from'] or '·'} → {tr['to'] or '·'}")
