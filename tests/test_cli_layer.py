@@ -39,6 +39,7 @@ VERB_MODULES = {
     "robot_agent/murdoch/cli.py",       # mrta murdoch
     "robot_agent/central/cli.py",       # mrta central, mrta dispatcher
     "robot_agent/ssi/cli.py",           # mrta ssi
+    "robot_agent/tessi/cli.py",         # mrta tessi
     "robot_agent/cbba/cli.py",          # mrta cbba
     "robot_agent/runtime/host_cli.py",  # mrta host (a robot's arguments parsed by its verb)
     "simulator/cli.py",                 # mrta sim

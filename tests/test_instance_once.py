@@ -19,7 +19,8 @@ from tests.harness.helpers import CONFIGS
 
 APPS = CONFIGS / "applications"
 PACKAGES = {"alliance": "delivery", "murdoch": "delivery_murdoch",
-            "central": "delivery_central", "ssi": "delivery_ssi", "cbba": "delivery_cbba"}
+            "central": "delivery_central", "ssi": "delivery_ssi", "cbba": "delivery_cbba",
+            "tessi": "delivery_tessi"}
 
 
 @pytest.fixture
@@ -140,7 +141,8 @@ DELIVERY_PACKAGES = sorted(p for p in APPS.iterdir()
 
 def test_every_delivery_package_in_configs_is_checked():
     assert {p.name for p in DELIVERY_PACKAGES} == {f"delivery{s}" for s in
-                                                   ("", "_murdoch", "_central", "_ssi", "_cbba")}
+                                                   ("", "_murdoch", "_central", "_ssi", "_cbba",
+                                                    "_tessi")}
 
 
 @pytest.mark.parametrize("package", DELIVERY_PACKAGES, ids=lambda p: p.name)

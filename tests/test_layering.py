@@ -26,6 +26,7 @@ PACKAGES = {
     "mrta_agent.central": ROOT / "robot_agent" / "central",
     "mrta_agent.ssi": ROOT / "robot_agent" / "ssi",
     "mrta_agent.cbba": ROOT / "robot_agent" / "cbba",
+    "mrta_agent.tessi": ROOT / "robot_agent" / "tessi",
     "mrta_simulator": ROOT / "simulator",
     "mrta_supervisor": ROOT / "supervisor",
     "mrta_supervisor.live": ROOT / "supervisor" / "live",
@@ -38,16 +39,19 @@ PACKAGES = {
     "mrta_delivery_central": ROOT / "configs" / "applications" / "delivery_central",
     "mrta_delivery_ssi": ROOT / "configs" / "applications" / "delivery_ssi",
     "mrta_delivery_cbba": ROOT / "configs" / "applications" / "delivery_cbba",
+    "mrta_delivery_tessi": ROOT / "configs" / "applications" / "delivery_tessi",
 }
 APPS = {"mrta_patrol", "mrta_patrol_murdoch", "mrta_delivery", "mrta_delivery_murdoch",
-        "mrta_delivery_central", "mrta_delivery_ssi", "mrta_delivery_cbba", "ping_app"}
+        "mrta_delivery_central", "mrta_delivery_ssi", "mrta_delivery_cbba",
+        "mrta_delivery_tessi", "ping_app"}
 FORBIDDEN = {
     "mrta_zenoh": {"mrta_agent", "mrta_simulator", "mrta_supervisor"} | APPS,
     "mrta_agent.runtime": {"mrta_agent.route", "mrta_agent.alliance", "mrta_agent.murdoch",
                            "mrta_agent.central", "mrta_agent.ssi", "mrta_agent.cbba",
+                           "mrta_agent.tessi",
                            "mrta_simulator", "mrta_supervisor"} | APPS,
     "mrta_agent.route": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_agent.central",
-                         "mrta_agent.ssi", "mrta_agent.cbba",
+                         "mrta_agent.ssi", "mrta_agent.cbba", "mrta_agent.tessi",
                          "mrta_simulator", "mrta_supervisor"} | APPS,
     "mrta_agent.alliance": {"mrta_agent.route", "mrta_agent.murdoch", "mrta_agent.central",
                             "mrta_simulator", "mrta_supervisor"} | APPS,
@@ -56,9 +60,12 @@ FORBIDDEN = {
     "mrta_agent.central": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_simulator",
                            "mrta_supervisor"} | APPS,
     "mrta_agent.ssi": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_agent.cbba",
-                       "mrta_agent.central", "mrta_simulator", "mrta_supervisor"} | APPS,
+                       "mrta_agent.central", "mrta_agent.tessi", "mrta_simulator", "mrta_supervisor"} | APPS,
     "mrta_agent.cbba": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_agent.ssi",
-                        "mrta_agent.central", "mrta_simulator", "mrta_supervisor"} | APPS,
+                        "mrta_agent.central", "mrta_agent.tessi", "mrta_simulator", "mrta_supervisor"} | APPS,
+    # TeSSI is SSI with another bid: built on it (its rounds and reliability rules shared)
+    "mrta_agent.tessi": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_agent.cbba",
+                         "mrta_agent.central", "mrta_simulator", "mrta_supervisor"} | APPS,
     "mrta_simulator": {"mrta_agent", "mrta_supervisor"} | APPS,
     "mrta_supervisor": {"mrta_agent", "mrta_simulator"} | APPS,
     # supervisor/'s three rooms (supervisor/__init__.py): the live supervisor knows no experiment
@@ -72,7 +79,8 @@ FORBIDDEN = {
     "mrta_patrol_murdoch": {"mrta_zenoh", "mrta_agent", "mrta_simulator", "mrta_supervisor",
                             "mrta_patrol"},  # holds no code at all
     "mrta_delivery": {"mrta_agent.alliance", "mrta_agent.murdoch", "mrta_agent.central",
-                      "mrta_agent.ssi", "mrta_agent.cbba", "mrta_delivery_murdoch",
+                      "mrta_agent.ssi", "mrta_agent.cbba", "mrta_agent.tessi",
+                      "mrta_delivery_murdoch", "mrta_delivery_tessi",
                       "mrta_delivery_central", "mrta_delivery_ssi", "mrta_delivery_cbba",
                       "mrta_patrol"},
     "mrta_delivery_murdoch": {"mrta_zenoh", "mrta_agent", "mrta_simulator", "mrta_supervisor",
@@ -83,11 +91,14 @@ FORBIDDEN = {
                           "mrta_delivery"},  # holds no code at all
     "mrta_delivery_cbba": {"mrta_zenoh", "mrta_agent", "mrta_simulator", "mrta_supervisor",
                            "mrta_delivery"},  # holds no code at all
+    "mrta_delivery_tessi": {"mrta_zenoh", "mrta_agent", "mrta_simulator", "mrta_supervisor",
+                            "mrta_delivery"},  # holds no code at all
 }
 # the top-level import names the wheel installs: none may be another PyPI project's
 TOP_LEVEL = {"mrta_zenoh", "mrta_agent", "mrta_simulator", "mrta_supervisor", "mrta_patrol",
              "mrta_patrol_murdoch", "mrta_delivery", "mrta_delivery_murdoch",
-             "mrta_delivery_central", "mrta_delivery_ssi", "mrta_delivery_cbba"}
+             "mrta_delivery_central", "mrta_delivery_ssi", "mrta_delivery_cbba",
+             "mrta_delivery_tessi"}
 
 
 def module_of(path: Path, package: str) -> str:

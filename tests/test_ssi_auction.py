@@ -17,38 +17,17 @@ from mrta_agent.ssi.messages import DONE, MESSAGES, OPEN, UNKNOWN, Bid, Round
 from mrta_zenoh.messages import Header
 from mrta_zenoh.planning import Problem, Robot, Task, evaluate, route_visits
 from mrta_zenoh.planning.insertion import minsum_insertion
+from tests.harness.direct_auction import direct_auction
 from tests.harness.logic_team import LogicTeam
 
 
 def direct_ssi(p: Problem, tasks=None, routes=None, robots=None):
-    """SSI with the MinSum rule, straight from its definition: each round, every (robot, open
-    task, place) is priced by the travel time it adds, and the least — ties: lower robot id,
-    lower task id, earlier place — wins. Returns the routes and the awards in order."""
-    robots = range(len(p.robots)) if robots is None else robots
-    routes = {i: list((routes or {}).get(i, [])) for i in robots}
-    left = set(range(len(p.tasks)) if tasks is None else tasks)
-    awards = []
-    while left:
-        best = None
-        for i in robots:
-            for j in left:
-                if not p.capable(i, j):
-                    continue
-                r = routes[i]
-                for pos in range(len(r) + 1):
-                    before = r[:pos] + [j] + r[pos:]
-                    added = (sum(v.travel for v in route_visits(p, i, before))
-                             - sum(v.travel for v in route_visits(p, i, r)))
-                    key = (added, p.robots[i].id, p.tasks[j].id, pos, i, j)
-                    if best is None or key < best:
-                        best = key
-        if best is None:
-            break
-        added, _, _, pos, i, j = best
-        routes[i].insert(pos, j)
-        left.discard(j)
-        awards.append((j, i, added))
-    return routes, awards
+    """SSI with the MinSum rule, straight from its definition (tests/harness/direct_auction.py):
+    each (robot, open task, place) priced by the travel time it adds."""
+    def added(route, new, i):
+        return (sum(v.travel for v in route_visits(p, i, new))
+                - sum(v.travel for v in route_visits(p, i, route)))
+    return direct_auction(p, added, tasks, routes, robots)
 
 
 def test_minsum_insertion_is_the_cheapest_place_by_added_travel():

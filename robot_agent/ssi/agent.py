@@ -22,16 +22,24 @@ from .messages import OPEN
 
 
 class SsiCoordinator(OwnRouteCoordinator):
+    """`logic_class` and `logic_keys`: what an auction built on SSI's (TeSSI) changes."""
+
     logic_kinds = Ssi.listens
+    logic_class: type[Ssi] = Ssi
     log = logging.getLogger("mrta.ssi")
 
     def __init__(self, robot_id: str, params: OwnRouteParams, readings: Readings):
         keys = params.robot.extra
-        logic = Ssi(params.problem, robot_id, lookahead=keys.lookahead,
-                    resend_period=keys.resend_period, join_wait=keys.join_wait,
-                    origin=Origin(None, 0.0), silence=params.robot.progress_timeout)
+        logic = self.logic_class(params.problem, robot_id, lookahead=keys.lookahead,
+                                 resend_period=keys.resend_period, join_wait=keys.join_wait,
+                                 origin=Origin(None, 0.0), silence=params.robot.progress_timeout,
+                                 **self.logic_keys(keys))
         super().__init__(robot_id, logic, readings, params.robot.report_period,
                          params.robot.progress_timeout)
+
+    def logic_keys(self, keys) -> dict:
+        """The logic's own arguments from the robot file's keys (SSI: none)."""
+        return {}
 
     def subjects(self, kind: str) -> tuple[str, ...] | None:
         """Bids go to their auctioneer (`*/ssi/bid/<auctioneer>`): only those to this robot."""

@@ -43,8 +43,10 @@ class SsiArchitecture(OwnRouteArchitecture):
         under its own key (`robot1/ssi/queued/t3`)."""
         return kind in ("bid", "queued")
 
+    coordinator_class: type[SsiCoordinator] = SsiCoordinator  # TeSSI's builds on it
+
     def coordinator(self, prepared: Prepared) -> SsiCoordinator:
-        return SsiCoordinator(prepared.robot_id, prepared.params,
+        return self.coordinator_class(prepared.robot_id, prepared.params,
                               PluginReadings(prepared.plugins, prepared.params.robot.pose_topic))
 
     def decision(self, sender: str, key: str, message: object) -> Decision | None:
@@ -58,8 +60,8 @@ class SsiArchitecture(OwnRouteArchitecture):
 
     def takeover_check(self, t: Takeover) -> TakeoverBound:
         return TakeoverBound(None, t.failed_at, case=(
-            "SSI re-auctions a lost robot's tasks at once, but whoever wins one serves it in "
-            "its path's order, which the auction chooses: no bound on when it is served"))
+            f"{self.title} re-auctions a lost robot's tasks at once, but whoever wins one serves "
+            "it in its path's order, which the auction chooses: no bound on when it is served"))
 
 
 SSI = SsiArchitecture()

@@ -254,7 +254,7 @@ class Ssi(RouteLogic):
         if award in mine and award not in self.path and award not in self.unacked:
             new.insert(0, award)
         for j in new:
-            _, where = minsum_insertion(self.problem, self.i, self.path, j, self.origin.task)
+            _, where = self.insertion(j)
             self.path.insert(where, j)
         if award >= 0 and owners[award] >= 0 and (not self.awards
                                                   or self.awards[-1].round != number):
@@ -262,13 +262,22 @@ class Ssi(RouteLogic):
         self.round, self.round_from, self.owners = number, announcer, owners
         self.unacked = {j for j in self.unacked if owners[j] != DONE}
 
+    def insertion(self, j: int) -> tuple[float, int]:
+        """(cost, place) of task j at its best place in this robot's path: SSI's MinSum rule
+        (the added travel time); a subclass bidding another rule (TeSSI's temporal network)
+        overrides it, and returns an infinite cost where j fits nowhere — not bid on, and
+        an award of it goes at the end of the path."""
+        return minsum_insertion(self.problem, self.i, self.path, j, self.origin.task)
+
     def best_bid(self) -> tuple[int, float]:
         """(task, added travel time) of this robot's cheapest open task; (−1, 0) if none."""
         best = None
         for j, w in enumerate(self.owners):
             if w != OPEN or not self.problem.capable(self.i, j):
                 continue
-            cost, _ = minsum_insertion(self.problem, self.i, self.path, j, self.origin.task)
+            cost, _ = self.insertion(j)
+            if not math.isfinite(cost):
+                continue
             if best is None or (cost, self.task_rank[j]) < (best[1], self.task_rank[best[0]]):
                 best = (j, cost)
         return best if best is not None else (-1, 0.0)

@@ -35,9 +35,9 @@ How the instance becomes each architecture's parameters (docs/delivery.md):
   pose when it bids, so a robot that finished a task bids from there.
 * central: one task entry per task the robot can serve (its evaluator), the dispatcher on
   MinSum with its defaults (robot_agent/central/params.py).
-* SSI and CBBA (`delivery_ssi`, `delivery_cbba`, answers files beside central's): as central's
-  robots, each robot file naming the package's `config/instance.yaml`, which its decision logic
-  plans on; their own keys at their defaults.
+* SSI, CBBA and TeSSI (`delivery_ssi`, `delivery_cbba`, `delivery_tessi`, answers files beside
+  central's): as central's robots, each robot file naming the package's `config/instance.yaml`,
+  which its decision logic plans on; their own keys at their defaults.
 """
 
 from __future__ import annotations
@@ -188,6 +188,9 @@ def central_answers(params: InstanceBody, package: str = "delivery_central") -> 
 OWN_ROUTE = {  # SSI and CBBA: each robot plans on the instance itself
     "ssi": ("SSI", "sequential single-item auctions: each round every robot bids the travel "
                    "time its best open task adds to its path, the lowest bid wins"),
+    "tessi": ("TeSSI", "TeSSI's temporal auctions: each round every robot bids the makespan "
+                       "increase of inserting its best open task where its temporal network "
+                       "stays consistent, the lowest bid wins"),
     "cbba": ("CBBA", "the consensus-based bundle algorithm: each robot builds a bundle by "
                      "discounted reward and agrees on the winners with its teammates")}
 
@@ -359,7 +362,7 @@ def instance_yaml(params: InstanceBody) -> bytes:
 def all_files(params: InstanceBody, alliance: str = "delivery",
               murdoch: str = "delivery_murdoch",
               central: str = "delivery_central", ssi: str = "delivery_ssi",
-              cbba: str = "delivery_cbba") -> dict[str, bytes]:
+              cbba: str = "delivery_cbba", tessi: str = "delivery_tessi") -> dict[str, bytes]:
     """Every package's generated files, by path under their common parent folder, and
     central's, SSI's and CBBA's answers files beside them."""
     files = {}
@@ -367,7 +370,8 @@ def all_files(params: InstanceBody, alliance: str = "delivery",
             (murdoch_answers(params, murdoch), murdoch),
             (central_answers(params, central), central),
             (own_route_answers(params, "ssi", ssi), ssi),
-            (own_route_answers(params, "cbba", cbba), cbba))
+            (own_route_answers(params, "cbba", cbba), cbba),
+            (own_route_answers(params, "tessi", tessi), tessi))
     for answers, folder in made:
         for rel, data in package_files(params, answers).items():
             files[f"{folder}/{rel}"] = data
@@ -383,7 +387,7 @@ def generate(params: InstanceBody, folder: Path, name: str = "delivery") -> list
     written, so a bad instance writes nothing; each file is replaced atomically (the package
     folders also hold this application's Python modules, so they are not replaced whole)."""
     files = all_files(params, name, f"{name}_murdoch", f"{name}_central", f"{name}_ssi",
-                      f"{name}_cbba")
+                      f"{name}_cbba", f"{name}_tessi")
     written = []
     for rel, data in sorted(files.items()):
         path = folder / rel
