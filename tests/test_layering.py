@@ -271,6 +271,8 @@ def _marks_multiprocess(node: ast.AST) -> bool:
 def whole_file_multiprocess(path: Path) -> bool:
     """Whether every test of the module is marked `multiprocess` (its `pytestmark`, or each
     test function's decorators)."""
+    if "multiprocess" not in source_tree.text(path):
+        return False  # most modules: no need to parse them
     tree = source_tree.tree(path)
     if any(isinstance(n, ast.Assign) and _marks_multiprocess(n.value)
            and any(isinstance(t, ast.Name) and t.id == "pytestmark" for t in n.targets)
