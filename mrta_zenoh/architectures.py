@@ -65,6 +65,8 @@ class Decision:
     # what names it across repeats of its message (a message resent until acknowledged records
     # one decision, counted once); None: every message is a decision of its own
     ident: object = None
+    # its search was stopped by a time cap: what it decided depends on the machine's speed
+    capped: bool = False
 
 
 @dataclass(frozen=True)

@@ -225,3 +225,35 @@ def test_the_dispatcher_says_what_it_refused_and_the_team_serves_every_task():
     last = [m for m in heard if m.header.frame_id == DISPATCHER][-1]
     assert last.entries() == {("progress", "robot2", NOT_GRANTED, True): 3}
     watcher.close()
+
+
+def test_a_search_stopped_by_its_time_cap_is_recorded_and_the_run_not_called_exact(
+        monkeypatch):
+    """Issue 51.2: a dispatcher search stopped by its time cap was not reported, and the run was
+    still called exact (its plan depends on the machine then). The Plan says it, the decision
+    read from it counts it, and the summary's one line says why the run is not exact. Whether
+    a real search hits its cap depends on the machine, so the search's answer is made capped
+    here (the real search's routes, its time made the whole `time_limit`)."""
+    import dataclasses
+
+    from mrta_agent.central import dispatcher as central
+    from mrta_supervisor.mission.summary import Decisions, MessageRates, Summary, run_problem
+
+    real = central.solve
+    monkeypatch.setattr(central, "solve", lambda *a, **kw: dataclasses.replace(
+        real(*a, **kw), seconds=kw["time_limit"]))
+    d = Dispatcher(SQUARE, DispatcherParams(exact_limit=0))
+    for r in SQUARE.robots:
+        d.teammate(r.id, True)
+    (plan,) = [s for s in d.tick(0.0) if s.kind == "plan"]
+    assert plan.fields["method"] == "best found" and plan.fields["capped"] is True
+    message = plan.message(CENTRAL.messages, Header(DISPATCHER, 0.0, 1))
+    assert CENTRAL.decision(DISPATCHER, "dispatcher/central/plan", message).capped
+    summary = Summary(mission="delivery", application="delivery_central",
+                      architecture="central", duration=60.0, speed=0.0, seed=0,
+                      wall_seconds=1.0, robots=["robot1"], who_did_what={},
+                      first_full_allocation=None, coverage={},
+                      messages=MessageRates(1.0, 1.0, "central"), output="out", files=[],
+                      lockstep=True, faults="none", lockstep_exact=False, run_status="complete",
+                      decisions=Decisions(3, 1.0, 2.0, "minsum", capped=1))
+    assert "stopped by their search's time cap" in run_problem(summary)

@@ -64,3 +64,24 @@ def test_a_crashed_robot_s_stretches_end_at_its_crash_as_lost():
                          as_struck(parse_faults("crash:@first@5"), records))
     mine = [e for e in log if e.robot == "robot1"]
     assert mine and all(e.ended_at <= 5.0 and e.reason == "lost" for e in mine), mine
+
+
+def test_a_robot_holding_while_its_dispatcher_is_silent_is_no_overlap():
+    """central under a partition (issue 51.2): robot1, cut off, holds t2 (stands still, its
+    dispatcher silent past its lease) while the dispatcher gives t2 to robot2 — both said it
+    was theirs, and the summary counted an overlap. A holding robot serves nothing."""
+    from mrta_agent.central.architecture import CENTRAL
+
+    def report(robot: str, at: float, holding: bool) -> tuple:
+        msg = Progress(Header(robot, at, int(at * 10)), "t2", "", ("t2",), (), 0.0, 0.0, 0.0,
+                       1, holding)
+        return (f"{robot}/central/progress", encoding_for(Progress.TYPE_NAME), int(at * 1e9),
+                encode(msg))
+
+    records = [report("robot1", float(i), holding=i >= 6) for i in range(1, 21)]
+    records += [report("robot2", i + 0.05, holding=False) for i in range(10, 21)]
+    records.sort(key=lambda r: r[2])
+    log = allocation_log(records, CENTRAL, PARAMS.problem(), 20.0)
+    assert not overlaps(log)
+    first = next(e for e in log if e.robot == "robot1")
+    assert first.task == "t2" and first.ended_at == 6.0

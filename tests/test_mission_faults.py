@@ -61,3 +61,11 @@ def test_a_run_parses_its_fault_spec_once(tmp_path, monkeypatch):
 def test_a_bad_spec_is_refused_when_the_run_is_resolved():
     with pytest.raises(ConfigError, match="is not one of"):
         resolve(MissionOptions(application="delivery", fail="crash:robot99@5"))
+
+
+def test_a_stall_of_the_dispatcher_is_refused_naming_what_would_act():
+    """`stall:dispatcher@5` was accepted and did nothing (issue 51): a stall stops a robot's
+    layers, and the dispatcher has none."""
+    with pytest.raises(ConfigError, match="dispatcher has none; crash it .dispatcher@5."):
+        resolve(MissionOptions(application="delivery_central", fail="stall:dispatcher@5"))
+    resolve(MissionOptions(application="delivery_central", fail="dispatcher@5"))

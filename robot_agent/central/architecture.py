@@ -77,7 +77,8 @@ class Central(RouteArchitecture):
     def decision(self, sender: str, key: str, message: object) -> Decision | None:
         if not isinstance(message, Plan) or sender != DISPATCHER:
             return None
-        return Decision(sender, message.header.stamp, message.solve_ms, message.objective)
+        return Decision(sender, message.header.stamp, message.solve_ms, message.objective,
+                        capped=message.capped)
 
     def takeover_bound(self, robot_params: Path, task: str) -> float:
         """How soon a lost robot's task is in another robot's queue: the dispatcher's next tick

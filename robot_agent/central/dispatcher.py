@@ -57,6 +57,7 @@ MOVED = 0.05     # m: a robot this far from where it last progressed has progres
 TURNED = 0.1     # rad: so has one that turned this much
 AT_TASK = 0.5    # m: a robot this close to its task is serving it (the task's service counts)
 HISTORY = 256    # decisions kept for inspection (tests, a debugger)
+CAPPED_SHARE = 0.98  # of time_limit: a solve this long was stopped by its cap (`capped`)
 
 CRASHED, STALLED, SILENT = "crashed", "stalled", "silent"
 
@@ -335,7 +336,16 @@ class Dispatcher(Coordinator):
         return Say("plan", dict(version=self.version, trigger=trigger,
                                 objective=p.objective.value, value=outcome.value,
                                 method=outcome.method, solve_ms=ms(outcome.seconds),
-                                routes=routes))
+                                routes=routes, capped=self.capped(situation, outcome)))
+
+    def capped(self, situation: Situation, outcome: Outcome) -> bool:
+        """Whether the decision's search was (as far as can be told) stopped by its time cap:
+        more open tasks than the exact solver takes, and the solve took CAPPED_SHARE of
+        `time_limit` or more — the share at which the search itself calls itself capped
+        (planning.routing.BestFound.capped), measured over the whole solve, so a capped search
+        is never missed. Its plan then depends on the machine's speed (issue 51.2)."""
+        return (len(situation.open_tasks) > self.params.exact_limit
+                and outcome.seconds >= CAPPED_SHARE * self.params.time_limit)
 
     # ------------------------------------------------------------ queues
     def wanted(self, rid: str) -> list[str]:

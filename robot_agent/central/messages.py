@@ -44,7 +44,8 @@ class Plan(Message):
     arrival, completion, loss, return), the objective, the value of the plan (the served
     prefixes and the new routes, planning.schedule), how it was found (`method`: exact, best
     found, or kept — the current plan was as good), `solve_ms` of computation, and the routes
-    (`robot:task,task,…`, its whole queue each)."""
+    (`robot:task,task,…`, its whole queue each); `capped`: the search was stopped by its time
+    cap (planner.Outcome.capped: the run then depends on the machine)."""
 
     header: Header
     version: int
@@ -54,3 +55,4 @@ class Plan(Message):
     method: str
     solve_ms: Finite
     routes: tuple[str, ...] = ()
+    capped: bool = False

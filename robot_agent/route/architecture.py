@@ -37,6 +37,11 @@ class RouteArchitecture(AgentArchitecture):
         if not isinstance(message, self.progress_type):
             return None
         queue = tuple(message.queue)
+        if getattr(message, "holding", False):
+            # it stands still, its dispatcher silent past its lease: it serves nothing now, and
+            # whoever the dispatcher gives its tasks meanwhile overlaps nobody (issue 51.2);
+            # reporting again without holding, it holds its queue from then
+            return Doing(sender, message.task or message.last, False, message.header.stamp, ())
         if message.task:
             return Doing(sender, message.task, True, message.header.stamp, queue)
         return Doing(sender, message.last, False, message.header.stamp, queue)

@@ -111,12 +111,14 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
         report.role = role.robot
     given_up, forgiven = lockstep_trouble(records) if run.options.lockstep else (0, 0)
     faults = run.faults
+    made = decisions(records, run.arch, end)
     summary = Summary(
         mission=run.mission.name, application=run.package.name, architecture=run.arch.name,
         duration=run.options.duration, speed=run.options.speed, seed=run.options.seed,
         wall_seconds=round(wall, 1), robots=run.robots, who_did_what=who,
         lockstep=run.options.lockstep, faults=faults.spec or "none",
-        lockstep_exact=(given_up + forgiven == 0 and status == COMPLETE)
+        lockstep_exact=(given_up + forgiven == 0 and status == COMPLETE
+                        and not (made is not None and made.capped))
         if run.options.lockstep else None,
         lockstep_given_up=given_up, lockstep_forgiven=forgiven, run_status=status,
         disturbances=list(disturbances),
@@ -127,7 +129,7 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
         # stop, recorded or not as the shutdown races the recorder
         messages=message_rates(records, run.arch, end - t0, tb),
         ended_at=None if ended_at is None else round(end, 3),
-        decisions=decisions(records, run.arch, end),
+        decisions=made,
         fault_effects=fault_effects(records, [*run.robots, *run.arch.processes], end),
         refused=refused, strangers=list(strangers),
         metrics=run.mission.metrics(run, records), failure=report,

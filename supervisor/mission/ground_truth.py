@@ -217,4 +217,5 @@ def decisions(records, arch: Architecture, end: float) -> Decisions | None:
     times = sorted(d.ms for d in found)
     objectives = sorted({d.objective for d in found if d.objective})
     return Decisions(len(found), round(statistics.median(times), 3) if times else None,
-                     round(times[-1], 3) if times else None, ", ".join(objectives) or None)
+                     round(times[-1], 3) if times else None, ", ".join(objectives) or None,
+                     sum(1 for d in found if d.capped))

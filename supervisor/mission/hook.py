@@ -24,7 +24,7 @@ from typing import Any
 
 from mrta_zenoh.architectures import Architecture, architecture
 from mrta_zenoh.errors import ConfigError
-from mrta_zenoh.failure import ROLES, Faults, parse_faults
+from mrta_zenoh.failure import ROLES, FaultKind, Faults, parse_faults
 from mrta_zenoh.toolchain.model import ApplicationFile
 from mrta_zenoh.toolchain.registry import Package, Registry
 from mrta_zenoh.yamlfile import did_you_mean
@@ -261,6 +261,12 @@ def resolve_faults(mission: Mission, robots: list[str], arch: Architecture,
     for f in faults.failures:
         if f.robot not in subjects and f.robot not in ROLES:
             raise ConfigError(f"--fail {spec}: {f.robot} is not one of {', '.join(subjects)}")
+        if f.kind is FaultKind.STALL and f.robot in arch.processes:
+            # a stall stops a robot's layers and leaves its logic talking: a process of the
+            # architecture (a dispatcher) has no layers, so it would do nothing (issue 51.5)
+            raise ConfigError(f"--fail {f.spec}: a stall stops a robot's layers, and "
+                              f"{f.robot} has none; crash it ({f.robot}@{f.at:g}) or cut it off "
+                              f"(partition:{f.robot}@{f.at:g}+D)")
         if f.at >= options.duration:
             raise ConfigError(f"--fail {f.spec}: {f.at:g} s is not before the end "
                               f"({options.duration:g} s): pick an earlier time or a longer "

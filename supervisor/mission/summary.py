@@ -133,6 +133,9 @@ class Decisions(msgspec.Struct, forbid_unknown_fields=True):
     median_ms: float | None
     max_ms: float | None
     objective: str | None = None
+    # how many were searches stopped by their time cap (Decision.capped): then the run's
+    # allocation depends on the machine, and a lockstep run is not exact
+    capped: int = 0
 
 
 class Summary(msgspec.Struct, forbid_unknown_fields=True):
@@ -325,6 +328,10 @@ def run_problem(summary: Summary) -> str | None:
         causes = ([f"a process of the run was stopped or cut off ({lost})"] if lost else []) \
             + ([f"it refused forged coordination traffic ({forged})"] if forged else [])
         return "; ".join(causes or ["disturbed"]) + ": the run is not what its seed gives"
+    capped = summary.decisions.capped if summary.decisions is not None else 0
+    if summary.lockstep_exact is False and capped:
+        return (f"{capped} allocation decision(s) stopped by their search's time cap: what was "
+                "decided depends on the machine's speed, not only on the seed")
     if summary.lockstep_exact is False:
         why = (f"strangers' participant tokens were on the bus ({', '.join(summary.strangers)}):"
                " a token nobody answers for is waited for, then given up" if summary.strangers
