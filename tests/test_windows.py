@@ -141,7 +141,8 @@ def recomputed(summary: dict) -> dict:
             out["missed"] += due < end
             continue
         r = first[tid]
-        start = r["reached_at"] if r["reached_at"] is not None else r["done_at"] - t["service"]
+        start = r.get("reached_at")  # a summary leaves out what is null
+        start = start if start is not None else r["done_at"] - t["service"]
         if start < t.get("earliest", 0.0) - 1e-3:
             out["early"] += 1
         elif start > due + 1e-3:

@@ -16,6 +16,15 @@ service), from the origin instead of from the start at 0.
   paper's guarantees assume; `prefix_scores` gives the least of a task's marginal scores over
   the route's earlier stages, which does (docs/cbba.md, "Diminishing marginal gain").
 
+**Time windows** (docs/delivery.md, "Time windows"). Timing waits for a task's `earliest`
+(`Task.opens`). Under hard windows a task goes only where it starts by its due and makes no
+task of the route late that was not (`late`); with no such place, MinSum insertion costs ∞ and
+the discounted score is 0 — CBBA's rule for an infeasible task in Choi et al.'s scoring
+extended to time windows (Ponda et al., "Decentralized planning for complex missions with
+dynamic communication constraints", ACC 2010: a task is inserted only where its window and those
+of the path's later tasks still hold, its score otherwise 0). Soft windows change no place:
+lateness is counted, not forbidden.
+
 Ties between places go to the earliest one: the rule both algorithms state, so two
 implementations of the same instance agree whatever their rounding.
 
@@ -27,7 +36,8 @@ from __future__ import annotations
 import math
 from typing import NamedTuple, Sequence
 
-from .problem import Problem
+from .problem import Problem, Windows
+from .schedule import WINDOW_TOLERANCE
 
 
 class Origin(NamedTuple):
@@ -49,10 +59,13 @@ def ranks(ids: Sequence[str]) -> list[int]:
 
 
 def minsum_insertion(problem: Problem, i: int, route: Sequence[int], j: int,
-                     origin: int | None = None) -> tuple[float, int]:
+                     origin: int | None = None, at: float = 0.0) -> tuple[float, int]:
     """(added travel time, place) of the cheapest place for task j in robot i's `route` leaving
-    from task `origin` (None: its start); place n means before route[n] (len(route): at the end)."""
-    best, where = math.inf, 0
+    from task `origin` (None: its start) at time `at`; place n means before route[n]
+    (len(route): at the end). Under hard windows only places that keep them (module docstring):
+    (∞, len(route)) when there is none."""
+    allowed = windowed_places(problem, i, route, j, Origin(origin, at))
+    best, where = math.inf, len(route) if allowed is not None else 0
     prev = origin
     for n in range(len(route) + 1):
         to_j = problem.travel(i, prev, j)
@@ -62,9 +75,47 @@ def minsum_insertion(problem: Problem, i: int, route: Sequence[int], j: int,
             prev = nxt
         else:
             added = to_j
-        if added < best:
+        if added < best and (allowed is None or n in allowed):
             best, where = added, n
     return best, where
+
+
+def binding(problem: Problem) -> bool:
+    """Whether windows restrict where a task may go: hard windows on some task."""
+    return problem.windows is Windows.HARD and problem.windowed
+
+
+def late(problem: Problem, i: int, route: Sequence[int], origin: Origin = Origin()) -> set[int]:
+    """The tasks of `route` whose service would start after their due."""
+    return {j for j, t in zip(route, starts(problem, i, route, origin))
+            if t > problem.tasks[j].due + WINDOW_TOLERANCE}
+
+
+def drop_late(problem: Problem, i: int, route: Sequence[int], fixed: int = 0,
+              origin: Origin = Origin()) -> tuple[list[int], list[int]]:
+    """(kept, dropped): `route` without the tasks that would start after their due, walked in
+    order (dropping one lets the rest start sooner); its first `fixed` tasks are kept whatever
+    (a robot's commitment). Nothing is dropped where windows do not bind."""
+    if not binding(problem):
+        return list(route), []
+    kept, dropped = list(route[:fixed]), []
+    for j in route[fixed:]:
+        if starts(problem, i, [*kept, j], origin)[-1] > problem.tasks[j].due + WINDOW_TOLERANCE:
+            dropped.append(j)
+        else:
+            kept.append(j)
+    return kept, dropped
+
+
+def windowed_places(problem: Problem, i: int, route: Sequence[int], j: int,
+                    origin: Origin = Origin()) -> set[int] | None:
+    """The places of task j in `route` that keep the windows (module docstring); None: windows
+    bind nowhere here, every place will do."""
+    if not binding(problem):
+        return None
+    before = late(problem, i, route, origin)
+    return {n for n in range(len(route) + 1)
+            if late(problem, i, [*route[:n], j, *route[n:]], origin) <= before}
 
 
 def starts(problem: Problem, i: int, route: Sequence[int],
@@ -135,8 +186,13 @@ class DiscountedRoute:
         row_j, arrival, service, reward = (len(self.problem.robots) + j, tasks[j].opens,
                                            tasks[j].service, tasks[j].reward)
         length = len(route)
+        allowed = windowed_places(self.problem, self.i, route, j, self.origin)
+        if allowed is not None and not allowed:
+            return 0.0, 0  # nowhere its window holds: scores nothing (module docstring)
         best, where = -math.inf, 0
         for n in range(length + 1):
+            if allowed is not None and n not in allowed:
+                continue
             if n == 0:
                 prev, free = self.home, self.origin.time
             else:

@@ -43,6 +43,7 @@ from typing import Iterable
 
 from mrta_zenoh.clock import EPSILON
 from mrta_zenoh.planning import Problem
+from mrta_zenoh.planning.insertion import binding
 from mrta_zenoh import timetext
 from mrta_zenoh.timetext import at
 
@@ -128,6 +129,7 @@ class Dispatcher(Coordinator):
     robots: dict[str, RobotView] = field(default_factory=dict)
     known: set[str] = field(default_factory=set)
     done: dict[str, str] = field(default_factory=dict)          # task → who served it
+    closed: set[str] = field(default_factory=set)  # hard windows: due passed, never planned again
     plan: dict[str, list[str]] = field(default_factory=dict)    # robot → route after commitment
     sent: dict[str, Sent] = field(default_factory=dict)
     version: int = 0
@@ -231,6 +233,8 @@ class Dispatcher(Coordinator):
             if task.id not in self.known and task.arrival <= now + EPSILON:
                 self.known.add(task.id)
                 self._triggers.append("arrival")
+            if binding(self.problem) and task.due < now - EPSILON:
+                self.closed.add(task.id)  # missed (planner.py, "Time windows")
         self._watch(now)
         out: list[Say] = []
         if self._triggers:
@@ -316,7 +320,8 @@ class Dispatcher(Coordinator):
         committed = {c[-1] for r in available if (c := commitments[r]) and c[-1] not in
                      self.done}
         open_tasks = tuple(t.id for t in self.problem.tasks if t.id in self.known
-                           and t.id not in self.done and t.id not in committed)
+                           and t.id not in self.done and t.id not in committed
+                           and t.id not in self.closed)
         return Situation(commitments, tuple(available), open_tasks)
 
     def _replan(self, now: float, trigger: str) -> Say:

@@ -19,6 +19,13 @@ the cheapest insertion of newly arrived ones), is kept — so an exact solve nev
 ties, and a best-found search (OR-Tools, which may find worse than the current plan on the same
 residual) never makes the plan worse than keeping it.
 
+**Time windows** (docs/delivery.md, "Time windows"). The residual keeps every task's window,
+so a solver that plans with windows plans the residual with them; under hard windows whatever a
+plan would start after its due is dropped from it (`insertion.drop_late`: left unassigned —
+missed, unless a later re-plan finds it a place), the current plan is extended only at places
+that keep every window (`insertion.windowed_places`), and of two plans the one that leaves
+fewer tasks out wins before its value counts (a plan serving fewer tasks travels less).
+
 **Capacities** (`max_tasks_per_robot`): a robot's residual capacity is its cap less its
 commitment. Tasks no available robot may serve (capability, capacity) are left out of the
 residual — unassigned until someone can take them.
@@ -32,6 +39,7 @@ from dataclasses import dataclass, field
 from typing import Mapping, Sequence
 
 from mrta_zenoh.planning import Problem, Robot
+from mrta_zenoh.planning.insertion import binding, drop_late, windowed_places
 from mrta_zenoh.planning.schedule import Objective, evaluate, route_visits
 
 EXACT, BEST_FOUND, KEPT = "exact", "best found", "kept"
@@ -92,7 +100,8 @@ def residual(problem: Problem, situation: Situation
     left = [t for t in situation.open_tasks if t not in kept]
     points = origins + [n + problem.task_index(t) for t in tasks]
     sub = Problem(tuple(robots), tuple(problem.tasks[problem.task_index(t)] for t in tasks),
-                  tuple(tuple(problem.distance[a][b] for b in points) for a in points))
+                  tuple(tuple(problem.distance[a][b] for b in points) for a in points),
+                  problem.windows)
     return sub, [r.id for r in robots], tasks, left
 
 
@@ -120,14 +129,35 @@ def solve(problem: Problem, situation: Situation, objective: Objective, *, exact
         routes = _named(solve_routing(sub, objective, solutions=solutions,
                                       time_limit=time_limit).routes, robot_ids, task_ids)
         method = BEST_FOUND
+    routes = on_time(problem, situation, routes)
     value = full_value(problem, objective, situation.commitments, routes)
     if current is not None and task_ids:
         kept = keep(problem, objective, situation, current, task_ids)
         if kept is not None:
             old = full_value(problem, objective, situation.commitments, kept)
-            if not value < old - TIE * max(1.0, abs(old)):
+            fresh = _planned(routes) - _planned(kept)  # > 0 under hard windows only
+            if fresh < 0 or (fresh == 0 and not value < old - TIE * max(1.0, abs(old))):
                 routes, value, method = kept, old, KEPT
+    planned = {t for route in routes.values() for t in route}
+    left += [t for t in task_ids if t not in planned]
     return Outcome(routes, value, method, time.perf_counter() - t0, left)
+
+
+def _planned(routes: Mapping[str, Sequence[str]]) -> int:
+    return sum(len(r) for r in routes.values())
+
+
+def on_time(problem: Problem, situation: Situation,
+            routes: Mapping[str, Sequence[str]]) -> dict[str, list[str]]:
+    """`routes` without what would start after its due, under hard windows (module
+    docstring)."""
+    out = {}
+    for rid, route in routes.items():
+        prefix = [problem.task_index(t) for t in situation.commitments.get(rid, ())]
+        kept, _ = drop_late(problem, problem.robot_index(rid),
+                            prefix + [problem.task_index(t) for t in route], len(prefix))
+        out[rid] = [problem.tasks[j].id for j in kept[len(prefix):]]
+    return out
 
 
 def _named(routes: Mapping[int, Sequence[int]], robot_ids: list[str],
@@ -141,7 +171,7 @@ def keep(problem: Problem, objective: Objective, situation: Situation,
          ) -> dict[str, list[str]] | None:
     """The current plan on the tasks to plan: what is still open of each available robot's
     route, then each task it does not hold inserted where it adds least (None: that is not
-    possible — a task nobody may take there)."""
+    possible — a task nobody may take there; under hard windows such a task is left out)."""
     wanted = set(task_ids)
     routes = {r: [t for t in current.get(r, ()) if t in wanted] for r in situation.available}
     held = {t for route in routes.values() for t in route}
@@ -156,12 +186,19 @@ def keep(problem: Problem, objective: Objective, situation: Situation,
             if not problem.capable(i, j) or (cap is not None and len(
                     situation.commitments.get(rid, ())) + len(routes[rid]) >= cap):
                 continue
+            prefix = [problem.task_index(t) for t in situation.commitments.get(rid, ())]
+            places = windowed_places(problem, i, prefix + [problem.task_index(t)
+                                                           for t in routes[rid]], j)
             for place in range(len(routes[rid]) + 1):
+                if places is not None and len(prefix) + place not in places:
+                    continue
                 trial = {**routes, rid: routes[rid][:place] + [task] + routes[rid][place:]}
                 v = full_value(problem, objective, situation.commitments, trial)
                 if best is None or v < best[0] - TIE * max(1.0, abs(v)):
                     best = (v, rid, place)
         if best is None:
+            if binding(problem):
+                continue
             return None
         _, rid, place = best
         routes[rid].insert(place, task)

@@ -5,14 +5,16 @@ fed back with `served(task, at)`, teammates without progress told as gone, repor
 Settled, for SSI: the robot has a Round (heard, or made as the auctioneer) and no task that a
 live robot could serve is still open in it — every award of the current rounds is in. With every
 task known at the start the team thus sets off on SSI's final allocation, each robot on the path
-its awards built (docs/ssi.md, "In execution").
+its awards built (docs/ssi.md, "In execution"). Under hard windows a task nobody can insert
+where its window holds stays open for good (nobody bids on it), so there a Round unchanged for
+`QUIET` resend periods settles too: every award that was coming is in.
 """
 
 from __future__ import annotations
 
 import logging
 
-from mrta_zenoh.planning.insertion import Origin
+from mrta_zenoh.planning.insertion import Origin, binding
 
 from ..route.executor import Readings
 from ..route.own_route import OwnRouteCoordinator
@@ -45,10 +47,23 @@ class SsiCoordinator(OwnRouteCoordinator):
         """Bids go to their auctioneer (`*/ssi/bid/<auctioneer>`): only those to this robot."""
         return (self.robot_id,) if kind == "bid" else None
 
+    # under hard windows (module docstring): the Round last seen, since when, and how many
+    # resend periods it must stay unchanged to settle on tasks nobody bids on
+    _round: tuple | None = None
+    _round_since = 0.0
+    QUIET = 2
+
     def settled(self, now: float) -> bool:
         s = self.logic
         if s.round_from is None:
             return False
         team = s.alive | {s.i}
-        return not any(w == OPEN and any(s.problem.capable(k, j) for k in team)
-                       for j, w in enumerate(s.owners))
+        if not any(w == OPEN and any(s.problem.capable(k, j) for k in team)
+                   for j, w in enumerate(s.owners)):
+            return True
+        if not binding(s.problem):
+            return False
+        state = (s.round, tuple(s.owners))  # module docstring: quiet Rounds settle
+        if state != self._round:
+            self._round, self._round_since = state, now
+        return now - self._round_since >= self.QUIET * s.resend_period

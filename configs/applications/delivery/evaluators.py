@@ -12,14 +12,26 @@ Sensors: a sensor that has reported and then went silent makes the task inapplic
 has not reported yet does not. Whether the first odometry sample arrives before or after a
 robot's first tick is a race at start-up; counting it would shift ALLIANCE's activations by a
 tick from run to run, and the same seed must give the same allocation. (MURDOCH bids only with
-fresh resources, its tasks file's `resources`.)"""
+fresh resources, its tasks file's `resources`.)
+
+Time windows (docs/delivery.md, "Time windows"): a task is applicable before its `earliest`
+(the robot may set off and wait there: its layer does not start service sooner). Under hard
+windows it is *expired* for this robot — inapplicable for good, `is_expired` — once its due has
+passed without this robot having begun its service, or once this robot's layer gave it up
+(it could no longer get there by the due: `layers.py`); a robot serving it when the due passes
+goes on. ALLIANCE drops the behaviour set of an inapplicable task, MURDOCH's holder releases it;
+a route executor holds an inapplicable task at the head of its route (issue 50's `withdrawn`,
+once landed, is how it will leave an expired one)."""
 
 from __future__ import annotations
+
+import math
 
 from mrta_zenoh.clock import EPSILON
 from mrta_agent.runtime.plugins import AgentContext, SensoryEvaluator
 
 from .board import Board
+from .windows import WindowState
 from .instance import InstanceBody
 
 
@@ -29,18 +41,28 @@ class TaskOpen(SensoryEvaluator):
     def setup(self, ctx: AgentContext) -> None:
         super().setup(ctx)
         params: InstanceBody = ctx.instance
-        self.arrival = params.task(self.task_id).arrival
+        task = params.task(self.task_id)
+        self.arrival = task.arrival
+        self.due = math.inf if task.due is None else task.due
+        self.hard = params.windows == "hard"
         self.capable = params.capable(ctx.robot_id, self.task_id)
         self.cap = params.max_tasks_per_robot
         self.board = Board.of(self)
+        self.windows = WindowState.of(self)
 
     def withdrawn(self, now: float) -> bool:
         """Cancelled at run time (board.py): a route-serving robot leaves it."""
         return self.board.is_cancelled(self.task_id, now)
 
     def is_applicable(self, now: float) -> bool:
-        return (self.capable and now >= self.arrival - EPSILON
+        return (not self.is_expired(now) and self.capable and now >= self.arrival - EPSILON
                 and all(s.latest_time is None or s.is_up_to_date(now) for s in self.sensors)
                 and not self.board.is_done(self.task_id)
                 and not self.board.is_cancelled(self.task_id, now)
                 and (self.cap is None or self.board.delivered_by(self.ctx.robot_id) < self.cap))
+
+    def is_expired(self, now: float) -> bool:
+        """Hard windows: its due passed before this robot began serving it, or its layer gave
+        it up (module docstring). The delivery evaluator's own, not a plugin hook."""
+        return (self.hard and self.task_id not in self.windows.started
+                and (now > self.due + EPSILON or self.task_id in self.windows.given_up))

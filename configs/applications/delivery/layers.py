@@ -12,6 +12,13 @@ waits `service` seconds and says `done` (reliably: that is what makes the task i
 for every teammate). Deactivated before that (a handover), it starts over when activated
 again, from where it then is.
 
+Time windows (docs/delivery.md, "Time windows"): at the task before its `earliest`, the robot
+waits there, standing, and says `started` only when the window opens. Under hard windows it
+never starts after the due: once even the straight line from where it is (less the tolerance)
+at its speed — a lower bound of the time it needs — would get it there after the due, it gives
+the task up (stands still; its window state tells the task's evaluator, which then says the task is
+expired for this robot, and its architecture lets it go).
+
 Which task a layer serves: the agent runtime's loader sets every layer's `task_id` to the
 task whose layers it builds, so one registered class serves every task.
 """
@@ -28,6 +35,7 @@ from mrta_agent.runtime.builtin import odometry_pose
 from mrta_agent.runtime.plugins import AgentContext, Layer
 
 from .board import Board
+from .windows import WindowState
 from .instance import DeliveryParams, InstanceBody
 from .keys import Event, event_key
 from .messages import TaskEvent
@@ -55,8 +63,11 @@ class Deliver(Layer):
         task = self.instance.task(self.task_id)
         self.goal = (float(task.position[0]), float(task.position[1]))
         self.service = task.service
+        self.earliest = task.earliest or 0.0
+        self.due = math.inf if task.due is None or self.instance.windows != "hard" else task.due
         self.speed = self.instance.robot(ctx.robot_id).speed
         self.board = Board.of(self)
+        self.windows = WindowState.of(self)
         self.paths = path_map_of(self)
         self.seq = 0
         self.on_activate(0.0)
@@ -85,8 +96,14 @@ class Deliver(Layer):
                 self._say(Event.DONE, now)
             return
         pose = self.pose(now)
-        if pose is None:
-            self.ctx.publish_cmd(0.0, 0.0)  # blind: stand still
+        if pose is None or self.task_id in self.windows.given_up:
+            self.ctx.publish_cmd(0.0, 0.0)  # blind, or let go: stand still
+            return
+        if self.too_late(pose, now):
+            self.windows.given_up.add(self.task_id)
+            self.ctx.publish_cmd(0.0, 0.0)
+            self.ctx.log.info("%s: gives %s up at t=%.2f: it cannot start by its due %g s",
+                              self.ctx.robot_id, self.task_id, now, self.due)
             return
         if self.waypoints is None:
             self.waypoints = self.plan(pose)
@@ -96,11 +113,22 @@ class Deliver(Layer):
             self.waypoints.pop(0)  # a corner passed
         v, w, arrived = self.command(pose, self.waypoints[0], len(self.waypoints) == 1)
         if arrived:
-            self.serving_since = now
             self.ctx.publish_cmd(0.0, 0.0)
+            if now < self.earliest - EPSILON:
+                return  # there early: it waits for the window to open
+            self.serving_since = now
+            self.windows.started.add(self.task_id)
             self._say(Event.STARTED, now)
             return
         self.ctx.publish_cmd(v, w)
+
+    def too_late(self, pose: tuple[float, float, float], now: float) -> bool:
+        """Hard windows: even the straight line from `pose` would start it after the due."""
+        if math.isinf(self.due):
+            return False
+        gap = max(0.0, math.hypot(self.goal[0] - pose[0], self.goal[1] - pose[1])
+                  - self.params.tolerance)
+        return now + gap / self.speed > self.due + EPSILON
 
     def plan(self, pose: tuple[float, float, float]) -> list[tuple[float, float]]:
         """The waypoints still to reach (the task last): the shortest drivable path from the
