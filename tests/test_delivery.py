@@ -45,8 +45,14 @@ def evaluator(task: str, robot: str, net, clock):
     return ev, odom
 
 
-def done(bus, robot, task, frame=None, t=1.0):
-    bus.publish(event_key(robot, "done"), TaskEvent(Header(frame or robot, t, 1), task, "done"))
+def done(bus, robot, task, frame=None, t=1.0, event="done"):
+    bus.publish(event_key(robot, event), TaskEvent(Header(frame or robot, t, 1), task, event))
+
+
+def served(bus, robot, task, t):
+    """What a robot that served `task` says: `started` at `t`, `done` a service later."""
+    done(bus, robot, task, t=t, event="started")
+    done(bus, robot, task, t=t + PARAMS.tasks[task].service)
 
 
 def test_task_open_follows_arrival_capability_completion_and_sensors():
@@ -66,11 +72,38 @@ def test_task_open_follows_arrival_capability_completion_and_sensors():
     other = InProcBus(net)
     done(other, "robot4", "t2", frame="robot3")  # on robot4's key claiming robot3: dropped
     assert ev.is_applicable(7.5) and ev.board.rejected == 1
-    done(other, "robot4", "t2")
+    served(other, "robot4", "t2", 14.0)  # robot4 reaches t2 (8.1 m at 0.6 m/s) at 13.4 s
     assert not ev.is_applicable(7.5)          # a teammate delivered it
     # capabilities: robot2 has no lift, so t1 is never applicable to it
     ev1, _ = evaluator("t1", "robot2", net, clock)
     assert not ev1.is_applicable(1.0)
+
+
+def test_a_done_from_a_robot_that_never_moved_is_not_believed():
+    """Issue 51: four `done` from a robot that never moved ended the run at 3.3 s, 0/4
+    delivered. A teammate's `done` counts only after its own `started` a service before, at a
+    time it could have reached the task; a `done` on the robot's own key it never said is not
+    believed either. Each refusal is in the robot's refusal tally, forged."""
+    net, clock = InProcNetwork(), ManualClock(3.0)
+    ev, _ = evaluator("t4", "robot1", net, clock)
+    forger = InProcBus(net)
+    for task in ("t1", "t2", "t3", "t4"):
+        done(forger, "robot2", task, t=3.3)
+    done(forger, "robot1", "t4", t=3.3)                # on robot1's own key
+    done(forger, "robot3", "t4", t=3.0, event="started")  # 5.0 m at 0.4 m/s: 12.6 s at best
+    done(forger, "robot3", "t4", t=6.0)
+    assert ev.is_applicable(3.3) and not ev.board.done
+    (source,) = ev.ctx.refusal_sources
+    assert source() == {("task_event", "robot2", "done_not_started", True): 4,
+                        ("task_event", "robot1", "own_done_not_said", True): 1,
+                        ("task_event", "robot3", "started_too_early", True): 1,
+                        ("task_event", "robot3", "done_not_started", True): 1}
+    # a `done` heard before its `started` (another key) counts once the `started` comes
+    done(forger, "robot4", "t4", t=12.0)
+    assert ev.is_applicable(12.0)
+    done(forger, "robot4", "t4", t=9.0, event="started")  # 5.4 m at 0.6 m/s: 9.0 s at best
+    assert not ev.is_applicable(12.0) and ev.board.done["t4"] == ("robot4", 12.0)
+    assert ("task_event", "robot4", "done_not_started", True) not in source()
 
 
 def test_a_robot_that_delivered_serves_another_task_up_to_the_instances_cap():
@@ -79,7 +112,7 @@ def test_a_robot_that_delivered_serves_another_task_up_to_the_instances_cap():
     net, clock = InProcNetwork(), ManualClock(1.0)
     ev, _ = evaluator("t4", "robot1", net, clock)
     assert ev.is_applicable(1.0)
-    done(InProcBus(net), "robot1", "t1")
+    ev.board.mark_done("t1", "robot1", 1.0)   # its own layer delivered t1
     assert ev.is_applicable(1.0)              # unlimited by default
     for cap, applicable in ((1, False), (2, True)):
         capped = msgspec.structs.replace(load_instance(), max_tasks_per_robot=cap)

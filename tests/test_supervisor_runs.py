@@ -117,19 +117,22 @@ def test_patrols_watch_says_a_report_is_done_for_its_period():
 
 
 def test_deliverys_watch_says_delivered_tasks_are_done_and_late_ones_waiting():
-    from mrta_delivery.instance import InstanceBody, TaskSpec
+    from mrta_delivery.instance import InstanceBody, RobotSpec, TaskSpec
     from mrta_delivery.messages import TaskEvent
     from mrta_delivery.mission import DeliveryWatch
 
-    watch = DeliveryWatch(InstanceBody(tasks={"t1": TaskSpec(position=(0.0, 0.0)),
-                                               "t2": TaskSpec(position=(1.0, 0.0),
-                                                              arrival=40.0)}))
+    watch = DeliveryWatch(InstanceBody(robots={"robot2": RobotSpec(start=(-4.0, 0.0), speed=1.0)},
+                                       tasks={"t1": TaskSpec(position=(0.0, 0.0), service=2.0),
+                                              "t2": TaskSpec(position=(1.0, 0.0),
+                                                             arrival=40.0)}))
     assert watch.schedule() == [TaskStatus("t2", "waiting", 40.0)]
     done = TaskEvent(Header("robot2", 9.0, 3), "t1", "done")
+    # a done before its sender said it started serving: not believed (a forger's, issue 51)
+    assert watch.read("robot2/delivery/done", done) is None
+    started = TaskEvent(Header("robot2", 5.0, 2), "t1", "started")
+    assert watch.read("robot2/delivery/started", started) == TaskStatus("t1", "done")
     assert watch.read("robot2/delivery/done", done) == TaskStatus("t1", "done")
     assert watch.read("robot1/delivery/done", done) is None
-    started = TaskEvent(Header("robot2", 5.0, 2), "t1", "started")
-    assert watch.read("robot2/delivery/started", started) is None
     # and the shipped application finds it through its mission hook
     app, _ = resolve_application("delivery")
     assert isinstance(application_watch(app), DeliveryWatch)

@@ -69,8 +69,9 @@ def test_a_task_waiting_for_its_only_capable_robots_to_be_free_is_not_unattended
     assert tasks["t3"]["state"] == "unallocated" and tasks["t3"]["robots"] == []
     assert "t3" not in unattended(sup, now)
     # robot2 delivers t2 and is idle, but leaves t3 alone: unattended 30 s later
-    sup.on_task_sample("robot2/delivery/done", TaskEvent(Header("robot2", now, 99), "t2", "done"),
-                       now)
+    for event, at in (("started", now - 5.0), ("done", now)):
+        sup.on_task_sample(f"robot2/delivery/{event}",
+                           TaskEvent(Header("robot2", at, 99), "t2", event), now)
     now = run(sup, now, now + UNATTENDED - 5.0, {"robot1": "t1", "robot4": "t4"})
     assert "t3" not in unattended(sup, now)
     now = run(sup, now, now + 10.0, {"robot1": "t1", "robot4": "t4"})

@@ -332,7 +332,10 @@ class Agent:
         if not final and now < self._refusals_at + TALLY_PERIOD:
             return
         with self._count_lock:
-            counts = self.refusals.merged(self.coordinator.refusals())
+            heard = collections.Counter(self.coordinator.refusals())
+            for source in self.ctx.refusal_sources:  # the plugins' (AgentContext)
+                heard.update(source())
+            counts = self.refusals.merged(heard)
         if counts == self._refusals_told:
             return
         self._refusals_told, self._refusals_at = counts, now

@@ -37,7 +37,7 @@ import sys
 import threading
 from dataclasses import dataclass, field
 from importlib.metadata import entry_points
-from typing import TYPE_CHECKING, Any, Callable, ClassVar, Sequence, TypeVar
+from typing import TYPE_CHECKING, Any, Callable, ClassVar, Mapping, Sequence, TypeVar
 
 import msgspec
 
@@ -115,6 +115,11 @@ class AgentContext:
     # the robot's blackboard: what several of its plugins share (delivery's board of tasks
     # done, its path map), under a key the plugins' package owns; read and made with share()
     shared: dict[str, Any] = field(default_factory=dict)
+    # what plugins refused of what they heard (delivery's board: a teammate's `done` it does not
+    # believe): each a callable giving (kind, sender, reason, forged) → count, which the agent
+    # says in its refusal tally with its logic's (runtime.loop.Agent.tell_refusals)
+    refusal_sources: list[Callable[[], Mapping[tuple[str, str, str, bool], int]]] = field(
+        default_factory=list)
 
     def share(self, key: str, make: Callable[[], T]) -> T:
         """The blackboard's value under `key`, made by `make()` by the first plugin to ask

@@ -36,6 +36,19 @@ def attacked_demo(children, tmp_path, arch: str, mode: str, arg: str) -> dict:
     return summary
 
 
+def test_four_dones_from_a_robot_that_never_moved_neither_end_the_run_nor_skip_a_task(
+        children, tmp_path):
+    """They ended the run at 3.3 s "every task done" with 0/4 delivered (issue 51): every
+    teammate and the runner's task watch believed them."""
+    s = attacked_demo(children, tmp_path, "alliance", "delivery-done", "robot5")
+    refused = {(r["receiver"], r["sender"], r["reason"], r["forged"]) for r in s["refused"]}
+    assert {(r, "robot5", "done_not_started", True) for r in ("robot1", "robot2", "robot3",
+                                                                  "robot4")} <= refused, refused
+    assert ("robot5", "robot5", "own_done_not_said", True) in refused
+    assert s["ended_at"] > 10.0 and s["metrics"]["events_refused"] == 4
+
+
+@pytest.mark.slow
 def test_a_progress_saying_every_task_served_neither_stops_the_dispatcher_nor_the_run(
         children, tmp_path):
     """It raised in the dispatcher ("task … is on the routes of …"): exit 1, no summary."""

@@ -12,6 +12,9 @@ argv: MODE ARG RENDEZVOUS (the run's, which this session connects to)
                           from its latest and stamped 5 s after the run's clock (in lockstep it then counts
                           at that time, after everything its sender said before: not
                           superseded)
+  delivery-done   ROBOT   four `TaskEvent done` in ROBOT's name, one per task of the default
+                          instance (t1…t4), stamped at the run's clock (the robot never moved:
+                          they ended the run at 3.3 s "every task done", delivered 0/4)
 Prints {"ready": true} once subscribed, {"forged": KEY} once sent."""
 
 import json
@@ -30,8 +33,11 @@ session = open_session(BusOptions(connect=[rendezvous]))
 ENC = "application/msgpack;"
 SOURCES = {"central-served": ("robot2/central/progress", "route_msgs/Progress"),
            "ssi-round": ("robot1/ssi/round", "ssi_msgs/Round"),
-           "cbba-done": ("robot2/cbba/bids", "cbba_msgs/Bids")}
+           "cbba-done": ("robot2/cbba/bids", "cbba_msgs/Bids"),
+           "delivery-done": ("clock", "")}
 key, type_name = SOURCES[mode]
+if mode == "delivery-done":  # nothing to copy: said once the run's clock has gone 2 s
+    key, type_name = f"{arg}/delivery/done", "delivery_msgs/TaskEvent"
 real: list[dict] = []
 heard = threading.Event()
 
@@ -42,12 +48,30 @@ def on_sample(sample) -> None:
 
 
 now = [0.0]
-sub = session.declare_subscriber(key, on_sample)
-clock = session.declare_subscriber(
-    "clock", lambda s: now.__setitem__(0, msgpack.unpackb(s.payload.to_bytes())["stamp"]))
+
+
+def on_clock(sample) -> None:
+    now[0] = msgpack.unpackb(sample.payload.to_bytes())["stamp"]
+    if mode == "delivery-done" and now[0] >= 2.0:
+        heard.set()
+
+
+sub = session.declare_subscriber(key, on_sample) if mode != "delivery-done" else None
+clock = session.declare_subscriber("clock", on_clock)
 print(json.dumps({"ready": True}), flush=True)
 heard.wait(120)
 time.sleep(0.2)
+if mode == "delivery-done":
+    pub = session.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK)
+    time.sleep(0.3)
+    for seq, task in enumerate(("t1", "t2", "t3", "t4"), 1000):
+        done = {"header": {"frame_id": arg, "stamp": now[0], "seq": seq}, "task_id": task,
+                "event": "done"}
+        pub.put(msgpack.packb(done), encoding=zenoh.Encoding(ENC + type_name))
+    print(json.dumps({"forged": key}), flush=True)
+    time.sleep(1.0)
+    session.close()
+    sys.exit(0)
 msg = dict(real[0] if mode != "cbba-done" else real[-1])
 msg["header"] = {**msg["header"], "seq": msg["header"]["seq"] + 1000}
 if mode == "central-served":

@@ -3,7 +3,11 @@ robot's delivery plugins (every task's evaluator and layer), so a completion is 
 them at once — the robot's own from its layer directly, a teammate's from its `done` message.
 
 A `done` counts only on its sender's own key with a matching `header/frame_id` (a sample on
-robot1's key claiming to be robot2 says nothing); anything else is counted and dropped.
+robot1's key claiming to be robot2 says nothing); anything else is counted and dropped. A
+teammate's `done` is believed only after its own `started` for the task, a service before, at a
+time it could have reached the task (done_rule.py); a `done` on this robot's own key that it
+never said is not believed either. What is not believed is in the robot's refusal tally
+(AgentContext.refusal_sources), so the run's summary names it.
 
 It also knows the tasks cancelled at run time (mrta_zenoh.tasks: the intake's `tasks/change`),
 each from the instant after the one the change was stamped with: in lockstep every process has
@@ -20,10 +24,12 @@ from mrta_zenoh.keys import first_chunk
 from mrta_zenoh.tasks.messages import CHANGE, INTAKE, Change, Op
 from mrta_agent.runtime.plugins import Plugin
 
-from .keys import ALL_DONE, Event
+from .done_rule import KIND, NOT_OWN, DoneRule
+from .keys import ALL_DONE, ALL_STARTED, Event
 from .messages import TaskEvent
 
 ATTRIBUTE = "delivery.board"  # its key on the robot's blackboard (AgentContext.share)
+PATHS = "delivery.paths"  # the world's path map on the blackboard (layers.path_map_of)
 
 
 class Board:
@@ -32,8 +38,13 @@ class Board:
         self._lock = threading.Lock()
         self.done: dict[str, tuple[str, float]] = {}   # task → (robot, stamp)
         self.rejected = 0
+        instance = owner.ctx.instance
+        self.rule = DoneRule(instance, owner.ctx.share(PATHS, instance.path_map))
+        self.own: set[str] = set()  # tasks this robot served itself
         self.cancelled: dict[str, float] = {}          # task → the instant it was cancelled
-        owner.subscribe(ALL_DONE, self._on_done, msg_type=TaskEvent)
+        owner.ctx.refusal_sources.append(self.refusals)
+        owner.subscribe(ALL_DONE, self._on_event, msg_type=TaskEvent)
+        owner.subscribe(ALL_STARTED, self._on_event, msg_type=TaskEvent)
         owner.subscribe(CHANGE, self._on_change, msg_type=Change)
 
     @classmethod
@@ -42,14 +53,29 @@ class Board:
         subscription: plugins are shut down together)."""
         return owner.ctx.share(ATTRIBUTE, lambda: cls(owner))
 
-    def _on_done(self, sample) -> None:
+    def _on_event(self, sample) -> None:
         msg = sample.message
         sender = first_chunk(sample.key)
-        if msg.event != Event.DONE or msg.header.frame_id.strip("/") != sender:
+        if msg.event != sample.key.rsplit("/", 1)[-1] or msg.header.frame_id.strip("/") != sender:
             with self._lock:
                 self.rejected += 1
             return
-        self.mark_done(msg.task_id, sender, msg.header.stamp)
+        task, stamp = msg.task_id, msg.header.stamp
+        with self._lock:
+            if sender == self.robot_id:  # its own completions it knows without hearing them
+                if msg.event == Event.DONE and task not in self.own:
+                    self.rule.refused[(KIND, sender, NOT_OWN, True)] += 1
+                return
+            if msg.event == Event.STARTED:
+                done = self.rule.on_started(sender, task, stamp)
+            else:
+                done = stamp if self.rule.on_done(sender, task, stamp) else None
+            if done is not None:
+                self.done.setdefault(task, (sender, done))
+
+    def refusals(self) -> dict:
+        with self._lock:
+            return self.rule.refusals()
 
     def _on_change(self, sample) -> None:
         msg = sample.message
@@ -65,6 +91,8 @@ class Board:
 
     def mark_done(self, task_id: str, robot: str, stamp: float) -> None:
         with self._lock:
+            if robot == self.robot_id:
+                self.own.add(task_id)
             self.done.setdefault(task_id, (robot, stamp))
 
     def is_done(self, task_id: str) -> bool:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import enum
 
 ALL_DONE = "*/delivery/done"
+ALL_STARTED = "*/delivery/started"
 
 
 class Event(str, enum.Enum):

@@ -34,7 +34,7 @@ from mrta_zenoh.planning.geometry import PathMap
 from mrta_agent.runtime.builtin import odometry_pose
 from mrta_agent.runtime.plugins import AgentContext, Layer
 
-from .board import Board
+from .board import PATHS, Board
 from .windows import WindowState
 from .instance import DeliveryParams, InstanceBody
 from .keys import Event, event_key
@@ -42,7 +42,6 @@ from .messages import TaskEvent
 
 ALIGNED = 0.35  # rad: beyond this heading error the robot turns (almost) in place
 CORNER = 0.1    # m: a corner counts as passed this close (the path keeps 0.14 m of margin)
-PATHS = "delivery.paths"  # its key on the robot's blackboard (AgentContext.share)
 
 
 def _clip(v: float, lo: float, hi: float) -> float:

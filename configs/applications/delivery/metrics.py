@@ -24,6 +24,7 @@ the metrics").
 
 from __future__ import annotations
 
+import bisect
 import enum
 import math
 from dataclasses import dataclass, field
@@ -39,7 +40,8 @@ from mrta_zenoh.planning.assignment import (greedy_online, ia_costs, murdoch_uti
                                             optimal_assignment)
 from mrta_supervisor.mission.ground_truth import stretches_from
 
-from .instance import InstanceBody, document_data
+from .done_rule import DoneRule
+from .instance import DeliveryParams, InstanceBody, document_data
 from .keys import Event
 from .messages import TaskEvent
 from .objectives import objective_metrics, objective_section, overlaps, window_metrics
@@ -113,6 +115,54 @@ def events(records: Iterable) -> list[tuple[str, str, str, float]]:
     return out
 
 
+TRUTH_SLACK = 1.0  # m: beyond the layer's tolerance, how far the simulator's ground truth may
+                  # put a robot from a task it says it serves (its odometry drifts)
+
+
+def believed_events(records: list, params: InstanceBody, tolerance: float
+                    ) -> tuple[list[tuple[str, str, str, float]], int]:
+    """The delivery events a delivery is counted from, and how many others were refused: each
+    as the robots' boards believe it (done_rule.py: a `done` after its sender's own `started` a
+    service before, at a time it could have reached the task), and — where the recording has
+    the simulator's ground truth of its sender — said where the sender really was: within
+    `tolerance` + TRUTH_SLACK of the task (the latest ground truth at or before its stamp). A
+    certified robot that says `started` and `done` without moving is believed by its teammates
+    (docs/security.md) but its delivery is not counted here."""
+    truth: dict[str, list[tuple[float, float, float]]] = {}
+    for key, enc, _t, payload in records:
+        robot, _, topic = key.partition("/")
+        if topic != "ground_truth" or robot not in params.robots:
+            continue
+        try:
+            msg = decode(type_from_encoding(enc), payload)
+        except DecodeError:
+            continue
+        truth.setdefault(robot, []).append((msg.header.stamp, msg.pose.x, msg.pose.y))
+    for poses in truth.values():
+        poses.sort()
+    rule = DoneRule(params, params.path_map())
+    out, refused = [], 0
+    for robot, task, event, stamp in events(records):
+        if not rule.knows(robot, task):
+            refused += 1
+            continue
+        poses = truth.get(robot)
+        if poses:
+            n = bisect.bisect_right(poses, (stamp + EPSILON, math.inf, math.inf))
+            _, x, y = poses[max(n - 1, 0)]
+            where = params.tasks[task].position
+            if math.hypot(x - where[0], y - where[1]) > tolerance + TRUTH_SLACK:
+                refused += 1
+                continue
+        if event == Event.STARTED:
+            rule.on_started(robot, task, stamp)
+        elif not rule.on_done(robot, task, stamp):
+            refused += 1
+            continue
+        out.append((robot, task, event, stamp))
+    return out, refused
+
+
 def paths(records: Iterable, robots: set[str]) -> dict[str, float]:
     """Metres each robot drove, from the simulator's ground truth."""
     last: dict[str, tuple[float, float]] = {}
@@ -132,11 +182,13 @@ def paths(records: Iterable, robots: set[str]) -> dict[str, float]:
 
 
 def allocation_log(records: list, arch: Architecture, instance: Problem, end: float,
-                   faults: Faults = Faults()) -> list[Entry]:
+                   faults: Faults = Faults(),
+                   delivery: list[tuple[str, str, str, float]] | None = None) -> list[Entry]:
     """Every stretch of an instance task, in order of assignment, with its service times and
     why it ended (module docstring). A crash ends its robot's stretches at the crash, and so
     does a stall: a stalled robot may go on saying it holds its tasks, but from then on it
-    serves none (exact in lockstep)."""
+    serves none (exact in lockstep). `delivery`: the events to read (believed_events; None:
+    every well-formed one)."""
     tasks = {t.id for t in instance.tasks}
     robots = {r.id for r in instance.robots}
     crashes = [(f.robot, f.at) for f in faults.failures
@@ -145,7 +197,7 @@ def allocation_log(records: list, arch: Architecture, instance: Problem, end: fl
                  None if s.started_at is None else round(s.started_at, 3))
            for s in stretches_from(records, arch, end, arch.doing_stale_after, crashes)
            if s.robot in robots and s.task in tasks]
-    for robot, task, event, stamp in events(records):
+    for robot, task, event, stamp in events(records) if delivery is None else delivery:
         entry = next((e for e in log if e.robot == robot and e.task == task
                       and e.assigned_at - 1e-6 <= stamp <= e.ended_at + MATCH_SLACK), None)
         if entry is None:
@@ -255,29 +307,34 @@ def fairness(shares: dict[str, dict[str, float]]) -> dict[str, Any]:
 
 
 def analyse(records: list, arch: Architecture, params: InstanceBody, end: float,
-            faults: Faults = Faults(), objective: str | None = None) -> RunAnalysis:
+            faults: Faults = Faults(), objective: str | None = None,
+            tolerance: float = DeliveryParams().tolerance) -> RunAnalysis:
     """The log, the metrics and the objectives of a recorded run that ended at `end`;
-    `objective`: the one its architecture optimised (default: its contract's, else MinSum)."""
+    `objective`: the one its architecture optimised (default: its contract's, else MinSum);
+    `tolerance`: how near a robot stops at a task (the layers file's `Delivery` section)."""
     instance = params.problem()
-    log = allocation_log(records, arch, instance, end, faults)
+    delivery, refused = believed_events(records, params, tolerance)
+    log = allocation_log(records, arch, instance, end, faults, delivery)
     distance = paths(records, {r.id for r in instance.robots})
     section = objective_section(instance, log, objective or arch.objective or "minsum")
     metrics = {**measure(instance, log, distance), "windowed": instance.windowed,
                **window_metrics(instance, log, end), **objective_metrics(section),
-               **fairness(workload([r.id for r in instance.robots], log, distance, end))}
+               **fairness(workload([r.id for r in instance.robots], log, distance, end)),
+               "events_refused": refused}
     return RunAnalysis(params, instance, log, metrics, section)
 
 
-def done_at(records: list, instance: Problem) -> float | None:
+def done_at(records: list, params: InstanceBody,
+            tolerance: float = DeliveryParams().tolerance) -> float | None:
     """When every task of the instance had been completed (its first completion each, from the
-    robots' own `done` events); None: some never was."""
+    robots' own `done` events as believed: believed_events); None: some never was."""
     first: dict[str, float] = {}
-    for _robot, task, event, stamp in events(records):
+    for _robot, task, event, stamp in believed_events(records, params, tolerance)[0]:
         if event == Event.DONE:
             first.setdefault(task, stamp)
-    if any(t.id not in first for t in instance.tasks):
+    if any(t not in first for t in params.tasks):
         return None
-    return max((first[t.id] for t in instance.tasks), default=None)
+    return max((first[t] for t in params.tasks), default=None)
 
 
 def instance_json(params: InstanceBody, instance: Problem) -> dict[str, Any]:

@@ -20,6 +20,7 @@ A run ends when every task is done (`ended_at`: the last first completion, from 
 from __future__ import annotations
 
 import functools
+import threading
 from pathlib import Path
 from typing import Any
 
@@ -35,9 +36,10 @@ from mrta_supervisor.mission.roles import as_struck
 from mrta_supervisor.live.tasks import TaskStatus, TaskWatch
 from mrta_supervisor.mission.summary import SummarySections
 
+from .done_rule import DoneRule
 from .generate import derive
-from .instance import InstanceBody, InstanceDoc, load_document
-from .keys import ALL_DONE, Event
+from .instance import DeliveryParams, InstanceBody, InstanceDoc, load_document
+from .keys import ALL_DONE, ALL_STARTED, Event
 from .messages import TaskEvent
 from .metrics import RunAnalysis, analyse, done_at, instance_json
 from .runtime_tasks import accounting, changes, live_instance, submitted
@@ -145,6 +147,12 @@ def run_instance(run: MissionRun) -> InstanceBody:
     return _read_instance(path.resolve(), stat.st_mtime_ns, stat.st_size)
 
 
+def run_tolerance(run: MissionRun) -> float:
+    """How near the run's robots stop at a task (its layers file's `Delivery` section)."""
+    layers = load_layers_params(run.layers_params)
+    return msgspec.convert(layers.data.get("Delivery") or {}, DeliveryParams).tolerance
+
+
 @functools.lru_cache(maxsize=4)
 def _read_instance(path: Path, _mtime_ns: int, _size: int) -> InstanceBody:
     """An instance file's body, read once per version of the file (the cache key)."""
@@ -152,24 +160,35 @@ def _read_instance(path: Path, _mtime_ns: int, _size: int) -> InstanceBody:
 
 
 class DeliveryWatch(TaskWatch):
-    """A delivered task is done for good; one that arrives later is waiting until then."""
+    """A delivered task is done for good; one that arrives later is waiting until then. A
+    `done` counts as the robots' boards count it (board.py, done_rule.py): on its sender's own
+    key, after its own `started` a service before — forged ones do not end the run."""
 
     served_in_turn = True  # more tasks than robots: a task may wait for a robot to be free
 
     def __init__(self, params: InstanceBody):
         self.params = params
         self.arrivals = {tid: t.arrival for tid, t in params.tasks.items()}
+        self.rule = DoneRule(params, params.path_map())
+        self._lock = threading.Lock()  # samples come on the bus's threads
 
     def feed(self):
-        return [(ALL_DONE, TaskEvent)]
+        return [(ALL_DONE, TaskEvent), (ALL_STARTED, TaskEvent)]
 
     def schedule(self) -> list[TaskStatus]:
         return [TaskStatus(tid, "waiting", at) for tid, at in self.arrivals.items() if at > 0]
 
     def read(self, key: str, message) -> TaskStatus | None:
-        if message.event != Event.DONE or message.header.frame_id.strip("/") != first_chunk(key):
-            return None  # the board's rule (board.py): only a robot's own `done` counts
-        return TaskStatus(message.task_id, "done")
+        sender = first_chunk(key)
+        if message.event != key.rsplit("/", 1)[-1] or message.header.frame_id.strip("/") != sender:
+            return None  # the board's rule (board.py): only a robot's own events count
+        task, stamp = message.task_id, message.header.stamp
+        with self._lock:
+            if message.event == Event.STARTED:
+                believed = self.rule.on_started(sender, task, stamp) is not None
+            else:
+                believed = self.rule.on_done(sender, task, stamp)
+        return TaskStatus(task, "done") if believed else None
 
     def servers(self, task: str) -> frozenset[str] | None:
         """The robots with the task's capability (a task waiting while all of them are busy
@@ -212,8 +231,8 @@ class Delivery(Mission):
     def ended_at(self, run: MissionRun, records: list) -> float | None:
         """The last task's first completion, once every task is done (None: not all were);
         the tasks submitted at run time among them."""
-        return done_at(records, live_instance(run_instance(run),
-                                              submitted(changes(records))).problem())
+        return done_at(records, live_instance(run_instance(run), submitted(changes(records))),
+                       run_tolerance(run))
 
     def analysis(self, run: MissionRun, records: list) -> RunAnalysis:
         """Computed once per recording (metrics and sections both read it)."""
@@ -223,11 +242,13 @@ class Delivery(Mission):
         base = run_instance(run)
         seen = submitted(changes(records))  # tasks at run time (runtime_tasks.py)
         params = live_instance(base, seen)
-        ended = done_at(records, params.problem())
+        tolerance = run_tolerance(run)
+        ended = done_at(records, params, tolerance)
         end = run.options.duration if ended is None else min(ended, run.options.duration)
         made = decisions(records, run.arch, end)
         result = analyse(records, run.arch, params, end, as_struck(run.faults, records),
-                         made.objective if made is not None and made.objective else None)
+                         made.objective if made is not None and made.objective else None,
+                         tolerance)
         result.base, result.submitted = base, seen
         if seen:
             result.runtime = accounting(seen, result.log, end)
