@@ -13,7 +13,10 @@ forger who says `started` and then `done` in a robot's name, each no earlier tha
 could have said it (docs/security.md) — the analysis's ground-truth check still does not count
 that delivery.
 
-Bounded: one entry per (robot, task) of the instance, names outside it ignored.
+A task submitted at run time (not in the instance: mrta task submit) has no position or service
+the rule knows: its `done` needs only its sender's `started` before it. Bounded: one entry per
+(robot, task) of the instance, and at most MAX_OTHER tasks outside it; robots outside the
+instance are ignored.
 """
 
 from __future__ import annotations
@@ -29,6 +32,7 @@ from mrta_zenoh.planning.geometry import PathMap
 from .instance import InstanceBody
 
 REACH_SLACK = 2.0  # s: a robot stops within `tolerance` of a task, a little before reaching it
+MAX_OTHER = 10_000  # tasks outside the instance (submitted at run time) the rule keeps track of
 
 # why a delivery event was not believed (the receiver's refusal tally: kind "task_event")
 NOT_STARTED = "done_not_started"    # a done without its sender's `started` a service before
@@ -45,6 +49,7 @@ class DoneRule:
         delivery layers share it."""
         self.instance, self.paths = instance, paths
         self._earliest: dict[tuple[str, str], float] = {}
+        self._other: set[str] = set()  # tasks heard of outside the instance (MAX_OTHER)
         self.started: dict[tuple[str, str], float] = {}   # earliest plausible `started`
         self.waiting: dict[tuple[str, str], float] = {}   # a `done` heard before its `started`
         self.refused: collections.Counter[tuple[str, str, str, bool]] = collections.Counter()
@@ -53,6 +58,8 @@ class DoneRule:
         """The earliest `robot` could have reached `task`: from its start at its speed (a
         shortest path), not before the task arrived."""
         key = (robot, task)
+        if task not in self.instance.tasks:
+            return -math.inf  # submitted at run time: where it is, the rule does not know
         if key not in self._earliest:
             r, t = self.instance.robots[robot], self.instance.tasks[task]
             a, b = (float(r.start[0]), float(r.start[1])), (float(t.position[0]),
@@ -65,7 +72,14 @@ class DoneRule:
         return self._earliest[key]
 
     def knows(self, robot: str, task: str) -> bool:
-        return robot in self.instance.robots and task in self.instance.tasks
+        if robot not in self.instance.robots:
+            return False
+        if task in self.instance.tasks or task in self._other:
+            return True
+        if len(self._other) >= MAX_OTHER:
+            return False
+        self._other.add(task)
+        return True
 
     def on_started(self, robot: str, task: str, stamp: float) -> float | None:
         """A `started`; returns the stamp of a waiting `done` it makes believed (None: none)."""
@@ -99,7 +113,8 @@ class DoneRule:
 
     def _served(self, key: tuple[str, str], done: float) -> bool:
         started = self.started.get(key)
-        service = self.instance.tasks[key[1]].service
+        spec = self.instance.tasks.get(key[1])
+        service = spec.service if spec is not None else 0.0
         return started is not None and done >= started + service - EPSILON
 
     def _unrefuse(self, entry: tuple[str, str, str, bool]) -> None:

@@ -146,7 +146,7 @@ def believed_events(records: list, params: InstanceBody, tolerance: float
         if not rule.knows(robot, task):
             refused += 1
             continue
-        poses = truth.get(robot)
+        poses = truth.get(robot) if task in params.tasks else None  # where: the instance's
         if poses:
             n = bisect.bisect_right(poses, (stamp + EPSILON, math.inf, math.inf))
             _, x, y = poses[max(n - 1, 0)]
