@@ -86,6 +86,7 @@ def test_the_evaluator_says_a_task_is_expired_after_its_due_or_once_given_up():
     ev.setup(ev.ctx)
     assert ev.is_applicable(9.0) and not ev.is_expired(10.0)
     assert ev.is_expired(10.5) and not ev.is_applicable(10.5)
+    assert ev.withdrawn(10.5) and not ev.withdrawn(9.0)      # a route executor leaves it
     ev.windows.started.add("t4")                                 # serving it when the due passed
     assert not ev.is_expired(10.5) and ev.is_applicable(10.5)
     ev.windows.started.clear()

@@ -264,10 +264,11 @@ class Ssi(RouteLogic):
 
     def insertion(self, j: int) -> tuple[float, int]:
         """(cost, place) of task j at its best place in this robot's path: SSI's MinSum rule
-        (the added travel time); a subclass bidding another rule (TeSSI's temporal network)
-        overrides it, and returns an infinite cost where j fits nowhere — not bid on, and
-        an award of it goes at the end of the path."""
-        return minsum_insertion(self.problem, self.i, self.path, j, self.origin.task)
+        (the added travel time; under hard windows only where every window holds, the path
+        timed from its origin: planning.insertion); a subclass bidding another rule (TeSSI's
+        temporal network) overrides it. An infinite cost where j fits nowhere — not bid on,
+        and an award of it goes at the end of the path."""
+        return minsum_insertion(self.problem, self.i, self.path, j, *self.origin)
 
     def best_bid(self) -> tuple[int, float]:
         """(task, added travel time) of this robot's cheapest open task; (−1, 0) if none."""

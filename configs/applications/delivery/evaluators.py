@@ -20,8 +20,8 @@ windows it is *expired* for this robot â€” inapplicable for good, `is_expired` â
 passed without this robot having begun its service, or once this robot's layer gave it up
 (it could no longer get there by the due: `layers.py`); a robot serving it when the due passes
 goes on. ALLIANCE drops the behaviour set of an inapplicable task, MURDOCH's holder releases it;
-a route executor holds an inapplicable task at the head of its route (issue 50's `withdrawn`,
-once landed, is how it will leave an expired one)."""
+an expired task is also `withdrawn`, as a cancelled one is, so a route executor leaves it and
+never sets off to it again."""
 
 from __future__ import annotations
 
@@ -51,8 +51,9 @@ class TaskOpen(SensoryEvaluator):
         self.windows = WindowState.of(self)
 
     def withdrawn(self, now: float) -> bool:
-        """Cancelled at run time (board.py): a route-serving robot leaves it."""
-        return self.board.is_cancelled(self.task_id, now)
+        """Cancelled at run time (board.py), or expired (module docstring): a route-serving
+        robot leaves it."""
+        return self.board.is_cancelled(self.task_id, now) or self.is_expired(now)
 
     def is_applicable(self, now: float) -> bool:
         return (not self.is_expired(now) and self.capable and now >= self.arrival - EPSILON

@@ -211,7 +211,8 @@ class Delivery(Mission):
               "completed": "higher", "assigned": "higher", "handovers": "lower",
               "overlaps": "lower", "objective_minsum": "lower", "objective_makespan": "lower",
               "objective_flowtime": "lower", "gini_served": "lower", "gini_busy": "lower",
-              "gini_distance": "lower"}
+              "gini_distance": "lower", "served_in_window": "higher",
+              "missed": "lower", "late": "lower", "lateness": "lower", "early": "lower"}
 
     def __init__(self) -> None:
         self._last: tuple[int, RunAnalysis] | None = None
