@@ -27,6 +27,7 @@ from .errors import ConfigError
 from .files import write_text
 from .codec import validation_fault
 from .planning.reference import SOLUTIONS
+from .sha import sha256
 from .yamlfile import YamlDoc, did_you_mean, load_yaml, parse_yaml
 
 GROUP = "mrta.instances"
@@ -71,7 +72,7 @@ class InstanceKind:
         their index in it carry it: messages.IndexedMessage): 16 hex digits of the SHA-256 of
         the document as JSON, in its own order (the order indices count in). Override to leave
         out what does not change the indices' meaning."""
-        return _sha256(msgspec.json.encode(doc)).hexdigest()[:DIGEST_LENGTH]
+        return sha256(msgspec.json.encode(doc)).hexdigest()[:DIGEST_LENGTH]
 
     def admit(self, doc: Any, task_id: str, fields: dict[str, Any]) -> None:
         """Whether a task submitted at run time (mrta_zenoh.tasks) with these fields may enter
@@ -214,15 +215,3 @@ def generate(name: str, options: dict[str, Any], seed: int, output: Path | None)
     if output is not None:
         write_text(output, text)
     return text
-
-
-def _sha256(data: bytes):
-    """sha256 from Python's own module, not OpenSSL's `_hashlib` (≈ 3 MB of RSS a robot's agent
-    does not load: tests/test_agent_imports.py); the same digest either way. The module is
-    `_sha256` up to Python 3.11 and `_sha2` from 3.12."""
-    try:
-        from _sha256 import sha256
-    except ImportError:
-        from _sha2 import sha256
-    return sha256(data)
-

@@ -31,7 +31,6 @@ from __future__ import annotations
 
 import dataclasses
 import fcntl
-import hashlib
 import json
 import os
 import time
@@ -41,6 +40,7 @@ from typing import Any
 
 from ..errors import ConfigError
 from ..files import write_text
+from ..sha import sha256
 from .exact import binding
 from .problem import Problem
 from .schedule import Objective, evaluate
@@ -141,7 +141,7 @@ def _cached(folder: Path, problem: Problem, objective: Objective, exact_limit: i
     everything the solve reads (the problem with its distances, the objective, the budget)."""
     text = json.dumps([_plain(problem), objective.value, exact_limit, time_limit, solutions],
                       sort_keys=True)
-    key = hashlib.sha256(text.encode()).hexdigest()[:32]
+    key = sha256(text.encode()).hexdigest()[:32]
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"{key}.json"
     with open(folder / f".{key}.lock", "a") as lock:
