@@ -90,7 +90,7 @@ def test_the_best_insertion_is_the_least_bid_over_the_consistent_places(seed, n,
     for pos in range(len(path) + 1):
         new = path[:pos] + [j] + path[pos:]
         if starts_ok(p, 0, new, origin):
-            bids.append(max(0.0, weight * (makespan(p, 0, new, origin) - makespan(p, 0, path, origin))
+            bids.append(max(0.0, weight * makespan(p, 0, new, origin)
                             + (1 - weight) * (travel(p, 0, new, origin) - travel(p, 0, path, origin))))
         else:
             bids.append(math.inf)
@@ -115,12 +115,13 @@ def test_the_best_insertion_is_the_least_bid_over_the_consistent_places(seed, n,
 
 def direct_tessi(p: Problem, weight: float = 1.0):
     """TeSSI's allocation straight from its definition (tests/harness/direct_auction.py): each
-    (robot, open task, place keeping the robot's schedule consistent) priced by the increase
-    of weight · makespan + (1 − weight) · travel; a task no robot can fit stays open."""
+    (robot, open task, place keeping the robot's schedule consistent) priced by weight · the
+    new schedule's makespan + (1 − weight) · the travel the task adds; a task no robot can fit
+    stays open."""
     def bid(route, new, i):
         if not starts_ok(p, i, new):
             return None
-        return max(0.0, weight * (makespan(p, i, new) - makespan(p, i, route))
+        return max(0.0, weight * makespan(p, i, new)
                    + (1 - weight) * (travel(p, i, new) - travel(p, i, route)))
     return direct_auction(p, bid)
 
@@ -153,6 +154,27 @@ def test_a_team_ends_with_the_allocation_of_a_direct_simulation(weight):
                 assert not any(starts_ok(p, i, routes[i][:k] + [j] + routes[i][k:])
                                for i in routes if p.capable(i, j)
                                for k in range(len(routes[i]) + 1))
+
+
+# A hand-computed example of the paper's bid (Nunes & Gini, AAAI 2015: "the makespan of the
+# resulting simple temporal network is used to bid"; TeSSIduo: α · makespan + (1 − α) · the added
+# travel, as ROPOD's public implementation has it — docs/tessi.md). On a line at 1 m/s: r1 at 0
+# holds `a` (at 10, 20 s of service), r2 idles at 14; `b` (at 11, no service) is auctioned.
+#   r1, b after a:  a starts at 10, ends at 30; b at 30 + 1 = 31 → makespan 31, travel +1
+#   r1, b before a: b at 11; a at 12, ends at 32           → makespan 32, travel +2 (11+1−10)
+#   r2, b:          3 m away                               → makespan 3,  travel +3
+# TeSSI: r1 bids 31 (after a), r2 bids 3 → r2 wins. TeSSIduo, α = 0.5: r1 0.5·31 + 0.5·1 = 16,
+# r2 0.5·3 + 0.5·3 = 3 → r2. The makespan's *increase* would have r1 win (1 < 3): the test fails
+# if the bid were the increase.
+HAND = Problem((Robot("r1", (0.0, 0.0), 1.0), Robot("r2", (14.0, 0.0), 1.0)),
+               (Task("a", (10.0, 0.0), service=20.0), Task("b", (11.0, 0.0))))
+
+
+@pytest.mark.parametrize("weight, r1_bid, r2_bid", [(1.0, 31.0, 3.0), (0.5, 16.0, 3.0)])
+def test_the_bid_is_the_papers_on_a_hand_computed_example(weight, r1_bid, r2_bid):
+    a, b = HAND.task_index("a"), HAND.task_index("b")
+    assert Schedule(HAND, 0, [a]).insertion(b, weight) == (pytest.approx(r1_bid), 1)
+    assert Schedule(HAND, 1, []).insertion(b, weight) == (pytest.approx(r2_bid), 0)
 
 
 LINE = Problem((Robot("r1", (0.0, 0.0), 1.0), Robot("r2", (5.0, 0.0), 1.0)),

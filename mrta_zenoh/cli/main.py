@@ -121,8 +121,8 @@ SHORT_HELP = {
         "Run ROBOT_ID's CBBA agent: build its bundle, reach consensus with its teammates, "
         "serve its bundle's path.",
     "mrta_agent.tessi.cli:tessi":
-        "Run ROBOT_ID's TeSSI agent: bid the makespan increase of inserting a task into its "
-        "temporal network in sequential single-item auctions, serve the resulting schedule.",
+        "Run ROBOT_ID's TeSSI agent: bid the makespan of its temporal network with a task "
+        "inserted in sequential single-item auctions, serve the resulting schedule.",
     "mrta_agent.runtime.host_cli:host":
         "Run the agents of the robots SPEC lists in this one process (an agent host): each robot "
         "keeps its keys, tokens, parameters, seed stream and faults; one Zenoh session and one "

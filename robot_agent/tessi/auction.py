@@ -2,8 +2,9 @@
 its tie rules and every rule of what a message is believed for, shared by inheritance, not
 re-written) with TeSSI's bid (Nunes & Gini, AAAI 2015): a task is inserted into the robot's
 schedule kept as a simple temporal network (stn.Schedule), only where the network stays
-consistent, and the bid is the increase of the schedule's makespan — or, TeSSIduo, of
-`makespan_weight` · makespan + (1 − makespan_weight) · travel. A task that fits nowhere in a
+consistent, and the bid is the schedule's makespan with the task inserted — or, TeSSIduo,
+`makespan_weight` · that makespan + (1 − makespan_weight) · the travel the task adds (stn.py's
+docstring cites the sources). A task that fits nowhere in a
 robot's schedule is not bid on by it (docs/tessi.md).
 
 When the schedule starts. A robot on its way to its path's first task left when it finished

@@ -7,5 +7,5 @@ from ..runtime.cli import agent_command
 from .architecture import TESSI
 
 tessi = agent_command(
-    TESSI, "Run ROBOT_ID's TeSSI agent: bid the makespan increase of inserting a task into its "
-           "temporal network in sequential single-item auctions, serve the resulting schedule.")
+    TESSI, "Run ROBOT_ID's TeSSI agent: bid the makespan of its temporal network with a task "
+           "inserted in sequential single-item auctions, serve the resulting schedule.")

@@ -1,8 +1,9 @@
 """TeSSI's parameter files: SSI's (mrta_agent.ssi.params: every key of a robot serving its own
 route, and SSI's `resend_period`, `join_wait`, `lookahead`) and TeSSI's own robot key:
 
-* `makespan_weight` (1.0): the weight of the makespan's increase in a bid — 1 is TeSSI's bid,
-  below 1 TeSSIduo's, the rest of the weight on the added travel (docs/tessi.md).
+* `makespan_weight` (1.0): the weight of the makespan (with the task inserted) in a bid — 1 is
+  TeSSI's bid, below 1 TeSSIduo's, the rest of the weight on the travel the task adds
+  (docs/tessi.md; the ROPOD implementation of TeSSIduo uses 0.5).
 """
 
 from __future__ import annotations

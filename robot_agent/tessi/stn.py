@@ -16,9 +16,15 @@ same answer in O(n) instead of O(n³).
 Inserting task j before place n (`insertion`) is allowed only if the network stays consistent:
 j's earliest start (after the task before it) is within its due, and the task after it is then
 reached by its latest start (which already accounts for everything after it); the rest of the
-network needs no check. Among the consistent places, the bid is the increase of the schedule's
-makespan (TeSSI), or of `weight` · makespan + (1 − weight) · travel (TeSSIduo), ties to the
-earliest place.
+network needs no check. Among the consistent places, the bid is the schedule's makespan with
+j inserted — when its last task finishes at the earliest, on the run's clock (TeSSI: "the
+makespan of the resulting simple temporal network is used to bid", Nunes & Gini 2015, abstract)
+— or `weight` · that makespan + (1 − weight) · the travel j adds (TeSSIduo's combination with
+distance, as the ROPOD project's public TeSSIduo implements it: α · makespan + (1 − α) · the
+increase of the travel cost); ties to the earliest place. Not the makespan's *increase*: within
+one robot both pick the same place, but across robots the makespan itself favours the robot
+that finishes earliest (TeSSI's team objective, the time the last robot finishes) where the
+increase would favour the one the task delays least (docs/tessi.md).
 
 Under soft windows a due binds nothing (a late start is counted, not forbidden): the latest
 starts are then infinite and every place is consistent.
@@ -82,8 +88,8 @@ class Schedule:
 
     def insertion(self, j: int, weight: float = 1.0) -> tuple[float, int]:
         """(bid, place) of task j at its best consistent place (place n: before path[n]); the
-        bid is the increase of weight · makespan + (1 − weight) · travel. (inf, len(path))
-        when no place keeps the network consistent."""
+        bid is weight · the makespan with j inserted + (1 − weight) · the travel j adds (module
+        docstring). (inf, len(path)) when no place keeps the network consistent."""
         problem, i, path, task = self.problem, self.i, self.path, self.problem.tasks[j]
         due = task.due if problem.windows is Windows.HARD else math.inf
         best, where = math.inf, len(path)
@@ -103,8 +109,7 @@ class Schedule:
                 makespan = self._shifted(n, end + from_j)
             else:
                 added_travel, makespan = to_j, end
-            bid = (weight * (makespan - self.makespan)
-                   + (1.0 - weight) * added_travel)
+            bid = weight * makespan + (1.0 - weight) * added_travel
             bid = max(bid, 0.0)  # ≥ 0 but for rounding: SSI refuses a negative bid
             if bid < best:
                 best, where = bid, n

@@ -1,8 +1,8 @@
 """Sequential single-item auctions restated from their definition, for SSI's and TeSSI's tests:
 each round every (robot, open task, place in the robot's route) is priced, and the least price —
 ties: lower robot id, lower task id, earlier place — wins that task, inserted there. The rule
-is the `price(route, new_route, robot)` given: the MinSum rule's added travel (SSI), or the
-increase of a temporal network's objective where it stays consistent (TeSSI: None elsewhere)."""
+is the `price(route, new_route, robot)` given: the MinSum rule's added travel (SSI), or a
+temporal network's makespan where it stays consistent (TeSSI: None elsewhere)."""
 
 from __future__ import annotations
 

@@ -189,8 +189,8 @@ OWN_ROUTE = {  # SSI and CBBA: each robot plans on the instance itself
     "ssi": ("SSI", "sequential single-item auctions: each round every robot bids the travel "
                    "time its best open task adds to its path, the lowest bid wins"),
     "tessi": ("TeSSI", "TeSSI's temporal auctions: each round every robot bids the makespan "
-                       "increase of inserting its best open task where its temporal network "
-                       "stays consistent, the lowest bid wins"),
+                       "its temporal network would have with its best open task inserted where "
+                       "the network stays consistent, the lowest bid wins"),
     "cbba": ("CBBA", "the consensus-based bundle algorithm: each robot builds a bundle by "
                      "discounted reward and agrees on the winners with its teammates")}
 
