@@ -197,6 +197,24 @@ class Quiet:
         pass
 
 
+class TakeDefaults(Quiet):
+    """A prompter answering every question with its default, else a word, else a number;
+    `heard` sees each question and its default."""
+
+    def heard(self, question, default):
+        pass
+
+    def ask(self, question, check, default=None, show_default=True):
+        from mrta_zenoh.toolchain.wizard import InvalidAnswer
+        self.heard(question, default)
+        for text in (default, "x", "1"):
+            try:
+                return check(text or "")
+            except InvalidAnswer:
+                pass
+        raise AssertionError(question)
+
+
 def test_an_architecture_typed_at_a_filter_prompt_is_told_what_the_prompt_takes():
     """Typing `alliance` at the first filter prompt said "--robots 'alliance'", a flag of
     `mrta arch list` no prompt has (issue 51, the newcomer's list)."""
@@ -227,19 +245,13 @@ def test_the_tasks_file_takes_the_task_ids_given_in_step_3_without_asking_them_a
     """Task ids were asked twice: in step 3 and again, with how many, in the tasks file (issue
     51, the newcomer's list). The tasks file now has one entry per task given, ids filled in."""
     from mrta_zenoh.toolchain.generator import Answers
-    from mrta_zenoh.toolchain.wizard import InvalidAnswer, _ask_config
+    from mrta_zenoh.toolchain.wizard import _ask_config
 
     asked = []
 
-    class Defaults(Quiet):
-        def ask(self, question, check, default=None, show_default=True):
+    class Defaults(TakeDefaults):
+        def heard(self, question, default):
             asked.append(question)
-            for text in (default, "x", "1"):  # the default, else a word or a number
-                try:
-                    return check(text or "")
-                except InvalidAnswer:
-                    pass
-            raise AssertionError(question)
 
     arch = load_rqt_mrta(ALLIANCE_ARCH / "rqt_mrta.xml")
     a = Answers(package="p", name="P", architecture="alliance", configs={},
@@ -250,3 +262,27 @@ def test_the_tasks_file_takes_the_task_ids_given_in_step_3_without_asking_them_a
     assert not [q for q in asked if q.startswith("tasks_alliance_params/tasks: how many")
                 or q.split(" [")[0].endswith("/id")], asked
     assert "tasks_alliance_params/tasks/task2/name [string] — Task display name." in asked
+
+
+def test_alliances_motivation_parameters_offer_defaults():
+    """Six ALLIANCE parameters were mandatory with no default (≈ 45 prompts to type for two
+    robots and two tasks; issue 51, the newcomer's list): a behaviour set's expected duration,
+    threshold, yielding and giving-up delays and fast rate now offer one, in their ranges and
+    with yielding before giving up (as the robot file's check wants)."""
+    from mrta_zenoh.toolchain.generator import Answers
+    from mrta_zenoh.toolchain.wizard import _ask_config
+
+    offered = {}
+
+    class Defaults(TakeDefaults):
+        def heard(self, question, default):
+            offered[question.split(" [")[0].rsplit("/", 1)[-1]] = default
+
+    arch = load_rqt_mrta(ALLIANCE_ARCH / "rqt_mrta.xml")
+    a = Answers(package="p", name="P", architecture="alliance", configs={},
+                robots={"robot1": ["wander"]})
+    _ask_config(Defaults(), a, arch, arch.config_id, {})
+    defaults = {k: offered[k] for k in ("task_expected_duration", "threshold", "yielding_delay",
+                                        "giving_up_delay", "fast_rate")}
+    assert all(v is not None for v in defaults.values()), defaults
+    assert float(defaults["yielding_delay"]) <= float(defaults["giving_up_delay"])
