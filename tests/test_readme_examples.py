@@ -119,6 +119,7 @@ def test_the_separate_terminals_simulator_says_what_the_readme_says(children, to
 
 
 @pytest.mark.multiprocess
+@pytest.mark.slow  # four patrol runs; the CI tier runs experiments in test_experiment_resume_multiprocess
 @pytest.mark.timeout(300)
 def test_the_experiment_table_is_what_its_file_gives(children, tmp_path):
     """The README's table came from another file than the one shown above it (robot2@15

@@ -1,11 +1,13 @@
 """A normal `mrta demo` prints no WARNING: delivered tasks are `done`, not
-unattended, and the end of the run is no stopped clock."""
+unattended, and the end of the run is no stopped clock. `slow`: the CI tier checks the same
+on its golden delivery demo (tests/process/test_golden_summaries.py, alliance-demo), without
+the pictures this run also draws."""
 
 import json
 
 import pytest
 
-pytestmark = pytest.mark.multiprocess
+pytestmark = [pytest.mark.multiprocess, pytest.mark.slow]
 
 
 def test_a_delivery_demo_ends_without_a_warning(children, tmp_path):
