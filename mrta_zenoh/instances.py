@@ -28,6 +28,7 @@ from .files import write_text
 from .codec import validation_fault
 from .planning.reference import SOLUTIONS
 from .sha import sha256
+from .shared_reads import once
 from .yamlfile import YamlDoc, did_you_mean, load_yaml, parse_yaml
 
 GROUP = "mrta.instances"
@@ -167,7 +168,12 @@ DIGEST_LENGTH = 16
 
 
 def load(path: Path, application: str | None = None) -> Loaded:
-    """Read and check an instance file (`mrta instance validate`), reading it once."""
+    """Read and check an instance file (`mrta instance validate`), reading it once (once per
+    agent host for all its robots: mrta_zenoh.shared_reads)."""
+    return once(path, ("instance", application), lambda: _load(path, application))
+
+
+def _load(path: Path, application: str | None) -> Loaded:
     parsed = load_yaml(path)
     kind = kind_of(parsed, application)
     doc = kind.load(parsed)

@@ -184,3 +184,44 @@ def test_a_hosted_crash_is_told_by_its_hosts_line_for_that_robot_only():
     child = _Child(["12:00 WARNING mrta.agent: robot10: crashing at t=10.00 as asked"])
     assert hosted_crash(child, "robot10") and not hosted_crash(child, "robot1")
     assert not hosted_crash(None, "robot10")
+
+
+def test_a_host_reads_the_files_its_robots_share_once(tmp_path, monkeypatch):
+    """The instance, tasks and layers files every robot of a package names are parsed once per
+    host (mrta_zenoh.shared_reads), each robot's own file once per robot; every robot still
+    gets its own tasks dict (a robot may grow its tasks) and the same frozen problem."""
+    from pathlib import Path
+
+    import mrta_agent.route.own_route_params as own
+    from mrta_agent.runtime import host_cli
+    from mrta_zenoh import instances, yamlfile
+
+    config = Path(__file__).resolve().parents[1] / "configs/applications/delivery_cbba/config"
+    parsed, made = [], []
+    real_parse = yamlfile.parse_yaml
+
+    def counting(text, path, *a, **kw):
+        parsed.append(Path(path).name)
+        return real_parse(text, path, *a, **kw)
+
+    monkeypatch.setattr(yamlfile, "parse_yaml", counting)
+    real_load = own.load_params
+    monkeypatch.setattr(own, "load_params", lambda *a: made.append(real_load(*a)) or made[-1])
+    robots = ["robot1", "robot2", "robot3"]
+    spec = _spec(tmp_path, [["cbba", r, "--robot-params", str(config / f"{r}_cbba_params.yaml"),
+                             "--tasks-params", str(config / "tasks_cbba_params.yaml"),
+                             "--layers-params", str(config / "layers_cbba_params.yaml"),
+                             "--sim-time"] for r in robots])
+    _, seats = host_cli.read_spec(spec)
+    assert [s.options.robot_id for s in seats] == robots
+    shared = ["instance.yaml", "tasks_cbba_params.yaml", "layers_cbba_params.yaml"]
+    assert sorted(n for n in parsed if n in shared) == sorted(shared)
+    assert sorted(n for n in parsed if n.startswith("robot")) == \
+        sorted(f"{r}_cbba_params.yaml" for r in robots)
+    assert len(made) == 3 and made[0].problem is made[1].problem is made[2].problem
+    assert made[0].tasks == made[1].tasks and made[0].tasks is not made[1].tasks
+    # outside a host nothing is remembered: a robot's own process reads as before
+    parsed.clear()
+    instances.load(config / "instance.yaml")
+    instances.load(config / "instance.yaml")
+    assert parsed == ["instance.yaml", "instance.yaml"]

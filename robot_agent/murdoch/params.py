@@ -22,6 +22,7 @@ from mrta_zenoh import paramdoc
 from mrta_zenoh.clock import EPSILON
 from mrta_zenoh.limits import COORDINATE, LEVEL, WEIGHT
 from mrta_zenoh.paramdoc import Duration, Rate, Id, Text, sized, within
+from mrta_zenoh.shared_reads import once
 from mrta_zenoh.yamlfile import YamlDoc
 from mrta_agent.runtime.params import (Doc, EvaluatorDoc, EvaluatorSpec, SensorParams, Sensors,
                                        TaskDoc, TaskParams, TopicDoc, evaluator_spec,
@@ -171,11 +172,10 @@ def load_robot(path: Path | str) -> tuple[MurdochRobot, list[str]]:
 def load_tasks(path: Path | str) -> dict[str, MurdochTask]:
     """The tasks file: ALLIANCE's (id, name, layers), plus resources, locations and the
     progress timeout."""
-    return {t.id: MurdochTask(t.id, layers.name,
-                              tuple(r.topic_name for r in t.resources),
-                              tuple((p.x, p.y) for p in t.locations), layers,
-                              t.progress_timeout)
-            for *_, t, layers in read_tasks(path, MurdochTaskDoc)}
+    return dict(once(path, "murdoch tasks", lambda: {  # once per agent host (shared_reads)
+        t.id: MurdochTask(t.id, layers.name, tuple(r.topic_name for r in t.resources),
+                          tuple((p.x, p.y) for p in t.locations), layers, t.progress_timeout)
+        for *_, t, layers in read_tasks(path, MurdochTaskDoc)}))
 
 
 def load_params(robot_file, tasks_file, layers_file=None) -> MurdochParams:

@@ -23,6 +23,7 @@ from mrta_zenoh import instances, paramdoc
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.paramdoc import Duration, Text
 from mrta_zenoh.planning import Problem
+from mrta_zenoh.shared_reads import once
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean
 
 from ..runtime.instance import same_instance
@@ -113,7 +114,8 @@ def load_params(robot_id: str, robot_file, tasks_file, layers_file, what: str, k
     layers = load_layers_params(layers_file)
     same_instance(robot.instance, layers, robot_file)
     loaded = instances.load(robot.instance)  # once: the plugins read the same (`instance`)
-    problem = loaded.kind.problem(loaded.doc)
+    # frozen, and its travel matrix (robots + tasks)² floats: one per agent host (shared_reads)
+    problem = once(robot.instance, "problem", lambda: loaded.kind.problem(loaded.doc))
     if not isinstance(problem, Problem):
         raise ConfigError(f"{robot.instance}: its instance kind gave a "
                           f"{type(problem).__name__}, not a mrta_zenoh.planning.Problem")

@@ -26,6 +26,7 @@ from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.cli.common import bus_options
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.keys import KeyExprError, normalize_robot_id
+from mrta_zenoh.shared_reads import shared_reads
 from mrta_zenoh.yamlfile import did_you_mean, load_yaml
 
 from .agent_host import Seat, host_agents
@@ -54,15 +55,23 @@ def read_spec(path: Path) -> tuple[str, list[Seat]]:
     for i, argv in enumerate(spec.agents):
         if len(argv) < 2:
             raise doc.error(("agents", i), "expected [ARCHITECTURE_VERB, ROBOT_ID, options…]")
-    return spec.name, [seat_of(argv, lambda why, i=i: doc.error(("agents", i), why))
-                       for i, argv in enumerate(spec.agents)]
+    archs = agent_architectures()  # looked up once, not once per robot
+    with shared_reads():  # the files the robots share, read once for all of them
+        return spec.name, [seat_of(argv, lambda why, i=i: doc.error(("agents", i), why), archs)
+                           for i, argv in enumerate(spec.agents)]
 
 
-def seat_of(argv: list[str], error: Callable[[str], ConfigError]) -> Seat:
+def agent_architectures() -> dict[str, AgentArchitecture]:
+    """The registered architectures whose robots run on this runtime, by their verb."""
+    return {a.command: a for a in architectures().values() if isinstance(a, AgentArchitecture)}
+
+
+def seat_of(argv: list[str], error: Callable[[str], ConfigError],
+            archs: dict[str, AgentArchitecture] | None = None) -> Seat:
     """One robot's seat from its verb's arguments (`[verb, robot_id, …]`), parsed by the very
     command `mrta <verb>` is (agent_command), so every option means what it means there."""
     verb, args = argv[0], argv[1:]
-    archs = {a.command: a for a in architectures().values() if isinstance(a, AgentArchitecture)}
+    archs = agent_architectures() if archs is None else archs
     arch = archs.get(verb)
     if arch is None:
         raise error(f"{verb!r} is no architecture's agent verb" + did_you_mean(verb, archs))

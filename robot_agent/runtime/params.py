@@ -17,6 +17,7 @@ import msgspec
 from mrta_zenoh import paramdoc
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.paramdoc import Document, Duration, Id, Text, sized
+from mrta_zenoh.shared_reads import once
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean, load_yaml
 
 from .instance import KEY as INSTANCE_KEY
@@ -149,7 +150,9 @@ def read_tasks(path: Path | str, kind: type[TaskT] = TaskDoc
 
 
 def load_tasks_params(path: Path | str) -> dict[str, TaskParams]:
-    return {t.id: t for *_, t in read_tasks(path)}
+    """The tasks file's TaskParams by id: a dict of the caller's own (a robot may grow its
+    tasks), of frozen entries read once per agent host (mrta_zenoh.shared_reads)."""
+    return dict(once(path, "tasks", lambda: {t.id: t for *_, t in read_tasks(path)}))
 
 
 def load_layers_params(path: Path | str | None) -> YamlDoc | None:
@@ -158,6 +161,10 @@ def load_layers_params(path: Path | str | None) -> YamlDoc | None:
     (runtime.instance)."""
     if path is None:
         return None
+    return once(path, "layers", lambda: _layers_doc(path))
+
+
+def _layers_doc(path: Path | str) -> YamlDoc:
     doc = load_yaml(path)
     if not isinstance(doc.data, dict):
         raise doc.error((), "a layers parameter file must be a mapping of layer sections")
