@@ -175,6 +175,23 @@ def test_derived_packages_carry_the_instance_and_its_world(tmp_path):
     assert (folder / "delivery" / "worlds" / "delivery.yaml").read_text() == world
 
 
+def test_a_run_derives_only_the_packages_its_architecture_reads(tmp_path):
+    """`mrta demo --instance` under CBBA writes `delivery` (the application, its world) and
+    `delivery_cbba`, the very files the full derivation writes for them, and nothing else."""
+    from mrta_delivery.generate import all_files, run_files
+    f = generated(tmp_path, "i.yaml", "--robots", "3", "--tasks", "4", "--seed", "2")
+    body = load_document(f).body()
+    every = all_files(body)
+    for arch, packages in (("cbba", {"delivery", "delivery_cbba"}), ("alliance", {"delivery"}),
+                           ("central", {"delivery", "delivery_central"})):
+        files = run_files(body, arch)
+        assert {rel.split("/", 1)[0] for rel in files} == packages
+        assert files == {rel: data for rel, data in every.items()
+                         if rel.split("/", 1)[0] in packages}
+    with pytest.raises(ConfigError, match="no package for architecture 'nope'"):
+        run_files(body, "nope")
+
+
 def instance_named_by_layers(path):
     from mrta_agent.runtime.instance import named_instance
     from mrta_agent.runtime.params import load_layers_params

@@ -75,9 +75,11 @@ class Mission:
         """Lines for the printed summary."""
         return []
 
-    def derive(self, instance: Path, folder: Path) -> None:
+    def derive(self, instance: Path, folder: Path, architecture: str | None = None) -> None:
         """Write the run's own application packages, derived from an instance file, into
-        `folder` (`--instance`): the runner puts it first on the package path for that run."""
+        `folder` (`--instance`): the runner puts it first on the package path for that run.
+        `architecture`: the run's (None: the application's own), so that a hook may write only
+        the packages such a run reads — at 100 robots each is tens of MB."""
         raise ConfigError(f"the {self.name} mission takes no --instance")
 
     def sections(self, run: "MissionRun", records: list) -> Any:

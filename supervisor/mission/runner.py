@@ -83,7 +83,8 @@ def run_mission(options: MissionOptions, *, stop: threading.Event | None = None,
     try:
         with output_lock(options.output):
             if options.instance is not None:
-                run.mission.derive(options.instance, instance_folder(options))
+                # the packages this run reads, not every architecture's (tens of MB at size)
+                run.mission.derive(options.instance, instance_folder(options), run.arch.name)
                 reg = Registry([instance_folder(options)] + reg_path())
                 run = resolve(options, reg)
                 if options.overrides and \

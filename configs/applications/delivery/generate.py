@@ -47,13 +47,12 @@ import random
 from pathlib import Path
 
 import msgspec
-import yaml
 
 from mrta_zenoh.architectures import TEAM_ENV
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.files import write_folder, write_text
 from mrta_zenoh.seeds import SEED_ENV
-from mrta_zenoh.toolchain.generator import Answers, build_application
+from mrta_zenoh.toolchain.generator import Answers, build_application, dump_yaml
 from mrta_zenoh.toolchain.registry import Registry
 
 from .instance import (DeliveryParams, InstanceBody, InstanceDoc, document_data,
@@ -228,8 +227,7 @@ def answers_yaml(answers: Answers) -> bytes:
             "email": answers.email, "license": answers.license,
             "architecture": answers.architecture, "depends": answers.depends,
             "robots": answers.robots, "configs": answers.configs}
-    return (head + yaml.safe_dump(body, sort_keys=False, allow_unicode=True,
-                                  width=100)).encode()
+    return (head + dump_yaml(body, width=100)).encode()
 
 
 def murdoch_answers(params: InstanceBody, package: str = "delivery_murdoch") -> Answers:
@@ -373,12 +371,37 @@ def all_files(params: InstanceBody, alliance: str = "delivery",
             (own_route_answers(params, "cbba", cbba), cbba),
             (own_route_answers(params, "tessi", tessi), tessi))
     for answers, folder in made:
-        for rel, data in package_files(params, answers).items():
-            files[f"{folder}/{rel}"] = data
+        files.update(_package(params, answers, folder))
     files[f"{alliance}/worlds/delivery.yaml"] = world_yaml(params)
     for answers, folder in made[2:]:
         files[f"{folder}_answers.yaml"] = answers_yaml(answers)
     return files
+
+
+def _package(params: InstanceBody, answers: Answers, folder: str) -> dict[str, bytes]:
+    return {f"{folder}/{rel}": data for rel, data in package_files(params, answers).items()}
+
+
+def run_files(params: InstanceBody, architecture: str) -> dict[str, bytes]:
+    """The packages one run under `architecture` reads: the application's own (`delivery`,
+    ALLIANCE's, with the world) and, for another architecture, its package — not every
+    architecture's and no answers files. At 100 robots × 100 tasks the six packages are ≈ 95 MB
+    of YAML and XML (each robot file lists the tasks it can serve), ≈ 40 CPU-s to write; a
+    CBBA run needs two of them (benchmarks/README.md, agent hosts)."""
+    files = _package(params, alliance_answers(params), "delivery")
+    files["delivery/worlds/delivery.yaml"] = world_yaml(params)
+    if architecture == "alliance":
+        return files
+    if architecture == "murdoch":
+        answers = murdoch_answers(params)
+    elif architecture == "central":
+        answers = central_answers(params)
+    elif architecture in OWN_ROUTE:
+        answers = own_route_answers(params, architecture, f"delivery_{architecture}")
+    else:
+        raise ConfigError(f"delivery derives no package for architecture {architecture!r} "
+                          f"(it has alliance, murdoch, central, {', '.join(OWN_ROUTE)})")
+    return {**files, **_package(params, answers, answers.package)}
 
 
 def generate(params: InstanceBody, folder: Path, name: str = "delivery") -> list[Path]:
@@ -397,9 +420,11 @@ def generate(params: InstanceBody, folder: Path, name: str = "delivery") -> list
     return written
 
 
-def derive(doc: InstanceDoc, folder: Path) -> list[Path]:
-    """A run's own packages from an instance (`mrta demo --instance FILE`): `delivery`,
-    `delivery_murdoch` and `delivery_central` in `folder`, replacing it whole or not at all.
-    Put first on the package path, they shadow the installed ones for that run; nothing is
-    written into those."""
-    return write_folder(folder, all_files(doc.body()))
+def derive(doc: InstanceDoc, folder: Path, architecture: str | None = None) -> list[Path]:
+    """A run's own packages from an instance (`mrta demo --instance FILE`) in `folder`,
+    replacing it whole or not at all: every package, or (`architecture`) those a run under it
+    reads (run_files). Put first on the package path, they shadow the installed ones for that
+    run; nothing is written into those."""
+    body = doc.body()
+    return write_folder(folder, all_files(body) if architecture is None
+                        else run_files(body, architecture))

@@ -221,9 +221,10 @@ class Delivery(Mission):
         """None: the delivery baseline is measured without faults (ask with --fail)."""
         return None
 
-    def derive(self, instance: Path, folder: Path) -> None:
-        """`mrta demo --instance FILE`: both packages derived from the file, into `folder`."""
-        derive(load_document(instance), folder)
+    def derive(self, instance: Path, folder: Path, architecture: str | None = None) -> None:
+        """`mrta demo --instance FILE`: the packages derived from the file, into `folder` —
+        every architecture's, or those a run under `architecture` reads."""
+        derive(load_document(instance), folder, architecture)
 
     def instance_file(self, run: MissionRun) -> Path | None:
         """The file the run's layers file names (a run of `--instance` derives it)."""
