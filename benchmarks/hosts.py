@@ -14,10 +14,16 @@ analysis), its wall time the command's. Printed, one JSON line per figure:
   whole mission: wall time, the real-time factor (simulated over wall seconds, start-up
   included), CPU-s, and the summary's `run_status` and `lockstep_exact`.
 
+* `startup` — with `--startup-sizes`: N robots and N tasks, one process per robot (the
+  baseline) and the team in one host, a short run each (`--startup-duration`): wall s from the
+  command to every robot's agent up (the runner's `agents up` line) and the agents' resident
+  memory per robot then.
+
 Each line carries the load average when it was measured (others may share the machine).
 
 Run: python benchmarks/hosts.py [--repeat 2] [--sizes 5 10 20 50 100] [--architectures cbba
                                 alliance] [--per-host 0] [--duration 20]
+                                [--startup-sizes 5 10 20 50 100]
 """
 
 from __future__ import annotations
@@ -28,12 +34,15 @@ import os
 import subprocess
 import sys
 import tempfile
+import threading
 import time
 from pathlib import Path
 
 from mrta_supervisor.mission.compare import run_differences
+from mrta_supervisor.mission.runner import AGENTS_UP
 
 TICK = os.sysconf("SC_CLK_TCK")
+PAGE_KB = os.sysconf("SC_PAGE_SIZE") // 1024
 ROLES = (("agents", ("/agent ", "/host ")), ("simulator", ("simulator/sim",)),
          ("recorder", (" view ",)), ("router", (" router",)))
 
@@ -59,8 +68,10 @@ def tree(root: int) -> list[int]:
     return out
 
 
-def sample(root: int, seen: dict[int, tuple[float, str]]) -> None:
-    """Each process's CPU seconds so far and its role (first seen), under `root`."""
+def sample(root: int, seen: dict[int, tuple[float, str]]) -> dict[str, int]:
+    """Each process's CPU seconds so far and its role (first seen), under `root`; returns the
+    resident memory (kB) of each role's processes now."""
+    rss: dict[str, int] = {}
     for pid in tree(root):
         try:
             with open(f"/proc/{pid}/stat") as f:
@@ -68,9 +79,12 @@ def sample(root: int, seen: dict[int, tuple[float, str]]) -> None:
             cpu = (int(fields[11]) + int(fields[12])) / TICK
             name = seen[pid][1] if pid in seen else role(
                 open(f"/proc/{pid}/cmdline").read().replace("\0", " "))
+            kb = int(fields[21]) * PAGE_KB
         except (OSError, IndexError):
             continue
         seen[pid] = (cpu, name)
+        rss[name] = rss.get(name, 0) + kb
+    return rss
 
 
 def mrta(*args: str) -> list[str]:
@@ -88,19 +102,28 @@ def instance(folder: Path, robots: int, tasks: int) -> Path:
 
 
 def demo(inst: Path, out: Path, arch: str, per_process: int, duration: float) -> dict:
-    """One whole mission; its wall, CPU and summary."""
-    t0, seen = time.monotonic(), {}
-    proc = subprocess.Popen(mrta("-q", "demo", "--application", "delivery", "--instance", str(inst),
+    """One whole mission; its wall, CPU, summary, start-up (wall s from the command to the
+    runner's `agents up` line: every robot's agent token seen) and the agents' resident memory
+    then (kB, all their processes together)."""
+    t0, seen, lines = time.monotonic(), {}, []
+    proc = subprocess.Popen(mrta("demo", "--application", "delivery", "--instance", str(inst),
                                  "--architecture", arch,
                                  "--fail", "none", "--duration", str(duration), "--speed", "0",
                                  "--no-plots", "--no-live", "--seed", "1",
                                  "--agents-per-process", str(per_process), "--output", str(out)),
                             stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    reader = threading.Thread(target=lambda: lines.extend(
+        (time.monotonic() - t0, line) for line in proc.stderr), daemon=True)
+    reader.start()
+    up = rss_up = None
     try:
         while proc.poll() is None:
-            sample(proc.pid, seen)
+            rss = sample(proc.pid, seen)
+            if up is None and any(AGENTS_UP in line for _, line in list(lines)):
+                up = next(t for t, line in list(lines) if AGENTS_UP in line)
+                rss_up = rss.get("agents")
             time.sleep(0.2)
-        err = proc.stderr.read()
+        reader.join(5)
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -112,7 +135,9 @@ def demo(inst: Path, out: Path, arch: str, per_process: int, duration: float) ->
     cpu = round(sum(by_role.values()), 2)
     summary = json.loads((out / "summary.json").read_text()) if proc.returncode == 0 else {}
     return {"rc": proc.returncode, "wall_s": round(wall, 2), "cpu_s": cpu, "cpu_by_role": by_role,
-            "summary": summary, "error": err.strip().splitlines()[-1:] if proc.returncode else []}
+            "summary": summary, "startup_s": None if up is None else round(up, 2),
+            "agents_rss_kb": rss_up,
+            "error": [line.strip() for _, line in lines][-1:] if proc.returncode else []}
 
 
 def emit(**figure) -> None:
@@ -149,9 +174,31 @@ def team_size(folder: Path, sizes: list[int], archs: list[str], per_host: int,
             emit(figure="team_size", architecture=arch, robots=n, tasks=n, per_host=k,
                  duration=duration, wall_s=r["wall_s"], cpu_s=r["cpu_s"],
                  cpu_by_role=r["cpu_by_role"],
-                 real_time_factor=round(duration / r["wall_s"], 3),
+                 real_time_factor=round(duration / r["wall_s"], 3), startup_s=r["startup_s"],
+                 agents_rss_mb=None if r["agents_rss_kb"] is None
+                 else round(r["agents_rss_kb"] / 1024, 1),
                  run_status=s.get("run_status"), lockstep_exact=s.get("lockstep_exact"),
                  completed=s.get("metrics", {}).get("completed"), rc=r["rc"], error=r["error"])
+
+
+def startup(folder: Path, sizes: list[int], arch: str, duration: float) -> None:
+    """Issue 47 point 4: start-up and the agents' memory per robot against team size, one
+    process per robot (the baseline) and the team in one host, the same instance each."""
+    for n in sizes:
+        inst = instance(folder, n, n)
+        one = demo(inst, folder / f"s{n}-k1", arch, 1, duration)
+        host = demo(inst, folder / f"s{n}-k{n}", arch, n, duration)
+
+        def per_robot(r: dict) -> float | None:
+            return None if r["agents_rss_kb"] is None else round(r["agents_rss_kb"] / 1024 / n, 2)
+        emit(figure="startup", architecture=arch, robots=n, tasks=n, duration=duration,
+             per_process_startup_s=one["startup_s"], hosted_startup_s=host["startup_s"],
+             per_process_rss_mb_per_robot=per_robot(one), hosted_rss_mb_per_robot=per_robot(host),
+             per_process_wall_s=one["wall_s"], hosted_wall_s=host["wall_s"],
+             per_process_agents_cpu_s=one["cpu_by_role"].get("agents"),
+             hosted_agents_cpu_s=host["cpu_by_role"].get("agents"),
+             status=[one["summary"].get("run_status"), host["summary"].get("run_status")],
+             rc=[one["rc"], host["rc"]], error=one["error"] + host["error"])
 
 
 def main() -> None:
@@ -162,11 +209,16 @@ def main() -> None:
     ap.add_argument("--sizes", type=int, nargs="*", default=[])
     ap.add_argument("--architectures", nargs="+", default=["cbba", "alliance"])
     ap.add_argument("--per-host", type=int, default=0, help="robots per host (0: the team)")
+    ap.add_argument("--startup-sizes", type=int, nargs="*", default=[],
+                    help="team sizes for the start-up and memory figure (point 4)")
+    ap.add_argument("--startup-duration", type=float, default=2.0)
     args = ap.parse_args()
     with tempfile.TemporaryDirectory(prefix="mrta-hosts-") as tmp:
         folder = Path(tmp)
         if args.repeat:
             run_cost(folder, args.repeat, args.duration, args.architecture)
+        if args.startup_sizes:
+            startup(folder, args.startup_sizes, args.architecture, args.startup_duration)
         if args.sizes:
             team_size(folder, args.sizes, args.architectures, args.per_host, args.duration)
 

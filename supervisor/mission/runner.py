@@ -233,6 +233,9 @@ def _run_in(run: MissionRun, reg: Registry,
 
         ready.wait(lambda: not set(ready.presence.missing()) - injected(), "the robots' agents",
                    group, stop, ignore=lambda: own_process(injected()))
+        # start-up, read by benchmarks/hosts.py (one process per robot against hosts)
+        log.info("%s: every robot's agent up, %.1f s after the run's processes began",
+                 AGENTS_UP, time.monotonic() - t_wall0)
         ready.wait(ready.clock.is_set, "the simulator", group, stop,
                    ignore=lambda: own_process(injected()))
         # a run that takes tasks at run time goes on to its duration: more may come
@@ -277,6 +280,8 @@ def _start_intake(run: MissionRun, group: ProcessGroup, client: list[str]) -> Ch
     return group.start(mrta_argv("task", "serve", "--instance", str(path), "--sim-time",
                                  *client), name=INTAKE)
 
+
+AGENTS_UP = "agents up"  # the start-up line's mark
 
 # From this many robots a run's processes meet through a router of their own (`mrta router` on
 # the run's rendezvous, every process its client) instead of in a peer mesh: the mesh's N + 3
