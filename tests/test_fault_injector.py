@@ -110,18 +110,34 @@ def test_a_crash_or_a_stall_strikes_at_its_time(spec, kind):
     assert other.plan is None or other.strikes(9.0) is None
 
 
-def test_range_drops_a_teammate_farther_than_r_as_ground_truth_says():
-    inj, bus, *_ = injector("range:8")
+def _truth(bus, robot, x, stamp=0.0):
+    bus.publish(keys.ground_truth(robot), Odometry(Header(robot, stamp, 0), Pose2D(x, 0.0, 0.0),
+                                                   Twist(0.0, 0.0)))
 
-    def truth(robot, x):
-        bus.publish(keys.ground_truth(robot), Odometry(Header(robot, 0.0, 0), Pose2D(x, 0.0, 0.0),
-                                                       Twist(0.0, 0.0)))
+
+def test_range_drops_a_teammate_farther_than_r_as_ground_truth_says():
+    inj, bus, *_ = injector("range:8", lockstep=False)
     assert inj.on_receipt(KEY, 1, "robot2", 1.0) == 1.0  # positions unknown: in range
-    truth("robot1", 0.0)
-    truth("robot2", 5.0)
+    _truth(bus, "robot1", 0.0)
+    _truth(bus, "robot2", 5.0)
     assert inj.on_receipt(KEY, 2, "robot2", 1.0) == 1.0
-    truth("robot2", 9.0)
+    _truth(bus, "robot2", 9.0)
     assert inj.on_receipt(KEY, 3, "robot2", 1.0) is None
+    assert inj.dropped == 1 and inj.counts[Cause.OUT_OF_RANGE] == 1
+
+
+def test_in_lockstep_the_range_is_judged_at_the_tick_where_both_were_at_the_stamp():
+    """A teammate's message may arrive before the simulator's ground truths of its own step
+    (another process's link); judged at the tick, by then they are in, and a message is judged
+    by the truths stamped no later than it — whatever arrived first (issue 47's identity)."""
+    inj, bus, *_ = injector("range:8")
+    _truth(bus, "robot1", 0.0, 0.9)
+    _truth(bus, "robot2", 5.0, 0.9)
+    assert inj.on_receipt(KEY, 1, "robot2", 1.0) == 1.0  # not judged on receipt in lockstep
+    _truth(bus, "robot2", 9.0, 1.0)  # its step's truth, after the message
+    _truth(bus, "robot2", 1.0, 1.1)  # a later step's: not where it was when it spoke
+    assert inj.cut("robot2", 1.0, 1.0)
+    assert not inj.cut("robot2", 0.95, 0.95)  # said at 0.95: it was at 5 then
     assert inj.dropped == 1 and inj.counts[Cause.OUT_OF_RANGE] == 1
 
 

@@ -13,8 +13,10 @@ on received coordination messages, and tallies what it did (mrta_zenoh/fault_tal
 * a partition: for a while nothing heard (`on_receipt`), and what the robot sends heard by
   nobody — each receiver drops it (`cut`), so the recording still holds what the robot said
   and did;
-* loss and out-of-range drops on receipt (`on_receipt`); latency delays a message's time heard
-  (`on_receipt`) and is counted once the message is handled (`heard_late`).
+* loss drops on receipt (`on_receipt`), out-of-range drops at the tick in lockstep (`cut`:
+  where both robots were at the message's stamp) and on receipt otherwise; latency delays a
+  message's time heard (`on_receipt`) and is counted once the message is handled
+  (`heard_late`).
 
 The hooks, in the order a tick meets them: `listen` (at start), `on_receipt` (network threads),
 `strikes` (each wake-up), `cut` and `heard_late` (per message handled at a tick), `announce`
@@ -147,11 +149,12 @@ class FaultInjector:
             return heard
         if plan.lost(key, seq):
             return self._drop(heard, Cause.LOST)
-        at = heard if self.clock.in_lockstep() else math.inf  # where both were when it was said
         heard += plan.delay(key, seq)
         if plan.cut_off(heard):
             return self._drop(heard, Cause.CUT_OFF)
-        if plan.out_of_range(self._pose_at(self.robot_id, at), self._pose_at(sender, at)):
+        # range: here only out of lockstep (where both are now); in lockstep at the tick (`cut`)
+        if not self.clock.in_lockstep() and plan.out_of_range(
+                self._pose_at(self.robot_id, math.inf), self._pose_at(sender, math.inf)):
             return self._drop(heard, Cause.OUT_OF_RANGE)
         return heard
 
@@ -188,17 +191,32 @@ class FaultInjector:
         return self.plan
 
     def cut(self, sender: str, stamp: float, heard: float) -> bool:
-        """Whether a message `sender` sent at `stamp`, heard at `heard`, is dropped by a
-        partition (counted): its sender's, or this robot's own. At the tick, not on receipt: an
-        `@first` partition is resolved by then. This robot's own partition is also applied on
-        receipt (`on_receipt`), which is all a partition named in the spec needs; checked here
-        again, it catches what arrived before an `@first` partition struck this robot — a
-        teammate's message stamped at the fault's very time races the loop's resolution, and
-        what was heard, and the tally, changed from run to run of one seed."""
+        """Whether a message `sender` sent at `stamp`, heard at `heard`, is dropped (counted) by
+        a partition — its sender's, or this robot's own — or, in lockstep, by the range.
+
+        At the tick, not on receipt: an `@first` partition is resolved by then. This robot's
+        own partition is also applied on receipt (`on_receipt`), which is all a partition named
+        in the spec needs; checked here again, it catches what arrived before an `@first`
+        partition struck this robot — a teammate's message stamped at the fault's very time
+        races the loop's resolution, and what was heard, and the tally, changed from run to run
+        of one seed.
+
+        The range in lockstep, at the tick too: a message is judged by where both robots were
+        at its stamp (their ground truths), and only at the tick are those sure to be here —
+        lockstep holds every step until the simulator's samples of the steps before have
+        arrived, but a teammate's message may arrive before them. Judged on receipt, a message
+        from another process could meet the receiver's truths one step behind, one in the same
+        agent host never (the host resumes its robots once the step's truths are in): MURDOCH
+        under range:4 ended a task a tick apart in the two layouts (issue 47's identity)."""
         plan = self.plan
-        if plan is not None and (plan.cut_off(heard) or (
-                plan.peers_cut and plan.sender_cut(sender, stamp))):
+        if plan is None:
+            return False
+        if plan.cut_off(heard) or (plan.peers_cut and plan.sender_cut(sender, stamp)):
             self.counts[Cause.CUT_OFF] += 1
+            return True
+        if plan.range is not None and self.clock.in_lockstep() and plan.out_of_range(
+                self._pose_at(self.robot_id, stamp), self._pose_at(sender, stamp)):
+            self.counts[Cause.OUT_OF_RANGE] += 1
             return True
         return False
 
