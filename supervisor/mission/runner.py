@@ -38,6 +38,7 @@ from mrta_zenoh.clock import SimClock
 from mrta_zenoh.errors import ConfigError, Interrupted, MrtaRuntimeError
 from mrta_zenoh.failure import FAULTS_ENV, RETIRED_CRASH_ENV, Failure, fault_env
 from mrta_zenoh.identity import OBSERVER
+from mrta_zenoh.lockstep.protocol import DEFAULT_TIMEOUT
 from mrta_zenoh.node import Node, NodeTime
 from mrta_zenoh.processes import Child, ProcessGroup, mrta_argv
 from mrta_zenoh.seeds import SEED_ENV
@@ -154,7 +155,10 @@ def _run_in(run: MissionRun, reg: Registry,
     launch_args = {"speed": str(options.speed), "seed": str(options.seed),
                    "sim_args": f"--duration {options.duration}"
                                + (f" --snapshot {output / 'world.png'}" if options.plots else "")
-                               + (" --lockstep" if options.lockstep else "")}
+                               + (" --lockstep" if options.lockstep else "")
+                               + (f" --lockstep-timeout {host_timeout(options.agents_per_process)}"
+                                  if options.lockstep and options.agents_per_process > 1
+                                  else "")}
     launch = run.package.path / "launch" / run.mission.launch
     nodes = LaunchEvaluator(lambda name: reg.find(name).path).run(launch, launch_args)
     check_executables(nodes)
@@ -263,6 +267,16 @@ def _run_in(run: MissionRun, reg: Registry,
     summary = analyse(run, failure, failed_at, time.monotonic() - t_wall0, before, disturbances,
                       strangers)
     return run, summary
+
+
+def host_timeout(per_host: int) -> float:
+    """The lockstep timeout (wall s) when robots run `per_host` to a process: a host answers a
+    step once each of its robots has ticked, one after the other, so a step where every robot
+    decides costs it K robots' decisions — at 100 robots × 100 tasks CBBA's first bundles took
+    ≈ 0.5 s each, ≈ 50 s for the host, and the default 30 s gave it up and the run went on
+    without its robots (benchmarks/README.md, agent hosts). A dead host is not waited for
+    either way (its token goes with it)."""
+    return DEFAULT_TIMEOUT * per_host
 
 
 def _start_intake(run: MissionRun, group: ProcessGroup, client: list[str]) -> Child | None:
