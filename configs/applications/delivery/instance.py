@@ -332,7 +332,8 @@ def document_data(inst: InstanceBody) -> dict[str, Any]:
             if t.get(key) is None:
                 t.pop(key, None)
     body["world"] = {"size": list(inst.world.size), "walls": [list(w) for w in inst.world.walls]}
-    for key in ("application", "generator", "cost", "cost_model", "max_tasks_per_robot"):
+    for key in ("application", "generator", "cost", "cost_model", "max_tasks_per_robot",
+                "submitted"):
         if not body.get(key):
             body.pop(key, None)
     if body.get("windows") == Windows.HARD.value:  # the default: today's files stay as they are
