@@ -368,12 +368,7 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     ap.add_argument("--output", type=Path, default=None, help="runs and tables (default: tmp)")
     ap.add_argument("--reuse", action="store_true",
                     help="results already in OUTPUT are read, not run again")
-    ap.add_argument("--no-plots", action="store_true", help="no report plots")
-    ap.add_argument("--write-docs", action="store_true",
-                    help="also rewrite docs/comparison.md's block, the README's headline and "
-                         "docs/img/study/ (default: write only into OUTPUT)")
-    ap.add_argument("--doc", type=Path, default=ROOT / "docs" / "comparison.md")
-    ap.add_argument("--readme", type=Path, default=ROOT / "README.md")
+    add_doc_options(ap)
     args = ap.parse_args(argv)
     known = architecture_names()
     unknown = [a for a in args.architectures if a not in known]
@@ -383,6 +378,17 @@ def parse(argv: list[str] | None) -> argparse.Namespace:
     if args.baseline not in args.architectures:
         ap.error(f"--baseline {args.baseline!r} is not among --architectures")
     return args
+
+
+def add_doc_options(ap: argparse.ArgumentParser) -> None:
+    """The options write_docs reads (`--write-docs`, `--doc`, `--readme`, `--no-plots`): one
+    spelling for this script and study_report.py, which both write docs/comparison.md."""
+    ap.add_argument("--no-plots", action="store_true", help="no report plots")
+    ap.add_argument("--write-docs", action="store_true",
+                    help="also rewrite docs/comparison.md's block, the README's headline and "
+                         "docs/img/study/ (default: write only into OUTPUT)")
+    ap.add_argument("--doc", type=Path, default=ROOT / "docs" / "comparison.md")
+    ap.add_argument("--readme", type=Path, default=ROOT / "README.md")
 
 
 def write_docs(args: argparse.Namespace, table: str, short: str, out: Path,

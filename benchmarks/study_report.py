@@ -41,8 +41,8 @@ from mrta_supervisor.experiment.report_md import write_report  # noqa: E402
 from mrta_supervisor.experiment.results import read_results, write_csv  # noqa: E402
 
 from compare_architectures import (DELIVERY_ARCHITECTURES, DELIVERY_METRICS,  # noqa: E402
-                                   PATROL_METRICS, STUDY, TABLE, exit_code, metrics_of,
-                                   with_gaps, write_docs)
+                                   PATROL_METRICS, STUDY, TABLE, add_doc_options, exit_code,
+                                   metrics_of, with_gaps, write_docs)
 from study_tables import (delivery_tables, headline, mission_tables,  # noqa: E402
                           references_line)
 
@@ -184,12 +184,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--study", type=Path, default=STUDY_DIR, help="the study's folder")
     ap.add_argument("--output", type=Path, default=None, help="the reports (default: tmp)")
-    ap.add_argument("--no-plots", action="store_true", help="no report plots")
-    ap.add_argument("--write-docs", action="store_true",
-                    help="also rewrite docs/comparison.md's block, the README's headline and "
-                         "docs/img/study/")
-    ap.add_argument("--doc", type=Path, default=ROOT / "docs" / "comparison.md")
-    ap.add_argument("--readme", type=Path, default=ROOT / "README.md")
+    add_doc_options(ap)
     args = ap.parse_args(argv)
     out = args.output or Path(tempfile.mkdtemp(prefix="mrta-study-report-"))
     table, short, reports = tables(args.study, out, plots=not args.no_plots)
