@@ -76,6 +76,12 @@ class StudyFile:
         return instances * len(spec.seeds)
 
     @property
+    def complete(self) -> bool:
+        """Every run of the file's matrix has its row: only then are its cells reported (a
+        file in progress is a table of what is in, never a figure of the study's)."""
+        return len(self.rows) >= self.per_cell * len(self.architectures)
+
+    @property
     def architectures(self) -> list[str]:
         return [a for a in self.experiment.architectures if a is not None] or \
             [self.experiment.spec.architecture or ""]
@@ -92,9 +98,10 @@ def study_files(folder: Path) -> list[StudyFile]:
 
 
 def combined(files: list[StudyFile], mission: str, out: Path) -> Path | None:
-    """The mission's rows of every file as one results.csv in OUT/<mission>/ (None: no row)."""
+    """The mission's rows of every complete file as one results.csv in OUT/<mission>/ (None:
+    no file complete)."""
     rows = []
-    for f in (f for f in files if f.mission == mission):
+    for f in (f for f in files if f.mission == mission and f.complete):
         for r in f.rows:
             row = {**r, "run": f.index * RUN_BLOCK + int(r["run"])}
             rows.append(with_gaps(row) if mission != "patrol" else row)
@@ -107,8 +114,8 @@ def combined(files: list[StudyFile], mission: str, out: Path) -> Path | None:
 
 def coverage(files: list[StudyFile], mission: str) -> list[str]:
     """What is in, per file: its size and fault, and each architecture's runs that ended well
-    against what its matrix holds when complete (a cell short of that says so); the files
-    with no row yet named in one line under the table."""
+    against what its matrix holds when complete; a file in progress is marked so, and the
+    files with no row yet named in one line under the table."""
     mine = [f for f in files if f.mission == mission]
     archs = list(dict.fromkeys(a for f in mine for a in f.architectures))
     lines = ["| file | N / M | fault | " + " | ".join(archs) + " |",
@@ -119,12 +126,17 @@ def coverage(files: list[StudyFile], mission: str) -> list[str]:
                 if spec.instances is not None else "3 / 3")
         done = {a: sum(r.get("architecture") == a and r.get("status") == "ok" for r in f.rows)
                 for a in f.architectures}
-        lines.append(f"| {f.experiment.file.stem} | {size} | {', '.join(spec.failures)} | "
+        name = f.experiment.file.stem + ("" if f.complete else " (in progress)")
+        lines.append(f"| {name} | {size} | {', '.join(spec.failures)} | "
                      + " | ".join(f"{done[a]}/{f.per_cell}" if a in done else "n/a"
                                   for a in archs) + " |")
     waiting = [f.experiment.file.stem for f in mine if not f.rows]
-    return lines + ([] if not waiting else
-                    ["", f"Not run yet (no row): {', '.join(waiting)}."])
+    partial = [f.experiment.file.stem for f in mine if f.rows and not f.complete]
+    return lines + ([] if not partial else
+                    ["", f"In progress, not in the tables below until every run of the file "
+                         f"has its row (each cell at its {mine[0].per_cell} instances): "
+                         f"{', '.join(partial)}."]) + \
+        ([] if not waiting else ["", f"Not run yet (no row): {', '.join(waiting)}."])
 
 
 def intro(report: Report, files: list[StudyFile], mission: str) -> str:
@@ -133,11 +145,12 @@ def intro(report: Report, files: list[StudyFile], mission: str) -> str:
     failed = [r for r in rows if r.get("status") != "ok"]
     asked = sum(f.per_cell * len(f.architectures) for f in files if f.mission == mission)
     instances = len({r.get("instance") for r in rows})
-    return (f"{len(rows):,} runs in of the {asked:,} its files ask for, {len(failed)} not ok; "
-            f"{instances} distinct instances. Each cell: the mean "
+    return (f"{len(rows):,} runs of the complete files, of the {asked:,} all its files ask "
+            f"for, {len(failed)} not ok; {instances} distinct instances. Each cell: the mean "
             "and its 95 % bootstrap interval over instances (docs/statistics.md); a gap is the "
-            "objective achieved over its reference − 1, in %; a cell short of its instances is "
-            "over those in (the table of what is in, above). " + references_line(report))
+            "objective achieved over its reference − 1, in %; every cell reported has every "
+            "instance of its file (a file in progress is only in the table of what is in, "
+            "above). " + references_line(report))
 
 
 def report_mission(files: list[StudyFile], mission: str, out: Path, plots: bool
@@ -158,12 +171,14 @@ def tables(folder: Path, out: Path, plots: bool = False) -> tuple[str, str, dict
     reports: dict[str, Report] = {}
     sections: list[str] = []
     for mission in MISSIONS:
+        if not any(f.rows for f in files if f.mission == mission):
+            continue
+        title = {"walls": "delivery around walls"}.get(mission, mission)
+        sections += [f"### {title}: what is in", ""] + coverage(files, mission) + [""]
         report = report_mission(files, mission, out, plots)
         if report is None:
             continue
         reports[mission] = report
-        title = {"walls": "delivery around walls"}.get(mission, mission)
-        sections += [f"### {title}: what is in", ""] + coverage(files, mission) + [""]
         if mission == "patrol":
             sections += mission_tables(mission, out / mission) + [""]
         else:
@@ -171,10 +186,11 @@ def tables(folder: Path, out: Path, plots: bool = False) -> tuple[str, str, dict
                      if any(c.value("architecture") == a for c in report.cells)]
             sections += delivery_tables(report, archs, intro(report, files, mission),
                                         mission) + [""]
-    runs = sum(len(r.table.rows) for r in reports.values())
+    runs = sum(len(r.table.rows) for r in reports.values())  # the complete files' runs
     short = headline(reports, list(DELIVERY_ARCHITECTURES), (
-        f"The study in [docs/study/](docs/study/) as far as it has run ({runs:,} runs: "
-        "[docs/comparison.md](docs/comparison.md) says which cells are complete); generated "
+        f"The study in [docs/study/](docs/study/), its complete files ({runs:,} runs, every "
+        "cell at all its instances; [docs/comparison.md](docs/comparison.md) says which files "
+        "are in and which are in progress); generated "
         "delivery instances, every fault model, matched parameters, lockstep; mean and 95 % "
         "bootstrap interval over instances. Patrol: ALLIANCE and MURDOCH only."))
     return "\n".join(sections).rstrip(), "\n".join(short), reports

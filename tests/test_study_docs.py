@@ -127,3 +127,18 @@ def test_every_committed_folder_resumes_under_its_file(tmp_path):
                                     tmp_path / str(len(made_for)), exp.doc)
         exp = exp.with_instances(made_for[key])
         assert identity_of(exp, exp.runs(), None).digest == read_identity(folder).digest, folder
+
+
+def test_a_file_in_progress_is_listed_but_none_of_its_rows_is_reported(tmp_path):
+    """A cell short of its instances is no figure of the study's: a file's rows reach the
+    tables only once every run of its matrix has one (issue 48: ≥ 30 instances per cell)."""
+    mod = study_report()
+    exp = load_experiment(STUDY / "03-delivery-5x5-stall.yaml")
+    row = {"run": "0", "architecture": "alliance", "status": "ok", "instance": "i"}
+    partial = mod.StudyFile(3, exp, [row] * 4)
+    whole = mod.StudyFile(3, exp, [{**row, "run": str(i)} for i in range(150)])
+    assert not partial.complete and whole.complete
+    assert mod.combined([partial], "delivery", tmp_path) is None
+    lines = mod.coverage([partial], "delivery")
+    assert "03-delivery-5x5-stall (in progress)" in lines[2] and "4/30" in lines[2]
+    assert any("In progress, not in the tables" in line for line in lines)
