@@ -135,6 +135,17 @@ class Architecture(ABC):
     objective: ClassVar[str | None] = None
     # the kinds `decision` reads: messages that record an allocation decision. Default: none
     decision_kinds: ClassVar[tuple[str, ...]] = ()
+    # whether its robots serve tasks submitted at run time (issue 50: its logic grows through
+    # the Coordinator's `tasks_added`); False — a run's intake refuses every submission, saying
+    # why (`submitted_refusal`). Default: False
+    takes_submitted: ClassVar[bool] = False
+
+    def submitted_refusal(self) -> str:
+        """Why a run of this architecture refuses submitted tasks ("" when it takes them)."""
+        if self.takes_submitted:
+            return ""
+        return (f"{self.title} serves no task submitted at run time (its robots' task sets are "
+                "fixed at start-up: docs/tasks.md)")
 
     # ------------------------------------------------------------ keys
     def key(self, robot_id: str, kind: str, *rest: str) -> str:

@@ -82,6 +82,22 @@ class InstanceKind:
         raise ConfigError(f"{self.application or 'this application'} takes no tasks at run "
                           "time")
 
+    def grow(self, doc: Any, task_id: str, fields: dict[str, Any], at: float) -> Any:
+        """`doc` with a task submitted at run time (mrta_zenoh.tasks) added, arriving at `at`
+        (the instant it entered the run), checked as `admit` checks it: what a robot's agent
+        serves it from (robot_agent.runtime.growth). ConfigError when it may not enter.
+        Default: `admit`'s refusal — an application whose tasks enter at run time overrides
+        both."""
+        self.admit(doc, task_id, fields)
+        raise ConfigError(f"{self.application or 'this application'} admits task "
+                          f"{task_id!r} but cannot add it to a running mission (InstanceKind.grow)")
+
+    def grown_problem(self, doc: Any, before: Any) -> Any:
+        """The planning problem of `doc`, grown at run time (`grow`) from the one `before`:
+        the tasks and their indices before keep their place, the new ones follow. Default: the
+        whole problem again (`problem`); an application may compute only what is new."""
+        return self.problem(doc)
+
     def schedule(self, doc: Any) -> list:
         """The changes `doc` schedules at run time (mrta_zenoh.tasks.intake.Scheduled: a
         summary's `submitted`, what entered a live run and when), which a run of it replays

@@ -7,6 +7,7 @@ import json
 
 import pytest
 
+from mrta_zenoh.architectures import architectures
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.messages import Header
 from mrta_zenoh.refusal_tally import MALFORMED
@@ -206,8 +207,8 @@ def test_a_run_gets_an_intake_only_when_reachable_or_scheduled(tmp_path):
             self.started.append((name, argv))
             return name
 
-    def run(options, path=INSTANCE):
-        return SimpleNamespace(options=options,
+    def run(options, path=INSTANCE, arch="central"):
+        return SimpleNamespace(options=options, arch=architectures()[arch],
                                mission=SimpleNamespace(instance_file=lambda _run: path))
 
     g = Group()
@@ -220,7 +221,11 @@ def test_a_run_gets_an_intake_only_when_reachable_or_scheduled(tmp_path):
     scheduled = tmp_path / "replay.yaml"
     scheduled.write_text(INSTANCE.read_text() + "submitted:\n  - {at: 1.5, op: cancel, id: t3}\n")
     assert _start_intake(run(MissionOptions(instance=scheduled)), g, []) == "tasks"
-    assert str(scheduled) in g.started[-1][1]
+    assert str(scheduled) in g.started[-1][1] and "--closed" not in g.started[-1][1]
+    # an architecture growing no task at run time: its intake refuses submissions, saying why
+    _start_intake(run(MissionOptions(rendezvous="tcp/127.0.0.1:1"), arch="alliance"), g, [])
+    argv = g.started[-1][1]
+    assert argv[argv.index("--closed") + 1] == architectures()["alliance"].submitted_refusal()
 
 
 def test_an_open_rmf_task_request_maps_to_a_point_task():

@@ -147,10 +147,13 @@ def list_tasks(as_json: bool, name: str, timeout: float, bus_options: BusOptions
               show_default=True, help="Requests a wall second each submitter may send.")
 @click.option("--burst", type=click.IntRange(min=1), default=Limits.burst, show_default=True,
               help="Requests a submitter may send at once.")
+@click.option("--closed", metavar="REASON", default="",
+              help="Refuse every submission with this reason (the run's architecture serves no "
+                   "task submitted at run time); cancellations are still taken.")
 @bus_options
 def serve(instance: Path, application: str | None, sim_time: bool, duration: float | None,
-          rate: float, burst: int, bus_options: BusOptions) -> None:
+          rate: float, burst: int, closed: str, bus_options: BusOptions) -> None:
     """The run's task intake (the mission runner starts it; by hand beside `mrta sim`)."""
     from ..tasks.server import ServeOptions, serve as run
     run(ServeOptions(instance, application, bus_options, sim_time, duration,
-                     Limits(rate=rate, burst=burst)))
+                     Limits(rate=rate, burst=burst), closed))

@@ -165,6 +165,23 @@ class Problem:
         a = i if src is None else len(self.robots) + src
         return self.distance[a][len(self.robots) + j] / self.robots[i].speed
 
+    def grown(self, tasks: Sequence[Task],
+              path: Callable[[Point, Point], float] | None = None) -> "Problem":
+        """The same problem with `tasks` appended (tasks submitted at run time): every index
+        before keeps its meaning, the distances known are kept and only the new rows and
+        columns computed, by `path(a, b)` (None: straight lines)."""
+        path = path or straight_line
+        n = len(self.robots) + len(self.tasks)
+        points = self.points + [t.position for t in tasks]
+        rows = [list(row) + [path(points[a], p) for p in points[n:]]
+                for a, row in enumerate(self.distance)]
+        rows += [[path(q, p) for p in points] for q in points[n:]]
+        for b in range(n, len(points)):  # symmetric, as PathMap.matrix is
+            for a in range(n):
+                rows[b][a] = rows[a][b]
+        return Problem(self.robots, self.tasks + tuple(tasks),
+                       tuple(tuple(row) for row in rows), self.windows)
+
     def restricted(self, task_ids: Sequence[str]) -> "Problem":
         """The same robots with only `task_ids` (in that order), distances kept: what a
         planner re-solves when some tasks are done or not yet known."""

@@ -44,6 +44,7 @@ from .messages import MAX_FIELDS, MAX_LISTING, INTAKE, Answer, Change, Op, Outco
 
 KIND = "task_request"                 # refusal_tally kind of a refused request
 RATE, FULL, TOO_MANY = "rate", "full", "too_many_tasks"  # refusal reasons beyond MALFORMED
+CLOSED = "closed"  # the run serves no task submitted at run time (its architecture)
 
 
 @dataclass(frozen=True)
@@ -106,8 +107,10 @@ class Intake:
 
     def __init__(self, admit: Callable[[str, dict[str, Any]], None], known: Iterable[str] = (),
                  limits: Limits = Limits(), schedule: Iterable[Scheduled] = (),
-                 wall: Callable[[], float] = time.monotonic):
-        self.admit, self.limits, self.wall = admit, limits, wall
+                 wall: Callable[[], float] = time.monotonic, closed: str = ""):
+        """`closed`: why every submission is refused (the run's architecture grows no task at
+        run time: Architecture.takes_submitted); "" — submissions are taken."""
+        self.admit, self.limits, self.wall, self.closed = admit, limits, wall, closed
         self.tasks: dict[str, Ledger] = {t: Ledger(t) for t in known}
         self.submitted = 0
         self.refusals = Refusals()
@@ -203,6 +206,8 @@ class Intake:
 
     def _submit(self, submitter: str, req: Request, now: float, changes: list[Change]) -> Answer:
         tid = req.task_id
+        if self.closed:
+            return self._refuse(submitter, req, CLOSED, self.closed)
         if not is_id(tid):
             return self._refuse(submitter, req, MALFORMED, f"task id {tid[:70]!r}: up to 64 of "
                                 "letters, digits, '_', '-', '.', not starting with '-' or '.'")

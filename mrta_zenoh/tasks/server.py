@@ -47,16 +47,17 @@ class ServeOptions:
     sim_time: bool = False
     duration: float | None = None
     limits: Limits = Limits()
+    closed: str = ""  # why every submission is refused (Intake's `closed`); "": taken
 
 
 def intake_for(instance: Path, application: str | None = None,
-               limits: Limits = Limits()) -> Intake:
+               limits: Limits = Limits(), closed: str = "") -> Intake:
     """The intake of a run of `instance`: the application's task type checks each submission
     (InstanceKind.admit), the instance's own tasks may be cancelled, its schedule replays."""
     loaded = instances.load(instance, application)
     kind, doc = loaded.kind, loaded.doc
     return Intake(lambda tid, fields: kind.admit(doc, tid, fields), kind.tasks(doc), limits,
-                  kind.schedule(doc))
+                  kind.schedule(doc), closed=closed)
 
 
 def boundary_after(t: float, scheduled: float | None) -> float:
@@ -69,7 +70,7 @@ def boundary_after(t: float, scheduled: float | None) -> float:
 
 
 def serve(options: ServeOptions, stop: threading.Event | None = None) -> int:
-    intake = intake_for(options.instance, options.application, options.limits)
+    intake = intake_for(options.instance, options.application, options.limits, options.closed)
     time = NodeTime.LOCKSTEP if options.sim_time else NodeTime.WALL
     with Node(options.bus_options, ROLE, name=INTAKE, time=time, stop=stop) as node:
         bus, clock = node.bus, node.clock

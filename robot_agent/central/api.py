@@ -50,31 +50,37 @@ class DispatcherOptions:
     team: tuple[str, ...] | None = None
 
 
-def load_problem(path: Path, application: str | None = None) -> Problem:
-    problem = instances.problem(path, application)
+def load_problem(path: Path, application: str | None = None) -> tuple[Problem, instances.Loaded]:
+    """The instance's planning problem, and the instance (tasks submitted at run time grow
+    both: runtime/growth.py)."""
+    loaded = instances.load(path, application)
+    problem = loaded.kind.problem(loaded.doc)
     if not isinstance(problem, Problem):
         raise ConfigError(f"{path}: its instance kind gave a {type(problem).__name__}, not a "
                           "mrta_zenoh.planning.Problem")
-    return problem
+    return problem, loaded
 
 
-def prepare(options: DispatcherOptions) -> tuple[DispatcherParams, Problem]:
+def prepare(options: DispatcherOptions) -> tuple[DispatcherParams, Problem, instances.Loaded]:
     """Read and check both files (ConfigError naming file, line and key) before any bus opens."""
     if options.name != DISPATCHER:
         raise ConfigError(f"--name {options.name!r}: central's robots take queues only from "
                           f"{DISPATCHER!r}")
-    return load_dispatcher(options.params), load_problem(options.instance, options.application)
+    return (load_dispatcher(options.params),
+            *load_problem(options.instance, options.application))
 
 
 def dispatcher_agent(name: str, params: DispatcherParams, problem: Problem, bus: Bus,
-                     clock: Clock, rng: np.random.Generator | None) -> Agent:
-    """The fixed driver given the dispatcher's logic: no plugins, no layers, no body."""
+                     clock: Clock, rng: np.random.Generator | None,
+                     instance: instances.Loaded | None = None) -> Agent:
+    """The fixed driver given the dispatcher's logic: no plugins, no layers, no body — only
+    the instance, which tasks submitted at run time grow (runtime/growth.py)."""
     return Agent(name, CENTRAL, lambda: Dispatcher(problem, params, name), bus, clock, rng,
-                 Plugins((), (), {}, None), params.spin_rate, params.spin_rate, log)
+                 Plugins((), (), {}, None, instance), params.spin_rate, params.spin_rate, log)
 
 
 def run_dispatcher(options: DispatcherOptions, stop: threading.Event | None = None) -> int:
-    params, problem = prepare(options)
+    params, problem, instance = prepare(options)
     robots = tuple(r.id for r in problem.robots)
     team = (options.team or robots) + (options.name,)
     agent_options = AgentOptions(options.name, options.params, options.instance, None,
@@ -82,7 +88,7 @@ def run_dispatcher(options: DispatcherOptions, stop: threading.Event | None = No
                                  options.duration, None, team)
 
     def make(bus, clock, rng) -> Agent:
-        return dispatcher_agent(options.name, params, problem, bus, clock, rng)
+        return dispatcher_agent(options.name, params, problem, bus, clock, rng, instance)
 
     return host(make, agent_options, warnings=[], stop=stop, logger=log, role=DISPATCHER,
                 describe=f"dispatcher of {len(robots)} robots and {len(problem.tasks)} tasks, "

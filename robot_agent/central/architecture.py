@@ -48,6 +48,7 @@ class Central(RouteArchitecture):
     processes = (DISPATCHER,)
     objective = "minsum"
     decision_kinds = ("plan",)
+    takes_submitted = True  # the dispatcher re-plans with it (dispatcher.py, tasks_added)
     logger_name = "mrta.central"
 
     def has_subkeys(self, kind: str) -> bool:
@@ -69,10 +70,10 @@ class Central(RouteArchitecture):
         gives `mrta dispatcher` (its parameters, the instance; the instance's own
         `application:` key names its kind)."""
         from .api import DispatcherOptions, dispatcher_agent, prepare  # api imports this module
-        params, problem = prepare(DispatcherOptions(
+        params, problem, instance = prepare(DispatcherOptions(
             config / f"dispatcher_{self.param_stem}_params.yaml", config / "instance.yaml",
             name=name))
-        return dispatcher_agent(name, params, problem, bus, clock, rng)
+        return dispatcher_agent(name, params, problem, bus, clock, rng, instance)
 
     def decision(self, sender: str, key: str, message: object) -> Decision | None:
         if not isinstance(message, Plan) or sender != DISPATCHER:

@@ -221,6 +221,21 @@ class Dispatcher(Coordinator):
             view.served.append(task)
             self._triggers.append("completion")
 
+    # ------------------------------------------------------------ tasks at run time
+    def tasks_added(self, growth, now: float) -> None:
+        """Tasks submitted at run time (runtime/growth.py): the problem grows by them (their
+        indices after the instance's), and each is learnt as an arrival — at this tick, since
+        it arrived at the instant it entered — so the plan is solved again with it."""
+        self.problem = growth.problem(self.problem)
+        self._task = {t.id: t for t in self.problem.tasks}
+
+    def task_cancelled(self, task_id: str, now: float) -> None:
+        """A task cancelled at run time is never planned again (its holder leaves it on its
+        own: route.executor), and the plan is solved again without it."""
+        if task_id in self._task and task_id not in self.done and task_id not in self.closed:
+            self.closed.add(task_id)
+            self._triggers.append("cancellation")
+
     # ------------------------------------------------------------ one decision step
     def tick(self, now: float) -> Iterable[Say]:
         if self.start is None:
@@ -419,7 +434,7 @@ def _moved(before: tuple[float, float, float] | None, now: tuple[float, float, f
     return math.hypot(now[0] - before[0], now[1] - before[1]) >= MOVED or abs(turn) >= TURNED
 
 
-ORDER = ("start", "loss", "return", "arrival", "completion", "deviation")
+ORDER = ("start", "loss", "return", "arrival", "cancellation", "completion", "deviation")
 
 
 def _first(triggers: list[str]) -> str:

@@ -12,9 +12,12 @@ from __future__ import annotations
 
 import collections
 import difflib
-from typing import Any, ClassVar, Iterable, Mapping, NamedTuple
+from typing import TYPE_CHECKING, Any, ClassVar, Iterable, Mapping, NamedTuple
 
 from mrta_zenoh.messages import Header, Message
+
+if TYPE_CHECKING:
+    from .growth import Growth
 
 
 class Say(NamedTuple):
@@ -61,13 +64,22 @@ class Coordinator:
     * `refuse(kind, sender, reason)`: what a logic did not believe of a message it accepted
       otherwise (a claim its sender cannot make: docs/security.md), counted by kind, sender and
       reason — the driver reports these with the messages `hear` refused whole
-      (`refusals()`), so every summary shows what was refused.
+      (`refusals()`), so every summary shows what was refused;
+    * tasks at run time (runtime/growth.py, issue 50), told at the decision step after the
+      instant each entered, before `tick`: `tasks_added(growth, now)` — tasks submitted (the
+      robot's instance and plugins already hold them; `growth.problem(p)` grows a planning
+      problem); `task_priority(task, priority, now)` — a new priority; `task_cancelled(task,
+      now)` — withdrawn (the robot's evaluators say so already: a logic that plans for others,
+      central's dispatcher, drops it). No-ops by default: a logic that ignores them serves no
+      submitted task (the intake refuses submissions for such an architecture:
+      `Architecture.takes_submitted`).
     """
 
     listens: ClassVar[tuple[str, ...]] = ()
     HOOKS: ClassVar[tuple[str, ...]] = ("listens", "subjects", "hear", "teammate", "advertises",
                                         "teammate_subject", "tick", "active_task",
-                                        "hears_subjects")
+                                        "hears_subjects", "tasks_added", "task_priority",
+                                        "task_cancelled")
 
     def __init_subclass__(cls, **kwargs) -> None:
         super().__init_subclass__(**kwargs)
@@ -119,3 +131,12 @@ class Coordinator:
 
     def tick(self, now: float) -> Iterable[Say]:
         return ()
+
+    def tasks_added(self, growth: Growth, now: float) -> None:
+        pass
+
+    def task_priority(self, task_id: str, priority: int, now: float) -> None:
+        pass
+
+    def task_cancelled(self, task_id: str, now: float) -> None:
+        pass

@@ -67,6 +67,7 @@ from mrta_zenoh.untrusted import visible
 
 from .coordinator import Coordinator, Say
 from .faults import FaultInjector
+from .growth import RunTimeTasks
 from .inbox import Heard, Inbox
 from .plugins import AgentContext, Layer, Plugins
 from .tokens import TeamTokens
@@ -132,6 +133,9 @@ class Agent:
         self._count_lock = threading.Lock()  # network callbacks' counters (`_drop`, `received`)
         self._handles: list = []  # subscriptions and the agent's token, closed at shutdown
         self._layers_task: str | None = None
+        # tasks submitted at run time (growth.py): heard here, grown at a decision step
+        self.run_time_tasks = RunTimeTasks(robot_id, clock, logger)
+        self.ctx.refusal_sources.append(self.run_time_tasks.refusals)
 
     @property
     def faults(self) -> FaultPlan | None:
@@ -157,6 +161,7 @@ class Agent:
         self.advertised()  # a bad subject is a configuration error before anything starts
         self.plugins.setup(self.ctx)
         self._handles.extend(self.injector.listen(lambda: self.roster))
+        self._handles.append(self.run_time_tasks.listen(self.bus))
         arch = self.architecture
         for kind in self.coordinator.listens:
             for key_expr in self.listen_keys(kind):
@@ -365,6 +370,7 @@ class Agent:
                 # not taken: ALLIANCE's broadcast of a task this robot does not serve is no
                 # evidence; what is, the logic counts under its reason (Coordinator.refuse)
                 self._drop("refused", "refused %s from %s", type(what).__name__, item.sender)
+        self.run_time_tasks.take(now, self.plugins, self.ctx, self.coordinator)
         for say in self.coordinator.tick(now):
             self.send(say, now)
         self.switch_layers(self.coordinator.active_task, now)
@@ -440,6 +446,7 @@ class Agent:
             self.refusals = Refusals()  # counted afresh, like the fault tally
         self._refusals_told, self._refusals_at = {}, -math.inf
         self.coordinator = self._make_coordinator()
+        self.run_time_tasks.retell(self.coordinator)
         for robot in sorted(self.team):
             self.coordinator.teammate(robot, True)
         for robot, subjects in sorted(self.tokens.told_subjects.items()):

@@ -236,6 +236,11 @@ class SensoryEvaluator(Plugin):
     def is_applicable(self, now: float) -> bool:
         raise NotImplementedError
 
+    # whether a task submitted at run time may be served with this evaluator and the layers
+    # of the task it judges (Plugins.grow): the application's tasks are all of one kind
+    # (delivery's point tasks); False: none is served at run time
+    serves_submitted: ClassVar[bool] = False
+
     def withdrawn(self, now: float) -> bool:
         """Whether the task was withdrawn for good by `now` (cancelled at run time,
         mrta_zenoh.tasks): a robot serving a route then leaves it rather than wait for it
@@ -406,6 +411,29 @@ class Plugins:
             plugin.setup(ctx)
         if any(plugin.draws for plugin in self.all()):
             prepare(ctx.rng)
+
+    def grow(self, task_ids: Sequence[str], ctx: AgentContext) -> list[str]:
+        """Plugins for tasks submitted at run time (runtime/growth.py), set up at once: each
+        an evaluator of the class, reading the sensors, of the robot's first task whose
+        evaluator `serves_submitted`, and layers of that task's classes. The tasks built
+        ([] when no task of this robot's takes submitted ones: it serves none of them)."""
+        template = next((t for t, ev in self.evaluators.items() if ev.serves_submitted), None)
+        if template is None:
+            return []
+        first = self.evaluators[template]
+        built = []
+        for tid in task_ids:
+            if tid in self.evaluators:
+                continue
+            evaluator = type(first)(tid, list(first.sensors))
+            layers = [type(layer)() for layer in self.layers.get(template, ())]
+            for layer in layers:
+                layer.task_id = tid
+            self.evaluators[tid], self.layers[tid] = evaluator, layers
+            for plugin in (evaluator, *layers):
+                plugin.setup(ctx)
+            built.append(tid)
+        return built
 
     def shutdown(self) -> None:
         for plugin in self.all():

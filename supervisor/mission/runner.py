@@ -291,8 +291,10 @@ def _start_intake(run: MissionRun, group: ProcessGroup, client: list[str]) -> Ch
         loaded = instances.load(path)
         if not loaded.kind.schedule(loaded.doc):
             return None
+    closed = run.arch.submitted_refusal()
     return group.start(mrta_argv("task", "serve", "--instance", str(path), "--sim-time",
-                                 *client), name=INTAKE)
+                                 *(("--closed", closed) if closed else ()), *client),
+                       name=INTAKE)
 
 
 AGENTS_UP = "agents up"  # the start-up line's mark

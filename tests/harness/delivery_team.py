@@ -9,6 +9,7 @@ What it records is what a run's analysis reads: each robot's `delivery/started|d
 
 from __future__ import annotations
 
+import json
 import math
 from pathlib import Path
 
@@ -23,17 +24,18 @@ from mrta_agent.runtime.plugins import Plugins
 from mrta_delivery.generate import derive
 from mrta_delivery.instance import InstanceDoc
 from mrta_delivery.messages import TaskEvent
-from mrta_zenoh import keys
+from mrta_zenoh import instances, keys
 from mrta_zenoh.architectures import architectures
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.bus.inproc import InProcNetwork
 from mrta_zenoh.clock import ManualClock
 from mrta_zenoh.failure import FaultPlan
 from mrta_zenoh.messages import Header, Odometry, Pose2D, Twist
+from mrta_zenoh.tasks.messages import CHANGE, INTAKE, Change
 
 TICK = 0.1
 PACKAGE = {"alliance": "delivery", "murdoch": "delivery_murdoch", "central": "delivery_central",
-           "ssi": "delivery_ssi", "cbba": "delivery_cbba"}
+           "ssi": "delivery_ssi", "cbba": "delivery_cbba", "tessi": "delivery_tessi"}
 
 
 class DeliveryTeam:
@@ -66,11 +68,12 @@ class DeliveryTeam:
                 layers if layers.exists() else None))
             self._start(rid, lambda bus, p=prepared: self.contract.agent(
                 p, bus, self.clock, np.random.default_rng(0)), faults.get(rid))
-        if arch == "central":
+        if arch == "central":  # with the instance its tasks submitted at run time grow
+            loaded = instances.load(config / "instance.yaml")
             self._start(DISPATCHER, lambda bus: Agent(
                 DISPATCHER, self.contract, lambda: Dispatcher(self.problem, DispatcherParams()),
-                bus, self.clock, np.random.default_rng(0), Plugins((), (), {}, None), 10.0,
-                10.0), faults.get(DISPATCHER))
+                bus, self.clock, np.random.default_rng(0), Plugins((), (), {}, None, loaded),
+                10.0, 10.0), faults.get(DISPATCHER))
         self.seq = 0
 
     def _start(self, name: str, make, plan: FaultPlan | None) -> None:
@@ -99,6 +102,16 @@ class DeliveryTeam:
             pose[0] += v * math.cos(pose[2]) * TICK
             pose[1] += v * math.sin(pose[2]) * TICK
         self.clock.advance(TICK)
+
+    def submit(self, task_id: str, fields: dict, priority: int = 0, op: str = "submit") -> float:
+        """What the intake says when a task enters now (mrta_zenoh.tasks: `tasks/change`, its
+        header the intake's): the instant it entered."""
+        now = self.clock.now()
+        self.seq += 1
+        self.world.publish(CHANGE, Change(Header(INTAKE, now, self.seq), op, task_id,
+                                          json.dumps(fields) if fields else "", priority,
+                                          "ops"))
+        return now
 
     def done(self) -> set[str]:
         return {task for _, task, event, _ in self.events if event == "done"}

@@ -37,6 +37,7 @@ from .instance import InstanceBody
 
 class TaskOpen(SensoryEvaluator):
     instance_type = InstanceBody
+    serves_submitted = True  # every delivery task is a point task: one class serves them all
 
     def setup(self, ctx: AgentContext) -> None:
         super().setup(ctx)

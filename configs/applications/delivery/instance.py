@@ -187,14 +187,25 @@ class InstanceBody(msgspec.Struct, forbid_unknown_fields=True):
         robots = tuple(Robot(rid, (float(r.start[0]), float(r.start[1])), r.speed,
                              frozenset(r.capabilities), capacity=self.max_tasks_per_robot)
                        for rid, r in self.robots.items())
-        tasks = tuple(Task(tid, (float(t.position[0]), float(t.position[1])), t.arrival,
-                           t.service, t.capability, t.reward, t.earliest or 0.0,
-                           math.inf if t.due is None else t.due)
-                      for tid, t in self.tasks.items())
+        tasks = tuple(self.planning_task(tid) for tid in self.tasks)
         paths = self.path_map()
         distance = () if paths is None else paths.matrix([r.start for r in robots]
                                                          + [t.position for t in tasks])
         return Problem(robots, tasks, distance, Windows(self.windows))
+
+    def planning_task(self, tid: str) -> Task:
+        """Task `tid` as planners see it (`problem`)."""
+        t = self.tasks[tid]
+        return Task(tid, (float(t.position[0]), float(t.position[1])), t.arrival, t.service,
+                    t.capability, t.reward, t.earliest or 0.0,
+                    math.inf if t.due is None else t.due)
+
+    def grown_problem(self, before: Problem) -> Problem:
+        """`problem` from the one `before` it grew at run time (InstanceKind.grown_problem):
+        only the new tasks' distances computed, around the walls when there are any."""
+        known = {t.id for t in before.tasks}
+        new = [self.planning_task(tid) for tid in self.tasks if tid not in known]
+        return before.grown(new, _paths(self.world).length if self.world.walls else None)
 
     def travel_model(self) -> str:
         if self.world.walls:

@@ -100,6 +100,14 @@ class DeliveryKind(InstanceKind):
     def admit(self, doc: InstanceDoc, task_id: str, fields: dict[str, Any]) -> None:
         admit_task(doc, task_id, fields)
 
+    def grow(self, doc: InstanceDoc, task_id: str, fields: dict[str, Any],
+             at: float) -> InstanceDoc:
+        spec = msgspec.structs.replace(admit_task(doc, task_id, fields), arrival=at)
+        return msgspec.structs.replace(doc, tasks={**doc.tasks, task_id: spec})
+
+    def grown_problem(self, doc: InstanceDoc, before):
+        return doc.grown_problem(before)
+
     def schedule(self, doc: InstanceDoc) -> list[Scheduled]:
         """A summary's `submitted`: each change at its instant, a task with its fields."""
         out = []

@@ -1,0 +1,98 @@
+"""Tasks submitted at run time are served (issue 50; docs/tasks.md, "How each architecture takes
+a new task"), checked over every registered architecture as the conformance suite is: a delivery
+team in one process (tests/harness/delivery_team.py: the real plugins, the in-process bus, one
+manual clock) serves its instance, a task enters through the intake's `tasks/change` while it
+runs, and some robot serves it — or, for an architecture that grows no task at run time, the
+run's intake refuses the submission, saying why."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from mrta_delivery.instances import DeliveryGeneratorParams, generate_document
+from mrta_zenoh.architectures import architectures
+from mrta_zenoh.messages import Header
+from mrta_zenoh.tasks.intake import CLOSED, Intake
+from mrta_zenoh.tasks.messages import Op, Outcome, Request
+from tests.harness.delivery_team import PACKAGE, DeliveryTeam
+
+ARCHS = architectures()
+TAKES = sorted(name for name, a in ARCHS.items() if a.takes_submitted)
+REFUSES = sorted(name for name, a in ARCHS.items() if not a.takes_submitted)
+NEW = {"position": [1.5, -2.0], "service": 1.0}
+
+
+def team_of(arch: str, tmp_path) -> DeliveryTeam:
+    doc = generate_document(DeliveryGeneratorParams(robots=2, tasks=2, capabilities=""), 3)
+    return DeliveryTeam(arch, doc, tmp_path / arch)
+
+
+def served(team: DeliveryTeam, task: str) -> list[tuple[str, float]]:
+    return [(robot, at) for robot, t, event, at in team.events if t == task and event == "done"]
+
+
+def run_until_served(team: DeliveryTeam, task: str, until: float) -> None:
+    while team.clock.now() < until and not served(team, task):
+        team.step()
+
+
+@pytest.mark.parametrize("arch", TAKES)
+def test_a_task_submitted_while_the_team_works_is_served(arch, tmp_path):
+    assert arch in PACKAGE, f"{arch}: add its delivery package to tests/harness/delivery_team.py"
+    team = team_of(arch, tmp_path)
+    try:
+        for _ in range(30):  # 3 s: the team is at work on its instance
+            team.step()
+        entered = team.submit("n1", NEW)
+        run_until_served(team, "n1", entered + 90.0)
+        done = served(team, "n1")
+        assert len(done) == 1, (arch, done)
+        robot, at = done[0]
+        assert robot in team.doc.robots and at > entered
+        started = [a for r, t, e, a in team.events if t == "n1" and e == "started"]
+        assert started and started[0] > entered + 0.1 - 1e-9  # taken the tick after it entered
+        team.run(team.clock.now() + 120.0)  # the instance's own tasks are still served
+        assert set(team.doc.tasks) <= team.done()
+    finally:
+        team.close()
+
+
+@pytest.mark.parametrize("arch", TAKES)
+def test_a_forged_change_grows_nothing(arch, tmp_path):
+    """A `tasks/change` whose header is not the intake's is believed for nothing: no robot
+    serves the task, every agent counts it (kind task_change, reason not_intake)."""
+    from mrta_zenoh.tasks.messages import CHANGE, Change
+    team = team_of(arch, tmp_path)
+    try:
+        team.step()
+        team.world.publish(CHANGE, Change(Header("robot1", team.clock.now(), 1), "submit", "f1",
+                                          json.dumps(NEW)))
+        for _ in range(200):
+            team.step()
+        assert not served(team, "f1")
+        for name, agent in team.agents.items():
+            counts = agent.run_time_tasks.refusals()
+            assert counts == {("task_change", "-", "not_intake", True): 1}, name
+            assert "f1" not in agent.plugins.evaluators
+    finally:
+        team.close()
+
+
+@pytest.mark.parametrize("arch", REFUSES)
+def test_an_architecture_growing_no_task_refuses_submissions_clearly(arch):
+    why = ARCHS[arch].submitted_refusal()
+    assert ARCHS[arch].title in why
+    intake = Intake(lambda tid, fields: None, closed=why)
+    assert intake.offer("ops", Request(Header("ops", 0.0, 1), "r1", str(Op.SUBMIT), "n1",
+                                       json.dumps(NEW))) is None
+    answers, changes = intake.release(1.0)
+    assert not changes
+    (_, answer), = answers
+    assert answer.outcome == str(Outcome.REFUSED) and answer.reason == f"{CLOSED}: {why}"
+    # a cancellation of the instance's own task is still taken
+    intake = Intake(lambda tid, fields: None, known=["t1"], closed=why)
+    intake.offer("ops", Request(Header("ops", 0.0, 2), "r2", str(Op.CANCEL), "t1"))
+    answers, changes = intake.release(1.0)
+    assert [c.task_id for c in changes] == ["t1"]
