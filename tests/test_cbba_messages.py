@@ -61,7 +61,11 @@ def test_a_malformed_message_is_refused_whole():
     logic = Cbba(p, "r1")
     logic.tick(0.0)
     before = (list(logic.z), list(logic.y), dict(logic.stamps))
-    for bad in (bids(winners=[(0, 1, 0.9), (3, 1, 0.9)]),   # task 3 of 3
+    # task 3 of 3: taken for a task submitted at run time this robot has not taken yet (out
+    # of lockstep the change may reach it later) — dropped, counted, not as forged
+    assert logic.hear("bids", "r2", bids(winners=[(0, 1, 0.9), (3, 1, 0.9)]), 1.0)
+    assert logic.refused[("bids", "r2", "tasks_ahead", False)] == 1
+    for bad in (bids(winners=[(0, 1, 0.9), (3 + 100_000, 1, 0.9)]),  # beyond any run's tasks
                 bids(winners=[(0, 5, 0.9)]),                 # robot 5 of 2
                 bids(stamps=[(2, 1.0)]),
                 bids(done=[-1])):

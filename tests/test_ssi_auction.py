@@ -201,7 +201,11 @@ def test_malformed_messages_are_refused_and_change_nothing():
     logic = Ssi(p, "r2", join_wait=0.0)
     logic.teammate("r1", True)
     h = Header("r1", 0.0, 1)
-    assert not logic.hear("round", "r1", Round(h, 1, (OPEN, OPEN), -1, 0.0), 0.0)  # 2 tasks?
+    # 2 tasks? Taken for a task submitted at run time this robot has not taken yet (out of
+    # lockstep the change may reach it later): changes nothing, counted, not as forged
+    assert logic.hear("round", "r1", Round(h, 1, (OPEN, OPEN), -1, 0.0), 0.0)
+    assert logic.refused[("round", "r1", "tasks_ahead", False)] == 1
+    assert not logic.hear("round", "r1", Round(h, 1, (), -1, 0.0), 0.0)  # fewer than the instance
     assert not logic.hear("round", "r1", Round(h, 1, (7,), -1, 0.0), 0.0)  # robot 7?
     assert not logic.hear("round", "r1", Round(h, 1, (OPEN,), 3, 0.0), 0.0)  # award of task 3?
     assert not logic.hear("round", "stranger", Round(h, 1, (OPEN,), -1, 0.0), 0.0)

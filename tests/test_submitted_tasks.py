@@ -53,7 +53,9 @@ def test_a_task_submitted_while_the_team_works_is_served(arch, tmp_path):
         assert robot in team.doc.robots and at > entered
         started = [a for r, t, e, a in team.events if t == "n1" and e == "started"]
         assert started and started[0] > entered + 0.1 - 1e-9  # taken the tick after it entered
-        team.run(team.clock.now() + 120.0)  # the instance's own tasks are still served
+        until = team.clock.now() + 120.0  # the instance's own tasks are still served
+        while not set(team.doc.tasks) <= team.done() and team.clock.now() < until:
+            team.step()
         assert set(team.doc.tasks) <= team.done()
     finally:
         team.close()
@@ -96,3 +98,44 @@ def test_an_architecture_growing_no_task_refuses_submissions_clearly(arch):
     intake.offer("ops", Request(Header("ops", 0.0, 2), "r2", str(Op.CANCEL), "t1"))
     answers, changes = intake.release(1.0)
     assert [c.task_id for c in changes] == ["t1"]
+
+
+# --- priority orders something real (docs/tasks.md, "Priority") ---------------------------------
+
+ONE_ROBOT = {"name": "prio", "robots": {"robot1": {"start": [0.0, 0.0], "speed": 0.5}},
+             "tasks": {"t1": {"position": [0.0, 1.0], "service": 1.0}}}
+
+
+def first_of_two(arch: str, tmp_path, urgent: str) -> tuple[list[str], list[str]]:
+    """One robot, its own task, then n1 and n2 entering together on either side of it, the
+    same distance away, `urgent` with priority 5: (the order they were awarded in, for an
+    auction — [] otherwise —, the order they were served in)."""
+    import msgspec
+    from mrta_delivery.instance import InstanceDoc
+    team = DeliveryTeam(arch, msgspec.convert(ONE_ROBOT, InstanceDoc), tmp_path / urgent)
+    try:
+        team.step()
+        for tid, x in (("n1", -2.0), ("n2", 2.0)):
+            team.submit(tid, {"position": [x, 1.0], "service": 1.0},
+                        priority=5 if tid == urgent else 0)
+        while len(team.done() & {"n1", "n2"}) < 2 and team.clock.now() < 120.0:
+            team.step()
+        logic = getattr(team.agents["robot1"].coordinator, "logic", None)
+        awards = [logic.problem.tasks[a.task].id for a in getattr(logic, "awards", ())]
+        served_order = [t for _, t, e, _ in sorted(team.events, key=lambda e: e[3])
+                        if e == "done" and t in ("n1", "n2")]
+        return [t for t in awards if t in ("n1", "n2")], served_order
+    finally:
+        team.close()
+
+
+@pytest.mark.parametrize("arch", TAKES)
+def test_priority_decides_which_of_two_like_tasks_comes_first(arch, tmp_path):
+    """Two tasks alike but for where (mirror images) and their priority: whichever has the
+    priority is awarded first (SSI, TeSSI: the auction's order) or served first (central:
+    the queue's order; CBBA: its weighed reward outbids the other's for the first place)."""
+    for urgent, other in (("n1", "n2"), ("n2", "n1")):
+        awarded, served_order = first_of_two(arch, tmp_path, urgent)
+        assert sorted(served_order) == ["n1", "n2"], (arch, served_order)
+        first = awarded if arch in ("ssi", "tessi") else served_order
+        assert first == [urgent, other], (arch, urgent, awarded, served_order)

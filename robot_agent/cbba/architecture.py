@@ -37,6 +37,7 @@ class CbbaArchitecture(OwnRouteArchitecture):
     coordination_kinds = ("bids", "progress")
     decision_kinds = ("bids",)
     objective = None  # it maximises discounted rewards, none of planning.schedule's objectives
+    takes_submitted = True  # a new column of every robot's bid table (bundle.py, tasks_added)
     logger_name = "mrta.cbba"
     params = cbba_params
 

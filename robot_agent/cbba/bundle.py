@@ -55,9 +55,10 @@ Departures from the paper, each for a reason given in docs/cbba.md:
 from __future__ import annotations
 
 import collections
+import dataclasses
 import math
 import time
-from mrta_zenoh.planning import Problem
+from mrta_zenoh.planning import Problem, Task
 from mrta_zenoh.planning.insertion import (DiscountedRoute, Origin, prefix_scores, ranks,
                                            travel_times)
 from mrta_zenoh.refusal_tally import MALFORMED
@@ -75,6 +76,8 @@ UNCONFIRMED = "done_unconfirmed"       # a task said served by a robot not its k
 TOO_EARLY = "done_too_early"           # said served by its winner before it could have been
 SUPERSEDED = "superseded"              # older than its sender's latest (late, or a replay)
 STAMP_AHEAD = "stamp_ahead"            # stamped later than it was heard, by more than the slack
+TASKS_AHEAD = "tasks_ahead"            # names tasks submitted that this robot has not taken yet
+TASKS_LEEWAY = 100_000  # tasks a message may name beyond this robot's (the intake's bound)
 STAMP_SLACK = 1.0  # s: a teammate's clock may run this far ahead of this robot's hearing it
 CLAIM_SLACK = 3.0  # s: honest claims of a completion (its server's, the relays) come this close
 ROUNDING = 1e-9
@@ -134,6 +137,42 @@ class Cbba(RouteLogic):
         self.done_claims: dict[int, dict[int, float]] = {}
         self.too_early: set[tuple[int, int]] = set()  # (winner, task) said served too early
         self.refused: collections.Counter[tuple[str, str, str, bool]] = collections.Counter()
+        self.base_reward: dict[int, Task] = {}  # a task as it came, before its priority weighed it
+
+    # ------------------------------------------------------------------ tasks at run time
+    def tasks_added(self, growth, now: float) -> None:
+        """Tasks submitted at run time (runtime/growth.py): the problem grows by them (every
+        robot's the same way, at the same tick) — a new column of the winning-bid table,
+        unassigned — and each is a candidate from then on (its arrival is the instant it
+        entered). Priority weighs its reward (`weighted`)."""
+        before = len(self.problem.tasks)
+        grown = growth.problem(self.problem)
+        priority = {t.id: t.priority for t in growth.tasks}
+        for j in range(before, len(grown.tasks)):
+            self.base_reward[j] = grown.tasks[j]
+        self.problem = dataclasses.replace(grown, tasks=grown.tasks[:before] + tuple(
+            weighted(t, priority.get(t.id, 0)) for t in grown.tasks[before:]))
+        self._grown()
+
+    def task_priority(self, task_id: str, priority: int, now: float) -> None:
+        """A new priority weighs the task's reward from now on (`weighted`, from its base)."""
+        try:
+            j = self.problem.task_index(task_id)
+        except KeyError:
+            return
+        tasks = list(self.problem.tasks)
+        tasks[j] = weighted(self.base_reward.setdefault(j, tasks[j]), priority)
+        self.problem = dataclasses.replace(self.problem, tasks=tuple(tasks))
+        self._grown()
+
+    def _grown(self) -> None:
+        n = len(self.problem.tasks)
+        self.y += [0.0] * (n - len(self.y))
+        self.z += [NONE] * (n - len(self.z))
+        self.task_rank = ranks([t.id for t in self.problem.tasks])
+        self.times = travel_times(self.problem, self.i)
+        self._levels = None
+        self.changed = True
 
     # ------------------------------------------------------------------ what it tells the runtime
     @property
@@ -175,9 +214,12 @@ class Cbba(RouteLogic):
             return False
         if kind != "bids" or not isinstance(msg, Bids) or k == self.i:
             return False
-        if not self._valid(msg):
+        if not self._valid(msg, TASKS_LEEWAY):
             self.refused[("bids", sender, MALFORMED, True)] += 1
             return False
+        if not self._valid(msg):  # tasks this robot has not taken yet: not now (it resends)
+            self.refused[("bids", sender, TASKS_AHEAD, False)] += 1
+            return True
         if k in self.departed:
             return True
         if (self.comm_range is not None
@@ -421,8 +463,17 @@ class Cbba(RouteLogic):
             if said < at - CLAIM_SLACK:
                 self.refused[("bids", sender, NOT_WON, True)] += 1
 
-    def _valid(self, msg: Bids) -> bool:
-        n_robots, n_tasks = len(self.problem.robots), len(self.problem.tasks)
+    def _valid(self, msg: Bids, leeway: int = 0) -> bool:
+        n_robots, n_tasks = len(self.problem.robots), len(self.problem.tasks) + leeway
         return (all(0 <= j < n_tasks and 0 <= w < n_robots for j, w, _ in msg.winners)
                 and all(0 <= m < n_robots for m, _ in msg.stamps)
                 and all(0 <= j < n_tasks for j in msg.done))
+
+
+def weighted(task: Task, priority: int) -> Task:
+    """A task's reward weighed by its priority (tasks submitted at run time, issue 50): reward ·
+    (1 + priority) for a priority above 0 — a robot's marginal score for it, Σ λ^start · reward,
+    grows with it, so it outbids the instance's tasks (all priority 0) near it and is served
+    earlier in a path. Not in the paper, whose tasks carry a reward and no priority; a reward
+    is how CBBA's score says "worth more" (docs/tasks.md)."""
+    return dataclasses.replace(task, reward=task.reward * (1 + max(priority, 0)))

@@ -137,6 +137,9 @@ class Dispatcher(Coordinator):
     start: float | None = None
     _triggers: list[str] = field(default_factory=list)
     _resend: set[str] = field(default_factory=set)  # robots owed a queue under a new version
+    # task → its priority, for tasks given one at run time (0 otherwise): each robot's planned
+    # route serves its higher-priority tasks first (`_replan`)
+    priority: dict[str, int] = field(default_factory=dict)
 
     listens = ("progress",)
 
@@ -228,6 +231,13 @@ class Dispatcher(Coordinator):
         it arrived at the instant it entered — so the plan is solved again with it."""
         self.problem = growth.problem(self.problem)
         self._task = {t.id: t for t in self.problem.tasks}
+        self.priority.update({t.id: t.priority for t in growth.tasks if t.priority})
+
+    def task_priority(self, task_id: str, priority: int, now: float) -> None:
+        """A new priority: the plan is solved again, its routes ordered by it (`_replan`)."""
+        if task_id in self._task and self.priority.get(task_id, 0) != priority:
+            self.priority[task_id] = priority
+            self._triggers.append("reprioritization")
 
     def task_cancelled(self, task_id: str, now: float) -> None:
         """A task cancelled at run time is never planned again (its holder leaves it on its
@@ -345,7 +355,7 @@ class Dispatcher(Coordinator):
         outcome = solve(self.problem, situation, p.objective, exact_limit=p.exact_limit,
                         solutions=p.solutions, time_limit=p.time_limit,
                         current=self.plan if self.decisions else None)
-        self.plan = outcome.routes
+        self.plan = self.by_priority(outcome.routes)
         self.version += 1
         self.decisions.append(Decision(now, self.version, trigger, outcome))
         del self.decisions[:-HISTORY]
@@ -357,6 +367,16 @@ class Dispatcher(Coordinator):
                                 objective=p.objective.value, value=outcome.value,
                                 method=outcome.method, solve_ms=ms(outcome.seconds),
                                 routes=routes, capped=self.capped(situation, outcome)))
+
+    def by_priority(self, routes: dict[str, list[str]]) -> dict[str, list[str]]:
+        """Each robot's route with its higher-priority tasks first, in the planner's order
+        otherwise (a stable sort; all priority 0 — every instance's own task — leaves the
+        plan as solved). Not in the planner's objective, which has no priorities: who serves a
+        task is the plan's, when it comes in that robot's queue is the priority's (docs/tasks.md)."""
+        if not self.priority:
+            return routes
+        return {rid: sorted(route, key=lambda t: -self.priority.get(t, 0))
+                for rid, route in routes.items()}
 
     def capped(self, situation: Situation, outcome: Outcome) -> bool:
         """Whether the decision's search was (as far as can be told) stopped by its time cap:
@@ -434,7 +454,8 @@ def _moved(before: tuple[float, float, float] | None, now: tuple[float, float, f
     return math.hypot(now[0] - before[0], now[1] - before[1]) >= MOVED or abs(turn) >= TURNED
 
 
-ORDER = ("start", "loss", "return", "arrival", "cancellation", "completion", "deviation")
+ORDER = ("start", "loss", "return", "arrival", "cancellation", "reprioritization", "completion",
+         "deviation")
 
 
 def _first(triggers: list[str]) -> str:

@@ -137,6 +137,17 @@ class OwnRouteCoordinator(Coordinator):
             return False
         return self.logic.hear(kind, sender, message, at_)
 
+    # tasks at run time (Coordinator's hooks): the logic plans them; the executor serves them
+    # through the plugins the driver grew
+    def tasks_added(self, growth, now: float) -> None:
+        self.logic.tasks_added(growth, now)
+
+    def task_priority(self, task_id: str, priority: int, now: float) -> None:
+        self.logic.task_priority(task_id, priority, now)
+
+    def task_cancelled(self, task_id: str, now: float) -> None:
+        self.logic.task_cancelled(task_id, now)
+
     def refusals(self):
         """What this adapter and its logic refused (`Coordinator.refuse`; the logic's
         `refused` counter: SSI's and CBBA's rules of what a message is believed for)."""

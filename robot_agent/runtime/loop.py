@@ -161,8 +161,9 @@ class Agent:
         self.advertised()  # a bad subject is a configuration error before anything starts
         self.plugins.setup(self.ctx)
         self._handles.extend(self.injector.listen(lambda: self.roster))
-        self._handles.append(self.run_time_tasks.listen(self.bus))
         arch = self.architecture
+        if arch.takes_submitted:  # an architecture growing none hears none (costs nothing)
+            self._handles.append(self.run_time_tasks.listen(self.bus))
         for kind in self.coordinator.listens:
             for key_expr in self.listen_keys(kind):
                 self._handles.append(self.bus.subscribe(

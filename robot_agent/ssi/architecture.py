@@ -35,6 +35,7 @@ class SsiArchitecture(OwnRouteArchitecture):
     coordination_kinds = ("round", "bid", "progress")
     objective = "minsum"
     decision_kinds = ("round",)
+    takes_submitted = True  # a task submitted at run time opens at the next round (auction.py)
     logger_name = "mrta.ssi"
     params = ssi_params
 

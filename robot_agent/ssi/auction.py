@@ -9,6 +9,11 @@ The auction (Lagoudakis et al. 2005; Koenig, Tovey et al. 2006; docs/ssi.md):
   the rest). The lowest bid wins that one task, which the winner inserts there. Ties: the lower
   robot id, then the lower task id, then the earlier place. A robot bids only on tasks it has
   the capability for; one with nothing to bid on says so (task −1).
+* **Priority** (tasks submitted at run time, issue 50 — not in the papers, whose tasks are
+  all alike): a robot bids on its cheapest task among the open ones of the highest priority
+  it can serve, and the auctioneer awards the highest-priority bid, then the lowest; so a
+  more urgent task is awarded before any less urgent one still open. The instance's tasks
+  are all priority 0: with no priority given, the auction is the paper's.
 * **Rounds** go on while some open task has a bidder. A task that arrives (is known from
   `lookahead` seconds before its arrival) opens at the next round; the unserved tasks of a
   robot that leaves the team (its token goes) are opened again; a served task is DONE for good.
@@ -54,6 +59,8 @@ import math
 import time
 from typing import Callable, NamedTuple
 
+import msgspec
+
 from mrta_zenoh.planning import Problem
 from mrta_zenoh.planning.insertion import Origin, minsum_insertion, ranks
 from mrta_zenoh import timetext
@@ -65,6 +72,7 @@ from .messages import DONE, OPEN, UNKNOWN, Bid, Round
 
 log = logging.getLogger("mrta.ssi")
 
+TASKS_LEEWAY = 100_000  # tasks a Round may count beyond this robot's (the intake's bound)
 ROUND_JUMP = 64  # rounds ahead of the last adopted a Round is believed at once (module docstring)
 # why a message, or a claim in it, was not believed (`Ssi.refused`)
 NOT_AUCTIONEER = "not_auctioneer"  # a Round from another robot (a takeover does it too)
@@ -73,6 +81,8 @@ ROUND_BEHIND = "round_behind"      # an older round (late, or the auctioneer is 
 NOT_HELD = "not_held"              # served a task it never held
 CANNOT_SERVE = "cannot_serve"      # a bid for a task it cannot serve
 NEGATIVE_COST = "negative_cost"
+TASKS_AHEAD = "tasks_ahead"        # a Round counting tasks submitted that this robot has not
+                                   # taken yet (out of lockstep: the change reaches it later)
 NEGATIVE = -1e-9  # a cost below this is negative (an insertion's cost is ≥ 0 but for rounding)
 
 
@@ -134,6 +144,31 @@ class Ssi(RouteLogic):
         self.asked_at = -math.inf
         self.silent: dict[int, float] = {}  # robot → since when the rounds leave it out
         self.refused: collections.Counter[tuple[str, str, str, bool]] = collections.Counter()
+        # tasks submitted at run time (tasks_added): their indices follow the instance's; a
+        # task's priority (higher first: `best_bid`, the award) — the instance's are all 0
+        self.base = len(problem.tasks)
+        self.priority: dict[int, int] = {}
+
+    # ------------------------------------------------------------------ tasks at run time
+    def tasks_added(self, growth, now: float) -> None:
+        """Tasks submitted at run time (runtime/growth.py), in the order they entered: the
+        problem grows by them (every robot's the same way, at the same tick), each UNKNOWN
+        until the auctioneer opens it at its next round, as an arrival (`_lead`)."""
+        self.problem = growth.problem(self.problem)
+        self.owners = list(self.owners) + [UNKNOWN] * (len(self.problem.tasks) - len(self.owners))
+        self.task_rank = ranks([t.id for t in self.problem.tasks])
+        for task in growth.tasks:
+            self.priority[self.problem.task_index(task.id)] = task.priority
+
+    def task_priority(self, task_id: str, priority: int, now: float) -> None:
+        try:
+            self.priority[self.problem.task_index(task_id)] = priority
+        except KeyError:
+            pass  # a task this robot was never told of: nothing to order
+
+    def urgency(self, j: int) -> int:
+        """How task j ranks before cost (higher first): its priority, 0 unless given."""
+        return self.priority.get(j, 0)
 
     # ------------------------------------------------------------------ what it tells the runtime
     @property
@@ -180,11 +215,18 @@ class Ssi(RouteLogic):
 
     def _on_round(self, k: int, msg: Round, heard: float) -> bool:
         n_robots, n_tasks = len(self.problem.robots), len(self.problem.tasks)
-        if (len(msg.owners) != n_tasks or not all(DONE <= w < n_robots for w in msg.owners)
-                or not -1 <= msg.award < n_tasks):
+        if (not self.base <= len(msg.owners) <= n_tasks + TASKS_LEEWAY
+                or not all(DONE <= w < n_robots for w in msg.owners)
+                or not -1 <= msg.award < len(msg.owners)):
             self.refused[("round", self.problem.robots[k].id, MALFORMED, True)] += 1
             return False
         sender = self.problem.robots[k].id
+        if len(msg.owners) > n_tasks:  # tasks this robot has not taken yet: not now
+            self.refused[("round", sender, TASKS_AHEAD, False)] += 1
+            return True
+        if len(msg.owners) < n_tasks:  # made before tasks that entered since: not yet opened
+            msg = msgspec.structs.replace(
+                msg, owners=tuple(msg.owners) + (UNKNOWN,) * (n_tasks - len(msg.owners)))
         if k != self.auctioneer():
             self.refused[("round", sender, NOT_AUCTIONEER, False)] += 1
             return True  # not (or no longer) the auctioneer this robot follows
@@ -271,7 +313,9 @@ class Ssi(RouteLogic):
         return minsum_insertion(self.problem, self.i, self.path, j, *self.origin)
 
     def best_bid(self) -> tuple[int, float]:
-        """(task, added travel time) of this robot's cheapest open task; (−1, 0) if none."""
+        """(task, added travel time) of this robot's cheapest open task among the most urgent
+        it can bid on (`urgency`: a task submitted at run time with a priority above the rest is
+        bid on, and awarded, first); (−1, 0) if none."""
         best = None
         for j, w in enumerate(self.owners):
             if w != OPEN or not self.problem.capable(self.i, j):
@@ -279,7 +323,8 @@ class Ssi(RouteLogic):
             cost, _ = self.insertion(j)
             if not math.isfinite(cost):
                 continue
-            if best is None or (cost, self.task_rank[j]) < (best[1], self.task_rank[best[0]]):
+            if best is None or (-self.urgency(j), cost, self.task_rank[j]) < \
+                    (-self.urgency(best[0]), best[1], self.task_rank[best[0]]):
                 best = (j, cost)
         return best if best is not None else (-1, 0.0)
 
@@ -342,11 +387,11 @@ class Ssi(RouteLogic):
         if not reopened and OPEN in owners and not missing:
             # a bid from a robot that left meanwhile does not count
             began = self.timer()
-            best = min(((c, self.rank[r], self.task_rank[j], r, j)
+            best = min(((-self.urgency(j), c, self.rank[r], self.task_rank[j], r, j)
                         for r, (j, c) in self.bids.items()
                         if r in expected and j >= 0 and owners[j] == OPEN), default=None)
             if best is not None:
-                cost, _, _, winner, award = best
+                _, cost, _, _, winner, award = best
                 owners[award] = winner
                 ms = (max(self.bid_ms.get(r, 0.0) for r in self.bids if r in expected)
                       + (self.timer() - began) * 1000.0)
