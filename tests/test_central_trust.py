@@ -257,3 +257,47 @@ def test_a_search_stopped_by_its_time_cap_is_recorded_and_the_run_not_called_exa
                       lockstep=True, faults="none", lockstep_exact=False, run_status="complete",
                       decisions=Decisions(3, 1.0, 2.0, "minsum", capped=1))
     assert "stopped by their search's time cap" in run_problem(summary)
+
+
+# ------------------------------------------------------------------ a partition, served once
+def test_a_task_delivered_unseen_across_a_partition_is_served_once_and_nobody_is_stalled(
+        tmp_path):
+    """Issue 51.2, with the real delivery plugins (tests/harness/delivery_team.py): a robot cut
+    off from everyone just before it finishes its first task delivers it unseen by the
+    dispatcher (its board's `done` still reaches its teammates). The dispatcher, hearing nothing
+    from it for `progress_timeout`, re-plans the task to another robot — which knows from its
+    board that it is done. That robot used to stand by it, be declared stalled and be left out
+    of every later plan; now it leaves it (`withdrawn`), says so, the dispatcher plans it no
+    more, and every task is delivered once."""
+    from mrta_agent.central.architecture import DISPATCHER
+    from mrta_agent.central.dispatcher import STALLED
+    from mrta_delivery.instance import load_document
+    from mrta_zenoh.failure import parse_faults, plan_for
+    from tests.harness.delivery_team import DeliveryTeam
+    from tests.harness.helpers import CONFIGS
+
+    doc = load_document(CONFIGS / "applications" / "delivery" / "config" / "instance.yaml")
+    probe = DeliveryTeam("central", doc, tmp_path / "probe")
+    try:
+        while not any(e == "started" for _, _, e, _ in probe.events):
+            probe.step()
+    finally:
+        probe.close()
+    robot, task, _, began = next(e for e in probe.events if e[2] == "started")
+    finish = began + doc.tasks[task].service
+    faults = parse_faults(f"partition:{robot}@{finish - 1.0:.1f}+40")
+    names = [*doc.robots, DISPATCHER]
+    team = DeliveryTeam("central", doc, tmp_path / "run",
+                        {n: p for n in names if (p := plan_for(faults, n, 0)) is not None})
+    dispatcher = team.agents[DISPATCHER].coordinator
+    stalled = set()
+    try:
+        while team.clock.now() < 120.0 and len(team.done()) < len(doc.tasks):
+            team.step()
+            stalled |= {r for r, v in dispatcher.robots.items() if v.lost == STALLED}
+    finally:
+        team.close()
+    done = [t for _, t, e, _ in team.events if e == "done"]
+    assert sorted(done) == sorted(doc.tasks), done  # every task delivered, each once
+    assert (robot, task) in {(r, t) for r, t, e, _ in team.events if e == "done"}
+    assert task in dispatcher.closed and not stalled, (dispatcher.closed, stalled)

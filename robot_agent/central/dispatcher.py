@@ -5,8 +5,11 @@ inbox in (time, sender, key, sequence) order, sender checks, faults; docs/centra
 What it does at each tick:
 
 1. **Learns.** Tasks whose arrival time has come are known. Robots' reports (`Progress`) say
-   what each served (in order), what it set off to, its queue and where it is; a robot's agent
-   token says whether it lives.
+   what each served (in order), what it set off to, its queue, what it left for good (its
+   evaluator said the task is done by a teammate, cancelled or expired: never planned again —
+   a robot cut off by a partition may have delivered a task unseen, and the robot it is then
+   granted to knows from its board; it used to stand by it, be declared stalled and be left
+   out for good) and where it is; a robot's agent token says whether it lives.
 2. **Watches progress.** A robot that has a task but has not progressed on it — moved, turned,
    changed task — for `progress_timeout` (beyond its task's service time once it is there, and
    not before the task's arrival) is *stalled*; one not heard for `progress_timeout` is
@@ -84,6 +87,7 @@ class RobotView:
     served: list[str] = field(default_factory=list)  # what it served, as believed, in order
     claimed: set[str] = field(default_factory=set)   # what its reports said it served
     granted: set[str] = field(default_factory=set)   # every task ever sent it in a queue
+    withdrew: set[str] = field(default_factory=set)  # what its reports said it left for good
 
     @property
     def on(self) -> str:
@@ -129,7 +133,8 @@ class Dispatcher(Coordinator):
     robots: dict[str, RobotView] = field(default_factory=dict)
     known: set[str] = field(default_factory=set)
     done: dict[str, str] = field(default_factory=dict)          # task → who served it
-    closed: set[str] = field(default_factory=set)  # hard windows: due passed, never planned again
+    # never planned again: under hard windows, due passed; a task a robot left for good
+    closed: set[str] = field(default_factory=set)
     plan: dict[str, list[str]] = field(default_factory=dict)    # robot → route after commitment
     sent: dict[str, Sent] = field(default_factory=dict)
     version: int = 0
@@ -166,7 +171,8 @@ class Dispatcher(Coordinator):
         view = self.robots.get(sender)
         if view is None or not isinstance(message, Progress):
             return False
-        if any(t not in self._task for t in (*message.queue, *message.served)) \
+        if any(t not in self._task for t in (*message.queue, *message.served,
+                                              *message.withdrawn)) \
                 or (message.task and message.task not in self._task):
             self.refuse("progress", sender, UNKNOWN_TASK)
             return False  # names a task the instance does not have: refused whole
@@ -202,7 +208,25 @@ class Dispatcher(Coordinator):
             view.progressed, view.where = at, pose
         for task in message.served:
             self._served(sender, view, task)
+        for task in message.withdrawn:
+            self._withdrawn(sender, view, task, at)
         return True
+
+    def _withdrawn(self, rid: str, view: RobotView, task: str, at: float) -> None:
+        """Robot `rid` left `task` for good, its evaluator said (done by a teammate — one cut
+        off from the dispatcher may have delivered it unseen —, cancelled, expired): never
+        planned again, believed for a task granted to it only (what it may say of its own
+        queue; a served claim has the same reach)."""
+        if task in view.withdrew:
+            return
+        view.withdrew.add(task)
+        if task not in view.granted:
+            self.refuse("progress", rid, NOT_GRANTED)
+        elif task not in self.done and task not in self.closed:
+            self.closed.add(task)
+            log.warning("%s: %s left %s for good (its evaluator: done by a teammate, cancelled or "
+                        "expired) %s: not planned again", self.name, rid, task, timetext.at(at))
+            self._triggers.append("completion")
 
     def _served(self, rid: str, view: RobotView, task: str) -> None:
         """Robot `rid` reports `task` served: believed once, if it may (module docstring)."""
@@ -395,7 +419,8 @@ class Dispatcher(Coordinator):
         commitment = self.commitments()[rid]
         task = self.robots[rid].on
         on = [commitment[-1]] if task and commitment and commitment[-1] == task else []
-        return on + [t for t in self.plan.get(rid, ()) if t not in self.done and t not in on]
+        return on + [t for t in self.plan.get(rid, ())
+                     if t not in self.done and t not in self.closed and t not in on]
 
     def grantable(self, rid: str, task: str) -> bool:
         """Whether no robot but `rid` may still be serving `task`: none reports it, and none

@@ -20,9 +20,12 @@ Rules, each for a reason:
   away because a re-plan listed it later: it moves to the head) and abandons it otherwise —
   the robot stops (its layers are terminated) and the task is *left*, for whoever is given it.
 * A served task is never served again: a route naming one is taken without it.
-* A withdrawn task (cancelled at run time: its evaluator's `withdrawn`) is left at once and
-  never set off to again, whatever route names it: held, it would keep the robot standing by a
-  task nobody may serve (issue 50).
+* A withdrawn task (its evaluator's `withdrawn`: cancelled at run time, expired, delivered
+  by a teammate) is left at once and never set off to again, whatever route names it: held, it
+  would keep the robot standing by a task nobody may serve (issue 50) — or one a teammate cut
+  off from the dispatcher served unseen, and the dispatcher would take the robot for stalled
+  (issue 51.2). Each report lists them (`Progress.withdrawn`), so whoever plans the route
+  learns it.
 """
 
 from __future__ import annotations
@@ -95,7 +98,7 @@ class RouteExecutor:
     since: float | None = None                        # when it set off to `current`
     served: list[Served] = field(default_factory=list)
     last: str | None = None                           # the task it last served or left
-    withdrawn: set[str] = field(default_factory=set)  # cancelled at run time: never again
+    withdrawn: set[str] = field(default_factory=set)  # its evaluator said: never again
 
     def served_ids(self) -> list[str]:
         return [s.task for s in self.served]
@@ -144,7 +147,7 @@ class RouteExecutor:
         return Say("progress", dict(task=self.current or "", last=self.last or "",
                                     queue=tuple(self.queue), served=tuple(self.served_ids()),
                                     x=pose[0], y=pose[1], theta=pose[2], version=version,
-                                    holding=holding))
+                                    holding=holding, withdrawn=tuple(sorted(self.withdrawn))))
 
     def queued(self, lossy: bool) -> list[Say]:
         """One `Queued` per task of the queue, under the task's sub-key."""

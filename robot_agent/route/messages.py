@@ -15,7 +15,10 @@ class Progress(Message):
     `queue`: its whole queue; `served`: what it served, in order; where it is; `version`: the
     queue version it applied (central's dispatcher numbers its queues; 0 where the robot's own
     logic keeps its route); `holding`: it stands still although it has work (central: the
-    dispatcher, alive, has been silent past its lease)."""
+    dispatcher, alive, has been silent past its lease); `withdrawn`: the tasks it left for good
+    because its evaluator said so (done by a teammate, cancelled, expired: RouteExecutor) —
+    what the robot's application knows and its dispatcher may not (issue 51.2: a task that a
+    robot cut off by a partition delivered unseen)."""
 
     header: Header
     task: str
@@ -27,6 +30,7 @@ class Progress(Message):
     theta: Finite
     version: int = 0
     holding: bool = False
+    withdrawn: tuple[str, ...] = ()
 
 
 @message("route_msgs/Queued")

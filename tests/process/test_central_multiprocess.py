@@ -159,6 +159,22 @@ def test_a_stalled_robots_tasks_go_to_the_others(children, tmp_path):
 
 @pytest.mark.slow
 @pytest.mark.timeout(300)
+def test_a_task_delivered_unseen_across_a_partition_is_served_once(children, tmp_path):
+    """Issue 51.2: robot4 is cut off at 11 s, 1.6 s before it finishes t3 (seed 0, lockstep),
+    and delivers it unseen by the dispatcher; 10 s later the dispatcher re-plans t3 to another
+    robot, whose board knows it done. That robot stood by it, was declared stalled and left out
+    of every later plan; now it leaves it without setting off, and t3 is served once."""
+    s = run_demo(children, tmp_path / "out", "60", "--architecture", "central",
+                 "--fail", "partition:robot4@11+25")
+    t3 = [a for a in s["allocation"] if a["task"] == "t3"]
+    assert [(a["robot"], a["done_at"] is not None) for a in t3 if a["started_at"] is not None] \
+        == [("robot4", True)], t3  # robot4 served it (the scenario happened), nobody else set off
+    assert 11.0 < t3[0]["done_at"] < 11.0 + 3.0, t3  # within its lease: unseen by the dispatcher
+    assert s["metrics"]["completed"] == 4 and s["metrics"]["overlaps"] == 0
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
 def test_robots_finish_their_queues_when_the_dispatcher_crashes(children, tmp_path):
     s = run_demo(children, tmp_path / "a", "60", "--architecture", "central",
                  "--fail", "dispatcher@3")

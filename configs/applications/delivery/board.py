@@ -99,6 +99,12 @@ class Board:
         with self._lock:
             return task_id in self.done
 
+    def done_by_teammate(self, task_id: str) -> bool:
+        """Done, as believed, by another robot than this one."""
+        with self._lock:
+            who = self.done.get(task_id)
+        return who is not None and who[0] != self.robot_id
+
     def delivered_by(self, robot: str) -> int:
         """How many deliveries `robot` has completed (an instance's max_tasks_per_robot caps
         them)."""

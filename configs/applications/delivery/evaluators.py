@@ -5,8 +5,9 @@ served fewer than the instance's `max_tasks_per_robot` (unlimited by default: a 
 delivered serves another task, time-extended assignment; 1 is instantaneous assignment). A
 teammate's `done` makes it inapplicable at once: ALLIANCE drops the behaviour set, MURDOCH's
 holder gives the task back and nobody bids for it again. A task cancelled at run time
-(board.py) is inapplicable from the tick after its cancellation the same way, and `withdrawn`:
-a robot serving a route (central, SSI, CBBA) leaves it rather than stand by it.
+(board.py) is inapplicable from the tick after its cancellation the same way; a cancelled task
+and one a teammate delivered are `withdrawn`: a robot serving a route (central, SSI, CBBA)
+leaves it rather than stand by it, and says so in its reports.
 
 Sensors: a sensor that has reported and then went silent makes the task inapplicable; one that
 has not reported yet does not. Whether the first odometry sample arrives before or after a
@@ -52,9 +53,11 @@ class TaskOpen(SensoryEvaluator):
         self.windows = WindowState.of(self)
 
     def withdrawn(self, now: float) -> bool:
-        """Cancelled at run time (board.py), or expired (module docstring): a route-serving
-        robot leaves it."""
-        return self.board.is_cancelled(self.task_id, now) or self.is_expired(now)
+        """Cancelled at run time (board.py), expired (module docstring), or delivered by a
+        teammate (its done believed by the board): a route-serving robot leaves it — the
+        teammate may have served it cut off from whoever plans the routes (issue 51.2)."""
+        return self.board.is_cancelled(self.task_id, now) or self.is_expired(now) \
+            or self.board.done_by_teammate(self.task_id)
 
     def is_applicable(self, now: float) -> bool:
         return (not self.is_expired(now) and self.capable and now >= self.arrival - EPSILON
