@@ -67,6 +67,9 @@ class Decision:
     ident: object = None
     # its search was stopped by a time cap: what it decided depends on the machine's speed
     capped: bool = False
+    # the robots the decider had left out of its plan then, and why ((robot, "stalled"), …):
+    # what it declared (a stall, a silence) is in the summary, from when until when
+    out: tuple[tuple[str, str], ...] = ()
 
 
 @dataclass(frozen=True)

@@ -79,7 +79,8 @@ class Central(RouteArchitecture):
         if not isinstance(message, Plan) or sender != DISPATCHER:
             return None
         return Decision(sender, message.header.stamp, message.solve_ms, message.objective,
-                        capped=message.capped)
+                        capped=message.capped,
+                        out=tuple(tuple(o.split(":", 1)) for o in message.out if ":" in o))
 
     def takeover_bound(self, robot_params: Path, task: str) -> float:
         """How soon a lost robot's task is in another robot's queue: the dispatcher's next tick

@@ -390,7 +390,9 @@ class Dispatcher(Coordinator):
         return Say("plan", dict(version=self.version, trigger=trigger,
                                 objective=p.objective.value, value=outcome.value,
                                 method=outcome.method, solve_ms=ms(outcome.seconds),
-                                routes=routes, capped=self.capped(situation, outcome)))
+                                routes=routes, capped=self.capped(situation, outcome),
+                                out=tuple(f"{rid}:{view.lost}" for rid, view in
+                                          self.robots.items() if view.lost is not None)))
 
     def by_priority(self, routes: dict[str, list[str]]) -> dict[str, list[str]]:
         """Each robot's route with its higher-priority tasks first, in the planner's order

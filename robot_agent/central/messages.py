@@ -45,7 +45,9 @@ class Plan(Message):
     prefixes and the new routes, planning.schedule), how it was found (`method`: exact, best
     found, or kept — the current plan was as good), `solve_ms` of computation, and the routes
     (`robot:task,task,…`, its whole queue each); `capped`: the search was stopped by its time
-    cap (planner.Outcome.capped: the run then depends on the machine)."""
+    cap (planner.Outcome.capped: the run then depends on the machine); `out`: the robots the
+    dispatcher has left out of the plan, and why (`robot3:stalled`; crashed, silent) — what the
+    summary reads the stalls it declared from (issue 51.2)."""
 
     header: Header
     version: int
@@ -56,3 +58,4 @@ class Plan(Message):
     solve_ms: Finite
     routes: tuple[str, ...] = ()
     capped: bool = False
+    out: tuple[str, ...] = ()

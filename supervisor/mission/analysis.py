@@ -90,8 +90,15 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
     # the supervisor's view, which lags by its monitors' timeouts
     # a crashed robot's reports end at its crash; a stalled or partitioned one's claims are kept
     # (it may well still say it is on its task: what matters is who took it over, and when)
-    failures = [(failure.robot, failed_at)] if failure and failure.kind == FaultKind.CRASH \
-        and failed_at is not None else []
+    # every subject fault of the spec is reported, not only the first (issue 51.5): each as it
+    # struck (a role resolved) and if the run reached its time
+    reach = end if recorded_until is None else min(end, recorded_until)
+    others = [(f, roles.struck(f, run.faults, records)) for f in run.faults.failures
+              if role is None or f is not role and f.robot != role.robot]
+    others = [(f, hit, hit.at if hit is not None and hit.at <= reach + EPSILON else None)
+              for f, hit in others]
+    failures = [(f.robot, at) for f, at in [(failure, failed_at)] + [(h, a) for _, h, a in others]
+                if f is not None and f.kind == FaultKind.CRASH and at is not None]
     intervals = intervals_from(records, run.arch, t1, run.arch.doing_stale_after, failures)
     if run.options.plots:
         # the timeline draws the same ground truth: it agrees with the summary, and one seed
@@ -109,6 +116,12 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
     if role is not None and role.robot != (failure.robot if failure else None):
         report = report or FailureReport(role.robot, None, fault=str(role.kind))
         report.role = role.robot
+    more = []
+    for f, hit, at in others:
+        more.append(takeover_report(run, hit, at, intervals, records, tb) if hit is not None
+                    else FailureReport(f.robot, None, fault=str(f.kind)))
+        if f.robot != more[-1].robot:
+            more[-1].role = f.robot
     given_up, forgiven = lockstep_trouble(records) if run.options.lockstep else (0, 0)
     faults = run.faults
     made = decisions(records, run.arch, end)
@@ -132,7 +145,7 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
         decisions=made,
         fault_effects=fault_effects(records, [*run.robots, *run.arch.processes], end),
         refused=refused, strangers=list(strangers),
-        metrics=run.mission.metrics(run, records), failure=report,
+        metrics=run.mission.metrics(run, records), failure=report, other_failures=more,
         output=str(output), files=[], sections=mission_sections(run, records))
     # what this run wrote: new or changed files (an earlier run's are neither), and the
     # summary itself, written next

@@ -207,6 +207,21 @@ def _bound_note(f) -> str:
     return f" ({since}{ok} {bound} {f.bound_formula} = {f.bound_seconds:.2f} s{case}{why})"
 
 
+def failure_line(f) -> str:
+    """One subject fault as the printed summary says it (summary.json's `failure` and each of
+    `other_failures`)."""
+    what = _FAULT_WORDS.get(f.fault, f.fault)
+    if f.killed_at is None:
+        return f"{f.role or f.robot}: {f.fault} never struck (the run did not reach it" + (
+            ", or nobody was assigned a task before it)" if f.role else ")")
+    if f.takeover_seconds is not None:
+        return (f"{f.robot} {what} at {f.killed_at:.1f} s while doing {f.task}; "
+                f"{f.taken_over_by} took over after {f.takeover_seconds:.2f} s" + _bound_note(f))
+    if f.task is None:
+        return f"{f.robot} {what} at {f.killed_at} s (it held no task)"
+    return f"{f.robot} {what} at {f.killed_at} s; task {f.task} was not taken over before the end"
+
+
 _EFFECT_WORDS = {"lost": "lost", "delayed": "heard late", "cut_off": "cut off by a partition",
                  "out_of_range": "out of range"}
 
@@ -243,19 +258,8 @@ def print_summary(console: Console, s: Summary, title: str, arch_title: str,
     for rid, spans in s.who_did_what.items():
         txt = ", ".join(f"{x.task} {x.start:.1f}–{x.end:.1f} s" for x in spans) or "idle"
         console.print(f"  {rid}: {txt}", highlight=False)
-    f = s.failure
-    if f:
-        what = _FAULT_WORDS.get(f.fault, f.fault)
-        if f.takeover_seconds is not None:
-            console.print(f"  {f.robot} {what} at {f.killed_at:.1f} s while doing {f.task}; "
-                          f"{f.taken_over_by} took over after {f.takeover_seconds:.2f} s"
-                          + _bound_note(f), highlight=False)
-        elif f.task is None:
-            console.print(f"  {f.robot} {what} at {f.killed_at} s (it held no task)",
-                          highlight=False)
-        else:
-            console.print(f"  {f.robot} {what} at {f.killed_at} s; task {f.task} was not taken "
-                          "over before the end", highlight=False)
+    for f in ([s.failure] if s.failure else []) + s.other_failures:
+        console.print(f"  {failure_line(f)}", highlight=False)
     for task, c in s.coverage.items():
         console.print(f"  {task}: exactly one robot {c.exactly_one:.0%}, none {c.none:.0%}, "
                       f"more than one {c.more_than_one:.0%}", highlight=False)
@@ -271,6 +275,10 @@ def print_summary(console: Console, s: Summary, title: str, arch_title: str,
         console.print(f"  {plural(d.count, 'allocation decision')} ({aim}): "
                       f"computation median {d.median_ms:g} ms, max {d.max_ms:g} ms",
                       highlight=False)
+    for x in (d.declared if d is not None else ()):
+        back = "" if x.until is None else f", back in the plan at {x.until:g} s"
+        console.print(f"  {x.by or 'the decider'} declared {x.robot} {x.reason} at {x.at:g} s"
+                      f"{back}" + (" (to the end)" if x.until is None else ""), highlight=False)
     if s.fault_effects:
         said = ", ".join(f"{n} {_EFFECT_WORDS[c]}" for c, n in s.fault_effects.items() if n)
         console.print(f"  injected faults: {s.faults}; coordination messages {said}",

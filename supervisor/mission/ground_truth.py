@@ -22,12 +22,12 @@ import statistics
 from dataclasses import dataclass, field
 from typing import Iterable
 
-from mrta_zenoh.architectures import Architecture, Doing
+from mrta_zenoh.architectures import Architecture, Decision, Doing
 from mrta_zenoh.clock import EPSILON
 from mrta_zenoh.codec import DecodeError, decode, type_from_encoding
 from mrta_zenoh.keys import first_chunk, matches
 
-from .summary import Decisions
+from .summary import Decisions, Declared
 
 Interval = tuple[str, float, float]  # (task, start, end)
 
@@ -218,4 +218,24 @@ def decisions(records, arch: Architecture, end: float) -> Decisions | None:
     objectives = sorted({d.objective for d in found if d.objective})
     return Decisions(len(found), round(statistics.median(times), 3) if times else None,
                      round(times[-1], 3) if times else None, ", ".join(objectives) or None,
-                     sum(1 for d in found if d.capped))
+                     sum(1 for d in found if d.capped), declared(found))
+
+
+def declared(found: list[Decision]) -> list[Declared]:
+    """The robots each decider left out of its plan (Decision.out), as stretches: from the first
+    decision that has it out for a reason to the first later one that has it back (or out for
+    another reason); open at the end of the run."""
+    out: list[Declared] = []
+    open_: dict[tuple[str, str], Declared] = {}
+    for d in sorted(found, key=lambda d: d.stamp):
+        now = {robot: reason for robot, reason in d.out}
+        for (decider, robot), stretch in list(open_.items()):
+            if decider == d.decider and now.get(robot) != stretch.reason:
+                stretch.until = round(d.stamp, 3)
+                del open_[(decider, robot)]
+        for robot, reason in now.items():
+            if (d.decider, robot) not in open_:
+                open_[(d.decider, robot)] = Declared(robot, reason, round(d.stamp, 3),
+                                                     by=d.decider)
+                out.append(open_[(d.decider, robot)])
+    return out

@@ -124,6 +124,17 @@ class MessageRates(msgspec.Struct, forbid_unknown_fields=True):
     by_kind: dict[str, int] = {}  # coordination samples of each kind (results: messages.<kind>)
 
 
+class Declared(msgspec.Struct, forbid_unknown_fields=True):
+    """A robot a decider left out of its plan (Decision.out): `robot`, `reason` (stalled,
+    silent, crashed), from `at` until `until` (None: to the end of the run)."""
+
+    robot: str
+    reason: str
+    at: float
+    until: float | None = None
+    by: str = ""  # the decider (central: the dispatcher)
+
+
 class Decisions(msgspec.Struct, forbid_unknown_fields=True):
     """The allocation decisions an architecture's messages record (Architecture.decision): how
     many, their computation time — the machine's, like `wall_seconds`: the one part of a
@@ -136,6 +147,9 @@ class Decisions(msgspec.Struct, forbid_unknown_fields=True):
     # how many were searches stopped by their time cap (Decision.capped): then the run's
     # allocation depends on the machine, and a lockstep run is not exact
     capped: int = 0
+    # the robots each decider left out of its plan, and why, from when until when (issue 51.2:
+    # a stall the dispatcher declared was named nowhere)
+    declared: list[Declared] = []
 
 
 class Summary(msgspec.Struct, forbid_unknown_fields=True):
@@ -155,6 +169,9 @@ class Summary(msgspec.Struct, forbid_unknown_fields=True):
     files: list[str]
     metrics: dict[str, Any] = {}   # the application's own (its mission hook)
     failure: FailureReport | None = None
+    # every other subject fault of a combined spec (`crash:robot1@5,stall:robot3@9`), each
+    # reported as `failure` is — it used to report the first only (issue 51.5)
+    other_failures: list[FailureReport] = []
     # in lockstep a message counts as heard at its stamp (plus any injected latency), so the
     # instant a takeover bound counts from (`failure.bound_from`) is exact
     lockstep: bool = True
@@ -192,7 +209,7 @@ class Summary(msgspec.Struct, forbid_unknown_fields=True):
 
 
 SECTIONS_FIELD = "sections"
-QUIET_WHEN_EMPTY = ("refused", "strangers")  # written only when there is something to say
+QUIET_WHEN_EMPTY = ("refused", "strangers", "other_failures")  # written only when there is something to say
 FRAMEWORK_KEYS = frozenset(f.encode_name for f in msgspec.structs.fields(Summary)
                            if f.name != SECTIONS_FIELD)
 

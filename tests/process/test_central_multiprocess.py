@@ -175,6 +175,21 @@ def test_a_task_delivered_unseen_across_a_partition_is_served_once(children, tmp
 
 @pytest.mark.slow
 @pytest.mark.timeout(300)
+def test_every_fault_of_a_combined_spec_and_every_declared_stall_is_in_the_summary(
+        children, tmp_path):
+    """Issue 51.2/51.5: only the first subject fault was reported, and the stall the
+    dispatcher declared was named nowhere."""
+    s = run_demo(children, tmp_path / "out", "40", "--architecture", "central",
+                 "--fail", "stall:robot4@5,crash:robot1@8")
+    assert (s["failure"]["robot"], s["failure"]["fault"]) == ("robot4", "stall")  # crash: omitted
+    others = [(f["robot"], f.get("fault", "crash"), f["killed_at"]) for f in s["other_failures"]]
+    assert others == [("robot1", "crash", 8.0)]
+    declared = {(d["robot"], d["reason"]) for d in s["decisions"]["declared"]}
+    assert {("robot4", "stalled"), ("robot1", "crashed")} <= declared, declared
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
 def test_robots_finish_their_queues_when_the_dispatcher_crashes(children, tmp_path):
     s = run_demo(children, tmp_path / "a", "60", "--architecture", "central",
                  "--fail", "dispatcher@3")
