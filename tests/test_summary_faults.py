@@ -81,3 +81,25 @@ def test_the_printed_summary_names_every_fault_and_every_declared_stall():
     data = summary_module.summary_json(s).decode()
     assert '"other_failures"' in data and '"declared"' in data
     assert '"other_failures"' not in summary_module.summary_json(summary()).decode()
+
+
+def test_a_process_that_ended_before_the_run_did_marks_its_loss_or_adds_one():
+    """A SIGKILLed dispatcher or recorder (issue 51.5): its token's loss says how it ended, or
+    one is added; the run is then disturbed (incomplete for the recorder), with that cause."""
+    from mrta_supervisor.mission.run_watch import ended_early, run_status
+    from mrta_supervisor.mission.summary import Disturbance, run_problem
+
+    seen = [Disturbance("dispatcher", 12.0), Disturbance("robot2", 3.0, 4.0)]
+    out = ended_early(seen, {"dispatcher": "killed by SIGKILL",
+                             "recorder": "killed by SIGKILL"}, 30.0)
+    assert out == [Disturbance("dispatcher", 12.0, ended="killed by SIGKILL"),
+                   Disturbance("robot2", 3.0, 4.0),
+                   Disturbance("recorder", 30.0, ended="killed by SIGKILL")]
+    assert seen[0].ended is None  # the watch's own list is left as it was
+    assert run_status(out[:2], 30.0, 30.0) == "disturbed"
+    assert run_status(out, 30.0, 30.0) == "incomplete"
+    s = summary(run_status="disturbed", disturbances=out[:2], lockstep_exact=False)
+    assert run_problem(s) == (
+        "a process of the run ended before the run did (dispatcher killed by SIGKILL at 12 s); "
+        "a process of the run was stopped or cut off (robot2 lost its token at 3 s, back at "
+        "4 s): the run is not what its seed gives")

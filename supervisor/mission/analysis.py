@@ -19,12 +19,13 @@ from mrta_zenoh import keys
 from mrta_zenoh.architectures import Architecture, Takeover
 from mrta_zenoh.clock import EPSILON
 from mrta_zenoh.codec import DecodeError, decode
+from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.failure import Failure, FaultKind
 from mrta_zenoh.fault_roles import ASSIGNED
 from mrta_zenoh.fault_tally import TALLY
 from mrta_zenoh.refusal_tally import REFUSED
 from mrta_zenoh.lockstep.protocol import STATUS, LockstepStatus
-from mrta_zenoh.recording import read_recording
+from mrta_zenoh.recording import Recovered, read_recording
 
 from mrta_zenoh.tasks.messages import INTAKE
 
@@ -35,7 +36,7 @@ from .hook import Mission, MissionRun
 from .plots import ROBOTS_TITLE, Panel, TimeBase, draw_timeline
 from .summary import (COMPLETE, DISTURBED, Coverage, Disturbance, FailureReport, MessageRates,
                       Span, Summary, checked_sections, write_summary)
-from .run_watch import run_status
+from .run_watch import RECORDER, run_status
 
 
 def mission_sections(run: MissionRun, records: list) -> Any:
@@ -67,7 +68,15 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
     names that are none of them (run_watch.py). A run whose processes refused forged
     coordination traffic (fault_effects.refused_traffic) is disturbed too."""
     output = run.options.output
-    records = read_recording(output / "run.mcap")
+    try:
+        records = read_recording(output / "run.mcap")
+    except ConfigError:
+        if not any(d.process == RECORDER and d.ended for d in disturbances):
+            raise
+        # the recorder died before it wrote a whole chunk: nothing was recorded, and the summary
+        # says so (incomplete, the recording empty) rather than nothing at all
+        records = Recovered()
+        records.complete = False
     tb = TimeBase(records)
     t0 = 0.0
     recorded_until = max((tb(t) for _, _, t, _ in records), default=None)

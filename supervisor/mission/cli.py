@@ -109,7 +109,9 @@ def demo(live: bool | None, **kwargs) -> None:
     if quiet > -2:
         print_summary(console, summary, run.mission.title, run.arch.title,
                       run.mission.describe(summary.metrics))
-    if summary.run_status == INCOMPLETE:  # the figures cover part of the mission only
+    if summary.run_status == INCOMPLETE or any(d.ended for d in summary.disturbances):
+        # the figures cover part of the mission only, or a process of the run failed (a
+        # dispatcher SIGKILLed from outside): summary.json says what can be known, exit 1
         raise MrtaRuntimeError(f"{run_problem(summary)}; {summary.output}/summary.json says "
                                "what happened")
 

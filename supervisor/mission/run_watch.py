@@ -11,7 +11,12 @@ recorder lost its session (what was published meanwhile never reached the file),
 ends before the mission's duration. Either way the summary is not that of the run the seed
 describes: `summary.json` says what happened (`run_status`, `disturbances`, `recorded_until`),
 lockstep runs are not called exact, `mrta demo` exits 1 on an incomplete summary, and
-`mrta experiment` runs such a run again.
+`mrta experiment` runs such a run again. A process of the run that *ended* before the run did
+(a dispatcher or a recorder SIGKILLed from outside, an agent that exited with an error; not a
+crash the run injected) is such a disturbance too, its entry saying how it ended (`ended`,
+`ended_early`): the summary is still written from what was recorded — even from an empty
+recording — where the runner used to raise and write none, and `mrta demo` prints it and
+exits 1. (A process that fails before every process is up is a start-up failure: no run.)
 
 Whose tokens: each robot's agent token (the architecture's `agent_tokens`), every lockstep
 participant's (agents, and any other participant: a dispatcher), the recorder's and the
@@ -39,6 +44,8 @@ import signal
 import threading
 import time
 from typing import Callable
+
+import msgspec
 
 from mrta_zenoh import keys
 from mrta_zenoh.architectures import Architecture
@@ -179,6 +186,25 @@ def _of_the_run(process: str, processes: set[str] | None) -> bool:
 
 def _last_chunk(key: str) -> str:
     return key.rsplit("/", 1)[-1]
+
+
+def ended_early(disturbances: list[Disturbance], ended: dict[str, str], at: float
+                ) -> list[Disturbance]:
+    """`disturbances` with each process of the run that ended by itself before the run did —
+    `ended`: process name → how (a SIGKILL from outside, an exit with an error; a crash the run
+    injected is not one) — marked so: its last loss of its token says how it ended, or, when
+    none was seen (it ended as the run did, or before its token was watched), a loss at `at`
+    is added. The run is then disturbed (incomplete if it was the recorder), and its summary is
+    still written from what was recorded: it used to end in an error and no summary at all."""
+    out = [msgspec.structs.replace(d) for d in disturbances]
+    for process, how in sorted(ended.items()):
+        last = next((d for d in reversed(out) if d.process == process and d.back_at is None),
+                    None)
+        if last is None:
+            out.append(Disturbance(process, round(at, 2), ended=how))
+        else:
+            last.ended = how
+    return out
 
 
 def crashed_itself(child: Child | None) -> bool:

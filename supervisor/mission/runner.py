@@ -56,7 +56,8 @@ from .analysis import analyse, folder_state
 from .hosting import host_nodes, hosted_crash
 from .hook import MissionOptions, MissionRun, instance_folder, resolve
 from .overrides import apply_overrides
-from .run_watch import Readiness, RunWatch, check_simulator_end, crashed_itself
+from .run_watch import (RECORDER, Readiness, RunWatch, check_simulator_end, crashed_itself,
+                        ended_early)
 from .summary import Summary
 
 log = logging.getLogger("mrta.mission")
@@ -260,10 +261,13 @@ def _run_in(run: MissionRun, reg: Registry,
         disturbances = watch.disturbances(lambda p: p in targets and struck(p), ours)
         strangers = watch.strangers(ours)
         crashed = group.failed(ignore=own_process(targets))
-        if crashed:
-            raise MrtaRuntimeError("; ".join(f"{c.name} {c.describe_exit()}"
-                                             for c in crashed) + ":\n"
-                                   + "\n".join(f"[{c.name}]\n{c.tail(10)}" for c in crashed))
+        if crashed:  # a dispatcher or recorder SIGKILLed from outside: what can be known
+            for c in crashed:
+                log.error("%s %s:\n%s", c.name, c.describe_exit(), c.tail(10))
+            process = {id(recorder): RECORDER, **{id(c): rid for rid, c in agents.items()},
+                       **{id(c): name for name, c in named.items()}}
+            disturbances = ended_early(disturbances, {
+                process.get(id(c), c.name): c.describe_exit() for c in crashed}, clock.now())
     summary = analyse(run, failure, failed_at, time.monotonic() - t_wall0, before, disturbances,
                       strangers)
     return run, summary

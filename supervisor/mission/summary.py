@@ -95,6 +95,9 @@ class Disturbance(msgspec.Struct, forbid_unknown_fields=True, omit_defaults=True
     process: str
     lost_at: float
     back_at: float | None = None
+    # how its process ended when it ended by itself before the run did ("killed by SIGKILL",
+    # "exited with code 1"): a SIGKILLed dispatcher or recorder used to leave no summary at all
+    ended: str | None = None
 
 
 class Refusal(msgspec.Struct, forbid_unknown_fields=True):
@@ -330,9 +333,7 @@ def read_summary(path: Path) -> Summary:
 def run_problem(summary: Summary) -> str | None:
     """Why a run's figures are not those of its seed, in one line (None: they are): what the
     printed summary, `mrta demo`'s exit and `mrta experiment`'s rows say."""
-    lost = "; ".join(f"{d.process} lost its token at {d.lost_at:g} s"
-                     + (f", back at {d.back_at:g} s" if d.back_at is not None else "")
-                     for d in summary.disturbances)
+    lost = "; ".join(map(_disturbance_text, summary.disturbances))
     if summary.run_status == INCOMPLETE:
         # the mission ends at its duration, or earlier when its work was over (ended_at)
         end = summary.duration if summary.ended_at is None else summary.ended_at
@@ -342,7 +343,10 @@ def run_problem(summary: Summary) -> str | None:
                 + (f"; {lost}" if lost else "") + ")")
     if summary.run_status == DISTURBED:
         forged = forged_traffic(summary)
-        causes = ([f"a process of the run was stopped or cut off ({lost})"] if lost else []) \
+        ended = "; ".join(_disturbance_text(d) for d in summary.disturbances if d.ended)
+        cut = "; ".join(_disturbance_text(d) for d in summary.disturbances if not d.ended)
+        causes = ([f"a process of the run ended before the run did ({ended})"] if ended else []) \
+            + ([f"a process of the run was stopped or cut off ({cut})"] if cut else []) \
             + ([f"it refused forged coordination traffic ({forged})"] if forged else [])
         return "; ".join(causes or ["disturbed"]) + ": the run is not what its seed gives"
     capped = summary.decisions.capped if summary.decisions is not None else 0
@@ -356,6 +360,13 @@ def run_problem(summary: Summary) -> str | None:
         return (f"lockstep was not exact: {summary.lockstep_given_up} participant(s) given up, "
                 f"{summary.lockstep_forgiven} claim(s) forgiven — {why}")
     return None
+
+
+def _disturbance_text(d: Disturbance) -> str:
+    if d.ended:
+        return f"{d.process} {d.ended} at {d.lost_at:g} s"
+    return f"{d.process} lost its token at {d.lost_at:g} s" + (
+        f", back at {d.back_at:g} s" if d.back_at is not None else "")
 
 
 def forged_traffic(summary: Summary, most: int = 4) -> str:

@@ -56,9 +56,9 @@ def descendants(pid: int) -> list[int]:
     return out
 
 
-def kill_descendant(pid: int, *needles: str) -> int | None:
-    """SIGKILL the first process below `pid` whose command line holds every one of `needles`;
-    its PID, or None if there is none (yet)."""
+def kill_descendant(pid: int, *needles: str, dry_run: bool = False) -> int | None:
+    """SIGKILL the first process below `pid` whose command line holds every one of `needles`
+    (`dry_run`: only find it); its PID, or None if there is none (yet)."""
     import signal
     for d in descendants(pid):
         try:
@@ -67,7 +67,8 @@ def kill_descendant(pid: int, *needles: str) -> int | None:
         except OSError:
             continue
         if all(any(n in a for a in argv) for n in needles):
-            os.kill(d, signal.SIGKILL)
+            if not dry_run:
+                os.kill(d, signal.SIGKILL)
             return d
     return None
 
