@@ -19,6 +19,8 @@ fails. Roles (docs/security.md has the table and what each rule stops):
   own `tasks/request/NAME` and hear the answers on `tasks/answer/NAME` (and whether the intake
   is up) — nothing else: it cannot speak for a robot or read the fleet's traffic. A fleet with
   submitters also gets the intake's certificate (`tasks`, the role mrta_zenoh.tasks registers).
+* **an architecture's process** (`--process NAME`: central's `dispatcher`): the registered role
+  of that name (its package states its keys), under a certificate of the same name.
 * **observer** (supervisor, recorder, viewer…): may subscribe and watch liveliness, and hold a
   recorder token (`@mrta/recorder/<zid>`: the recorder and the viewer announce themselves);
   may not publish.
@@ -292,11 +294,15 @@ def parse_bridge(spec: str) -> Identity:
 
 
 def _identities(robots: list[str], observers: list[str], bridges: list[str],
-                simulator: bool, submitters: list[str] = ()) -> list[Identity]:
+                simulator: bool, submitters: list[str] = (),
+                processes: list[str] = ()) -> list[Identity]:
     ids = [Identity(normalize_robot_id(r), ROBOT) for r in robots]
     if simulator:
         registered_role(SIMULATOR)  # a missing or broken registration fails before any key is made
         ids.append(Identity(SIMULATOR, SIMULATOR))
+    for p in processes:  # an architecture's own process (central's dispatcher): its own role
+        registered_role(p)
+        ids.append(Identity(p, p))
     for o in observers:
         if not is_id(o):
             raise ConfigError(f"observer name {o!r}: use letters, digits, '_', '-' or '.'")
@@ -331,7 +337,7 @@ MANIFEST = "fleet-files.txt"  # the fleet's files, one per line: what --force ma
 
 def init(folder: Path, robots: list[str], observers: list[str], *,
          bridges: list[str] = (), endpoint: str = DEFAULT_ENDPOINT, simulator: bool = True,
-         submitters: list[str] = (),
+         submitters: list[str] = (), processes: list[str] = (),
          force: bool = False, root: str | None = None, ros2_domain: int = 0) -> list[Path]:
     """Write ca.pem/ca.key, <name>.pem/.key per process, router.json5 and <name>.json5 into
     `folder` — all or nothing — and leave every other file there alone. Returns the files
@@ -347,7 +353,8 @@ def init(folder: Path, robots: list[str], observers: list[str], *,
         raise ConfigError(f"router endpoint {endpoint!r}: mutual TLS needs a tls/… endpoint")
     if not 0 <= ros2_domain <= 232:
         raise ConfigError(f"ROS 2 domain id {ros2_domain}: expected 0–232")
-    ids = _identities(list(robots), list(observers), list(bridges), simulator, list(submitters))
+    ids = _identities(list(robots), list(observers), list(bridges), simulator, list(submitters),
+                      list(processes))
     folder = Path(folder)
     if folder.exists() and not folder.is_dir():
         raise ConfigError("exists and is not a folder", file=str(folder))

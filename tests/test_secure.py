@@ -439,3 +439,39 @@ def test_force_removes_the_previous_fleets_files_and_nothing_else(tmp_path):
     assert not names & {"robot1.pem", "robot1.key", "robot1.json5", "sup.pem", "sup.json5"}
     assert {"robot2.pem", "robot2.json5", "mine.txt", "ca.pem"} <= names
     assert (folder / "mine.txt").read_text() == "keep me"
+
+
+def test_central_on_a_secured_fleet_only_the_dispatcher_sends_queues(tmp_path):
+    """Issue 51.4: `mrta secure init` had no dispatcher role, so central could not run on a
+    secured fleet at all. `--process dispatcher` gives it its certificate and the role central
+    registers (mrta_agent.central.secure_role): it sends the queues, its decisions and its
+    tallies, answers lockstep; no robot may send a queue, the dispatcher no robot's progress."""
+    result = CliRunner().invoke(cli, ["secure", "init", str(tmp_path / "f"), "--robot", "robot1",
+                                      "--robot", "robot2", "--process", "dispatcher"])
+    assert result.exit_code == 0, result.output
+    r = json.loads((tmp_path / "f" / "router.json5").read_text())
+    yes = [("dispatcher", "put", "dispatcher/central/queue/robot1"),
+           ("dispatcher", "put", "dispatcher/central/plan"),
+           ("dispatcher", "put", "dispatcher/refused/tally"),
+           ("dispatcher", "put", "@mrta/lockstep/done/dispatcher"),
+           ("dispatcher", "liveliness_token", "dispatcher/central/agent"),
+           ("dispatcher", "liveliness_token", "@mrta/lockstep/participant/dispatcher"),
+           ("robot1", "put", "robot1/central/progress")]
+    no = [("robot1", "put", "dispatcher/central/queue/robot2"),
+          ("robot1", "liveliness_token", "dispatcher/central/agent"),
+          ("robot2", "put", "robot1/central/progress"),
+          ("dispatcher", "put", "robot1/central/progress"),
+          ("dispatcher", "put", "robot1/delivery/done"),
+          ("dispatcher", "put", "@mrta/lockstep/step"),
+          ("dispatcher", "liveliness_token", "@mrta/lockstep/participant/robot1")]
+    assert [x for x in yes if not allowed(r, *x)] == []
+    assert [x for x in no if allowed(r, *x)] == []
+    opts = BusOptions(zenoh_config=tmp_path / "f" / "robot1.json5")
+    with pytest.raises(ConfigError, match="is for robot robot1, not for the dispatcher"):
+        check_identity(opts, "dispatcher", "dispatcher")
+    check_identity(BusOptions(zenoh_config=tmp_path / "f" / "dispatcher.json5"), "dispatcher",
+                   "dispatcher")
+    bad = CliRunner().invoke(cli, ["secure", "init", str(tmp_path / "g"), "--robot", "robot1",
+                                   "--process", "dispatchr"])
+    assert bad.exit_code == 2 and "no role 'dispatchr' is registered" in bad.output
+    assert not (tmp_path / "g").exists()

@@ -28,6 +28,9 @@ def secure() -> None:
 @click.option("--submitter", "submitters", multiple=True, metavar="NAME",
               help="Who may submit tasks at run time (`mrta task … --as NAME`): only on "
                    "tasks/request/NAME (repeatable); adds the run's intake, `tasks`.")
+@click.option("--process", "processes", multiple=True, metavar="NAME",
+              help="An architecture's own process under the role its package registers "
+                   "(central: --process dispatcher; only it may publish queues) (repeatable).")
 @click.option("--endpoint", default=DEFAULT_ENDPOINT, show_default=True,
               help="Where the router listens (a tls/ endpoint); its certificate names this host.")
 @click.option("--root", metavar="DIR",
@@ -41,11 +44,12 @@ def secure() -> None:
               help="Replace the files a previous `secure init` wrote in FOLDER (other files "
                    "there are left alone).")
 def secure_init(folder: Path, robots: tuple[str, ...], observers: tuple[str, ...],
-                bridges: tuple[str, ...], submitters: tuple[str, ...], endpoint: str, root: str | None, ros2_domain: int,
-                no_simulator: bool, force: bool) -> None:
+                bridges: tuple[str, ...], submitters: tuple[str, ...], processes: tuple[str, ...],
+                endpoint: str, root: str | None, ros2_domain: int, no_simulator: bool,
+                force: bool) -> None:
     """Write a CA, a certificate per process, router.json5 and one NAME.json5 per process."""
     files = init(folder, list(robots), list(observers), bridges=list(bridges),
-                 submitters=list(submitters), endpoint=endpoint,
+                 submitters=list(submitters), processes=list(processes), endpoint=endpoint,
                  simulator=not no_simulator, force=force, root=root, ros2_domain=ros2_domain)
     names = sorted(p.stem for p in files if p.suffix == ".json5" and p.stem != "router")
     click.echo(f"wrote {plural(len(files), 'file')} to {folder}")
