@@ -301,3 +301,49 @@ def test_a_task_delivered_unseen_across_a_partition_is_served_once_and_nobody_is
     assert sorted(done) == sorted(doc.tasks), done  # every task delivered, each once
     assert (robot, task) in {(r, t) for r, t, e, _ in team.events if e == "done"}
     assert task in dispatcher.closed and not stalled, (dispatcher.closed, stalled)
+
+
+# ------------------------------------------------------------------ a time cap too short
+def _spread(tasks: int) -> Problem:
+    import random
+    rng = random.Random(1)
+    return Problem(tuple(Robot(f"robot{i}", (rng.uniform(0, 10), rng.uniform(0, 10)), 0.5)
+                         for i in range(1, 4)),
+                   tuple(Task(f"t{j}", (rng.uniform(0, 10), rng.uniform(0, 10)), service=1.0)
+                         for j in range(1, tasks + 1)))
+
+
+def test_a_search_that_finds_nothing_within_its_cap_falls_back_on_insertion_reported_capped(
+        monkeypatch):
+    """Issue 51.2: a 1 ms `time_limit` made OR-Tools find no route at all, and the dispatcher
+    crashed on a ConfigError. Now it decides anyway — each task inserted where it adds least —
+    and the decision says it was capped (the run is then not called exact). Whether a real
+    search finds nothing in its cap depends on the machine: the search is made to time out."""
+    from mrta_agent.central import planner
+    from mrta_zenoh.planning import routing
+
+    def timed_out(*_a, **_kw):
+        raise routing.SearchTimeout("OR-Tools found no route at all within its time limit")
+
+    monkeypatch.setattr(routing, "solve_routing", timed_out)
+    problem = _spread(12)
+    d = Dispatcher(problem, DispatcherParams(exact_limit=0, time_limit=0.001))
+    for r in problem.robots:
+        d.teammate(r.id, True)
+    (plan,) = [s for s in d.tick(0.0) if s.kind == "plan"]
+    assert plan.fields["method"] == planner.INSERTION and plan.fields["capped"] is True
+    assert sorted(t for route in d.plan.values() for t in route) == sorted(
+        t.id for t in problem.tasks)
+
+
+def test_a_real_one_millisecond_cap_never_crashes_the_dispatcher():
+    """The same with the real search at 1 ms: whether it finds a first route in time is the
+    machine's business; either way every task is planned and the decision is capped."""
+    problem = _spread(30)
+    d = Dispatcher(problem, DispatcherParams(exact_limit=0, time_limit=0.001))
+    for r in problem.robots:
+        d.teammate(r.id, True)
+    (plan,) = [s for s in d.tick(0.0) if s.kind == "plan"]
+    assert plan.fields["capped"] is True and plan.fields["method"] in ("insertion", "best found")
+    assert sorted(t for route in d.plan.values() for t in route) == sorted(
+        t.id for t in problem.tasks)

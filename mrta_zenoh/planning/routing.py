@@ -51,6 +51,13 @@ class BestFound:
     capped: bool        # stopped by the time limit (then not reproducible across machines)
 
 
+class SearchTimeout(ConfigError):
+    """The search's time limit ended it before it found any route (a 1 ms `time_limit`): no
+    answer at all, where a search stopped by it after a first solution is `capped`. A caller
+    that must decide anyway (central's dispatcher) falls back on a construction of its own and
+    reports the decision capped; any other caller gets this one line (exit 2)."""
+
+
 def solve_routing(problem: Problem, objective: Objective | str, *, solutions: int = 2000,
                   time_limit: float = 30.0) -> BestFound:
     """The best routes OR-Tools finds serving every task (ConfigError: a task nobody can
@@ -128,10 +135,13 @@ def solve_routing(problem: Problem, objective: Objective | str, *, solutions: in
     params.local_search_metaheuristic = (
         routing_enums_pb2.LocalSearchMetaheuristic.GUIDED_LOCAL_SEARCH)
     params.solution_limit = solutions
-    params.time_limit.FromMilliseconds(round(time_limit * 1000))
+    params.time_limit.FromMicroseconds(max(1, round(time_limit * 1e6)))  # 0 would be no limit
     t0 = time.perf_counter()
     solution = routing.SolveWithParameters(params)
     if solution is None:
+        if routing.status() == routing_enums_pb2.RoutingSearchStatus.ROUTING_FAIL_TIMEOUT:
+            raise SearchTimeout(f"OR-Tools found no route at all within its time limit of "
+                                f"{time_limit:g} s ({n} tasks, {m} robots): raise time_limit")
         raise ConfigError(f"OR-Tools found no route serving every task "
                           f"(status {routing.status()})")
     routes: dict[int, list[int]] = {}

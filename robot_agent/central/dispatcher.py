@@ -410,8 +410,8 @@ class Dispatcher(Coordinator):
         `time_limit` or more — the share at which the search itself calls itself capped
         (planning.routing.BestFound.capped), measured over the whole solve, so a capped search
         is never missed. Its plan then depends on the machine's speed (issue 51.2)."""
-        return (len(situation.open_tasks) > self.params.exact_limit
-                and outcome.seconds >= CAPPED_SHARE * self.params.time_limit)
+        return outcome.capped or (len(situation.open_tasks) > self.params.exact_limit
+                                  and outcome.seconds >= CAPPED_SHARE * self.params.time_limit)
 
     # ------------------------------------------------------------ queues
     def wanted(self, rid: str) -> list[str]:

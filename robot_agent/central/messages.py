@@ -43,7 +43,9 @@ class Plan(Message):
     """One decision: `version` (every queue it sent carries a version ≥ it), `trigger` (start,
     arrival, completion, loss, return), the objective, the value of the plan (the served
     prefixes and the new routes, planning.schedule), how it was found (`method`: exact, best
-    found, or kept — the current plan was as good), `solve_ms` of computation, and the routes
+    found, kept — the current plan was as good —, or insertion: the search found no route at
+    all within its time cap, each task inserted where it adds least), `solve_ms` of
+    computation, and the routes
     (`robot:task,task,…`, its whole queue each); `capped`: the search was stopped by its time
     cap (planner.Outcome.capped: the run then depends on the machine); `out`: the robots the
     dispatcher has left out of the plan, and why (`robot3:stalled`; crashed, silent) — what the

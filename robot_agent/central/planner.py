@@ -43,6 +43,7 @@ from mrta_zenoh.planning.insertion import binding, drop_late, windowed_places
 from mrta_zenoh.planning.schedule import Objective, evaluate, route_visits
 
 EXACT, BEST_FOUND, KEPT = "exact", "best found", "kept"
+INSERTION = "insertion"  # the search found nothing within its time cap: cheapest insertion
 TIE = 1e-9  # relative: a new plan must beat the current one by more than rounding
 
 
@@ -63,6 +64,9 @@ class Outcome:
     method: str                        # EXACT, BEST_FOUND, KEPT
     seconds: float                     # the computation's wall time
     unassigned: list[str] = field(default_factory=list)
+    # stopped by its time cap before the search found any route: the routes are cheapest
+    # insertion's (INSERTION), and the decision depends on the machine
+    capped: bool = False
 
 
 def full_value(problem: Problem, objective: Objective, commitments: Mapping[str, Sequence[str]],
@@ -116,6 +120,7 @@ def solve(problem: Problem, situation: Situation, objective: Objective, *, exact
     """The plan for `situation`: the best of a fresh solve and the current plan (kept unless
     beaten: module docstring)."""
     t0 = time.perf_counter()
+    capped = False
     sub, robot_ids, task_ids, left = residual(problem, situation)
     if not task_ids:
         routes: dict[str, list[str]] = {r: [] for r in robot_ids}
@@ -125,10 +130,17 @@ def solve(problem: Problem, situation: Situation, objective: Objective, *, exact
         routes = _named(solve_exact(sub, objective).routes, robot_ids, task_ids)
         method = EXACT
     else:
-        from mrta_zenoh.planning.routing import solve_routing
-        routes = _named(solve_routing(sub, objective, solutions=solutions,
-                                      time_limit=time_limit).routes, robot_ids, task_ids)
-        method = BEST_FOUND
+        from mrta_zenoh.planning.routing import SearchTimeout, solve_routing
+        try:
+            routes = _named(solve_routing(sub, objective, solutions=solutions,
+                                          time_limit=time_limit).routes, robot_ids, task_ids)
+            method = BEST_FOUND
+        except SearchTimeout:
+            # a time cap too short for even a first solution (issue 51.2: a 1 ms time_limit
+            # crashed the dispatcher): each task inserted where it adds least, reported capped
+            routes = keep(problem, objective, situation, {}, task_ids) or {r: [] for r in
+                                                                           robot_ids}
+            method, capped = INSERTION, True
     routes = on_time(problem, situation, routes)
     value = full_value(problem, objective, situation.commitments, routes)
     if current is not None and task_ids:
@@ -140,7 +152,7 @@ def solve(problem: Problem, situation: Situation, objective: Objective, *, exact
                 routes, value, method = kept, old, KEPT
     planned = {t for route in routes.values() for t in route}
     left += [t for t in task_ids if t not in planned]
-    return Outcome(routes, value, method, time.perf_counter() - t0, left)
+    return Outcome(routes, value, method, time.perf_counter() - t0, left, capped)
 
 
 def _planned(routes: Mapping[str, Sequence[str]]) -> int:
