@@ -454,11 +454,11 @@ def test_central_on_a_secured_fleet_only_the_dispatcher_sends_queues(tmp_path):
            ("dispatcher", "put", "dispatcher/central/plan"),
            ("dispatcher", "put", "dispatcher/refused/tally"),
            ("dispatcher", "put", "@mrta/lockstep/done/dispatcher"),
-           ("dispatcher", "liveliness_token", "dispatcher/central/agent"),
+           ("dispatcher", "liveliness_token", "@mrta/node/dispatcher"),
            ("dispatcher", "liveliness_token", "@mrta/lockstep/participant/dispatcher"),
            ("robot1", "put", "robot1/central/progress")]
     no = [("robot1", "put", "dispatcher/central/queue/robot2"),
-          ("robot1", "liveliness_token", "dispatcher/central/agent"),
+          ("robot1", "liveliness_token", "@mrta/node/dispatcher"),
           ("robot2", "put", "robot1/central/progress"),
           ("dispatcher", "put", "robot1/central/progress"),
           ("dispatcher", "put", "robot1/delivery/done"),
