@@ -26,20 +26,15 @@ def agent_args(robot: str = "robot1") -> list:
 
 
 @pytest.mark.slow
-def test_ctrl_c_of_an_agent_exits_130(children, tokens):
-    """Not 0: a script must tell an interrupted agent from one that ended."""
+@pytest.mark.parametrize("sig,code", [(signal.SIGINT, 130), (signal.SIGTERM, 0)],
+                         ids=["ctrl-c-exits-130", "sigterm-is-a-clean-stop"])
+def test_an_agent_stopped_by_a_signal_exits_as_a_script_expects(children, tokens, sig, code):
+    """Ctrl-C is 130, not 0: a script must tell an interrupted agent from one that ended;
+    SIGTERM is a clean stop (0)."""
     agent = children.mrta(*agent_args(), name="agent")
     tokens.wait("robot1/alliance/agent", 60, agent)
-    agent.signal(signal.SIGINT)
-    assert agent.wait(20) == 130, agent.tail(10)
-
-
-@pytest.mark.slow
-def test_sigterm_of_an_agent_is_a_clean_stop(children, tokens):
-    agent = children.mrta(*agent_args(), name="agent")
-    tokens.wait("robot1/alliance/agent", 60, agent)
-    agent.signal(signal.SIGTERM)
-    assert agent.wait(20) == 0, agent.tail(10)
+    agent.signal(sig)
+    assert agent.wait(20) == code, agent.tail(10)
 
 
 @pytest.mark.slow
