@@ -10,7 +10,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import scipy.stats
 from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
@@ -118,6 +117,7 @@ def test_a_run_without_plots_asks_the_mission_for_none():
 
 def bca_half_width(n: int) -> float:
     """The interval --until-ci targets, computed here with scipy directly: seeds 1…n."""
+    import scipy.stats  # here, not at collection (≈ 2 CPU-s in each xdist worker)
     x = np.array([takeover(s) for s in range(1, n + 1)])
     ci = scipy.stats.bootstrap((x,), np.mean, n_resamples=10_000, method="BCa",
                                random_state=np.random.default_rng(SEED)).confidence_interval

@@ -10,7 +10,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-import scipy.stats
 from click.testing import CliRunner
 
 from mrta_zenoh.cli.main import cli
@@ -57,6 +56,7 @@ def table(path: Path) -> list[dict]:
 
 
 def test_cells_csv_holds_each_cells_figures_as_numpy_and_scipy_give_them(tmp_path):
+    import scipy.stats  # here, not at collection (≈ 2 CPU-s in each xdist worker)
     folder = write(tmp_path / "r", rows())
     result = report(folder, "--baseline", "murdoch", "--no-plots")
     assert result.exit_code == 0, result.output
@@ -98,6 +98,7 @@ def test_a_metric_missing_in_some_runs_is_counted_apart_never_averaged_as_zero(t
 
 
 def test_comparisons_are_paired_by_seed_with_wilcoxon_holm_a12_and_improvement(tmp_path):
+    import scipy.stats  # here, not at collection (≈ 2 CPU-s in each xdist worker)
     data = rows()
     # a second group of the other parameters, so a metric's Holm family has two members
     extra = [dict(r, run=100 + i, failure="stall:robot2@20", config="fail=stall:robot2@20",

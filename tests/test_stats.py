@@ -8,10 +8,10 @@ import math
 
 import numpy as np
 import pytest
-import scipy.stats
 
 from mrta_supervisor.experiment import stats
 def test_one_level_bounds_are_scipys_bca_on_the_same_data_and_seed():
+    import scipy.stats  # here, not at collection (≈ 2 CPU-s in each xdist worker)
     x = [3.1, 2.9, 3.4, 3.0, 3.8, 2.7, 3.3, 3.05]
     direct = scipy.stats.bootstrap((np.array(x),), np.mean, n_resamples=10_000,
                                    confidence_level=0.95, method="BCa",
@@ -32,6 +32,7 @@ def test_all_equal_values_have_no_bootstrap_interval_and_say_so():
 
 
 def test_a_cell_figures_by_their_definitions_and_missing_values_apart():
+    import scipy.stats  # here, not at collection (≈ 2 CPU-s in each xdist worker)
     x = [1.0, 2.0, 2.0, 3.0, 7.0, 9.0, 10.0, 4.0]
     d = stats.describe([x], missing=3)
     assert (d.n, d.missing) == (8, 3)  # missing runs are not zeros: the mean is over 8
@@ -78,6 +79,7 @@ def test_the_two_level_resampler_draws_instances_then_seeds_within_them():
 
 def brute_force_wilcoxon(d: list[float]) -> float:
     """The exact two-sided signed-rank p-value by enumerating every sign assignment."""
+    import scipy.stats  # here, not at collection (≈ 2 CPU-s in each xdist worker)
     d = [x for x in d if x != 0]
     ranks = scipy.stats.rankdata(np.abs(d))
     observed = sum(r for r, x in zip(ranks, d) if x > 0)
