@@ -138,7 +138,7 @@ def recomputed(summary: dict) -> dict:
     for tid, t in tasks.items():
         due = t.get("due", math.inf)
         if tid not in first:
-            out["missed"] += due < end
+            out["missed"] += due <= end  # by the end: a run may end on a missed due
             continue
         r = first[tid]
         start = r.get("reached_at")  # a summary leaves out what is null

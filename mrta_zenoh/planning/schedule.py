@@ -25,7 +25,8 @@ run's allocation records show, so a summary's counts can be recomputed from its 
 * **late** / **lateness**: served, started after its due / Σ of how long after (s) — under soft
   windows what lateness costs; under hard windows a late start is a violation (none expected);
 * **early**: served, started before its earliest — a violation under either kind (robots wait);
-* **missed**: not served, and its due passed (before `end`: a run's end; a plan has none).
+* **missed**: not served, and its due passed by `end` (a run's end — a run that ends when
+  nothing is left to serve may end at a missed task's due; a plan has none).
 
 Starts are compared with `WINDOW_TOLERANCE` of slack: allocation records are rounded to the ms.
 
@@ -106,7 +107,7 @@ def window_counts(problem: Problem, starts: Mapping[int, float],
     for j, task in enumerate(problem.tasks):
         start = starts.get(j)
         if start is None:
-            missed += task.due < end
+            missed += math.isfinite(task.due) and task.due <= end
         elif start < task.earliest - WINDOW_TOLERANCE:
             early += 1
         elif start > task.due + WINDOW_TOLERANCE:

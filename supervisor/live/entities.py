@@ -32,8 +32,8 @@ class TaskInfo:
     state: str = "unallocated"
     robots: tuple[str, ...] = ()
     since: float = 0.0
-    # what the application said of the task (supervisor/live/tasks.py): "done" or "waiting", up to
-    # `until` (None: for good); a task that is neither needs a robot
+    # what the application said of the task (supervisor/live/tasks.py): "done", "waiting" or
+    # "missed", up to `until` (None: for good); a task that is none of them needs a robot
     status: str | None = None
     until: float | None = None
     # when it was last seen waiting for a robot to be free (tasks.waits_for_a_robot): the

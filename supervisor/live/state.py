@@ -106,8 +106,22 @@ class Supervisor:
                         since=now)
 
     def _schedule(self, now: float) -> None:
+        self._scheduled_at = now
         for status in self.watch.schedule() if self.watch is not None else ():
             self._task_status(status, now)
+
+    def _lapsed(self, now: float) -> set[str]:
+        """The watch's word on what time alone settled (TaskWatch.lapsed), for tasks neither
+        done nor held: the tasks it changed."""
+        changed = set()
+        for status in self.watch.lapsed(now - self._scheduled_at) if self.watch else ():
+            t = self.tasks.get(status.task)
+            if t is None or t.status == "done" or self.held.robots_on(t.id):
+                continue
+            if t.status != status.state:
+                t.status, t.until = status.state, None
+                changed.add(t.id)
+        return changed
 
     # ------------------------------------------------------------------ the parts' state
     @property
@@ -236,12 +250,14 @@ class Supervisor:
         self._reassess_task(t, now)
 
     def all_done(self) -> bool:
-        """Whether the application said every task is done for good (its TaskWatch: a
-        delivered task; not patrol's report, done only until its next period): the mission
-        runner then ends the run."""
+        """Whether nothing is left to serve: the application said every task is done for good
+        (its TaskWatch: a delivered task; not patrol's report, done only until its next
+        period) or missed (a hard window passed, TaskWatch.lapsed): the mission runner then
+        ends the run."""
         with self._lock:
             tasks = [t for t in self.tasks.values() if t.known]
-            return bool(tasks) and all(t.status == "done" and t.until is None for t in tasks)
+            return bool(tasks) and all(t.status in ("done", "missed") and t.until is None
+                                       for t in tasks)
 
     def on_clock(self, stopped: bool, now: float, ended: bool = False) -> None:
         """The simulation clock stopped (or came back): robots are `unknown` meanwhile. A run
@@ -373,6 +389,7 @@ class Supervisor:
                 if t.until is not None and now >= t.until:  # due again (or arrived)
                     t.status, t.until = None, None
                     changed_tasks.add(t.id)
+            changed_tasks |= self._lapsed(now)
             for rid in changed_robots:
                 self._reassess_robot(self.robots[rid], now)
             for tid in changed_tasks:

@@ -1,6 +1,8 @@
 """What an application tells the supervisor about its tasks' life cycle: a task that is done,
-or not due yet, needs no robot — it is shown `done` / `waiting`, and no `task_unattended`
-alarm is raised for it.
+not due yet, or that can no longer be served (a hard time window passed with no service
+started), needs no robot — it is shown `done` / `waiting` / `missed`, and no
+`task_unattended` alarm is raised for it. A run ends when nothing is left to serve: every task
+`done` or `missed` for good (Supervisor.all_done).
 
 The supervisor is generic: it knows no application. An application that has such tasks (a
 delivery is done once delivered; a task of an online instance is waiting until it arrives; a
@@ -22,7 +24,7 @@ from typing import Any, Literal, Mapping
 @dataclass(frozen=True)
 class TaskStatus:
     task: str
-    state: Literal["done", "waiting"]
+    state: Literal["done", "waiting", "missed"]
     seconds: float | None = None  # how long it holds from when it is heard; None: for good
 
 
@@ -48,6 +50,12 @@ class TaskWatch:
     def read(self, key: str, message: Any) -> TaskStatus | None:
         """What a sample of the feed says of a task (None: nothing)."""
         return None
+
+    def lapsed(self, elapsed: float) -> list[TaskStatus]:
+        """What time alone has settled by `elapsed` seconds after the schedule was read (the
+        supervisor's clock): a task that can no longer be served (`missed`, for good). The
+        supervisor applies it only to a task that is not done and that no robot holds."""
+        return []
 
     def servers(self, task: str) -> frozenset[str] | None:
         """The robots able to serve `task` (None: every robot), for `waits_for_a_robot`."""

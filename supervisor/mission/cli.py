@@ -247,14 +247,24 @@ def refused_lines(s: Summary, most: int = 6) -> list[str]:
     return out
 
 
+def work_over(metrics: dict) -> str:
+    """How the headline says the work was over at `ended_at` — honestly: a run that ended
+    because nothing was left to serve, some task missed (its hard window passed: the window
+    counts, mrta_zenoh.planning.schedule), was not "every task done"."""
+    if not metrics.get("missed"):
+        return "every task done"
+    return (f"nothing left to serve — {metrics.get('completed', '?')} served, "
+            f"{metrics['missed']} missed (hard windows passed) —")
+
+
 def print_summary(console: Console, s: Summary, title: str, arch_title: str,
                   extra: list[str]) -> None:
     # what the simulator ran (the recording's end), and when the work was over — the headline
     # said the last completion was "simulated" while the run went on past it (issue 51)
     ran = s.recorded_until if s.recorded_until is not None else s.ended_at
     simulated = (f"{s.duration:.0f} s simulated" if s.ended_at is None else
-                 f"{ran:.1f} s simulated (every task done by {s.ended_at:.1f} s, where the "
-                 f"figures end; --duration {s.duration:g})")
+                 f"{ran:.1f} s simulated ({work_over(s.metrics)} by {s.ended_at:.1f} s, "
+                 f"where the figures end; --duration {s.duration:g})")
     console.print(Text(f"\n{title} ({arch_title}): {simulated} at speed "
                        f"{s.speed or 'max'} in {s.wall_seconds:.0f} s", style="bold"))
     for rid, spans in s.who_did_what.items():

@@ -361,7 +361,7 @@ def check_seeds(nodes: list[NodeSpec], seed: int) -> None:
 # busy machine it may be ~300,000 samples behind (20 robots at --speed 0); killed sooner, the
 # recording missed the mission's end (the newcomer's `--no-plots` run, issue 51)
 RECORDER_GRACE = 120.0
-END_MARGIN = 1.0  # simulated s the simulator runs on after every task is done: the recording
+END_MARGIN = 1.0  # simulated s the simulator runs on once nothing is left to serve: the recording
                   # then covers the end (run_watch.END_SLACK), however late the runner saw it
 
 
@@ -369,7 +369,8 @@ def _watch(sim: Child, sup: Supervisor, clock: SimClock, failure: Failure | None
            stop: threading.Event, progress: Progress | None,
            early_end: bool = True) -> float | None:
     """Follow the run until the simulator ends — at its duration, or stopped here END_MARGIN
-    after the application's task watch said every task is done (Mission.task_watch); return
+    after the application's task watch said nothing is left to serve, every task done or
+    missed (Mission.task_watch); return
     when `failure` struck (each process injects its own faults, at their simulated times)."""
     failed_at = None
     all_done: float | None = None
@@ -386,8 +387,8 @@ def _watch(sim: Child, sup: Supervisor, clock: SimClock, failure: Failure | None
         if all_done is not None and now >= all_done + END_MARGIN:
             # the time the summary reports (ended_at) is when the work was seen over, not
             # when the runner, polling a faster-than-real-time run, stops the simulator
-            log.info("every task was done by t=%.1f (the mission's task watch): ending the run",
-                     all_done)
+            log.info("nothing was left to serve by t=%.1f (the mission's task watch: every task "
+                     "done or missed): ending the run", all_done)
             sim.signal(signal.SIGTERM)
             all_done = math.inf  # asked once
     return failed_at

@@ -192,7 +192,7 @@ class Summary(msgspec.Struct, forbid_unknown_fields=True):
     run_status: str = COMPLETE
     disturbances: list[Disturbance] = []
     recorded_until: float | None = None  # the recording's last simulated second
-    # when the mission's work was over (every task done: Mission.ended_at), before the
+    # when the mission's work was over (nothing left to serve: Mission.ended_at), before the
     # duration: the figures cover the run up to then; None: it ran to its duration
     ended_at: float | None = None
     decisions: Decisions | None = None   # None: the architecture records none

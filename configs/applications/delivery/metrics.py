@@ -325,16 +325,33 @@ def analyse(records: list, arch: Architecture, params: InstanceBody, end: float,
 
 
 def done_at(records: list, params: InstanceBody,
-            tolerance: float = DeliveryParams().tolerance) -> float | None:
-    """When every task of the instance had been completed (its first completion each, from the
-    robots' own `done` events as believed: believed_events); None: some never was."""
+            tolerance: float = DeliveryParams().tolerance,
+            until: float = math.inf) -> float | None:
+    """When nothing of the instance was left to serve: every task completed (its first
+    completion, from the robots' own `done` events as believed: believed_events) or, under hard
+    windows, missed by `until` (the run's duration) — over at its due when no service of it
+    was believed started, else when that service would have ended (max(due, start) +
+    service): what the run's task watch ends the run on (mission.DeliveryWatch.lapsed). None:
+    some task was neither."""
     first: dict[str, float] = {}
+    began: dict[str, float] = {}
     for _robot, task, event, stamp in believed_events(records, params, tolerance)[0]:
         if event == Event.DONE:
             first.setdefault(task, stamp)
-    if any(t not in first for t in params.tasks):
-        return None
-    return max((first[t] for t in params.tasks), default=None)
+        else:
+            began[task] = min(stamp, began.get(task, stamp))
+    over = []
+    for tid, t in params.tasks.items():
+        if tid in first:
+            over.append(first[tid])
+            continue
+        if params.windows != "hard" or t.due is None:
+            return None
+        missed = t.due if tid not in began else max(t.due, began[tid]) + t.service
+        if missed > until:
+            return None
+        over.append(missed)
+    return max(over, default=None)
 
 
 def instance_json(params: InstanceBody, instance: Problem) -> dict[str, Any]:

@@ -12,9 +12,10 @@ an instance file (`mrta demo --instance FILE`).
 (`DeliverySections`, declared as the Mission's `summary_sections`), which `read_summary` checks
 a summary against when it reads one back.
 
-A run ends when every task is done (`ended_at`: the last first completion, from the robots'
-`done` events): the runner learns it live through the task watch (`DeliveryWatch`: every task
-`done` for good) and stops the simulator; the figures cover the run up to `ended_at`.
+A run ends when nothing is left to serve (`ended_at`: every task's first completion, from the
+robots' `done` events, or — under hard windows — when it was missed: metrics.done_at): the
+runner learns it live through the task watch (`DeliveryWatch`: every task `done` or `missed`
+for good) and stops the simulator; the figures cover the run up to `ended_at`.
 """
 
 from __future__ import annotations
@@ -159,10 +160,22 @@ def _read_instance(path: Path, _mtime_ns: int, _size: int) -> InstanceBody:
     return load_document(path).body()
 
 
+# simulated s past a task's due (or its started service's end) before the watch calls it missed:
+# a `started` stamped by the due is heard well within it (the supervisor also waits while a
+# robot holds the task)
+MISS_SLACK = 2.0
+
+
 class DeliveryWatch(TaskWatch):
     """A delivered task is done for good; one that arrives later is waiting until then. A
     `done` counts as the robots' boards count it (board.py, done_rule.py): on its sender's own
-    key, after its own `started` a service before — forged ones do not end the run."""
+    key, after its own `started` a service before — forged ones do not end the run.
+
+    Under hard windows a task is missed for good (`lapsed`) once its due has passed by
+    `MISS_SLACK` with no believed `started` — no robot may start it any more — or, started,
+    once its service would have been over by `MISS_SLACK` without a `done` (its robot crashed
+    or left it); the supervisor takes that word only for a task no robot holds. So a run in
+    which a task is missed ends when nothing is left to serve, not at its duration."""
 
     served_in_turn = True  # more tasks than robots: a task may wait for a robot to be free
 
@@ -189,6 +202,22 @@ class DeliveryWatch(TaskWatch):
             else:
                 believed = self.rule.on_done(sender, task, stamp)
         return TaskStatus(task, "done") if believed else None
+
+    def lapsed(self, elapsed: float) -> list[TaskStatus]:
+        if self.params.windows != "hard":
+            return []  # a soft due binds nothing: a task may still be served late
+        with self._lock:
+            started: dict[str, float] = {}
+            for (_robot, task), stamp in self.rule.started.items():
+                started[task] = min(stamp, started.get(task, stamp))
+        out = []
+        for tid, t in self.params.tasks.items():
+            if t.due is None:
+                continue
+            over = t.due if tid not in started else max(t.due, started[tid]) + t.service
+            if elapsed >= over + MISS_SLACK:
+                out.append(TaskStatus(tid, "missed"))
+        return out
 
     def servers(self, task: str) -> frozenset[str] | None:
         """The robots with the task's capability (a task waiting while all of them are busy
@@ -231,10 +260,11 @@ class Delivery(Mission):
         return named_instance(load_layers_params(run.layers_params))
 
     def ended_at(self, run: MissionRun, records: list) -> float | None:
-        """The last task's first completion, once every task is done (None: not all were);
-        the tasks submitted at run time among them."""
+        """When nothing was left to serve (metrics.done_at: every task completed, or missed
+        under hard windows — None: some was neither by the duration); the tasks submitted at
+        run time among them."""
         return done_at(records, live_instance(run_instance(run), submitted(changes(records))),
-                       run_tolerance(run))
+                       run_tolerance(run), run.options.duration)
 
     def analysis(self, run: MissionRun, records: list) -> RunAnalysis:
         """Computed once per recording (metrics and sections both read it)."""
@@ -245,7 +275,7 @@ class Delivery(Mission):
         seen = submitted(changes(records))  # tasks at run time (runtime_tasks.py)
         params = live_instance(base, seen)
         tolerance = run_tolerance(run)
-        ended = done_at(records, params, tolerance)
+        ended = done_at(records, params, tolerance, run.options.duration)
         end = run.options.duration if ended is None else min(ended, run.options.duration)
         made = decisions(records, run.arch, end)
         result = analyse(records, run.arch, params, end, as_struck(run.faults, records),
