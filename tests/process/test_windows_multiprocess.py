@@ -2,7 +2,8 @@
 task) run by `mrta demo --instance` under each architecture — real processes, real Zenoh
 sessions, the simulator — starts no service outside a task's window, serves some, and its
 summary's window counts equal what its allocation records show (tests/test_windows.py's
-re-statement) and are results.csv's `metrics.*` columns. The CI tier runs SSI's; the other four are `slow`."""
+re-statement) and are results.csv's `metrics.*` columns, and ends when nothing is left to serve.
+The CI tier runs SSI's; the other four are `slow`."""
 
 from __future__ import annotations
 
@@ -37,6 +38,11 @@ def test_a_windowed_run_serves_only_inside_windows_and_counts_them(children, tmp
     assert m["windowed"] is True and s["instance"]["tasks"]["t1"]["due"] > 0
     assert m["late"] == 0 and m["early"] == 0, m           # hard windows: no violation
     assert m["served_in_window"] >= 1, m                  # not vacuous
+    # every due is by 23 s: the run ends once nothing is left to serve (every task done or
+    # missed), not at --duration, and says when (tests/test_windowed_run_end.py)
+    assert s["ended_at"] is not None and s["recorded_until"] < 40, (s["ended_at"],
+                                                                     s["recorded_until"])
+    assert s["metrics"]["completed"] + m["missed"] == 4, m
     assert {k: m[k] for k in ("served_in_window", "missed", "late", "lateness", "early")} \
         == recomputed(s)
     from mrta_supervisor.mission.summary import flat_metrics, read_summary
