@@ -21,7 +21,7 @@ if [[ "${1:-}" == --solomon ]]; then
   done
   exit 0
 fi
-metrics=metrics.completed,metrics.served_in_window,metrics.missed,metrics.lateness,metrics.objective_minsum,metrics.optimality,takeover_seconds
+metrics=metrics.completed,metrics.served_in_window,metrics.missed,metrics.lateness,metrics.total_distance,takeover_seconds
 for file in "$here"/w[0-9][0-9]-*.yaml; do
   name=$(basename "$file" .yaml)
   if [[ $# -gt 0 ]]; then
