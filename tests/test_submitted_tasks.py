@@ -139,3 +139,35 @@ def test_priority_decides_which_of_two_like_tasks_comes_first(arch, tmp_path):
         assert sorted(served_order) == ["n1", "n2"], (arch, served_order)
         first = awarded if arch in ("ssi", "tessi") else served_order
         assert first == [urgent, other], (arch, urgent, awarded, served_order)
+
+
+def test_the_printed_summary_says_when_submitted_tasks_were_left_unserved():
+    from mrta_delivery.mission import submitted_lines
+    assert submitted_lines({}) == []
+    left = submitted_lines({"submitted": 4, "submitted_served": 1, "submitted_assigned": 1,
+                            "submitted_waiting": 1, "submitted_cancelled": 1})
+    assert left == ["submitted at run time: 4 — 1 served, 1 assigned, 1 waiting, 1 cancelled "
+                    "(NOT ALL SERVED: 2 left)"]
+    done = submitted_lines({"submitted": 2, "submitted_served": 1, "submitted_cancelled": 1})
+    assert done[0].endswith("(every one served or cancelled)")
+
+
+@pytest.mark.parametrize("arch", TAKES)
+def test_a_submitted_task_cancelled_before_it_is_served_is_never_served(arch, tmp_path):
+    team = team_of(arch, tmp_path)
+    try:
+        team.step()
+        team.submit("n1", {"position": [5.0, 3.5], "service": 1.0})  # far: not served at once
+        for _ in range(10):
+            team.step()
+        team.submit("n1", {}, op="cancel")
+        for _ in range(300):
+            team.step()
+        assert not served(team, "n1")
+        for name, agent in team.agents.items():  # every robot grew it, then withdrew it
+            if name in team.doc.robots:
+                assert agent.plugins.evaluators["n1"].withdrawn(team.clock.now()), name
+        if arch == "central":  # the dispatcher plans it no more
+            assert "n1" in team.agents["dispatcher"].coordinator.closed
+    finally:
+        team.close()

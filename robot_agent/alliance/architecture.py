@@ -56,6 +56,12 @@ class AllianceArchitecture(AgentArchitecture):
     def has_subkeys(self, kind: str) -> bool:
         return kind == "motivation"
 
+    def submitted_refusal(self) -> str:
+        """ALLIANCE grows no task at run time (takes_submitted False; docs/tasks.md)."""
+        return ("ALLIANCE serves no task submitted at run time: a robot's behaviour sets, each "
+                "with the motivation parameters its robot file gives for that task, are fixed "
+                "at start-up (docs/tasks.md)")
+
     def prepare(self, options: AgentOptions) -> Prepared:
         params = load_agent_params(options.robot_params, options.tasks_params,
                                    options.layers_params)

@@ -55,6 +55,12 @@ class MurdochArchitecture(AgentArchitecture):
     doing_stale_after = 2.0  # claims renewed every renewal_period (≤ the lease, 2 s by default)
     logger_name = "mrta.murdoch"
 
+    def submitted_refusal(self) -> str:
+        """MURDOCH grows no task at run time (takes_submitted False; docs/tasks.md)."""
+        return ("MURDOCH serves no task submitted at run time: a robot's skills — the tasks its "
+                "file lists, each a subscription and a liveliness token the auctioneer is "
+                "ranked by — are declared at start-up (docs/tasks.md)")
+
     def has_subkeys(self, kind: str) -> bool:
         """Announcements go out on their task's subject (`robot1/murdoch/announcement/t3`),
         bids to their auctioneer (`robot2/murdoch/bid/robot1`)."""

@@ -318,7 +318,7 @@ class Delivery(Mission):
                 f"{name} {value if value is not None else '—'} vs {label} "
                 f"{metrics.get(f'reference_{name}')} (optimality "
                 f"{opt if opt is not None else '—'}); overlaps {metrics.get('overlaps', 0)}"
-                ] + window_lines(metrics) + workload_lines(metrics)
+                ] + window_lines(metrics) + workload_lines(metrics) + submitted_lines(metrics)
 
 
 def window_lines(metrics: dict[str, Any]) -> list[str]:
@@ -328,6 +328,20 @@ def window_lines(metrics: dict[str, Any]) -> list[str]:
     return [f"windows: {metrics['served_in_window']} served in window, {metrics['missed']} "
             f"missed, {metrics['late']} late (lateness {metrics['lateness']} s), "
             f"{metrics['early']} early"]
+
+
+def submitted_lines(metrics: dict[str, Any]) -> list[str]:
+    """What became of the tasks submitted (or cancelled) at run time (docs/tasks.md): a run
+    that left some unserved says so — "delivered n/m" alone would not tell them apart."""
+    n = metrics.get("submitted")
+    if not n:
+        return []
+    counts = {k: metrics.get(f"submitted_{k}", 0)
+              for k in ("served", "assigned", "waiting", "cancelled")}
+    left = counts["assigned"] + counts["waiting"]
+    verdict = "every one served or cancelled" if not left else f"NOT ALL SERVED: {left} left"
+    return [f"submitted at run time: {n} — " + ", ".join(f"{v} {k}" for k, v in counts.items())
+            + f" ({verdict})"]
 
 
 def workload_lines(metrics: dict[str, Any]) -> list[str]:
