@@ -30,7 +30,7 @@ def test_a_windowed_instance_is_served_as_tessi_allocates_it(children, tmp_path)
     out = tmp_path / "run"
     demo = children.mrta("-q", "demo", "--application", "delivery", "--architecture", "tessi",
                          "--instance", str(file), "--duration", "90", "--speed", "0",
-                         "--fail", "none", "--no-live", "--output", str(out), name="demo")
+                         "--fail", "none", "--no-live", "--no-plots", "--output", str(out), name="demo")
     assert demo.wait(400) == 0, demo.tail(30)
     s = json.loads((out / "summary.json").read_text())
     assert (s["application"], s["architecture"]) == ("delivery_tessi", "tessi")

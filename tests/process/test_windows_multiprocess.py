@@ -31,7 +31,7 @@ def test_a_windowed_run_serves_only_inside_windows_and_counts_them(children, tmp
     out = tmp_path / arch
     demo = children.mrta("-q", "demo", "--application", "delivery", "--instance", str(file),
                          "--architecture", arch, "--duration", "50", "--speed", "0",
-                         "--no-live", "--output", str(out), name="demo")
+                         "--no-live", "--no-plots", "--output", str(out), name="demo")
     assert demo.wait(400) == 0, demo.tail(30)
     s = json.loads((out / "summary.json").read_text())
     m = s["metrics"]
