@@ -171,3 +171,26 @@ def test_a_submitted_task_cancelled_before_it_is_served_is_never_served(arch, tm
             assert "n1" in team.agents["dispatcher"].coordinator.closed
     finally:
         team.close()
+
+
+def test_a_problem_grown_by_submitted_tasks_is_the_whole_problem_of_the_grown_instance():
+    """Problem.grown computes only the new rows and columns (around the walls); they are what
+    the instance kind computes for the grown document whole, the old indices unchanged."""
+    import msgspec
+    from mrta_delivery.instance import InstanceDoc
+    from mrta_delivery.instances import KIND
+    doc = msgspec.convert({"robots": {"r1": {"start": [-4.0, -2.0], "speed": 0.5},
+                                      "r2": {"start": [4.0, 2.0], "speed": 0.7}},
+                           "tasks": {"t1": {"position": [-2.0, 2.0]}},
+                           "world": {"size": [12.0, 8.0], "walls": [[0.0, -3.0, 0.0, 3.0]]}},
+                          InstanceDoc)
+    before = KIND.problem(doc)
+    grown = KIND.grow(doc, "n1", {"position": [3.0, -2.0], "service": 2.0}, 4.2)
+    grown = KIND.grow(grown, "n2", {"position": [-3.0, 3.0]}, 4.2)
+    assert grown.tasks["n1"].arrival == 4.2 and list(grown.tasks) == ["t1", "n1", "n2"]
+    incremental, whole = KIND.grown_problem(grown, before), KIND.problem(grown)
+    assert incremental.tasks == whole.tasks
+    assert [t.id for t in incremental.tasks[:1]] == ["t1"]
+    for row, expected in zip(incremental.distance, whole.distance):
+        assert row == pytest.approx(expected, abs=1e-9)
+    assert incremental.distance[0][3] > 7.0 + 0.1  # around the wall's end, not through it
