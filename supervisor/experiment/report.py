@@ -24,6 +24,7 @@ from mrta_zenoh.yamlfile import did_you_mean
 
 from . import stats
 from .results import INSTANCE, ResultsTable, column_named, kind
+from ..mission.hook import Mission
 from ..mission.summary import mission_hook
 
 ARCHITECTURE = "architecture"
@@ -34,8 +35,7 @@ FRAMEWORK_BETTER = {"takeover_seconds": stats.LOWER, "first_full_allocation": st
                     "messages": stats.LOWER, "messages_per_second": stats.LOWER,
                     "coordination_messages_per_second": stats.LOWER,
                     "namespace_messages_per_second": stats.LOWER}
-COVERAGE_BETTER = {".exactly_one": stats.HIGHER, ".none": stats.LOWER,
-                   ".more_than_one": stats.LOWER}
+COVERAGE = (".exactly_one", ".none", ".more_than_one")  # a task's coverage shares
 # measured, but not what a table is for by default (redundant shares, raw counts, references)
 NOT_BY_DEFAULT = (".none", ".more_than_one")
 NOT_BY_DEFAULT_NAMES = ("messages", "messages_per_second", "namespace_messages_per_second",
@@ -145,11 +145,17 @@ def better_of(table: ResultsTable, metric: str) -> str | None:
     mission of the rows (`mission` column) declares for its metrics; None: not known."""
     if metric in FRAMEWORK_BETTER:
         return FRAMEWORK_BETTER[metric]
-    for suffix, better in COVERAGE_BETTER.items():
+    missions = sorted({r.get("mission", "") for r in table.rows} - {""})
+    for suffix in COVERAGE:
         if metric.endswith(suffix):
-            return better
+            # as each mission declares (a mission not installed here: the framework's default);
+            # missions that disagree, or one that declares none, give no direction (issue 51:
+            # delivery's coverage was called "higher is better")
+            said = {(mission_hook(m) or Mission).coverage_better.get(suffix[1:])
+                    for m in missions or [""]}
+            return said.pop() if len(said) == 1 else None
     name = metric.removeprefix("metrics.")
-    for mission in sorted({r.get("mission", "") for r in table.rows} - {""}):
+    for mission in missions:
         hook = mission_hook(mission)  # None: not installed here, the direction is not known
         declared = hook.better if hook is not None else {}
         if name in declared:

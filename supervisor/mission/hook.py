@@ -52,6 +52,12 @@ class Mission:
     # which direction is better for each of its `metrics` ("lower" or "higher"): the
     # experiment report's comparisons say so (A12, the probability of improvement, profiles)
     better: dict[str, str] = {}
+    # the same for each share of the summary's coverage per task (the experiment's
+    # `<task>.exactly_one`, `.none`, `.more_than_one` columns): one robot on each task the whole
+    # run is the aim of continuous tasks (patrol); a mission of point tasks, where holding a
+    # task longer is slower service, declares less (delivery: only overlaps are worse)
+    coverage_better: dict[str, str] = {"exactly_one": "higher", "none": "lower",
+                                       "more_than_one": "lower"}
     # whether every task needs a robot at once (instantaneous assignment: patrol's continuous
     # tasks): only then is the first instant every task was held at once — the summary's
     # `first_full_allocation` — a measure of how fast the team got there. A mission whose

@@ -240,8 +240,13 @@ class Delivery(Mission):
               "completed": "higher", "assigned": "higher", "handovers": "lower",
               "overlaps": "lower", "objective_minsum": "lower", "objective_makespan": "lower",
               "objective_flowtime": "lower", "gini_served": "lower", "gini_busy": "lower",
-              "gini_distance": "lower", "served_in_window": "higher",
+              "gini_distance": "lower", "served_in_window": "higher", "gap_minsum": "lower",
+              "gap_makespan": "lower", "gap_flowtime": "lower",
               "missed": "lower", "late": "lower", "lateness": "lower", "early": "lower"}
+
+    # a point task held longer is served slower, and nobody holding it is also a task done:
+    # of a task's coverage only two robots on it at once is worse (an overlap)
+    coverage_better = {"more_than_one": "lower"}
 
     def __init__(self) -> None:
         self._last: tuple[int, RunAnalysis] | None = None
@@ -310,15 +315,24 @@ class Delivery(Mission):
         return DeliveryWatch(run_instance(run))
 
     def describe(self, metrics: dict[str, Any]) -> list[str]:
-        opt, name = metrics.get("optimality"), metrics.get("objective", "minsum")
+        name = metrics.get("objective", "minsum")
         value = metrics.get(f"objective_{name}")
-        label = "optimal" if metrics.get("reference_method") == "exact" else "best found"
         return [f"delivered {metrics['completed']}/{metrics['tasks']}; makespan "
                 f"{metrics['makespan'] if metrics['makespan'] is not None else '—'} s; "
-                f"{name} {value if value is not None else '—'} vs {label} "
-                f"{metrics.get(f'reference_{name}')} (optimality "
-                f"{opt if opt is not None else '—'}); overlaps {metrics.get('overlaps', 0)}"
+                f"{name} {value if value is not None else '—'} vs "
+                f"{against_reference(metrics, name)}; overlaps {metrics.get('overlaps', 0)}"
                 ] + window_lines(metrics) + workload_lines(metrics) + submitted_lines(metrics)
+
+
+def against_reference(metrics: dict[str, Any], name: str) -> str:
+    """The reference and how the run compares: its optimality against a proven optimum, else
+    its gap to the best found (which a run can beat: no optimality; objectives.py)."""
+    ref = metrics.get(f"reference_{name}")
+    if metrics.get("reference_method") == "exact":
+        opt = metrics.get("optimality")
+        return f"optimal {ref} (optimality {opt if opt is not None else '—'})"
+    g = metrics.get(f"gap_{name}")
+    return f"best found {ref} (gap {'—' if g is None else f'{g:+g} %'})"
 
 
 def window_lines(metrics: dict[str, Any]) -> list[str]:

@@ -11,7 +11,10 @@ robots at once — all from the allocation log, so that a summary alone gives th
   (`planning.reference`: exact up to `EXACT_LIMIT` tasks, proven; OR-Tools' best found above,
   never called optimal). `optimality` = reference / achieved for the objective the
   architecture optimises (its decisions' record, else its contract's `objective`, else MinSum),
-  and only when every task was served: a partial run's value is not comparable.
+  only when every task was served (a partial run's value is not comparable) and only against a
+  reference proven optimal (a ratio to a best found can exceed 1: not an optimality). Each
+  objective's `gap_<objective>` — achieved ÷ reference − 1, in %, lower is better — is there
+  whatever the reference (benchmarks/compare_architectures.py's definition).
 * **Window counts** (`window_metrics`: served in window, missed, late, lateness, early —
   `planning.schedule.window_counts`) from when each task's service actually began: the
   `reached_at` of the stretch that completed it first (its robot's `started` event), as of the
@@ -140,12 +143,22 @@ def objective_section(problem: Problem, log: list[Stretch], objective: str,
     refs = references(problem) if refs is None else refs
     complete = sum(len(r) for r in served.values()) == len(problem.tasks)
     achieved, best = values[objective], refs[objective]["value"]
-    ratio = (best / achieved if achieved > 0 else 1.0) if complete else None
+    # a ratio to a best found is no optimality: a run may beat it (above 1) — its gap says it
+    ratio = (best / achieved if achieved > 0 else 1.0) \
+        if complete and refs[objective]["proven_optimal"] else None
     return {"objective": objective, "served": served,
             "values": {k: round(v, 6) for k, v in values.items()},
             "complete": complete, "reference": refs,
             "optimality": None if ratio is None or not math.isfinite(ratio)
             else round(ratio, 6)}
+
+
+def gap(achieved: float | None, reference: float | None) -> float | None:
+    """achieved ÷ reference − 1, in % (lower is better; below 0 the run beat a best found);
+    None without both, or against a reference of 0."""
+    if achieved is None or not reference:
+        return None
+    return round((achieved / reference - 1.0) * 100.0, 3)
 
 
 def objective_metrics(section: dict[str, Any]) -> dict[str, Any]:
@@ -157,6 +170,7 @@ def objective_metrics(section: dict[str, Any]) -> dict[str, Any]:
         # a search its time cap cut short gave a value that depends on the machine: not a column
         out[f"reference_{name}"] = None if refs[name]["stopped_by_time_limit"] \
             else round(refs[name]["value"], 3)
+        out[f"gap_{name}"] = gap(out[f"objective_{name}"], out[f"reference_{name}"])
     out["reference_method"] = refs[section["objective"]]["method"]
     out["reference_proven_optimal"] = all(r["proven_optimal"] for r in refs.values())
     out["optimality"] = None if section["optimality"] is None \
