@@ -302,4 +302,25 @@ def print_summary(console: Console, s: Summary, title: str, arch_title: str,
         console.print(f"  NOT EXACT: {problem}" + ("; this run may not replay"
                                                     if s.run_status == COMPLETE else ""),
                       style="yellow", highlight=False)
-    console.print(f"  files in {s.output}: {', '.join(s.files)}", highlight=False)
+    console.print(f"  files in {s.output}: {files_line(s.files)}", highlight=False)
+
+
+def files_line(files: list[str], most: int = 3) -> str:
+    """The files a run wrote, more than `most` of one kind — same stem before its first `_`,
+    same extension — said as `N × stem_*.ext` where the first of them stood: the README's
+    20-robot instance listed 261 names on one line (issue 51, the newcomer's list)."""
+    def kind(name: str) -> tuple[str, str]:
+        stem, _, rest = name.partition("_")
+        return (stem, Path(name).suffix) if rest else (name, "")
+
+    kinds: dict[tuple[str, str], list[str]] = {}
+    for name in files:
+        kinds.setdefault(kind(name), []).append(name)
+    said = []
+    for name in files:
+        same = kinds[kind(name)]
+        if len(same) <= most:
+            said.append(name)
+        elif name == same[0]:
+            said.append(f"{len(same)} × {kind(name)[0]}_*{kind(name)[1]}")
+    return ", ".join(said)

@@ -51,6 +51,9 @@ def describe(doc: InstanceDoc, *, exact_limit: int, time_limit: float,
     return {
         "robots": len(problem.robots), "tasks": len(problem.tasks),
         "online": problem.online,
+        # a run shorter than this leaves tasks unserved (mrta demo's --duration defaults to 60 s)
+        **({"last_arrival": round(max(t.arrival for t in problem.tasks), 3)}
+           if problem.online else {}),
         **({"windows": {"kind": problem.windows.value,
                         "tasks": sum(t.windowed for t in problem.tasks)}}
            if problem.windowed else {}),

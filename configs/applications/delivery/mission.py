@@ -321,7 +321,18 @@ class Delivery(Mission):
                 f"{metrics['makespan'] if metrics['makespan'] is not None else '—'} s; "
                 f"{name} {value if value is not None else '—'} vs "
                 f"{against_reference(metrics, name)}; overlaps {metrics.get('overlaps', 0)}"
-                ] + window_lines(metrics) + workload_lines(metrics) + submitted_lines(metrics)
+                ] + arrival_lines(metrics) + window_lines(metrics) + workload_lines(metrics) \
+                  + submitted_lines(metrics)
+
+
+def arrival_lines(metrics: dict[str, Any]) -> list[str]:
+    """Why tasks were not delivered when they had not arrived before the run ended (a summary
+    from before these figures: none)."""
+    arrived, tasks = metrics.get("arrived"), metrics["tasks"]
+    if arrived is None or arrived >= tasks:
+        return []
+    return [f"{tasks - arrived} of {tasks} tasks arrive after the run's end (the last at "
+            f"{metrics['last_arrival']:g} s): a --duration past it lets them be served"]
 
 
 def against_reference(metrics: dict[str, Any], name: str) -> str:
