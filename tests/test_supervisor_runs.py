@@ -11,6 +11,7 @@ from mrta_zenoh.messages import Header
 from mrta_supervisor.live.api import CLOCK_STALL, Elapsed, Refresh, resolve_application
 from mrta_supervisor.live.state import Supervisor
 from mrta_supervisor.live.tasks import TaskStatus, TaskWatch
+from mrta_supervisor.live.view import render
 from mrta_supervisor.mission.hook import application_watch
 
 IRC = "alliance_msgs/InterRobotCommunication"
@@ -159,10 +160,16 @@ def test_the_end_of_a_run_raises_no_clock_stopped(patrol):
     snap = sup.snapshot(60.0)
     assert snap["alarms"] == [] and snap["run_ended"] is True
     assert snap["robots"][0]["state"] == "busy"
-    # the run's processes then stop: offline, but no communication_lost — it is over
+    # the run's processes then stop: no communication_lost — it is over — and the picture
+    # stays as the run left it (issue 51: at a replay's end every robot turned offline)
     sup.on_liveliness("robot1/alliance/agent", False, 60.0)
+    sup.on_process_token("@mrta/node/simulator", False, 60.0)
+    refresh()
     snap = sup.snapshot(60.0)
-    assert snap["robots"][0]["state"] == "offline" and snap["alarms"] == []
+    assert snap["robots"][0]["state"] == "busy" and snap["alarms"] == []
+    assert snap["robots"][0]["task"] == "wander"
+    assert "the run ended at 60.0 s" in " ".join(
+        str(p) for p in render(snap).renderables if hasattr(p, "plain"))
     # a simulator that hangs (its token alive) is a stopped clock, alarmed
     clock2 = SimClock(wall=wall)
     clock2.on_source("run-b-x2", True)
@@ -255,4 +262,4 @@ def test_robots_going_right_after_the_clock_source_raise_no_alarm(patrol):
     sup.on_liveliness("robot1/alliance/agent", False, 40.0)  # no refresh in between
     snap = sup.snapshot(40.0)
     assert snap["run_ended"] and snap["alarms"] == []
-    assert snap["robots"][0]["state"] == "offline"
+    assert snap["robots"][0]["state"] == "idle"  # as the run left it, not offline

@@ -322,6 +322,10 @@ class Supervisor:
                     # not at the next refresh, so that their going raises no alarm
                     self._clock(False, True, now)
                 r.tokens.discard(key)
+                if self.run_ended:
+                    # the run is over and its processes stop: the picture stays as the run left
+                    # it (issue 51: at a replay's end every robot turned offline as if dead)
+                    return
                 if not r.tokens:
                     # its messages can no longer be trusted to keep arriving: drop held states now
                     r.busy.drop()
@@ -337,6 +341,8 @@ class Supervisor:
             if name is None or (name not in self.processes
                                 and len(self.processes) >= MAX_UNKNOWN):
                 self.counts["bad_keys"] += 1
+                return
+            if not alive and self.run_ended:  # over: stopping is no news (on_liveliness)
                 return
             if self.processes.get(name, {}).get("online") != alive:
                 self.history.add(StateChange(now, "process", name,
@@ -410,6 +416,8 @@ class Supervisor:
 
     def _reassess_robot(self, r: RobotInfo, now: float) -> None:
         online = self._online(r)
+        if self.run_ended and not online:
+            return  # its processes stopped after the run: as the run left it (on_liveliness)
         if not r.known or (self.clock_stopped and online):
             state = "unknown"
         elif not online:

@@ -67,6 +67,9 @@ def render(snap: dict, width: int = 120) -> Group:
             line.append(Text(" online  " if p["online"] else " offline  ",
                              style="green" if p["online"] else "bold red"))
         parts.append(line)
+    if snap.get("run_ended"):  # robots keep the states the run left them in
+        parts.append(Text(f"the run ended at {t:.1f} s: the picture is as it left it",
+                          style="bold"))
     for a in snap["alarms"][-3:]:
         line = Text("ALARM ", style="bold red")
         line.append(plain(f"{a['kind']} {a['subject']} since {a['since']:.1f}s"))
