@@ -286,3 +286,36 @@ def test_alliances_motivation_parameters_offer_defaults():
                                         "giving_up_delay", "fast_rate")}
     assert all(v is not None for v in defaults.values()), defaults
     assert float(defaults["yielding_delay"]) <= float(defaults["giving_up_delay"])
+
+
+def test_an_interrupted_wizard_keeps_its_answers_and_resume_asks_only_the_rest(tmp_path):
+    """Ctrl-C (here: the end of input, click's Abort too) lost every answer (issue 51, the
+    newcomer's list): the answers given are written beside the output, and `--resume` gives
+    them again — an answer no longer accepted is asked for."""
+    from mrta_zenoh.cli.toolchain import RESUME_FILE
+    from mrta_zenoh.toolchain.wizard import load_transcript
+    first = run("app", "new", "--output", tmp_path,
+                input="my_app\nMy App\n\n\nMe\nnot-an-email\nme@x.org\n")
+    assert first.exit_code == 1 and "Aborted!" in first.output
+    kept = tmp_path / RESUME_FILE
+    assert f"6 answers kept in {kept}" in first.output
+    given = load_transcript(kept)
+    assert given["Package name (lower case, e.g. my_mission)"] == ["my_app"]
+    assert given["Maintainer e-mail"] == ["me@x.org"]  # the accepted one, not the refused
+    assert given["Version"] == ["1.0.0"]  # a default taken is an answer too
+    again = run("app", "new", "--output", tmp_path, "--resume", kept, input="\n\n")
+    assert "Package name (lower case, e.g. my_mission): my_app" in again.output
+    assert "Maintainer e-mail: me@x.org" in again.output
+    assert again.output.count("Maintainer e-mail") == 1  # not asked again
+    assert "8 answers kept" in again.output  # and kept again, with the two new ones
+    kept.write_text(kept.read_text().replace("answer: my_app", "answer: My-App"))
+    third = run("app", "new", "--output", tmp_path, "--resume", kept, input="fixed\n")
+    assert third.exit_code == 1  # My-App is refused: asked, and "fixed" typed
+    assert load_transcript(kept)["Package name (lower case, e.g. my_mission)"] == ["fixed"]
+
+
+def test_a_resume_file_that_is_no_transcript_is_refused_naming_its_line(tmp_path):
+    f = tmp_path / "a.yaml"
+    f.write_text("- question: Version\n  answer: 1.0.0\n- question: Licence\n")
+    res = run("app", "new", "--resume", f)
+    assert res.exit_code == 2 and "a.yaml:3:" in res.output, res.output

@@ -17,7 +17,9 @@ from ..toolchain.launchfile import LaunchEvaluator, check_executables
 from ..toolchain.model import ApplicationFile, ArchitectureFile, Array, Param, Params
 from ..toolchain.registry import Registry, matches_taxonomy, taxonomy_value
 from ..toolchain.runner import command_for, run_nodes
-from ..toolchain.wizard import InvalidAnswer, ask_again, collect, summary
+from ..files import write_text
+from ..toolchain.wizard import (InvalidAnswer, Transcript, ask_again, collect, load_transcript,
+                                summary, transcript_yaml)
 from ..toolchain.xmlio import load_rqt_mrta
 from .common import plural
 
@@ -170,6 +172,9 @@ def app_validate(path: Path) -> None:
     _validate(path, ApplicationFile)
 
 
+RESUME_FILE = "mrta_app_new_answers.yaml"  # an interrupted wizard's answers (app_new --resume)
+
+
 @app.command("new")
 @click.option("--answers", type=click.Path(dir_okay=False, path_type=Path),
               help="YAML answers instead of prompts (docs/toolchain.md).")
@@ -177,7 +182,11 @@ def app_validate(path: Path) -> None:
               show_default=True, help="Folder in which the package folder is created.")
 @click.option("--force", is_flag=True, help="Replace an existing package folder.")
 @click.option("--yes", is_flag=True, help="Do not ask for confirmation after the summary.")
-def app_new(answers: Path | None, output: Path, force: bool, yes: bool) -> None:
+@click.option("--resume", type=click.Path(dir_okay=False, exists=True, path_type=Path),
+              help="The answers an interrupted session wrote (Ctrl-C writes "
+                   f"OUTPUT/{RESUME_FILE}): given again, only the rest is asked.")
+def app_new(answers: Path | None, output: Path, force: bool, yes: bool,
+            resume: Path | None) -> None:
     """Create an application package: general data, architecture, robots, parameters, summary.
 
     Nothing is written that `mrta app validate` would refuse: the generated files are first
@@ -191,16 +200,23 @@ def app_new(answers: Path | None, output: Path, force: bool, yes: bool) -> None:
         app, files = build_application(arch_pkg, arch_model, a, doc)
         checked = check_package_files(files, app, doc)
     else:
-        ui = TerminalPrompter()
-        a, arch_pkg, arch_model = collect(reg, ui)
-        while True:
-            app, files = build_application(arch_pkg, arch_model, a)
-            try:
-                checked = check_package_files(files, app)
-                break
-            except PackageRefused as exc:
-                click.echo(click.style(f"Error: {exc}", fg="red"), err=True)
-                ask_again(ui, a, arch_model, exc.generated)
+        ui = Transcript(TerminalPrompter(), load_transcript(resume) if resume else None)
+        try:
+            a, arch_pkg, arch_model = collect(reg, ui)
+            while True:
+                app, files = build_application(arch_pkg, arch_model, a)
+                try:
+                    checked = check_package_files(files, app)
+                    break
+                except PackageRefused as exc:
+                    click.echo(click.style(f"Error: {exc}", fg="red"), err=True)
+                    ask_again(ui, a, arch_model, exc.generated)
+        except click.Abort:  # Ctrl-C (or the end of input) at a prompt: keep what was said
+            if ui.said:
+                kept = write_text(output / RESUME_FILE, transcript_yaml(ui.said))
+                click.echo(f"\n{plural(len(ui.said), 'answer')} kept in {kept}: "
+                           f"`mrta app new --resume {kept}` asks only the rest", err=True)
+            raise
     dest = output / a.package
     if dest.exists() and not force:
         raise ConfigError(f"{dest} already exists; use --force to replace it")

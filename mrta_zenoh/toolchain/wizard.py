@@ -302,3 +302,72 @@ def summary(answers: Answers, arch: ArchitectureFile, files: dict[str, bytes], d
     lines += [f"  {rel} ({len(data)} bytes)" for rel, data in sorted(files.items())]
     return "\n".join(lines)
 
+
+
+class Transcript:
+    """A Prompter that remembers every accepted answer as typed (`said`), and answers itself
+    from an earlier session's (`given`, question → answers in order) while they are still
+    accepted: Ctrl-C lost every answer (issue 51, the newcomer's list) — the CLI writes `said`
+    out on Ctrl-C and `mrta app new --resume FILE` hands it back, so only the rest is asked."""
+
+    def __init__(self, inner: Prompter, given: dict[str, list[str]] | None = None):
+        self.inner, self.given = inner, {q: list(a) for q, a in (given or {}).items()}
+        self.said: list[tuple[str, str]] = []
+
+    def step(self, title: str) -> None:
+        self.inner.step(title)
+
+    def section(self, title: str) -> None:
+        self.inner.section(title)
+
+    def say(self, text: str) -> None:
+        self.inner.say(text)
+
+    def ask(self, question: str, check: Callable[[str], T], default: str | None = None,
+            show_default: bool = True) -> T:
+        earlier = self.given.get(question)
+        if earlier:
+            text = earlier.pop(0)
+            try:
+                value = check(text)
+            except InvalidAnswer:  # the session has changed since: ask
+                pass
+            else:
+                self.inner.say(f"{question}: {text}")
+                self.said.append((question, text))
+                return value
+        typed: list[str] = []
+
+        def keep(text: str) -> T:
+            value = check(text)
+            typed.append(text)
+            return value
+        value = self.inner.ask(question, keep, default, show_default)
+        self.said.append((question, typed[-1]))
+        return value
+
+
+def transcript_yaml(said: list[tuple[str, str]]) -> str:
+    """The answers given, in order, as `mrta app new --resume` reads them."""
+    import yaml
+    head = ("# mrta app new: the answers given so far; `mrta app new --resume THIS_FILE` asks "
+            "only the rest\n")
+    return head + yaml.safe_dump([{"question": q, "answer": a} for q, a in said],
+                                 allow_unicode=True, sort_keys=False, width=1000)
+
+
+def load_transcript(path) -> dict[str, list[str]]:
+    """A transcript_yaml file: question → its answers in order; ConfigError naming the line
+    of an entry that is not a question and its answer."""
+    from ..yamlfile import load_yaml
+    doc = load_yaml(path)
+    if not isinstance(doc.data, list):
+        raise doc.error((), "a list of {question, answer} entries (mrta app new writes it on "
+                            "Ctrl-C)")
+    out: dict[str, list[str]] = {}
+    for i, entry in enumerate(doc.data):
+        if not (isinstance(entry, dict) and set(entry) == {"question", "answer"}
+                and all(isinstance(v, str) for v in entry.values())):
+            raise doc.error((i,), "each entry is a question and its answer, both text")
+        out.setdefault(entry["question"], []).append(entry["answer"])
+    return out
