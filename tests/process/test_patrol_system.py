@@ -126,3 +126,50 @@ def test_separate_terminals_in_any_order(children, tmp_path, seed):
 
     snap = procs["supervise"].wait_json(allocated, 60)
     print("start order:", order, "→", {t["id"]: t["robots"] for t in snap["tasks"]})
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(400)
+def test_the_readme_restart_of_robot2_in_separate_terminals(children):
+    """The README's "The mission in separate terminals": kill -9 robot2's agent, then start it
+    again (issue 51, the newcomer's list: the README said the restarted robot always took the
+    border up beside robot3, with `task_duplicated`; a newcomer saw it take the report and stay
+    idle). robot2 is offline with `communication_lost`, robot3 takes the border over; once back,
+    robot2 is online, the alarm cleared, and the supervisor's picture is consistent whichever
+    its motivations reached first: beside robot3 on the border with `task_duplicated`, or not
+    on the border and no `task_duplicated`."""
+    agent = {rid: ["agent", rid, "--robot-params", str(CONFIG / f"{rid}_alliance_params.yaml"),
+                   "--tasks-params", str(CONFIG / "tasks_alliance_params.yaml"),
+                   "--layers-params", str(CONFIG / "layers_alliance_params.yaml"), "--sim-time"]
+             for rid in ("robot1", "robot2", "robot3")}
+    children.mrta("sim", "--world", "patrol", "--robot", "robot1", "--robot", "robot2",
+                  "--robot", "robot3", "--speed", "2", name="sim")
+    sup = children.mrta("supervise", "patrol", "--json", "--sim-time", "--rate", "4",
+                        name="supervise")
+    procs = {rid: children.mrta(*argv, name=rid) for rid, argv in agent.items()}
+
+    def doing(snap):
+        return {t["id"]: t["robots"] for t in snap["tasks"]}
+
+    def robot(snap, rid):
+        return next(r for r in snap["robots"] if r["id"] == rid)
+
+    def alarms(snap):
+        return {(a["kind"], a["subject"]) for a in snap["alarms"]}
+
+    sup.wait_json(lambda s: doing(s).get("border_protection") == ["robot2"], 120)
+    procs["robot2"].signal(9)
+    lost = sup.wait_json(lambda s: robot(s, "robot2")["state"] == "offline"
+                         and doing(s).get("border_protection") == ["robot3"], 60)
+    assert ("communication_lost", "robot2") in alarms(lost)
+    procs["robot2"] = children.mrta(*agent["robot2"], name="robot2 again")
+    back = sup.wait_json(lambda s: robot(s, "robot2")["state"] != "offline"
+                         and ("communication_lost", "robot2") not in alarms(s), 60)
+    # past the supervisor's duplicate_after (5 s) and a few of robot2's ticks
+    later = sup.wait_json(lambda s: s["time"] >= back["time"] + 10, 60)
+    border = doing(later)["border_protection"]
+    print("restarted robot2:", robot(later, "robot2"), doing(later))
+    assert "robot3" in border
+    assert (("task_duplicated", "border_protection") in alarms(later)) == ("robot2" in border)
+    r2 = robot(later, "robot2")
+    assert (r2["state"] == "busy") == (r2["task"] is not None), r2
