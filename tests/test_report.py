@@ -223,3 +223,15 @@ def test_experiment_runs_a_file_and_report_rebuilds_through_one_group(tmp_path, 
     assert called["run"]["file"] == f and called["run"]["jobs"] == 2
     helped = CliRunner().invoke(cli, ["experiment", "--help"])
     assert helped.exit_code == 0 and "report" in helped.output and "FILE.yaml" in helped.output
+
+
+def test_no_picture_of_nothing_an_empty_takeover_or_a_constant_column(tmp_path):
+    """Issue 51, the newcomer's list: a report of runs with no fault drew an empty
+    takeover.png, and columns with one value throughout were plotted (nothing to compare)."""
+    data = [{**r, "failure": "none", "config": "fail=none", "takeover_seconds": "",
+             "metrics.completed": 4} for r in rows() if r["failure"] == "none"]
+    folder = write(tmp_path / "r", data)
+    assert report(folder, "--metrics", "metrics.makespan,metrics.completed").exit_code == 0
+    assert not (folder / "takeover.png").exists()
+    assert not list(folder.glob("profile_metrics.completed*.png"))  # 4 in every run
+    assert (folder / "profile_metrics.makespan.png").stat().st_size > 5_000

@@ -40,11 +40,15 @@ def _pyplot():
 def plot_report(report: Report, output: Path) -> list[Path]:
     """Every picture the report has data for; returns the files written."""
     written = []
-    if "takeover_seconds" in report.table.columns:
+    # issue 51, the newcomer's list: an empty takeover.png when no fault ran, and pictures of
+    # columns with one value throughout (nothing to compare) — neither is drawn
+    if varied(report, "takeover_seconds", at_least=1):
         written.append(plot_takeover(report, output / "takeover.png"))
     if any(c.endswith(".exactly_one") for c in report.table.columns):
         written.append(plot_coverage(report, output / "coverage.png"))
     for m in report.metrics:
+        if not varied(report, m):
+            continue
         ratios, against_ref = profile_data(report, m)
         if ratios:
             written.append(plot_profile(m, ratios, against_ref,
@@ -56,6 +60,15 @@ def plot_report(report: Report, output: Path) -> list[Path]:
             if path not in written:
                 path.unlink()
     return written
+
+
+def varied(report: Report, column: str, at_least: int = 2) -> bool:
+    """Whether the column has at least `at_least` distinct values over the runs that ended
+    well (2: there is something to compare; 1: there is anything at all)."""
+    if column not in report.table.columns:
+        return False
+    values = {report.table.number(r, column) for c in report.cells for r in c.ok} - {None}
+    return len(values) >= at_least
 
 
 PICTURES = ("takeover.png", "coverage.png", "profile_*.png", "team_size_*.png")
