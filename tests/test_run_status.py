@@ -250,3 +250,19 @@ def test_a_strangers_participant_token_is_reported_apart_and_disturbs_nothing():
     assert run.watch.disturbances(crash_struck({}, set()), processes) == []
     assert run.watch.strangers(processes) == ["evil"]
     assert run.watch.disturbances(crash_struck({}, set())) == [Disturbance("evil", 12.0)]  # all the run's
+
+
+def test_an_interrupted_run_says_so_and_is_no_error_of_the_demo(capsys):
+    """A Ctrl-C'd (or SIGTERMed) demo wrote no summary (issue 51, the newcomer's list): the
+    runner now analyses what was recorded and the summary says it was interrupted; the demo
+    prints it and raises nothing (its exit: 130 after Ctrl-C, 0 after SIGTERM)."""
+    from mrta_supervisor.mission.cli import print_summary
+    from mrta_supervisor.mission.summary import summary_json
+    from mrta_zenoh.cli.common import console
+    s = summary(run_status=INCOMPLETE, recorded_until=12.4, interrupted="Ctrl-C")
+    assert run_problem(s) == ("the run was interrupted (Ctrl-C): the figures cover it up to "
+                              "12.4 s of 60 s")
+    print_summary(console(), s, "Patrol mission", "ALLIANCE", [])
+    assert "INTERRUPTED: the run was interrupted (Ctrl-C)" in capsys.readouterr().out
+    assert b'"interrupted": "Ctrl-C"' in summary_json(s)
+    assert b"interrupted" not in summary_json(summary())  # a run that ran to its end: silent

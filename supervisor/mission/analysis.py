@@ -60,13 +60,14 @@ def folder_state(folder: Path) -> dict[str, tuple[int, int, int]]:
 
 def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
             wall: float, before: dict[str, tuple[int, int, int]] | None = None,
-            disturbances: Sequence[Disturbance] = (), strangers: Sequence[str] = ()
-            ) -> Summary:
+            disturbances: Sequence[Disturbance] = (), strangers: Sequence[str] = (),
+            interrupted: str | None = None) -> Summary:
     """The summary of a recorded run, written to summary.json; `before` is the output
     folder's state before the run (folder_state), so `files` lists what this run wrote;
     `disturbances`: what the run's processes lost while it was on, `strangers`: tokens of
     names that are none of them (run_watch.py). A run whose processes refused forged
-    coordination traffic (fault_effects.refused_traffic) is disturbed too."""
+    coordination traffic (fault_effects.refused_traffic) is disturbed too. `interrupted`: the
+    signal that stopped the run early (Ctrl-C, SIGTERM), said in the summary."""
     output = run.options.output
     try:
         records = read_recording(output / "run.mcap")
@@ -153,7 +154,7 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
         ended_at=None if ended_at is None else round(end, 3),
         decisions=made,
         fault_effects=fault_effects(records, [*run.robots, *run.arch.processes], end),
-        refused=refused, strangers=list(strangers),
+        refused=refused, strangers=list(strangers), interrupted=interrupted,
         metrics=run.mission.metrics(run, records), failure=report, other_failures=more,
         output=str(output), files=[], sections=mission_sections(run, records))
     # what this run wrote: new or changed files (an earlier run's are neither), and the

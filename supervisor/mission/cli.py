@@ -110,9 +110,11 @@ def demo(live: bool | None, **kwargs) -> None:
     if quiet > -2:
         print_summary(console, summary, run.mission.title, run.arch.title,
                       run.mission.describe(summary.metrics))
-    if summary.run_status == INCOMPLETE or any(d.ended for d in summary.disturbances):
-        # the figures cover part of the mission only, or a process of the run failed (a
-        # dispatcher SIGKILLed from outside): summary.json says what can be known, exit 1
+    # the figures cover part of the mission only, or a process of the run failed (a dispatcher
+    # SIGKILLed from outside): summary.json says what can be known, exit 1 — unless a signal
+    # asked for the end (interrupted: the exit is 130 after Ctrl-C, 0 after SIGTERM)
+    if summary.interrupted is None and (summary.run_status == INCOMPLETE
+                                        or any(d.ended for d in summary.disturbances)):
         raise MrtaRuntimeError(f"{run_problem(summary)}; {summary.output}/summary.json says "
                                "what happened")
 
@@ -299,7 +301,9 @@ def print_summary(console: Console, s: Summary, title: str, arch_title: str,
     for line in refused_lines(s):
         console.print(f"  {line}", highlight=False)
     problem = run_problem(s)
-    if problem is not None:
+    if s.interrupted is not None:
+        console.print(f"  INTERRUPTED: {problem}", style="yellow", highlight=False)
+    elif problem is not None:
         console.print(f"  NOT EXACT: {problem}" + ("; this run may not replay"
                                                     if s.run_status == COMPLETE else ""),
                       style="yellow", highlight=False)

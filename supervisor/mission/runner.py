@@ -31,7 +31,7 @@ import time
 from pathlib import Path
 from typing import Callable
 
-from mrta_zenoh import instances
+from mrta_zenoh import instances, lifecycle
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.bus.options import private_rendezvous
 from mrta_zenoh.clock import SimClock
@@ -247,20 +247,28 @@ def _run_in(run: MissionRun, reg: Registry,
         failed_at = _watch(sim, sup, clock, failure, stop, progress, early_end=intake is None)
         watch.end()
         live.close()
+        interrupted = None
         if stop.is_set() or sim.wait(30) in (-signal.SIGINT, 128 + signal.SIGINT):
             # Ctrl-C: the terminal sends SIGINT to the children as well, and the simulator may
-            # end by it before this process sees its own. Their ends are no failures.
+            # end by it before this process sees its own. Their ends are no failures. The
+            # recording so far is whole once the recorder has written it out: the summary
+            # covers the run up to then and says it was interrupted (issue 51, the newcomer's
+            # list: a Ctrl-C'd demo left none); the exit is 130 after Ctrl-C, 0 after SIGTERM
+            # (cli.main._exit_code)
             group.interrupted()
-            raise Interrupted()
-        check_simulator_end(sim)
+            interrupted = "Ctrl-C" if lifecycle.interrupted_by_user() else "SIGTERM"
+        else:
+            check_simulator_end(sim)
         group.stop_all(later=[recorder], later_grace=RECORDER_GRACE)
         # the crashed subjects: those named (robots, the architecture's processes) and, for an
         # @first crash, the robot that crashed itself
         targets = roles.crash_targets(faults, {r: struck(r) for r in agents})
         ours = set(named) | set(hosted.values()) | {INTAKE}  # the run's processes
-        disturbances = watch.disturbances(lambda p: p in targets and struck(p), ours)
+        # an interrupted run's processes stopped as asked: no disturbance, no crash
+        disturbances = [] if interrupted else \
+            watch.disturbances(lambda p: p in targets and struck(p), ours)
         strangers = watch.strangers(ours)
-        crashed = group.failed(ignore=own_process(targets))
+        crashed = [] if interrupted else group.failed(ignore=own_process(targets))
         if crashed:  # a dispatcher or recorder SIGKILLed from outside: what can be known
             for c in crashed:
                 log.error("%s %s:\n%s", c.name, c.describe_exit(), c.tail(10))
@@ -269,7 +277,7 @@ def _run_in(run: MissionRun, reg: Registry,
             disturbances = ended_early(disturbances, {
                 process.get(id(c), c.name): c.describe_exit() for c in crashed}, clock.now())
     summary = analyse(run, failure, failed_at, time.monotonic() - t_wall0, before, disturbances,
-                      strangers)
+                      strangers, interrupted)
     return run, summary
 
 

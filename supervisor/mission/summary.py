@@ -205,6 +205,9 @@ class Summary(msgspec.Struct, forbid_unknown_fields=True):
     # lockstep participant tokens of names that are no process of the run, seen while it was
     # on: reported, never a disturbance (a stranger cannot make a run inexact)
     strangers: list[str] = []
+    # the signal that stopped the run before its end ("Ctrl-C", "SIGTERM"): its figures cover
+    # it up to then (None: it ran to its end)
+    interrupted: str | None = None
     schema: int = SCHEMA
     # the application's own sections (its Mission's `summary_sections` type): written at the
     # top level of summary.json, not under this name (write_summary / read_summary)
@@ -212,7 +215,8 @@ class Summary(msgspec.Struct, forbid_unknown_fields=True):
 
 
 SECTIONS_FIELD = "sections"
-QUIET_WHEN_EMPTY = ("refused", "strangers", "other_failures")  # written only when there is something to say
+# written only when there is something to say
+QUIET_WHEN_EMPTY = ("refused", "strangers", "other_failures", "interrupted")
 FRAMEWORK_KEYS = frozenset(f.encode_name for f in msgspec.structs.fields(Summary)
                            if f.name != SECTIONS_FIELD)
 
@@ -334,6 +338,11 @@ def run_problem(summary: Summary) -> str | None:
     """Why a run's figures are not those of its seed, in one line (None: they are): what the
     printed summary, `mrta demo`'s exit and `mrta experiment`'s rows say."""
     lost = "; ".join(map(_disturbance_text, summary.disturbances))
+    if summary.interrupted is not None:
+        until = ("nothing was recorded" if summary.recorded_until is None
+                 else f"the figures cover it up to {summary.recorded_until:g} s of "
+                      f"{summary.duration:g} s")
+        return f"the run was interrupted ({summary.interrupted}): {until}"
     if summary.run_status == INCOMPLETE:
         # the mission ends at its duration, or earlier when its work was over (ended_at)
         end = summary.duration if summary.ended_at is None else summary.ended_at

@@ -51,7 +51,26 @@ def test_ctrl_c_of_the_demo_exits_130_whatever_its_children_did(children, tmp_pa
     for pid in kids:
         os.kill(pid, signal.SIGINT)
     assert demo.wait(60) == 130, demo.tail(20)
-    assert demo.stderr[-1] == "Aborted!", demo.stderr
+    # the summary of the run so far, saying it was interrupted (issue 51, the newcomer's list)
+    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert s["interrupted"] == "Ctrl-C" and s["run_status"] == "incomplete"
+    assert 0 < s["recorded_until"] < 600
+    assert any("INTERRUPTED: the run was interrupted (Ctrl-C)" in line for line in demo.stdout)
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(150)
+def test_sigterm_of_the_demo_is_a_clean_stop_with_a_summary(children, tmp_path):
+    """SIGTERM — a service manager's "please stop" — exits 0 as every other command does
+    (it exited 130 as if Ctrl-C), after the summary of the run so far (issue 51)."""
+    demo = children.mrta("demo", "--duration", "600", "--speed", "1", "--no-live",
+                         "--output", tmp_path / "out", name="demo")
+    demo.wait_line(lambda line: line.startswith("t="), 90)  # the mission runs
+    demo.signal(signal.SIGTERM)
+    assert demo.wait(60) == 0, demo.tail(20)
+    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert s["interrupted"] == "SIGTERM" and 0 < s["recorded_until"] < 600
+    assert s["who_did_what"]["robot1"], s["who_did_what"]  # what ran is there
 
 
 @pytest.mark.slow
