@@ -255,7 +255,8 @@ def test_a_strangers_participant_token_is_reported_apart_and_disturbs_nothing():
 def test_an_interrupted_run_says_so_and_is_no_error_of_the_demo(capsys):
     """A Ctrl-C'd (or SIGTERMed) demo wrote no summary (issue 51, the newcomer's list): the
     runner now analyses what was recorded and the summary says it was interrupted; the demo
-    prints it and raises nothing (its exit: 130 after Ctrl-C, 0 after SIGTERM)."""
+    prints it, then exits 130 after Ctrl-C, 0 after SIGTERM (tests/process/
+    test_cli_conventions_mp.py)."""
     from mrta_supervisor.mission.cli import print_summary
     from mrta_supervisor.mission.summary import summary_json
     from mrta_zenoh.cli.common import console

@@ -20,7 +20,7 @@ from rich.text import Text
 from mrta_zenoh.bus.options import BusOptions, check_endpoint
 from mrta_zenoh.cli.common import console as make_console
 from mrta_zenoh.cli.common import SEED_TYPE, OutputPath, finite_float, verbosity
-from mrta_zenoh.errors import MrtaRuntimeError
+from mrta_zenoh.errors import Interrupted, MrtaRuntimeError
 from mrta_zenoh.failure import FaultKind
 from mrta_zenoh.yamlfile import plural
 
@@ -110,9 +110,11 @@ def demo(live: bool | None, **kwargs) -> None:
     if quiet > -2:
         print_summary(console, summary, run.mission.title, run.arch.title,
                       run.mission.describe(summary.metrics))
+    if summary.interrupted == "Ctrl-C":  # 130, as Unix tools do; SIGTERM is a clean stop
+        raise Interrupted(f"the run so far is in {summary.output}/summary.json")
     # the figures cover part of the mission only, or a process of the run failed (a dispatcher
     # SIGKILLed from outside): summary.json says what can be known, exit 1 — unless a signal
-    # asked for the end (interrupted: the exit is 130 after Ctrl-C, 0 after SIGTERM)
+    # asked for the end
     if summary.interrupted is None and (summary.run_status == INCOMPLETE
                                         or any(d.ended for d in summary.disturbances)):
         raise MrtaRuntimeError(f"{run_problem(summary)}; {summary.output}/summary.json says "

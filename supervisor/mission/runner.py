@@ -248,7 +248,8 @@ def _run_in(run: MissionRun, reg: Registry,
         watch.end()
         live.close()
         interrupted = None
-        if stop.is_set() or sim.wait(30) in (-signal.SIGINT, 128 + signal.SIGINT):
+        by_sigint = not stop.is_set() and sim.wait(30) in (-signal.SIGINT, 128 + signal.SIGINT)
+        if stop.is_set() or by_sigint:
             # Ctrl-C: the terminal sends SIGINT to the children as well, and the simulator may
             # end by it before this process sees its own. Their ends are no failures. The
             # recording so far is whole once the recorder has written it out: the summary
@@ -256,7 +257,7 @@ def _run_in(run: MissionRun, reg: Registry,
             # list: a Ctrl-C'd demo left none); the exit is 130 after Ctrl-C, 0 after SIGTERM
             # (cli.main._exit_code)
             group.interrupted()
-            interrupted = "Ctrl-C" if lifecycle.interrupted_by_user() else "SIGTERM"
+            interrupted = "Ctrl-C" if by_sigint or lifecycle.interrupted_by_user() else "SIGTERM"
         else:
             check_simulator_end(sim)
         group.stop_all(later=[recorder], later_grace=RECORDER_GRACE)

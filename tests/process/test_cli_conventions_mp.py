@@ -56,6 +56,7 @@ def test_ctrl_c_of_the_demo_exits_130_whatever_its_children_did(children, tmp_pa
     assert s["interrupted"] == "Ctrl-C" and s["run_status"] == "incomplete"
     assert 0 < s["recorded_until"] < 600
     assert any("INTERRUPTED: the run was interrupted (Ctrl-C)" in line for line in demo.stdout)
+    assert demo.stderr[-1].startswith("Aborted! the run so far is in"), demo.stderr
 
 
 @pytest.mark.slow
