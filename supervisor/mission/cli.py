@@ -56,8 +56,8 @@ from ..live.view import render
               help="Faults to inject, comma-separated: ROBOT@T (crash: SIGKILL its agent at "
                    "this simulated time), stall:ROBOT@T, partition:ROBOT@T+D, loss:P, "
                    "latency:MEAN±JITTER, range:R (docs/delivery.md, Fault grammar). Default: "
-                   "the mission's (patrol: the second robot crashes at half the duration; "
-                   "delivery: none).")
+                   "the mission's own — the second robot crashes at half the duration, unless "
+                   "the mission says otherwise (delivery: none).")
 @click.option("--output", type=OutputPath(folder=True),
               default=Path("demo-output"), show_default=True,
               help="Folder for the recording, pictures and summary.json.")
