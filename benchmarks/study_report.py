@@ -44,11 +44,12 @@ from compare_architectures import (DELIVERY_ARCHITECTURES, DELIVERY_METRICS,  # 
                                    PATROL_METRICS, STUDY, TABLE, add_doc_options, exit_code,
                                    metrics_of, with_gaps, write_docs)
 from study_tables import (delivery_tables, headline, mission_tables,  # noqa: E402
-                          references_line)
+                          references_line, replace_block)
 
 STUDY_DIR = ROOT / "docs" / "study"
 RUN_BLOCK = 100_000  # file NN's run r is NN · RUN_BLOCK + r in a mission's combined rows
 MISSIONS = ("delivery", "walls", "patrol")
+STATUS = ("<!-- status: begin -->", "<!-- status: end -->")  # docs/study/README.md's block
 BASELINES = {"delivery": "central", "walls": "central", "patrol": "murdoch"}
 
 
@@ -139,6 +140,33 @@ def coverage(files: list[StudyFile], mission: str) -> list[str]:
         ([] if not waiting else ["", f"Not run yet (no row): {', '.join(waiting)}."])
 
 
+def status(files: list[StudyFile]) -> str:
+    """docs/study/README.md's block: every file of the study, complete (in the tables), in
+    progress (its rows committed, each architecture's instances counted, in no table) or not
+    run yet — what a reader, or the next session resuming the study, needs first."""
+    complete = [f for f in files if f.complete]
+    partial = [f for f in files if f.rows and not f.complete]
+    waiting = [f for f in files if not f.rows]
+    lines = [f"**{len(complete)} of {len(files)} files complete** "
+             f"({sum(len(f.rows) for f in complete):,} runs, every cell at all its instances: "
+             "these alone are in docs/comparison.md's tables and the README headline); "
+             f"{len(partial)} in progress; {len(waiting)} not run yet.", "",
+             "| file | state | runs in / asked | ok | per architecture (instances or seeds in) |",
+             "| --- | --- | --- | --- | --- |"]
+    for f in (f for f in files if f.rows):
+        asked = f.per_cell * len(f.architectures)
+        ok = sum(r.get("status") == "ok" for r in f.rows)
+        per = ", ".join(f"{a} {sum(r.get('architecture') == a for r in f.rows)}/{f.per_cell}"
+                        for a in f.architectures)
+        state = "complete" if f.complete else "**partial** (in no table)"
+        lines.append(f"| {f.experiment.file.stem} | {state} | {len(f.rows)} / {asked} | "
+                     f"{ok} | {per} |")
+    if waiting:
+        lines += ["", "Not run yet (no row): "
+                  + ", ".join(f.experiment.file.stem[:2] for f in waiting) + "."]
+    return "\n".join(lines)
+
+
 def intro(report: Report, files: list[StudyFile], mission: str) -> str:
     """What the mission's rows are, in words: how many of the files' runs are in."""
     rows = report.table.rows
@@ -207,6 +235,7 @@ def main(argv: list[str] | None = None) -> int:
     write_text(out / "tables.md", table + "\n\n" + short + "\n")
     if args.write_docs:
         write_docs(args, table, short, out, "delivery" in reports)
+        replace_block(args.study / "README.md", STATUS, status(study_files(args.study)))
     print(out / "tables.md")
     return 0
 

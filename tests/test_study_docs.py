@@ -51,6 +51,9 @@ def test_comparison_tables_and_headline_are_the_reports_of_the_committed_rows(tm
     table, short, _ = mod.tables(STUDY, tmp_path, plots=False)
     assert block((ROOT / "docs" / "comparison.md").read_text(), *mod.TABLE) == table
     assert block((ROOT / "README.md").read_text(), *mod.STUDY) == short
+    # docs/study/README.md says which files are complete, which partial (and how far)
+    assert block((STUDY / "README.md").read_text(), *mod.STATUS) == \
+        mod.status(mod.study_files(STUDY))
 
 
 def test_every_delivery_size_has_every_architecture_under_every_fault_model():
@@ -142,3 +145,7 @@ def test_a_file_in_progress_is_listed_but_none_of_its_rows_is_reported(tmp_path)
     lines = mod.coverage([partial], "delivery")
     assert "03-delivery-5x5-stall (in progress)" in lines[2] and "4/30" in lines[2]
     assert any("In progress, not in the tables" in line for line in lines)
+    said = mod.status([partial, mod.StudyFile(3, exp, whole.rows)])
+    assert "| 03-delivery-5x5-stall | **partial** (in no table) | 4 / 150 |" in said
+    assert "| 03-delivery-5x5-stall | complete | 150 / 150 |" in said
+    assert said.startswith("**1 of 2 files complete** (150 runs")
