@@ -151,13 +151,20 @@ def paused(f, until):
 
 
 def let_go(f, on, step=0.25):
-    """Move the wall clock in steps until `on` is done; how far it had to move."""
-    moved = 0.0
-    while on.is_alive():
+    """Move the wall clock in steps until the barrier forgives the claim that pauses `on`; how
+    far it had to move. Driven by events, not by the machine's speed: a step is taken only once
+    `on` (the barrier's wait) has read the last one and decided on it — it reads the wall and
+    forgives under the barrier's lock, so taking that lock after its reading sees its decision."""
+    forgiven, moved = f.barrier.forgiven, 0.0
+    while f.barrier.forgiven == forgiven:
         assert moved < 60, "still paused after a minute of wall time"
         f.wall.t += step
         moved += step
-        on.join(0.05)
+        wait_for(lambda: f.wall.read.get(on.ident, 0.0) >= f.wall.t or not on.is_alive(), 30)
+        with f.barrier._cond:
+            pass
+    on.join(30)                                       # a hang guard, not a speed asserted
+    assert not on.is_alive()
     return moved
 
 

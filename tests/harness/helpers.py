@@ -232,13 +232,16 @@ class Tokens:
 
 class Wall:
     """A wall clock moved by hand (`wall.t += 3`): lockstep's timeouts tested without waiting
-    for them, whatever the machine's speed."""
+    for them, whatever the machine's speed. `read` holds what each thread read last, so a test
+    can move it again only once the thread it holds up has seen the last move."""
 
     def __init__(self, t: float = 100.0):
         self.t = t
+        self.read: dict[int, float] = {}
 
     def __call__(self) -> float:
-        return self.t
+        self.read[threading.get_ident()] = t = self.t
+        return t
 
 
 def wait_for(cond, timeout: float = 5.0, poll: float = 0.002) -> None:
