@@ -21,7 +21,8 @@ def robots_of(snap):
     return {r["id"]: (r["state"], r["task"]) for r in snap["robots"]}
 
 
-def test_supervise_json_busy_idle_offline_then_sigkill_is_offline_fast(children, tokens, tmp_path):
+def test_supervise_json_busy_idle_offline_then_sigkill_is_offline_by_its_token(children, tokens,
+                                                                              tmp_path):
     rec_file = tmp_path / "run.mcap"
     recorder = children.mrta("record", "-o", str(rec_file), name="record")
     tokens.wait("@mrta/recorder/*", 20, recorder)
@@ -39,13 +40,18 @@ def test_supervise_json_busy_idle_offline_then_sigkill_is_offline_fast(children,
     assert robots_of(snap)["robot1"] == ("busy", "wander")
     # a stretch of motivation to plot, and more than 20 samples to record: counted by the
     # supervisor, which hears what the recorder hears (a sleep made this depend on the speed)
-    snapshots(sup, lambda s: s["counts"]["samples"] >= 25, 20)
+    snap = snapshots(sup, lambda s: s["counts"]["samples"] >= 25, 20)
+    # offline because of the kill, not before it, and by its liveliness token (the only way a
+    # robot that had one goes offline, with communication_lost): by the order of events, not
+    # by a latency in wall seconds — the 30 s is a hang guard, not a speed asserted
+    assert robots_of(snap)["robot1"] == ("busy", "wander")
+    lost = [(a["kind"], a["subject"]) for a in snap["alarms"]]
+    assert ("communication_lost", "robot1") not in lost
     t_kill = time.time()
     r1.signal(signal.SIGKILL)
-    snap = snapshots(sup, lambda s: robots_of(s).get("robot1", ("",))[0] == "offline", 10)
-    latency = snap["time"] - t_kill
-    print(f"SIGKILL → offline in the supervisor's snapshot: {latency * 1000:.0f} ms")
-    assert 0 <= latency < 0.5  # offline because of the kill, not before it
+    snap = snapshots(sup, lambda s: robots_of(s).get("robot1", ("",))[0] == "offline", 30)
+    print(f"SIGKILL → offline in the supervisor's snapshot: {snap['time'] - t_kill:.3f} s")
+    assert snap["time"] >= t_kill
     assert {"kind": "communication_lost", "subject": "robot1"} in [
         {k: a[k] for k in ("kind", "subject")} for a in snap["alarms"]]
     time.sleep(0.5)
