@@ -111,6 +111,7 @@ class SimOptions:
     seed: int = 0
     duration: float | None = None
     snapshot: Path | None = None
+    snapshot_label: str | None = None
     rear_sonars: bool = False
     wait_robots: float | None = None
     lockstep: bool = False
@@ -216,7 +217,13 @@ def run_simulator(options: SimOptions, bus_options: BusOptions,
                     f"denies their {PARTICIPANT}/<robot> tokens to this simulator (docs/"
                     "security.md); running without them would not be lockstep")
         if o.snapshot is not None:  # also when the run fails: the picture shows how far it got
-            resources.callback(_snapshot, sim, o.snapshot)
+            # which robots have no process left, taken as the clock stops — before it says it
+            # ended, on which every agent stops (then every robot would look gone)
+            presence = resources.enter_context(RobotPresence(bus, list(robots)))
+            gone: list[frozenset[str]] = []
+            resources.callback(lambda: _snapshot(sim, o.snapshot, o.snapshot_label,
+                                                 gone[0] if gone else
+                                                 frozenset(presence.missing())))
         resources.enter_context(bus.declare_token(f"{keys.CLOCK_SOURCE_TOKEN}/{run_id}"))
         log.info("ready: %s in %s (%d walls), speed %s, seed %d%s",
                  plural(len(robots), "robot"), world.name, len(world.walls),
@@ -224,6 +231,8 @@ def run_simulator(options: SimOptions, bus_options: BusOptions,
                  f", lockstep with {plural(len(barrier.participants), 'participant')}"
                  if barrier is not None else "")
         stats = node.run(stop, o.duration, barrier)
+        if o.snapshot is not None:
+            gone.append(frozenset(presence.missing()))
         # the run ends on purpose (its duration, a stop): said before its tokens go, so that
         # followers tell an end from a death (mrta_zenoh.clock.SimClock.ended)
         resources.enter_context(bus.declare_token(
@@ -233,9 +242,9 @@ def run_simulator(options: SimOptions, bus_options: BusOptions,
     return stats
 
 
-def _snapshot(sim: Simulation, path: Path) -> None:
+def _snapshot(sim: Simulation, path: Path, label: str | None, gone: frozenset[str]) -> None:
     from .snapshot import save_snapshot  # matplotlib (≈ 1.5 CPU-s to import): only for a picture
-    save_snapshot(sim, path)
+    save_snapshot(sim, path, label=label, gone=gone)
     log.info("snapshot written to %s", path)
 
 

@@ -31,6 +31,8 @@ from .api import SimOptions, run_simulator
               help="Stop after this many simulated seconds.")
 @click.option("--snapshot", type=OutputPath(folder=False),
               help="On exit, write a PNG of the world with robots, sonar beams and trails.")
+@click.option("--snapshot-label", metavar="TEXT",
+              help="What ran the robots (an architecture), for the snapshot's title.")
 @click.option("--rear-sonars", is_flag=True, help="Also simulate the 8 rear transducers.")
 @click.option("--markers", type=click.Path(dir_okay=False, exists=True, path_type=Path),
               metavar="INSTANCE",

@@ -65,9 +65,9 @@ def panels(monkeypatch):
     seen: dict = {}
     draw = plots.draw_timeline
 
-    def capture(output, app, panels_, span, xlabel):
+    def capture(output, app, panels_, span, xlabel, **kw):
         seen["panels"] = panels_
-        return draw(output, app, panels_, span, xlabel)
+        return draw(output, app, panels_, span, xlabel, **kw)
 
     save = plots.save_figure
 

@@ -116,7 +116,7 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
         draw_timeline(output / "timeline.png", run.app,
                       [Panel(ROBOTS_TITLE, intervals,
                              {r: [(at, end)] for r, at in failures if r in run.robots})],
-                      (t0, end), tb.label)
+                      (t0, end), tb.label, ended_at=None if ended_at is None else end)
         run.arch.plots(output / "run.mcap", run.robots, run.app.tasks(), output, records)
     who = {rid: [Span(t, round(a, 3), round(b, 3))
                  for t, a, b in sorted(intervals.get(rid, []), key=lambda x: x[1])]

@@ -11,6 +11,10 @@ robots by its monitors' timeouts — what an operator saw, labelled as such, nev
 Time axes are simulated seconds when the recording holds the simulator's `clock` (so a run at
 `--speed 10` reads like the mission it simulated), wall seconds from the first message otherwise.
 Tasks are in natural order (t2 before t10); `offline` is in the legend only when a robot was.
+Each task has a colour of its own however many there are (mrta_zenoh.palette: tab10 repeated
+after ten), the title names the architecture, and a run that ended when its work was over
+marks that instant: the bars stop there because the summary's figures do (issue 51, the
+newcomer's list: "timeline bars are clipped at the headline", with nothing saying why).
 """
 
 from __future__ import annotations
@@ -24,6 +28,7 @@ from mrta_zenoh import codec, keys
 from mrta_zenoh.architectures import architecture, architecture_names
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.files import save_figure
+from mrta_zenoh.palette import distinct_colors
 from mrta_zenoh.recording import TimeBase, read_recording
 from mrta_zenoh.toolchain.model import ApplicationFile, ArchitectureFile
 
@@ -172,9 +177,21 @@ def natural(text: str) -> list:
     return [int(p) if p.isdigit() else p for p in re.split(r"(\d+)", text)]
 
 
+WORK_OVER = "work over: the figures end here"
+
+
+def architecture_title(app: ApplicationFile) -> str:
+    """The architecture's display name (`ALLIANCE`), or its name if it registers none."""
+    name = app.architecture
+    return architecture(name).title if name in architecture_names() else name
+
+
 def draw_timeline(output: Path, app: ApplicationFile, panels: list[Panel],
-                  span: tuple[float, float], xlabel: str) -> Path:
-    """Panels of rows (one per robot) of task bars, offline periods hatched, one legend."""
+                  span: tuple[float, float], xlabel: str, *,
+                  ended_at: float | None = None) -> Path:
+    """Panels of rows (one per robot) of task bars, offline periods hatched, one legend;
+    `ended_at`: when the run's work was over (its figures end there), marked, with a little
+    of the axis after it."""
     import matplotlib  # ≈ 1.5 CPU-s to import: only where a picture is drawn (not --no-plots)
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -183,7 +200,9 @@ def draw_timeline(output: Path, app: ApplicationFile, panels: list[Panel],
         robots += sorted(set(p.intervals) - set(robots))
     tasks = sorted(set(app.tasks()) | {t for p in panels for iv in p.intervals.values()
                                        for t, _, _ in iv}, key=natural)
-    colors = {t: plt.cm.tab10(i % 10) for i, t in enumerate(tasks)}
+    colors = dict(zip(tasks, distinct_colors(len(tasks))))
+    if ended_at is not None:
+        span = (span[0], ended_at + 0.04 * max(ended_at - span[0], 1.0))
     # a robot whose token goes as the run ends (every process stops) was not offline
     offline = any(b > a for p in panels for s in p.offline.values() for a, b in s)
     rows = len(robots) * len(panels)
@@ -199,6 +218,8 @@ def draw_timeline(output: Path, app: ApplicationFile, panels: list[Panel],
                 for a, b in panel.offline.get(rid, []):
                     ax.broken_barh([(a, b - a)], (row - 0.35, 0.7), facecolor="none",
                                    edgecolor="grey", hatch="//")
+            if ended_at is not None:
+                ax.axvline(ended_at, color="black", ls="--", lw=1)
             ax.set_yticks(range(len(robots)), robots)
             ax.invert_yaxis()
             ax.set_xlim(*span)
@@ -211,7 +232,12 @@ def draw_timeline(output: Path, app: ApplicationFile, panels: list[Panel],
             handles.append(plt.Rectangle((0, 0), 1, 1, facecolor="none", edgecolor="grey",
                                          hatch="//"))
             labels.append("offline")
-        fig.suptitle(f"{app.name}: which robot did which task when")
+        if ended_at is not None:
+            handles.append(plt.Line2D([], [], color="black", ls="--", lw=1))
+            labels.append(f"{WORK_OVER} ({ended_at:.1f} s)")
+        arch = architecture_title(app)  # "Patrol (MURDOCH)" names it already
+        fig.suptitle(f"{app.name if arch in app.name else f'{app.name} under {arch}'}: "
+                     "which robot did which task when")
         fig.tight_layout(rect=(0, 0.3 / height, 1, 1))
         fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 8), fontsize=8,
                    bbox_to_anchor=(0.5, 0.0), frameon=False)

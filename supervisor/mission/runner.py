@@ -24,6 +24,7 @@ import contextlib
 import logging
 import math
 import os
+import shlex
 import signal
 import socket
 import threading
@@ -155,7 +156,8 @@ def _run_in(run: MissionRun, reg: Registry,
     options, output, faults = run.options, run.options.output, run.faults
     launch_args = {"speed": str(options.speed), "seed": str(options.seed),
                    "sim_args": f"--duration {options.duration}"
-                               + (f" --snapshot {output / 'world.png'}" if options.plots else "")
+                               + (f" --snapshot {output / 'world.png'} --snapshot-label "
+                                  f"{shlex.quote(run.arch.title)}" if options.plots else "")
                                + (" --lockstep" if options.lockstep else "")
                                + (f" --lockstep-timeout {host_timeout(options.agents_per_process)}"
                                   if options.lockstep and options.agents_per_process > 1
