@@ -240,3 +240,27 @@ def test_a_participant_waits_for_its_own_samples_to_reach_its_own_subscriptions(
     assert books.missing(none, ["robot3/patrol/report"]) == {}
     bus.close()
     other.close()
+
+
+def test_the_clock_watchdog_stops_no_robot_while_lockstep_waits():
+    """A robot's clock watchdog commands zero velocity when no clock sample came for 2 wall s
+    (its simulator is gone), but not in lockstep: there time standing still is the protocol
+    waiting for a slow participant, and a zero command sent at that wall instant stopped the
+    robot for a step it would have driven — a live run and its summary's replay drifted by a
+    tick or two wherever one of them was slow (issue 50, point 4)."""
+    from types import SimpleNamespace
+
+    from mrta_agent.runtime.host import CLOCK_WATCHDOG, watch_clock
+
+    wall = Wall()
+    clock = LockstepClock("robot1", wall=wall)
+    clock.started.set()
+    sent = []
+    robot = SimpleNamespace(robot_id="robot1", is_process=False, log=logging.getLogger("t"),
+                            ctx=SimpleNamespace(publish_cmd=lambda v, w: sent.append((v, w))))
+    wall.t += CLOCK_WATCHDOG + 1.0
+    clock.lockstep.set()  # a step taken: the simulator waits for someone
+    assert watch_clock(lambda: (robot,), clock, False) is False and sent == []
+    clock.lockstep.clear()  # its barrier token went: the simulator is gone
+    assert watch_clock(lambda: (robot,), clock, False) is True and sent == [(0.0, 0.0)]
+    assert watch_clock(lambda: (robot,), clock, True) is True and sent == [(0.0, 0.0)]  # once
