@@ -9,24 +9,29 @@ from __future__ import annotations
 
 import io
 import math
+from pathlib import Path
+from types import SimpleNamespace
 
 import msgspec
 import pytest
 from rich.console import Console
 
 from mrta_agent.murdoch.messages import Claim
-from mrta_delivery.instance import InstanceBody
+from mrta_delivery.instance import DeliveryParams, InstanceBody
 from mrta_delivery.messages import TaskEvent
 from mrta_delivery.metrics import done_at
-from mrta_delivery.mission import MISS_SLACK, DeliveryWatch
+from mrta_delivery.mission import Delivery, DeliveryWatch
 from mrta_supervisor.live.api import resolve_application
 from mrta_supervisor.live.state import Supervisor
 from mrta_zenoh.codec import encode, encoding_for
+from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.messages import Header
 from mrta_zenoh.planning import Problem, Robot, Task
 from mrta_zenoh.planning.schedule import window_counts
 
 ROBOTS = ("robot1", "robot2", "robot3", "robot4", "robot5")
+TESSI = Path(__file__).resolve().parents[1] / "configs" / "applications" / "delivery_tessi"
+MISS_SLACK = DeliveryParams().miss_grace  # the default grace: 2 s, as before it was a parameter
 
 
 def instance(windows: str = "hard") -> InstanceBody:
@@ -42,9 +47,9 @@ def instance(windows: str = "hard") -> InstanceBody:
         "windows": windows}, InstanceBody)
 
 
-def supervisor(params: InstanceBody) -> Supervisor:
+def supervisor(params: InstanceBody, watch: DeliveryWatch | None = None) -> Supervisor:
     app, arch = resolve_application("delivery_murdoch")
-    s = Supervisor(arch, app, 0.0, quiet=True, watch=DeliveryWatch(params))
+    s = Supervisor(arch, app, 0.0, quiet=True, watch=watch or DeliveryWatch(params))
     for r in ROBOTS:
         s.on_liveliness(f"{r}/murdoch/agent", True, 0.0)
     return s
@@ -86,6 +91,38 @@ def test_a_started_task_its_robot_left_is_missed_once_its_service_would_have_end
     say(s, "robot3", "t3", "started", 18.0)
     assert states(s, 18.0 + 5.0 + MISS_SLACK - 0.1)["t3"] != "missed"
     assert states(s, 20.0 + 5.0 + MISS_SLACK)["t3"] == "missed"  # max(due, start) + service
+
+
+def package_with(tmp_path, value) -> SimpleNamespace:
+    """delivery_tessi's package copied as an experiment's run copies it, its layers file's
+    `Delivery.miss_grace` overridden as a user would (`--override
+    'layers*.Delivery.miss_grace=VALUE'`, or an experiment's `overrides:`): the run as the
+    mission hook reads it (its layers file)."""
+    from mrta_supervisor.experiment.runs import package_copy
+    copy = package_copy(TESSI, tmp_path, (("layers*.Delivery.miss_grace", value),))
+    return SimpleNamespace(layers_params=copy / "config" / "layers_tessi_params.yaml")
+
+
+def test_the_miss_grace_is_the_run_s_delivery_parameter(tmp_path):
+    run = package_with(tmp_path, 6.5)
+    assert Delivery().task_watch(run).grace == 6.5
+    s = supervisor(instance(), DeliveryWatch(instance(), 6.5))
+    assert states(s, 10.0 + MISS_SLACK)["t1"] != "missed"  # the default would have said so
+    assert states(s, 10.0 + 6.5 - 0.1)["t1"] != "missed"
+    assert states(s, 10.0 + 6.5)["t1"] == "missed"
+    # the shipped package states the default, so an override has a key to set
+    assert "miss_grace: 2.0" in (TESSI / "config" / "layers_tessi_params.yaml").read_text()
+
+
+@pytest.mark.parametrize("value, what", [(-1.0, "Expected float >= 0.0"),
+                                         (61.0, "Expected float <= 60.0"),
+                                         ("2 s", "Expected float, got str")])
+def test_a_bad_miss_grace_names_the_file_and_key(tmp_path, value, what):
+    run = package_with(tmp_path, value)
+    with pytest.raises(ConfigError) as e:
+        Delivery().task_watch(run)
+    text = str(e.value)
+    assert "layers_tessi_params.yaml:5: 'Delivery/miss_grace'" in text and what in text
 
 
 def test_under_soft_windows_nothing_is_ever_missed_and_the_run_waits():

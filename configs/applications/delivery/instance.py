@@ -216,10 +216,21 @@ class InstanceBody(msgspec.Struct, forbid_unknown_fields=True):
 
 class DeliveryParams(msgspec.Struct, forbid_unknown_fields=True):
     """The layers file's `Delivery` section: how the layer drives (the instance it serves is
-    the file the layers file names)."""
+    the file the layers file names), and how long the run's task watch waits before it calls
+    a task missed under hard windows (`miss_grace`, read by the mission hook, not the robots:
+    mission.DeliveryWatch).
+
+    `miss_grace` is simulated seconds past a task's due (or, once its service was started,
+    past that service's end) with no `started` (or `done`) believed. It is a margin for word
+    in flight, not a window's extension: a robot never starts a task after its due whatever it
+    is, and the figures end at the due (metrics.done_at), so the grace moves only when the
+    run stops. Too short, and a `started` stamped by the due but delayed on the network may
+    come after the watch called the task missed — the run may then be stopped while its robot
+    serves it; at most a minute, since it delays the end of every run with a missed task."""
 
     tolerance: Annotated[float, msgspec.Meta(gt=0.0, le=5.0)] = 0.3  # m: "at the task"
     turn_rate: Annotated[float, msgspec.Meta(gt=0.0, le=3.0)] = 1.2   # rad/s at most
+    miss_grace: Annotated[float, msgspec.Meta(ge=0.0, le=60.0)] = 2.0  # s (docstring)
 
 
 class SubmittedChange(msgspec.Struct, forbid_unknown_fields=True, omit_defaults=True):

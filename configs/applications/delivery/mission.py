@@ -148,10 +148,16 @@ def run_instance(run: MissionRun) -> InstanceBody:
     return _read_instance(path.resolve(), stat.st_mtime_ns, stat.st_size)
 
 
+def run_delivery(run: MissionRun) -> DeliveryParams:
+    """The run's layers file's `Delivery` section (how near its robots stop at a task, the
+    task watch's `miss_grace`), checked: a bad value is a ConfigError naming file, line, key."""
+    layers = load_layers_params(run.layers_params)
+    return DeliveryParams() if layers is None else layers.convert(("Delivery",), DeliveryParams)
+
+
 def run_tolerance(run: MissionRun) -> float:
     """How near the run's robots stop at a task (its layers file's `Delivery` section)."""
-    layers = load_layers_params(run.layers_params)
-    return msgspec.convert(layers.data.get("Delivery") or {}, DeliveryParams).tolerance
+    return run_delivery(run).tolerance
 
 
 @functools.lru_cache(maxsize=4)
@@ -160,27 +166,24 @@ def _read_instance(path: Path, _mtime_ns: int, _size: int) -> InstanceBody:
     return load_document(path).body()
 
 
-# simulated s past a task's due (or its started service's end) before the watch calls it missed:
-# a `started` stamped by the due is heard well within it (the supervisor also waits while a
-# robot holds the task)
-MISS_SLACK = 2.0
-
-
 class DeliveryWatch(TaskWatch):
     """A delivered task is done for good; one that arrives later is waiting until then. A
     `done` counts as the robots' boards count it (board.py, done_rule.py): on its sender's own
     key, after its own `started` a service before — forged ones do not end the run.
 
     Under hard windows a task is missed for good (`lapsed`) once its due has passed by
-    `MISS_SLACK` with no believed `started` — no robot may start it any more — or, started,
-    once its service would have been over by `MISS_SLACK` without a `done` (its robot crashed
-    or left it); the supervisor takes that word only for a task no robot holds. So a run in
-    which a task is missed ends when nothing is left to serve, not at its duration."""
+    `grace` with no believed `started` — no robot may start it any more — or, started, once
+    its service would have been over by `grace` without a `done` (its robot crashed or left
+    it); the supervisor takes that word only for a task no robot holds. So a run in which a
+    task is missed ends when nothing is left to serve, not at its duration. `grace`: the run's
+    `Delivery.miss_grace` (DeliveryParams; 2 s by default: a `started` stamped by the due is
+    heard well within it, and the supervisor also waits while a robot holds the task)."""
 
     served_in_turn = True  # more tasks than robots: a task may wait for a robot to be free
 
-    def __init__(self, params: InstanceBody):
+    def __init__(self, params: InstanceBody, grace: float = DeliveryParams().miss_grace):
         self.params = params
+        self.grace = grace
         self.arrivals = {tid: t.arrival for tid, t in params.tasks.items()}
         self.rule = DoneRule(params, params.path_map())
         self._lock = threading.Lock()  # samples come on the bus's threads
@@ -215,7 +218,7 @@ class DeliveryWatch(TaskWatch):
             if t.due is None:
                 continue
             over = t.due if tid not in started else max(t.due, started[tid]) + t.service
-            if elapsed >= over + MISS_SLACK:
+            if elapsed >= over + self.grace:
                 out.append(TaskStatus(tid, "missed"))
         return out
 
@@ -312,7 +315,7 @@ class Delivery(Mission):
                                DeliverySections)
 
     def task_watch(self, run: MissionRun) -> TaskWatch:
-        return DeliveryWatch(run_instance(run))
+        return DeliveryWatch(run_instance(run), run_delivery(run).miss_grace)
 
     def describe(self, metrics: dict[str, Any]) -> list[str]:
         name = metrics.get("objective", "minsum")
