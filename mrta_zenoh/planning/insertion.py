@@ -179,32 +179,42 @@ class DiscountedRoute:
         self._waits = [len(self.route)] * (len(self.route) + 1)
         for k in range(len(self.route) - 1, -1, -1):
             self._waits[k] = k if self.starts[k] > self.reach[k] else self._waits[k + 1]
+        # each place n's (row of `times` it leaves from, the time it is free there): what every
+        # candidate's pass reads, computed once (`insertion` is CBBA's inner loop)
+        self._places = [(self.home, origin.time)] + [
+            (row, start + tasks[j].service)
+            for row, start, j in zip(self.point, self.starts, self.route)]
+        self._binding = binding(problem)
 
     def insertion(self, j: int) -> tuple[float, int]:
         """(marginal score, place) of task j at its best place; the earliest place on ties."""
-        tasks, route, lam, times = self.problem.tasks, self.route, self.discount, self.times
+        tasks, lam, times = self.problem.tasks, self.discount, self.times
         row_j, arrival, service, reward = (len(self.problem.robots) + j, tasks[j].opens,
                                            tasks[j].service, tasks[j].reward)
-        length = len(route)
-        allowed = windowed_places(self.problem, self.i, route, j, self.origin)
+        length = len(self.route)
+        allowed = (windowed_places(self.problem, self.i, self.route, j, self.origin)
+                   if self._binding else None)
         if allowed is not None and not allowed:
             return 0.0, 0  # nowhere its window holds: scores nothing (module docstring)
+        from_j, point, reach, waits = times[row_j], self.point, self.reach, self._waits
+        weight = self._weight
+        total = weight[length]
         best, where = -math.inf, 0
-        for n in range(length + 1):
+        for n, (prev, free) in enumerate(self._places):
             if allowed is not None and n not in allowed:
                 continue
-            if n == 0:
-                prev, free = self.home, self.origin.time
-            else:
-                prev = self.point[n - 1]
-                free = self.starts[n - 1] + tasks[route[n - 1]].service
             start = free + times[prev][row_j]
             if start < arrival:
                 start = arrival
             gain = lam ** start * reward
             if n < length:
-                gain += self._delay(n, start + service + times[row_j][self.point[n]]
-                                    - self.reach[n])
+                delay = start + service + from_j[point[n]] - reach[n]
+                if delay >= 0 and waits[n] == length:
+                    # no task after n waits: the delay passes through them all (`_delay`'s
+                    # first step, inlined; 0.0 + keeps its sum bit for bit)
+                    gain += 0.0 + (lam ** delay - 1.0) * (total - weight[n])
+                else:
+                    gain += self._delay(n, delay)
             if gain > best:
                 best, where = gain, n
         return best, where
