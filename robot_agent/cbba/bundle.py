@@ -131,6 +131,7 @@ class Cbba(RouteLogic):
         self.changed = True  # something to tell: the first tick always speaks
         self.last_sent = -math.inf
         self._levels: Levels | None = None  # `_scores`
+        self._still: tuple | None = None  # `_inputs` on which a tick's pass changed nothing
         self._least: tuple[tuple[Task, ...], float] | None = None  # `_least_reward`
         self.superseded = 0
         self.out_of_range = 0
@@ -305,10 +306,15 @@ class Cbba(RouteLogic):
     def tick(self, now: float) -> list[Say]:
         started = time.perf_counter()  # wall time: a computation's cost is the machine's
         candidates = self._candidates(now)
-        self._release()
-        if self.recheck:
-            self._recheck(candidates)
-        self._build(candidates)
+        before = self._inputs(candidates)
+        if before != self._still:
+            self._release()
+            if self.recheck:
+                self._recheck(candidates)
+            self._build(candidates)
+            # a pass that changed nothing changes nothing on the same inputs again: the next
+            # ticks skip it until something it reads changes (most ticks of a settled team)
+            self._still = before if self._inputs(candidates) == before else None
         self._work += time.perf_counter() - started
         if not self.changed and now - self.last_sent < self.resend_period:
             return []
@@ -323,6 +329,12 @@ class Cbba(RouteLogic):
         x, y = self.position
         return [Say("bids", dict(winners=winners, stamps=stamps, done=tuple(sorted(self.done)),
                                  x=x, y=y, ms=ms))]
+
+    def _inputs(self, candidates: list[int]) -> tuple:
+        """Everything release, re-check and build read (the levels stand for the problem, the
+        origin and the scores, and are replaced when any of those changes)."""
+        return (self._levels, tuple(self.z), tuple(self.y), tuple(self.bundle),
+                tuple(self.path), tuple(candidates))
 
     def _candidates(self, now: float) -> list[int]:
         """The tasks this robot may bid on: known by now, unserved, within its capabilities."""
