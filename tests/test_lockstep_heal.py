@@ -144,10 +144,19 @@ class Relay:
 
 def paused(f, until):
     """Advance to `until` with a forged claim unmet: the barrier waits (wall time would have to
-    pass); the thread, to be let go by moving the wall clock."""
-    on = advancing(f, until)
-    wait_for(lambda: f.barrier._stamp is not None and not f.barrier._waiting)
-    return on
+    pass); the thread, to be let go by moving the wall clock. Paused: at two of the thread's
+    readings of the wall in a row, the barrier waits on the same step with every participant
+    answered — so it has noted when they answered before the wall moves (one look could catch
+    the end of an earlier step, and the pause then start a step of the wall later)."""
+    on, held = advancing(f, until), None
+    while True:
+        f.wall.read.pop(on.ident, None)
+        wait_for(lambda: on.ident in f.wall.read, 30)     # a hang guard, not a speed asserted
+        with f.barrier._cond:
+            step = f.barrier._stamp if not f.barrier._waiting else None
+        if step is not None and step == held:
+            return on
+        held = step
 
 
 def let_go(f, on, step=0.25):
