@@ -6,9 +6,12 @@ run in the whole suite (`pytest -m "not browser"`), or alone with `pytest -m slo
 that names `slow` keeps them). The folders, the harnesses and the conformance suite:
 tests/README.md."""
 
+import itertools
 import os
+import re
 import subprocess
 import sys
+from pathlib import Path
 
 # Bytecode caches, whatever the calling shell says (some sandboxes set PYTHONDONTWRITEBYTECODE):
 # the suite starts hundreds of Python processes over the same sources, and without caches each
@@ -20,13 +23,38 @@ sys.dont_write_bytecode = False
 os.environ.pop("PYTHONDONTWRITEBYTECODE", None)
 
 import pytest  # noqa: E402 (after the bytecode setting)
+from _pytest.mark.expression import Expression  # noqa: E402 (-m's own parser)
 
 from tests.harness.helpers import REFERENCE, Children, Tokens  # noqa: E402
+
+
+PROCESS = Path(__file__).resolve().parent / "process"
 
 
 class UnmarkedMultiprocess(BaseException):
     """Raised where an unmarked test starts a process or opens a Zenoh session. A BaseException,
     so code that turns errors into exit codes (`except Exception`) does not hide it."""
+
+
+def _selects_no_multiprocess(expr: str) -> bool:
+    """Whether `-m expr` deselects every test marked `multiprocess`, whatever other marks it has
+    (each name the expression uses tried on and off)."""
+    if "multiprocess" not in expr:
+        return False
+    compiled = Expression.compile(expr)
+    names = sorted(set(re.findall(r"[A-Za-z_][\w.]*", expr)) - {"and", "or", "not"})
+    return not any(compiled.evaluate(lambda name, **_: name == "multiprocess" or name in on)
+                   for k in range(len(names) + 1) for on in itertools.combinations(names, k))
+
+
+def pytest_ignore_collect(collection_path, config):
+    """tests/process/ holds only modules whose every test is `multiprocess` (tests/test_layering.py
+    keeps it so): where the mark expression leaves every such test out (the fast tier), the
+    folder is not imported at all — each xdist worker would otherwise import its 50 modules, and
+    scipy.optimize, dask and distributed through them, to deselect every test it collected."""
+    if collection_path == PROCESS and _selects_no_multiprocess(config.option.markexpr or ""):
+        return True
+    return None
 
 
 def pytest_collection_modifyitems(config, items):
