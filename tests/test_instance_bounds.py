@@ -41,9 +41,10 @@ def test_too_many_walls_tasks_or_robots_are_refused_naming_the_cap(tmp_path, ver
     assert f"'world/walls': {MAX_WALLS + 250} inner walls: an instance has at most " \
            f"{MAX_WALLS} (MAX_WALLS" in line
     tasks = "".join(f"  t{k}: {{position: [{-5 + k % 10}, {-3 + k // 10 % 6}]}}\n"
-                    for k in range(10_000))
+                    for k in range(MAX_TASKS + 1))
     line = refused(tmp_path, HEAD + ONE_ROBOT + "tasks:\n" + tasks, *verb)
-    assert f"'tasks': 10000 tasks: an instance has at most {MAX_TASKS} (MAX_TASKS" in line
+    assert f"'tasks': {MAX_TASKS + 1} tasks: an instance has at most {MAX_TASKS} (MAX_TASKS" \
+           in line
     robots = "".join(f"  r{k}: {{start: [0, 0], speed: 1}}\n" for k in range(MAX_ROBOTS + 1))
     line = refused(tmp_path, HEAD + "robots:\n" + robots + ONE_TASK, *verb)
     assert f"at most {MAX_ROBOTS} (MAX_ROBOTS" in line
@@ -111,7 +112,7 @@ def test_show_and_a_run_compare_with_one_best_found(tmp_path):
     from mrta_zenoh.planning.reference import EXACT_LIMIT
 
     tasks = "".join(f"  t{k}: {{position: [{-5 + k % 10}.5, {-3 + 2 * (k // 10)}.5]}}\n"
-                    for k in range(EXACT_LIMIT + 2))
+                    for k in range(EXACT_LIMIT + 1))
     f = tmp_path / "i.yaml"
     f.write_text(HEAD + "robots:\n  robot1: {start: [0, 0], speed: 0.5}\n"
                  "  robot2: {start: [1, 0], speed: 0.4}\ntasks:\n" + tasks)
