@@ -20,13 +20,13 @@ from __future__ import annotations
 import threading
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
-from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Callable, ClassVar, Sequence
 
 from .clock import EPSILON
 from .errors import ConfigError
 from .failure import Faults
+from .installed import entry_points
 from .keys import NODE_TOKEN, first_chunk
 from .yamlfile import did_you_mean
 

@@ -17,7 +17,6 @@ command-line options, so a generator needs no command-line code of its own.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -26,6 +25,7 @@ import msgspec
 from .errors import ConfigError
 from .files import write_text
 from .codec import validation_fault
+from .installed import entry_points
 from .planning.reference import SOLUTIONS
 from .sha import sha256
 from .shared_reads import once

@@ -41,7 +41,6 @@ import json
 import os
 from collections.abc import Mapping
 from dataclasses import dataclass
-from importlib.metadata import entry_points
 from pathlib import Path
 
 from cryptography import x509
@@ -52,6 +51,7 @@ from cryptography.x509.oid import ExtendedKeyUsageOID, NameOID
 from .errors import ConfigError
 from .files import write_atomically, write_folder
 from .identity import BRIDGE, BRIDGE_URN, OBSERVER, ROBOT, SUBMITTER, bridge_node_name
+from .installed import entry_points
 from .keys import (RECORDER_TOKEN, ROS2_BRIDGE_TOKEN, KeyExprError, is_id,
                    normalize_robot_id, odom, sonar, validate_key_expr)
 from .lockstep.protocol import DONE, PARTICIPANT

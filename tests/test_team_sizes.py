@@ -9,20 +9,22 @@ import json
 import pytest
 
 from mrta_agent.runtime import plugins
+from mrta_zenoh import installed
 
 
 def test_a_robot_reads_the_installed_entry_points_once_whatever_its_tasks(monkeypatch):
     """A delivery robot loads one evaluator per task: reading every distribution's entry points
-    for each (≈ 0.1 s) made start-up grow with the tasks; they are read once per import path."""
+    for each (≈ 0.1 s) made start-up grow with the tasks; they are read once per import path
+    (mrta_zenoh.installed)."""
     calls = []
+    read = importlib.metadata.entry_points
 
     def counting():
         calls.append(1)
-        return importlib.metadata.entry_points()
+        return read()
 
-    monkeypatch.setattr(plugins, "entry_points", counting)
-    plugins._entry_points.cache_clear()
-    plugins._group.cache_clear()
+    monkeypatch.setattr(importlib.metadata, "entry_points", counting)
+    installed.forget()
     try:
         loaded = {plugins.load_plugin("evaluator", "delivery/task_open") for _ in range(50)}
         assert len(loaded) == 1 and len(calls) == 1
@@ -30,8 +32,7 @@ def test_a_robot_reads_the_installed_entry_points_once_whatever_its_tasks(monkey
         plugins.load_plugin("evaluator", "delivery/task_open")
         assert len(calls) == 2
     finally:
-        plugins._entry_points.cache_clear()
-        plugins._group.cache_clear()
+        installed.forget()
 
 
 N = 10  # robots and tasks. At 20 the recorder falls behind on a loaded machine (benchmarks/README.md)

@@ -19,12 +19,12 @@ verbs need no wrapper of their own.
 from __future__ import annotations
 
 import sys
-from importlib.metadata import entry_points
 from typing import Any, Callable, Sequence
 
 import click
 
 from ..errors import Interrupted, MrtaError
+from ..installed import entry_points
 from ..lifecycle import die_with_parent, forget_signals, interrupted_by_user
 
 

@@ -9,10 +9,10 @@ original alliance_msgs definitions, robot_agent/alliance/ros2.py).
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from importlib.metadata import entry_points
 from typing import Any, Callable
 
 from ..errors import ConfigError
+from ..installed import entry_points
 from .names import Qos
 
 GROUP = "mrta.ros2.mirrors"

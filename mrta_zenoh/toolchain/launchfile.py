@@ -27,6 +27,7 @@ from typing import Callable
 
 
 from ..errors import ConfigError
+from ..installed import entry_points
 from ..yamlfile import did_you_mean
 
 EXECUTABLES_GROUP = "mrta.executables"
@@ -350,7 +351,7 @@ class LaunchEvaluator:
 
 
 def executables() -> dict[str, importlib.metadata.EntryPoint]:
-    return {ep.name: ep for ep in importlib.metadata.entry_points(group=EXECUTABLES_GROUP)}
+    return {ep.name: ep for ep in entry_points(group=EXECUTABLES_GROUP)}
 
 
 def check_executables(nodes: list[NodeSpec]) -> None:

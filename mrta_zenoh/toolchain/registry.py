@@ -17,7 +17,6 @@ the world `patrol`).
 from __future__ import annotations
 
 import importlib
-import importlib.metadata
 import os
 import re
 from collections.abc import Callable
@@ -26,6 +25,7 @@ from pathlib import Path
 
 
 from ..errors import ConfigError
+from ..installed import entry_points
 from ..yamlfile import did_you_mean
 from .model import ALLOCATION_TYPES, ROBOT_TYPES, TASK_TYPES, ApplicationFile, ArchitectureFile
 from .xmlio import load_rqt_mrta, parse_xml_file
@@ -115,7 +115,7 @@ class Registry:
             for xml in _walk(root):
                 self._add(xml, f"MRTA_PACKAGE_PATH ({root})")
         if use_entry_points:
-            for ep in importlib.metadata.entry_points(group=ENTRY_POINT_GROUP):
+            for ep in entry_points(group=ENTRY_POINT_GROUP):
                 try:
                     module = importlib.import_module(ep.value.split(":")[0])
                 except ImportError as exc:

@@ -30,13 +30,10 @@ old name → registered name), resolved here and nowhere else.
 
 from __future__ import annotations
 
-import functools
 import importlib
 import logging
-import sys
 import threading
 from dataclasses import dataclass, field
-from importlib.metadata import entry_points
 from typing import TYPE_CHECKING, Any, Callable, ClassVar, Mapping, Sequence, TypeVar
 
 import msgspec
@@ -46,6 +43,7 @@ from mrta_zenoh.architectures import Architecture
 from mrta_zenoh.bus import Bus, LivelinessWatch, Subscription
 from mrta_zenoh.clock import Clock
 from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.installed import entry_points
 from mrta_zenoh.messages import Message, Twist
 from mrta_zenoh.seeds import prepare
 from mrta_zenoh.yamlfile import YamlDoc, did_you_mean
@@ -68,26 +66,12 @@ ALIASES_GROUP = "mrta.plugins.aliases"
 LEGACY_PREFIX = ("mrta.plugins.", "mrta.alliance.")  # third-party packages may still use these
 
 
-@functools.lru_cache(maxsize=4)
-def _entry_points(path: tuple[str, ...]):
-    """Every installed entry point, read once per import path. Reading them scans every
-    installed distribution's metadata (≈ 0.1 s here); a robot loads one evaluator per task,
-    so a delivery robot with 100 tasks asked 400 times and spent most of its start-up here.
-    Keyed by sys.path: a distribution put on the path later is seen."""
-    return entry_points()
-
-
-@functools.lru_cache(maxsize=32)
-def _group(group: str, path: tuple[str, ...]) -> dict:
-    """One group's entry points by name: `select` walks every entry point, once per group."""
-    return {ep.name: ep for ep in _entry_points(path).select(group=group)}
-
-
 def plugin_entry_points(group: str) -> dict:
     """The entry points of `group` under its name and its legacy `mrta.alliance.*` name (the
-    current name wins when a plugin is registered under both)."""
-    path = tuple(sys.path)
-    return {**_group(group.replace(*LEGACY_PREFIX), path), **_group(group, path)}
+    current name wins when a plugin is registered under both). Read once per import path
+    (mrta_zenoh.installed): a robot loads one evaluator per task."""
+    legacy = entry_points(group.replace(*LEGACY_PREFIX))
+    return {**{ep.name: ep for ep in legacy}, **{ep.name: ep for ep in entry_points(group)}}
 
 
 class NoParams(msgspec.Struct, forbid_unknown_fields=True):

@@ -18,13 +18,13 @@ architecture.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any
 
 from mrta_zenoh.architectures import Architecture, architecture
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.failure import ROLES, FaultKind, Faults, parse_faults
+from mrta_zenoh.installed import entry_points
 from mrta_zenoh.toolchain.model import ApplicationFile
 from mrta_zenoh.toolchain.registry import Package, Registry
 from mrta_zenoh.yamlfile import did_you_mean

@@ -9,12 +9,12 @@ keep their processes."""
 
 from __future__ import annotations
 
-import importlib.metadata
 from pathlib import Path
 
 import yaml
 
 from mrta_zenoh.errors import ConfigError
+from mrta_zenoh.installed import entry_points
 from mrta_zenoh.processes import Child
 from mrta_zenoh.toolchain.launchfile import NodeSpec, executables
 
@@ -26,7 +26,7 @@ CRASH_MARK = ": crashing at t="
 
 def _verbs() -> dict[str, str]:
     """An executable's entry point → the `mrta` verb registered for the same command."""
-    return {ep.value: ep.name for ep in importlib.metadata.entry_points(group="mrta.commands")}
+    return {ep.value: ep.name for ep in entry_points(group="mrta.commands")}
 
 
 def host_nodes(nodes: list[NodeSpec], robots: list[str], per_host: int,

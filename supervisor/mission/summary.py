@@ -22,7 +22,6 @@ patrol demo's flat dict) is refused with the schema named.
 
 from __future__ import annotations
 
-from importlib.metadata import entry_points
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +30,7 @@ import msgspec
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.fault_tally import CAUSES
 from mrta_zenoh.files import write_text
+from mrta_zenoh.installed import entry_points
 from mrta_zenoh.yamlfile import did_you_mean
 
 SCHEMA = 3
@@ -258,7 +258,7 @@ def checked_sections(mission: str, kind: Any, value: Any) -> SummarySections | N
 def mission_hook(mission: str) -> Any:
     """The hook registered under `mrta.missions` as `mission` (a Mission, or its class), None
     when no installed package registers it."""
-    eps = entry_points(group=MISSIONS_GROUP, name=mission)
+    eps = entry_points(group=MISSIONS_GROUP).select(name=mission)
     return next(iter(eps)).load() if eps else None
 
 
