@@ -30,7 +30,20 @@ def entry_points(group: str) -> metadata.EntryPoints:
     return _group(group, tuple(sys.path))
 
 
+@functools.lru_cache(maxsize=512)
+def _name(dist: metadata.Distribution) -> str:
+    return dist.name
+
+
+def distribution_name(ep: metadata.EntryPoint) -> str:
+    """The name of the distribution that registers `ep` ("?" when unknown). Reading it parses
+    that distribution's metadata: once per distribution (the package registry names one for
+    each package it finds, at every registry built)."""
+    return _name(ep.dist) if ep.dist is not None else "?"
+
+
 def forget() -> None:
     """Read them again at the next call (a test that counts the reads)."""
+    _name.cache_clear()
     _group.cache_clear()
     _installed.cache_clear()
