@@ -60,3 +60,28 @@ def test_one_ratio_makes_one_panel_per_failure(tmp_path):
                    Options(metrics=("metrics.makespan",), resamples=500))
     assert sorted(team_size_series(report, "metrics.makespan")) == sorted(
         (f, "") for f in FAILURES)
+
+
+def test_equal_lines_are_drawn_side_by_side_not_one_over_the_other(tmp_path, monkeypatch):
+    """Every architecture completing the same (5 of 5) drew one point: the last line hid the
+    others (issue 51, the newcomer's list). Each line sits beside the team size, in order."""
+    from mrta_supervisor.experiment import report_plots
+    data = [{**r, "metrics.makespan": 5.0} for r in rows()
+            if r["n_tasks"] == r["n_robots"] and r["failure"] == "none"]
+    folder = write(tmp_path / "r", data)
+    report = build(read_results(folder / "results.csv"),
+                   Options(metrics=("metrics.makespan",), resamples=200))
+    drawn = {}
+
+    def capture(fig, path):
+        ax = next(a for a in fig.axes if a.get_visible())
+        drawn.update({line.get_label(): list(line.get_xdata()) for line in ax.lines})
+        drawn["ticks"] = list(ax.get_xticks())
+        return path
+
+    monkeypatch.setattr(report_plots, "save_figure", capture)
+    plot_team_size(report, "metrics.makespan", tmp_path / "team.png")
+    xs = [drawn[a] for a in ARCHS]
+    assert xs[0][0] < xs[1][0] < xs[2][0] and xs[0][1] < xs[1][1] < xs[2][1]
+    assert all(abs(x - n) < 0.5 for line in xs for x, n in zip(line, (3, 5)))
+    assert drawn["ticks"] == [3.0, 5.0]

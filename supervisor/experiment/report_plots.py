@@ -223,6 +223,13 @@ def _ratio(cell) -> float | None:
         return None
 
 
+def dodge(k: int, n: int, sizes: list[float]) -> float:
+    """How far line `k` of `n` is drawn beside the team sizes `sizes`: spread over a fifth of
+    the smallest gap between two sizes (of one, if there is one size)."""
+    gap = min((b - a for a, b in zip(sizes, sizes[1:])), default=1.0)
+    return 0.0 if n < 2 else (k - (n - 1) / 2) * 0.2 * gap / (n - 1)
+
+
 def plot_team_size(report: Report, metric: str, path: Path) -> Path:
     plt = _pyplot()
     series = team_size_series(report, metric)
@@ -241,13 +248,20 @@ def plot_team_size(report: Report, metric: str, path: Path) -> Path:
             ax = axes[failures.index(failure), ratios.index(ratio)]
             ax.set_visible(True)
             name = ", ".join(x for x in (f"fail={failure}" if failure else "", ratio) if x)
+            sizes = sorted({p.x for points in lines.values() for p in points})
             for label, points in lines.items():
-                xs = [p.x for p in points]
+                # each line a little to the side of the team size it is at: equal lines (every
+                # architecture completing 5 of 5) hid each other, showing only the last drawn
+                # (issue 51, the newcomer's list); the ticks stay at the team sizes
+                dx = dodge(labels.index(label), len(labels), sizes)
+                xs = [p.x + dx for p in points]
                 ax.plot(xs, [p.mean for p in points], marker="o", color=colours[label],
                         label=label)
-                band = [p for p in points if p.low is not None]
-                ax.fill_between([p.x for p in band], [p.low for p in band],
-                                [p.high for p in band], color=colours[label], alpha=0.15)
+                band = [(x, p) for x, p in zip(xs, points) if p.low is not None]
+                ax.errorbar([x for x, _ in band], [p.mean for _, p in band],
+                            yerr=[[p.mean - p.low for _, p in band],
+                                  [p.high - p.mean for _, p in band]],
+                            fmt="none", ecolor=colours[label], alpha=0.6, capsize=2)
             ax.set_title(name or "all runs", fontsize=9)
             ax.set_xlabel("team size (robots)")
             ax.set_xticks(sorted({p.x for points in lines.values() for p in points}))
@@ -258,7 +272,8 @@ def plot_team_size(report: Report, metric: str, path: Path) -> Path:
                    for label in labels]
         fig.legend(handles=handles, fontsize=8, loc="upper left",
                    bbox_to_anchor=(1.0 - 1.7 / fig.get_figwidth(), 0.95))
-        fig.suptitle(f"{title(metric)} against team size (mean, 95 % bootstrap band)",
+        fig.suptitle(f"{title(metric)} against team size (mean, 95 % bootstrap interval;"
+                     " lines side by side)",
                      fontsize=10)
         fig.tight_layout(rect=(0.0, 0.0, 1.0 - 1.8 / fig.get_figwidth(), 1.0))
         return save_figure(fig, path)
