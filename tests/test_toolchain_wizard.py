@@ -88,6 +88,30 @@ def test_the_shipped_answers_still_make_the_shipped_package(tmp_path):
         shipped.read_bytes()
 
 
+def test_the_wizard_ends_with_next_steps_that_work_as_printed(tmp_path, monkeypatch):
+    """It ended with 'wrote N files' and no next step (issue 51, the newcomer's list): the
+    launch line it prints starts every robot's agent (dry run), found on the path it names."""
+    import shlex
+    data = yaml.safe_load(PATROL_ANSWERS.read_text())
+    data["package"] = "mypatrol"
+    f = tmp_path / "answers.yaml"
+    f.write_text(yaml.safe_dump(data, sort_keys=False))
+    out = tmp_path / "my apps"
+    res = run("app", "new", "--answers", f, "--output", out)
+    assert res.exit_code == 0, res.output
+    said = res.output.split("next:\n", 1)[1].splitlines()
+    launch = shlex.split(next(x for x in said if " mrta launch " in x).split("#")[0])
+    env, argv = launch[0].split("=", 1), launch[3:]
+    assert env == ["MRTA_PACKAGE_PATH", str(out)] and launch[1:3] == ["mrta", "launch"]
+    assert argv == ["mypatrol", "mypatrol.launch"]
+    monkeypatch.setenv(*env)
+    dry = run("launch", *argv, "--dry-run")
+    assert dry.exit_code == 0, dry.output
+    assert [x.split("]")[0] for x in dry.output.splitlines()] == \
+        ["[robot1/alliance", "[robot2/alliance", "[robot3/alliance"]
+    assert "mrta demo" in said[-1] and "mission" in said[-1]
+
+
 # ------------------------------------------------------------------ the wizard in the terminal
 WANDER_ONLY = [
     "mypkg", "", "My App", "", "", "Ana", "ana@example.org", "", "",  # an empty name: told why

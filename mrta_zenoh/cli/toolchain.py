@@ -229,6 +229,26 @@ def app_new(answers: Path | None, output: Path, force: bool, yes: bool,
         raise click.ClickException("nothing written")
     write_package(files, dest, force)
     click.echo(f"wrote {plural(len(files), 'file')} to {dest}")
+    click.echo(next_steps(a.package, output, files))
+
+
+def next_steps(package: str, output: Path, files: dict[str, bytes]) -> str:
+    """What to do with the new package — the wizard ended saying nothing (issue 51, the
+    newcomer's list). Each line works as printed (tests/test_toolchain_wizard.py): its launch
+    files find it by name (`$(find PKG)`), so it must be on MRTA_PACKAGE_PATH or installed;
+    `mrta demo` runs an application with a registered mission and its simulation launch file,
+    which the wizard does not write — said, not left to be found out."""
+    where = shlex.quote(str(output))
+    main = f"{package}.launch" if f"launch/{package}.launch" in files else "FILE.launch"
+    return "\n".join([
+        "next:",
+        f"  MRTA_PACKAGE_PATH={where} mrta app show {package}      # found by name there "
+        "(or pip-install it: README, \"Your own application\")",
+        f"  MRTA_PACKAGE_PATH={where} mrta launch {package} {main}   # every robot's agent; "
+        "their world: `mrta sim` (README, \"The mission in separate terminals\")",
+        "  `mrta demo` runs an application whose package registers a mission (mrta.missions) "
+        "and has its simulation launch file (patrol's patrol_sim.launch): add both to run "
+        "this one there"])
 
 
 class TerminalPrompter:
