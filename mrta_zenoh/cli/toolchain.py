@@ -247,8 +247,8 @@ def next_steps(package: str, output: Path, files: dict[str, bytes]) -> str:
         f"  MRTA_PACKAGE_PATH={where} mrta launch {package} {main}   # every robot's agent; "
         "their world: `mrta sim` (README, \"The mission in separate terminals\")",
         "  `mrta demo` runs an application whose package registers a mission (mrta.missions) "
-        "and has its simulation launch file (patrol's patrol_sim.launch): add both to run "
-        "this one there"])
+        "and has that mission's simulation launch file (as the shipped applications do): "
+        "add both to run this one there"])
 
 
 class TerminalPrompter:
