@@ -196,6 +196,22 @@ def test_the_summary_says_why_in_one_line():
                                disturbances=[Disturbance("robot1", 21.3, 35.0)])) == (
         "a process of the run was stopped or cut off (robot1 lost its token at 21.3 s, back "
         "at 35 s): the run is not what its seed gives")
+    # a file that reaches the end is incomplete for its recorder's lost session, said so;
+    # many processes back at once point at the machine (the 20-robot walkthrough at load 50
+    # said "it ends at 259.7 s of 258.6 s")
+    blinks = [Disturbance(RECORDER, 19.5, 19.6)] + [Disturbance(f"robot{i}", 122.3, 122.4)
+                                                    for i in (11, 12, 13)]
+    said = run_problem(summary(run_status=INCOMPLETE, recorded_until=259.7, ended_at=258.6,
+                               disturbances=blinks))
+    assert said.startswith("the recording does not cover the whole mission (the recorder lost "
+                           "its session while the run was on: what was published meanwhile "
+                           "never reached the file; recorder lost its token at 19.5 s, back at "
+                           "19.6 s;"), said
+    assert "of 258.6 s" not in said
+    assert said.endswith(" — 4 processes lost their tokens and got them back: the machine was "
+                         "too busy for the Zenoh lease (3 s); run fewer processes "
+                         "(--agents-per-process) or on a quieter machine"), said
+    assert "too busy" not in run_problem(summary(run_status=DISTURBED, disturbances=blinks[:2]))
     assert "2 participant(s) given up" in run_problem(summary(lockstep_exact=False,
                                                               lockstep_given_up=2))
 

@@ -57,12 +57,11 @@ from mrta_zenoh.presence import RobotPresence
 from mrta_zenoh.processes import Child, ProcessGroup
 from mrta_zenoh.untrusted import visible
 
-from .summary import COMPLETE, DISTURBED, INCOMPLETE, Disturbance
+from .summary import COMPLETE, DISTURBED, END_SLACK, INCOMPLETE, Disturbance
 
 READY_TIMEOUT = 60.0  # wall seconds for every process to come up
 RECORDER = "recorder"
 SIMULATOR = "simulator"
-END_SLACK = 1.0  # simulated s: a recording that ends earlier than this before the end is cut
 MAX_STRANGERS = 20  # strangers' names a summary lists
 MAX_NAME = 60       # characters of a stranger's name kept
 
