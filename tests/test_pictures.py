@@ -39,6 +39,10 @@ def captured(monkeypatch, module) -> dict:
         seen["patches"] = list(fig.axes[0].patches)
         seen["xlim"] = fig.axes[0].get_xlim()
         seen["lines"] = list(fig.axes[0].lines)
+        if fig.legends:  # the timeline's legend, below the axes: clear of the axis' label
+            renderer = fig.canvas.get_renderer()  # the axes with its ticks and label
+            seen["legend_clear"] = fig.axes[-1].get_tightbbox(renderer).y0 > \
+                fig.legends[0].get_window_extent(renderer).y1
         Path(path).write_bytes(b"png")
         return Path(path)
 
@@ -77,25 +81,26 @@ def test_the_world_picture_tells_twelve_robots_apart_names_the_architecture_and_
     assert snapshot.GONE not in seen["legend"] and "under" not in seen["title"]
 
 
-def test_the_timeline_gives_twelve_tasks_twelve_colours_names_the_architecture_and_the_end(
+def test_the_timeline_gives_twenty_tasks_twenty_colours_names_the_architecture_and_the_end(
         tmp_path, monkeypatch):
-    tasks = [f"t{i}" for i in range(1, 13)]
+    tasks = [f"t{i}" for i in range(1, 21)]
     app = ApplicationFile("cbba", "Delivery (CBBA)", [RobotEntry("robot1", tasks),
                                                      RobotEntry("robot2", tasks)])
-    intervals = {"robot1": [(t, 2.0 * i, 2.0 * i + 1.5) for i, t in enumerate(tasks[:6])],
-                 "robot2": [(t, 2.0 * i, 2.0 * i + 1.5) for i, t in enumerate(tasks[6:])]}
+    intervals = {"robot1": [(t, 2.0 * i, 2.0 * i + 1.5) for i, t in enumerate(tasks[:10])],
+                 "robot2": [(t, 2.0 * i, 2.0 * i + 1.5) for i, t in enumerate(tasks[10:])]}
     seen = captured(monkeypatch, plots)
     plots.draw_timeline(tmp_path / "t.png", app, [plots.Panel("robots", intervals)],
-                        (0.0, 11.5), "simulated time (s)", ended_at=11.5)
+                        (0.0, 19.5), "simulated time (s)", ended_at=19.5)
     # named once, although the application's name has it already
     assert seen["suptitle"] == "Delivery (CBBA): which robot did which task when"
-    assert seen["legend"][:12] == tasks
-    assert seen["legend"][12] == f"{plots.WORK_OVER} (11.5 s)"
+    assert seen["legend"][:20] == tasks
+    assert seen["legend"][20] == f"{plots.WORK_OVER} (19.5 s)"
     bars = seen["fig"].axes[0].collections
-    assert len({to_hex(b.get_facecolor()[0]) for b in bars}) == 12
+    assert len({to_hex(b.get_facecolor()[0]) for b in bars}) == 20
     # the end is marked, and the axis goes a little past it: the bars stop there on purpose
-    assert any(list(line.get_xdata()) == [11.5, 11.5] for line in seen["lines"])
-    assert seen["xlim"][1] > 11.5
+    assert any(list(line.get_xdata()) == [19.5, 19.5] for line in seen["lines"])
+    assert seen["xlim"][1] > 19.5
+    assert seen["legend_clear"]  # three rows of legend covered it
     plain = ApplicationFile("alliance", "Patrol", [RobotEntry("robot1", ["wander"])])
     plots.draw_timeline(tmp_path / "t.png", plain,
                         [plots.Panel("robots", {"robot1": [("wander", 0.0, 5.0)]})],

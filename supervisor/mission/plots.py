@@ -20,6 +20,7 @@ newcomer's list: "timeline bars are clipped at the headline", with nothing sayin
 from __future__ import annotations
 
 import json
+import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -206,7 +207,11 @@ def draw_timeline(output: Path, app: ApplicationFile, panels: list[Panel],
     # a robot whose token goes as the run ends (every process stops) was not offline
     offline = any(b > a for p in panels for s in p.offline.values() for a, b in s)
     rows = len(robots) * len(panels)
-    height = 1.3 + 0.6 * rows + 0.5 * (len(panels) - 1)  # inches: 0.3 of them for the legend
+    # the legend below, 8 entries a row: 0.3 inch for one row, 0.2 more for each further (a
+    # 20-task run's three rows covered the axis' label)
+    entries = len(tasks) + int(offline) + int(ended_at is not None)
+    legend = 0.3 + 0.2 * (math.ceil(entries / 8) - 1)
+    height = 1.0 + legend + 0.6 * rows + 0.5 * (len(panels) - 1)  # inches
     fig, axes = plt.subplots(len(panels), 1, sharex=True, squeeze=False,
                              figsize=(12, height), dpi=100)
     try:
@@ -238,7 +243,7 @@ def draw_timeline(output: Path, app: ApplicationFile, panels: list[Panel],
         arch = architecture_title(app)  # "Patrol (MURDOCH)" names it already
         fig.suptitle(f"{app.name if arch in app.name else f'{app.name} under {arch}'}: "
                      "which robot did which task when")
-        fig.tight_layout(rect=(0, 0.3 / height, 1, 1))
+        fig.tight_layout(rect=(0, legend / height, 1, 1))
         fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 8), fontsize=8,
                    bbox_to_anchor=(0.5, 0.0), frameon=False)
         save_figure(fig, output)
