@@ -69,8 +69,18 @@ EXAMPLES = [
 ]
 
 
+def own_types() -> set[str]:
+    """The types this project registers: a package installed beside it (examples/ping_app, as
+    the README has it) registers its own, which this file cannot have examples of (issue 51,
+    the newcomer's list: installing ping_app made this test fail)."""
+    from importlib.metadata import entry_points
+    others = {ep.name for ep in entry_points(group="mrta.messages")
+              if ep.dist is not None and ep.dist.name != "mrta-zenoh"}
+    return set(registered_types()) - others
+
+
 def test_every_registered_type_has_an_example():
-    assert {type(m).TYPE_NAME for m in EXAMPLES} >= set(registered_types())
+    assert {type(m).TYPE_NAME for m in EXAMPLES} >= own_types()
 
 
 @pytest.mark.parametrize("msg", EXAMPLES, ids=lambda m: m.TYPE_NAME)
