@@ -115,10 +115,13 @@ def test_alliance_draws_the_motivations_of_the_tasks_a_robot_was_active_on(tmp_p
 
 @pytest.mark.multiprocess
 @pytest.mark.slow
-@pytest.mark.timeout(900)
+@pytest.mark.timeout(2700)
 def test_the_readme_instance_walkthrough_runs_as_written(children, tmp_path):
     """show, then the demo line as written (at --speed 0, without pictures): every task of the
-    generated instance delivered before the README's --duration."""
+    generated instance delivered before the README's --duration. The run is ≈ 450 CPU-s with
+    a process per robot (measured: 21 min of wall time at load ≈ 50); 800 s of wall time was
+    too little for it beside load 20–25, so the bounds are a guard against a hang, not a
+    figure."""
     import json
     lines = walkthrough()
     inst = tmp_path / option(lines[0], "-o")
@@ -131,7 +134,7 @@ def test_the_readme_instance_walkthrough_runs_as_written(children, tmp_path):
     run = children.mrta(*[str(inst) if a == option(demo, "--instance") else a for a in demo],
                         "--speed", "0", "--no-live", "--no-plots", "--agents-per-process", "10",
                         "--output", str(out), name="demo")
-    assert run.wait(800) == 0, run.tail(30)
+    assert run.wait(2400) == 0, run.tail(30)
     m = json.loads((out / "summary.json").read_text())["metrics"]
     assert m["arrived"] == m["tasks"] == 20
     assert m["completed"] == 20, m
