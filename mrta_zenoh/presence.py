@@ -15,6 +15,7 @@ from .lifecycle import Closing
 class RobotPresence(Closing):
     def __init__(self, bus, robot_ids: list[str]):
         self._tokens: dict[str, set[str]] = {r: set() for r in robot_ids}
+        self._seen: set[str] = set()  # robots that have been up
         self._lock = threading.Lock()
         self.changed = threading.Event()  # set on every change of a known robot's tokens
         self._watch = bus.watch_liveliness("**", self._on_token)
@@ -26,11 +27,19 @@ class RobotPresence(Closing):
             if tokens is None:
                 return
             (tokens.add if up else tokens.discard)(key)
+            if up:
+                self._seen.add(rid)
         self.changed.set()
 
     def missing(self) -> list[str]:
         with self._lock:
             return [r for r, tokens in self._tokens.items() if not tokens]
+
+    def gone(self) -> list[str]:
+        """Robots that were up and are not: their processes went (a crash, a cut). A robot
+        that never had a token — driven by a script that declares none — is not gone."""
+        with self._lock:
+            return [r for r, tokens in self._tokens.items() if r in self._seen and not tokens]
 
     def all_up(self) -> bool:
         return not self.missing()

@@ -223,7 +223,7 @@ def run_simulator(options: SimOptions, bus_options: BusOptions,
             gone: list[frozenset[str]] = []
             resources.callback(lambda: _snapshot(sim, o.snapshot, o.snapshot_label,
                                                  gone[0] if gone else
-                                                 frozenset(presence.missing())))
+                                                 frozenset(presence.gone())))
         resources.enter_context(bus.declare_token(f"{keys.CLOCK_SOURCE_TOKEN}/{run_id}"))
         log.info("ready: %s in %s (%d walls), speed %s, seed %d%s",
                  plural(len(robots), "robot"), world.name, len(world.walls),
@@ -232,7 +232,7 @@ def run_simulator(options: SimOptions, bus_options: BusOptions,
                  if barrier is not None else "")
         stats = node.run(stop, o.duration, barrier)
         if o.snapshot is not None:
-            gone.append(frozenset(presence.missing()))
+            gone.append(frozenset(presence.gone()))
         # the run ends on purpose (its duration, a stop): said before its tokens go, so that
         # followers tell an end from a death (mrta_zenoh.clock.SimClock.ended)
         resources.enter_context(bus.declare_token(

@@ -5,9 +5,10 @@ Users would rather look than read: one PNG answers "where did the robots go and 
 What a newcomer could not read off the first version (issue 51): which disc is which robot past
 ten (tab10's colours repeated: mrta_zenoh.palette), which mark is a task (no legend), whose
 label a disc hid, under which architecture the run was (`label`), and which robots had
-crashed — drawn like the living. The simulator knows no fault: a robot `gone` is one with no
-process left at the end (its liveliness tokens went with its session: a crash, or a cut that
-lasted to the end), drawn hollow and hatched, "(no process)" beside its name.
+crashed — drawn like the living. The simulator knows no fault: a robot `gone` is one whose
+process was up and had none left at the end (its liveliness tokens went with its session: a
+crash, or a cut that lasted to the end; a robot driven by a script that declares no token is
+not gone), drawn hollow and hatched, "(no process)" beside its name.
 """
 
 from __future__ import annotations

@@ -24,3 +24,9 @@ def test_up_while_any_token_lives_and_only_for_known_robots():
         assert presence.missing() == ["robot2"]
         early.close()
         assert presence.missing() == ["robot1", "robot2"]
+        # gone: up once, then not (the snapshot draws a crashed robot so); never up is not gone
+    with RobotPresence(InProcBus(net), ["robot1", "robot3"]) as presence:
+        token = robot1.declare_token("robot1/alliance/agent")
+        assert presence.gone() == []
+        token.close()
+        assert presence.gone() == ["robot1"] and presence.missing() == ["robot1", "robot3"]
