@@ -137,6 +137,35 @@ def test_unknown_tasks_raise_an_alarm_and_stay_out(patrol):
     assert "dance" not in tasks and ("unknown_task", "dance") in alarms
 
 
+def test_tasks_submitted_at_run_time_join_the_picture_from_the_intakes_changes(patrol):
+    """A task that entered through the intake (`tasks/change`, issue 50) is shown and held
+    like the application's own, with no `unknown_task` — also when a robot named it before its
+    change came; a change not from the intake grows nothing; a cancelled task is `cancelled`,
+    unattended by no alarm; a new run forgets them."""
+    from mrta_zenoh.tasks.messages import Change
+
+    app, arch = patrol
+    sup = Supervisor(arch, app, 0.0, unattended_after=5.0)
+    sup.on_liveliness("robot1/alliance/agent", True, 0.0)
+    irc(sup, sup.monitors, "robot1", "n1", 1.0)  # heard before its change
+    assert ("unknown_task", "n1") in state(sup, 1.0)[2]
+    sup.on_change(Change(Header("tasks", 0.9, 1), "submit", "n1", "{}"), 1.1)
+    sup.on_change(Change(Header("tasks", 0.9, 2), "submit", "n2", "{}"), 1.1)
+    sup.on_change(Change(Header("robot1", 0.9, 1), "submit", "f1", "{}"), 1.1)  # forged
+    irc(sup, sup.monitors, "robot1", "n1", 1.2)
+    sup.update(1.2)
+    robots, tasks, alarms = state(sup, 1.2)
+    assert tasks["n1"] == ("allocated", ["robot1"]) and robots["robot1"] == ("busy", "n1")
+    assert "f1" not in tasks and not {a for a in alarms if a[0] == "unknown_task"}
+    assert sup.counts["task_changes"] == 2 and sup.counts["task_changes_ignored"] == 1
+    sup.on_change(Change(Header("tasks", 2.0, 3), "cancel", "n2"), 2.0)
+    sup.update(9.0)
+    robots, tasks, alarms = state(sup, 9.0)
+    assert tasks["n2"][0] == "cancelled" and ("task_unattended", "n2") not in alarms
+    sup.restart(0.0)  # a new run: the old run's submissions are gone
+    assert "n1" not in state(sup, 0.0)[1]
+
+
 def test_a_flood_of_invented_ids_costs_bounded_state(patrol):
     app, arch = patrol
     sup = Supervisor(arch, app, 0.0)

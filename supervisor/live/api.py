@@ -18,6 +18,7 @@ from mrta_zenoh.identity import OBSERVER
 from mrta_zenoh.keys import NODE_TOKEN, ROS2_BRIDGE_TOKEN
 from mrta_zenoh.lockstep.protocol import STATUS, LockstepStatus
 from mrta_zenoh.node import Node, NodeTime
+from mrta_zenoh.tasks.messages import CHANGE, Change
 from mrta_zenoh.architectures import architecture, architecture_names
 from mrta_zenoh.toolchain.model import ApplicationFile, ArchitectureFile
 from mrta_zenoh.toolchain.registry import Registry
@@ -72,12 +73,15 @@ def attach(sup: Supervisor, bus: Bus, clock, *, shown: bool = True) -> list:
     """Subscribe once per key expression for the monitors that read it, and to the
     application's task news (its TaskWatch), and watch liveliness. Not `shown` (a mission
     runner with no view of it: `mrta -q demo`, every run of a study): the task news alone,
-    which is what tells the runner that every task is done (Supervisor.all_done) — the
+    which is what tells the runner that every task is done (Supervisor.all_done), and the
+    intake's `tasks/change` (tasks submitted at run time: Supervisor.on_change) — the
     monitors' samples (ALLIANCE's motivations: N² a second) would be decoded for nobody."""
     handles = [bus.subscribe(key_expr, lambda s: sup.on_task_sample(s.key, s.message,
                                                                     clock.now()),
                              msg_type=msg_type)
                for key_expr, msg_type in (sup.watch.feed() if sup.watch is not None else ())]
+    handles.append(bus.subscribe(CHANGE, lambda s: sup.on_change(s.message, clock.now()),
+                                 msg_type=Change))  # tasks submitted at run time
     if not shown:
         return handles
     by_key = defaultdict(list)

@@ -12,6 +12,11 @@ lockstep simulator's reports: alarms.py.
   driver or its bridge is gone (drivers.py).
 * A task the application says is done, or not due yet (its mission hook's TaskWatch,
   tasks.py), is `done` / `waiting` and raises no `task_unattended` alarm.
+* Tasks submitted at run time (mrta_zenoh.tasks, issue 50) are learnt from the intake's
+  `tasks/change` (believed from the intake only, as the robots believe it: `header/frame_id`
+  `tasks`): a submitted task is shown, held and alarmed like the application's own, and a
+  cancelled one is `cancelled` (it needs no robot). Without it a robot's queue naming a
+  submitted task raised `unknown_task`. A new run forgets them.
 * A process of the run that is neither robot nor observer (central's dispatcher) is shown by
   its token (`@mrta/node/<name>`): online while it lives, `process_lost` when it goes while the
   run is on.
@@ -30,6 +35,8 @@ from typing import Any, Callable
 
 from mrta_zenoh import keys
 from mrta_zenoh.ros2.graph import Ros2Graph
+from mrta_zenoh.tasks.intake import Limits
+from mrta_zenoh.tasks.messages import INTAKE, Change, Op
 from mrta_zenoh.toolchain.model import ApplicationFile, ArchitectureFile
 
 from .alarms import Alarms, LockstepAlarms
@@ -42,6 +49,8 @@ from .strangers import MAX_NAME, MAX_STRANGER_TOKENS, MAX_UNKNOWN, Strangers
 from .tasks import TaskStatus, TaskWatch, waits_for_a_robot
 
 log = logging.getLogger("mrta.supervisor")
+SETTLED = ("done", "cancelled")  # a task in either state needs nothing more
+MAX_SUBMITTED = Limits.tasks  # tasks submitted at run time the picture takes (the intake's bound)
 
 
 class Supervisor:
@@ -65,13 +74,15 @@ class Supervisor:
         self.started = now
         self.counts = {"samples": 0, "wrong_type": 0, "field_errors": 0, "key_mismatch": 0,
                        "unknown": 0, "unknown_overflow": 0, "bad_keys": 0,
-                       "stranger_tokens": 0, "task_news": 0, "task_news_ignored": 0}
+                       "stranger_tokens": 0, "task_news": 0, "task_news_ignored": 0,
+                       "task_changes": 0, "task_changes_ignored": 0}
         self._lock = threading.Lock()
         self.history = History()
         self._alarms = Alarms(self.history, quiet)
         self.drivers = Ros2Drivers(Ros2Graph(ros2_domain), self._alarms)
         self.robots: dict[str, RobotInfo] = {}
         self.tasks: dict[str, TaskInfo] = {}
+        self.submitted: set[str] = set()  # tasks that entered at run time (on_change)
         self.processes: dict[str, dict] = {}  # name → {"online", "since"} (MAX_UNKNOWN at most)
         ids = Ids()
         self.strangers = Strangers(self._alarms, self.counts, unknown_expiry, ids)
@@ -116,7 +127,7 @@ class Supervisor:
         changed = set()
         for status in self.watch.lapsed(now - self._scheduled_at) if self.watch else ():
             t = self.tasks.get(status.task)
-            if t is None or t.status == "done" or self.held.robots_on(t.id):
+            if t is None or t.status in SETTLED or self.held.robots_on(t.id):
                 continue
             if t.status != status.state:
                 t.status, t.until = status.state, None
@@ -239,6 +250,27 @@ class Supervisor:
                 return
             self._task_status(status, now)
 
+    def on_change(self, message: Any, now: float) -> None:
+        """A sample of the intake's `tasks/change` (module docstring): a submitted task joins
+        the picture, a cancelled one needs no robot. Not from the intake, not an id, or past
+        the intake's own bound of tasks a run takes: counted, ignored."""
+        with self._lock:
+            tid = self.intake.ids(message.task_id) if isinstance(message, Change) else None
+            if tid is None or message.header.frame_id != INTAKE \
+                    or (tid not in self.tasks and len(self.submitted) >= MAX_SUBMITTED):
+                self.counts["task_changes_ignored"] += 1
+                return
+            self.counts["task_changes"] += 1
+            if message.op == Op.SUBMIT and tid not in self.tasks:
+                self.tasks[tid] = self._task(tid, now)
+                self.submitted.add(tid)
+                self.strangers.forget("task", tid, now)  # heard before its change came
+            t = self.tasks.get(tid)
+            if t is not None and message.op == Op.CANCEL and t.status not in SETTLED:
+                t.status, t.until = "cancelled", None
+            if t is not None:
+                self._reassess_task(t, now)
+
     def _task_status(self, status: TaskStatus, now: float) -> None:
         t = self.tasks.get(status.task)
         if t is None:  # the application speaks of a task its robots do not have
@@ -256,7 +288,7 @@ class Supervisor:
         ends the run."""
         with self._lock:
             tasks = [t for t in self.tasks.values() if t.known]
-            return bool(tasks) and all(t.status in ("done", "missed") and t.until is None
+            return bool(tasks) and all(t.status in (*SETTLED, "missed") and t.until is None
                                        for t in tasks)
 
     def on_clock(self, stopped: bool, now: float, ended: bool = False) -> None:
@@ -299,6 +331,9 @@ class Supervisor:
                 r.ever_token = bool(r.tokens)  # a robot lost in the old run is just offline
                 self.drivers.reassess(r, now)
                 self._reassess_robot(r, now)
+            for tid in self.submitted:  # the old run's
+                del self.tasks[tid]
+            self.submitted.clear()
             for tid in self.tasks:
                 self.tasks[tid] = self._task(tid, now)
             self._schedule(now)

@@ -38,6 +38,12 @@ class Strangers:
         self.seen[k] = now
         self.alarms.raise_(f"unknown_{kind}", ident, now)
 
+    def forget(self, kind: str, ident: str, now: float) -> None:
+        """`ident` turned out to be the application's (a task submitted at run time, named
+        before its change came): its alarm goes."""
+        if self.seen.pop((kind, ident), None) is not None:
+            self.alarms.clear(f"unknown_{kind}", ident, now)
+
     def token(self, key: str, alive: bool, now: float) -> None:
         """A token under `<id>/**` of a robot outside the application: `unknown_robot` while
         it lives (and `expiry` after), like a sample from it."""

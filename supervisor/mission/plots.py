@@ -31,6 +31,7 @@ from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.files import save_figure
 from mrta_zenoh.palette import distinct_colors
 from mrta_zenoh.recording import TimeBase, read_recording
+from mrta_zenoh.tasks.messages import CHANGE
 from mrta_zenoh.toolchain.model import ApplicationFile, ArchitectureFile
 
 from .ground_truth import intervals_from
@@ -76,6 +77,8 @@ def replay(records, tb: TimeBase, app: ApplicationFile, arch: ArchitectureFile,
                 sup.on_sample(monitors, k, codec.type_from_encoding(enc), msg, now)
             if msg is not None and any(keys.matches(e, k) for e, _ in feed):
                 sup.on_task_sample(k, msg, now)
+            if k == CHANGE:  # a task submitted or cancelled at run time
+                sup.on_change(_decoded(enc, payload), now)
         if now - last_update >= 0.05:
             sup.update(now)
             last_update = now
