@@ -31,7 +31,8 @@ def decide(problem, params: DispatcherParams, commitments, current):
     situation = Situation({r: commitments.get(r, ()) for r in robots}, robots,
                           tuple(t.id for t in problem.tasks if t.id not in committed))
     return solve(problem, situation, params.objective, exact_limit=params.exact_limit,
-                 solutions=params.solutions, time_limit=params.time_limit, current=current)
+                 solutions=params.solutions, time_limit=params.time_limit,
+                 search_limit=params.search_limit, current=current)
 
 
 def main() -> None:

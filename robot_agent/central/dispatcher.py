@@ -378,6 +378,7 @@ class Dispatcher(Coordinator):
         situation = self.situation()
         outcome = solve(self.problem, situation, p.objective, exact_limit=p.exact_limit,
                         solutions=p.solutions, time_limit=p.time_limit,
+                        search_limit=p.search_limit,
                         current=self.plan if self.decisions else None)
         self.plan = self.by_priority(outcome.routes)
         self.version += 1

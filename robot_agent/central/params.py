@@ -36,6 +36,7 @@ PROGRESS_TIMEOUT = 10.0
 RESEND_PERIOD = 1.0
 EXACT_LIMIT = 8        # tasks still open up to which the dispatcher solves exactly
 SOLUTIONS = 200        # the routing search's deterministic budget above it
+SEARCH_LIMIT = 50      # open tasks up to which that search runs; above, cheapest insertion
 TIME_LIMIT = 10.0      # its safety cap (s): a search stopped by it is not reproducible
 
 
@@ -68,6 +69,7 @@ class DispatcherParams(Doc, kw_only=True):
     progress_timeout: Duration = PROGRESS_TIMEOUT
     exact_limit: whole(0, 10_000) = EXACT_LIMIT
     solutions: whole(1, 10_000) = SOLUTIONS
+    search_limit: whole(0, 100_000) = SEARCH_LIMIT
     time_limit: Duration = TIME_LIMIT
 
     def __post_init__(self) -> None:

@@ -26,6 +26,17 @@ missed, unless a later re-plan finds it a place), the current plan is extended o
 that keep every window (`insertion.windowed_places`), and of two plans the one that leaves
 fewer tasks out wins before its value counts (a plan serving fewer tasks travels less).
 
+**Many open tasks** (`search_limit`, 50 by default: a burst of tasks submitted at run time,
+a large instance). The routing search's deterministic budget (`solutions`) grows in cost with
+the tasks open — on a loaded 2-core machine ~1 CPU s at 30 tasks, 2 at 50, ~15 at 200 —, so
+above `search_limit` it would run into its time cap on every re-plan (and a capped search
+depends on the machine: lockstep gave a dispatcher searching 200 tasks up, and its runs could
+not be replayed). Above it the plan is the current plan kept, each task it does not hold
+inserted where it adds least (`keep`): deterministic, milliseconds for hundreds of tasks. It
+is the SSI-like greedy (Koenig et al. 2006's insertion heuristic) rather than a search: worse
+routes than the search would find, found in time. Once the open tasks fall to the limit,
+re-plans search again.
+
 **Capacities** (`max_tasks_per_robot`): a robot's residual capacity is its cap less its
 commitment. Tasks no available robot may serve (capability, capacity) are left out of the
 residual — unassigned until someone can take them.
@@ -36,14 +47,16 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
+from typing import Iterable, Mapping, Sequence
 
 from mrta_zenoh.planning import Problem, Robot
 from mrta_zenoh.planning.insertion import binding, drop_late, windowed_places
 from mrta_zenoh.planning.schedule import Objective, evaluate, route_visits
 
 EXACT, BEST_FOUND, KEPT = "exact", "best found", "kept"
-INSERTION = "insertion"  # the search found nothing within its time cap: cheapest insertion
+# cheapest insertion into the current plan: more open tasks than `search_limit`, or the search
+# found nothing within its time cap
+INSERTION = "insertion"
 TIE = 1e-9  # relative: a new plan must beat the current one by more than rounding
 
 
@@ -115,12 +128,12 @@ def _can(problem: Problem, robot: Robot, j: int) -> bool:
 
 
 def solve(problem: Problem, situation: Situation, objective: Objective, *, exact_limit: int,
-          solutions: int, time_limit: float,
+          solutions: int, time_limit: float, search_limit: int,
           current: Mapping[str, Sequence[str]] | None = None) -> Outcome:
     """The plan for `situation`: the best of a fresh solve and the current plan (kept unless
     beaten: module docstring)."""
     t0 = time.perf_counter()
-    capped = False
+    capped = inserted = False
     sub, robot_ids, task_ids, left = residual(problem, situation)
     if not task_ids:
         routes: dict[str, list[str]] = {r: [] for r in robot_ids}
@@ -129,6 +142,12 @@ def solve(problem: Problem, situation: Situation, objective: Objective, *, exact
         from mrta_zenoh.planning.exact import solve_exact
         routes = _named(solve_exact(sub, objective).routes, robot_ids, task_ids)
         method = EXACT
+    elif len(task_ids) > search_limit:
+        # more open tasks than the routing search takes (module docstring, "Many open
+        # tasks"): the current plan, each new task inserted where it adds least
+        routes = keep(problem, objective, situation, current or {}, task_ids) or {
+            r: [] for r in robot_ids}
+        method, inserted = INSERTION, True
     else:
         from mrta_zenoh.planning.routing import SearchTimeout, solve_routing
         try:
@@ -143,7 +162,7 @@ def solve(problem: Problem, situation: Situation, objective: Objective, *, exact
             method, capped = INSERTION, True
     routes = on_time(problem, situation, routes)
     value = full_value(problem, objective, situation.commitments, routes)
-    if current is not None and task_ids:
+    if current is not None and task_ids and not inserted:
         kept = keep(problem, objective, situation, current, task_ids)
         if kept is not None:
             old = full_value(problem, objective, situation.commitments, kept)
@@ -183,29 +202,39 @@ def keep(problem: Problem, objective: Objective, situation: Situation,
          ) -> dict[str, list[str]] | None:
     """The current plan on the tasks to plan: what is still open of each available robot's
     route, then each task it does not hold inserted where it adds least (None: that is not
-    possible — a task nobody may take there; under hard windows such a task is left out)."""
+    possible — a task nobody may take there; under hard windows such a task is left out).
+
+    A place is valued by the whole plan's objective (`full_value`), from each robot's share
+    (`Timing`) with only the trial's change computed — a burst of 200 tasks cost ~10⁶
+    evaluations of the whole plan (minutes) when each trial evaluated it; equal to
+    `full_value` but for rounding, which the TIE margin absorbs."""
     wanted = set(task_ids)
     routes = {r: [t for t in current.get(r, ()) if t in wanted] for r in situation.available}
     held = {t for route in routes.values() for t in route}
+    index = {rid: problem.robot_index(rid) for rid in {*situation.commitments, *routes}}
+    prefix = {rid: [problem.task_index(t) for t in situation.commitments.get(rid, ())]
+              for rid in index}
+    timing = {rid: Timing(problem, i, prefix[rid] + [problem.task_index(t)
+                                                     for t in routes.get(rid, ())])
+              for rid, i in index.items()}
     for task in task_ids:
         if task in held:
             continue
         best: tuple[float, str, int] | None = None
         j = problem.task_index(task)
         for rid in situation.available:
-            i = problem.robot_index(rid)
+            i = index[rid]
             cap = problem.robots[i].capacity
             if not problem.capable(i, j) or (cap is not None and len(
-                    situation.commitments.get(rid, ())) + len(routes[rid]) >= cap):
+                    prefix[rid]) + len(routes[rid]) >= cap):
                 continue
-            prefix = [problem.task_index(t) for t in situation.commitments.get(rid, ())]
-            places = windowed_places(problem, i, prefix + [problem.task_index(t)
-                                                           for t in routes[rid]], j)
+            places = windowed_places(problem, i, timing[rid].stops, j)
+            rest = _rest(objective, (t.share for r, t in timing.items() if r != rid))
             for place in range(len(routes[rid]) + 1):
-                if places is not None and len(prefix) + place not in places:
+                k = len(prefix[rid]) + place
+                if places is not None and k not in places:
                     continue
-                trial = {**routes, rid: routes[rid][:place] + [task] + routes[rid][place:]}
-                v = full_value(problem, objective, situation.commitments, trial)
+                v = _with(objective, rest, timing[rid].inserted(j, k))
                 if best is None or v < best[0] - TIE * max(1.0, abs(v)):
                     best = (v, rid, place)
         if best is None:
@@ -214,7 +243,74 @@ def keep(problem: Problem, objective: Objective, situation: Situation,
             return None
         _, rid, place = best
         routes[rid].insert(place, task)
+        stops = timing[rid].stops
+        k = len(prefix[rid]) + place
+        timing[rid] = Timing(problem, index[rid], stops[:k] + [j] + stops[k:])
     return routes
+
+
+class Timing:
+    """Robot i's stops (task indices, its commitment first), their timing as
+    schedule.route_visits has it, and its share of a plan's objectives (`share`: its travel,
+    the sum and the last of its completions), so that the share with one more stop is had in
+    O(1) (`inserted`) — unless a later stop waits (for its arrival or window), which may absorb
+    the delay: then the stops after the insertion are timed again."""
+
+    def __init__(self, problem: Problem, i: int, stops: Sequence[int]):
+        self.problem, self.i, self.stops = problem, i, list(stops)
+        now, at, travel, ends = problem.robots[i].ready, None, 0.0, 0.0
+        self.ends: list[float] = []      # each stop's completion
+        waits: list[bool] = []           # whether the robot waits to start it
+        for j in self.stops:
+            task = problem.tasks[j]
+            reach = now + problem.travel(i, at, j)
+            waits.append(task.opens > reach)
+            now = max(reach, task.opens) + task.service
+            travel, ends, at = travel + problem.travel(i, at, j), ends + now, j
+            self.ends.append(now)
+        self.share = (travel, ends, now if self.stops else 0.0)
+        # from each stop on, no stop waits (a delay there reaches every later completion)
+        self.free = [True] * (len(waits) + 1)
+        for k in range(len(waits) - 1, -1, -1):
+            self.free[k] = self.free[k + 1] and not waits[k]
+
+    def inserted(self, j: int, k: int) -> tuple[float, float, float]:
+        """The share with task j served before stop k (k = len(stops): last)."""
+        p, i, stops, ends = self.problem, self.i, self.stops, self.ends
+        travel, total, last = self.share
+        prev = stops[k - 1] if k else None
+        task = p.tasks[j]
+        leg = p.travel(i, prev, j)
+        done = max((ends[k - 1] if k else p.robots[i].ready) + leg, task.opens) + task.service
+        if k == len(stops):
+            return travel + leg, total + done, done
+        after = p.travel(i, j, stops[k])
+        travel += leg + after - p.travel(i, prev, stops[k])
+        nxt = p.tasks[stops[k]]
+        shifted = max(done + after, nxt.opens) + nxt.service
+        delay = shifted - ends[k]
+        if self.free[k + 1]:  # every later completion moves by `delay`
+            return travel, total + done + delay * (len(stops) - k), last + delay
+        now, at, total = shifted, stops[k], total + done - sum(ends[k:]) + shifted
+        for m in stops[k + 1:]:
+            later = p.tasks[m]
+            now = max(now + p.travel(i, at, m), later.opens) + later.service
+            total, at = total + now, m
+        return travel, total, now
+
+
+def _rest(objective: Objective, shares: Iterable[tuple[float, float, float]]) -> float:
+    """The other robots' part of a plan's objective, from their shares (`_share`)."""
+    column = 0 if objective is Objective.MINSUM else 2 if objective is Objective.MAKESPAN else 1
+    values = [s[column] for s in shares]
+    return max(values, default=0.0) if column == 2 else sum(values)
+
+
+def _with(objective: Objective, rest: float, share: tuple[float, float, float]) -> float:
+    """A plan's objective (schedule.Evaluation.value): the others' `rest` and one robot's share."""
+    if objective is Objective.MAKESPAN:
+        return max(rest, share[2])
+    return rest + (share[0] if objective is Objective.MINSUM else share[1])
 
 
 def ms(seconds: float) -> float:
