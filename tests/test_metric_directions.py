@@ -66,6 +66,24 @@ def test_optimality_only_against_a_proven_optimum_else_the_gap():
     assert "vs best found" in line and "gap -" in line and "optimality" not in line
 
 
+def test_an_instance_too_large_for_a_reference_is_still_summed_up(monkeypatch):
+    """A run with a burst of 1,000 submitted tasks ended with exit 2 and no summary: the
+    reference search found no route for 1,004 tasks. Beyond REFERENCE_LIMIT tasks none is
+    looked for, and one not found leaves its objective without a reference and a gap."""
+    from mrta_delivery import objectives
+
+    inst = PARAMS.problem()
+    log = [done("t1", "robot1", 1.0, 8.0), done("t2", "robot2", 1.0, 16.0),
+           done("t3", "robot4", 1.0, 12.0), done("t4", "robot5", 1.0, 14.0)]
+    monkeypatch.setattr(objectives, "REFERENCE_LIMIT", 3)
+    refs = references(inst)
+    assert {r["method"] for r in refs.values()} == {"none"} and "more than 3" in refs["minsum"]["why"]
+    m = objective_metrics(objective_section(inst, log, "minsum", refs))
+    assert m["reference_minsum"] is None and m["gap_minsum"] is None and m["optimality"] is None
+    assert "vs no reference;" in DELIVERY.describe(
+        {**m, "completed": 4, "tasks": 4, "makespan": 16.0})[0]
+
+
 def table(mission: str) -> ResultsTable:
     return ResultsTable(Path("results.csv"), ["mission", "t1.exactly_one"],
                         [{"mission": mission, "t1.exactly_one": "0.5"}], [2])

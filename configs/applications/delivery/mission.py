@@ -342,6 +342,8 @@ def against_reference(metrics: dict[str, Any], name: str) -> str:
     """The reference and how the run compares: its optimality against a proven optimum, else
     its gap to the best found (which a run can beat: no optimality; objectives.py)."""
     ref = metrics.get(f"reference_{name}")
+    if ref is None:  # its search stopped by its cap, found none, or not run (objectives.py)
+        return "no reference"
     if metrics.get("reference_method") == "exact":
         opt = metrics.get("optimality")
         return f"optimal {ref} (optimality {opt if opt is not None else '—'})"
