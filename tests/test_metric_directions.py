@@ -78,6 +78,9 @@ def test_an_instance_too_large_for_a_reference_is_still_summed_up(monkeypatch):
     monkeypatch.setattr(objectives, "REFERENCE_LIMIT", 3)
     refs = references(inst)
     assert {r["method"] for r in refs.values()} == {"none"} and "more than 3" in refs["minsum"]["why"]
+    import msgspec
+    from mrta_delivery.mission import ReferenceEntry
+    assert msgspec.convert(refs["minsum"], ReferenceEntry).value is None  # the summary's schema
     m = objective_metrics(objective_section(inst, log, "minsum", refs))
     assert m["reference_minsum"] is None and m["gap_minsum"] is None and m["optimality"] is None
     assert "vs no reference;" in DELIVERY.describe(

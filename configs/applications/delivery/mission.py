@@ -89,11 +89,12 @@ class AllocationEntry(_Section, omit_defaults=True):
 
 
 class ReferenceEntry(_Section):
-    value: float
+    value: float | None                 # None: none found, or none looked for (`why`)
     method: str
     proven_optimal: bool
     stopped_by_time_limit: bool
     routes: dict[str, list[str]]
+    why: str = ""
 
 
 class ObjectivesSection(_Section):
