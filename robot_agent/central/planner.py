@@ -128,10 +128,10 @@ def _can(problem: Problem, robot: Robot, j: int) -> bool:
 
 
 def solve(problem: Problem, situation: Situation, objective: Objective, *, exact_limit: int,
-          solutions: int, time_limit: float, search_limit: int,
+          solutions: int, time_limit: float, search_limit: int | None = None,
           current: Mapping[str, Sequence[str]] | None = None) -> Outcome:
     """The plan for `situation`: the best of a fresh solve and the current plan (kept unless
-    beaten: module docstring)."""
+    beaten: module docstring). `search_limit` None: the search whatever the open tasks."""
     t0 = time.perf_counter()
     capped = inserted = False
     sub, robot_ids, task_ids, left = residual(problem, situation)
@@ -142,7 +142,7 @@ def solve(problem: Problem, situation: Situation, objective: Objective, *, exact
         from mrta_zenoh.planning.exact import solve_exact
         routes = _named(solve_exact(sub, objective).routes, robot_ids, task_ids)
         method = EXACT
-    elif len(task_ids) > search_limit:
+    elif search_limit is not None and len(task_ids) > search_limit:
         # more open tasks than the routing search takes (module docstring, "Many open
         # tasks"): the current plan, each new task inserted where it adds least
         routes = keep(problem, objective, situation, current or {}, task_ids) or {
