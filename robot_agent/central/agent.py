@@ -12,7 +12,15 @@ order) and reports its progress.
   it is cut off from this robot, and may have given its tasks to others — the robot holds:
   it stands still and keeps its queue until it hears the dispatcher again. When the
   dispatcher's token goes (it crashed), the robot finishes its queue and stops: nothing tells
-  it otherwise any more.
+  it otherwise any more — unless teammates' tokens went with it (within `lease` of it) or
+  none is left: then it is this robot that is cut off (a real network cut ends its session, and
+  with it every token across the cut), the dispatcher took it for crashed and is granting its
+  tasks to others, and the robot holds until it hears its dispatcher again (issue 51: under a
+  real TCP cut both sides saw a crash, and the robot finished its queue while its teammates
+  served the same tasks). The price: a dispatcher crash within `lease` of a teammate's crash
+  looks the same, and the robot holds for good (nobody would plan its tasks anyway). A robot
+  that never saw a teammate (a one-robot fleet) cannot tell, and finishes its queue: nobody
+  else could serve it.
 * **Reports.** A `Progress` at every change (a queue applied, a task set off to, served or left)
   and every `report_period`; and, every `report_period`, one `Queued` per task of its queue
   for the supervisor.
@@ -54,6 +62,12 @@ class CentralCoordinator(Coordinator):
         self.pending: Queue | None = None     # the newest queue heard, applied at the next tick
         self.held: tuple[int, float] | None = None  # a version far ahead, and when first heard
         self.dispatcher_alive = False
+        self.dispatcher_seen = False          # its token was ever seen
+        self.teammates: set[str] = set()      # robots of the team whose token lives
+        self.team_seen = False                # a teammate's token was ever seen
+        self.cut_off = False                  # since the dispatcher's token went (module doc)
+        self._went: dict[str, float | None] = {}  # "dispatcher", "teammate": when a token went
+        self._gone_told = True
         self.last_word: float | None = None   # when the dispatcher's last queue was heard
         self.holding = False
         self._active: str | None = None
@@ -71,9 +85,34 @@ class CentralCoordinator(Coordinator):
     def teammate(self, robot: str, alive: bool) -> None:
         if robot == self.dispatcher:
             self.dispatcher_alive = alive
-            if not alive:
-                log.warning("%s: the dispatcher is gone: finishing my queue (%s)", self.robot_id,
-                            ", ".join(self.route.queue) or "empty")
+            self.dispatcher_seen |= alive
+            self._gone_told = alive  # told at the next tick, once the team's tokens are known
+            if alive:
+                self.cut_off = False
+                self._went.pop("dispatcher", None)
+            else:
+                self._went["dispatcher"] = None  # when: the next tick's time
+        elif alive:
+            self.teammates.add(robot)
+            self.team_seen = True
+        else:
+            self.teammates.discard(robot)
+            self._went["teammate"] = None
+
+    def _cut_off(self, now: float) -> bool:
+        """Whether this robot is the one cut off (module docstring, Lease): the dispatcher's
+        token went and no teammate's is left, or one went within `lease` of it. Once so, until
+        the dispatcher's token comes back."""
+        for what, when in self._went.items():
+            if when is None:
+                self._went[what] = now
+        gone = self._went.get("dispatcher")
+        if self.cut_off or gone is None or not self.dispatcher_seen:
+            return self.cut_off
+        team = self._went.get("teammate")
+        self.cut_off = self.team_seen and (not self.teammates or team is not None and abs(
+            team - gone) <= self.params.lease + EPSILON)
+        return self.cut_off
 
     def hear(self, kind: str, sender: str, message, at: float) -> bool:
         if sender != self.dispatcher or not isinstance(message, Queue) \
@@ -110,12 +149,18 @@ class CentralCoordinator(Coordinator):
             log.info("%s: %s %s %s", self.robot_id, change.kind.replace("_", " "), change.task,
                      at(now))
             changed = True
-        holding = (self.dispatcher_alive and self.last_word is not None
-                   and now - self.last_word > self.params.lease + EPSILON)
+        cut_off = self._cut_off(now)
+        if not self._gone_told and not cut_off:
+            self._gone_told = True
+            log.warning("%s: the dispatcher is gone: finishing my queue (%s)", self.robot_id,
+                        ", ".join(self.route.queue) or "empty")
+        holding = cut_off or (self.dispatcher_alive and self.last_word is not None
+                              and now - self.last_word > self.params.lease + EPSILON)
         if holding != self.holding:
             self.holding = holding
-            log.warning("%s: %s %s", self.robot_id, "the dispatcher is silent: holding"
-                        if holding else "the dispatcher is back", at(now))
+            log.warning("%s: %s %s", self.robot_id, "the dispatcher is back" if not holding
+                        else "cut off (the dispatcher's token went with teammates'): holding"
+                        if cut_off else "the dispatcher is silent: holding", at(now))
         self._active = None if holding else self.route.active(now, self.readings)
         return self._report(now, changed)
 

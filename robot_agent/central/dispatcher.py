@@ -160,6 +160,9 @@ class Dispatcher(Coordinator):
         view.alive = alive
         if alive:
             view.joined = None  # set at the next tick (the driver tells at a tick's start)
+            # its silence counts from its return, not from its last report before it went (a
+            # robot back from a real network cut was declared silent at once)
+            view.heard = None
             if view.lost == CRASHED:
                 view.lost = None
                 self._triggers.append("return")
