@@ -21,7 +21,7 @@ import threading
 from abc import ABC, abstractmethod
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, ClassVar, Sequence
+from typing import Callable, ClassVar, Iterable, Sequence
 
 from .clock import EPSILON
 from .errors import ConfigError
@@ -70,6 +70,15 @@ class Decision:
     # the robots the decider had left out of its plan then, and why ((robot, "stalled"), …):
     # what it declared (a stall, a silence) is in the summary, from when until when
     out: tuple[tuple[str, str], ...] = ()
+    # False: no decision of its own (a repeat, a Round that awards nothing, a resent table),
+    # read only for what it says of who is left out (`out`)
+    counted: bool = True
+
+
+def declared_out(out: Iterable[str]) -> tuple[tuple[str, str], ...]:
+    """`Decision.out` from a message's `robot:reason` strings (central's `Plan.out`, SSI's
+    `Round.out`, CBBA's `Bids.out`); a string without a reason is no statement, and skipped."""
+    return tuple(tuple(o.split(":", 1)) for o in out if ":" in o)  # type: ignore[misc]
 
 
 @dataclass(frozen=True)

@@ -167,7 +167,8 @@ def test_a_bids_after_a_change_carries_its_decisions_cost_and_a_resend_none():
     sent = Bids(header=Header("r1", 0.0, 1), **first)
     d = CBBA.decision("r1", "r1/cbba/bids", sent)
     assert d is not None and d.ms == first["ms"] and d.decider == "r1"
-    assert CBBA.decision("r1", "r1/cbba/bids", Bids(header=Header("r1", 1.5, 2), **again)) is None
+    resent = CBBA.decision("r1", "r1/cbba/bids", Bids(header=Header("r1", 1.5, 2), **again))
+    assert not resent.counted  # read only for whom it counts out (Bids.out)
     # what a run's summary counts from the recording (supervisor/ground_truth.decisions)
     from mrta_supervisor.mission.ground_truth import decisions
     from mrta_zenoh.codec import encode

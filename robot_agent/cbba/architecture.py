@@ -13,7 +13,7 @@ whoever wins one serves it in its path's order (docs/cbba.md, "In execution").
 
 from __future__ import annotations
 
-from mrta_zenoh.architectures import Decision, Takeover, TakeoverBound
+from mrta_zenoh.architectures import Decision, Takeover, TakeoverBound, declared_out
 
 from ..runtime.architecture import Prepared
 from ..route.messages import Progress, Queued
@@ -43,10 +43,12 @@ class CbbaArchitecture(OwnRouteArchitecture):
 
     def decision(self, sender: str, key: str, message: object) -> Decision | None:
         """A Bids that follows a change of its sender's table: one decision, by that robot,
-        taking `Bids.ms` (its bundle work since its previous Bids, wall time)."""
-        if not isinstance(message, Bids) or message.ms <= 0.0:
+        taking `Bids.ms` (its bundle work since its previous Bids, wall time); every Bids says
+        whom its sender counts out (`Bids.out`, a stall), counted as a decision or not."""
+        if not isinstance(message, Bids):
             return None
-        return Decision(sender, message.header.stamp, message.ms, self.objective)
+        return Decision(sender, message.header.stamp, message.ms, self.objective,
+                        counted=message.ms > 0.0, out=declared_out(message.out))
 
     def has_subkeys(self, kind: str) -> bool:
         """Each queued task of a robot under its own key (`robot1/cbba/queued/t3`)."""

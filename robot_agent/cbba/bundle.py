@@ -130,6 +130,7 @@ class Cbba(RouteLogic):
         self.latest: dict[int, float] = {}  # sender → stamp of its latest message applied
         self.changed = True  # something to tell: the first tick always speaks
         self.last_sent = -math.inf
+        self.out_said: tuple[str, ...] = ()  # who its last Bids said it counts out
         self._levels: Levels | None = None  # `_scores`
         self._still: tuple | None = None  # `_inputs` on which a tick's pass changed nothing
         self._least: tuple[tuple[Task, ...], float] | None = None  # `_least_reward`
@@ -316,19 +317,20 @@ class Cbba(RouteLogic):
             # ticks skip it until something it reads changes (most ticks of a settled team)
             self._still = before if self._inputs(candidates) == before else None
         self._work += time.perf_counter() - started
-        if not self.changed and now - self.last_sent < self.resend_period:
+        out = self.out()
+        if not self.changed and out == self.out_said and now - self.last_sent < self.resend_period:
             return []
         # a decision: the table changed since the last Bids (a resend of it is none)
         ms = round(self._work * 1000.0, 3) if self.changed else 0.0
         self._work = 0.0
-        self.changed, self.last_sent = False, now
+        self.changed, self.last_sent, self.out_said = False, now, out
         self.stamps[self.i] = now
         winners = tuple((j, w, self.y[j]) for j, w in enumerate(self.z)
                         if w != NONE and j not in self.done)
         stamps = tuple(sorted((m, t) for m, t in self.stamps.items() if m not in self.departed))
         x, y = self.position
         return [Say("bids", dict(winners=winners, stamps=stamps, done=tuple(sorted(self.done)),
-                                 x=x, y=y, ms=ms))]
+                                 x=x, y=y, ms=ms, out=out))]
 
     def _inputs(self, candidates: list[int]) -> tuple:
         """Everything release, re-check and build read (the levels stand for the problem, the

@@ -31,6 +31,9 @@ class Bids(IndexedMessage):
     # wall ms this robot spent on its bundle (release, re-check, build) since its last Bids,
     # when its table changed (its decision); 0 on a resend of an unchanged table
     ms: Finite = 0.0
+    # the teammates it counts out while their token lives, and why (`robot3:stalled`): what the
+    # summary's declared stalls are read from (own_route.RouteLogic.declared)
+    out: tuple[str, ...] = ()
 
 
 MESSAGES = {"bids": Bids}

@@ -14,7 +14,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from mrta_zenoh.architectures import Decision, Takeover, TakeoverBound
+from mrta_zenoh.architectures import Decision, Takeover, TakeoverBound, declared_out
 from mrta_zenoh.bus import Bus
 from mrta_zenoh.clock import Clock
 
@@ -80,7 +80,7 @@ class Central(RouteArchitecture):
             return None
         return Decision(sender, message.header.stamp, message.solve_ms, message.objective,
                         capped=message.capped,
-                        out=tuple(tuple(o.split(":", 1)) for o in message.out if ":" in o))
+                        out=declared_out(message.out))
 
     def takeover_bound(self, robot_params: Path, task: str) -> float:
         """How soon a lost robot's task is in another robot's queue: the dispatcher's next tick

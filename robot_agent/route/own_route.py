@@ -18,9 +18,14 @@ Rules, each for a reason:
 * **A stalled teammate is a departed one.** A teammate whose `Progress` reports show a task but
   neither motion, nor a task served, nor a change of task for `progress_timeout` seconds is
   told to the logic as gone (`teammate(robot, False)`), exactly as if its token went: its tasks
-  are auctioned again (SSI) or its wins reset (CBBA). When it progresses again (or its token
-  comes back after going) it is told as back. A stalled robot keeps talking, but its teammates
-  no longer count what it says.
+  are auctioned again (SSI) or its wins reset (CBBA). When it is seen to move again (or its
+  token comes back after going) it is told as back — moved, not merely changed task: a robot
+  stripped of its tasks changes task without moving, and was told back at once, won tasks
+  again and stalled on them again, one `progress_timeout` after another (as central's
+  dispatcher rules, issue 51.2). A stalled robot keeps talking, but its teammates
+  no longer count what it says. The logic knows which of its gone teammates are stalled
+  (`RouteLogic.declared`), and says so in its messages (SSI's `Round.out`, CBBA's `Bids.out`):
+  what the summary's declared stalls are read from (issue 51.2: only central's were named).
 * **Reports.** A `Progress` at every change and every `report_period` (what the supervisor's
   busy/idle view and the teammates' stall watch read), and, every `report_period`, one `Queued`
   per task of its queue (monitoring only).
@@ -31,7 +36,8 @@ from __future__ import annotations
 import collections
 import logging
 import math
-from typing import ClassVar, Iterable
+from types import MappingProxyType
+from typing import ClassVar, Iterable, Mapping
 
 from mrta_zenoh.clock import EPSILON
 from mrta_zenoh.timetext import at
@@ -50,11 +56,14 @@ class Watch:
         self.state: tuple | None = None
         self.pose: tuple[float, float] | None = None
         self.progress_at: float | None = None
+        self.moved_at: float | None = None  # when its pose last moved (not its first report)
         self.busy = False
 
     def heard(self, msg: Progress, at_: float) -> None:
         state = (msg.task, tuple(msg.served))
         moved = self.pose is None or math.dist(self.pose, (msg.x, msg.y)) > MOVED
+        if moved and self.pose is not None:
+            self.moved_at = at_
         if state != self.state or moved:
             self.state, self.pose = state, (msg.x, msg.y)
             self.progress_at = at_
@@ -69,6 +78,14 @@ class RouteLogic(Coordinator):
     `served(task, at)`, this robot finished one."""
 
     HOOKS: ClassVar[tuple[str, ...]] = Coordinator.HOOKS + ("route", "served")
+    # teammate → why it is counted out while its token lives ("stalled"), as its coordinator
+    # declared it (OwnRouteCoordinator, which gives the logic a dict of its own; none alone)
+    declared: Mapping[str, str] = MappingProxyType({})
+
+    def out(self) -> tuple[str, ...]:
+        """Who this robot counts out while their token lives, and why (`robot:reason`), as its
+        messages say it: what the summary's declared stretches are read from."""
+        return tuple(f"{r}:{why}" for r, why in sorted(self.declared.items()))
 
     def route(self) -> list[str]:
         return []
@@ -93,6 +110,9 @@ class OwnRouteCoordinator(Coordinator):
         self.tokens: dict[str, bool] = {}      # teammate → its token lives
         self.watch: dict[str, Watch] = {}      # teammate → its progress
         self.told: dict[str, bool] = {}        # teammate → alive, as last told to the logic
+        self.declared: dict[str, str] = {}     # teammate → "stalled" (RouteLogic.declared)
+        self.declared_at: dict[str, float] = {}  # … since when
+        self.logic.declared = self.declared
         self._active: str | None = None
         self._reported: tuple | None = None
         self._report_at: float | None = None
@@ -117,14 +137,26 @@ class OwnRouteCoordinator(Coordinator):
         self._tell(robot)
 
     def _tell(self, robot: str, now: float | None = None) -> None:
-        alive = self.tokens.get(robot, False) and not self._stalled(robot, now)
+        token = self.tokens.get(robot, False)
+        stalled = token and now is not None and self._stalled(robot, now)
+        alive = token and not stalled
         if self.told.get(robot) != alive:
             self.told[robot] = alive
+            if stalled and now is not None:
+                self.declared[robot], self.declared_at[robot] = "stalled", now
+            else:
+                self.declared.pop(robot, None)
+                self.declared_at.pop(robot, None)
             self.logic.teammate(robot, alive)
 
-    def _stalled(self, robot: str, now: float | None) -> bool:
+    def _stalled(self, robot: str, now: float) -> bool:
         w = self.watch.get(robot)
-        return (now is not None and w is not None and w.busy and w.progress_at is not None
+        if w is None:
+            return False
+        since = self.declared_at.get(robot)
+        if since is not None:  # declared: until it is seen to move (module docstring)
+            return w.moved_at is None or w.moved_at <= since
+        return (w.busy and w.progress_at is not None
                 and now - w.progress_at > self.progress_timeout + EPSILON)
 
     def hear(self, kind: str, sender: str, message, at_: float) -> bool:

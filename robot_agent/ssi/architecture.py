@@ -11,7 +11,7 @@ serves it in its path's order, which the auction chooses (docs/ssi.md, "In execu
 
 from __future__ import annotations
 
-from mrta_zenoh.architectures import Decision, Takeover, TakeoverBound
+from mrta_zenoh.architectures import Decision, Takeover, TakeoverBound, declared_out
 
 from ..runtime.architecture import Prepared
 from ..route.messages import Progress, Queued
@@ -53,11 +53,14 @@ class SsiArchitecture(OwnRouteArchitecture):
     def decision(self, sender: str, key: str, message: object) -> Decision | None:
         """A Round that carries an award: one decision, by the auctioneer that sent it, taking
         `Round.ms` (its slowest bid and the winner determination, wall time); a Round repeated
-        until every robot answered it is the same decision (its round number names it)."""
-        if not isinstance(message, Round) or message.award < 0:
+        until every robot answered it is the same decision (its round number names it). Every
+        Round says whom the auctioneer leaves out (`Round.out`: a stall, a silence), counted
+        as a decision or not."""
+        if not isinstance(message, Round):
             return None
         return Decision(sender, message.header.stamp, message.ms, self.objective,
-                        ident=message.round)
+                        ident=message.round, counted=message.award >= 0,
+                        out=declared_out(message.out))
 
     def takeover_check(self, t: Takeover) -> TakeoverBound:
         return TakeoverBound(None, t.failed_at, case=(

@@ -143,6 +143,7 @@ class Ssi(RouteLogic):
         self.answered: dict[int, float] = {}
         self.asked_at = -math.inf
         self.silent: dict[int, float] = {}  # robot → since when the rounds leave it out
+        self.out_said: tuple[str, ...] = ()  # who the last Round said it leaves out (`out`)
         self.refused: collections.Counter[tuple[str, str, str, bool]] = collections.Counter()
         # tasks submitted at run time (tasks_added): their indices follow the instance's; a
         # task's priority (higher first: `best_bid`, the award) — the instance's are all 0
@@ -372,6 +373,7 @@ class Ssi(RouteLogic):
                 owners[j], acked = DONE, True
         self.reported = set()
         self._judge_silence(now)
+        out = self.out()
         present = self.alive - set(self.silent)
         for j, task in enumerate(self.problem.tasks):
             if owners[j] == UNKNOWN and task.arrival <= now + self.lookahead:
@@ -401,14 +403,23 @@ class Ssi(RouteLogic):
             self.asked_at = now
         elif acked:
             self._adopt(self.i, self.round, owners, -1, 0.0)
-        elif not ((missing or self.lagging) and now - self.last_round >= self.resend_period):
+        elif not (out != self.out_said or (missing or self.lagging)
+                  and now - self.last_round >= self.resend_period):
             return []
         self.lagging = False
-        self.last_round = now
+        self.last_round, self.out_said = now, out
         last = self.awards[-1] if self.awards and self.awards[-1].round == self.round else None
         return [Say("round", dict(round=self.round, owners=tuple(self.owners),
                                   award=last.task if last else -1,
-                                  cost=last.cost if last else 0.0, ms=last.ms if last else 0.0))]
+                                  cost=last.cost if last else 0.0, ms=last.ms if last else 0.0,
+                                  out=out))]
+
+    def out(self) -> tuple[str, ...]:
+        """Who the rounds leave out while their token lives: the stalled (RouteLogic.declared)
+        and the silent (module docstring, "A robot that does not answer")."""
+        why = dict(self.declared)
+        why.update({self.problem.robots[k].id: "silent" for k in self.silent})
+        return tuple(f"{r}:{w}" for r, w in sorted(why.items()))
 
     def _bid(self, now: float) -> list[Say]:
         """The answer to each Round heard from the auctioneer — a bid, or task −1 when nothing

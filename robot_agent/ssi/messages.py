@@ -20,7 +20,9 @@ class Round(IndexedMessage):
     """`owners[j]`: the index of the robot task j was awarded to, or OPEN (to bid on), UNKNOWN
     (not arrived yet) or DONE (served); `award`: the task this round's opening awarded (its
     winner is its owner; −1: none), `cost` its winning bid and `ms` the computation time of
-    that award (the slowest bid of the round and the winner determination, auction.Ssi)."""
+    that award (the slowest bid of the round and the winner determination, auction.Ssi);
+    `out`: the robots the auctioneer leaves out while their token lives, and why
+    (`robot3:stalled`, `robot3:silent`) — what the summary's declared stalls are read from."""
 
     header: Header
     round: int
@@ -28,6 +30,7 @@ class Round(IndexedMessage):
     award: int
     cost: Finite
     ms: Finite = 0.0
+    out: tuple[str, ...] = ()
 
 
 @message("ssi_msgs/Bid")

@@ -18,6 +18,7 @@ it was on.
 
 from __future__ import annotations
 
+import dataclasses
 import statistics
 from dataclasses import dataclass, field
 from typing import Iterable
@@ -210,15 +211,16 @@ def decisions(records, arch: Architecture, end: float) -> Decisions | None:
         if d is None or d.stamp > end + EPSILON:
             continue
         if d.ident is not None:
-            if (d.decider, d.ident) in seen:
-                continue
+            if (d.decider, d.ident) in seen:  # a repeat: read for who it leaves out only
+                d = dataclasses.replace(d, counted=False)
             seen.add((d.decider, d.ident))
         found.append(d)
-    times = sorted(d.ms for d in found)
-    objectives = sorted({d.objective for d in found if d.objective})
-    return Decisions(len(found), round(statistics.median(times), 3) if times else None,
+    made = [d for d in found if d.counted]
+    times = sorted(d.ms for d in made)
+    objectives = sorted({d.objective for d in made if d.objective})
+    return Decisions(len(made), round(statistics.median(times), 3) if times else None,
                      round(times[-1], 3) if times else None, ", ".join(objectives) or None,
-                     sum(1 for d in found if d.capped), declared(found))
+                     sum(1 for d in made if d.capped), declared(found))
 
 
 def declared(found: list[Decision]) -> list[Declared]:
