@@ -85,9 +85,17 @@ from ..live.view import render
 @click.option("--plots/--no-plots", default=True, show_default=True,
               help="Draw the run's pictures (world, timeline, the architecture's plots); "
                    "the recording and summary.json are written either way.")
+@click.option("--secure", type=click.Path(file_okay=False, exists=True, path_type=Path),
+              default=None, metavar="FLEET",
+              help="Run on the secured fleet `mrta secure init FLEET …` wrote: its router, "
+                   "each process with its own certificate (docs/security.md).")
 def demo(live: bool | None, **kwargs) -> None:
     """A mission end to end: simulator, agents and supervisor, then a summary."""
     options = MissionOptions(**kwargs)
+    if options.secure is not None and (options.rendezvous is not None
+                                       or options.agents_per_process > 1):
+        raise click.UsageError("--secure runs on the fleet's router, each robot its own "
+                               "process: not with --rendezvous or --agents-per-process")
     console = make_console()
     quiet = verbosity()
     show_live = console.is_terminal if live is None else live

@@ -138,6 +138,9 @@ class MissionOptions:
     # else reaches the run); an endpoint, that one, so other terminals' `mrta supervise`,
     # `mrta view`, `mrta echo` and `mrta task` reach the running mission
     rendezvous: str | None = None
+    # a secured fleet's folder (`mrta secure init`): every process joins its router with its
+    # own certificate (secured.py); None: the open bus
+    secure: Path | None = None
 
 
 def instance_folder(options: MissionOptions) -> Path:

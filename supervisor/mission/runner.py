@@ -26,7 +26,6 @@ import math
 import os
 import shlex
 import signal
-import socket
 import threading
 import time
 from pathlib import Path
@@ -36,7 +35,7 @@ from mrta_zenoh import instances, lifecycle
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.bus.options import private_rendezvous
 from mrta_zenoh.clock import SimClock
-from mrta_zenoh.errors import ConfigError, Interrupted, MrtaRuntimeError
+from mrta_zenoh.errors import ConfigError, Interrupted
 from mrta_zenoh.failure import FAULTS_ENV, RETIRED_CRASH_ENV, Failure, fault_env
 from mrta_zenoh.identity import OBSERVER
 from mrta_zenoh.lockstep.protocol import DEFAULT_TIMEOUT
@@ -52,7 +51,7 @@ from mrta_zenoh.toolchain.runner import start_nodes
 from ..live.api import Refresh, attach
 from ..live.entities import Serving
 from ..live.state import Supervisor
-from . import roles
+from . import roles, secured
 from .analysis import analyse, folder_state
 from .hosting import host_nodes, hosted_crash
 from .hook import MissionOptions, MissionRun, instance_folder, resolve
@@ -174,8 +173,14 @@ def _run_in(run: MissionRun, reg: Registry,
     rendezvous = options.rendezvous or private_rendezvous()
     routed = len(run.robots) >= ROUTER_FROM
     client = ["--mode", "client", "--connect", rendezvous] if routed else []
+    # a secured fleet (--secure): every process a client of the fleet's router, each with its
+    # own certificate (secured.py)
+    fleet = None if options.secure is None else secured.fleet(
+        options.secure, run.robots, run.arch.processes, intake_path(run) is not None)
     for n in nodes:
-        n.args = [*n.args, *client]
+        n.args = [*n.args, *(client if fleet is None else fleet.args(
+            secured.SIMULATOR if n.required else n.name if n.name in run.arch.processes
+            else n.name.split("/")[0]))]
     # every process of the run: the run's seed and exactly the run's faults (none inherited
     # from this process's own environment), which each injects at its simulated time
     env = {k: v for k, v in os.environ.items() if k not in (FAULTS_ENV, RETIRED_CRASH_ENV)}
@@ -187,13 +192,15 @@ def _run_in(run: MissionRun, reg: Registry,
     failure = faults.primary
     failed_at: float | None = None
     t_wall0 = time.monotonic()
-    # where the run's bus is: for `mrta echo --connect`, a debugger, a test's forger
-    log.info("the run's processes meet at %s", rendezvous)
     with ProcessGroup(env) as hub, \
-            Node(_meeting(hub, rendezvous, routed), OBSERVER, time=NodeTime.SIM,
+            Node(_meeting(hub, rendezvous, routed, fleet), OBSERVER, time=NodeTime.SIM,
                  stop=stop) as node, \
             ProcessGroup(env) as group, contextlib.ExitStack() as live:
         bus, clock, stop = node.bus, node.clock, node.stop
+        # where the run's bus is, once it is up: for `mrta echo --connect`, a debugger, a
+        # test's forger
+        log.info("the run's processes meet at %s", rendezvous if fleet is None
+                 else f"{fleet.endpoint} (the secured fleet's router)")
         ready = live.enter_context(Readiness(bus, run.robots))
         intake_up = threading.Event()
         live.enter_context(bus.watch_liveliness(INTAKE_TOKEN, lambda _k, alive: alive
@@ -203,12 +210,13 @@ def _run_in(run: MissionRun, reg: Registry,
         # the recording: the bus, the scene and the supervisor's channels, readable by Foxglove;
         # with a Foxglove port the same channels are also served live
         view = ["view", run.package.name, "--sim-time", "--output", output / "run.mcap",
-                *client]
+                *(client if fleet is None else fleet.args(secured.RECORDER))]
         view += (["--port", str(options.foxglove_port)] if options.foxglove_port is not None
                  else ["--no-server"])
         recorder = group.start(mrta_argv(*view), name="record")
         ready.wait(ready.recorder.is_set, "the recorder", group, stop)
-        intake = _start_intake(run, group, client)
+        intake = _start_intake(run, group, client if fleet is None
+                               else fleet.args(secured.INTAKE))
         if intake is not None:  # up before any robot: every change enters at a step boundary
             ready.wait(lambda: intake_up.is_set(), "the task intake", group, stop)
         sup = Supervisor(run.arch_model, run.app, 0.0, unattended_after=30.0,
@@ -298,6 +306,18 @@ def _start_intake(run: MissionRun, group: ProcessGroup, client: list[str]) -> Ch
     """The run's task intake (`mrta task serve`, a lockstep participant: mrta_zenoh.tasks) when
     the run takes tasks at run time: it is reachable (`--rendezvous`) or its instance schedules
     changes (a run repeated from its summary). None otherwise: every other run is as before."""
+    path = intake_path(run)
+    if path is None:
+        return None
+    closed = run.arch.submitted_refusal()
+    return group.start(mrta_argv("task", "serve", "--instance", str(path), "--sim-time",
+                                 *(("--closed", closed) if closed else ()), *client),
+                       name=INTAKE)
+
+
+def intake_path(run: MissionRun) -> Path | None:
+    """The instance a task intake serves, when the run takes tasks at run time (_start_intake);
+    None when it does not."""
     options = run.options
     path = options.instance or run.mission.instance_file(run)
     if path is None:
@@ -306,10 +326,7 @@ def _start_intake(run: MissionRun, group: ProcessGroup, client: list[str]) -> Ch
         loaded = instances.load(path)
         if not loaded.kind.schedule(loaded.doc):
             return None
-    closed = run.arch.submitted_refusal()
-    return group.start(mrta_argv("task", "serve", "--instance", str(path), "--sim-time",
-                                 *(("--closed", closed) if closed else ()), *client),
-                       name=INTAKE)
+    return path
 
 
 AGENTS_UP = "agents up"  # the start-up line's mark
@@ -322,26 +339,18 @@ AGENTS_UP = "agents up"  # the start-up line's mark
 ROUTER_FROM = 20
 
 
-def _meeting(hub: ProcessGroup, rendezvous: str, routed: bool) -> BusOptions:
+def _meeting(hub: ProcessGroup, rendezvous: str, routed: bool,
+             fleet: secured.Fleet | None = None) -> BusOptions:
     """The supervisor's bus options: the run's peer mesh, or (`routed`) a client of the run's
-    router, started in `hub` and up once its endpoint accepts connections."""
+    router, started in `hub` and up once its endpoint accepts connections — or, on a secured
+    `fleet`, a client of the fleet's router under the supervisor's certificate."""
+    if fleet is not None:
+        fleet.start_router(hub)
+        return fleet.bus(secured.SUPERVISOR)
     if not routed:
         return BusOptions(rendezvous=rendezvous)
-    router = hub.start(mrta_argv("router"), name="router", merge_stderr=True)
-    host, port = rendezvous.split("/", 1)[1].rsplit(":", 1)
-    deadline = time.monotonic() + READY_ROUTER
-    while True:
-        try:
-            socket.create_connection((host, int(port)), timeout=1).close()
-            return BusOptions(mode="client", connect=[rendezvous])
-        except OSError:
-            if not router.running() or time.monotonic() > deadline:
-                raise MrtaRuntimeError(f"the run's router did not come up:\n{router.tail()}") \
-                    from None
-            time.sleep(0.05)
-
-
-READY_ROUTER = 60.0  # wall s for the run's router to accept connections
+    secured.start_router(hub, [], rendezvous, "the run's router")  # on $MRTA_RENDEZVOUS
+    return BusOptions(mode="client", connect=[rendezvous])
 
 
 def check_end(nodes: list[NodeSpec], launch: Path) -> None:

@@ -3,15 +3,19 @@ zenoh-python and msgpack (no mrta code on the send path), once, what the hostile
 the demo's keys — copied from a real message of the run, so that its header (sender, stamp) is
 plausible.
 
-argv: MODE ARG RENDEZVOUS (the run's, which this session connects to)
+argv: MODE ARG BUS — the run's rendezvous, which this session connects to, or on a secured
+fleet a certified robot's config (FLEET/robot2.json5: it forges under its own key)
   central-served  TASKS   a `Progress` of robot2's saying every task of TASKS (comma-separated)
                           served (it crashed the dispatcher)
   ssi-round       -       a `Round` of robot1's (the auctioneer) numbered 2^62
+  ssi-served      N       a `Bid` of robot2's to the auctioneer saying every task of 0…N-1
+                          served (the auctioneer believed it: 0/4 delivered)
   cbba-done       N       a `Bids` of robot2's saying every task of 0…N-1 it has not won done
                           (what it won, robot2 may say it served: docs/security.md), copied
                           from its latest and stamped 5 s after the run's clock (in lockstep it then counts
                           at that time, after everything its sender said before: not
                           superseded)
+  cbba-done-all   N       the same, every task of 0…N-1 done (what it won too)
   delivery-done   ROBOT   four `TaskEvent done` in ROBOT's name, one per task of the default
                           instance (t1…t4), stamped at the run's clock (the robot never moved:
                           they ended the run at 3.3 s "every task done", delivered 0/4)
@@ -21,6 +25,7 @@ import json
 import sys
 import threading
 import time
+from pathlib import Path
 
 import msgpack
 import zenoh
@@ -28,12 +33,15 @@ import zenoh
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.bus.zenoh_bus import open_session
 
-mode, arg, rendezvous = sys.argv[1], sys.argv[2], sys.argv[3]
-session = open_session(BusOptions(connect=[rendezvous]))
+mode, arg, bus = sys.argv[1], sys.argv[2], sys.argv[3]
+session = open_session(BusOptions(zenoh_config=Path(bus)) if bus.endswith(".json5")
+                       else BusOptions(connect=[bus]))
 ENC = "application/msgpack;"
 SOURCES = {"central-served": ("robot2/central/progress", "route_msgs/Progress"),
            "ssi-round": ("robot1/ssi/round", "ssi_msgs/Round"),
+           "ssi-served": ("robot2/ssi/bid/*", "ssi_msgs/Bid"),
            "cbba-done": ("robot2/cbba/bids", "cbba_msgs/Bids"),
+           "cbba-done-all": ("robot2/cbba/bids", "cbba_msgs/Bids"),
            "delivery-done": ("clock", "")}
 key, type_name = SOURCES[mode]
 if mode == "delivery-done":  # nothing to copy: said once the run's clock has gone 2 s
@@ -44,9 +52,11 @@ heard = threading.Event()
 
 def on_sample(sample) -> None:
     real.append(msgpack.unpackb(sample.payload.to_bytes()))
+    keys.append(str(sample.key_expr))
     heard.set()
 
 
+keys: list[str] = []
 now = [0.0]
 
 
@@ -72,17 +82,20 @@ if mode == "delivery-done":
     time.sleep(1.0)
     session.close()
     sys.exit(0)
-msg = dict(real[0] if mode != "cbba-done" else real[-1])
+msg = dict(real[0] if not mode.startswith("cbba-done") else real[-1])
 msg["header"] = {**msg["header"], "seq": msg["header"]["seq"] + 1000}
 if mode == "central-served":
     msg["served"] = arg.split(",")
+elif mode == "ssi-served":
+    msg["served"] = list(range(int(arg)))
+    key = keys[0]  # robot2/ssi/bid/<its auctioneer>
 elif mode == "ssi-round":
     msg["round"] = 2 ** 62
     msg["owners"] = [-1] * len(msg["owners"])
     msg["award"] = -1
 else:
     won = {j for j, w, _ in msg["winners"] if w == 1}  # robot2 is robot index 1
-    msg["done"] = [j for j in range(int(arg)) if j not in won]
+    msg["done"] = [j for j in range(int(arg)) if j not in won or mode == "cbba-done-all"]
     msg["header"]["stamp"] = max(msg["header"]["stamp"], now[0]) + 5.0
 pub = session.declare_publisher(key, congestion_control=zenoh.CongestionControl.BLOCK)
 time.sleep(0.3)  # the publisher's matching declarations travel first

@@ -1,0 +1,52 @@
+"""`mrta demo --secure FLEET` (issue 51): what a secured run needs of the fleet's folder is said
+before any process starts, as the `mrta secure init` options that would write it
+(supervisor/mission/secured.py); the options it cannot go with are a usage error. The run
+itself: tests/process/test_secure_auctions.py."""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+from click.testing import CliRunner
+
+from mrta_supervisor.mission import secured
+from mrta_zenoh.cli.main import cli
+from mrta_zenoh.errors import ConfigError
+
+
+def folder_with(tmp_path, *names: str):
+    for name in names:
+        (tmp_path / f"{name}.json5").write_text("{}")
+    return tmp_path
+
+
+def test_a_fleet_missing_a_process_of_the_run_is_named_as_the_secure_init_option_to_add(
+        tmp_path):
+    f = folder_with(tmp_path, "router", "simulator", "supervisor", "recorder", "robot1")
+    with pytest.raises(ConfigError) as e:
+        secured.fleet(f, ["robot1", "robot2"], ["dispatcher"], intake=True)
+    text = str(e.value)
+    assert "--robot robot2" in text and "--process dispatcher" in text and "--submitter" in text
+    assert "--robot robot1" not in text and "--observer" not in text
+    assert secured.fleet(f, ["robot1"], [], intake=False).args("robot1") == [
+        "--zenoh-config", str(f / "robot1.json5")]
+
+
+def test_a_folder_that_is_no_fleet_says_how_to_make_one(tmp_path):
+    with pytest.raises(ConfigError, match="mrta secure init"):
+        secured.fleet(tmp_path, ["robot1"], [], intake=False)
+
+
+def test_the_fleets_endpoint_is_where_its_router_listens(tmp_path):
+    (tmp_path / "router.json5").write_text(json.dumps(
+        {"mode": "router", "listen": {"endpoints": ["tls/127.0.0.1:7999"]}}))
+    assert secured.Fleet(tmp_path).endpoint == "tls/127.0.0.1:7999"
+
+
+@pytest.mark.parametrize("extra", [["--rendezvous", "tcp/127.0.0.1:7999"],
+                                   ["--agents-per-process", "2"]])
+def test_secure_with_a_rendezvous_or_agent_hosts_is_a_usage_error(tmp_path, extra):
+    result = CliRunner().invoke(cli, ["demo", "--secure", str(tmp_path), "--output",
+                                      str(tmp_path / "out"), *extra])
+    assert result.exit_code == 2 and "--secure" in result.output, result.output
