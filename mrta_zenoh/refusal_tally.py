@@ -9,8 +9,9 @@ Each entry says whether it is *forged*: evidence that someone said what no proce
 would (a header that disagrees with its key, a served task its sender never held, a round far
 ahead). A run that refused forged traffic is not the run its seed describes (`run_status`
 disturbed, the cause named). Other refusals are counted and shown but judge nothing: a message
-from a robot off the roster (a stranger on a shared bus), a report two robots cut off from each
-other both made (central's `served_twice`). A message from a teammate whose token has not come
+from a robot off the roster (a stranger on a shared bus) — but for one: a task reported served
+by a second robot (SERVED_TWICE, central's dispatcher) is no forgery, and yet a task was served
+twice (a cut let both robots act): the run is disturbed, and says so. A message from a teammate whose token has not come
 yet is not in the tally (a start-up race whose count depends on the machine): the driver
 counts and logs it.
 
@@ -38,6 +39,9 @@ OFF_ROSTER = "off_roster"         # its sender is not on the team (--team): a st
 MALFORMED = "malformed"           # an index or a name outside the instance: refused whole
 MISADDRESSED = "misaddressed"     # from a sender, or to a receiver, it cannot come from or go to
 OTHER_INSTANCE = "other_instance"  # counts robots and tasks in another instance (its digest)
+# a decision logic's reason the summary reads (module docstring): a task reported served after
+# another robot served it — served twice (central's dispatcher says it)
+SERVED_TWICE = "served_twice"
 
 Entry = tuple[str, str, str, bool]  # (kind, sender, reason, forged)
 

@@ -99,3 +99,24 @@ def test_what_each_process_refused_is_listed_forged_first_and_makes_the_run_dist
     assert "dispatcher refused 3 progress of robot2: not_granted (forged)" in lines[1]
     from mrta_supervisor.mission.analysis import is_traffic
     assert not is_traffic("dispatcher/refused/tally")
+
+
+def test_a_task_reported_served_twice_makes_the_run_disturbed_and_says_so():
+    """A real network cut can let two robots serve one task (issue 51): the dispatcher hears the
+    second report (`served_twice`, no forgery); the run is then never "complete", and its
+    problem line says a task was served twice."""
+    from mrta_supervisor.mission.summary import (COMPLETE, DISTURBED, INCOMPLETE, Refusal,
+                                                 refused_status, run_problem)
+    twice = [Refusal("dispatcher", "robot4", "progress", "served_twice", 1, False)]
+    stranger = [Refusal("robot1", "robot9", "bids", "off_roster", 2, False)]
+    assert refused_status(COMPLETE, twice) == DISTURBED
+    assert refused_status(COMPLETE, stranger) == COMPLETE  # judges nothing
+    assert refused_status(INCOMPLETE, twice) == INCOMPLETE
+    s = Summary(mission="delivery", application="delivery_central", architecture="central",
+                duration=60.0, speed=0.0, seed=1, wall_seconds=1.0, robots=["robot4"],
+                who_did_what={"robot4": []}, first_full_allocation=None, coverage={},
+                messages=MessageRates(1.0, 0.5, "central"), output="o", files=[],
+                refused=twice, run_status=DISTURBED, lockstep_exact=False)
+    assert run_problem(s) == ("a task was reported served by a second robot — served twice "
+                              "(dispatcher heard 1 from robot4): the run is not what its seed "
+                              "gives")

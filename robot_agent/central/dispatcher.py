@@ -47,7 +47,7 @@ from typing import Iterable
 from mrta_zenoh.clock import EPSILON
 from mrta_zenoh.planning import Problem
 from mrta_zenoh.planning.insertion import binding
-from mrta_zenoh import timetext
+from mrta_zenoh import refusal_tally, timetext
 from mrta_zenoh.timetext import at
 
 from ..runtime.coordinator import Coordinator, Say
@@ -67,7 +67,9 @@ CRASHED, STALLED, SILENT = "crashed", "stalled", "silent"
 
 # why a claim of a report was not believed (module docstring; Coordinator.refuse)
 NOT_GRANTED = "not_granted"      # served, set off to or queued a task never granted to it
-SERVED_TWICE = "served_twice"    # served a task another robot reported served first
+# served a task another robot reported served first (mrta_zenoh.refusal_tally: the summary
+# reads it, a task served twice)
+SERVED_TWICE = refusal_tally.SERVED_TWICE
 IMPOSSIBLE = "impossible"        # served a task it cannot serve (capability, capacity)
 UNKNOWN_TASK = "unknown_task"    # named a task the instance does not have (refused whole)
 VERSION_NOT_SENT = "version_not_sent"  # applied a queue version the dispatcher never sent

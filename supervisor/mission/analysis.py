@@ -34,8 +34,8 @@ from .fault_effects import fault_effects, refused_traffic
 from .ground_truth import decisions, intervals_from
 from .hook import Mission, MissionRun
 from .plots import ROBOTS_TITLE, Panel, TimeBase, draw_timeline
-from .summary import (COMPLETE, DISTURBED, Coverage, Disturbance, FailureReport, MessageRates,
-                      Span, Summary, checked_sections, write_summary)
+from .summary import (COMPLETE, Coverage, Disturbance, FailureReport, MessageRates,
+                      Span, Summary, checked_sections, refused_status, write_summary)
 from .run_watch import RECORDER, run_status
 
 
@@ -91,8 +91,7 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
     # the task intake's refusals (mrta_zenoh.tasks) are listed too; none of them is forged
     # coordination: a refused request never entered the run
     refused = refused_traffic(records, [*run.robots, *run.arch.processes, INTAKE])
-    if status == COMPLETE and any(r.forged for r in refused):
-        status = DISTURBED
+    status = refused_status(status, refused)
     role, failure = failure, roles.struck(failure, run.faults, records)
     if role is not None and failure is None:  # an @first fault that struck nobody
         failed_at = None

@@ -27,6 +27,7 @@ from typing import Any
 
 import msgspec
 
+from mrta_zenoh.refusal_tally import SERVED_TWICE
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.fault_tally import CAUSES
 from mrta_zenoh.files import write_text
@@ -363,7 +364,11 @@ def run_problem(summary: Summary) -> str | None:
         forged = forged_traffic(summary)
         ended = "; ".join(_disturbance_text(d) for d in summary.disturbances if d.ended)
         cut = "; ".join(_disturbance_text(d) for d in summary.disturbances if not d.ended)
-        causes = ([f"a process of the run ended before the run did ({ended})"] if ended else []) \
+        twice = "; ".join(f"{r.receiver} heard {r.count} from {r.sender}"
+                          for r in summary.refused if r.reason == SERVED_TWICE)
+        causes = ([f"a task was reported served by a second robot — served twice ({twice})"]
+                  if twice else []) \
+            + ([f"a process of the run ended before the run did ({ended})"] if ended else []) \
             + ([f"a process of the run was stopped or cut off ({cut})"] if cut else []) \
             + ([f"it refused forged coordination traffic ({forged})"] if forged else [])
         return ("; ".join(causes or ["disturbed"]) + ": the run is not what its seed gives"
@@ -398,6 +403,15 @@ def _disturbance_text(d: Disturbance) -> str:
         return f"{d.process} {d.ended} at {d.lost_at:g} s"
     return f"{d.process} lost its token at {d.lost_at:g} s" + (
         f", back at {d.back_at:g} s" if d.back_at is not None else "")
+
+
+def refused_status(status: str, refused: list[Refusal]) -> str:
+    """A complete run's status once what its processes refused is known: disturbed by forged
+    traffic, or by a task reported served by a second robot (SERVED_TWICE: a cut let both
+    serve it — the summary says so, never "complete")."""
+    if status == COMPLETE and any(r.forged or r.reason == SERVED_TWICE for r in refused):
+        return DISTURBED
+    return status
 
 
 def forged_traffic(summary: Summary, most: int = 4) -> str:
