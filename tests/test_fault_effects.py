@@ -120,3 +120,16 @@ def test_a_task_reported_served_twice_makes_the_run_disturbed_and_says_so():
     assert run_problem(s) == ("a task was reported served by a second robot — served twice "
                               "(dispatcher heard 1 from robot4): the run is not what its seed "
                               "gives")
+
+
+def test_an_inexact_lockstep_run_does_not_blame_the_machine_alone():
+    """NOT EXACT blamed the machine's load whatever caused it (issue 51); a forger's StepDone
+    claims in a participant's name are forgiven the same way, and the line says so."""
+    from mrta_supervisor.mission.summary import COMPLETE, run_problem
+    s = Summary(mission="delivery", application="delivery", architecture="alliance",
+                duration=60.0, speed=0.0, seed=1, wall_seconds=1.0, robots=["robot1"],
+                who_did_what={"robot1": []}, first_full_allocation=None, coverage={},
+                messages=MessageRates(1.0, 0.5, "alliance"), output="o", files=[],
+                run_status=COMPLETE, lockstep_exact=False, lockstep_forgiven=1)
+    problem = run_problem(s)
+    assert "busy" in problem and "forger" in problem, problem

@@ -380,7 +380,8 @@ def run_problem(summary: Summary) -> str | None:
     if summary.lockstep_exact is False:
         why = (f"strangers' participant tokens were on the bus ({', '.join(summary.strangers)}):"
                " a token nobody answers for is waited for, then given up" if summary.strangers
-               else "the machine was too busy for the lockstep timeouts")
+               else "the machine too busy for the lockstep timeouts, or claims in a "
+                    "participant's name that nobody met (a forger's StepDone: docs/security.md)")
         return (f"lockstep was not exact: {summary.lockstep_given_up} participant(s) given up, "
                 f"{summary.lockstep_forgiven} claim(s) forgiven — {why}")
     return None
