@@ -194,6 +194,32 @@ def test_the_metrics_registry_gives_window_columns(tmp_path):
                                                     "late": 0, "lateness": 0.0, "early": 0}
 
 
+def test_each_row_has_its_gap_to_the_hindsight_reference(tmp_path):
+    """`reference_served_in_window`: the most tasks any plan serves in window (brute force over
+    every order of one robot here), not the instance's task count; `served_gap` what the run
+    served in window short of it; proven only for an exact reference."""
+    from itertools import permutations
+
+    from mrta_delivery.metrics import analyse
+    from mrta_zenoh.architectures import architecture
+    doc = doc_of(tmp_path, ROBOT + "tasks:\n  t1: {position: [1, 1], due: 3}\n"
+                 "  t2: {position: [-1, 1], due: 3}\n  t3: {position: [0, 2], earliest: 4, "
+                 "due: 9}\n  t4: {position: [5, 0], due: 2}\n")
+    problem = doc.body().problem()
+    best = max(evaluate(problem, {0: list(order[:k])}).windows.served_in_window
+               for order in permutations(range(4)) for k in range(5))
+    assert best == 2 < len(problem.tasks)  # t1 or t2 (not both), then t3; t4 never
+    a = analyse([], architecture("alliance"), doc.body(), 10.0)
+    assert {k: a.metrics[k] for k in ("reference_served_in_window", "reference_served_proven",
+                                      "served_gap")} == {"reference_served_in_window": best,
+                                                         "reference_served_proven": True,
+                                                         "served_gap": best}
+    from mrta_delivery.objectives import references, reference_window_metrics
+    assert reference_window_metrics(problem, references(problem), 1)["served_gap"] == 1
+    plain = doc_of(tmp_path, ROBOT + "tasks:\n  t1: {position: [1, 1]}\n").body()
+    assert analyse([], architecture("alliance"), plain, 10.0).metrics["served_gap"] is None
+
+
 def test_a_windowed_instance_checks_loaded_through_the_yaml_reader(tmp_path):
     f = tmp_path / "i.yaml"
     f.write_text(ROBOT + "tasks:\n  t1: {position: [1, 1], earliest: 2, due: 2}\n")

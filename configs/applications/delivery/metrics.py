@@ -48,7 +48,8 @@ from .done_rule import DoneRule
 from .instance import DeliveryParams, InstanceBody, document_data
 from .keys import Event
 from .messages import TaskEvent
-from .objectives import objective_metrics, objective_section, overlaps, window_metrics
+from .objectives import (objective_metrics, objective_section, overlaps,
+                         reference_window_metrics, window_metrics)
 
 MATCH_SLACK = 1.0  # s: an event this long after its holder's interval still belongs to it
 
@@ -336,9 +337,12 @@ def analyse(records: list, arch: Architecture, params: InstanceBody, end: float,
     log = allocation_log(records, arch, instance, end, faults, delivery)
     distance = paths(records, {r.id for r in instance.robots})
     section = objective_section(instance, log, objective or arch.objective or "minsum")
+    windows = window_metrics(instance, log, end)
     metrics = {**measure(instance, log, distance), **arrivals(instance, end),
-               "windowed": instance.windowed,
-               **window_metrics(instance, log, end), **objective_metrics(section),
+               "windowed": instance.windowed, **windows,
+               **reference_window_metrics(instance, section["reference"],
+                                          windows["served_in_window"]),
+               **objective_metrics(section),
                **fairness(workload([r.id for r in instance.robots], log, distance, end)),
                "events_refused": refused}
     return RunAnalysis(params, instance, log, metrics, section)

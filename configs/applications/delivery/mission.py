@@ -245,7 +245,7 @@ class Delivery(Mission):
               "overlaps": "lower", "objective_minsum": "lower", "objective_makespan": "lower",
               "objective_flowtime": "lower", "gini_served": "lower", "gini_busy": "lower",
               "gini_distance": "lower", "served_in_window": "higher", "gap_minsum": "lower",
-              "gap_makespan": "lower", "gap_flowtime": "lower",
+              "gap_makespan": "lower", "gap_flowtime": "lower", "served_gap": "lower",
               "missed": "lower", "late": "lower", "lateness": "lower", "early": "lower"}
 
     # a point task held longer is served slower, and nobody holding it is also a task done:

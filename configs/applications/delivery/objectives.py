@@ -20,6 +20,13 @@ robots at once — all from the allocation log, so that a summary alone gives th
   `reached_at` of the stretch that completed it first (its robot's `started` event), as of the
   run's end. Not along the model's timing: a robot that waited or drove slower than the model
   started where it started, and whether a window held is about that.
+* **The hindsight reference's window count** (`reference_window_metrics`): how many tasks the
+  reference routes serve within their windows — under hard windows the reference is
+  hierarchical, most tasks in window first (planning.reference) — the best of the three
+  objectives' references, so a row has its `served_gap`: that count − the run's
+  `served_in_window` (tasks; lower is better). `reference_served_proven` says whether that
+  count is proven the most any plan serves (an exact reference: up to EXACT_LIMIT tasks);
+  above, it is the best found, a bound a run may beat (a negative gap).
 * **Overlaps.** A stretch is *executed* from when its robot set off to the task until it
   completed it or the task left it (`started_at` → `done_at`, else `ended_at`); two robots'
   executions of one task that overlap by more than a tick are an overlap.
@@ -144,6 +151,27 @@ def references(problem: Problem) -> dict[str, dict[str, Any]]:
                                 "stopped_by_time_limit": ref.capped,
                                 "routes": ref.routes_by_id(problem)}
     return out
+
+
+def reference_window_metrics(problem: Problem, refs: dict[str, dict[str, Any]],
+                             served_in_window: int) -> dict[str, Any]:
+    """The hindsight reference's served-in-window count, whether it is proven, and the run's
+    gap to it (module docstring); None for an instance without windows, or when every
+    reference's search was cut by its time cap (its count would depend on the machine)."""
+    counts = []
+    for ref in refs.values():
+        if ref["stopped_by_time_limit"]:
+            continue
+        routes = {problem.robot_index(r): [problem.task_index(t) for t in route]
+                  for r, route in ref["routes"].items()}
+        counts.append((evaluate(problem, routes).windows.served_in_window,
+                       ref["proven_optimal"]))
+    if not problem.windowed or not counts:
+        return {"reference_served_in_window": None, "reference_served_proven": None,
+                "served_gap": None}
+    best, proven = max(counts)  # a proven count is the most any plan serves: ties prefer it
+    return {"reference_served_in_window": best, "reference_served_proven": proven,
+            "served_gap": best - served_in_window}
 
 
 def objective_section(problem: Problem, log: list[Stretch], objective: str,
