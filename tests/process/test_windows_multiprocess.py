@@ -3,7 +3,7 @@ task) run by `mrta demo --instance` under each architecture — real processes, 
 sessions, the simulator — starts no service outside a task's window, serves some, and its
 summary's window counts equal what its allocation records show (tests/test_windows.py's
 re-statement) and are results.csv's `metrics.*` columns, and ends when nothing is left to serve.
-The CI tier runs SSI's; the other four are `slow`."""
+The CI tier runs SSI's; the other five are `slow`."""
 
 from __future__ import annotations
 
@@ -23,7 +23,8 @@ CI = "ssi"
 
 @pytest.mark.timeout(600)
 @pytest.mark.parametrize("arch", [pytest.param(a, marks=() if a == CI else pytest.mark.slow)
-                                  for a in ("ssi", "alliance", "murdoch", "central", "cbba")])
+                                  for a in ("ssi", "alliance", "murdoch", "central", "cbba",
+                                            "tessi")])
 def test_a_windowed_run_serves_only_inside_windows_and_counts_them(children, tmp_path, arch):
     file = tmp_path / "tw.yaml"
     gen = children.mrta(*GENERATE, "-o", str(file), name="generate")
