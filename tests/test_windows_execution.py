@@ -13,6 +13,7 @@
 from __future__ import annotations
 
 import dataclasses
+import inspect
 import math
 
 import msgspec
@@ -155,6 +156,13 @@ def test_soft_windows_change_no_place(p):
 
 # --- central -----------------------------------------------------------------------------------
 
+# central's solve gains a required `search_limit` with issue 50's insertion path (the tasks
+# engineer's e0d63dd, landing beside this): above it in open tasks it inserts instead of
+# searching; these ≤ 6 tasks are always searched. Passed only where solve takes it, so this
+# test runs on main before and after that change (drop the guard once both are on main).
+SEARCH = {"search_limit": 1000} if "search_limit" in inspect.signature(solve).parameters else {}
+
+
 @settings(max_examples=40, derandomize=True, deadline=None)
 @given(st.lists(st.tuples(coord, coord, window), min_size=2, max_size=6), st.data())
 def test_centrals_plan_starts_nothing_after_its_due(specs, data):
@@ -163,10 +171,11 @@ def test_centrals_plan_starts_nothing_after_its_due(specs, data):
                               for k, (x, y, (lo, hi)) in enumerate(specs)))
     ids = tuple(t.id for t in p.tasks)
     situation = Situation({"r1": (), "r2": ()}, ("r1", "r2"), ids)
-    first = solve(p, situation, Objective.MINSUM, exact_limit=10, solutions=50, time_limit=5)
+    first = solve(p, situation, Objective.MINSUM, exact_limit=10, solutions=50, time_limit=5,
+                  **SEARCH)
     current = {r: list(route) for r, route in first.routes.items()}
     again = solve(p, situation, Objective.MINSUM, exact_limit=0, solutions=50, time_limit=5,
-                  current=current)                          # best found, or the kept plan
+                  current=current, **SEARCH)                # best found, or the kept plan
     for outcome in (first, again):
         planned = [t for route in outcome.routes.values() for t in route]
         assert sorted(planned + outcome.unassigned) == sorted(ids)
