@@ -493,7 +493,8 @@ class Cbba(RouteLogic):
         """(the least index the message names, its largest task index, its largest robot
         index; -1 for none): what `_valid` checks, read once a message."""
         tasks, robots, _ = zip(*msg.winners) if msg.winners else ((), (), ())
-        tasks, robots = tasks + tuple(msg.done), robots + tuple(m for m, _ in msg.stamps)
+        stamped = next(zip(*msg.stamps), ())
+        tasks, robots = tasks + tuple(msg.done), robots + tuple(stamped)
         return (min(tasks + robots, default=0), max(tasks, default=-1),
                 max(robots, default=-1))
 
