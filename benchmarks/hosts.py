@@ -44,7 +44,7 @@ from mrta_supervisor.mission.runner import AGENTS_UP
 TICK = os.sysconf("SC_CLK_TCK")
 PAGE_KB = os.sysconf("SC_PAGE_SIZE") // 1024
 ROLES = (("agents", ("/agent ", "/host ")), ("simulator", ("simulator/sim",)),
-         ("recorder", (" view ",)), ("router", (" router",)))
+         ("recorder", (" view ", " record ")), ("router", (" router",)))
 
 
 def role(cmdline: str) -> str:

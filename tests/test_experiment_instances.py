@@ -267,3 +267,23 @@ def test_until_ci_adds_instances_when_the_file_has_a_generator_and_scalars_read_
     assert len(got) == 10 and (out / "instances" / "delivery-r2-t2-9.yaml").is_file()
     md = (out / "summary.md").read_text()
     assert "each after the file's own: 1 new instance of every size" in md, md
+
+
+def test_a_dry_run_checks_the_file_and_its_instances_and_writes_nothing(tmp_path):
+    """`mrta experiment run FILE --dry-run`: the matrix said, every instance made and read back
+    (a room too small for the team is refused as a run would refuse it), nothing written."""
+    f = tmp_path / "e.yaml"
+    f.write_text("application: delivery\narchitectures: [central]\nduration: 30\nseeds: [1]\n"
+                 "instances: {generator: delivery, robots: 3, tasks: 4, count: 2, seed: 2}\n")
+    out = tmp_path / "o"
+    result = CliRunner().invoke(cli, ["experiment", "run", str(f), "--output", str(out),
+                                      "--dry-run"])
+    assert result.exit_code == 0, result.output
+    assert "2 runs — 1 cell × 2 instances (3 robots × 4 tasks) × 1 seed; 0 already" \
+        in result.output
+    assert not out.exists()
+    f.write_text(f.read_text().replace("seed: 2}", "seed: 2, parameters: {room: [2, 2]}}"))
+    result = CliRunner().invoke(cli, ["experiment", "run", str(f), "--output", str(out),
+                                      "--dry-run"])
+    assert result.exit_code == 2 and "could not place" in result.output
+    assert not out.exists()

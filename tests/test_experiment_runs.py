@@ -115,6 +115,25 @@ def test_a_run_without_plots_asks_the_mission_for_none():
     assert "--no-plots" not in demo_args("patrol", 10.0, run, Path("o"))
 
 
+def test_an_experiments_run_records_the_bus_alone_and_a_demo_what_a_viewer_draws():
+    """An experiment's run records with `mrta record` (the bus: all its analysis reads), a demo
+    with `mrta view` (and the channels a viewer draws), a demo served to Foxglove with the view
+    whatever it asked; the bus-only recorder drains as the view does
+    (test_recording_sim_time)."""
+    from mrta_supervisor.experiment.file import Run
+    from mrta_supervisor.experiment.runs import demo_args
+    from mrta_supervisor.mission.hook import MissionOptions
+    from mrta_supervisor.mission.runner import recorder_args
+
+    args = demo_args("patrol", 10.0, Run(0, 1, "none", ()), Path("o"), plots=False)
+    assert args[args.index("--recording") + 1] == "bus"
+    bus = recorder_args(MissionOptions(recording="bus", output=Path("o")), "patrol", [])
+    assert bus[:2] == ["record", "--sim-time"] and Path("o/run.mcap") in bus
+    assert recorder_args(MissionOptions(output=Path("o")), "patrol", [])[:2] == ["view", "patrol"]
+    served = MissionOptions(recording="bus", foxglove_port=8800, output=Path("o"))
+    assert recorder_args(served, "patrol", [])[-2:] == ["--port", "8800"]
+
+
 def bca_half_width(n: int) -> float:
     """The interval --until-ci targets, computed here with scipy directly: seeds 1…n."""
     import scipy.stats  # here, not at collection (≈ 2 CPU-s in each xdist worker)

@@ -19,10 +19,12 @@ from mcap.reader import make_reader
 from mrta_zenoh import codec
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.clock import SimClock
-from mrta_zenoh.keys import CLOCK, CLOCK_SOURCE_TOKEN
+from mrta_zenoh.keys import CLOCK, CLOCK_SOURCE_TOKEN, RECORDER_TOKEN
 from mrta_zenoh.messages import Clock, Header, Odometry, Pose2D, Twist
 from mrta_zenoh.recording import HOLD_MAX, McapRecorder, read_recording
 from mrta_zenoh.sim_log_time import NS, RESTART_GAP_NS, SimLogTime
+from mrta_zenoh.tools import record
+from mrta_zenoh.tools.record import run_record
 from mrta_supervisor.live import viewer
 from mrta_supervisor.live.foxglove import FoxgloveOutputs
 from mrta_simulator.messages import Segment, World
@@ -343,13 +345,24 @@ def test_frames_after_a_simulator_restart_follow_the_new_run_after_the_old_one()
     assert sum(1 for t in world if t >= 3 * S) >= 8
 
 
-def started_view(tmp_path):
-    """The recorder (run_view) on an in-process bus in a thread, ready: (bus, the recording's
-    path, its stop event, the thread)."""
+def started_view(tmp_path, bus_only: bool = False):
+    """The recorder (run_view; `bus_only`: run_record, the mission runner's recorder of an
+    experiment's run) on an in-process bus in a thread, ready: (bus, the recording's path, its
+    stop event, the thread)."""
     bus = InProcBus()
     bus.zid = "inproc"
     out = tmp_path / "view.mcap"
     stop, ready = threading.Event(), threading.Event()
+    if bus_only:
+        th = threading.Thread(target=run_record, kwargs=dict(
+            output=out, key_exprs=["**"], bus_options=None, stop=stop, sim_time=True, bus=bus),
+            daemon=True)
+        up = threading.Event()
+        watch = bus.watch_liveliness(f"{RECORDER_TOKEN}/**", lambda _k, alive: alive and up.set())
+        th.start()
+        assert up.wait(30)  # its token: subscribed and recording, as the runner waits for it
+        watch.close()
+        return bus, out, stop, th
     th = threading.Thread(target=viewer.run_view, args=(
         viewer.ViewOptions(app="patrol", port=None, output=out, sim_time=True), None),
         kwargs=dict(stop=stop, on_ready=lambda url: ready.set(), bus=bus), daemon=True)
@@ -516,16 +529,17 @@ def test_a_recording_reads_back_in_log_time_order_with_ties_in_the_order_written
     assert len(records) == len(times) and len({t for _, _, t, _ in records}) > 3
 
 
+@pytest.mark.parametrize("bus_only", [False, True], ids=["view", "record"])
 def test_a_stopped_recorder_records_what_is_still_coming_until_the_clock_is_quiet(
-        tmp_path, monkeypatch):
+        tmp_path, monkeypatch, bus_only):
     """The newcomer's `--no-plots` run (issue 51): the mission runner stops the recorder as soon
     as the simulator has ended; a recorder behind on a busy machine still had the last
     simulated second to take, and closing at once cut the recording short of the mission. Here
     the last second arrives after the stop: it is recorded, then the recorder ends once the
     clock is quiet."""
-    monkeypatch.setattr(viewer, "DRAIN_QUIET", 3.0, raising=False)  # generous: any machine
-    monkeypatch.setattr(viewer, "DRAIN_MAX", 60.0, raising=False)
-    bus, out, stop, th = started_view(tmp_path)
+    monkeypatch.setattr(record, "DRAIN_QUIET", 3.0)  # generous: any machine
+    monkeypatch.setattr(record, "DRAIN_MAX", 60.0)
+    bus, out, stop, th = started_view(tmp_path, bus_only)
     token = bus.declare_token(f"{CLOCK_SOURCE_TOKEN}/run1")
     for k in range(251):  # 5 simulated seconds before the stop
         bus.publish(CLOCK, Clock(k * 0.02, "run1"))

@@ -21,18 +21,26 @@ and compares the assignment its run achieved with these.
   Gerkey & Matarić quote for MURDOCH. For *costs* there is no constant bound (greedy online
   min-cost matching is 2ⁿ − 1 competitive), which is why runs report cost optimality as well.
 
-numpy and scipy: imported by whoever compares a run with the optimum, never by an agent.
+numpy and scipy: imported by whoever compares a run with the optimum, never by an agent. With
+`$MRTA_REFERENCE_CACHE` (reference.py: the runs of an experiment's instance share one) the
+optimum's pairs are solved once per cost matrix and read back by the other runs: importing
+scipy.optimize was about a quarter of a 5 / 5 study run's runner (≈ 0.7 CPU-s), for a
+matching the instance's first run had already made (benchmarks/README.md, "The study's runs").
 """
 
 from __future__ import annotations
 
 import math
+import os
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Sequence
 
 import numpy as np
 
+from ..sha import sha256
 from .problem import Problem
+from .reference import REFERENCE_CACHE_ENV, cache_entry
 
 
 def ia_costs(problem: Problem) -> np.ndarray:
@@ -70,9 +78,16 @@ def optimal_assignment(cost: np.ndarray) -> Assignment:
     if np.any(cost[finite] < 0):
         raise ValueError("costs must be ≥ 0")
     big = float(cost[finite].sum()) + 1.0 if finite.any() else 1.0
-    from scipy.optimize import linear_sum_assignment  # ≈ 1 CPU-s to import: only here
-    rows, cols = linear_sum_assignment(np.where(finite, cost, big))
-    pairs = tuple(sorted((int(i), int(j)) for i, j in zip(rows, cols) if finite[i, j]))
+
+    def solve() -> dict:
+        from scipy.optimize import linear_sum_assignment  # ≈ 1 CPU-s to import: only here
+        rows, cols = linear_sum_assignment(np.where(finite, cost, big))
+        return {"pairs": sorted((int(i), int(j)) for i, j in zip(rows, cols) if finite[i, j])}
+
+    folder = os.environ.get(REFERENCE_CACHE_ENV)
+    key = "ia-" + sha256(repr(cost.shape).encode() + cost.tobytes()).hexdigest()[:32]
+    found = cache_entry(Path(folder), key, solve) if folder else solve()
+    pairs = tuple((int(i), int(j)) for i, j in found["pairs"])
     return Assignment(pairs, assignment_cost(cost, pairs))
 
 

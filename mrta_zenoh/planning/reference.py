@@ -36,7 +36,7 @@ import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Callable
 
 from ..errors import ConfigError
 from ..files import write_text
@@ -141,18 +141,27 @@ def _cached(folder: Path, problem: Problem, objective: Objective, exact_limit: i
     everything the solve reads (the problem with its distances, the objective, the budget)."""
     text = json.dumps([_plain(problem), objective.value, exact_limit, time_limit, solutions],
                       sort_keys=True)
-    key = sha256(text.encode()).hexdigest()[:32]
+
+    def solve() -> dict:
+        ref = _solve(problem, objective, exact_limit, time_limit, solutions)
+        return {"value": ref.value, "routes": ref.routes, "method": ref.method,
+                "proven_optimal": ref.proven_optimal, "seconds": ref.seconds,
+                "capped": ref.capped}
+
+    d = cache_entry(folder, sha256(text.encode()).hexdigest()[:32], solve)
+    return Reference(d["value"], {int(i): r for i, r in d["routes"].items()}, d["method"],
+                     d["proven_optimal"], d["seconds"], objective, d["capped"])
+
+
+def cache_entry(folder: Path, key: str, solve: Callable[[], dict]) -> dict:
+    """The JSON entry `key` of the cache `folder`, made by `solve` and written there first if it
+    is not yet; runs asking for one entry at once take turns (a lock per entry), so the second
+    reads what the first wrote. Every run — the first included — gets the entry as read back
+    (what JSON makes of `solve`'s value: int keys become strings)."""
     folder.mkdir(parents=True, exist_ok=True)
     path = folder / f"{key}.json"
     with open(folder / f".{key}.lock", "a") as lock:
         fcntl.flock(lock, fcntl.LOCK_EX)  # released when the file closes, however this ends
-        if path.is_file():
-            d = json.loads(path.read_text())
-            return Reference(d["value"], {int(i): r for i, r in d["routes"].items()},
-                             d["method"], d["proven_optimal"], d["seconds"], objective,
-                             d["capped"])
-        ref = _solve(problem, objective, exact_limit, time_limit, solutions)
-        write_text(path, json.dumps({"value": ref.value, "routes": ref.routes,
-                                     "method": ref.method, "proven_optimal": ref.proven_optimal,
-                                     "seconds": ref.seconds, "capped": ref.capped}))
-        return ref
+        if not path.is_file():
+            write_text(path, json.dumps(solve()))
+        return json.loads(path.read_text())

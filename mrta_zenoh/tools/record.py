@@ -4,9 +4,11 @@ from __future__ import annotations
 
 import contextlib
 import threading
+import time
 from pathlib import Path
 
 from ..bus import Bus, BusOptions
+from ..clock import SimClock
 from ..errors import ConfigError
 from ..identity import OBSERVER
 from ..keys import RECORDER_TOKEN, validate_key_expr
@@ -20,7 +22,8 @@ def run_record(*, output: Path, key_exprs: list[str], bus_options: BusOptions,
                duration: float | None = None, stop: threading.Event | None = None,
                sim_time: bool = False, dated: bool = False, bus: Bus | None = None) -> int:
     """Write every sample on `key_exprs` (and every liveliness change) to `output` until
-    `duration` wall seconds pass or `stop` is set; announce the recorder while it runs.
+    `duration` wall seconds pass or `stop` is set (then, with `sim_time`, until the clock has
+    been quiet: `drain`); announce the recorder while it runs.
 
     Log times are wall time; with `sim_time`, the simulator's time as this recorder follows it
     (mrta_zenoh.recording.SimLogTime: what `mrta view --sim-time` records too), so the file
@@ -59,5 +62,24 @@ def run_record(*, output: Path, key_exprs: list[str], bus_options: BusOptions,
         handles.enter_context(bus.declare_token(f"{RECORDER_TOKEN}/{bus.zid}"))
         log.info("recording %s to %s", " ".join(key_exprs), output)
         wait_for_stop(stop, duration)
+        if sim_time:
+            drain(node.clock)
     log.info("wrote %s to %s", plural(rec.count, "message"), output)
     return 0
+
+
+DRAIN_QUIET = 0.5  # wall s without a clock sample: the recorder has what the simulator sent
+DRAIN_MAX = 4.0    # wall s a stopped recorder goes on recording at most (well within RECORDER_GRACE)
+
+
+def drain(clock: SimClock) -> None:
+    """A recorder told to stop goes on recording while clock samples still come, until the
+    clock has been quiet for DRAIN_QUIET (at most DRAIN_MAX): a mission runner stops it as soon
+    as the simulator has ended, and a recorder behind on a busy machine (20 robots, `--speed
+    0`) still had the last simulated second queued — closing then cut the recording short of
+    the mission ("the recording does not cover the whole mission"; issue 51, the newcomer's
+    `--no-plots` run: with plots, the simulator's snapshot delayed the stop long enough)."""
+    deadline = time.monotonic() + DRAIN_MAX
+    while (clock.started.is_set() and not clock.stalled(DRAIN_QUIET)
+           and time.monotonic() < deadline):
+        time.sleep(0.05)

@@ -53,8 +53,8 @@ from mrta_zenoh.yamlfile import did_you_mean, plural
 
 from . import dask_backend, slurm_backend
 from .file import (Experiment, Run, _failure_problem, load_experiment)  # noqa: F401
-from .runs import (Context, Results, error_of, inexact, package_copy,
-                              prepare_output, start_run)
+from .runs import (Context, Results, bytecode_cache, error_of, inexact, package_copy,
+                   prepare_output, start_run)
 from .instances import place as place_instances, prepare as prepare_instances
 from .resume import (Shard, check_block, check_folder, done_rows, identity_of,
                      write_identity)
@@ -130,13 +130,14 @@ def resolve_all(exp: Experiment) -> dict[str | None, MissionRun]:
     return out
 
 
-def prepare_experiment(exp: Experiment, output: Path, shard: Shard | None = None
-                       ) -> tuple[Experiment, dict, list[dict]]:
+def prepare_experiment(exp: Experiment, output: Path, shard: Shard | None = None,
+                       dry: bool = False) -> tuple[Experiment, dict, list[dict]]:
     """Everything checked before the first run, then the instances made into OUTPUT: the
     experiment with its instances, the run set-up of each architecture, and the rows OUTPUT's
     results.csv already holds (a resumed run: resume.py). The instances are made in a
     staging folder first, so a folder holding another experiment is refused with nothing
-    written."""
+    written. `dry`: everything checked, nothing written (the instances returned are the
+    staged ones, gone with the call: count them, do not run them)."""
     resolved = resolve_all(exp)
     first = next(iter(resolved.values()))
     mission = first.mission.name
@@ -160,6 +161,8 @@ def prepare_experiment(exp: Experiment, output: Path, shard: Shard | None = None
         check_folder(output, identity)
         done = done_rows(output, runs if shard is None else
                          [r for r in runs if shard.takes(r.index)], len(runs))
+        if dry:
+            return exp, resolved, done
         prepare_output(output)
         if exp.instances:
             exp = exp.with_instances(place_instances(exp.instances, output))
@@ -181,6 +184,29 @@ def _overridden(exp: Experiment, run: MissionRun, tmp: Path, robots: list[str]):
         raise exp.error(("overrides",), f"overrides: instance {inst.name} derives no "
                         f"{run.package.name!r} package to set them in")
     return path, run.arch, list(inst.robots)
+
+
+def dry_run(file: Path, output: Path, shard: Shard | None = None,
+            max_runs: int = MAX_RUNS) -> str:
+    """`mrta experiment run FILE --dry-run`: FILE checked as a run would check it before its
+    first run — its fields, the architectures, overrides and fault specs against each team,
+    every instance generated and read back as the application reads it — and what a run
+    would do, in words: the matrix, its instances, what OUTPUT already holds. Nothing runs
+    and nothing is written (a study's 58 files are checked so: docs/study/README.md)."""
+    exp = load_experiment(file)
+    exp.check_runs(max_runs)
+    exp, resolved, done = prepare_experiment(exp, output, shard, dry=True)
+    runs = exp.runs() if shard is None else [r for r in exp.runs() if shard.takes(r.index)]
+    teams = sorted({(i.n_robots, i.n_tasks) for i in exp.instances})
+    what = (f"{plural(len(exp.instances), 'instance')} ("
+            + ", ".join(f"{n} robots × {m} tasks" for n, m in teams) + ")") \
+        if exp.instances else "the application's own instance"
+    return (f"{file}: {plural(len(runs), 'run')}{f' (shard {shard})' if shard else ''} — "
+            f"{plural(len(exp.cells()), 'cell')} × {what} × "
+            f"{plural(len(exp.spec.seeds), 'seed')}; {len(done)} already in {output}, "
+            f"{len(runs) - len(done)} to run; architectures: "
+            f"{', '.join(str(a or r.arch.name) for a, r in resolved.items())}; checked, "
+            "nothing run or written")
 
 
 def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
@@ -391,7 +417,7 @@ def _run_here(packages: dict, duration: float, runs: list[Run], output: Path, jo
     pending = list(runs)
     retried: set[int] = set()
     active: dict[int, tuple[Run, Any, float, Path]] = {}
-    with ProcessGroup() as group:
+    with bytecode_cache() as env, ProcessGroup({**os.environ, **env}) as group:
         while (pending or active) and not stop.is_set():
             while pending and len(active) < jobs:
                 run = pending.pop(0)

@@ -23,7 +23,7 @@ from mrta_zenoh.errors import ConfigError, MrtaRuntimeError
 from mrta_zenoh.lifecycle import stop_on_signals
 from mrta_zenoh.limits import MAX_RUNS
 
-from .api import parse_target, run_experiment
+from .api import dry_run as check_only, parse_target, run_experiment
 from .resume import Shard, merge_folders, parse_shard
 from .runs import prepare_output
 from .slurm_backend import TIME_LIMIT, SlurmOptions
@@ -169,15 +169,22 @@ def experiment() -> None:
 @click.option("--shard", metavar="I/N", default=None, callback=_shard,
               help="Run only every N-th run of the matrix from the I-th (1 ≤ I ≤ N), on any "
                    "backend; `mrta experiment report` puts the shards' folders together.")
+@click.option("--dry-run", is_flag=True,
+              help="Check FILE as a run would (its instances made and read back, every "
+                   "architecture, override and fault against each team) and say the matrix "
+                   "and what --output already holds; run nothing, write nothing.")
 @report_options
 def run(file: Path, output: Path, jobs: int | None, scheduler: str | None,
         backend: str | None, partition: str | None, array_size: int | None,
         time_limit: int | None, max_runs: int, agents_per_process: int | None,
-        until: dict[str, float], block: int, shard: Shard | None, baseline: str | None,
-        metrics: tuple[str, ...] | None, plots: bool) -> None:
+        until: dict[str, float], block: int, shard: Shard | None, dry_run: bool,
+        baseline: str | None, metrics: tuple[str, ...] | None, plots: bool) -> None:
     """Run the matrix of FILE (seeds × failures × parameter overrides) and summarise it; on a
     folder holding an interrupted run of FILE, run only the runs it lacks."""
     slurm = _slurm_options(backend, scheduler, partition, array_size, time_limit)
+    if dry_run:
+        click.echo(check_only(file, output, shard, max_runs))
+        return
     with stop_on_signals() as stop, progress_reporter() as progress:
         rows = run_experiment(file=file, output=output, jobs=jobs, stop=stop, progress=progress,
                               scheduler=scheduler, max_runs=max_runs, until=until or None,

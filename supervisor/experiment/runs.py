@@ -6,8 +6,11 @@ left becomes a row of results.csv. Both backends import this module and nothing 
 
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
+import sys
+import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -50,16 +53,36 @@ def package_copy(pkg_path: Path, dest: Path, overrides: Overrides) -> Path:
     return target
 
 
+@contextlib.contextmanager
+def bytecode_cache():
+    """The environment of this experiment's runs: where this interpreter writes no bytecode
+    (PYTHONDONTWRITEBYTECODE, as in this project's sandbox and many containers) and names no
+    cache folder of its own, a folder of the experiment's own (PYTHONPYCACHEPREFIX) that the
+    runs write their compiled modules to and read them back from; {} otherwise. Without it
+    every process of every run — runner, recorder, simulator, agent host — compiled every
+    module of the project from source again: ≈ 0.2 CPU-s a process, ≈ 1 CPU-s of a 5 / 5
+    run's ≈ 13 (benchmarks/README.md, "The study's runs"). Bytecode is the same program: no
+    row changes. The folder goes with the experiment; the user's tree gets no __pycache__."""
+    if not sys.dont_write_bytecode or os.environ.get("PYTHONPYCACHEPREFIX"):
+        yield {}
+        return
+    with tempfile.TemporaryDirectory(prefix="mrta-bytecode-") as folder:
+        # an empty value is "not set" to Python (its documented rule for PYTHON* variables)
+        yield {"PYTHONDONTWRITEBYTECODE": "", "PYTHONPYCACHEPREFIX": folder}
+
+
 def demo_args(package: str, duration: float, run: Run, out: Path, plots: bool = True,
               instance: Path | None = None) -> list[str]:
     """`mrta ARGS…` for one run, whichever backend starts it: one spelling, so both run
     exactly the same mission. Without `plots` the run draws no picture (its recording and
-    summary are the same: pictures are drawn from them). `instance`: the run's instance file
+    summary are the same: pictures are drawn from them). Its recording is the bus alone
+    (`--recording bus`: what the analysis reads, ≈ 1.5 CPU-s a run less than a viewer's). `instance`: the run's instance file
     as this machine has it (a Dask worker writes its own copy); its overrides go to the
     packages the run derives from it (`--override`: mission/overrides.py)."""
     return (["-q", "demo", "--application", package, "--duration", str(duration), "--speed",
              "0", "--fail", run.failure, "--seed", str(run.seed), "--output", str(out),
-             "--no-live", "--agents-per-process", str(run.agents_per_process)]
+             "--no-live", "--agents-per-process", str(run.agents_per_process),
+             "--recording", "bus"]
             + ([] if plots else ["--no-plots"])
             + ([] if instance is None else ["--instance", str(instance)]
                + [a for k, v in run.overrides for a in ("--override", override_text(k, v))]))

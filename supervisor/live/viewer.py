@@ -45,6 +45,7 @@ from mrta_zenoh.lifecycle import Closing
 from mrta_zenoh.messages import Clock, Odometry, PointCloud, Twist
 from mrta_zenoh.node import Node, NodeTime
 from mrta_zenoh.recording import McapRecorder, SimLogTime, check_output, json_channel
+from mrta_zenoh.tools.record import drain
 from mrta_zenoh.untrusted import visible
 
 from .api import Refresh, attach, resolve_application, serving_of
@@ -274,23 +275,6 @@ def run_view(options: ViewOptions, bus_options: BusOptions, *,
             if recorder is not None:
                 drain(clock)
     return 0
-
-
-DRAIN_QUIET = 0.5  # wall s without a clock sample: the recorder has what the simulator sent
-DRAIN_MAX = 4.0    # wall s a stopped recorder goes on recording at most (the runner's grace: 5)
-
-
-def drain(clock: SimClock) -> None:
-    """A recorder told to stop goes on recording while clock samples still come, until the
-    clock has been quiet for DRAIN_QUIET (at most DRAIN_MAX): a mission runner stops it as soon
-    as the simulator has ended, and a recorder behind on a busy machine (20 robots, `--speed
-    0`) still had the last simulated second queued — closing then cut the recording short of
-    the mission ("the recording does not cover the whole mission"; issue 51, the newcomer's
-    `--no-plots` run: with plots, the simulator's snapshot delayed the stop long enough)."""
-    deadline = time.monotonic() + DRAIN_MAX
-    while (clock.started.is_set() and not clock.stalled(DRAIN_QUIET)
-           and time.monotonic() < deadline):
-        time.sleep(0.05)
 
 
 def _receiver(stamper, log_time, recorder, live, pacer):

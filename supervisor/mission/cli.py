@@ -89,6 +89,12 @@ from ..live.view import render
               default=None, metavar="FLEET",
               help="Run on the secured fleet `mrta secure init FLEET …` wrote: its router, "
                    "each process with its own certificate (docs/security.md).")
+@click.option("--recording", type=click.Choice(["full", "bus"]), default="full",
+              show_default=True,
+              help="What run.mcap holds: the bus and the channels a viewer draws (scene, "
+                   "poses, the supervisor's state), or the bus alone — all the summary and "
+                   "pictures read, for less CPU (mrta experiment's runs); `mrta replay` into "
+                   "`mrta view` draws the rest.")
 def demo(live: bool | None, **kwargs) -> None:
     """A mission end to end: simulator, agents and supervisor, then a summary."""
     options = MissionOptions(**kwargs)

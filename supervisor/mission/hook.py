@@ -141,6 +141,11 @@ class MissionOptions:
     # a secured fleet's folder (`mrta secure init`): every process joins its router with its
     # own certificate (secured.py); None: the open bus
     secure: Path | None = None
+    # what the run's recorder writes: "full", the bus and the channels a viewer draws (scene,
+    # poses, the supervisor's state: `mrta view`), or "bus", the bus alone (`mrta record`) —
+    # all the summary and the pictures read (the derived channels are the bus's, redrawn by
+    # `mrta replay` into `mrta view`), for a run nobody opens in a viewer: an experiment's
+    recording: str = "full"
 
 
 def instance_folder(options: MissionOptions) -> Path:

@@ -209,11 +209,9 @@ def _run_in(run: MissionRun, reg: Registry,
         watch = live.enter_context(RunWatch(bus, run.arch, clock))
         # the recording: the bus, the scene and the supervisor's channels, readable by Foxglove;
         # with a Foxglove port the same channels are also served live
-        view = ["view", run.package.name, "--sim-time", "--output", output / "run.mcap",
-                *(client if fleet is None else fleet.args(secured.RECORDER))]
-        view += (["--port", str(options.foxglove_port)] if options.foxglove_port is not None
-                 else ["--no-server"])
-        recorder = group.start(mrta_argv(*view), name="record")
+        recorder = group.start(mrta_argv(*recorder_args(
+            options, run.package.name,
+            client if fleet is None else fleet.args(secured.RECORDER))), name="record")
         ready.wait(ready.recorder.is_set, "the recorder", group, stop)
         intake = _start_intake(run, group, client if fleet is None
                                else fleet.args(secured.INTAKE))
@@ -290,6 +288,21 @@ def _run_in(run: MissionRun, reg: Registry,
     summary = analyse(run, failure, failed_at, time.monotonic() - t_wall0, before, disturbances,
                       strangers, interrupted)
     return run, summary
+
+
+def recorder_args(options: MissionOptions, package: str, client: list[str]) -> list:
+    """The run's recorder, on simulated time: `mrta view` (the bus and the channels a viewer
+    draws; served live with a Foxglove port), or, with `recording` "bus" and no port, `mrta
+    record` — the bus and every liveliness change, which is all the analysis reads (recording.
+    read_recording drops the derived channels), without the view's supervisor, scene and their
+    imports: ≈ 1.5 of a 5 / 5 study run's ≈ 4 recorder CPU-s (benchmarks/README.md, "The
+    study's runs"). Both announce the same recorder token and drain the same way."""
+    out = options.output / "run.mcap"
+    if options.recording == "bus" and options.foxglove_port is None:
+        return ["record", "--sim-time", "--output", out, *client]
+    view = ["view", package, "--sim-time", "--output", out, *client]
+    return view + (["--port", str(options.foxglove_port)] if options.foxglove_port is not None
+                   else ["--no-server"])
 
 
 def host_timeout(per_host: int) -> float:
