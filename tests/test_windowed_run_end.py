@@ -28,6 +28,7 @@ from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.messages import Header
 from mrta_zenoh.planning import Problem, Robot, Task
 from mrta_zenoh.planning.schedule import window_counts
+from mrta_zenoh.tasks.messages import CHANGE, INTAKE, Change
 
 ROBOTS = ("robot1", "robot2", "robot3", "robot4", "robot5")
 TESSI = Path(__file__).resolve().parents[1] / "configs" / "applications" / "delivery_tessi"
@@ -131,6 +132,47 @@ def test_under_soft_windows_nothing_is_ever_missed_and_the_run_waits():
         say(s, "robot2", t, "started", 40.0)
         say(s, "robot2", t, "done", 45.0)
     assert states(s, 1000.0)["t1"] != "missed" and not s.all_done()
+
+
+def cancel(s: Supervisor, task: str, at: float, sender: str = INTAKE) -> None:
+    s.on_change(Change(Header(sender, at, 0), "cancel", task), at)  # the intake's tasks/change
+
+
+@pytest.mark.parametrize("windows", ["hard", "soft"])
+def test_a_task_cancelled_at_run_time_is_settled_and_the_run_is_over(windows):
+    """Issue 50's `mrta task cancel` of a task nobody will serve now: the run no longer waits
+    for it (its due, or for ever without one or under soft windows). A cancel forged in
+    another's name settles nothing; one of a task already done leaves it done."""
+    s = supervisor(instance(windows))
+    for t, at in (("t1", 3.0), ("t3", 8.0), ("t4", 9.0)):
+        say(s, "robot2", t, "started", at)
+        say(s, "robot2", t, "done", at + 5.0)  # t3 needs its 5 s of service
+    cancel(s, "t2", 15.0, sender="someone")  # forged: only the intake's word counts
+    assert states(s, 15.0)["t2"] != "cancelled" and not s.all_done()
+    cancel(s, "t2", 16.0)  # t2 has no window at all: before, the run ran to --duration
+    assert states(s, 16.0)["t2"] == "cancelled" and s.all_done()
+    cancel(s, "t1", 17.0)
+    assert states(s, 17.0)["t1"] == "done"
+
+
+def test_a_cancelled_task_is_not_waited_for_nor_missed_in_the_figures():
+    params = instance()
+    records = [event("robot2", "t2", "started", 5.0), event("robot2", "t2", "done", 6.0),
+               event("robot3", "t3", "started", 18.0), event("robot3", "t3", "done", 23.0)]
+    assert done_at(records, params) == 30.0  # t1 missed at 10, t4 at 30
+    assert done_at(records + [change("t4", 24.0)], params) == 24.0  # over when cancelled
+    soft = instance("soft")
+    assert done_at(records, soft) is None  # t1, t4 never done: a soft due ends nothing
+    assert done_at(records + [change("t1", 7.0), change("t4", 24.0)], soft) == 24.0
+    assert done_at(records + [change("t4", 24.0, sender="someone")], soft) is None  # forged
+    p = Problem((Robot("r", (0.0, 0.0), 1.0),), (Task("a", (1.0, 0.0), due=5.0),))
+    assert window_counts(p, {}, end=9.0).missed == 1
+    assert window_counts(p, {}, end=9.0, withdrawn={0}).missed == 0  # cancelled: not missed
+
+
+def change(task: str, at: float, sender: str = INTAKE) -> tuple:
+    return (CHANGE, encoding_for(Change.TYPE_NAME), int(at * 1e9),
+            encode(Change(Header(sender, at, 0), "cancel", task)))
 
 
 def event(robot: str, task: str, kind: str, at: float) -> tuple:

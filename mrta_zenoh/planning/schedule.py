@@ -26,7 +26,8 @@ run's allocation records show, so a summary's counts can be recomputed from its 
   windows what lateness costs; under hard windows a late start is a violation (none expected);
 * **early**: served, started before its earliest — a violation under either kind (robots wait);
 * **missed**: not served, and its due passed by `end` (a run's end — a run that ends when
-  nothing is left to serve may end at a missed task's due; a plan has none).
+  nothing is left to serve may end at a missed task's due; a plan has none) — unless it was
+  `withdrawn` (cancelled at run time: nobody was to serve it any more).
 
 Starts are compared with `WINDOW_TOLERANCE` of slack: allocation records are rounded to the ms.
 
@@ -38,7 +39,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from enum import Enum
-from typing import Mapping, Sequence
+from typing import Collection, Mapping, Sequence
 
 from ..errors import ConfigError
 from .problem import Problem
@@ -99,15 +100,16 @@ class WindowCounts:
 
 
 def window_counts(problem: Problem, starts: Mapping[int, float],
-                  end: float = math.inf) -> WindowCounts:
+                  end: float = math.inf, withdrawn: Collection[int] = ()) -> WindowCounts:
     """The window counts of serving task j from `starts[j]` (task index → start of service; a
-    task not in it was not served) as of `end` (module docstring)."""
+    task not in it was not served) as of `end`; `withdrawn`: tasks cancelled, never missed
+    (module docstring)."""
     in_window = missed = late = early = 0
     lateness = 0.0
     for j, task in enumerate(problem.tasks):
         start = starts.get(j)
         if start is None:
-            missed += math.isfinite(task.due) and task.due <= end
+            missed += math.isfinite(task.due) and task.due <= end and j not in withdrawn
         elif start < task.earliest - WINDOW_TOLERANCE:
             early += 1
         elif start > task.due + WINDOW_TOLERANCE:

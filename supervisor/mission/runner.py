@@ -42,7 +42,7 @@ from mrta_zenoh.lockstep.protocol import DEFAULT_TIMEOUT
 from mrta_zenoh.node import Node, NodeTime
 from mrta_zenoh.processes import Child, ProcessGroup, mrta_argv
 from mrta_zenoh.seeds import SEED_ENV
-from mrta_zenoh.tasks.messages import INTAKE
+from mrta_zenoh.tasks.messages import INTAKE, Op
 from mrta_zenoh.tasks.server import TOKEN as INTAKE_TOKEN
 from mrta_zenoh.toolchain.launchfile import LaunchEvaluator, NodeSpec, check_executables
 from mrta_zenoh.toolchain.registry import Registry
@@ -251,8 +251,8 @@ def _run_in(run: MissionRun, reg: Registry,
                  AGENTS_UP, time.monotonic() - t_wall0)
         ready.wait(ready.clock.is_set, "the simulator", group, stop,
                    ignore=lambda: own_process(injected()))
-        # a run that takes tasks at run time goes on to its duration: more may come
-        failed_at = _watch(sim, sup, clock, failure, stop, progress, early_end=intake is None)
+        failed_at = _watch(sim, sup, clock, failure, stop, progress,
+                           early_from=_ends_early_from(run) if intake is not None else 0.0)
         watch.end()
         live.close()
         interrupted = None
@@ -342,6 +342,23 @@ def intake_path(run: MissionRun) -> Path | None:
     return path
 
 
+def _ends_early_from(run: MissionRun) -> float | None:
+    """From when a run with a task intake may end once nothing is left to serve (None: it goes
+    on to its duration). A reachable run (`--rendezvous`) goes on: more may come from other
+    terminals. A run replaying its instance's schedule (a summary's `submitted`) may end once
+    every scheduled change has entered — a task it cancels is then settled (the application's
+    TaskWatch says so) — unless the schedule submits a task: the live supervisor knows the
+    instance's tasks, not the submitted ones, so it could not tell that they were served."""
+    if run.options.rendezvous is not None:
+        return None
+    path = run.options.instance or run.mission.instance_file(run)
+    loaded = instances.load(path)
+    changes = loaded.kind.schedule(loaded.doc)
+    if any(c.op == Op.SUBMIT for c in changes):
+        return None
+    return max((c.at for c in changes), default=0.0)
+
+
 AGENTS_UP = "agents up"  # the start-up line's mark
 
 # From this many robots a run's processes meet through a router of their own (`mrta router` on
@@ -400,11 +417,12 @@ END_MARGIN = 1.0  # simulated s the simulator runs on once nothing is left to se
 
 def _watch(sim: Child, sup: Supervisor, clock: SimClock, failure: Failure | None,
            stop: threading.Event, progress: Progress | None,
-           early_end: bool = True) -> float | None:
+           early_from: float | None = 0.0) -> float | None:
     """Follow the run until the simulator ends — at its duration, or stopped here END_MARGIN
-    after the application's task watch said nothing is left to serve, every task done or
-    missed (Mission.task_watch); return
-    when `failure` struck (each process injects its own faults, at their simulated times)."""
+    after the application's task watch said nothing is left to serve, every task done,
+    missed or cancelled (Mission.task_watch) — not before `early_from` (simulated s; None:
+    never, _ends_early_from); return when `failure` struck (each process injects its own
+    faults, at their simulated times)."""
     failed_at = None
     all_done: float | None = None
     refresh = Refresh(sup, clock, sim_time=True)
@@ -415,7 +433,8 @@ def _watch(sim: Child, sup: Supervisor, clock: SimClock, failure: Failure | None
             failed_at = failure.at
         if progress is not None:
             progress(now, sup, failure, failed_at)
-        if early_end and all_done is None and sup.all_done():
+        if early_from is not None and now >= early_from and all_done is None \
+                and sup.all_done():
             all_done = now
         if all_done is not None and now >= all_done + END_MARGIN:
             # the time the summary reports (ended_at) is when the work was seen over, not

@@ -54,3 +54,32 @@ def test_a_windowed_run_serves_only_inside_windows_and_counts_them(children, tmp
         task = s["instance"]["tasks"][record["task"]]
         if record.get("reached_at") is not None:   # a summary leaves out what is null
             assert task["earliest"] - 1e-3 <= record["reached_at"] <= task["due"] + 1e-3, record
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(600)
+def test_a_windowed_run_with_a_cancelled_task_ends_when_the_rest_is_over(children, tmp_path):
+    """`mrta task cancel` as a summary replays it (the instance's `submitted`, through the run's
+    intake): t4, whose window opens at 40 s, is cancelled at 1 s. The run ends once t1–t3 are
+    done or missed (every due by 23 s), not at t4's due nor at --duration; t4 is neither served
+    nor missed."""
+    import yaml
+    file = tmp_path / "tw.yaml"
+    gen = children.mrta(*GENERATE, "-o", str(file), name="generate")
+    assert gen.wait(60) == 0, gen.tail(10)
+    doc = yaml.safe_load(file.read_text())
+    doc["tasks"]["t4"].update(earliest=40.0, due=45.0)
+    doc["submitted"] = [{"at": 1.0, "op": "cancel", "id": "t4"}]
+    file.write_text(yaml.safe_dump(doc, sort_keys=False))
+    out = tmp_path / "ssi"
+    demo = children.mrta("-q", "demo", "--application", "delivery", "--instance", str(file),
+                         "--architecture", "ssi", "--duration", "60", "--speed", "0",
+                         "--no-live", "--no-plots", "--output", str(out), name="demo")
+    assert demo.wait(400) == 0, demo.tail(30)
+    s = json.loads((out / "summary.json").read_text())
+    m = s["metrics"]
+    assert [r["state"] for r in s["tasks_at_run_time"]["tasks"]] == ["cancelled"], s
+    assert s["ended_at"] is not None and s["ended_at"] < 30 and s["recorded_until"] < 40, \
+        (s["ended_at"], s["recorded_until"])
+    assert "t4" not in {r["task"] for r in s["allocation"] if r.get("done_at") is not None}
+    assert m["completed"] + m["missed"] == 3, m             # t4: cancelled, not missed

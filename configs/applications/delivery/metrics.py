@@ -50,6 +50,7 @@ from .keys import Event
 from .messages import TaskEvent
 from .objectives import (objective_metrics, objective_section, overlaps,
                          reference_window_metrics, window_metrics)
+from .runtime_tasks import cancellations, changes
 
 MATCH_SLACK = 1.0  # s: an event this long after its holder's interval still belongs to it
 
@@ -337,11 +338,14 @@ def analyse(records: list, arch: Architecture, params: InstanceBody, end: float,
     log = allocation_log(records, arch, instance, end, faults, delivery)
     distance = paths(records, {r.id for r in instance.robots})
     section = objective_section(instance, log, objective or arch.objective or "minsum")
-    windows = window_metrics(instance, log, end)
+    cancelled = cancellations(changes(records))
+    windows = window_metrics(instance, log, end, cancelled)
+    hindsight = reference_window_metrics(instance, section["reference"],
+                                         windows["served_in_window"])
+    if cancelled:  # the reference serves tasks the run was told to leave: no gap to it
+        hindsight["served_gap"] = None
     metrics = {**measure(instance, log, distance), **arrivals(instance, end),
-               "windowed": instance.windowed, **windows,
-               **reference_window_metrics(instance, section["reference"],
-                                          windows["served_in_window"]),
+               "windowed": instance.windowed, **windows, **hindsight,
                **objective_metrics(section),
                **fairness(workload([r.id for r in instance.robots], log, distance, end)),
                "events_refused": refused}
@@ -355,8 +359,9 @@ def done_at(records: list, params: InstanceBody,
     completion, from the robots' own `done` events as believed: believed_events) or, under hard
     windows, missed by `until` (the run's duration) — over at its due when no service of it
     was believed started, else when that service would have ended (max(due, start) +
-    service): what the run's task watch ends the run on (mission.DeliveryWatch.lapsed). None:
-    some task was neither."""
+    service) — or cancelled at run time before either (over when it was cancelled): what the
+    run's task watch ends the run on (mission.DeliveryWatch). None: some task was none of
+    these."""
     first: dict[str, float] = {}
     began: dict[str, float] = {}
     for _robot, task, event, stamp in believed_events(records, params, tolerance)[0]:
@@ -364,10 +369,11 @@ def done_at(records: list, params: InstanceBody,
             first.setdefault(task, stamp)
         else:
             began[task] = min(stamp, began.get(task, stamp))
+    cancelled = cancellations(changes(records))
     over = []
     for tid, t in params.tasks.items():
-        if tid in first:
-            over.append(first[tid])
+        if tid in first or tid in cancelled:
+            over.append(min(first.get(tid, math.inf), cancelled.get(tid, math.inf)))
             continue
         if params.windows != "hard" or t.due is None:
             return None

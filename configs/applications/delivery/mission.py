@@ -170,7 +170,8 @@ def _read_instance(path: Path, _mtime_ns: int, _size: int) -> InstanceBody:
 class DeliveryWatch(TaskWatch):
     """A delivered task is done for good; one that arrives later is waiting until then. A
     `done` counts as the robots' boards count it (board.py, done_rule.py): on its sender's own
-    key, after its own `started` a service before — forged ones do not end the run.
+    key, after its own `started` a service before — forged ones do not end the run. (A task
+    cancelled at run time is settled by the supervisor itself: Supervisor.on_change.)
 
     Under hard windows a task is missed for good (`lapsed`) once its due has passed by
     `grace` with no believed `started` — no robot may start it any more — or, started, once

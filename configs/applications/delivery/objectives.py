@@ -26,7 +26,8 @@ robots at once — all from the allocation log, so that a summary alone gives th
   objectives' references, so a row has its `served_gap`: that count − the run's
   `served_in_window` (tasks; lower is better). `reference_served_proven` says whether that
   count is proven the most any plan serves (an exact reference: up to EXACT_LIMIT tasks);
-  above, it is the best found, a bound a run may beat (a negative gap).
+  above, it is the best found, a bound a run may beat (a negative gap). The reference knows
+  nothing of tasks cancelled at run time, so a run with cancellations has no gap.
 * **Overlaps.** A stretch is *executed* from when its robot set off to the task until it
   completed it or the task left it (`started_at` → `done_at`, else `ended_at`); two robots'
   executions of one task that overlap by more than a tick are an overlap.
@@ -95,9 +96,13 @@ def service_starts(problem: Problem, log: Iterable[Stretch]) -> dict[int, float]
     return out
 
 
-def window_metrics(problem: Problem, log: Iterable[Stretch], end: float) -> dict[str, Any]:
-    """The run's window counts as of its end (module docstring), for `metrics`."""
-    return window_counts(problem, service_starts(problem, log), end).to_json()
+def window_metrics(problem: Problem, log: Iterable[Stretch], end: float,
+                   cancelled: Iterable[str] = ()) -> dict[str, Any]:
+    """The run's window counts as of its end (module docstring), for `metrics`; a task
+    `cancelled` at run time and not served is not missed."""
+    cancelled = set(cancelled)
+    withdrawn = {j for j, t in enumerate(problem.tasks) if t.id in cancelled}
+    return window_counts(problem, service_starts(problem, log), end, withdrawn).to_json()
 
 
 @dataclass(frozen=True)

@@ -42,6 +42,15 @@ def changes(records: Iterable) -> list[Change]:
     return out
 
 
+def cancellations(seen: list[Change]) -> dict[str, float]:
+    """task → when it was first cancelled (the change's stamp, simulated s)."""
+    out: dict[str, float] = {}
+    for c in seen:
+        if c.op == Op.CANCEL:
+            out.setdefault(c.task_id, c.header.stamp)
+    return out
+
+
 def submitted(seen: list[Change]) -> list[SubmittedChange]:
     out = []
     for c in seen:
