@@ -13,7 +13,6 @@
 from __future__ import annotations
 
 import dataclasses
-import inspect
 import math
 
 import msgspec
@@ -156,11 +155,9 @@ def test_soft_windows_change_no_place(p):
 
 # --- central -----------------------------------------------------------------------------------
 
-# central's solve gains a required `search_limit` with issue 50's insertion path (the tasks
-# engineer's e0d63dd, landing beside this): above it in open tasks it inserts instead of
-# searching; these ≤ 6 tasks are always searched. Passed only where solve takes it, so this
-# test runs on main before and after that change (drop the guard once both are on main).
-SEARCH = {"search_limit": 1000} if "search_limit" in inspect.signature(solve).parameters else {}
+# These ≤ 6 tasks are always searched (search_limit far above them), so the property is the
+# search's and the kept plan's, not the insertion path's.
+SEARCH = {"search_limit": 1000}
 
 
 @settings(max_examples=40, derandomize=True, deadline=None)
