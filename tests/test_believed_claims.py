@@ -169,6 +169,23 @@ def test_a_winner_saying_its_task_served_before_it_could_have_reached_it_is_not_
     assert refused([r1], TOO_EARLY) == 1
 
 
+def test_a_former_winner_relaying_the_new_winners_service_is_not_called_a_forger():
+    """After a partition (the study's file 04, CBBA, instance 3): r2 won c, lost it to r3 on its
+    side, and reports r3's service as soon as it rejoins — too early for r2 to have served c,
+    not for r3. A relay, so it goes the way of relays (a majority), never counted forged."""
+    r1 = Cbba(LINE, "r1", lookahead=math.inf, resend_period=1.0)
+    for other in ("r2", "r3"):
+        r1.teammate(other, True)
+    c = 2  # (12, 0): r2 (from (5, 0)) reaches it at 7 s at the earliest, r3 (from (10, 0)) at 2 s
+    assert r1.earliest(1, c) == 7.0 and r1.earliest(2, c) < 4.0
+    r1.hear("bids", "r2", Bids(Header("r2", 0.1, 1), ((c, 1, 0.9),), ((1, 0.1),), (), 5.0, 0.0), 0.1)
+    r1.hear("bids", "r3", Bids(Header("r3", 0.2, 1), ((c, 2, 0.95),), ((2, 0.2),), (), 5.0, 0.0), 0.2)
+    assert r1.won[c] == {1, 2}
+    relay = Bids(Header("r2", 3.5, 2), (), ((1, 3.5),), (c,), 12.0, 0.0)  # 7 s − 3.5 > CLAIM_SLACK
+    assert r1.hear("bids", "r2", relay, 3.5)
+    assert refused([r1], TOO_EARLY) == 0 and not [e for e in r1.refused if e[3]], r1.refused
+
+
 def test_a_bids_with_a_winning_bid_above_the_tasks_reward_is_refused_whole():
     team = cbba_team()
     forged = Bids(Header("r3", 0.0, 99), ((0, 2, 1e9), (1, 2, 1e9)), ((2, 0.0),), (), 10.0, 0.0)

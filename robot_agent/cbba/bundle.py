@@ -37,7 +37,9 @@ Departures from the paper, each for a reason given in docs/cbba.md:
   of range (below 0, or above the task's reward: a marginal score is at most that) is refused
   whole; a task in its `done` counts as served only if its sender had won it as this robot
   knew it before the message — and no earlier than that winner could have served it (from
-  its start, at its speed: `earliest`; a certified robot cannot end a task it won at once) —
+  its start, at its speed: `earliest`; a certified robot cannot end a task it won at once;
+  a claim too early for its sender but not for another robot believed the winner is taken as
+  a relay of that robot's service and waits like one) —
   or once more than half of its teammates not known gone said so
   (a robot counted gone — a stall — never learns who won its tasks meanwhile, and every other
   robot relays their completion; a relay alone is not believed, or one liar's claim, relayed
@@ -250,10 +252,14 @@ class Cbba(RouteLogic):
             if k in self.won.get(j, ()):
                 if stamp >= self.earliest(k, j) - CLAIM_SLACK:
                     self._mark_done(j, stamp)
-                elif (k, j) not in self.too_early:  # counted once; believed once it could be
-                    self.too_early.add((k, j))
-                    self.refused[("bids", sender, TOO_EARLY, True)] += 1
-                continue
+                    continue
+                if not self._relay_possible(k, j, stamp):
+                    if (k, j) not in self.too_early:  # counted once; believed once it could be
+                        self.too_early.add((k, j))
+                        self.refused[("bids", sender, TOO_EARLY, True)] += 1
+                    continue
+                # too early for k, not for another robot believed its winner: k may relay that
+                # robot's service (k won it once, lost it, heard it served) — a claim that waits
             claims = self.done_claims.setdefault(j, {})
             if k not in claims:
                 self.refused[("bids", sender, UNCONFIRMED, False)] += 1
@@ -455,6 +461,13 @@ class Cbba(RouteLogic):
     def _view(self, view: View) -> View:
         """A winner that left the team reads as none."""
         return View(NONE, 0.0) if view.winner in self.departed else view
+
+    def _relay_possible(self, k: int, j: int, stamp: float) -> bool:
+        """Whether another robot believed j's winner could have served it by `stamp`: then k's
+        early `done` may be an honest relay (seen after a partition: k won j, lost it to a
+        teammate on its side, and reports that teammate's service when it rejoins), so it waits
+        for a majority like any relay instead of being refused as forged."""
+        return any(w != k and stamp >= self.earliest(w, j) - CLAIM_SLACK for w in self.won[j])
 
     def earliest(self, k: int, j: int) -> float:
         """The earliest robot k could have finished task j: from its start at its speed (the
