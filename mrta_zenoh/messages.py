@@ -28,10 +28,11 @@ import logging
 import sys
 import threading
 import typing
-from importlib.metadata import entry_points
 from typing import Annotated, Any, ClassVar
 
 import msgspec
+
+from mrta_zenoh.installed import entry_points  # the metadata read once, as every reader
 
 log = logging.getLogger("mrta.messages")
 
