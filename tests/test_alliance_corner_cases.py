@@ -195,6 +195,7 @@ class _Idle:
 
     def fresh(self, topic, now): return True
     def applicable(self, task, now): return False
+    def done(self, task, now): return False
     def pose(self): return None
 
 

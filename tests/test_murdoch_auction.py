@@ -141,6 +141,7 @@ def test_of_two_holders_the_later_claim_yields():
     class Fresh:
         def fresh(self, topic, now): return True
         def applicable(self, task, now): return True
+        def done(self, task, now): return False
         def pose(self): return None
 
     core.hear("claim", "robot3", Claim(Header("robot3", 11.0, 1), "a", 11.0, 2.0), 11.0)

@@ -73,6 +73,7 @@ def test_no_revocation_while_the_task_is_done_within_its_timeout(tmp_path):
 class _Able:
     def fresh(self, topic, now): return True
     def applicable(self, task, now): return True
+    def done(self, task, now): return False
     def pose(self): return None
 
 
@@ -102,3 +103,28 @@ def test_a_bad_progress_timeout_names_file_line_and_key(tmp_path):
         load_params(write(tmp_path / "r.yaml", robot_doc({"a": 1.0})), f)
     assert "progress_timeout" in str(err.value) and str(f) in str(err.value)
     assert err.value.line is not None
+
+
+class _Served:
+    """A holder whose layers finished its task: done, and (as a delivered task's evaluator
+    says) no longer applicable."""
+
+    def fresh(self, topic, now): return True
+    def applicable(self, task, now): return False
+    def done(self, task, now): return True
+    def pose(self): return None
+
+
+def test_a_holder_gives_a_served_task_back_at_once_not_give_up_delay_later(tmp_path):
+    """The interval a MURDOCH robot's claims and release draw ends where its service did
+    (issue 51: it ended ≈ give_up_delay, 3 s, after `done_at`, the served task's evaluator
+    having turned inapplicable, which looked like a stall); and the task is not barred from
+    it as a stalled one would be."""
+    params = load_params(write(tmp_path / "r.yaml", robot_doc({"a": 1.0})),
+                         write(tmp_path / "t.yaml", tasks_doc(["a"])))
+    core = Murdoch("robot1", params.robot, params.tasks)
+    core.task, core.since, core.last_claim = "a", 10.0, 10.0
+    out, changes = core.tick(12.0, _Served())
+    assert core.task is None and [(c.kind, c.reason) for c in changes] == [("released", "done")]
+    assert [(o.kind, o.fields["reason"]) for o in out] == [("release", "done")]
+    assert "a" not in core.cooldown

@@ -40,6 +40,10 @@ class _Readings:
         ev = self.plugins.evaluators.get(task_id)
         return ev is not None and bool(ev.is_applicable(now))
 
+    def done(self, task_id: str, now: float) -> bool:
+        """Whether this robot finished the task since its layers were last activated."""
+        return any(layer.done(now) for layer in self.plugins.layers.get(task_id, ()))
+
     def pose(self) -> tuple[float, float] | None:
         sensor = self.plugins.sensors.get(self.pose_topic) if self.pose_topic else None
         msg = sensor.latest if sensor is not None else None

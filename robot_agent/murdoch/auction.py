@@ -18,7 +18,8 @@ The protocol (Gerkey & Matarić 2002; docs/murdoch.md):
 * **Leases.** The winner publishes a Claim at once and every renewal_period. A task none of
   whose claims was heard for lease_timeout is unheld again and is auctioned anew. A winner
   whose progress evaluator (or resources) stays false for give_up_delay releases the task and
-  does not bid for it again for as long. A robot awarded a task while busy releases it at once.
+  does not bid for it again for as long; a winner whose layers say the task is done
+  (Layer.done) releases it at once. A robot awarded a task while busy releases it at once.
 * **Who auctions.** Every robot knows the mission's tasks, and any robot may auction an unheld
   one it serves (its subjects: the tasks it has a skill for; it hears only their announcements,
   and must hear whether someone else announced). Each robot advertises its subjects (a
@@ -63,6 +64,7 @@ class Readings(Protocol):
 
     def fresh(self, topic: str, now: float) -> bool: ...
     def applicable(self, task_id: str, now: float) -> bool: ...
+    def done(self, task_id: str, now: float) -> bool: ...
     def pose(self) -> tuple[float, float] | None: ...
 
 
@@ -334,6 +336,12 @@ class Murdoch:
         if earlier:
             since, robot = min(earlier)
             self._release(f"duplicate: {robot} holds it since {since:.2f}", now, out, changes)
+            return
+        if readings.done(self.task, now):
+            # served: given back at once, so the interval its claims and release draw ends
+            # where the service did (not give_up_delay later, when a done task's evaluator —
+            # inapplicable from then on — would have looked like a stall)
+            self._release("done", now, out, changes)
             return
         if self.progressing(self.task, now, readings):
             self.stalled_since = None

@@ -7,8 +7,8 @@ In lockstep a run is a function of its seed, so every field must come out the sa
 - `recorded_until`: the recorder stops a wall-clock moment after the run ends, so how much of
   the robots' talk past the end it keeps is a race;
 - for the same reason a time past the run's end (`ended_at`) read from that talk — a robot's
-  last `to` in `who_did_what`, an allocation record's `ended_at` (MURDOCH releases its last task
-  a few seconds after delivering it) — is compared as the run's end;
+  last `to` in `who_did_what`, an allocation record's `ended_at` (a robot gives its last task
+  back a tick after delivering it) — is compared as the run's end;
 - `messages.total` within one sample per robot (and `total_per_second`, its quotient, not at
   all): a robot's velocity command carries no stamp, so it is counted by its agent's next
   stamped sample, and the last one before the end is counted only if that next sample, sent
