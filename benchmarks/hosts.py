@@ -14,6 +14,11 @@ analysis), its wall time the command's. Printed, one JSON line per figure:
   whole mission: wall time, the real-time factor (simulated over wall seconds, start-up
   included), CPU-s, and the summary's `run_status` and `lockstep_exact`.
 
+* `own_delivery` — with `--hear-sizes`: one bus (real Zenoh session) with K subscriptions to
+  every robot's CBBA `Bids`, as K robots in one host hold, and a 100-winner `Bids` published on
+  it: CPU µs per publish decoded once for the K (the bus now) against once per subscription
+  (the baseline, the same bus and subscriptions: what `_hand_over` did before).
+
 * `startup` — with `--startup-sizes`: N robots and N tasks, one process per robot (the
   baseline) and the team in one host, a short run each (`--startup-duration`): wall s from the
   command to every robot's agent up (the runner's `agents up` line) and the agents' resident
@@ -23,7 +28,7 @@ Each line carries the load average when it was measured (others may share the ma
 
 Run: python benchmarks/hosts.py [--repeat 2] [--sizes 5 10 20 50 100] [--architectures cbba
                                 alliance] [--per-host 0] [--duration 20]
-                                [--startup-sizes 5 10 20 50 100]
+                                [--startup-sizes 5 10 20 50 100] [--hear-sizes 10 100]
 """
 
 from __future__ import annotations
@@ -181,6 +186,44 @@ def team_size(folder: Path, sizes: list[int], archs: list[str], per_host: int,
                  completed=s.get("metrics", {}).get("completed"), rc=r["rc"], error=r["error"])
 
 
+def own_delivery(sizes: list[int], publishes: int = 300) -> None:
+    from mrta_agent.cbba.messages import Bids
+    from mrta_zenoh import codec
+    from mrta_zenoh.bus import BusOptions
+    from mrta_zenoh.bus.zenoh_bus import ZenohBus
+    from mrta_zenoh.messages import Header
+
+    msg = Bids(Header("robot1", 1.0, 1), tuple((t, t % 100, 10.0 + t) for t in range(100)),
+               tuple((r, 1.0) for r in range(100)), (), 0.0, 0.0, instance="0" * 16)
+    key, enc = "cbba/robot1/bids", codec.encoding_for(Bids.TYPE_NAME)
+    for k in sizes:
+        with ZenohBus(BusOptions(listen=["tcp/127.0.0.1:0"])) as bus:
+            heard = []
+            for _ in range(k):
+                bus.subscribe("cbba/*/bids", heard.append, msg_type=Bids)
+            subs = bus._own_subscriptions(key)
+
+            def per_subscription(payload: bytes) -> None:
+                for sub in subs:
+                    sub._dispatch(key, enc, payload)
+
+            def once(payload: bytes) -> None:
+                bus._hand_over(subs, key, enc, payload)
+
+            figures = {}
+            for name, hand_over in (("per_subscription", per_subscription), ("once", once)):
+                payload = codec.encode_struct(msg)
+                t0 = time.process_time()
+                for _ in range(publishes):
+                    hand_over(payload)
+                figures[name] = (time.process_time() - t0) / publishes * 1e6
+                heard.clear()
+        emit(figure="own_delivery", subscriptions=k, winners=100, publishes=publishes,
+             per_subscription_us=round(figures["per_subscription"], 1),
+             once_us=round(figures["once"], 1),
+             ratio=round(figures["per_subscription"] / figures["once"], 2))
+
+
 def startup(folder: Path, sizes: list[int], arch: str, duration: float) -> None:
     """Issue 47 point 4: start-up and the agents' memory per robot against team size, one
     process per robot (the baseline) and the team in one host, the same instance each."""
@@ -212,7 +255,11 @@ def main() -> None:
     ap.add_argument("--startup-sizes", type=int, nargs="*", default=[],
                     help="team sizes for the start-up and memory figure (point 4)")
     ap.add_argument("--startup-duration", type=float, default=2.0)
+    ap.add_argument("--hear-sizes", type=int, nargs="*", default=[],
+                    help="subscriptions per bus for the own_delivery figure")
     args = ap.parse_args()
+    if args.hear_sizes:
+        own_delivery(args.hear_sizes)
     with tempfile.TemporaryDirectory(prefix="mrta-hosts-") as tmp:
         folder = Path(tmp)
         if args.repeat:

@@ -124,22 +124,34 @@ class Subscription(Closing):
         self._native: Any = None  # the implementation's handle
 
     # ---- called by the implementation on its receive thread
-    def _dispatch(self, key: str, encoding: str, payload: bytes) -> None:
+    def _dispatch(self, key: str, encoding: str, payload: bytes,
+                  once: list | None = None) -> None:
+        """Decode and deliver one sample. `once`: a one-slot list shared by the subscriptions
+        of one process that one sample reaches (`dispatch_once`) — the first to decode it
+        leaves there the sample (or why it is malformed) for the others."""
         if self._closed:
             return
         if self.raw:
             self._deliver(RawSample(key, encoding, payload))
             return
-        entry = self._decoder(key, encoding)
+        entry = self._decoder(key, encoding)  # its own type filter and counts, every time
         if entry is None:
             return
-        type_name, decode = entry
-        try:
-            msg = decode(payload)
-        except codec.DecodeError as exc:
-            self._malformed(key, exc)
-            return
-        self._deliver(Sample(key, type_name, msg, payload))
+        done = None if once is None else once[0]
+        if done is None:
+            type_name, decode = entry
+            try:
+                done = Sample(key, type_name, decode(payload), payload)
+            except codec.DecodeError as exc:
+                done = exc
+            # a GenericMessage's value is a mutable dict: each subscription gets its own
+            if once is not None and not (type(done) is Sample
+                                         and type(done.message) is GenericMessage):
+                once[0] = done
+        if type(done) is Sample:
+            self._deliver(done)
+        else:
+            self._malformed(key, done)
 
     def _decoder(self, key: str, encoding: str) -> tuple | None:
         """(type name, decode) for an encoding string; None (counted) for a wrong type or a

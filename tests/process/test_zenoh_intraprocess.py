@@ -11,7 +11,7 @@ import pytest
 from mrta_zenoh import codec
 from mrta_zenoh.bus import BusOptions
 from mrta_zenoh.bus.zenoh_bus import ZenohBus
-from mrta_zenoh.messages import Twist
+from mrta_zenoh.messages import Odometry, Twist
 from tests.harness.helpers import free_port
 
 pytestmark = pytest.mark.multiprocess
@@ -107,3 +107,30 @@ def test_what_a_subscriptions_hook_raises_reaches_neither_the_publisher_nor_the_
     here.publish_raw("robot1/cmd_vel", codec.encoding_for(Twist.TYPE_NAME), b"\xc1not msgpack")
     assert first.malformed == 1 and second.malformed == 1
     assert here.stats["handler_errors"] == errors + 1
+
+
+def test_an_own_sample_is_decoded_once_for_all_the_subscriptions_it_reaches(pair):
+    """An agent host's robots share one decode of a teammate's message (issue 47), each still
+    filtering by type and counting it; a generic message (a mutable dict inside) is not
+    shared."""
+    here, _ = pair
+    counts = here.enable_counting()
+    typed, untyped, generic = [], [], []
+    for _ in range(3):
+        here.subscribe("*/cmd_vel", typed.append, msg_type=Twist)
+    here.subscribe("robot1/*", untyped.append)
+    other = here.subscribe("robot1/cmd_vel", lambda s: None, msg_type=Odometry)
+    here.publish("robot1/cmd_vel", Twist(0.5, 0.1))
+    assert len(typed) == 3 and len(untyped) == 1
+    assert all(s.message is typed[0].message for s in typed + untyped)  # one decode
+    assert other.wrong_type == 1 and other.received == 0
+    assert sorted(t.counts["robot1/cmd_vel"] for t in counts.tallies()) == [0, 1, 1, 1, 1]
+    for _ in range(2):
+        here.subscribe("robot1/note", generic.append)
+    here.publish_raw("robot1/note", codec.encoding_for("no_msgs/Note"),
+                     codec.encode_struct({"text": "hi"}))
+    assert [s.message.data for s in generic] == [{"text": "hi"}] * 2
+    assert generic[0].message is not generic[1].message
+    here.publish_raw("robot1/cmd_vel", codec.encoding_for(Twist.TYPE_NAME), b"\xc1not msgpack")
+    assert len(typed) == 3
+    assert [s.malformed for s in here._subs[:4]] == [1, 1, 1, 1]  # each counts it
