@@ -19,7 +19,8 @@ from tests.harness.helpers import REFERENCE
 PATROL_ANSWERS = CONFIGS / "applications" / "patrol_answers.yaml"
 
 WIZARD_KEYS = [
-    "mypkg", "My App", "", "", "Ana", "not-an-email", "ana@example.org", "", "",
+    "mypkg", "My App", "", "", "Ana", "not-an-email", "ana@example.org",
+    "", "", "",                                     # licence, mission, dependencies
     "single-task", "", "", "",                      # filters (robots: ST only), then arch 1
     "robot1,robot2", "wander,report", "wander", "",  # robot1 does wander, robot2 both
     # robot1_alliance_params

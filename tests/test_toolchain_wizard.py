@@ -114,7 +114,7 @@ def test_the_wizard_ends_with_next_steps_that_work_as_printed(tmp_path, monkeypa
 
 # ------------------------------------------------------------------ the wizard in the terminal
 WANDER_ONLY = [
-    "mypkg", "", "My App", "", "", "Ana", "ana@example.org", "", "",  # an empty name: told why
+    "mypkg", "", "My App", "", "", "Ana", "ana@example.org", "", "", "",  # an empty name: told why
     "single-task", "", "", "",                                         # ALLIANCE
     "robot1", "wander", "",                                            # one robot, one task
     # robot1_alliance_params: an empty mandatory name, then a sensor plugin misspelt
@@ -248,7 +248,7 @@ def test_an_architecture_typed_at_a_filter_prompt_is_told_what_the_prompt_takes(
     said = []
 
     class Script(Quiet):
-        answers = iter(["mypkg", "My app", "", "", "Me", "me@example.com", "", "",
+        answers = iter(["mypkg", "My app", "", "", "Me", "me@example.com", "", "", "",
                         "alliance"])
 
         def ask(self, question, check, default=None, show_default=True):

@@ -14,6 +14,7 @@ from ..lifecycle import interrupted_by_user, stop_on_signals
 from ..toolchain.checks import PackageRefused, check_package_files, check_robot_files
 from ..toolchain.generator import build_application, load_answers, restrict_layers, write_package
 from ..toolchain.launchfile import LaunchEvaluator, check_executables
+from ..toolchain.missionfiles import mission_files, mission_launch, registered_missions
 from ..toolchain.model import ApplicationFile, ArchitectureFile, Array, Param, Params
 from ..toolchain.registry import Registry, matches_taxonomy, taxonomy_value
 from ..toolchain.runner import command_for, run_nodes
@@ -217,6 +218,7 @@ def app_new(answers: Path | None, output: Path, force: bool, yes: bool,
                 click.echo(f"\n{plural(len(ui.said), 'answer')} kept in {kept}: "
                            f"`mrta app new --resume {kept}` asks only the rest", err=True)
             raise
+    files.update(mission_files(app, a.package, a.mission, files, reg))
     dest = output / a.package
     if dest.exists() and not force:
         raise ConfigError(f"{dest} already exists; use --force to replace it")
@@ -229,26 +231,30 @@ def app_new(answers: Path | None, output: Path, force: bool, yes: bool,
         raise click.ClickException("nothing written")
     write_package(files, dest, force)
     click.echo(f"wrote {plural(len(files), 'file')} to {dest}")
-    click.echo(next_steps(a.package, output, files))
+    click.echo(next_steps(a.package, output, files, a.mission))
 
 
-def next_steps(package: str, output: Path, files: dict[str, bytes]) -> str:
+def next_steps(package: str, output: Path, files: dict[str, bytes], mission: str) -> str:
     """What to do with the new package — the wizard ended saying nothing (issue 51, the
     newcomer's list). Each line works as printed (tests/test_toolchain_wizard.py): its launch
     files find it by name (`$(find PKG)`), so it must be on MRTA_PACKAGE_PATH or installed;
-    `mrta demo` runs an application with a registered mission and its simulation launch file,
-    which the wizard does not write — said, not left to be found out."""
+    `mrta demo` runs it when it was made for a mission (its simulation launch file derived
+    from the mission's, toolchain/missionfiles.py), and the last line says how to make it so
+    when it was not."""
     where = shlex.quote(str(output))
     main = f"{package}.launch" if f"launch/{package}.launch" in files else "FILE.launch"
+    runs = bool(mission) and f"launch/{mission_launch(mission)}" in files
     return "\n".join([
         "next:",
         f"  MRTA_PACKAGE_PATH={where} mrta app show {package}      # found by name there "
         "(or pip-install it: README, \"Your own application\")",
         f"  MRTA_PACKAGE_PATH={where} mrta launch {package} {main}   # every robot's agent; "
         "their world: `mrta sim` (README, \"The mission in separate terminals\")",
-        "  `mrta demo` runs an application whose package registers a mission (mrta.missions) "
-        "and has that mission's simulation launch file (as the shipped applications do): "
-        "add both to run this one there"])
+        f"  MRTA_PACKAGE_PATH={where} mrta demo --application {package}   # the {mission} "
+        "mission with these robots: simulator, agents, summary" if runs else
+        "  `mrta demo` runs an application made for a mission: answer the wizard's mission "
+        f"question ({', '.join(registered_missions()) or 'none installed'}), or give "
+        "`mission:` in an answers file"])
 
 
 class TerminalPrompter:

@@ -20,6 +20,7 @@ from ..files import write_folder
 from ..keys import KeyExprError, is_id, normalize_robot_id
 from ..yamlfile import YamlDoc, did_you_mean, load_yaml
 from .checks import layers_config_id, read_layer_sections
+from .missionfiles import check_mission
 from .model import (ApplicationFile, ArchitectureFile, Config, Launch, LaunchArg, LaunchInclude,
                     Params, RobotEntry)
 from .registry import Package
@@ -44,6 +45,9 @@ class Answers:
     email: str = ""
     license: str = "Apache-2.0"
     depends: list[str] = field(default_factory=list)
+    # the mission (registered under mrta.missions) `mrta demo` runs it as: a dependency, and
+    # its simulation launch file derived from that mission's (missionfiles.py); "" none
+    mission: str = ""
 
 
 def check_general(a: Answers) -> None:
@@ -77,7 +81,7 @@ def check_general(a: Answers) -> None:
 
 
 _ANSWER_KEYS = ("package", "name", "architecture", "robots", "configs", "version", "description",
-                "maintainer", "email", "license", "depends")
+                "maintainer", "email", "license", "depends", "mission")
 
 
 def load_answers(path: Path) -> tuple[Answers, YamlDoc]:
@@ -101,7 +105,12 @@ def load_answers(path: Path) -> tuple[Answers, YamlDoc]:
                 configs=d.get("configs") or {}, version=str(d.get("version", "1.0.0")),
                 description=str(d.get("description", "")), maintainer=str(d["maintainer"]),
                 email=str(d["email"]), license=str(d.get("license", "Apache-2.0")),
-                depends=[str(x) for x in d.get("depends") or []])
+                depends=[str(x) for x in d.get("depends") or []],
+                mission=str(d.get("mission") or ""))
+    try:
+        check_mission(a.mission)
+    except ConfigError as exc:
+        raise doc.error(("mission",), str(exc)) from None
     try:
         check_general(a)
     except ConfigError as exc:
@@ -264,7 +273,7 @@ def _package_xml(a: Answers, arch_package: str) -> bytes:
         etree.SubElement(root, tag).text = text
     etree.SubElement(root, "maintainer", email=a.email).text = a.maintainer
     etree.SubElement(root, "license").text = a.license
-    for dep in dict.fromkeys([arch_package, *a.depends]):
+    for dep in dict.fromkeys([arch_package, *a.depends, *([a.mission] if a.mission else [])]):
         etree.SubElement(root, "run_depend").text = dep
     export = etree.SubElement(root, "export")
     etree.SubElement(export, "rqt_mrta", application="${prefix}/rqt_mrta.xml")

@@ -20,6 +20,7 @@ from typing import Any, Callable, Protocol, TypeVar
 from ..errors import ConfigError
 from ..keys import is_id
 from .checks import PackageRefused, check_package_files, layers_config_id
+from .missionfiles import check_mission, registered_missions
 from .generator import (EMAIL, PACKAGE_NAME, VERSION, Answers, restrict_layers,
                         without_layers)
 from .model import ApplicationFile, ArchitectureFile, Node, Param, Params, RobotEntry
@@ -104,8 +105,19 @@ def collect(registry: Registry, ui: Prompter) -> tuple[Answers, Package, Archite
     maintainer = ui.ask("Maintainer", _nonempty("the maintainer"))
     email = ui.ask("Maintainer e-mail", _check(EMAIL, "not a valid e-mail address"))
     license_ = ui.ask("Licence", _text, default="Apache-2.0")
+    missions = registered_missions()
+
+    def mission_of(v: str) -> str:
+        try:
+            return check_mission(v.strip())
+        except ConfigError as exc:
+            raise InvalidAnswer(str(exc)) from None
+    # the mission `mrta demo` runs it as: its simulation launch file is derived from that
+    # mission's (missionfiles.py), so a new application runs there as made (issue 51)
+    mission = ui.ask(f"Mission it runs in `mrta demo` ({', '.join(missions) or 'none installed'}"
+                     "; empty for none)", mission_of, default="", show_default=False)
     depends = _csv(ui.ask("Other dependencies (comma-separated)", _text, default="",
-                          show_default=False))
+                                    show_default=False))
 
     ui.step("2/5 Architecture")
     archs = registry.architectures()
@@ -164,7 +176,8 @@ def collect(registry: Registry, ui: Prompter) -> tuple[Answers, Package, Archite
     ui.step("4/5 Parameters")
     answers = Answers(package=package, name=name, architecture=arch_pkg.name, robots=robots,
                       configs={}, version=version, description=description,
-                      maintainer=maintainer, email=email, license=license_, depends=depends)
+                      maintainer=maintainer, email=email, license=license_, depends=depends,
+                      mission=mission)
     layers_id = layers_config_id(_application(arch_pkg, answers))
     for c in list(arch.configs):
         if c.id == layers_id:  # asked after the robots' and tasks' files: their plugins tell

@@ -65,6 +65,10 @@ class Mission:
     # and the summary leaves it out: its tasks need never be held at once, and an
     # architecture with queues holds them long before one without does
     instantaneous: bool = True
+    # whether its application packages are derived from instance files (`derive`: delivery's
+    # robots, starts and tasks are the instance's) rather than made by `mrta app new`, which
+    # then refuses to make one for it, naming the command that derives them
+    instances: bool = False
 
     def default_failure(self, robots: list[str], duration: float) -> str | None:
         """The failure `mrta demo` injects when none is given: the second robot at half time

@@ -240,6 +240,7 @@ class Delivery(Mission):
     # tasks served in turn: no `first_full_allocation` (its waiting and completion times —
     # mean_waiting_time, flowtime, makespan — say how fast tasks were taken up)
     instantaneous = False
+    instances = True  # its packages are derived from instance files (derive), not made by the wizard
     better = {"makespan": "lower", "total_distance": "lower", "mean_waiting_time": "lower",
               "achieved_cost": "lower", "optimality": "higher", "ia_optimality": "higher",
               "completed": "higher", "assigned": "higher", "handovers": "lower",
