@@ -11,7 +11,9 @@ and clipping are the caller's job so this stays a pure geometry function tests c
 Why it scales: the exact cone test is the expensive part, so it runs only on
 (transducer, shape) pairs that a cheap, conservative test cannot rule out. Walls are culled per
 robot (a wall farther than the sonar's reach from a robot's transducers cannot echo), robots
-by a k-d tree of neighbours within reach (scipy's cKDTree) and then per transducer by bearing
+by their neighbours within reach (every pair's distance up to `KD_TREE_FROM` robots, scipy's
+cKDTree from there: importing scipy.spatial was ≈ 0.9 of a 5-robot study run's 3.4 simulator
+CPU-s, issue 48) and then per transducer by bearing
 (a disc outside the cone's angular window, widened by the transducer's offset from the robot's
 centre, cannot be inside it). Culling never changes a reading: every pair it keeps is computed
 exactly as without it, and every pair it drops has no point inside the cone within range
@@ -21,10 +23,10 @@ exactly as without it, and every pair it drops has no point inside the cone with
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 _CHUNK = 1_000_000  # pairs per numpy block: bounds memory for big worlds
 _SLACK = 1e-6  # metres added to culling distances: rounding never drops a pair at the edge
+KD_TREE_FROM = 256  # robots: below, all N² distances (≈ 0.1 ms at 100) beat a tree's build
 
 
 def sonar_origins(poses: np.ndarray, sonars: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -129,8 +131,15 @@ def _ray_circle(ocx, ocy, dx, dy, radius: float) -> np.ndarray:
 
 
 def neighbour_pairs(centres: np.ndarray, reach: float) -> tuple[np.ndarray, np.ndarray]:
-    """All ordered pairs (i, j), i ≠ j, closer than `reach` (a k-d tree: ~N·neighbours work)."""
-    pairs = cKDTree(centres).query_pairs(reach, output_type="ndarray")
+    """All ordered pairs (i, j), i ≠ j, no farther apart than `reach` (a k-d tree from
+    `KD_TREE_FROM` robots on: ~N·neighbours work). Either way the same set of pairs, and their
+    order never matters: each reading is a minimum over the pairs kept."""
+    if len(centres) < KD_TREE_FROM:
+        d = centres[:, None, :] - centres[None, :, :]
+        pairs = np.argwhere(np.triu(np.hypot(d[:, :, 0], d[:, :, 1]) <= reach, k=1))
+    else:
+        from scipy.spatial import cKDTree  # ≈ 0.9 CPU-s to import: only for big teams
+        pairs = cKDTree(centres).query_pairs(reach, output_type="ndarray")
     if len(pairs) == 0:
         empty = np.empty(0, dtype=np.intp)
         return empty, empty

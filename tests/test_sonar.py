@@ -15,7 +15,7 @@ import numpy as np
 from hypothesis import HealthCheck, given, settings, strategies as st
 
 from mrta_simulator.robot_model import RobotModel
-from mrta_simulator.sonar import neighbour_pairs, ray_robots, ray_walls, sonar_origins
+from mrta_simulator.sonar import KD_TREE_FROM, neighbour_pairs, ray_robots, ray_walls, sonar_origins
 
 M = RobotModel()
 SONARS = M.sonar_poses()
@@ -103,9 +103,10 @@ def test_cones_equal_the_brute_force(robots, walls):
         assert np.all(np.abs(wide - fast[found]) <= 0.05), (fast[found], wide)
 
 
-def test_culling_keeps_every_neighbour_and_only_those():
+@pytest.mark.parametrize("n", [KD_TREE_FROM - 1, KD_TREE_FROM + 144])  # all distances; a tree
+def test_culling_keeps_every_neighbour_and_only_those(n):
     rng = np.random.default_rng(3)
-    centres = rng.uniform(-30, 30, (400, 2))
+    centres = rng.uniform(-30, 30, (n, 2))
     i, j = neighbour_pairs(centres, 5.5)
     got = set(zip(i.tolist(), j.tolist()))
     d = np.hypot(*(centres[:, None, :] - centres[None, :, :]).transpose(2, 0, 1))
