@@ -116,6 +116,7 @@ class SimOptions:
     wait_robots: float | None = None
     lockstep: bool = False
     lockstep_timeout: float = DEFAULT_TIMEOUT
+    lockstep_members: tuple[str, ...] | None = None
     ros2: tuple[str, ...] = ()
     ros2_domain: int = 0
     ros2_sonar_type: str = "pointcloud"
@@ -126,6 +127,11 @@ class SimOptions:
         # sequences given as lists stay usable, and the options stay hashable
         object.__setattr__(self, "robots", tuple(self.robots))
         object.__setattr__(self, "ros2", tuple(self.ros2))
+        if self.lockstep_members is not None:
+            object.__setattr__(self, "lockstep_members", tuple(self.lockstep_members))
+            if not self.lockstep:
+                raise ConfigError("--lockstep-members goes with --lockstep: it names who may "
+                                  "take part in lockstep")
         if self.speed < 0 or not math.isfinite(self.speed):
             raise ConfigError(f"--speed must be a finite number ≥ 0, got {self.speed}")
         if self.duration is not None and not (math.isfinite(self.duration) and self.duration > 0):
@@ -179,7 +185,9 @@ def run_simulator(options: SimOptions, bus_options: BusOptions,
         bus, stop = node.bus, node.stop
         # lockstep counts the commands it receives from the start: an agent waiting for the
         # run may already have sent some (its clock watchdog's stop), and claims them
-        barrier = resources.enter_context(Barrier(bus, run_id, o.lockstep_timeout)) \
+        barrier = resources.enter_context(Barrier(
+            bus, run_id, o.lockstep_timeout, members=None if o.lockstep_members is None
+            else frozenset(o.lockstep_members))) \
             if o.lockstep else None
         driver = (lambda command: Ros2Driver(bus, ros2_ids, command, domain=o.ros2_domain,
                                              distro=o.ros2_distro,

@@ -48,6 +48,13 @@ from .api import SimOptions, run_simulator
                    "stopped or dead agent is not waited for: its token goes with its session "
                    "(at once, or after the 3 s Zenoh lease). Lower it only where no process "
                    "may be starved of CPU: a slow agent given up makes the run inexact.")
+@click.option("--lockstep-members", metavar="NAME[,NAME…]",
+              callback=lambda _c, _p, v: None if v is None else tuple(
+                  n for n in (x.strip() for x in v.split(",")) if n),
+              help="With --lockstep: take part only these participants (a mission's processes: "
+                   "its agents, hosts, dispatcher, task intake); another's participant token is "
+                   "a stranger's — refused, counted in lockstep/status, never waited for. "
+                   "Default: anyone holding a participant token.")
 @click.option("--wait-robots", type=finite_float(min=0), metavar="SECONDS",
               help="Start the clock only once every robot has a process up (a liveliness token "
                    "under robotN/**), waiting at most this long.")

@@ -14,7 +14,8 @@ from mrta_zenoh.clock import CEILING, RATE_MARGIN, SimClock, run_id, run_rate, r
 from mrta_zenoh.keys import CLOCK_SOURCE_TOKEN
 from mrta_zenoh.lockstep.barrier import Barrier
 from mrta_zenoh.lockstep.participant import LockstepClock
-from mrta_zenoh.lockstep.protocol import DONE, NEXT_HORIZON, STEP, Step, StepDone, count_wait
+from mrta_zenoh.lockstep.protocol import (DONE, NEXT_HORIZON, PARTICIPANT, STEP, Step, StepDone,
+                                          count_wait)
 from mrta_zenoh.messages import Twist
 from tests.harness.helpers import Wall, claiming_step, wait_for
 
@@ -24,13 +25,14 @@ class Fleet:
     """A lockstep simulator's barrier and one participant whose main loop ticks at 10 Hz and
     publishes a command per tick, on one in-process network; a forger's bus beside them."""
 
-    def __init__(self, speed=2.0, timeout=2.5):
+    def __init__(self, speed=2.0, timeout=2.5, members=None):
         self.net = InProcNetwork()
         self.wall = Wall()
         self.sim_bus = InProcBus(self.net)
         self.run = run_id(speed)
         self.sim_bus.subscribe("*/cmd_vel", lambda s: None, msg_type=Twist)
-        self.barrier = Barrier(self.sim_bus, self.run, timeout, wall=self.wall)
+        self.barrier = Barrier(self.sim_bus, self.run, timeout, wall=self.wall,
+                               members=members)
         self.source = self.sim_bus.declare_token(f"{CLOCK_SOURCE_TOKEN}/{self.run}")
         self.agent_bus = InProcBus(self.net)
         self.clock = LockstepClock("robot1", wall=self.wall)
@@ -420,5 +422,25 @@ def test_a_participant_claiming_thousands_of_keys_loses_its_claims_not_the_steps
         assert f.barrier.dropped.count > 2 and f.barrier.forgiven == 1  # once per run
         token.close()
         assert len(f.barrier.table) < 10 and f.clock.rejected_steps.count == 0
+    finally:
+        f.close()
+
+
+def test_a_strangers_participant_token_is_refused_counted_and_never_waited_for():
+    """A barrier told its run's members (`mrta sim --lockstep-members`, which a mission passes)
+    takes no stranger into its lockstep: its token, under a name that is no process of the
+    run, is counted and its StepDones dropped, and the run goes on without ever waiting for it
+    (issue 51.3: a stranger was waited for, given up after the timeout, and the run called
+    inexact)."""
+    f = Fleet(members=frozenset({"robot1"}))
+    try:
+        token = f.forger.declare_token(f"{PARTICIPANT}/intruder")
+        wait_for(lambda: "intruder" in f.barrier.strangers)
+        f.forger.publish(f"{DONE}/intruder", StepDone("intruder", 0.0, {}, 0.5, f.run))
+        assert f.barrier.participants == {"robot1"} and f.barrier.dropped.count == 2
+        f.advance(2.0)
+        wait_for(lambda: f.clock.now() == 2.0)
+        assert f.barrier.given_up == 0 and not f.barrier.unresponsive
+        token.close()
     finally:
         f.close()

@@ -39,10 +39,17 @@ class Barrier(Closing):
     sample, each wake rescanning every participant's StepDone, would be quadratic."""
 
     def __init__(self, bus, run_id: str, timeout: float = DEFAULT_TIMEOUT,
-                 wall=time.monotonic):
+                 wall=time.monotonic, members: frozenset[str] | None = None):
+        """`members`: the names that may take part (a mission's processes, `mrta sim
+        --lockstep-members`); None: anyone holding a participant token. A token under another
+        name is a stranger's: refused and counted (`dropped`), never waited for — on a shared
+        bus a stranger would otherwise be waited for, given up after the timeout, and make
+        every run inexact (issue 51.3)."""
         self.bus = bus
         self.run = run_id
         self.timeout = timeout
+        self.members = members
+        self.strangers: set[str] = set()  # refused participant names (at most MAX_NAMES)
         self.participants: set[str] = set()
         self.ledger = Ledger()
         self.done = self.ledger.done  # participant → its last answer
@@ -118,6 +125,9 @@ class Barrier(Closing):
 
     def _on_participant(self, key: str, alive: bool) -> None:
         name = key.rsplit("/", 1)[-1]
+        if self.members is not None and name not in self.members:
+            self._stranger(name, alive)
+            return
         with self._cond:
             self._changed += 1
             self._changed_at = self._wall()
@@ -137,6 +147,17 @@ class Barrier(Closing):
                 self._asked.pop(name, None)
                 self.unresponsive.discard(name)
             self._cond.notify_all()
+
+    def _stranger(self, name: str, alive: bool) -> None:
+        """A participant token under a name that is none of the run's members: counted once
+        per name (within MAX_NAMES), logged, never waited for; its StepDones are then dropped
+        as a non-participant's."""
+        with self._cond:
+            if not alive or name in self.strangers or len(self.strangers) >= MAX_NAMES:
+                return
+            self.strangers.add(name)
+            self.dropped(f"{visible(name, 80)!r} holds a participant token but is no member of "
+                         "this run: not waited for")
 
     def _on_source(self, key: str, alive: bool) -> None:
         """Another clock source or lockstep run on this bus: one source per run, so an alarm."""

@@ -181,6 +181,11 @@ def _run_in(run: MissionRun, reg: Registry,
         n.args = [*n.args, *(client if fleet is None else fleet.args(
             secured.SIMULATOR if n.required else n.name if n.name in run.arch.processes
             else n.name.split("/")[0]))]
+    if options.lockstep:  # only the run's processes take part: a stranger's token is refused
+        sim_node = next(n for n in nodes if n.required)
+        members = {*run.robots, *hosted.values(), INTAKE,
+                   *(n.name for n in nodes if n.name in run.arch.processes)}
+        sim_node.args = [*sim_node.args, "--lockstep-members", ",".join(sorted(members))]
     # every process of the run: the run's seed and exactly the run's faults (none inherited
     # from this process's own environment), which each injects at its simulated time
     env = {k: v for k, v in os.environ.items() if k not in (FAULTS_ENV, RETIRED_CRASH_ENV)}

@@ -67,3 +67,27 @@ def test_a_round_numbered_2_62_does_not_stop_ssi(children, tmp_path):
 def test_a_bids_saying_the_tasks_others_won_done_does_not_end_cbba(children, tmp_path):
     s = attacked_demo(children, tmp_path, "cbba", "cbba-done", "4")
     assert any(r["reason"] == "done_not_won" and r["sender"] == "robot2" for r in s["refused"])
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+def test_a_strangers_lockstep_token_is_named_and_neither_waited_for_nor_making_it_inexact(
+        children, tmp_path):
+    """A participant token under a name that is no process of the run (issue 51.3): the
+    simulator, told the run's members, refuses it and never waits for it — it used to wait the
+    lockstep timeout, give it up and leave the run inexact, which `mrta experiment` then
+    dropped from its statistics. The summary names it apart."""
+    out = tmp_path / "run"
+    demo = children.mrta("demo", "--application", "delivery", "--speed", "0", "--no-live",
+                         "--no-plots", "--output", str(out), name="demo")
+    line = demo.wait_stderr(lambda s: "processes meet at" in s, 120)
+    rendezvous = re.search(r"tcp/127\.0\.0\.1:\d+", line).group(0)
+    stranger = children.python("coordination_forger.py", "participant", "intruder", rendezvous,
+                               name="stranger")
+    stranger.wait_json(lambda o: "forged" in o, 120)
+    assert demo.wait(240) == 0, demo.tail(30)
+    s = json.loads((out / "summary.json").read_text())
+    assert s["strangers"] == ["intruder"], s.get("strangers")
+    assert s["run_status"] == "complete" and s["lockstep_exact"] is True, (
+        s["run_status"], s["lockstep_given_up"], s["disturbances"])
+    assert s["lockstep_given_up"] == 0 and s["metrics"]["completed"] == s["metrics"]["tasks"]

@@ -16,6 +16,9 @@ fleet a certified robot's config (FLEET/robot2.json5: it forges under its own ke
                           at that time, after everything its sender said before: not
                           superseded)
   cbba-done-all   N       the same, every task of 0…N-1 done (what it won too)
+  participant     NAME    a stranger's lockstep participant token under NAME, held until the
+                          forger is ended (it was waited for, given up, and made the run
+                          inexact: issue 51.3)
   delivery-done   ROBOT   four `TaskEvent done` in ROBOT's name, one per task of the default
                           instance (t1…t4), stamped at the run's clock (the robot never moved:
                           they ended the run at 3.3 s "every task done", delivered 0/4)
@@ -37,6 +40,11 @@ mode, arg, bus = sys.argv[1], sys.argv[2], sys.argv[3]
 session = open_session(BusOptions(zenoh_config=Path(bus)) if bus.endswith(".json5")
                        else BusOptions(connect=[bus]))
 ENC = "application/msgpack;"
+if mode == "participant":
+    token = session.liveliness().declare_token(f"@mrta/lockstep/participant/{arg}")
+    print(json.dumps({"forged": f"@mrta/lockstep/participant/{arg}"}), flush=True)
+    time.sleep(600)
+    sys.exit(0)
 SOURCES = {"central-served": ("robot2/central/progress", "route_msgs/Progress"),
            "ssi-round": ("robot1/ssi/round", "ssi_msgs/Round"),
            "ssi-served": ("robot2/ssi/bid/*", "ssi_msgs/Bid"),
