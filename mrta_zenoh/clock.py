@@ -265,6 +265,11 @@ class SimClock(ManualClock):
             return (self.started.is_set() and not self._source_alive
                     and self.source in self._announced)
 
+    def wall(self) -> float:
+        """The wall time this clock counts silences in (time.monotonic, or a test's hand-moved
+        one): a follower that waits for the clock to go quiet bounds its wait on it too."""
+        return self._wall()
+
     def stalled(self, wall_seconds: float) -> bool:
         """No accepted sample for `wall_seconds` of wall time (only meaningful once started)."""
         return self.started.is_set() and self._wall() - self._last_wall >= wall_seconds

@@ -17,6 +17,7 @@ import pytest
 from mcap.reader import make_reader
 
 from mrta_zenoh import codec
+from mrta_zenoh import node as node_module
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.clock import SimClock
 from mrta_zenoh.keys import CLOCK, CLOCK_SOURCE_TOKEN, RECORDER_TOKEN
@@ -40,6 +41,29 @@ class FakeWall:
 
     def __call__(self) -> float:
         return self.t
+
+
+class PolledWall(FakeWall):
+    """A FakeWall that counts the reads from other threads than `owner` (the recorder's thread
+    asking its clock whether it went quiet), so a test waits for the recorder, never a time."""
+
+    def __init__(self, owner: threading.Thread) -> None:
+        super().__init__()
+        self.owner, self.reads = owner, 0
+        self.read = threading.Condition()
+
+    def __call__(self) -> float:
+        if threading.current_thread() is not self.owner:
+            with self.read:
+                self.reads += 1
+                self.read.notify_all()
+        return self.t
+
+    def wait_polled(self, n: int) -> None:
+        """Return once other threads read the wall `n` more times (at most 30 s)."""
+        with self.read:
+            target = self.reads + n
+            assert self.read.wait_for(lambda: self.reads >= target, 30)
 
 
 def read(path):
@@ -415,11 +439,10 @@ def test_run_view_records_the_bus_and_the_scene_in_simulated_time(tmp_path, monk
     assert clock_times == [round(s * S) for s in clock_stamps]  # each at its own stamp
 
 
-def test_while_the_clock_stands_still_the_supervisor_is_still_refreshed_at_the_last_time(
-        monkeypatch):
+def test_while_the_clock_stands_still_the_supervisor_is_still_refreshed_at_the_last_time():
     """A stopped simulator: no scene frames (nothing moves), but the supervisor's channels
-    once a wall second (here 0.2 s), so a live viewer sees `clock_stopped`."""
-    monkeypatch.setattr(viewer, "STALL_EVERY", 0.2)
+    once a wall second (STALL_EVERY, on the clock's hand-moved wall), so a live viewer sees
+    `clock_stopped`."""
     wall = FakeWall()
     clock = SimClock(wall=wall)
     stamp = SimLogTime(clock)
@@ -435,13 +458,18 @@ def test_while_the_clock_stands_still_the_supervisor_is_still_refreshed_at_the_l
             clock.on_clock(k * 0.02, "run1")
             pacer.poke()
             keep_pace(pacer)
-        wall.t += 10.0  # then nothing for a long while
-        time.sleep(1.0)
+        at_end = 1  # the regular frame at 5 s
+        for step in (10.0, viewer.STALL_EVERY, viewer.STALL_EVERY):  # then nothing for long
+            wall.t += step
+            at_end += 1
+            deadline = time.monotonic() + 30
+            while (emitted.by_topic["/supervisor/state"].count(5 * S) < at_end
+                   and time.monotonic() < deadline):
+                time.sleep(0.005)
 
     run_frames(clock, stamp, outputs, Sup(), clock.now, feed=feed)
     state = emitted.by_topic["/supervisor/state"]
-    at_end = [t for t in state if t == 5 * S]
-    assert len(at_end) >= 3  # the regular one at 5 s, then the stalled ones, at 5 s too
+    assert state.count(5 * S) == 4  # the regular one at 5 s, then one stalled per wall step
     assert emitted.by_topic["/world"][-1] == 5 * S
     assert emitted.by_topic["/world"].count(5 * S) == 1
     assert emitted.by_topic["/supervisor/alarms"] == [0]  # raised once, at the first frame
@@ -535,18 +563,25 @@ def test_a_stopped_recorder_records_what_is_still_coming_until_the_clock_is_quie
     """The newcomer's `--no-plots` run (issue 51): the mission runner stops the recorder as soon
     as the simulator has ended; a recorder behind on a busy machine still had the last
     simulated second to take, and closing at once cut the recording short of the mission. Here
-    the last second arrives after the stop: it is recorded, then the recorder ends once the
-    clock is quiet."""
-    monkeypatch.setattr(record, "DRAIN_QUIET", 3.0)  # generous: any machine
-    monkeypatch.setattr(record, "DRAIN_MAX", 60.0)
+    the last second arrives after the stop, over a wall second: it is recorded, the recorder
+    still runs, then ends once the clock has been quiet for DRAIN_QUIET. The recorder's clock
+    counts wall time on a hand-moved wall (no real wait, and no machine too slow for it)."""
+    wall = PolledWall(threading.current_thread())
+    monkeypatch.setattr(node_module, "SimClock", lambda: SimClock(wall=wall))
+    monkeypatch.setattr(record, "DRAIN_MAX", 1e9)  # the quiet ends it, not the bound
     bus, out, stop, th = started_view(tmp_path, bus_only)
     token = bus.declare_token(f"{CLOCK_SOURCE_TOKEN}/run1")
     for k in range(251):  # 5 simulated seconds before the stop
         bus.publish(CLOCK, Clock(k * 0.02, "run1"))
     stop.set()
+    wall.wait_polled(3)  # the stopped recorder asks its clock whether it went quiet: draining
     for k in range(251, 301):  # the last simulated second, still on its way
-        time.sleep(0.02)
+        wall.t += 0.02
         bus.publish(CLOCK, Clock(k * 0.02, "run1"))
+    wall.t += record.DRAIN_QUIET * 0.9
+    wall.wait_polled(2)
+    assert th.is_alive()  # quiet for less than DRAIN_QUIET: still recording
+    wall.t += record.DRAIN_QUIET * 0.2
     th.join(60)
     token.close()
     assert not th.is_alive()

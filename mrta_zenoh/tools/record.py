@@ -79,7 +79,7 @@ def drain(clock: SimClock) -> None:
     0`) still had the last simulated second queued — closing then cut the recording short of
     the mission ("the recording does not cover the whole mission"; issue 51, the newcomer's
     `--no-plots` run: with plots, the simulator's snapshot delayed the stop long enough)."""
-    deadline = time.monotonic() + DRAIN_MAX
+    deadline = clock.wall() + DRAIN_MAX  # the clock's wall: quiet and bound on one time
     while (clock.started.is_set() and not clock.stalled(DRAIN_QUIET)
-           and time.monotonic() < deadline):
+           and clock.wall() < deadline):
         time.sleep(0.05)

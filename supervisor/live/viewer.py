@@ -311,7 +311,7 @@ def _sim_frames(clock: SimClock, stamper: SimLogTime, pacer: SimPacer,
     simulated time the loop gets to them; once a wall second while the clock stands still."""
     scene_due = supervisor_due = 0.0
     restarts = clock.restarts
-    last_supervisor = time.monotonic()
+    last_supervisor = clock.wall()  # the wall the clock counts its stall on
     while not stop.is_set() and not over():
         pacer.wait(POLL)
         if stop.is_set() or not clock.started.is_set():
@@ -325,7 +325,7 @@ def _sim_frames(clock: SimClock, stamper: SimLogTime, pacer: SimPacer,
             outputs.scene_frame(t_ns)
             scene_due = next_tick(now, scene_period)
         if sup is not None:
-            wall = time.monotonic()
+            wall = clock.wall()
             if now >= supervisor_due - EPSILON or (
                     clock.stalled(STALL_EVERY) and wall - last_supervisor >= STALL_EVERY):
                 outputs.supervisor_frame(t_ns, sup.snapshot(refresh()))
