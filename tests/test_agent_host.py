@@ -225,3 +225,35 @@ def test_a_host_reads_the_files_its_robots_share_once(tmp_path, monkeypatch):
     instances.load(config / "instance.yaml")
     instances.load(config / "instance.yaml")
     assert parsed == ["instance.yaml", "instance.yaml"]
+
+
+def test_the_runner_starts_the_robots_with_the_recorder_and_the_simulator_once_it_is_up():
+    """Start-up at once, readiness by tokens (runner._start_up): every robot's process starts
+    before the recorder is up, the simulator only once its token is heard."""
+    from mrta_supervisor.mission.run_watch import Readiness
+    from mrta_supervisor.mission.runner import _start_up
+    from mrta_zenoh import keys
+    from mrta_zenoh.bus import InProcBus
+
+    bus = InProcBus()
+    started = []
+
+    class Group:
+        def start(self, argv, name, env=None, merge_stderr=False):
+            started.append((name, ready.recorder.is_set()))
+            if name == "host1":  # the recorder comes up while the robots start
+                threading.Timer(0.05, bus.declare_token,
+                                [f"{keys.RECORDER_TOKEN}/rec"]).start()
+            return name
+
+        def failed(self, ignore=()):
+            return []
+
+    nodes = [NodeSpec("sim", "simulator", "sim", [], required=True),
+             NodeSpec("host1", "robot_agent", "host", []),
+             NodeSpec("dispatcher", "robot_agent", "central", [])]
+    with Readiness(bus, ["robot1"]) as ready:
+        children = _start_up(nodes, Group(), ready, None, threading.Event())
+    assert children == ["sim", "host1", "dispatcher"]  # the launch's order
+    assert started == [("host1", False), ("dispatcher", False), ("sim", True)]
+    bus.close()

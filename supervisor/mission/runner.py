@@ -214,21 +214,19 @@ def _run_in(run: MissionRun, reg: Registry,
         watch = live.enter_context(RunWatch(bus, run.arch, clock))
         # the recording: the bus, the scene and the supervisor's channels, readable by Foxglove;
         # with a Foxglove port the same channels are also served live
-        recorder = group.start(mrta_argv(*recorder_args(
-            options, run.package.name,
-            client if fleet is None else fleet.args(secured.RECORDER))), name="record")
-        ready.wait(ready.recorder.is_set, "the recorder", group, stop)
-        intake = _start_intake(run, group, client if fleet is None
-                               else fleet.args(secured.INTAKE))
-        if intake is not None:  # up before any robot: every change enters at a step boundary
-            ready.wait(lambda: intake_up.is_set(), "the task intake", group, stop)
         sup = Supervisor(run.arch_model, run.app, 0.0, unattended_after=30.0,
                          duplicate_after=5.0, watch=run.mission.task_watch(run),
                          quiet=progress is None,  # nobody to tell its alarms to
                          serving=Serving(run.arch))
         for h in attach(sup, bus, clock, shown=progress is not None):
             live.callback(h.close)
-        children = start_nodes(group, nodes)
+        recorder = group.start(mrta_argv(*recorder_args(
+            options, run.package.name,
+            client if fleet is None else fleet.args(secured.RECORDER))), name="record")
+        intake = _start_intake(run, group, client if fleet is None
+                               else fleet.args(secured.INTAKE))
+        children = _start_up(nodes, group, ready, intake_up if intake is not None else None,
+                             stop)
         agents = {rid: next(c for c in children if c.name == hosted.get(rid)
                             or c.name.startswith(rid + "/")) for rid in run.robots}
         # the architecture's own processes (a dispatcher), by name: fault subjects as robots are
@@ -293,6 +291,28 @@ def _run_in(run: MissionRun, reg: Registry,
     summary = analyse(run, failure, failed_at, time.monotonic() - t_wall0, before, disturbances,
                       strangers, interrupted)
     return run, summary
+
+
+def _start_up(nodes: list[NodeSpec], group: ProcessGroup, ready: Readiness,
+              intake_up: threading.Event | None, stop: threading.Event) -> list[Child]:
+    """Start the launch's nodes beside the recorder and the task intake (`intake_up`: its
+    token, None when the run has none), already started; their children, in `nodes`' order.
+
+    At once, not one after the other: the robots' processes (agents, hosts, a dispatcher)
+    start with the recorder and the intake — each is a process that spends its start-up
+    importing and reading its files, and 100 robots' host used to begin only after the
+    recorder was up (issue 47: agents up 190 s after the command). What must come first is
+    read from tokens, never from time or log lines: the simulator — the launch's required
+    node, whose lockstep clock starts once every robot's agent has joined (--wait-robots) —
+    starts once the recorder, and the intake if any, are up, so the recording covers the run
+    from its first step and every change of the intake enters at a step boundary."""
+    first = start_nodes(group, [n for n in nodes if not n.required])
+    ready.wait(ready.recorder.is_set, "the recorder", group, stop)
+    if intake_up is not None:
+        ready.wait(intake_up.is_set, "the task intake", group, stop)
+    last = iter(start_nodes(group, [n for n in nodes if n.required]))
+    others = iter(first)
+    return [next(last) if n.required else next(others) for n in nodes]
 
 
 def recorder_args(options: MissionOptions, package: str, client: list[str]) -> list:
