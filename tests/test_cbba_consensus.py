@@ -225,3 +225,32 @@ def test_tasks_that_arrive_later_are_bid_on_from_their_arrival():
         run_rounds(team, start=60)
         assert paths(team, late) == greedy(late)[0]
         assert_conflict_free(team)
+
+
+def test_one_message_heard_by_many_robots_is_read_once_and_acts_as_a_copy_each():
+    """In an agent host (and in the synchronous rounds) one message object reaches every
+    robot: what it says is read once (cbba/reading.py), and each robot ends as it would
+    hearing a copy of its own — among them one whose out-of-range bid is refused whole."""
+    from mrta_agent.cbba import reading
+    from mrta_zenoh import codec
+
+    p = random_instance(random.Random(5), 4, 6)
+    ids = [r.id for r in p.robots]
+    sender = Cbba(p, ids[0], resend_period=0.0, lookahead=math.inf)
+    fields = sender.tick(0.0)[0].fields
+    good = Bids(header=Header(ids[0], 0.0, 1), **fields)
+    bad = Bids(header=Header(ids[0], 0.5, 2), **{**fields, "winners": fields["winners"] + (
+        (len(p.tasks) - 1, 0, 1e9),)})
+    shared = {r: Cbba(p, r, resend_period=0.0, lookahead=math.inf) for r in ids[1:]}
+    copied = {r: Cbba(p, r, resend_period=0.0, lookahead=math.inf) for r in ids[1:]}
+    for msg in (good, bad):
+        for r in ids[1:]:
+            shared[r].hear("bids", ids[0], msg, msg.header.stamp)
+            copied[r].hear("bids", ids[0], codec.decode(Bids.TYPE_NAME, codec.encode(msg)),
+                           msg.header.stamp)
+    assert reading.read(good) is reading.read(good)  # read once
+    for r in ids[1:]:
+        a, b = shared[r], copied[r]
+        assert (a.z, a.y, a.stamps, a.refused) == (b.z, b.y, b.stamps, b.refused)
+        assert a.z != [NONE] * len(p.tasks)  # the good message was applied
+        assert sum(a.refused.values()) == 1  # the bad one refused whole

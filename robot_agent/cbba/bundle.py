@@ -70,6 +70,7 @@ from ..route.own_route import RouteLogic
 from ..runtime.coordinator import Say
 from .levels import Levels
 from .messages import Bids
+from .reading import Read, read
 from .table import NONE, RESET, UPDATE, View, higher, resolve
 
 # why a message, or a claim in it, was not believed (`Cbba.refused`)
@@ -221,7 +222,8 @@ class Cbba(RouteLogic):
             return False
         if kind != "bids" or not isinstance(msg, Bids) or k == self.i:
             return False
-        named = self._named(msg)
+        said = read(msg)  # once per message, whoever hears it (reading.py)
+        named = said.named
         if not self._valid(named, TASKS_LEEWAY):
             self.refused[("bids", sender, MALFORMED, True)] += 1
             return False
@@ -241,7 +243,7 @@ class Cbba(RouteLogic):
             self.superseded += 1  # delivered out of order: a later one was applied already
             self.refused[("bids", sender, SUPERSEDED, False)] += 1
             return True
-        if not self._bids_in_range(msg):
+        if not self._bids_in_range(msg, said):
             self.refused[("bids", sender, BID_OUT_OF_RANGE, True)] += 1
             return True  # refused whole, and counted here
         self.latest[k] = msg.header.stamp
@@ -266,8 +268,7 @@ class Cbba(RouteLogic):
                 claims[k] = stamp
             if len(set(claims) - self.departed) > self._others() / 2:
                 self._mark_done(j, stamp)
-        s_k = dict(msg.stamps)
-        theirs = {j: (w, y) for j, w, y in msg.winners}
+        s_k, theirs = said.stamps, said.winners
         z, y, done, departed = self.z, self.y, self.done, self.departed
         # Table 1 leaves a task alone where both sides name the same winner and bid (rows 2,
         # 5, 11, 17 keep or re-take that very view), and no task's action depends on another's,
@@ -430,15 +431,14 @@ class Cbba(RouteLogic):
         elif action == RESET:
             self._set(j, NONE, 0.0)
 
-    def _bids_in_range(self, msg: Bids) -> bool:
+    def _bids_in_range(self, msg: Bids, said: Read) -> bool:
         """Whether every winning bid is in [0, its task's reward] (give or take the rounding):
         all bids within the least reward need no look at each task."""
-        if not msg.winners:
+        if said.highest is None:
             return True
-        tasks, bids = self.problem.tasks, [y for _, _, y in msg.winners]
-        if (all(map((self._least_reward() + ROUNDING).__ge__, bids))
-                and all(map((-ROUNDING).__le__, bids))):  # NaN fails both: looked at below
-            return True
+        if -ROUNDING <= said.lowest and said.highest <= self._least_reward() + ROUNDING:
+            return True  # NaN fails both: looked at below
+        tasks = self.problem.tasks
         return all(-ROUNDING <= y <= tasks[j].reward + ROUNDING for j, _, y in msg.winners)
 
     def _least_reward(self) -> float:
@@ -500,16 +500,6 @@ class Cbba(RouteLogic):
                 del self.refused[unconfirmed]
             if said < at - CLAIM_SLACK:
                 self.refused[("bids", sender, NOT_WON, True)] += 1
-
-    @staticmethod
-    def _named(msg: Bids) -> tuple[int, int, int]:
-        """(the least index the message names, its largest task index, its largest robot
-        index; -1 for none): what `_valid` checks, read once a message."""
-        tasks, robots, _ = zip(*msg.winners) if msg.winners else ((), (), ())
-        stamped = next(zip(*msg.stamps), ())
-        tasks, robots = tasks + tuple(msg.done), robots + tuple(stamped)
-        return (min(tasks + robots, default=0), max(tasks, default=-1),
-                max(robots, default=-1))
 
     def _valid(self, named: tuple[int, int, int], leeway: int = 0) -> bool:
         least, task, robot = named
