@@ -257,3 +257,13 @@ def test_the_runner_starts_the_robots_with_the_recorder_and_the_simulator_once_i
     assert children == ["sim", "host1", "dispatcher"]  # the launch's order
     assert started == [("host1", False), ("dispatcher", False), ("sim", True)]
     bus.close()
+
+
+def test_a_process_is_given_longer_to_come_up_on_a_busy_machine():
+    """The runner's start-up wait stretches with the load per core (run_watch.ready_timeout):
+    on an idle machine READY_TIMEOUT, at 15 runnable processes a core 15 times that."""
+    from mrta_supervisor.mission.run_watch import READY_TIMEOUT, ready_timeout
+
+    assert ready_timeout(0.3, 2) == ready_timeout(2.0, 2) == READY_TIMEOUT
+    assert ready_timeout(30.0, 2) == 15 * READY_TIMEOUT
+    assert ready_timeout(30.0, 0) == 30 * READY_TIMEOUT

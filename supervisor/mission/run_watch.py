@@ -40,6 +40,7 @@ message counts without being reported.
 from __future__ import annotations
 
 import contextlib
+import os
 import signal
 import threading
 import time
@@ -59,11 +60,21 @@ from mrta_zenoh.untrusted import visible
 
 from .summary import COMPLETE, DISTURBED, END_SLACK, INCOMPLETE, Disturbance
 
-READY_TIMEOUT = 60.0  # wall seconds for every process to come up
+READY_TIMEOUT = 60.0  # wall seconds for every process to come up, on an idle machine
 RECORDER = "recorder"
 SIMULATOR = "simulator"
 MAX_STRANGERS = 20  # strangers' names a summary lists
 MAX_NAME = 60       # characters of a stranger's name kept
+
+
+def ready_timeout(load: float, cores: int) -> float:
+    """How long a process of the run may take to come up: READY_TIMEOUT stretched by how many
+    runnable processes share each core (the 1-minute load average per core, at least 1). A
+    process given a tenth of a core starts ten times slower: the recorder of a 100-robot run
+    (reading a 22.8 MB application file) did not come up within 60 s at load 29 on 2 cores
+    though it was starting, not hung (issue 47), and the run failed. A hung process is still
+    found — later on a busy machine."""
+    return READY_TIMEOUT * max(1.0, load / max(cores, 1))
 
 
 class Readiness(Closing):
@@ -87,7 +98,8 @@ class Readiness(Closing):
              stop: threading.Event, ignore: Callable[[], list[str]] = list) -> None:
         """Until `what()`; a child of `group` that failed meanwhile is an error, but those
         `ignore()` names (subjects of a crash the run injected)."""
-        deadline = time.monotonic() + READY_TIMEOUT
+        limit = ready_timeout(os.getloadavg()[0], os.cpu_count() or 1)
+        deadline = time.monotonic() + limit
         while not what():
             if stop.is_set():  # first: after a Ctrl-C, children ended by it did not fail
                 group.interrupted()
@@ -97,7 +109,7 @@ class Readiness(Closing):
                 raise MrtaRuntimeError(f"{failed[0].name} failed while starting (it "
                                        f"{failed[0].describe_exit()}):\n{failed[0].tail()}")
             if time.monotonic() > deadline:
-                raise MrtaRuntimeError(f"{label} did not come up within {READY_TIMEOUT:.0f} s")
+                raise MrtaRuntimeError(f"{label} did not come up within {limit:.0f} s")
             stop.wait(0.05)
 
     def close(self) -> None:
