@@ -316,7 +316,7 @@ def test_an_unreachable_scheduler_is_a_runtime_error(tmp_path):
     with pytest.raises(MrtaRuntimeError, match=f"cannot reach the Dask scheduler at {address}"):
         run_on_cluster(address, packages={}, duration=1.0, runs=[], output=tmp_path,
                        stop=threading.Event(), results=Results(tmp_path / "r.csv", 0),
-                       connect_timeout=1.0)
+                       connect_timeout=0.1)
 
 
 def test_results_rows_carry_coordination_and_namespace_traffic_and_older_summaries_still_read(

@@ -17,24 +17,29 @@ SCHEMA = ("x_msgs/Alarm", "jsonschema",
           json.dumps({"type": "object", "properties": {"n": {"type": "integer"}}}).encode())
 
 
-async def hello(url: str, protocol: str):
-    """Connect offering only `protocol`; (socket, serverInfo, {topic: channel})."""
-    ws = await websockets.connect(url, subprotocols=[protocol], max_size=None, close_timeout=1)
+async def hello(server: FoxgloveServer, protocol: str):
+    """Connect offering only `protocol`; (socket, serverInfo, {topic: channel}) once every
+    channel the server has advertised so far is known to the client."""
+    ws = await websockets.connect(server.url, subprotocols=[protocol], max_size=None,
+                                  close_timeout=1)
     info = json.loads(await asyncio.wait_for(ws.recv(), 10))
-    channels = {}
-    while True:
-        try:
-            msg = await asyncio.wait_for(ws.recv(), 0.5)
-        except TimeoutError:
-            return ws, info, channels
-        o = json.loads(msg)
+    expected, channels = set(server.by_topic), {}
+    while not expected <= set(channels):
+        o = json.loads(await asyncio.wait_for(ws.recv(), 10))
         if o["op"] == "advertise":
             channels.update({c["topic"]: c for c in o["channels"]})
+    return ws, info, channels
 
 
-async def subscribe(ws, sub: int, channel: dict) -> None:
+async def subscribe(ws, sub: int, channel: dict, server: FoxgloveServer | None = None) -> None:
+    """Subscribe; with `server`, return once the server holds the subscription (what a client
+    sees only when a message comes)."""
     await ws.send(json.dumps({"op": "subscribe",
                               "subscriptions": [{"id": sub, "channelId": channel["id"]}]}))
+    deadline = asyncio.get_running_loop().time() + 10
+    while server is not None and sub not in _client_of(server, ws).subs:
+        assert asyncio.get_running_loop().time() < deadline, "the subscription never arrived"
+        await asyncio.sleep(0.002)
 
 
 async def next_data(ws, timeout: float = 10.0) -> tuple[int, int, bytes]:
@@ -57,7 +62,7 @@ def test_each_client_generation_connects_and_gets_the_same_channels_and_messages
         server.advertise("/world", ("foxglove.SceneUpdate", "protobuf", b"\x0a\x01x"), "protobuf")
 
         async def client():
-            ws, info, channels = await hello(server.url, protocol)
+            ws, info, channels = await hello(server, protocol)
             async with ws:
                 assert ws.subprotocol == protocol
                 assert info["op"] == "serverInfo" and info["name"] == "mrta-zenoh"
@@ -67,8 +72,7 @@ def test_each_client_generation_connects_and_gets_the_same_channels_and_messages
                     "json", "x_msgs/Alarm", "jsonschema")
                 assert json.loads(alarms["schema"])["properties"] == {"n": {"type": "integer"}}
                 assert channels["/world"]["schema"] == "CgF4"  # base64, as the protocol says
-                await subscribe(ws, 3, alarms)
-                await asyncio.sleep(0.2)
+                await subscribe(ws, 3, alarms, server)
                 server.log(known, b'{"n": 1}', 42)
                 return await next_data(ws)
 
@@ -95,7 +99,7 @@ def test_a_late_subscriber_gets_the_latest_message_of_each_channel_at_once():
         server.log(report, b'{"n": 6}', 12)
 
         async def client():
-            ws, _, channels = await hello(server.url, "foxglove.websocket.v1")
+            ws, _, channels = await hello(server, "foxglove.websocket.v1")
             async with ws:
                 await subscribe(ws, 1, channels["/supervisor/alarms"])
                 await subscribe(ws, 2, channels["robot1/patrol/report"])
@@ -117,12 +121,11 @@ def test_a_flood_neither_disconnects_a_reading_client_nor_grows_a_stalled_ones_q
         alarms = server.advertise("/supervisor/alarms", SCHEMA, "json")
 
         async def client():
-            stalled, _, channels = await hello(server.url, "foxglove.sdk.v1")
-            await subscribe(stalled, 1, channels["robot9999/sonar"])
-            ws, _, _ = await hello(server.url, "foxglove.websocket.v1")
-            await subscribe(ws, 1, channels["robot9999/sonar"])
-            await subscribe(ws, 2, channels["/supervisor/alarms"])
-            await asyncio.sleep(0.3)
+            stalled, _, channels = await hello(server, "foxglove.sdk.v1")
+            await subscribe(stalled, 1, channels["robot9999/sonar"], server)
+            ws, _, _ = await hello(server, "foxglove.websocket.v1")
+            await subscribe(ws, 1, channels["robot9999/sonar"], server)
+            await subscribe(ws, 2, channels["/supervisor/alarms"], server)
             pad = b" " * 200
             loop = asyncio.get_running_loop()
 
@@ -140,6 +143,7 @@ def test_a_flood_neither_disconnects_a_reading_client_nor_grows_a_stalled_ones_q
             queued = max(len(q) for q in _client_of(server, stalled).pending.values())
             assert ws.state.name == "OPEN"
             await ws.close()
+            stalled.close_timeout = 0  # it reads nothing, so not the server's close either
             await stalled.close()
             return queued
 
@@ -157,15 +161,14 @@ def test_what_is_not_the_protocol_is_counted_and_the_connection_kept():
         alarms = server.advertise("/supervisor/alarms", SCHEMA, "json")
 
         async def client():
-            ws, _, channels = await hello(server.url, "foxglove.websocket.v1")
+            ws, _, channels = await hello(server, "foxglove.websocket.v1")
             async with ws:
                 for junk in ("not json", "[1, 2]", json.dumps({"op": "publish"}),
                              json.dumps({"op": "subscribe", "subscriptions": [
                                  {"id": "x", "channelId": 999}]})):
                     await ws.send(junk)
                 await ws.send(b"\x01\x02")
-                await subscribe(ws, 4, channels["/supervisor/alarms"])
-                await asyncio.sleep(0.2)
+                await subscribe(ws, 4, channels["/supervisor/alarms"], server)
                 server.log(alarms, b'{"n": 3}', 7)
                 return await next_data(ws)
 

@@ -159,21 +159,24 @@ def paused(f, until):
         held = step
 
 
-def let_go(f, on, step=0.25):
-    """Move the wall clock in steps until the barrier forgives the claim that pauses `on`; how
-    far it had to move. Driven by events, not by the machine's speed: a step is taken only once
-    `on` (the barrier's wait) has read the last one and decided on it — it reads the wall and
-    forgives under the barrier's lock, so taking that lock after its reading sees its decision."""
+def let_go(f, on, held=0.0, step=0.25):
+    """Move the wall clock until the barrier forgives the claim that pauses `on` — by `held` at
+    once (`on` must still be paused after it), then in steps; how far it had to move. Driven
+    by events, not by the machine's speed: a move is made only once `on` (the barrier's wait)
+    has read the last one and decided on it — it reads the wall and forgives under the
+    barrier's lock, so taking that lock after its reading sees its decision."""
     forgiven, moved = f.barrier.forgiven, 0.0
     while f.barrier.forgiven == forgiven:
         assert moved < 60, "still paused after a minute of wall time"
-        f.wall.t += step
-        moved += step
+        move = held if moved == 0.0 and held > 0 else step
+        f.wall.t += move
+        moved += move
         wait_for(lambda: f.wall.read.get(on.ident, 0.0) >= f.wall.t or not on.is_alive(), 30)
         with f.barrier._cond:
             pass
     on.join(30)                                       # a hang guard, not a speed asserted
     assert not on.is_alive()
+    assert moved > held, "forgiven before `held` wall seconds"
     return moved
 
 
@@ -189,7 +192,8 @@ def test_a_descending_claim_pauses_the_run_once_per_window():
         relay.level = f.barrier.done["robot1"].sent["robot1/cmd_vel"] + 50
         on = paused(f, 0.7)
         assert on.is_alive() and f.barrier.forgiven == 0     # the one pause: count_wait
-        assert let_go(f, on) <= count_wait(10.0) + 0.25 and f.barrier.forgiven == 1
+        assert let_go(f, on, held=count_wait(10.0) - 0.25) <= count_wait(10.0) + 0.25
+        assert f.barrier.forgiven == 1
         for k in range(1, 8):                                # lowered by 1, again and again
             relay.level -= 1
             on = advancing(f, round(0.7 + 0.2 * k, 6))
@@ -200,7 +204,8 @@ def test_a_descending_claim_pauses_the_run_once_per_window():
         relay.level += 100
         on = paused(f, 2.5)
         assert on.is_alive()
-        assert let_go(f, on) <= count_wait(10.0) + 0.25 and f.barrier.forgiven == 2
+        assert let_go(f, on, held=count_wait(10.0) - 0.25) <= count_wait(10.0) + 0.25
+        assert f.barrier.forgiven == 2
     finally:
         f.close()
 

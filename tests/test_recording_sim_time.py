@@ -66,6 +66,15 @@ class PolledWall(FakeWall):
             assert self.read.wait_for(lambda: self.reads >= target, 30)
 
 
+@pytest.fixture
+def node_wall(monkeypatch) -> PolledWall:
+    """The wall of the SimClock a Node makes (the recorders'), moved by hand: a stopped
+    recorder drains until this wall says its clock has been quiet for DRAIN_QUIET."""
+    wall = PolledWall(threading.current_thread())
+    monkeypatch.setattr(node_module, "SimClock", lambda: SimClock(wall=wall))
+    return wall
+
+
 def read(path):
     """topic → [(log_time, data)] in file order, the schemas, the `mrta` metadata."""
     out, schemas = defaultdict(list), {}
@@ -395,7 +404,8 @@ def started_view(tmp_path, bus_only: bool = False):
     return bus, out, stop, th
 
 
-def test_run_view_records_the_bus_and_the_scene_in_simulated_time(tmp_path, monkeypatch):
+def test_run_view_records_the_bus_and_the_scene_in_simulated_time(tmp_path, monkeypatch,
+                                                                   node_wall):
     """The whole recorder on the in-process bus: clock samples and ground truth in, an MCAP
     file out whose log times are the simulated ones, with frames per simulated second."""
     pacers = []
@@ -418,6 +428,7 @@ def test_run_view_records_the_bus_and_the_scene_in_simulated_time(tmp_path, monk
         keep_pace(pacers[0])
     time.sleep(0.3)
     stop.set()
+    node_wall.t += record.DRAIN_QUIET  # the clock has been quiet: the recorder ends
     th.join(30)
     token.close()
     assert not th.is_alive()
@@ -475,7 +486,7 @@ def test_while_the_clock_stands_still_the_supervisor_is_still_refreshed_at_the_l
     assert emitted.by_topic["/supervisor/alarms"] == [0]  # raised once, at the first frame
 
 
-def test_run_record_in_simulated_time(tmp_path):
+def test_run_record_in_simulated_time(tmp_path, node_wall):
     """`run_record(sim_time=True)`: the bus alone (no derived channels), in simulated time."""
     from mrta_zenoh.tools.record import run_record
 
@@ -498,6 +509,7 @@ def test_run_record_in_simulated_time(tmp_path):
     bus.publish("robot1/ground_truth",
                 Odometry(Header("world", 7.0, 0), Pose2D(0, 0, 0), Twist(0, 0)))
     stop.set()
+    node_wall.t += record.DRAIN_QUIET  # the clock has been quiet: the recorder ends
     th.join(30)
     assert not th.is_alive()
     records = read_recording(out)
@@ -559,15 +571,14 @@ def test_a_recording_reads_back_in_log_time_order_with_ties_in_the_order_written
 
 @pytest.mark.parametrize("bus_only", [False, True], ids=["view", "record"])
 def test_a_stopped_recorder_records_what_is_still_coming_until_the_clock_is_quiet(
-        tmp_path, monkeypatch, bus_only):
+        tmp_path, monkeypatch, node_wall, bus_only):
     """The newcomer's `--no-plots` run (issue 51): the mission runner stops the recorder as soon
     as the simulator has ended; a recorder behind on a busy machine still had the last
     simulated second to take, and closing at once cut the recording short of the mission. Here
     the last second arrives after the stop, over a wall second: it is recorded, the recorder
     still runs, then ends once the clock has been quiet for DRAIN_QUIET. The recorder's clock
     counts wall time on a hand-moved wall (no real wait, and no machine too slow for it)."""
-    wall = PolledWall(threading.current_thread())
-    monkeypatch.setattr(node_module, "SimClock", lambda: SimClock(wall=wall))
+    wall = node_wall
     monkeypatch.setattr(record, "DRAIN_MAX", 1e9)  # the quiet ends it, not the bound
     bus, out, stop, th = started_view(tmp_path, bus_only)
     token = bus.declare_token(f"{CLOCK_SOURCE_TOKEN}/run1")

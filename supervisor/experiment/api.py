@@ -428,10 +428,12 @@ def _run_here(packages: dict, duration: float, runs: list[Run], output: Path, jo
                 child = start_run(group, packages[run.architecture], duration, run, out,
                                   run.index in pictures)
                 active[run.index] = (run, child, time.monotonic(), out)
+            running = len(active)
             for run in _collect(active, results, retried):
                 retried.add(run.index)
                 pending.insert(0, run)
-            stop.wait(0.1)
+            if len(active) == running:  # nothing ended: look again soon (else start the next now)
+                stop.wait(0.1)
         if stop.is_set():
             # a run that ended cleanly before the stop is a finished run: keep its row; the
             # others are stopped and left out, so the files describe exactly what finished
