@@ -80,8 +80,12 @@ def test_the_same_file_twice_gives_the_same_rows_and_roles_resolve_the_same(chil
     assert list(a[0]) == list(b[0])  # the same columns, in the same order
     strip = [{k: v for k, v in r.items() if k not in WALL} for r in a]
     assert strip == [{k: v for k, v in r.items() if k not in WALL} for r in b]
-    # the instances were made once, the same bytes each time
-    for inst in sorted((tmp_path / "a" / "instances").iterdir()):
+    # the instances were made once, the same bytes each time (instances/references/ beside
+    # them caches their solved references: a search its time cap cut short may differ there,
+    # mrta_zenoh/planning/reference.py, so they are not compared)
+    made = sorted(p for p in (tmp_path / "a" / "instances").iterdir() if p.is_file())
+    assert made
+    for inst in made:
         assert inst.read_bytes() == (tmp_path / "b" / "instances" / inst.name).read_bytes()
     random_robot: dict[str, set[str]] = {}
     for r in a:
