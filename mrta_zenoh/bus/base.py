@@ -425,6 +425,14 @@ class Bus(Closing):
                                    f"its namespace {self.namespace!r}")
         return self.watch_liveliness(key_expr, on_change)
 
+    def watch_router_link(self, on_change: Callable[[bool], None]) -> Closing:
+        """Call on_change(True/False) as this bus's own link to a Zenoh router opens and closes
+        (the current one first). What another process's token going means depends on it: with
+        this link down, every remote token goes at once in this process's view, though no other
+        process lost anything (supervisor/mission/run_watch.py). A bus with no router link (the
+        in-process bus, a peer) never calls it."""
+        return _NoWatch()
+
     def close(self) -> None:
         with self._lock:
             if self._closed:
@@ -515,4 +523,9 @@ class Bus(Closing):
         raise NotImplementedError
 
     def _close_impl(self) -> None:
+        pass
+
+
+class _NoWatch(Closing):
+    def close(self) -> None:
         pass

@@ -228,6 +228,9 @@ def default_rendezvous() -> str:
     return DEFAULT_RENDEZVOUS
 
 
+SLOW_READER_US = 30_000_000  # µs a live reader too slow for our reliable samples is waited for
+
+
 def base_config(mode: str) -> dict[str, Any]:
     """Our defaults: loopback only, multicast scouting off, gossip to find the other peers."""
     return {
@@ -254,9 +257,19 @@ def base_config(mode: str) -> dict[str, Any]:
         # shared memory off: with it, a process's first sample over 3 kB maps a 16 MB pool of
         # its own, all of it resident — an agent of a 20-robot team sends such samples, so
         # 16 MB more per agent (benchmarks/team_sizes.py), for a copy saved on a few kB
+        # wait_before_close 30 s (default 5 s): Zenoh closes a link whose reliable (BLOCK)
+        # samples could not be queued for that long — a reader too slow, not a dead one (the
+        # lease finds those). On a busy machine a live reader is that slow now and then: the
+        # README's 20-robot walkthrough at load 25 had the router cut the runner's link three
+        # times (every token seemed to go at once), the recorder's and three agents' once each,
+        # dropping what was queued to them — a hole in the recording, claims forgiven, a run
+        # called incomplete because the machine was busy. A slow reader is waited for as long
+        # as lockstep waits for a live participant (lockstep.protocol.DEFAULT_TIMEOUT), past
+        # which lockstep gives it up anyway
         "transport": {"link": {"tx": {"lease": 3000, "queue": {
             "size": {"data": 16},
-            "congestion_control": {"drop": {"wait_before_drop": 1}}}}},
+            "congestion_control": {"drop": {"wait_before_drop": 1},
+                                   "block": {"wait_before_close": SLOW_READER_US}}}}},
             "unicast": {"open_timeout": 2000, "accept_timeout": 2000},
             "shared_memory": {"enabled": False}},
     }

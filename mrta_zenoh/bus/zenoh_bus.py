@@ -353,6 +353,24 @@ class ZenohBus(Bus):
         self._attached.append(watch)
         return watch
 
+    def watch_router_link(self, on_change: Callable[[bool], None]) -> "Closable":
+        """This session's transports to routers, opening and closing (Bus.watch_router_link)."""
+        stats = self.stats
+
+        def on_event(ev: "zenoh.TransportEvent") -> None:
+            if ev.transport.whatami != zenoh.WhatAmI.ROUTER:
+                return
+            try:
+                on_change(ev.kind == zenoh.SampleKind.PUT)
+            except Exception:
+                stats.add("handler_errors")
+                log.exception("router link handler raised")
+
+        watch = Closable(self.session.info.declare_transport_events_listener(on_event,
+                                                                             history=True))
+        self._attached.append(watch)
+        return watch
+
     def _close_impl(self) -> None:
         for item in self._attached:
             item.close()

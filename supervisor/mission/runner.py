@@ -280,6 +280,10 @@ def _run_in(run: MissionRun, reg: Registry,
         disturbances = [] if interrupted else \
             watch.disturbances(lambda p: p in targets and struck(p), ours)
         strangers = watch.strangers(ours)
+        if watch.unseen:
+            log.info("this runner's own link to the run's router closed and reopened while the "
+                     "run was on: %d token loss(es) seen meanwhile were its own blindness, not "
+                     "the processes' (no disturbance)", watch.unseen)
         crashed = [] if interrupted else group.failed(ignore=own_process(targets))
         if crashed:  # a dispatcher or recorder SIGKILLed from outside: what can be known
             for c in crashed:
