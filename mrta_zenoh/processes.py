@@ -1,8 +1,10 @@
 """Child processes: the one manager behind `mrta launch`, `mrta demo`, experiments and the tests.
 
 Children are started with subprocess (a fresh interpreter each, never a fork of a process that
-has Zenoh loaded: docs/zenoh.md, "fork"), their output is read line by line on threads, and they
-are the only processes this ever signals — by PID, SIGINT first, SIGKILL after a grace period.
+has Zenoh loaded: docs/zenoh.md, "fork") — or, inside an experiment, by its fork server
+(mrta_zenoh.forkserver: one process that imported the modules once and opens no session).
+Their output is read line by line on threads, and they are the only processes this ever
+signals — by PID, SIGINT first, SIGKILL after a grace period.
 """
 
 from __future__ import annotations
@@ -17,6 +19,7 @@ import threading
 import time
 from typing import Callable, Iterable
 
+from .forkserver import ForkedProcess, forkable
 from .lifecycle import PARENT_ENV
 
 LineSink = Callable[[str, str], None]  # (child name, line)
@@ -34,9 +37,12 @@ class Child:
         # after a kill -9 of this one
         env = dict(os.environ if env is None else env)
         env[PARENT_ENV] = str(os.getpid())
-        self.proc = subprocess.Popen(
-            argv, env=env, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
-            stderr=subprocess.STDOUT if merge_stderr else subprocess.PIPE, text=True)
+        if forkable(argv, env):  # forked by the experiment's fork server: the same program, warm
+            self.proc = ForkedProcess(argv, env, cwd, merge_stderr)
+        else:
+            self.proc = subprocess.Popen(
+                argv, env=env, cwd=cwd, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                stderr=subprocess.STDOUT if merge_stderr else subprocess.PIPE, text=True)
         self.stdout: list[str] = []
         self.stderr: list[str] = []
         self.signalled: set[int] = set()  # the signals this process sent it (stop, kill)

@@ -36,7 +36,7 @@ def missions(monkeypatch):
     robots are its instance's and whose coverage names its instance's tasks."""
     started: list[dict] = []
 
-    def start_run(group, package, duration, run, out, plots=True, instance=None):
+    def start_run(group, package, duration, run, out, plots=True, instance=None, warm=False):
         inst = instance or (run.instance.path if run.instance is not None else None)
         started.append({"index": run.index, "package": package.name, "seed": run.seed,
                         "failure": run.failure, "instance": inst, "plots": plots})
@@ -248,7 +248,7 @@ def test_until_ci_adds_instances_when_the_file_has_a_generator_and_scalars_read_
 
     inner = experiment.start_run
 
-    def start_run(group, package, duration, run, out, plots=True, instance=None):
+    def start_run(group, package, duration, run, out, plots=True, instance=None, warm=False):
         child = inner(group, package, duration, run, out, plots, instance)
         summary = read_summary(out / "summary.json")
         summary.metrics = {"makespan": 10.0 + int(run.instance.name.rsplit("-", 1)[1]) % 3}

@@ -40,7 +40,7 @@ def missions(monkeypatch):
     """Every run's mission replaced: records (run index, seed, plots) and writes its summary."""
     started: list[tuple[int, int, bool]] = []
 
-    def start_run(group, package, duration, run, out, plots=True):
+    def start_run(group, package, duration, run, out, plots=True, warm=False):
         started.append((run.index, run.seed, plots))
         crash = run.failure != "none"
         write_summary(out / "summary.json", Summary(

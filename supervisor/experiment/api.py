@@ -44,6 +44,7 @@ from typing import Any
 
 import msgspec
 
+from mrta_zenoh import forkserver
 from mrta_zenoh.errors import ConfigError, Interrupted
 from mrta_zenoh.instances import kinds as instance_kinds
 from mrta_zenoh.limits import MAX_RUNS, SEED
@@ -215,7 +216,7 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
                    until: dict[str, float] | None = None, block: int = 1, plots: bool = True,
                    report: Options = Options(), shard: Shard | None = None,
                    slurm: slurm_backend.SlurmOptions | None = None,
-                   agents_per_process: int | None = None) -> list[dict]:
+                   agents_per_process: int | None = None, warm: bool = True) -> list[dict]:
     """Every run of FILE's matrix (and, with `until`, the blocks of seeds it takes), `jobs` at
     once here or, with `scheduler` (a Dask scheduler's address), as tasks on that cluster;
     or, with `slurm`, as SLURM array tasks (slurm_backend.py);
@@ -223,7 +224,9 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
     of more than `max_runs` runs is refused before anything starts. Runs OUTPUT's results.csv
     already has a row for are not run again (resuming: resume.py); with `shard`, only
     that shard's runs are this call's. `agents_per_process`: the file's `agents_per_process:`
-    replaced (its rows are the same either way: agent hosts)."""
+    replaced (its rows are the same either way: agent hosts). `warm`: runs here are forked by
+    a fork server that imported their modules once (mrta_zenoh.forkserver: the same rows, less
+    CPU), not started as fresh interpreters."""
     if scheduler is not None:
         if jobs is not None:
             raise ConfigError("--jobs is for runs on this machine; with --scheduler the "
@@ -261,7 +264,7 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
                  results.path)
     packages = {name: run.package for name, run in resolved.items()}
     backend = _Backend(packages, exp.spec.duration, output, jobs, scheduler, stop, results,
-                       pictures, slurm)
+                       pictures, slurm, warm)
     have = results.done()
     backend.run(paired_first(exp, [r for r in mine if r.index not in have]))
     precision = None
@@ -383,8 +386,10 @@ class _Backend:
 
     def __init__(self, packages: dict, duration: float, output: Path, jobs: int | None,
                  scheduler: str | None, stop: threading.Event, results: Results,
-                 pictures: set[int], slurm: slurm_backend.SlurmOptions | None = None):
+                 pictures: set[int], slurm: slurm_backend.SlurmOptions | None = None,
+                 warm: bool = True):
         self.packages, self.duration, self.output = packages, duration, output
+        self.warm = warm
         self.jobs = max(1, jobs or os.cpu_count() or 1)
         self.scheduler, self.stop, self.results, self.pictures = scheduler, stop, results, pictures
         self.slurm = slurm
@@ -404,16 +409,17 @@ class _Backend:
                                            results=self.results, pictures=self.pictures)
         else:
             _run_here(self.packages, self.duration, runs, self.output, self.jobs, self.stop,
-                      self.results, self.pictures)
+                      self.results, self.pictures, self.warm)
 
 
 def _run_here(packages: dict, duration: float, runs: list[Run], output: Path, jobs: int,
-              stop: threading.Event, results: Results, pictures: set[int] = frozenset()
-              ) -> None:
+              stop: threading.Event, results: Results, pictures: set[int] = frozenset(),
+              warm: bool = True) -> None:
     """The runs as child processes of this one, `jobs` at once. A run whose lockstep was not
     exact is run again, once, before its row is written (here; on a Dask cluster the row is
     marked, not run again): its figures depended on the machine; if it is inexact again, its
-    row says so (status `inexact`) and the statistics leave it out, like a failed run."""
+    row says so (status `inexact`) and the statistics leave it out, like a failed run.
+    `warm`: the runs' processes are forked by a fork server (runs.warm_modules)."""
     pending = list(runs)
     retried: set[int] = set()
     active: dict[int, tuple[Run, Any, float, Path]] = {}
@@ -426,7 +432,7 @@ def _run_here(packages: dict, duration: float, runs: list[Run], output: Path, jo
                     shutil.rmtree(out)
                 out.mkdir(parents=True)
                 child = start_run(group, packages[run.architecture], duration, run, out,
-                                  run.index in pictures)
+                                  run.index in pictures, warm=warm)
                 active[run.index] = (run, child, time.monotonic(), out)
             running = len(active)
             for run in _collect(active, results, retried):
@@ -438,7 +444,7 @@ def _run_here(packages: dict, duration: float, runs: list[Run], output: Path, jo
             # a run that ended cleanly before the stop is a finished run: keep its row; the
             # others are stopped and left out, so the files describe exactly what finished
             _collect(active, results, only_clean=True)
-            group.stop_all()
+        forkserver.finish(group)
 
 
 def _collect(active: dict, results: Results, retried: set[int] | None = None,

@@ -15,8 +15,10 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from mrta_zenoh import forkserver
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.failure import ROLES
+from mrta_zenoh.installed import entry_points
 from mrta_zenoh.planning.reference import REFERENCE_CACHE_ENV
 from mrta_zenoh.processes import ProcessGroup, mrta_argv
 
@@ -71,6 +73,24 @@ def bytecode_cache():
         yield {"PYTHONDONTWRITEBYTECODE": "", "PYTHONPYCACHEPREFIX": folder}
 
 
+# What a run's processes import, once in the fork server instead of once a process (runner:
+# `mrta demo`; recorder: `mrta record`; simulator, agent hosts and agents: executables) — the
+# CLI, the verbs a run uses, and every executable, architecture and mission installed (the
+# run's own are among them; the rest cost the server alone, once). What one of them imports
+# later (a lazy import) its process imports itself: slower, never different.
+WARM_GROUPS = (("mrta.commands", ("demo", "record")), ("mrta.executables", None),
+               ("mrta.architectures", None), ("mrta.missions", None))
+WARM_MODULES = ("mrta_zenoh.cli.main", "mrta_zenoh.cli.run_node", "mrta_zenoh.recording")
+
+
+def warm_modules() -> list[str]:
+    """The modules the experiment's fork server imports (mrta_zenoh.forkserver)."""
+    names = list(WARM_MODULES)
+    for group, only in WARM_GROUPS:
+        names += [ep.module for ep in entry_points(group) if only is None or ep.name in only]
+    return list(dict.fromkeys(names))
+
+
 def demo_args(package: str, duration: float, run: Run, out: Path, plots: bool = True,
               instance: Path | None = None) -> list[str]:
     """`mrta ARGS…` for one run, whichever backend starts it: one spelling, so both run
@@ -89,12 +109,15 @@ def demo_args(package: str, duration: float, run: Run, out: Path, plots: bool = 
 
 
 def start_run(group: ProcessGroup, package, duration: float, run: Run, out: Path,
-              plots: bool = True, instance: Path | None = None):
+              plots: bool = True, instance: Path | None = None, warm: bool = False):
     """One run's mission as a child of `group`, writing into `out` (which exists): with its
     instance file (`instance`, default: the one in the experiment's output folder), or, without
     one, its own copy of the application package when the run overrides parameters. Runs of
     one instance share its reference values (REFERENCES), unless $MRTA_REFERENCE_CACHE names
-    a folder of the caller's."""
+    a folder of the caller's. `warm`: forked, with its processes, by the group's fork server
+    (started by the first run that asks: mrta_zenoh.forkserver, `warm_modules`)."""
+    if warm:
+        forkserver.ensure(group, warm_modules())
     env = {}
     if instance is None and run.instance is not None:
         instance = run.instance.path
