@@ -270,7 +270,21 @@ def _run_request(request: dict) -> None:
     os.chdir(request["cwd"])
     sys.path[0] = request["cwd"]  # what `-m` puts first
     sys.argv = [request["module"], *request["args"]]
+    _name_process(request["args"])
     runpy.run_module(request["module"], run_name="__main__", alter_sys=True)
+
+
+def _name_process(args: list[str]) -> None:
+    """Its name in `top` and /proc/PID/comm: the program's first word that is no option
+    (`demo`, `record`, `simulator/sim`, `robot_agent/host`). Its command line in `ps` stays the
+    server's: Python cannot rewrite it without a C extension (setproctitle)."""
+    word = next((a for a in args if not a.startswith("-")), "")
+    if word:
+        try:
+            with open("/proc/self/comm", "w") as f:
+                f.write(word[-15:])  # the kernel keeps 15 bytes
+        except OSError:
+            pass  # not Linux's /proc: the name is cosmetic
 
 
 def main(argv: list[str]) -> int:
