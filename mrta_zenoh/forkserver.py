@@ -309,8 +309,6 @@ def main(argv: list[str]) -> int:
     except KeyboardInterrupt:
         request = None
     if request is None:
-        os.unlink(path)
-        os.rmdir(os.path.dirname(path))
         print(f"{FORKED} {server.forked}", flush=True)
         return 0
     _run_request(request)  # a forked child: from here on it is that program
@@ -318,6 +316,7 @@ def main(argv: list[str]) -> int:
 
 
 SERVER = "forkserver"  # its name among the group's children
+_folders: dict[int, tempfile.TemporaryDirectory] = {}  # a running server's socket folder
 
 
 def ensure(group: "ProcessGroup", modules: list[str], timeout: float = 600.0) -> "Child":
@@ -329,15 +328,19 @@ def ensure(group: "ProcessGroup", modules: list[str], timeout: float = 600.0) ->
     for child in group.children:
         if child.name == SERVER and child.running():
             return child
-    folder = tempfile.mkdtemp(prefix="mrta-fork-")  # the server removes it as it ends
-    path = os.path.join(folder, "socket")  # a short path: AF_UNIX allows 107 bytes
+    # the socket in a folder only this user can enter: whoever can connect can have the
+    # server run any module as this user (finish() removes it)
+    folder = tempfile.TemporaryDirectory(prefix="mrta-fork-")
+    path = os.path.join(folder.name, "socket")  # a short path: AF_UNIX allows 107 bytes
     group.env.pop(SOCKET_ENV, None)
     server = group.start([sys.executable, "-m", "mrta_zenoh.forkserver", path, *modules],
                          name=SERVER)
+    _folders[server.pid] = folder
     try:
         server.wait_line(lambda line: line == READY, timeout)
     except (TimeoutError, AssertionError) as exc:
         server.stop()
+        _folders.pop(server.pid).cleanup()
         raise MrtaRuntimeError(f"the fork server did not start: {exc}") from None
     group.env[SOCKET_ENV] = path
     return server
@@ -354,6 +357,9 @@ def finish(group: "ProcessGroup") -> None:
     group.env.pop(SOCKET_ENV, None)
     group.stop_all(later=servers(group))
     for server in servers(group):
+        folder = _folders.pop(server.pid, None)
+        if folder is not None:
+            folder.cleanup()
         said = [line for line in server.stdout if line.startswith(FORKED)]
         log.info("the fork server forked %s", said[-1].split()[-1] + " processes" if said
                  else f"an unknown number of processes ({server.describe_exit()})")
