@@ -16,6 +16,7 @@ from mrta_zenoh.architectures import architectures
 from mrta_zenoh.messages import Header
 from mrta_zenoh.tasks.intake import CLOSED, Intake
 from mrta_zenoh.tasks.messages import Op, Outcome, Request
+from mrta_agent.ssi.messages import OPEN
 from tests.harness.delivery_team import PACKAGE, DeliveryTeam
 
 ARCHS = architectures()
@@ -194,3 +195,49 @@ def test_a_problem_grown_by_submitted_tasks_is_the_whole_problem_of_the_grown_in
     for row, expected in zip(incremental.distance, whole.distance):
         assert row == pytest.approx(expected, abs=1e-9)
     assert incremental.distance[0][3] > 7.0 + 0.1  # around the wall's end, not through it
+
+
+def test_an_ssi_robot_puts_an_urgent_task_before_its_less_urgent_ones_not_where_it_adds_least():
+    """SSI's priority band (mrta_agent.ssi.auction, "Priority"): the end of a long path is
+    where an urgent task near its end adds least, but it goes — and is bid — before every less
+    urgent task; one of priority 1 goes between the priority-2 and the priority-0 ones. With
+    no priority given, the place is MinSum's, anywhere."""
+    from mrta_agent.ssi.auction import Ssi
+    from mrta_zenoh.planning import Problem, Robot, Task
+    line = tuple(Task(f"t{k}", (float(k), 0.0)) for k in range(1, 6))  # t5 at x = 5
+    p = Problem((Robot("r1", (0.0, 0.0), 1.0),), line)
+    ssi = Ssi(p, "r1")
+    ssi.path = [0, 1, 2]  # t1 t2 t3; t4, t5 further along the line
+    assert ssi.insertion(4) == (pytest.approx(2.0), 3)  # MinSum: at the end
+    ssi.task_priority("t5", 2, 0.0)
+    cost, place = ssi.insertion(4)
+    assert place == 0 and cost == pytest.approx(8.0)  # 0 → 5 → 1: 5 + 4 − 1
+    ssi.path = [4, 0, 1, 2]
+    ssi.task_priority("t4", 1, 0.0)
+    assert ssi.insertion(3)[1] == 1  # after t5 (2), before t1 (0)
+    ssi.task_priority("t5", 0, 0.0)
+    ssi.task_priority("t4", 0, 0.0)
+    assert ssi.places(3) is None  # no priority left: anywhere
+
+
+def test_a_settled_ssi_robot_queues_an_award_while_later_rounds_go_on(tmp_path):
+    """An SSI robot that has set off takes each award as it comes (mrta_agent.ssi.agent): a
+    submitted task is in its executor's queue while some of the same burst is still open in the
+    auction — waiting for the last round kept a burst of 200 from being served at all (issue
+    50: each round awards one task)."""
+    doc = generate_document(DeliveryGeneratorParams(robots=2, tasks=1, capabilities=""), 3)
+    team = DeliveryTeam("ssi", doc, tmp_path / "ssi")
+    try:
+        for _ in range(20):  # 2 s: past join_wait, the instance's task awarded — set off
+            team.step()
+        for k in range(12):
+            team.submit(f"n{k}", {"position": [-4.0 + k * 0.7, 2.0], "service": 1.0})
+        coordinators = [team.agents[r].coordinator for r in doc.robots]
+        queued = still_open = False
+        while not queued and team.clock.now() < 10.0:
+            team.step()
+            queued = any(t.startswith("n") for c in coordinators for t in c.route.queue)
+            still_open = any(w == OPEN for w in coordinators[0].logic.owners)
+        assert queued and still_open, coordinators[0].logic.owners
+    finally:
+        team.close()

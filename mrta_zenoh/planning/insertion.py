@@ -59,12 +59,15 @@ def ranks(ids: Sequence[str]) -> list[int]:
 
 
 def minsum_insertion(problem: Problem, i: int, route: Sequence[int], j: int,
-                     origin: int | None = None, at: float = 0.0) -> tuple[float, int]:
+                     origin: int | None = None, at: float = 0.0,
+                     places: range | None = None) -> tuple[float, int]:
     """(added travel time, place) of the cheapest place for task j in robot i's `route` leaving
     from task `origin` (None: its start) at time `at`; place n means before route[n]
-    (len(route): at the end). Under hard windows only places that keep them (module docstring):
-    (∞, len(route)) when there is none."""
+    (len(route): at the end). Under hard windows only places that keep them (module docstring),
+    and only `places` when given (SSI's priority band): (∞, len(route)) when there is none."""
     allowed = windowed_places(problem, i, route, j, Origin(origin, at))
+    if places is not None:
+        allowed = places if allowed is None else allowed & set(places)
     best, where = math.inf, len(route) if allowed is not None else 0
     prev = origin
     for n in range(len(route) + 1):

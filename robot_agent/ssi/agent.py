@@ -8,6 +8,16 @@ task known at the start the team thus sets off on SSI's final allocation, each r
 its awards built (docs/ssi.md, "In execution"). Under hard windows a task nobody can insert
 where its window holds stays open for good (nobody bids on it), so there a Round unchanged for
 `QUIET` resend periods settles too: every award that was coming is in.
+
+Once settled, a robot serves each later award as it comes, without waiting for the rounds
+still going on (tasks that arrive, or are submitted at run time, or a lost robot's tasks opened
+again). Departure from Koenig et al. 2006, whose auction allocates every task before anyone
+moves: that is the rule for the tasks known at the start, kept above. For tasks entering while
+the team works it would make every robot that runs out of work stand idle until the last round
+— and SSI awards one task a round, two ticks apart at best, so a burst of 200 submitted tasks
+took 40 s of rounds with the whole team idle (issue 50: none of 200 served by 25 s). Waiting
+buys nothing there: an SSI award is final (only a robot leaving the team has its tasks opened
+again), so the later rounds only add tasks to a robot's path, never take one it holds away.
 """
 
 from __future__ import annotations
@@ -53,10 +63,24 @@ class SsiCoordinator(OwnRouteCoordinator):
     _round_since = 0.0
     QUIET = 2
 
+    # settled once: later awards are served as they come (module docstring); a subclass that
+    # keeps the paper's rule for every round sets `serve_as_awarded` False
+    serve_as_awarded = True
+    _set_off = False
+
     def settled(self, now: float) -> bool:
         s = self.logic
         if s.round_from is None:
             return False
+        if not self._set_off:
+            done = self._first_allocation_in(now)
+            self._set_off = done and self.serve_as_awarded
+            return done
+        return True
+
+    def _first_allocation_in(self, now: float) -> bool:
+        """Every task known at the start is awarded (module docstring)."""
+        s = self.logic
         team = s.alive | {s.i}
         if not any(w == OPEN and any(s.problem.capable(k, j) for k in team)
                    for j, w in enumerate(s.owners)):

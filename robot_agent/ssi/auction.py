@@ -12,8 +12,12 @@ The auction (Lagoudakis et al. 2005; Koenig, Tovey et al. 2006; docs/ssi.md):
 * **Priority** (tasks submitted at run time, issue 50 — not in the papers, whose tasks are
   all alike): a robot bids on its cheapest task among the open ones of the highest priority
   it can serve, and the auctioneer awards the highest-priority bid, then the lowest; so a
-  more urgent task is awarded before any less urgent one still open. The instance's tasks
-  are all priority 0: with no priority given, the auction is the paper's.
+  more urgent task is awarded before any less urgent one still open — and served before
+  them: a robot inserts a task only among its path's tasks of the same priority, after every
+  more urgent one and before every less urgent one (`places`), and bids that insertion's cost
+  (an urgent task awarded to a robot with a long path was inserted where it added least, at
+  its end, and served last). The instance's tasks are all priority 0: with no priority
+  given, the auction is the paper's.
 * **Rounds** go on while some open task has a bidder. A task that arrives (is known from
   `lookahead` seconds before its arrival) opens at the next round; the unserved tasks of a
   robot that leaves the team (its token goes) are opened again; a served task is DONE for good.
@@ -146,7 +150,7 @@ class Ssi(RouteLogic):
         self.out_said: tuple[str, ...] = ()  # who the last Round said it leaves out (`out`)
         self.refused: collections.Counter[tuple[str, str, str, bool]] = collections.Counter()
         # tasks submitted at run time (tasks_added): their indices follow the instance's; a
-        # task's priority (higher first: `best_bid`, the award) — the instance's are all 0
+        # task's priority when not 0 (higher first: `best_bid`, the award, `places`)
         self.base = len(problem.tasks)
         self.priority: dict[int, int] = {}
 
@@ -159,13 +163,20 @@ class Ssi(RouteLogic):
         self.owners = list(self.owners) + [UNKNOWN] * (len(self.problem.tasks) - len(self.owners))
         self.task_rank = ranks([t.id for t in self.problem.tasks])
         for task in growth.tasks:
-            self.priority[self.problem.task_index(task.id)] = task.priority
+            self._prioritise(self.problem.task_index(task.id), task.priority)
 
     def task_priority(self, task_id: str, priority: int, now: float) -> None:
         try:
-            self.priority[self.problem.task_index(task_id)] = priority
+            self._prioritise(self.problem.task_index(task_id), priority)
         except KeyError:
             pass  # a task this robot was never told of: nothing to order
+
+    def _prioritise(self, j: int, priority: int) -> None:
+        """Only priorities other than 0 are kept (`places`: none kept, the paper's auction)."""
+        if priority:
+            self.priority[j] = priority
+        else:
+            self.priority.pop(j, None)
 
     def urgency(self, j: int) -> int:
         """How task j ranks before cost (higher first): its priority, 0 unless given."""
@@ -311,7 +322,20 @@ class Ssi(RouteLogic):
         timed from its origin: planning.insertion); a subclass bidding another rule (TeSSI's
         temporal network) overrides it. An infinite cost where j fits nowhere — not bid on,
         and an award of it goes at the end of the path."""
-        return minsum_insertion(self.problem, self.i, self.path, j, *self.origin)
+        return minsum_insertion(self.problem, self.i, self.path, j, *self.origin,
+                                places=self.places(j))
+
+    def places(self, j: int) -> range | None:
+        """Where task j may go in this robot's path (module docstring, "Priority"): after its
+        last more urgent task, before its first less urgent one after that; None — anywhere
+        (no task of the run has a priority)."""
+        if not self.priority:
+            return None
+        p = self.urgency(j)
+        urgency = [self.urgency(k) for k in self.path]
+        lo = max((n + 1 for n, q in enumerate(urgency) if q > p), default=0)
+        hi = next((n for n in range(lo, len(urgency)) if urgency[n] < p), len(urgency))
+        return range(lo, hi + 1)
 
     def best_bid(self) -> tuple[int, float]:
         """(task, added travel time) of this robot's cheapest open task among the most urgent

@@ -13,6 +13,7 @@ class TessiCoordinator(SsiCoordinator):
     logic_kinds = Tessi.listens
     logic_class = Tessi
     log = logging.getLogger("mrta.tessi")
+    serve_as_awarded = False  # every round's awards all in before a route changes, as before
 
     def logic_keys(self, keys) -> dict:
         return {"makespan_weight": keys.makespan_weight}

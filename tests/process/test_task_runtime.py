@@ -31,20 +31,24 @@ def burst_file(path, n):
     return path
 
 
-def demo(children, out, arch, *extra, name="demo"):
+def demo(children, out, arch, *extra, name="demo", duration=25):
     return children.mrta("demo", "--application", "delivery", "--architecture", arch,
-                         "--duration", "25", "--fail", "none", "--no-live", "--no-plots",
-                         "--output", str(out), *extra, name=name)
+                         "--duration", str(duration), "--fail", "none", "--no-live",
+                         "--no-plots", "--output", str(out), *extra, name=name)
+
+
+def duration_for(n):
+    """The burst enters when the submitter gets there, some wall seconds into a run at speed 1
+    (3.7–6 s of simulated time here): 25 s leaves a burst of 10 time to be served, 40 s one of
+    200 (SSI's rounds award one task each, two ticks apart; MinSum gives most to one robot)."""
+    return 25 if n <= 10 else 40
 
 
 CBBA_200 = ("every CBBA robot rebuilds a bundle over every open task (no bundle_limit): with 200 "
             "open, one decision took 38 s and lockstep gave the robots up (benchmarks/README.md, "
             "task_served.py)")
 
-SSI_200 = ("SSI under a live burst of 200 entering at 4.6 s awarded none of them by 25 s (2026-12-07): "
-           "the auctioneer's rounds repeat the same four bids without an award — to trace "
-           "(robot_agent/ssi); the same burst entering at 0.1 s of a replayed instance is awarded")
-KNOWN = {"cbba": CBBA_200, "ssi": SSI_200}
+KNOWN = {"cbba": CBBA_200}
 
 
 def cases():
@@ -64,7 +68,8 @@ def test_a_burst_and_a_cancellation_from_other_terminals_are_accounted_for_and_r
         children, tmp_path, arch, n):
     endpoint = f"tcp/127.0.0.1:{free_port()}"
     live = tmp_path / "live"
-    run = demo(children, live, arch, "--speed", "1", "--rendezvous", endpoint)
+    run = demo(children, live, arch, "--speed", "1", "--rendezvous", endpoint,
+               duration=duration_for(n))
     run.wait_line(lambda line: endpoint in line, 60)  # says where the run's bus is
     children.env["MRTA_RENDEZVOUS"] = endpoint  # the other terminals: that variable alone
     # the live picture from another terminal: it learns the submitted tasks from the intake
@@ -119,7 +124,7 @@ def test_a_burst_and_a_cancellation_from_other_terminals_are_accounted_for_and_r
 
     again = tmp_path / "again"  # the summary's own instance, run again (no rendezvous)
     rerun = demo(children, again, arch, "--speed", "0", "--instance", str(live / "summary.json"),
-                 name="again")
+                 name="again", duration=duration_for(n))
     assert rerun.wait(400) == 0, rerun.stderr[-20:] + rerun.stdout[-20:]
     replay = json.loads((again / "summary.json").read_text())
     assert replay["instance"]["submitted"] == changes
@@ -129,8 +134,17 @@ def test_a_burst_and_a_cancellation_from_other_terminals_are_accounted_for_and_r
     # process, at a wall instant: the live run drifted from its replay by a tick or two)
     assert replay["allocation"] == summary["allocation"]
     assert replay["tasks_at_run_time"] == runtime  # entered, cancelled, served: when, by whom
-    assert {k: v for k, v in replay["metrics"].items() if k not in MACHINE_TIME} == \
-        {k: v for k, v in summary["metrics"].items() if k not in MACHINE_TIME}
+    assert run_metrics(replay) == run_metrics(summary)
+
+
+def run_metrics(summary: dict) -> dict:
+    """The summary's metrics less what measures the machine, and less the reference's when
+    it is a best found one: the routing search behind it (mrta_zenoh/planning/routing.py) gave
+    another flowtime reference for the same 205 tasks in the replay (13,345 against 13,039,
+    neither search stopped by its time cap) — the search's figure, not the run's."""
+    proven = summary["metrics"].get("reference_proven_optimal")
+    return {k: v for k, v in summary["metrics"].items() if k not in MACHINE_TIME
+            and (proven or not k.startswith(("reference_", "gap_")) and k != "served_gap")}
 
 
 @pytest.mark.slow
