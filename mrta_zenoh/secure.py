@@ -67,12 +67,16 @@ EVERYTHING = ("**", "@mrta/**", f"{ROS2_SPACE}/**")
 ORGANIZATION = "mrta-zenoh fleet"
 
 DATA = ["put", "delete"]
+# answering queries on a key (a queryable: the task intake's `tasks/history`, a late view's
+# history) is saying what is on it: allowed where publishing is
+ANSWER = ["declare_queryable", "reply"]
 SUBSCRIBE = ["declare_subscriber", "declare_liveliness_subscriber", "liveliness_query", "query"]
 TOKENS = ["liveliness_token"]
 # What the router passes *to* every process: data and tokens it may see, and other processes'
 # subscriber declarations — a publisher that never hears of a subscriber stops sending to it
 # (write-side filtering), so without these only the first sample of a stream gets through.
-DELIVER = DATA + TOKENS + ["declare_subscriber", "declare_liveliness_subscriber", "reply"]
+DELIVER = DATA + TOKENS + ["declare_subscriber", "declare_liveliness_subscriber", "reply",
+                           "query", "declare_queryable"]
 
 
 @dataclass(frozen=True)
@@ -219,7 +223,7 @@ def rules_for(identity: Identity, ros2_domain: int = 0) -> list[dict]:
     else:
         role = registered_role(identity.role)
         publish, tokens, subscribe = list(role.publish), list(role.tokens), list(role.subscribe)
-    rules = [{"messages": DATA, "flows": ["ingress"], "key_exprs": publish},
+    rules = [{"messages": DATA + ANSWER, "flows": ["ingress"], "key_exprs": publish},
              {"messages": TOKENS, "flows": ["ingress"], "key_exprs": tokens},
              {"messages": SUBSCRIBE, "flows": ["ingress"], "key_exprs": subscribe},
              {"messages": DELIVER, "flows": ["egress"], "key_exprs": everything}]

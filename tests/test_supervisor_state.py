@@ -166,6 +166,36 @@ def test_tasks_submitted_at_run_time_join_the_picture_from_the_intakes_changes(p
     assert "n1" not in state(sup, 0.0)[1]
 
 
+def test_a_view_started_after_submissions_asks_the_intake_for_them(patrol):
+    """A picture attached after tasks entered the run asks the intake's `tasks/history` once
+    the intake's token is up (supervisor/live/api.py, ask_history): the submitted task joins
+    it, the cancelled one is `cancelled` — with nothing heard live."""
+    import time
+    from mrta_zenoh.tasks.intake import Intake
+    from mrta_zenoh.tasks.messages import HISTORY, Op, Request
+    from mrta_zenoh.tasks.server import TOKEN
+
+    app, arch = patrol
+    own = app.tasks()[0]
+    intake = Intake(lambda tid, fields: None, known=app.tasks())
+    intake.offer("op", Request(Header("op", 0.0, 0), "a", str(Op.SUBMIT), "n1", "{}"))
+    intake.offer("op", Request(Header("op", 0.0, 0), "b", str(Op.CANCEL), own))
+    intake.release(1.0)
+    net = InProcNetwork()
+    with InProcBus(net) as server, InProcBus(net) as watcher:
+        sup = Supervisor(arch, app, 0.0)
+        handles = attach(sup, watcher, ManualClock(2.0))
+        assert "n1" not in state(sup, 2.0)[1]  # no intake yet: nothing asked
+        with server.answer_queries(HISTORY, intake.history), server.declare_token(TOKEN):
+            deadline = time.monotonic() + 5.0  # asked on a thread of its own
+            while sup.counts["task_changes"] < 2 and time.monotonic() < deadline:
+                time.sleep(0.01)
+        tasks = state(sup, 2.0)[1]
+        assert "n1" in tasks and tasks[own][0] == "cancelled", tasks
+        for h in handles:
+            h.close()
+
+
 def test_a_flood_of_invented_ids_costs_bounded_state(patrol):
     app, arch = patrol
     sup = Supervisor(arch, app, 0.0)

@@ -164,12 +164,13 @@ def test_a_submitter_may_only_send_its_own_requests_in_a_secured_fleet():
     from mrta_zenoh.secure import Identity, _identities, rules_for
     ids = _identities(["robot1"], [], [], False, ["ops"])
     assert Identity("ops", "submitter") in ids and Identity("tasks", "tasks") in ids
+    says = ("put", "delete", "declare_queryable", "reply")  # publish, answer queries
     rules = {tuple(r["messages"]): r["key_exprs"] for r in rules_for(Identity("ops", "submitter"))}
-    assert rules[("put", "delete")] == ["tasks/request/ops"]
+    assert rules[says] == ["tasks/request/ops"]
     intake = {tuple(r["messages"]): r["key_exprs"] for r in rules_for(Identity("tasks", "tasks"))}
-    assert "tasks/change" in intake[("put", "delete")] and "tasks/answer/*" in intake[("put", "delete")]
+    assert {"tasks/change", "tasks/answer/*", "tasks/history"} <= set(intake[says])
     robot = {tuple(r["messages"]): r["key_exprs"] for r in rules_for(Identity("robot1", "robot"))}
-    assert not any(k.startswith("tasks/") for k in robot[("put", "delete")])  # robots cannot submit
+    assert not any(k.startswith("tasks/") for k in robot[says])  # robots cannot submit
 
 
 def test_requests_are_taken_while_the_intake_checks_a_step():
@@ -246,3 +247,34 @@ def test_an_open_rmf_task_request_maps_to_a_point_task():
                       "no named places")]:
         with pytest.raises(ConfigError, match=why):
             task_fields((), json.dumps(bad))
+
+
+def test_the_history_a_late_view_asks_for_is_the_task_set_so_far_bounded_by_its_tasks():
+    """`tasks/history` (Intake.history): each task that entered, with its priority now, and
+    each cancellation, in the order of their instants — a hundred reprioritisations add no
+    change to it; and over the in-process bus a late asker gets it (Bus.answer_queries)."""
+    from mrta_zenoh.bus import InProcBus, InProcNetwork
+    from mrta_zenoh.tasks.messages import HISTORY, Change
+    intake = Intake(refuse_odd, known=["t1"], wall=Wall())
+    assert intake.history() == []
+    intake.offer("op", req(Op.SUBMIT, "n1", {"x": 1}, 1, rid="a"))
+    intake.release(1.0)
+    intake.offer("op", req(Op.SUBMIT, "n2", {"x": 2}, rid="b"))
+    intake.offer("op", req(Op.CANCEL, "t1", rid="c"))
+    intake.release(2.0)
+    for k in range(100):
+        intake.offer("op", req(Op.REPRIORITIZE, "n1", priority=k, rid=f"p{k}"))
+    intake.offer("op", req(Op.CANCEL, "n1", rid="d"))
+    intake.release(3.0)
+    history = intake.history()
+    assert [(c.op, c.task_id, c.header.stamp, c.priority) for c in history] == [
+        ("submit", "n1", 1.0, 99), ("submit", "n2", 2.0, 0), ("cancel", "t1", 2.0, 0),
+        ("cancel", "n1", 3.0, 99)]
+    assert json.loads(history[0].fields) == {"x": 1}
+    net = InProcNetwork()
+    server, late = InProcBus(net), InProcBus(net)
+    heard = []
+    with server.answer_queries(HISTORY, intake.history):
+        assert late.query(HISTORY, heard.append, msg_type=Change, timeout=1.0) == 4
+    assert [s.message for s in heard] == history
+    assert late.query(HISTORY, heard.append, msg_type=Change, timeout=1.0) == 0  # closed

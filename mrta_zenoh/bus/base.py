@@ -11,7 +11,7 @@ import collections
 import logging
 import threading
 import time
-from typing import Any, Callable, Iterator, Sequence
+from typing import Any, Callable, Iterable, Iterator, Sequence
 
 import msgspec
 
@@ -400,6 +400,31 @@ class Bus(Closing):
         self._declare(sub)
         return sub
 
+    def answer_queries(self, key: str, answer: Callable[[], Sequence[Message]]) -> Closing:
+        """Answer every query on `key` (`query`) with the messages `answer()` gives at that
+        moment, one reply each, until closed: what a process that joins late asks for what it
+        missed (Zenoh's queryable; rmw_zenoh's transient local durability is zenoh-ext's
+        publication cache, a queryable too). `answer` runs on the network's thread: it should
+        return a copy it already holds. Not counted for lockstep: a reply is history, and no
+        lockstep participant's decision reads one."""
+        validate_key_expr(key)
+
+        def encoded() -> list[tuple[str, bytes]]:
+            return [(codec.encoding_for(m.TYPE_NAME), codec.encode(m)) for m in answer()]
+        return self._declare_queryable(key, encoded)
+
+    def query(self, key_expr: str, handler: Handler, *, msg_type: type[Message] | None = None,
+              timeout: float) -> int:
+        """Ask whoever answers queries on `key_expr` (`answer_queries`), and hand each reply to
+        `handler` as a subscription on `key_expr` would a sample (a reply that does not decode,
+        or is of another type, is counted and dropped); returns once every answer came or
+        `timeout` wall seconds passed, with how many replies were handed over."""
+        validate_key_expr(key_expr)
+        replies = Subscription(self, key_expr, handler, None, msg_type, None)  # never declared
+        for key, encoding, payload in self._query(key_expr, timeout):
+            replies._dispatch(key, encoding, payload)
+        return replies.received
+
     def declare_token(self, key: str) -> Token:
         """Announce presence under `key` until closed (or until this process dies)."""
         validate_key_expr(key)
@@ -520,6 +545,14 @@ class Bus(Closing):
         raise NotImplementedError
 
     def _undeclare_watch(self, w: LivelinessWatch) -> None:
+        raise NotImplementedError
+
+    def _declare_queryable(self, key: str,
+                           answer: Callable[[], list[tuple[str, bytes]]]) -> Closing:
+        raise NotImplementedError
+
+    def _query(self, key_expr: str, timeout: float) -> Iterable[tuple[str, str, bytes]]:
+        """The replies as (local key, encoding, payload)."""
         raise NotImplementedError
 
     def _close_impl(self) -> None:

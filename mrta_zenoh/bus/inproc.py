@@ -8,8 +8,10 @@ synchronous (publish returns after every handler ran), which is what makes tests
 from __future__ import annotations
 
 import threading
+from typing import Callable, Iterable
 
 from ..keys import matches
+from ..lifecycle import Closing
 from .base import Bus, LivelinessWatch, Subscription, Token
 
 
@@ -19,6 +21,17 @@ class InProcNetwork:
         self.subs: list[Subscription] = []
         self.watches: list[LivelinessWatch] = []
         self.tokens: list[Token] = []
+        self.queryables: list[_Queryable] = []
+
+
+class _Queryable(Closing):
+    def __init__(self, bus: "InProcBus", key: str, answer: Callable[[], list[tuple[str, bytes]]]):
+        self.bus, self.key, self.answer = bus, key, answer
+
+    def close(self) -> None:
+        with self.bus.network.lock:
+            if self in self.bus.network.queryables:
+                self.bus.network.queryables.remove(self)
 
 
 class InProcBus(Bus):
@@ -81,3 +94,19 @@ class InProcBus(Bus):
         with self.network.lock:
             if w in self.network.watches:
                 self.network.watches.remove(w)
+
+    def _declare_queryable(self, key: str,
+                           answer: Callable[[], list[tuple[str, bytes]]]) -> Closing:
+        q = _Queryable(self, key, answer)
+        with self.network.lock:
+            self.network.queryables.append(q)
+        return q
+
+    def _query(self, key_expr: str, timeout: float) -> Iterable[tuple[str, str, bytes]]:
+        wire = self._wire(key_expr)
+        with self.network.lock:
+            found = [q for q in self.network.queryables
+                     if not q.bus.closed and matches(wire, q.bus._wire(q.key))]
+        for q in found:
+            for encoding, payload in q.answer():
+                yield self._local(q.bus._wire(q.key)), encoding, payload

@@ -21,7 +21,7 @@ from __future__ import annotations
 import json
 import logging
 import threading
-from typing import Any, Callable, Sequence
+from typing import Any, Callable, Iterable, Sequence
 
 import zenoh
 
@@ -289,6 +289,33 @@ class ZenohBus(Bus):
         if w._native is not None:
             w._native.undeclare()
             w._native = None
+
+    def _declare_queryable(self, key: str,
+                           answer: Callable[[], list[tuple[str, bytes]]]) -> "Closable":
+        """A queryable replying on its own concrete key (ZENOH_NOTES trap 7), closed before the
+        session; the query is dropped when the callback returns, so the asker's get ends."""
+        wire, stats, encoding = self._wire(key), self.stats, self._encoding
+
+        def on_query(query: "zenoh.Query") -> None:
+            try:
+                for enc, payload in answer():
+                    query.reply(wire, payload, encoding=encoding(enc))
+            except Exception:  # never the network thread's end
+                stats.add("handler_errors")
+                log.exception("answering a query on %s raised", key)
+
+        q = Closable(self.session.declare_queryable(wire, on_query))
+        self._attached.append(q)
+        return q
+
+    def _query(self, key_expr: str, timeout: float) -> Iterable[tuple[str, str, bytes]]:
+        """Every reply, not consolidated: Zenoh's default keeps the latest reply per key, and a
+        queryable answers with many on its one key (a history)."""
+        for reply in self.session.get(self._wire(key_expr), timeout=timeout,
+                                      consolidation=zenoh.ConsolidationMode.NONE):
+            s = reply.ok
+            if s is not None:
+                yield self._local(str(s.key_expr)), str(s.encoding), s.payload.to_bytes()
 
     # ------------------------------------------------------------ samples with attachments
     # What ROS 2 over rmw_zenoh needs (mrta_zenoh.ros2): absolute keys (no namespace), raw

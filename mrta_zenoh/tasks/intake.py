@@ -235,6 +235,22 @@ class Intake:
         changes.append(self._change(Op.SUBMIT, entry, now, submitter))
         return self._answer(req, Outcome.ACCEPTED, at=now)
 
+    def history(self) -> list[Change]:
+        """The run's task set so far as the changes that make it (`tasks/history`: what a
+        view started late asks for): each task that entered, with its priority now, and each
+        cancellation, in the order of their instants. Bounded by the tasks the run has, not
+        by how many changes it took (a flood of reprioritisations adds nothing). Called on the
+        network's thread while `release` runs: `list` copies the ledger in one step."""
+        out = []
+        for n, entry in enumerate(list(self.tasks.values())):
+            if entry.at is not None:
+                out.append(((entry.at, 0, n), self._change(Op.SUBMIT, entry, entry.at,
+                                                             entry.submitter)))
+            if entry.cancelled_at is not None:
+                out.append(((entry.cancelled_at, 1, n), self._change(
+                    Op.CANCEL, entry, entry.cancelled_at, "")))  # by whom: not kept
+        return [change for _, change in sorted(out, key=lambda c: c[0])]
+
     # ------------------------------------------------------------------ answers
     def _refuse(self, submitter: str, req: Request, reason: str, why: str) -> Answer:
         with self._count_lock:  # both threads refuse

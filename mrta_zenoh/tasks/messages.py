@@ -10,6 +10,7 @@ from ..messages import Finite, Header, Message, message
 REQUEST = "tasks/request"        # tasks/request/<submitter>: a submitter's requests
 ANSWER = "tasks/answer"          # tasks/answer/<submitter>: the intake's answers to it
 CHANGE = "tasks/change"          # what entered the run, at the instant it entered
+HISTORY = "tasks/history"        # queried: the run's task set so far, as changes (a late view)
 INTAKE = "tasks"                 # the intake's process name (participant, refusal tally)
 MAX_FIELDS = 4096                # bytes of a task's fields (JSON) an intake reads
 MAX_LISTING = 256 * 1024         # bytes of a listing answered at once

@@ -28,7 +28,7 @@ from ..messages import Header
 from ..node import Node, NodeTime
 from ..refusal_tally import refused_key, tally
 from .intake import Intake, Limits
-from .messages import ANSWER, CHANGE, INTAKE, REQUEST, Request, answer_key
+from .messages import ANSWER, CHANGE, HISTORY, INTAKE, REQUEST, Request, answer_key
 
 log = logging.getLogger("mrta.tasks")
 
@@ -92,6 +92,7 @@ def serve(options: ServeOptions, stop: threading.Event | None = None) -> int:
                 refused.append((submitter, answer))
 
         node.hold(bus.subscribe(f"{REQUEST}/*", on_request, msg_type=Request))
+        node.hold(bus.answer_queries(HISTORY, intake.history))  # a view started late asks
         node.declare_alive(TOKEN)
         log.info("tasks: taking requests on %s/<submitter> (%d tasks in the instance)", REQUEST,
                  len(intake.tasks))
@@ -123,5 +124,5 @@ def secure_role() -> dict[str, list[str]]:
     """What the intake may do in a secured fleet (mrta.secure.roles `tasks`): say what entered
     the run, answer every submitter, say what it refused, and take part in lockstep."""
     from ..lockstep.protocol import DONE, PARTICIPANT
-    return {"publish": [CHANGE, f"{ANSWER}/*", refused_key(INTAKE), f"{DONE}/{INTAKE}"],
+    return {"publish": [CHANGE, HISTORY, f"{ANSWER}/*", refused_key(INTAKE), f"{DONE}/{INTAKE}"],
             "tokens": [TOKEN, f"{PARTICIPANT}/{INTAKE}"]}

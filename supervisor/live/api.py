@@ -18,7 +18,8 @@ from mrta_zenoh.identity import OBSERVER
 from mrta_zenoh.keys import NODE_TOKEN, ROS2_BRIDGE_TOKEN
 from mrta_zenoh.lockstep.protocol import STATUS, LockstepStatus
 from mrta_zenoh.node import Node, NodeTime
-from mrta_zenoh.tasks.messages import CHANGE, Change
+from mrta_zenoh.tasks.messages import CHANGE, HISTORY, Change
+from mrta_zenoh.tasks.server import TOKEN as INTAKE_TOKEN
 from mrta_zenoh.architectures import architecture, architecture_names
 from mrta_zenoh.toolchain.model import ApplicationFile, ArchitectureFile
 from mrta_zenoh.toolchain.registry import Registry
@@ -30,6 +31,7 @@ from ..mission.hook import application_watch
 
 log = logging.getLogger("mrta.supervisor")
 CLOCK_STALL = 2.0  # wall seconds without a clock sample: the `clock_stopped` alarm
+HISTORY_WAIT = 2.0  # wall s the intake's task set so far is waited for (none: no run yet)
 
 
 def to_json(snapshot: dict) -> str:
@@ -69,6 +71,19 @@ def only_application(registry: Registry) -> str:
     return names[0]
 
 
+def ask_history(sup: Supervisor, bus: Bus, clock) -> None:
+    """The intake's task set so far (`tasks/history`), taken as live changes are (a change
+    heard both ways counts once: Supervisor.on_change). Asked when the intake's token is seen,
+    not at once: a session just opened has not heard of the intake's queryable yet (declared
+    before that token), and a view started before the run asks when its intake comes up."""
+    try:
+        bus.query(HISTORY, lambda s: sup.on_change(s.message, clock.now()), msg_type=Change,
+                  timeout=HISTORY_WAIT)
+    except Exception as exc:  # noqa: BLE001 - a thread of its own: say it, never die silently
+        if not bus.closed:
+            log.warning("the task intake's history could not be asked for: %s", exc)
+
+
 def attach(sup: Supervisor, bus: Bus, clock, *, shown: bool = True) -> list:
     """Subscribe once per key expression for the monitors that read it, and to the
     application's task news (its TaskWatch), and watch liveliness. Not `shown` (a mission
@@ -82,6 +97,9 @@ def attach(sup: Supervisor, bus: Bus, clock, *, shown: bool = True) -> list:
                for key_expr, msg_type in (sup.watch.feed() if sup.watch is not None else ())]
     handles.append(bus.subscribe(CHANGE, lambda s: sup.on_change(s.message, clock.now()),
                                  msg_type=Change))  # tasks submitted at run time
+    handles.append(bus.watch_liveliness(INTAKE_TOKEN, lambda _key, up: up and threading.Thread(
+        target=ask_history, args=(sup, bus, clock), name="mrta-task-history",
+        daemon=True).start()))  # … and those that entered before this process listened
     if not shown:
         return handles
     by_key = defaultdict(list)
