@@ -347,3 +347,19 @@ def test_a_real_one_millisecond_cap_never_crashes_the_dispatcher():
     assert plan.fields["capped"] is True and plan.fields["method"] in ("insertion", "best found")
     assert sorted(t for route in d.plan.values() for t in route) == sorted(
         t.id for t in problem.tasks)
+
+
+def test_a_plan_by_insertion_alone_is_never_called_capped_however_long_it_took(monkeypatch):
+    """Above `search_limit` the dispatcher inserts without a search (issue 50's bursts): no cap
+    cut it short, so its wall time — a burst of 1,000 took 9.9 s at load 17 — is no reason to
+    call the run inexact. The clock is made slow: the decision takes the whole time_limit."""
+    from mrta_agent.central import planner
+    ticks = iter(range(0, 10**6, 100))
+    monkeypatch.setattr(planner.time, "perf_counter", lambda: float(next(ticks)))
+    problem = _spread(12)
+    d = Dispatcher(problem, DispatcherParams(exact_limit=0, search_limit=5, time_limit=1.0))
+    for r in problem.robots:
+        d.teammate(r.id, True)
+    (plan,) = [s for s in d.tick(0.0) if s.kind == "plan"]
+    assert plan.fields["method"] == planner.INSERTION and plan.fields["solve_ms"] >= 1000.0
+    assert plan.fields["capped"] is False
