@@ -44,9 +44,11 @@ def duration_for(n):
     return 25 if n <= 10 else 40
 
 
-CBBA_200 = ("every CBBA robot rebuilds a bundle over every open task (no bundle_limit): with 200 "
-            "open, one decision took 38 s and lockstep gave the robots up (benchmarks/README.md, "
-            "task_served.py)")
+CBBA_200 = ("re-measured 2026-12-08: every CBBA robot builds a bundle over every open task (no "
+            "bundle_limit): the burst's first decision costs each robot 1.6-1.9 CPU-s (in process), "
+            "all five at the same step; at load ≈ 25 the slowest took 39.4 s of wall, past "
+            "lockstep's 30 s timeout: the five robots were given up and the run is not exact — "
+            "a busy participant is given up like a hung one (docs/tasks.md)")
 
 KNOWN = {"cbba": CBBA_200}
 
