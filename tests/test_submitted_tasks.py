@@ -220,18 +220,20 @@ def test_an_ssi_robot_puts_an_urgent_task_before_its_less_urgent_ones_not_where_
     assert ssi.places(3) is None  # no priority left: anywhere
 
 
-def test_a_settled_ssi_robot_queues_an_award_while_later_rounds_go_on(tmp_path):
-    """An SSI robot that has set off takes each award as it comes (mrta_agent.ssi.agent): a
+@pytest.mark.parametrize("before", [20, 0], ids=["after-setting-off", "before-the-first-award"])
+def test_a_settled_ssi_robot_queues_an_award_while_later_rounds_go_on(tmp_path, before):
+    """An SSI robot takes each award as it comes once it has set off (mrta_agent.ssi.agent) —
+    or once tasks entered at run time, even before the instance's first allocation is over: a
     submitted task is in its executor's queue while some of the same burst is still open in the
     auction — waiting for the last round kept a burst of 200 from being served at all (issue
     50: each round awards one task)."""
     doc = generate_document(DeliveryGeneratorParams(robots=2, tasks=1, capabilities=""), 3)
     team = DeliveryTeam("ssi", doc, tmp_path / "ssi")
     try:
-        for _ in range(20):  # 2 s: past join_wait, the instance's task awarded — set off
+        for _ in range(before):  # 2 s: the instance's task awarded — set off; or at once
             team.step()
-        for k in range(12):
-            team.submit(f"n{k}", {"position": [-4.0 + k * 0.7, 2.0], "service": 1.0})
+        for k in range(12):  # urgent: awarded before the instance's own, which stays open
+            team.submit(f"n{k}", {"position": [-4.0 + k * 0.7, 2.0], "service": 1.0}, 1)
         coordinators = [team.agents[r].coordinator for r in doc.robots]
         queued = still_open = False
         while not queued and team.clock.now() < 10.0:
