@@ -307,7 +307,8 @@ def test_a_registered_role_gets_exactly_the_keys_it_declares(monkeypatch):
         ["sim/out", "*/scan"], ["@mrta/sim/**"], list(secure.EVERYTHING)]
     mapper = secure.rules_for(secure.Identity("mapper", "mapper"))
     by_kind = {tuple(r["messages"]): r["key_exprs"] for r in mapper if r["flows"] == ["ingress"]}
-    assert by_kind == {tuple(secure.DATA): ["map"], tuple(secure.SUBSCRIBE): ["*/scan"]}
+    assert by_kind == {tuple(secure.DATA + secure.ANSWER): ["map"],
+                       tuple(secure.SUBSCRIBE): ["*/scan"]}
 
 
 @pytest.mark.parametrize("spec,text", [
