@@ -50,3 +50,18 @@ def test_secure_with_a_rendezvous_or_agent_hosts_is_a_usage_error(tmp_path, extr
     result = CliRunner().invoke(cli, ["demo", "--secure", str(tmp_path), "--output",
                                       str(tmp_path / "out"), *extra])
     assert result.exit_code == 2 and "--secure" in result.output, result.output
+
+
+def test_a_secured_fleet_with_a_submitter_takes_tasks_at_run_time(tmp_path):
+    """With `mrta secure init --submitter NAME` the fleet holds the intake's certificate
+    (tasks.json5): the run is reachable — it starts its intake, as `--rendezvous` does, and goes
+    on to its duration — so `mrta task submit --as NAME --zenoh-config FLEET/NAME.json5` reaches
+    it (issue 51: before, a secured run of an instance with no schedule had no intake).
+    tests/process/test_secure_auctions.py submits one through the fleet's router."""
+    from mrta_supervisor.mission.hook import MissionOptions
+    from mrta_supervisor.mission.runner import reachable
+    f = folder_with(tmp_path, "router", "simulator", "supervisor", "recorder")
+    assert not reachable(MissionOptions(secure=f)) and not reachable(MissionOptions())
+    folder_with(tmp_path, "tasks")
+    assert reachable(MissionOptions(secure=f))
+    assert reachable(MissionOptions(rendezvous="tcp/127.0.0.1:7999"))

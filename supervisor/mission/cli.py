@@ -26,7 +26,7 @@ from mrta_zenoh.yamlfile import plural
 
 from ..live.cli import LiveScreen, quiet_alarms, state_line
 from .hook import MissionOptions
-from .runner import run_mission
+from .runner import reachable, run_mission
 from .overrides import parse_override
 from .summary import COMPLETE, INCOMPLETE, Summary, run_problem
 from ..live.view import render
@@ -112,6 +112,10 @@ def demo(live: bool | None, **kwargs) -> None:
     if options.rendezvous is not None and quiet > -2:  # where other terminals reach the run
         console.print(f"the run's bus: {options.rendezvous} (MRTA_RENDEZVOUS={options.rendezvous} "
                       "mrta supervise|view|echo|task … reach it)", highlight=False, markup=False)
+    if options.secure is not None and reachable(options) and quiet > -2:
+        console.print(f"tasks at run time: a submitter of the fleet reaches the run with `mrta "
+                      f"task submit … --as NAME --zenoh-config {options.secure}/NAME.json5`",
+                      highlight=False, markup=False)
     if options.foxglove_port is not None and quiet > -2:
         console.print(f"Foxglove / Lichtblick: Open connection → "
                       f"ws://127.0.0.1:{options.foxglove_port}", highlight=False)

@@ -364,21 +364,32 @@ def intake_path(run: MissionRun) -> Path | None:
     path = options.instance or run.mission.instance_file(run)
     if path is None:
         return None
-    if options.rendezvous is None:
+    if not reachable(options):
         loaded = instances.load(path)
         if not loaded.kind.schedule(loaded.doc):
             return None
     return path
 
 
+def reachable(options: MissionOptions) -> bool:
+    """Whether other terminals may submit tasks to the run (it then has an intake and goes on
+    to its duration): on a rendezvous they reach (`--rendezvous`), or on a secured fleet that
+    has a submitter (`mrta secure init --submitter NAME` wrote the intake's certificate,
+    tasks.json5): `mrta task submit --as NAME --zenoh-config FLEET/NAME.json5` reaches it
+    through the fleet's router."""
+    return options.rendezvous is not None or (
+        options.secure is not None
+        and secured.Fleet(options.secure).config(secured.INTAKE).is_file())
+
+
 def _ends_early_from(run: MissionRun) -> float | None:
     """From when a run with a task intake may end once nothing is left to serve (None: it goes
-    on to its duration). A reachable run (`--rendezvous`) goes on: more may come from other
+    on to its duration). A reachable run (`reachable`) goes on: more may come from other
     terminals. A run replaying its instance's schedule (a summary's `submitted`) may end once
     every scheduled change has entered — a task it cancels is then settled (the application's
     TaskWatch says so) — unless the schedule submits a task: the live supervisor knows the
     instance's tasks, not the submitted ones, so it could not tell that they were served."""
-    if run.options.rendezvous is not None:
+    if reachable(run.options):
         return None
     path = run.options.instance or run.mission.instance_file(run)
     loaded = instances.load(path)

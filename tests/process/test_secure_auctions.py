@@ -21,12 +21,17 @@ pytestmark = [pytest.mark.multiprocess, pytest.mark.slow]
 ROBOTS = ("robot1", "robot2", "robot3", "robot4", "robot5")
 
 
-def secured_demo(children, tmp_path, arch: str, mode: str) -> dict:
+def fleet(tmp_path, *extra: str):
     folder = tmp_path / "fleet"
     result = CliRunner().invoke(cli, ["secure", "init", str(folder), *sum(
         (["--robot", r] for r in ROBOTS), []), "--observer", "supervisor", "--observer",
-        "recorder", "--endpoint", f"tls/127.0.0.1:{free_port()}"])
+        "recorder", "--endpoint", f"tls/127.0.0.1:{free_port()}", *extra])
     assert result.exit_code == 0, result.output
+    return folder
+
+
+def secured_demo(children, tmp_path, arch: str, mode: str) -> dict:
+    folder = fleet(tmp_path)
     out = tmp_path / arch
     demo = children.mrta("demo", "--application", "delivery", "--architecture", arch,
                          "--secure", folder, "--duration", "60", "--speed", "0", "--no-live",
@@ -40,6 +45,34 @@ def secured_demo(children, tmp_path, arch: str, mode: str) -> dict:
     assert summary["metrics"]["completed"] == summary["metrics"]["tasks"] == 4, summary["metrics"]
     assert summary["run_status"] == "disturbed"
     return summary
+
+
+@pytest.mark.timeout(420)
+def test_a_task_submitted_through_a_secured_fleets_router_is_served(children, tmp_path):
+    """`mrta secure init --submitter ops` then `mrta demo --secure`: the run starts its intake
+    (the fleet holds its certificate) and goes on to its duration; a task submitted under ops's
+    certificate through the fleet's router is accepted and served, and the run stays complete
+    and exact (issue 51: `--secure` with `--submitter` was untested, and a secured run of an
+    instance with no schedule had no intake: the submission found none). Speed 1, so that the
+    submission — whenever its process starts — enters while the run has most of its 60 s
+    left."""
+    folder = fleet(tmp_path, "--submitter", "ops")
+    out = tmp_path / "ssi"
+    demo = children.mrta("demo", "--application", "delivery", "--architecture", "ssi",
+                         "--secure", folder, "--duration", "60", "--speed", "1", "--no-live",
+                         "--no-plots", "--output", out, name="demo")
+    demo.wait_line(lambda s: "tasks at run time: a submitter" in s, 120)  # it says how
+    demo.wait_stderr(lambda s: "processes meet at tls/" in s, 120)  # the router is up
+    submit = children.mrta("task", "submit", "n1", "--set", "position=[1.0,2.0]", "--as", "ops",
+                           "--zenoh-config", folder / "ops.json5", "--timeout", "120",
+                           name="submit")
+    assert submit.wait(180) == 0 and " accepted at " in submit.stdout[-1], submit.stderr[-5:]
+    assert demo.wait(300) == 0, demo.tail(30)
+    s = json.loads((out / "summary.json").read_text())
+    rows = {r["id"]: r for r in s["tasks_at_run_time"]["tasks"]}
+    assert rows["n1"]["state"] == "served", rows
+    assert s["metrics"]["completed"] == s["metrics"]["tasks"] == 5, s["metrics"]
+    assert s["run_status"] == "complete" and s["lockstep_exact"], s["disturbances"]
 
 
 @pytest.mark.timeout(420)
