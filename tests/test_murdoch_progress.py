@@ -128,3 +128,29 @@ def test_a_holder_gives_a_served_task_back_at_once_not_give_up_delay_later(tmp_p
     assert core.task is None and [(c.kind, c.reason) for c in changes] == [("released", "done")]
     assert [(o.kind, o.fields["reason"]) for o in out] == [("release", "done")]
     assert "a" not in core.cooldown
+
+
+def test_a_revocation_before_the_contract_ran_its_progress_timeout_is_refused_and_counted(
+        tmp_path):
+    """A Revoke is believed only for what a monitor can say: a contract that has run its
+    progress_timeout (less a lease for delivery delays). One sent sooner — a forger's, or a
+    certified robot's under its own key — neither ends a teammate's contract nor makes the
+    holder give its task back; it is counted (`revoke_early`, forged) for the summary."""
+    params = load_params(write(tmp_path / "r.yaml", robot_doc({"a": 1.0})),
+                         write(tmp_path / "t.yaml", tasks_doc(["a"], progress_timeout=5.0)))
+    watcher = Murdoch("robot3", params.robot, params.tasks)
+    holder = Murdoch("robot1", params.robot, params.tasks)
+    holder.task, holder.since, holder.last_claim = "a", 10.0, 10.0
+    watcher.hear("claim", "robot1", Claim(Header("robot1", 10.0, 1), "a", 10.0, 2.0), 10.0)
+    early = Revoke(Header("robot2", 11.0, 1), "a", "robot1", 10.0, "forged")
+    for core in (watcher, holder):
+        core.hear("revoke", "robot2", early, 11.0)
+        assert core.refused == {("revoke", "robot2", "revoke_early", True): 1}
+    assert "robot1" in watcher.leases["a"] and not watcher.barred("a", "robot1", 11.0)
+    _, changes = holder.tick(11.1, _Able())
+    assert holder.task == "a" and not changes
+    # on time (10.0 + 5 − the 2 s lease slack): believed, as tests above show end to end
+    watcher.hear("revoke", "robot2", Revoke(Header("robot2", 13.0, 2), "a", "robot1", 10.0, "late"),
+                 13.0)
+    assert "robot1" not in watcher.leases["a"] and watcher.barred("a", "robot1", 13.0)
+    assert sum(watcher.refused.values()) == 1

@@ -79,6 +79,11 @@ class MurdochCoordinator(Coordinator):
     def hear(self, kind: str, sender: str, msg, at: float) -> bool:
         return self.core.hear(kind, sender, msg, at)
 
+    def refusals(self):
+        """What the auction logic did not believe (its `refused`: a premature Revoke), with
+        what this coordinator refused itself."""
+        return collections.Counter(super().refusals()) + self.core.refused
+
     def tick(self, now: float) -> Iterable[Say]:
         out, changes = self.core.tick(now, self.readings)
         for change in changes:

@@ -42,10 +42,20 @@ The protocol (Gerkey & Matarić 2002; docs/murdoch.md):
   progress_timeout, and the holder gives it back.
 * **Two holders** (two auctioneers on either side of a healed partition): the earlier
   (since, id) keeps the task, the other releases it. Both compare the same reported numbers.
+* **What a Revoke is believed for** (issue 51: a message believed only for what its sender can
+  claim). A monitor revokes only a contract that has run its progress_timeout, so a revocation
+  of a contract this robot heard claimed (or holds) is believed only once that contract has run
+  its progress_timeout as this robot saw it, less a lease for delivery delays; an earlier one is
+  refused and counted (`revoke_early`): a forger — or a certified robot under its own key —
+  cannot end a contract that is within its time. Not yet bounded: a forged Claim with an
+  earlier `since` (the holder yields to it; the task waits at most 10 leases for the forged
+  holder's lease to lapse), a forged Award (its winner takes the task), a Revoke of an overdue
+  contract (docs/security.md).
 """
 
 from __future__ import annotations
 
+import collections
 import math
 from dataclasses import dataclass, field
 from typing import NamedTuple, Protocol
@@ -57,7 +67,7 @@ from ..runtime.coordinator import Say
 from .messages import Announcement, Award, Bid, Claim, Release, Revoke
 from .params import MurdochRobot, MurdochTask
 
-
+REVOKE_EARLY = "revoke_early"  # a contract revoked before its progress_timeout had run
 
 class Readings(Protocol):
     """What the robot knows of itself (from its sensor and evaluator plugins)."""
@@ -120,6 +130,8 @@ class Murdoch:
         self.contracts: dict[str, dict[str, tuple[float, float]]] = {t: {} for t in tasks}
         self.revoked: dict[str, dict[str, tuple[float, float]]] = {t: {} for t in tasks}
         self._revocations: list[tuple[str, Revoke]] = []  # of this robot's own contract
+        # (kind, sender, reason, forged) → messages not believed (module docstring)
+        self.refused: collections.Counter[tuple[str, str, str, bool]] = collections.Counter()
 
     # ------------------------------------------------------------------ what was heard
     def teammate(self, robot: str, alive: bool) -> None:
@@ -210,10 +222,24 @@ class Murdoch:
     def _on_revoke(self, sender: str, msg: Revoke, t: float) -> None:
         if msg.task_id not in self.tasks:
             return
+        if self._premature(msg, t):
+            self.refused[("revoke", sender, REVOKE_EARLY, True)] += 1
+            return
         if msg.holder == self.id:
             self._revocations.append((sender, msg))
         else:
             self._end_contract(msg.task_id, msg.holder, msg.since, t)
+
+    def _premature(self, msg: Revoke, t: float) -> bool:
+        """Whether `msg` revokes a contract this robot knows (its own, or one it heard claimed)
+        before that contract ran its progress_timeout, less a lease (module docstring)."""
+        if msg.holder == self.id:
+            first = self.since if (self.task, self.since) == (msg.task_id, msg.since) else None
+        else:
+            contract = self.contracts[msg.task_id].get(msg.holder)
+            first = contract[1] if contract is not None and contract[0] == msg.since else None
+        timeout = self.tasks[msg.task_id].progress_timeout
+        return first is not None and t < first + timeout - self.p.lease_timeout - EPSILON
 
     def _end_contract(self, task: str, holder: str, since: float, t: float) -> None:
         """`holder`'s contract for `task` (claimed `since`) is over: its claims are ignored,
