@@ -154,3 +154,25 @@ def test_a_revocation_before_the_contract_ran_its_progress_timeout_is_refused_an
                  13.0)
     assert "robot1" not in watcher.leases["a"] and watcher.barred("a", "robot1", 13.0)
     assert sum(watcher.refused.values()) == 1
+
+
+def test_an_award_for_an_auction_the_robot_did_not_bid_in_is_refused_and_counted(tmp_path):
+    """An Award is believed only for a bid: one naming this robot in an auction it did not bid
+    in (a forger's, or a certified robot's under its own key) does not make it take the task,
+    and is counted (`award_not_bid`, forged); the award for its real bid is taken."""
+    from mrta_agent.murdoch.messages import Announcement, Award
+    params = load_params(write(tmp_path / "r.yaml", robot_doc({"a": 1.0, "b": 1.0})),
+                         write(tmp_path / "t.yaml", tasks_doc(["a", "b"])))
+    core = Murdoch("robot2", params.robot, params.tasks)
+    core.hear("award", "robot1", Award(Header("robot1", 10.0, 1), 7, "a", "robot2", 1.0), 10.0)
+    out, changes = core.tick(10.1, _Able())
+    assert core.task is None and not changes
+    assert core.refused == {("award", "robot1", "award_not_bid", True): 1}
+    core.hear("announcement", "robot1", Announcement(Header("robot1", 10.1, 2), 8, "b", (), 0.5),
+              10.1)
+    out, _ = core.tick(10.2, _Able())
+    assert [o.kind for o in out] == ["bid"]
+    core.hear("award", "robot1", Award(Header("robot1", 10.6, 3), 8, "b", "robot2", 1.0), 10.6)
+    _, changes = core.tick(10.7, _Able())
+    assert core.task == "b" and [c.kind for c in changes] == ["won"]
+    assert sum(core.refused.values()) == 1

@@ -49,8 +49,11 @@ The protocol (Gerkey & Matarić 2002; docs/murdoch.md):
   refused and counted (`revoke_early`): a forger — or a certified robot under its own key —
   cannot end a contract that is within its time. Not yet bounded: a forged Claim with an
   earlier `since` (the holder yields to it; the task waits at most 10 leases for the forged
-  holder's lease to lapse), a forged Award (its winner takes the task), a Revoke of an overdue
-  contract (docs/security.md).
+  holder's lease to lapse), a Revoke of an overdue contract (docs/security.md).
+* **What an Award is believed for.** A robot takes a task awarded to it only in an auction it
+  bid in (that auctioneer, that auction number, that task, within the bid window and a lease of
+  its bid); another is refused and counted (`award_not_bid`): a forged Award cannot make a robot
+  take a task. (Its teammates still count the task held for a lease: ≤ `lease_timeout`.)
 """
 
 from __future__ import annotations
@@ -68,6 +71,7 @@ from .messages import Announcement, Award, Bid, Claim, Release, Revoke
 from .params import MurdochRobot, MurdochTask
 
 REVOKE_EARLY = "revoke_early"  # a contract revoked before its progress_timeout had run
+AWARD_NOT_BID = "award_not_bid"  # this robot awarded a task in an auction it did not bid in
 
 class Readings(Protocol):
     """What the robot knows of itself (from its sensor and evaluator plugins)."""
@@ -119,6 +123,9 @@ class Murdoch:
         self.next_auction = 1
         self._announcements: list[tuple[str, Announcement, float]] = []
         self._awards: list[tuple[str, Award, float]] = []
+        # (auctioneer, auction) → (task, until): the bids this robot sent, while an award for
+        # them may still come (module docstring: an Award is believed only for a bid)
+        self.bids_sent: dict[tuple[str, int], tuple[str, float]] = {}
         self.task: str | None = None
         self.since = 0.0
         self.last_claim: float | None = None
@@ -187,6 +194,10 @@ class Murdoch:
 
     def _on_award(self, sender: str, msg: Award, t: float) -> None:
         if msg.task_id not in self.tasks:
+            return
+        if msg.winner == self.id and \
+                self.bids_sent.get((sender, msg.auction), (None,))[0] != msg.task_id:
+            self.refused[("award", sender, AWARD_NOT_BID, True)] += 1
             return
         # the winner claims at its next tick: until then (and for a lease) the task is taken
         self.held_until[msg.task_id] = max(self.held_until.get(msg.task_id, t),
@@ -277,6 +288,8 @@ class Murdoch:
         return out, changes
 
     def _expire(self, now: float) -> None:
+        for bid in [b for b, (_, until) in self.bids_sent.items() if until < now]:
+            del self.bids_sent[bid]
         for robot in [r for r, (_, until) in self.awarded.items() if until < now]:
             del self.awarded[robot]
         for leases in self.leases.values():
@@ -396,6 +409,8 @@ class Murdoch:
             out.append(Say("bid", dict(auctioneer=auctioneer, auction=ann.auction,
                                        task_id=ann.task_id,
                                        utility=self.utility(ann.task_id, readings)), auctioneer))
+            self.bids_sent[(auctioneer, ann.auction)] = (ann.task_id,
+                                                         now + ann.bid_window + self.p.lease_timeout)
 
     def _close_auctions(self, now: float, readings: Readings, out: list[Say],
                         changes: list[Change]) -> None:
