@@ -378,10 +378,10 @@ def run_problem(summary: Summary) -> str | None:
         return (f"{capped} allocation decision(s) stopped by their search's time cap: what was "
                 "decided depends on the machine's speed, not only on the seed")
     if summary.lockstep_exact is False:
-        why = (f"strangers' participant tokens were on the bus ({', '.join(summary.strangers)}):"
-               " a token nobody answers for is waited for, then given up" if summary.strangers
-               else "the machine too busy for the lockstep timeouts, or claims in a "
-                    "participant's name that nobody met (a forger's StepDone: docs/security.md)")
+        # (a stranger's participant token is no cause: a mission's simulator takes part only
+        # the run's processes, `mrta sim --lockstep-members`)
+        why = ("the machine too busy for the lockstep timeouts, or claims in a participant's "
+               "name that nobody met (a forger's StepDone: docs/security.md)")
         return (f"lockstep was not exact: {summary.lockstep_given_up} participant(s) given up, "
                 f"{summary.lockstep_forgiven} claim(s) forgiven — {why}")
     return None
