@@ -218,3 +218,18 @@ def test_hostile_xml_is_one_line_naming_the_file(tmp_path, data, line, what):
     assert res.exit_code == 2, res.output
     (out,) = res.output.strip().splitlines()
     assert out.startswith(f"Error: {f}:{line}: " if line else f"Error: {f}: ") and what in out
+
+
+def test_a_file_read_again_is_a_copy_of_the_first_reading_until_its_bytes_change(tmp_path):
+    """load_rqt_mrta keeps what it read per path and content (a process reads its application
+    and architecture again and again): a caller that changes its model changes its own copy,
+    and a file rewritten — even to the same size, within one tick of the file clock — is read
+    again."""
+    f = tmp_path / "rqt_mrta.xml"
+    f.write_text(APP.format(second="robot2", task="wander"))
+    first = load_rqt_mrta(f)
+    first.robots[1].tasks.append("changed by its caller")
+    again = load_rqt_mrta(f)
+    assert again is not first and [r.tasks for r in again.robots] == [["wander"], ["wander"]]
+    f.write_text(APP.format(second="robot3", task="wander"))  # the same size
+    assert [r.id for r in load_rqt_mrta(f).robots] == ["robot1", "robot3"]
