@@ -62,18 +62,23 @@ def test_each_task_gets_one_robot_and_a_killed_robots_task_is_taken_over(childre
 
 
 @pytest.mark.slow
-def test_agent_stops_the_robot_and_exits_within_one_second_on_sigterm(children, tokens,
-                                                                        tmp_path):
+def test_agent_stops_the_robot_and_exits_on_sigterm_at_once_not_at_its_next_tick(children, tokens,
+                                                                                 tmp_path):
+    """SIGTERM sets the node's stop: the agent sends the robot a zero command and exits 0 at
+    once. Its tick here is a minute long, so an agent that waited for its next tick (or for
+    anything paced by it) would take up to 60 s; the bound, 20 s, is a third of that and far
+    above what an exit costs beside two CPU burners — what is asserted does not depend on the
+    machine's speed (it was `< 1.0 s` of wall time)."""
     tf = write(tmp_path / "tasks.yaml", tasks_yaml(["A"]))
-    rf = write(tmp_path / "r.yaml", robot_yaml([{"task": "A", "fast": 50.0}]))
+    rf = write(tmp_path / "r.yaml", robot_yaml([{"task": "A", "fast": 50.0}], spin=1 / 60,
+                                               broadcast=1 / 60, tau=180.0))
     cmd = children.mrta("echo", "robot1/cmd_vel", "--json", name="cmd")
     agent = children.mrta("agent", "robot1", "--robot-params", rf, "--tasks-params", tf, name="agent")
     tokens.wait("robot1/alliance/agent", 30, agent)
     tokens.subscribed("robot1/cmd_vel", 30, cmd)
-    time.sleep(0.5)  # running: task A active after two ticks
     t0 = time.monotonic()
     agent.signal(signal.SIGTERM)
-    assert agent.wait(5) == 0
-    assert time.monotonic() - t0 < 1.0
+    assert agent.wait(90) == 0
+    assert time.monotonic() - t0 < 20.0
     zero = cmd.wait_json(lambda o: True, 5)
     assert zero["message"] == {"linear": 0.0, "angular": 0.0}
