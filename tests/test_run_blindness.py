@@ -102,3 +102,27 @@ def test_a_slow_reader_is_waited_for_as_long_as_lockstep_waits_for_a_live_one():
     for mode in ("peer", "client", "router"):
         block = base_config(mode)["transport"]["link"]["tx"]["queue"]["congestion_control"]
         assert block["block"]["wait_before_close"] == DEFAULT_TIMEOUT * 1_000_000
+
+
+def test_a_start_that_still_progresses_is_waited_for_one_that_stopped_is_not(monkeypatch):
+    """Twenty agents on a busy machine came up over more than READY_TIMEOUT (the walkthrough at
+    load 25: no run at all); while another comes up, the start is slow, not stuck."""
+    import threading
+
+    import pytest
+    from mrta_supervisor.mission import run_watch
+    from mrta_zenoh.errors import MrtaRuntimeError
+    monkeypatch.setattr(run_watch, "ready_timeout", lambda load, cores: 0.08)
+    group = type("Group", (), {"failed": lambda self, ignore: []})()
+    up = iter(range(1, 100))
+    came = []
+
+    def progress():
+        came.append(next(up))
+        return came[-1]
+    # each look sees one more agent: up after more than twice READY_TIMEOUT
+    run_watch.Readiness.wait(None, lambda: len(came) > 3, "agents", group, threading.Event(),
+                             progress=progress)
+    with pytest.raises(MrtaRuntimeError, match="nothing more came up within"):
+        run_watch.Readiness.wait(None, lambda: False, "agents", group, threading.Event(),
+                                 progress=lambda: 3)

@@ -105,12 +105,21 @@ class Readiness(Closing):
         return self.presence.all_up()
 
     def wait(self, what: Callable[[], bool], label: str, group: ProcessGroup,
-             stop: threading.Event, ignore: Callable[[], list[str]] = list) -> None:
+             stop: threading.Event, ignore: Callable[[], list[str]] = list,
+             progress: Callable[[], object] = lambda: None) -> None:
         """Until `what()`; a child of `group` that failed meanwhile is an error, but those
-        `ignore()` names (subjects of a crash the run injected)."""
+        `ignore()` names (subjects of a crash the run injected). Given up after `limit`
+        (ready_timeout: stretched by the load) with no `progress()` change: twenty agents
+        starting on a busy machine come up one by one over more than a minute (the README's
+        walkthrough at load 25: 55 s, then > 60 s and no run) — while they still come, the
+        start is slow, not stuck."""
         limit = ready_timeout(os.getloadavg()[0], os.cpu_count() or 1)
+        seen = progress()
         deadline = time.monotonic() + limit
         while not what():
+            now = progress()
+            if now != seen:
+                seen, deadline = now, time.monotonic() + limit
             if stop.is_set():  # first: after a Ctrl-C, children ended by it did not fail
                 group.interrupted()
                 raise Interrupted()
@@ -119,7 +128,8 @@ class Readiness(Closing):
                 raise MrtaRuntimeError(f"{failed[0].name} failed while starting (it "
                                        f"{failed[0].describe_exit()}):\n{failed[0].tail()}")
             if time.monotonic() > deadline:
-                raise MrtaRuntimeError(f"{label} did not come up within {limit:.0f} s")
+                raise MrtaRuntimeError(f"{label} did not come up: nothing more came up "
+                                       f"within {limit:.0f} s")
             stop.wait(0.05)
 
     def close(self) -> None:

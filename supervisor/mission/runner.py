@@ -248,7 +248,8 @@ def _run_in(run: MissionRun, reg: Registry,
             return {t for t in roles.crash_targets(faults, itself) if itself.get(t)}
 
         ready.wait(lambda: not set(ready.presence.missing()) - injected(), "the robots' agents",
-                   group, stop, ignore=lambda: own_process(injected()))
+                   group, stop, ignore=lambda: own_process(injected()),
+                   progress=lambda: len(ready.presence.missing()))
         # start-up, read by benchmarks/hosts.py (one process per robot against hosts)
         log.info("%s: every robot's agent up, %.1f s after the run's processes began",
                  AGENTS_UP, time.monotonic() - t_wall0)
