@@ -61,9 +61,12 @@ def wakeups_for_one_step(n: int) -> int:
 
 
 def test_answers_wake_the_simulator_once_per_step_not_once_per_participant():
-    # the last answer wakes it (and that answer's count, once taken into account): the same
-    # with 10 participants as with 100, not every answer and every count
-    assert wakeups_for_one_step(10) == wakeups_for_one_step(100) <= 2
+    # the last answer wakes it (and that answer's count, once taken into account): at most
+    # twice with 10 participants as with 100, not once for every answer and every count. Not
+    # "the same for both": whether the count's wake-up still finds the thread waiting is up to
+    # the scheduler (1 or 2 on a busy machine), and the bound is what does not depend on n
+    assert wakeups_for_one_step(10) <= 2
+    assert wakeups_for_one_step(100) <= 2
 
 
 def brute_sent(b: Barrier) -> dict[str, int]:
