@@ -292,7 +292,7 @@ class ZenohBus(Bus):
 
     def _declare_queryable(self, key: str,
                            answer: Callable[[], list[tuple[str, bytes]]]) -> "Closable":
-        """A queryable replying on its own concrete key (ZENOH_NOTES trap 7), closed before the
+        """A queryable replying on its own concrete key (docs/zenoh.md, trap 7), closed before the
         session; the query is dropped when the callback returns, so the asker's get ends."""
         wire, stats, encoding = self._wire(key), self.stats, self._encoding
 
