@@ -151,6 +151,22 @@ class Architecture(ABC):
     # the Coordinator's `tasks_added`); False — a run's intake refuses every submission, saying
     # why (`submitted_refusal`). Default: False
     takes_submitted: ClassVar[bool] = False
+    # whether it runs a mission whose tasks are continuous — never done (patrol's wander and
+    # border). False for an architecture whose robots serve routes of tasks that end (central,
+    # SSI, CBBA, TeSSI): a continuous task would head a route forever, and their planners need
+    # an instance's point tasks. A patrol package for one ran with idle robots and no
+    # dispatcher (issue 51, the newcomer's list); it is refused, naming why. Default: True
+    continuous_tasks: ClassVar[bool] = True
+
+    def mission_refusal(self, mission: str, continuous: bool) -> str:
+        """Why this architecture cannot run `mission` ("" when it can): `continuous`, whether
+        the mission's tasks are continuous (`Mission.continuous`)."""
+        if self.continuous_tasks or not continuous:
+            return ""
+        able = [n for n, a in architectures().items() if a.continuous_tasks]
+        return (f"the {mission} mission's tasks are continuous (never done) and {self.title}'s "
+                f"robots serve routes of tasks that end: run {mission} under "
+                f"{' or '.join(able) or 'another architecture'} (docs/central.md, \"Patrol\")")
 
     def submitted_refusal(self) -> str:
         """Why a run of this architecture refuses submitted tasks ("" when it takes them)."""

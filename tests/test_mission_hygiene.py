@@ -169,3 +169,19 @@ def test_a_launch_without_a_required_node_is_refused_naming_the_file():
     check_end([agent, sim], Path("x.launch"))
     with pytest.raises(ConfigError, match=r"x\.launch: no node is required=\"true\""):
         check_end([agent, dataclasses.replace(sim, required=False)], Path("x.launch"))
+
+
+
+def test_a_launch_without_the_architectures_own_process_is_refused_naming_it():
+    """A central launch with no dispatcher node ran its robots idle the whole run (issue 51, a
+    wizard's patrol package): refused before anything starts, naming the process."""
+    from mrta_supervisor.mission.runner import check_end
+    from mrta_zenoh.toolchain.launchfile import NodeSpec
+
+    sim = NodeSpec("sim", "simulator", "sim", [], required=True)
+    agent = NodeSpec("robot1/central", "central", "agent", [])
+    dispatcher = NodeSpec("dispatcher", "central", "dispatcher", [])
+    check_end([agent, dispatcher, sim], Path("x.launch"), ("dispatcher",))
+    with pytest.raises(ConfigError, match=r"x\.launch: no node named dispatcher: the "
+                                          r"architecture's own process"):
+        check_end([agent, sim], Path("x.launch"), ("dispatcher",))

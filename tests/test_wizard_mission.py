@@ -83,6 +83,53 @@ def test_a_mission_it_cannot_make_a_package_for_is_one_line_naming_the_line(tmp_
     assert not (tmp_path / "apps").exists()
 
 
+CENTRAL_PATROL = {
+    "architecture": "central", "robots": {"robot1": ["wander", "report"]},
+    "configs": {"central_params": {"robot1": {"name": "Robot 1"}},
+                "tasks_central_params": {"tasks": [
+                    {"id": "wander", "name": "Wander", "layers": [{"plugin_name": "patrol/wander"}]},
+                    {"id": "report", "name": "Report", "layers": [{"plugin_name": "patrol/report"}]}]},
+                "dispatcher_central_params": {"objective": "minsum"}}}
+
+
+def test_a_patrol_package_under_an_architecture_of_routes_is_refused_saying_why(tmp_path):
+    """A patrol package for central was made, and ran its robots idle with no dispatcher
+    (issue 51): patrol's tasks never end, and central's (SSI's, CBBA's) robots serve routes of
+    tasks that do. Refused naming the line and the architectures that can."""
+    res = make(tmp_path, **CENTRAL_PATROL)
+    assert res.exit_code == 2, res.output
+    (line,) = res.output.strip().splitlines()
+    assert "answers.yaml:" in line and "'mission': the patrol mission's tasks are continuous" \
+        in line and "run patrol under alliance or murdoch" in line, line
+    assert not (tmp_path / "apps").exists()
+
+
+@pytest.mark.parametrize("arch", ["central", "ssi", "cbba", "tessi"])
+def test_the_demo_refuses_patrol_under_an_architecture_of_routes(arch):
+    from mrta_supervisor.mission.hook import MissionOptions, resolve
+    from mrta_zenoh.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="the patrol mission's tasks are continuous"):
+        resolve(MissionOptions(application="patrol", architecture=arch))
+
+
+def test_the_demo_refuses_a_patrol_package_made_for_central_before_the_refusal(tmp_path,
+                                                                               monkeypatch):
+    """A package an older wizard made (or one made by hand): refused by name, not run idle."""
+    from mrta_supervisor.mission.hook import MissionOptions, resolve
+    from mrta_zenoh.errors import ConfigError
+    from mrta_zenoh.toolchain.registry import Registry
+
+    assert make(tmp_path).exit_code == 0  # a MURDOCH package, then made central's by hand
+    pkg = tmp_path / "apps" / "my_patrol"
+    xml = pkg / "rqt_mrta.xml"
+    xml.write_text(xml.read_text().replace("<architecture>murdoch</architecture>",
+                                           "<architecture>central</architecture>"))
+    monkeypatch.setenv("MRTA_PACKAGE_PATH", str(tmp_path / "apps"))
+    with pytest.raises(ConfigError, match="my_patrol: the patrol mission's tasks are continuous"):
+        resolve(MissionOptions(application="my_patrol"), Registry())
+
+
 def test_the_wizard_asks_for_the_mission_and_says_what_it_takes():
     from mrta_zenoh.toolchain.wizard import InvalidAnswer, collect
     from mrta_zenoh.toolchain.registry import Registry
@@ -113,3 +160,37 @@ def test_the_wizard_asks_for_the_mission_and_says_what_it_takes():
         collect(Registry(), Script())
     assert "Mission it runs in `mrta demo` (delivery, patrol; empty for none)" in asked
     assert len(said) == 1 and said[0].startswith("the delivery mission runs packages derived")
+
+
+def test_the_wizard_refuses_an_architecture_of_routes_for_patrol_and_asks_again():
+    from mrta_zenoh.toolchain.registry import Registry
+    from mrta_zenoh.toolchain.wizard import InvalidAnswer, collect
+
+    said, picked = [], []
+
+    class Script:
+        answers = iter(["mypkg", "My app", "", "", "Me", "me@example.com", "", "patrol", "",
+                        "", "", "", "central", "murdoch"])
+
+        def step(self, title):
+            pass
+
+        section = say = step
+
+        def ask(self, question, check, default=None, show_default=True):
+            if question.startswith("Robot ids"):
+                raise StopIteration  # far enough
+            text = next(self.answers)
+            try:
+                out = check(text if text or default is None else default)
+            except InvalidAnswer as exc:
+                said.append(str(exc))
+                return self.ask(question, check, default, show_default)
+            if question == "Architecture":
+                picked.append(out[0].name)
+            return out
+
+    with pytest.raises(StopIteration):
+        collect(Registry(), Script())
+    assert len(said) == 1 and said[0].startswith("the patrol mission's tasks are continuous")
+    assert picked == ["murdoch"]

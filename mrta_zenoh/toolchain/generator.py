@@ -20,7 +20,7 @@ from ..files import write_folder
 from ..keys import KeyExprError, is_id, normalize_robot_id
 from ..yamlfile import YamlDoc, did_you_mean, load_yaml
 from .checks import layers_config_id, read_layer_sections
-from .missionfiles import check_mission
+from .missionfiles import check_mission, check_pairing
 from .model import (ApplicationFile, ArchitectureFile, Config, Launch, LaunchArg, LaunchInclude,
                     Params, RobotEntry)
 from .registry import Package
@@ -109,6 +109,7 @@ def load_answers(path: Path) -> tuple[Answers, YamlDoc]:
                 mission=str(d.get("mission") or ""))
     try:
         check_mission(a.mission)
+        check_pairing(a.mission, a.architecture)
     except ConfigError as exc:
         raise doc.error(("mission",), str(exc)) from None
     try:

@@ -28,7 +28,7 @@ import re
 
 from lxml import etree
 
-from ..architectures import TEAM_ENV
+from ..architectures import TEAM_ENV, architecture
 from ..errors import ConfigError
 from ..installed import entry_points
 from ..yamlfile import did_you_mean
@@ -74,6 +74,17 @@ def check_mission(name: str) -> str:
                           f"not made here: mrta demo --application {name} --instance FILE "
                           "--architecture ARCH (README, \"Instances\")")
     return name
+
+
+def check_pairing(mission: str, arch: str) -> None:
+    """ConfigError when architecture `arch` cannot run `mission` ("": none) — a mission of
+    continuous tasks under an architecture of routes (Architecture.mission_refusal): the
+    package made would run with idle robots and no dispatcher (issue 51)."""
+    if not mission:
+        return
+    refusal = architecture(arch).mission_refusal(mission, bool(_hook(mission).continuous))
+    if refusal:
+        raise ConfigError(refusal)
 
 
 def mission_launch(name: str) -> str:

@@ -20,7 +20,7 @@ from typing import Any, Callable, Protocol, TypeVar
 from ..errors import ConfigError
 from ..keys import is_id
 from .checks import PackageRefused, check_package_files, layers_config_id
-from .missionfiles import check_mission, registered_missions
+from .missionfiles import check_mission, check_pairing, registered_missions
 from .generator import (EMAIL, PACKAGE_NAME, VERSION, Answers, restrict_layers,
                         without_layers)
 from .model import ApplicationFile, ArchitectureFile, Node, Param, Params, RobotEntry
@@ -144,11 +144,16 @@ def collect(registry: Registry, ui: Prompter) -> tuple[Answers, Package, Archite
     def pick(v: str) -> tuple[Package, ArchitectureFile]:
         v = v.strip()
         if v.isdigit() and 1 <= int(v) <= len(shown):
-            return shown[int(v) - 1]
-        for p, a in shown:
-            if v in (p.name, a.name):
-                return p, a
-        raise InvalidAnswer(f"choose 1-{len(shown)} or a name")
+            chosen = shown[int(v) - 1]
+        else:
+            chosen = next(((p, a) for p, a in shown if v in (p.name, a.name)), None)
+            if chosen is None:
+                raise InvalidAnswer(f"choose 1-{len(shown)} or a name")
+        try:  # the mission of step 1 may need another (patrol: none of routes)
+            check_pairing(mission, chosen[0].name)
+        except ConfigError as exc:
+            raise InvalidAnswer(str(exc)) from None
+        return chosen
     arch_pkg, arch = ui.ask("Architecture", pick, default="1")
 
     ui.step("3/5 Robots and tasks")

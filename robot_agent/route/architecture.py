@@ -21,6 +21,7 @@ class RouteArchitecture(AgentArchitecture):
     progress_type: ClassVar[type]
     doing_kinds = ("progress",)
     doing_stale_after = 2.5  # a robot reports every report_period (1 s by default)
+    continuous_tasks = False  # a route is of tasks that end (Architecture.continuous_tasks)
 
     def route_prepared(self, robot_id: str, params: Any,
                        instance: instances.Loaded | None = None) -> Prepared:

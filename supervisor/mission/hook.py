@@ -69,6 +69,10 @@ class Mission:
     # robots, starts and tasks are the instance's) rather than made by `mrta app new`, which
     # then refuses to make one for it, naming the command that derives them
     instances: bool = False
+    # whether its tasks are continuous — never done (patrol's wander and border): an
+    # architecture of routes of tasks that end cannot run it (Architecture.continuous_tasks),
+    # and `mrta demo` and `mrta app new` refuse the pair, naming why
+    continuous: bool = False
 
     def default_failure(self, robots: list[str], duration: float) -> str | None:
         """The failure `mrta demo` injects when none is given: the second robot at half time
@@ -236,6 +240,11 @@ def resolve(options: MissionOptions, reg: Registry | None = None) -> MissionRun:
     pkg, app = reg.application(application)
     if options.architecture is not None and options.architecture != app.architecture:
         arch = architecture(options.architecture)  # unknown names: ConfigError listing them
+        if any(n in missions() for n in (pkg.name, *pkg.depends)):
+            # before "no package runs it", which would send them to make one
+            refusal = arch.mission_refusal(application, _mission_of(reg, pkg).continuous)
+            if refusal:
+                raise ConfigError(refusal)
         # the first by name of the packages that depend on the application and run it under
         # that architecture, read one by one (a derived 100-robot package's file is ≈ 11 MB)
         dependents = sorted((p for p in reg.packages.values() if application in p.depends),
@@ -252,6 +261,9 @@ def resolve(options: MissionOptions, reg: Registry | None = None) -> MissionRun:
     arch = architecture(app.architecture)
     _, arch_model = reg.architecture(app.architecture)
     mission = _mission_of(reg, pkg)
+    refusal = arch.mission_refusal(mission.name, mission.continuous)
+    if refusal:  # a package made so by hand, or by an older wizard: idle robots, no dispatcher
+        raise ConfigError(f"{pkg.name}: {refusal}")
     robots = [r.id for r in app.robots]
     return MissionRun(mission, pkg, app, arch, arch_model, robots, options,
                       resolve_faults(mission, robots, arch, options))

@@ -164,7 +164,7 @@ def _run_in(run: MissionRun, reg: Registry,
     launch = run.package.path / "launch" / run.mission.launch
     nodes = LaunchEvaluator(lambda name: reg.find(name).path).run(launch, launch_args)
     check_executables(nodes)
-    check_end(nodes, launch)
+    check_end(nodes, launch, run.arch.processes)
     check_seeds(nodes, options.seed)
     hosted: dict[str, str] = {}  # robot → its host's node name (agent hosts)
     if options.agents_per_process > 1:
@@ -424,12 +424,18 @@ def _meeting(hub: ProcessGroup, rendezvous: str, routed: bool,
     return BusOptions(mode="client", connect=[rendezvous])
 
 
-def check_end(nodes: list[NodeSpec], launch: Path) -> None:
+def check_end(nodes: list[NodeSpec], launch: Path, processes: tuple[str, ...] = ()) -> None:
     """A run ends when its launch's required node (the simulator) ends, as `mrta launch`'s
-    does: a launch with none is refused before anything starts, naming the file."""
+    does: a launch with none is refused before anything starts, naming the file. So is one
+    that starts none of the architecture's own `processes` (a dispatcher): its robots would
+    wait for it the whole run, idle (issue 51: a hand-made central package)."""
     if not any(n.required for n in nodes):
         raise ConfigError('no node is required="true": a mission run ends when its launch\'s '
                           "required node (the simulator) ends", file=str(launch))
+    missing = [p for p in processes if p not in {n.name for n in nodes}]
+    if missing:
+        raise ConfigError(f"no node named {missing[0]}: the architecture's own process, which "
+                          "its robots wait for", file=str(launch))
 
 
 def check_seeds(nodes: list[NodeSpec], seed: int) -> None:

@@ -48,6 +48,7 @@ class Patrol(Mission):
     title = "Patrol mission"
     launch = "patrol_sim.launch"
     default = True  # the dissertation's mission: what a bare `mrta demo` runs
+    continuous = True  # wander and the border are never done: no architecture of routes
     better = {"collisions_total": "lower", "border_visited": "higher"}
 
     def metrics(self, run: MissionRun, records: list) -> dict[str, Any]:
