@@ -36,6 +36,7 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 
 from mrta_zenoh.files import write_text  # noqa: E402
 from mrta_supervisor.experiment.file import Experiment, load_experiment  # noqa: E402
+from mrta_supervisor.experiment.provenance import revisions  # noqa: E402
 from mrta_supervisor.experiment.report import Options, Report  # noqa: E402
 from mrta_supervisor.experiment.report_md import write_report  # noqa: E402
 from mrta_supervisor.experiment.results import read_results, write_csv  # noqa: E402
@@ -140,6 +141,13 @@ def coverage(files: list[StudyFile], mission: str) -> list[str]:
         ([] if not waiting else ["", f"Not run yet (no row): {', '.join(waiting)}."])
 
 
+def code_of(rows: list[dict[str, str]]) -> str:
+    """Which code made a file's rows (results.csv's `code`, provenance.py), each revision with
+    its count; rows from before the column name none: "Which code made the rows" below."""
+    return ", ".join(f"{k or 'before the column: see below'} ({n})"
+                     for k, n in revisions(rows).items())
+
+
 def status(files: list[StudyFile]) -> str:
     """docs/study/README.md's block: every file of the study, complete (in the tables), in
     progress (its rows committed, each architecture's instances counted, in no table) or not
@@ -151,8 +159,9 @@ def status(files: list[StudyFile]) -> str:
              f"({sum(len(f.rows) for f in complete):,} runs, every cell at all its instances: "
              "these alone are in docs/comparison.md's tables and the README headline); "
              f"{len(partial)} in progress; {len(waiting)} not run yet.", "",
-             "| file | state | runs in / asked | ok | per architecture (instances or seeds in) |",
-             "| --- | --- | --- | --- | --- |"]
+             "| file | state | runs in / asked | ok | per architecture (instances or seeds in) "
+             "| code (rows) |",
+             "| --- | --- | --- | --- | --- | --- |"]
     for f in (f for f in files if f.rows):
         asked = f.per_cell * len(f.architectures)
         ok = sum(r.get("status") == "ok" for r in f.rows)
@@ -160,7 +169,7 @@ def status(files: list[StudyFile]) -> str:
                         for a in f.architectures)
         state = "complete" if f.complete else "**partial** (in no table)"
         lines.append(f"| {f.experiment.file.stem} | {state} | {len(f.rows)} / {asked} | "
-                     f"{ok} | {per} |")
+                     f"{ok} | {per} | {code_of(f.rows)} |")
     if waiting:
         lines += ["", "Not run yet (no row): "
                   + ", ".join(f.experiment.file.stem[:2] for f in waiting) + "."]

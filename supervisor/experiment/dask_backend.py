@@ -47,6 +47,7 @@ from mrta_zenoh.processes import ProcessGroup
 from mrta_zenoh.toolchain.registry import Registry
 
 from .file import Run
+from .provenance import code_revision
 from .runs import Results, error_of, package_copy, start_run
 
 log = logging.getLogger("mrta.experiment.dask")
@@ -102,6 +103,7 @@ class RunResult:
     wall: float                            # wall seconds the run's process took
     worker: str                            # the worker's address, for the log
     files: dict[str, bytes] = field(default_factory=dict)  # run folder: relative path → bytes
+    code: str | None = None                # which code ran it: the worker's (provenance.py)
 
 
 def run_task(task: RunTask) -> RunResult:
@@ -140,7 +142,8 @@ def run_task(task: RunTask) -> RunResult:
         wall = time.monotonic() - t0
         if stopped:
             return RunResult(None, child.stdout[-OUTPUT_LINES:], wall, where)
-        return RunResult(rc, child.stdout[-OUTPUT_LINES:], wall, where, read_folder(out))
+        return RunResult(rc, child.stdout[-OUTPUT_LINES:], wall, where, read_folder(out),
+                         code_revision())
 
 
 def read_folder(folder: Path) -> dict[str, bytes]:
@@ -264,7 +267,7 @@ def _gather(future, run: Run, output: Path, results: Results, only_clean: bool =
             _summary_here(out)
         log.debug("run %d ended on %s (exit %s)", run.index, result.worker, result.returncode)
         error = "" if result.returncode == 0 else error_of(result.returncode, result.lines)
-        results.add(run, out, result.wall, error)
+        results.add(run, out, result.wall, error, result.code)
         return
     if only_clean:
         return

@@ -15,6 +15,7 @@ from mrta_zenoh.files import write_text
 from mrta_zenoh.yamlfile import plural
 
 from . import stats
+from .provenance import CODE_COLUMN, revisions
 from .report import Cell, Options, Report, build
 from .results import read_results, title, write_csv
 
@@ -158,7 +159,23 @@ def _intro(report: Report) -> str:
             f"{plural(len(report.cells), 'cell')}. Each figure is over the runs of a cell that "
             "ended well; a run without a value of a metric (no takeover when nothing failed, "
             "no makespan when a task was never served) is counted as missing, never as 0. "
-            "Coverage: share of the run with exactly one robot on the task.")
+            "Coverage: share of the run with exactly one robot on the task." + _code(report))
+
+
+def _code(report: Report) -> str:
+    """Which code made the rows (results.csv's `code`, provenance.py): one revision, or each
+    with its count — rows of several revisions are a mix a reader should see — and the rows
+    made before the column existed (blank: their provenance is kept elsewhere)."""
+    counts = revisions(report.table.rows)
+    named = {k: n for k, n in counts.items() if k}
+    if not named:
+        return ""
+    said = (f"`{next(iter(named))}`" if len(named) == 1 else
+            ", ".join(f"`{k}` ({plural(n, 'run')})" for k, n in named.items()))
+    blank = counts.get("", 0)
+    return (f" Code (`{CODE_COLUMN}` column): {said}"
+            + (f"; {plural(blank, 'run')} from before rows named their code" if blank else "")
+            + ".")
 
 
 def _bootstrap_note(report: Report, intervals: list[stats.Interval | None]) -> str:

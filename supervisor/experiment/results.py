@@ -2,7 +2,7 @@
 by the report (report.py) — the report is made from this file alone.
 
 A row holds the run's bookkeeping (`run`, `config`, `seed`, `status`, `error`,
-`wall_seconds`, `taken_over_by`, `failed_robot` — the robot its fault struck, which a fault
+`wall_seconds`, `code` — which code made it, provenance.py —, `taken_over_by`, `failed_robot` — the robot its fault struck, which a fault
 naming a role, `@first` or `@random`, resolves per run), every parameter that defines its cell
 (`mission`, `application`, `architecture`, `duration`, `instance`, `n_robots`, `n_tasks` — the
 last three with an `instances:` block — `failure`, one column per parameter override), and
@@ -35,8 +35,9 @@ from mrta_zenoh.yamlfile import did_you_mean
 log = logging.getLogger("mrta.experiment")
 
 # `agents_per_process`: how the run's agents were hosted, which changes no result (agent hosts)
+# `code`: which code made the row (provenance.py), blank in rows made before it was recorded
 BOOKKEEPING = ("run", "config", "seed", "status", "error", "wall_seconds", "taken_over_by",
-               "failed_robot", "agents_per_process")
+               "failed_robot", "agents_per_process", "code")
 MEASURES = ("takeover_seconds", "first_full_allocation", "messages", "messages_per_second",
             "coordination_messages_per_second", "namespace_messages_per_second", "ended_at",
             "decisions", "decision_ms_median", "decision_ms_max")

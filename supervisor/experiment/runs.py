@@ -23,6 +23,7 @@ from mrta_zenoh.planning.reference import REFERENCE_CACHE_ENV
 from mrta_zenoh.processes import ProcessGroup, mrta_argv
 
 from .file import Run
+from .provenance import CODE_COLUMN, code_revision
 from ..mission.overrides import Overrides, apply_overrides, override_text
 from .results import COVERAGE, write_csv
 from ..mission.summary import COMPLETE, INCOMPLETE, flat_metrics, read_summary, run_problem
@@ -145,9 +146,10 @@ def error_of(returncode: int, lines: list[str]) -> str:
 
 
 def row_for(run: Run, out: Path, wall: float, error: str = "",
-            context: Context = Context()) -> dict:
+            context: Context = Context(), code: str | None = None) -> dict:
     """The run's row: bookkeeping, the parameters of its cell (its instance's name and sizes
-    with an instances block), then what it measured. A run of an instance leaves out coverage
+    with an instances block), then what it measured. `code`: which code ran it (provenance.py;
+    default: this process's — a Dask or SLURM task's is its own machine's). A run of an instance leaves out coverage
     per task: task ids are the instance's own (t1 of one instance is not t1 of another), and
     a 100-task instance would add 300 columns no cell shares."""
     row: dict[str, Any] = {"run": run.index, "config": run.config, "seed": run.seed}
@@ -161,7 +163,8 @@ def row_for(run: Run, out: Path, wall: float, error: str = "",
     row["agents_per_process"] = run.agents_per_process
     row.update({k: v for k, v in run.overrides})
     row.update({"status": "failed" if error else "ok", "error": error,
-                "wall_seconds": round(wall, 2)})
+                "wall_seconds": round(wall, 2),
+                CODE_COLUMN: code_revision() if code is None else code})
     if error:
         return row
     summary = read_summary(out / "summary.json")
@@ -227,8 +230,9 @@ class Results:
         if self.progress is not None:
             self.progress(len(self.rows), total, None)
 
-    def add(self, run: Run, out: Path, wall: float, error: str = "") -> dict:
-        row = row_for(run, out, wall, error, self.context)
+    def add(self, run: Run, out: Path, wall: float, error: str = "",
+            code: str | None = None) -> dict:
+        row = row_for(run, out, wall, error, self.context, code)
         self.rows.append(row)
         self.fields = write_csv(self.path, self.rows, self.fields)
         if self.progress is not None:

@@ -45,6 +45,7 @@ from mrta_zenoh.yamlfile import plural
 from mrta_zenoh.toolchain.registry import Registry
 
 from .file import Run
+from .provenance import code_revision
 from .runs import Results, error_of, inexact, start_run
 
 log = logging.getLogger("mrta.experiment.slurm")
@@ -109,6 +110,7 @@ class TaskResult:
     returncode: int
     lines: list[str]   # the end of its output
     wall: float        # wall seconds of the run (the last try)
+    code: str | None = None  # which code ran it: the node's (provenance.py)
 
 
 def run_task(task: SlurmTask) -> TaskResult:
@@ -128,7 +130,7 @@ def run_task(task: SlurmTask) -> TaskResult:
         if attempt == 0 and inexact(out):
             continue
         break
-    return TaskResult(rc, child.stdout[-OUTPUT_LINES:], wall)
+    return TaskResult(rc, child.stdout[-OUTPUT_LINES:], wall, code_revision())
 
 
 # ------------------------------------------------------------------ on the client
@@ -251,4 +253,4 @@ def _collect(job, run: Run, output: Path, results: Results, only_clean: bool = F
     if only_clean and result.returncode != 0:
         return
     error = "" if result.returncode == 0 else error_of(result.returncode, result.lines)
-    results.add(run, out, result.wall, error)
+    results.add(run, out, result.wall, error, result.code)
