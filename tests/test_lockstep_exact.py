@@ -18,7 +18,8 @@ from mrta_zenoh.clock import run_id
 from mrta_zenoh.keys import CLOCK_SOURCE_TOKEN
 from mrta_zenoh.lockstep.barrier import Barrier
 from mrta_zenoh.lockstep.participant import LockstepClock
-from mrta_zenoh.lockstep.protocol import REPORT_AFTER, STATUS, LockstepStatus
+from mrta_zenoh.lockstep.protocol import (DONE, REPORT_AFTER, STATUS, WORK_LIMIT, LockstepStatus,
+                                          StepDone)
 from mrta_zenoh.messages import Twist
 from mrta_supervisor.experiment import api as experiment
 from mrta_supervisor.mission.analysis import lockstep_trouble
@@ -42,8 +43,21 @@ def in_thread(fn):
     return done
 
 
+class Cpu:
+    """The participant's loop thread's CPU time, moved by hand (`cpu.t += 0.5`)."""
+
+    def __init__(self):
+        self.t = 0.0
+
+    def follow(self, thread):
+        pass
+
+    def __call__(self):
+        return self.t
+
+
 @contextlib.contextmanager
-def fleet():
+def fleet(cpu=None):
     """A lockstep simulator's barrier (30 s timeout, a hand-moved wall clock) and one
     participant, robot1, on one in-process network; the statuses the barrier publishes."""
     net, wall, stop = InProcNetwork(), Wall(), threading.Event()
@@ -54,7 +68,7 @@ def fleet():
     statuses = []
     sim_bus.subscribe(STATUS, lambda s: statuses.append(s.message), msg_type=LockstepStatus)
     source = sim_bus.declare_token(f"{CLOCK_SOURCE_TOKEN}/{run}")
-    clock = LockstepClock("robot1", wall=wall)
+    clock = LockstepClock("robot1", wall=wall, cpu=cpu)
     stack = clock.join(InProcBus(net))
     try:
         wait_for(lambda: "robot1" in barrier.participants)
@@ -88,6 +102,81 @@ def test_a_slow_participant_is_waited_for_and_a_hung_one_makes_the_run_inexact(c
         wait_for(stepped.is_set)
         assert barrier.unresponsive == {"robot1"} and barrier.given_up == 1
         wait_for(lambda: statuses and statuses[-1].given_up == 1)
+
+
+def test_a_participant_still_computing_is_waited_for_past_the_timeout_a_stuck_one_is_not(caplog):
+    """CBBA's first decision over a burst of 200 tasks costs each robot ≈ 2 CPU-s: at load 25
+    that took 39 s of wall, past the 30 s timeout, and the run was given up as inexact. A
+    participant whose loop thread uses CPU time says so (a work beat) and is waited for; one
+    whose loop is stuck uses none, says nothing, and is given up after the timeout as before;
+    one that beats for ever is given up after WORK_LIMIT timeouts."""
+    caplog.set_level(logging.WARNING, logger="mrta.lockstep")
+    cpu = Cpu()
+    with fleet(cpu) as (barrier, clock, wall, stop, statuses):
+        def computing(seconds):
+            """The loop computes for `seconds` of wall, beating every 20 s of it."""
+            for _ in range(int(seconds // 20)):
+                cpu.t += 0.5
+                beat = wall.t
+                clock.beat()
+                wait_for(lambda: barrier._working.get("robot1") == beat)
+                wall.t += 20.0
+
+        barrier.publish(0.0)
+        stepped = in_thread(lambda: barrier.wait(0.0, stop))
+        wait_for(clock.started.is_set)            # it took step 0 and computes its decision
+        wait_for(lambda: barrier._stamp is not None)
+        computing(100.0)                          # 100 s: more than three timeouts
+        wait_for(lambda: "robot1 still computing t=0.00" in caplog.text)  # past the timeout
+        assert not stepped.is_set() and not barrier.unresponsive
+        answered = in_thread(lambda: clock.sleep_until(0.1, stop))  # done at last
+        wait_for(stepped.is_set)
+        assert barrier.given_up == 0              # the run stays exact
+
+        barrier.publish(0.1)
+        stepped = in_thread(lambda: barrier.wait(0.1, stop))
+        wait_for(answered.is_set)                 # it took step 0.1, then its loop is stuck
+        wait_for(lambda: barrier._stamp is not None)
+        assert not clock.beat()                   # no CPU time used: no sign of work
+        wall.t += 31.0
+        wait_for(stepped.is_set)
+        assert barrier.unresponsive == {"robot1"} and barrier.given_up == 1
+
+    cpu = Cpu()
+    with fleet(cpu) as (barrier, clock, wall, stop, statuses):
+        barrier.publish(0.0)
+        stepped = in_thread(lambda: barrier.wait(0.0, stop))
+        wait_for(clock.started.is_set)
+        wait_for(lambda: barrier._stamp is not None)
+        caplog.clear()
+        computing(WORK_LIMIT * 30.0 - 20.0)
+        wait_for(lambda: "robot1 still computing t=0.00" in caplog.text)
+        assert not stepped.is_set()
+        computing(40.0)                           # past WORK_LIMIT timeouts, still beating
+        wait_for(stepped.is_set)
+        assert barrier.unresponsive == {"robot1"} and barrier.given_up == 1
+
+
+def test_a_work_beat_is_no_answer_and_counts_only_from_the_participant_for_the_step():
+    """A beat moves nothing (not the step, not the claims); one from a name without a token, or
+    for another run or an earlier step, keeps nobody waited for."""
+    with fleet(Cpu()) as (barrier, clock, wall, stop, statuses):
+        barrier.publish(0.0)
+        stepped = in_thread(lambda: barrier.wait(0.0, stop))
+        wait_for(clock.started.is_set)
+        wait_for(lambda: barrier._stamp is not None)
+        beat = StepDone("robot1", 0.0, {"robot1/cmd_vel": 5}, -1.0, barrier.run, working=True)
+        stranger = StepDone("robot9", 0.0, {}, -1.0, barrier.run, working=True)
+        other_run = StepDone("robot1", 0.0, {}, -1.0, "another", working=True)
+        bus = InProcBus(barrier.bus.network)
+        for key, d in ((f"{DONE}/robot1", beat), (f"{DONE}/robot9", stranger),
+                       (f"{DONE}/robot1", other_run)):
+            bus.publish(key, d)
+        wait_for(lambda: "robot1" in barrier._working)
+        assert not stepped.is_set() and barrier.sent().get("robot1/cmd_vel") is None
+        assert set(barrier._working) == {"robot1"}
+        in_thread(lambda: clock.sleep_until(0.1, stop))
+        wait_for(stepped.is_set)
 
 
 def status_record(**kw):

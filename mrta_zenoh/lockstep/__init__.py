@@ -36,6 +36,10 @@ The protocol (docs/architecture.md, "lockstep"):
   for `timeout` wall seconds (30 s by default) with its token alive is given up (a log line
   and `lockstep/status`, which the supervisor shows as an alarm) until it answers again; the
   status counts give-ups and forgiven claims, and a mission's summary calls such a run inexact.
+  Silent means neither an answer nor a work beat: a participant whose loop is computing (its
+  loop thread's CPU time grows, `participant.LoopCpu`) says so every WORK_BEAT with a StepDone
+  marked `working` and is waited for, up to WORK_LIMIT timeouts — a long decision on a busy
+  machine is not a hang; a stuck loop uses no CPU time and says nothing.
 
 Trust (docs/security.md, "Lockstep and the clock"). Exact checks — they hold against anybody
 who cannot declare our tokens (a secured fleet) and against blind forgers on an open bus:

@@ -24,8 +24,8 @@ from ..lifecycle import Closing
 from .books import Books
 from .ledger import Ledger
 from .protocol import (BARRIER, DEFAULT_TIMEOUT, DONE, MAX_KEYS, MAX_NAMES, NEXT_HORIZON,
-                       PARTICIPANT, REPORT_AFTER, SPEAKS, STATUS, STEP, LockstepStatus, Rejections, Step,
-                       StepDone, count_wait, log)
+                       PARTICIPANT, REPORT_AFTER, SPEAKS, STATUS, STEP, WORK_LIMIT, LockstepStatus,
+                       Rejections, Step, StepDone, count_wait, log)
 from .table import Claims, KeyTable, count_of
 
 
@@ -76,6 +76,8 @@ class Barrier(Closing):
         # of every participant per answer (100 participants answer every step)
         self._stamp: float | None = None  # the step wait() is waiting on
         self._waiting: set[str] = set()   # participants it still waits for
+        self._working: dict[str, float] = {}  # waited for → wall time of its last work beat
+        self._told_working: set[str] = set()  # said to be still computing, this step
         self._due_at: float | None = None  # due() before this stamp is False (None: unknown)
         # before the commands' subscription (SimNode) exists: commands are counted from the first
         self.counts = bus.enable_counting(self._poke)
@@ -196,6 +198,10 @@ class Barrier(Closing):
             if why is not None:
                 self.dropped(why)
             if why is not None or d.resync:
+                return
+            if d.working:  # a sign of life, no answer: still computing the step waited on
+                if name in self._waiting and d.stamp >= self._stamp - EPSILON:
+                    self._working[name] = self._wall()
                 return
             over = self.ledger.over_cap(name, d.sent, self.counts.sent.keys())
             if over is not None:  # its answer counts, its claims do not
@@ -330,11 +336,12 @@ class Barrier(Closing):
             self._stamp = stamp
             self._waiting = {p for p in self.participants
                              if p not in self.unresponsive and not self._answered(p, stamp)}
+            self._working, self._told_working = {}, set()
         try:
             report = self._wait(stamp, stop, deadline, answered_at, report)
         finally:
             with self._cond:
-                self._stamp, self._waiting = None, set()
+                self._stamp, self._waiting, self._working = None, set(), {}
                 report, self._tell = report or self._tell, False
         if report:
             self._status(stamp)
@@ -381,7 +388,8 @@ class Barrier(Closing):
                     self._republish = True  # with the whole key table: it may have missed keys
                     log.warning("lockstep: %s did not finish t=%.2f within %.1f s; still waited "
                                 "for while it holds its participant token (given up after "
-                                "%.1f s)", ", ".join(visible(p, 80) for p in sorted(waiting)),
+                                "%.1f s without an answer or a sign of work)",
+                                ", ".join(visible(p, 80) for p in sorted(waiting)),
                                 stamp, REPORT_AFTER, self.timeout)
                 if self.unresponsive and now >= self._resend_at:
                     # one given up may be passing steps over for want of the table (it left
@@ -389,17 +397,40 @@ class Barrier(Closing):
                     self._resend_at = now + REPORT_AFTER
                     self._republish = True
                 if now >= deadline:
-                    waiting, self._waiting = set(waiting), set()
-                    self.unresponsive |= waiting
-                    self.given_up += len(waiting)
-                    self._due_at = None
-                    log.warning("lockstep: %s did not finish t=%.2f within %.1f s: no longer "
-                                "waited for", ", ".join(visible(p, 80) for p in sorted(waiting)),
-                                stamp, self.timeout)
-                    report = True
-                    break
-                self._cond.wait(min(deadline - now, 0.05))
+                    hung = self._hung(waiting, now, deadline)
+                    if hung:
+                        self._waiting = waiting - hung
+                        self.unresponsive |= hung
+                        self.given_up += len(hung)
+                        self._due_at = None
+                        log.warning("lockstep: %s did not finish t=%.2f within %.1f s: no "
+                                    "longer waited for",
+                                    ", ".join(visible(p, 80) for p in sorted(hung)),
+                                    stamp, now - deadline + self.timeout)
+                        report = True
+                        if not self._waiting:
+                            break
+                        continue
+                self._cond.wait(0.05 if now >= deadline else min(deadline - now, 0.05))
         return report
+
+    def _hung(self, waiting: set[str], now: float, deadline: float) -> set[str]:
+        """Those of `waiting` to give up at `now`, past the step's deadline: silent — neither
+        an answer nor a work beat (StepDone `working`: its loop is computing) — for the
+        timeout, or waited for WORK_LIMIT timeouts however they beat (a computation that never
+        ends, or a forger beating in a stuck participant's name). Those still computing are
+        said once per step. Under self._cond."""
+        start = deadline - self.timeout
+        hung = {p for p in waiting if now - self._working.get(p, start) >= self.timeout
+                or now - start >= WORK_LIMIT * self.timeout}
+        busy = sorted(set(waiting) - hung - self._told_working)
+        if busy:
+            self._told_working.update(busy)
+            log.warning("lockstep: %s still computing t=%.2f after %.1f s (its loop thread "
+                        "uses CPU time): waited for, at most %.0f s",
+                        ", ".join(visible(p, 80) for p in busy), self._stamp,
+                        now - start, WORK_LIMIT * self.timeout)
+        return hung
 
     def _status(self, stamp: float) -> None:
         with self._cond:

@@ -12,7 +12,8 @@ from ..clock import CEILING, EPSILON, SimClock, run_rate
 from ..untrusted import visible
 from .books import Books
 from .protocol import (BARRIER, DONE, MAX_KEYS, MAX_NAMES, PARTICIPANT, SPEAKS, STEP,
-                       STEP_BURST, STEP_SLACK, Rejections, Step, StepDone, count_wait, log)
+                       STEP_BURST, STEP_SLACK, WORK_BEAT, WORK_CPU, Rejections, Step, StepDone,
+                       count_wait, log)
 from .sequence import Sequence
 from .table import Claims, KeyTable, count_of
 
@@ -47,12 +48,41 @@ class StepBudget:
         return True
 
 
+class LoopCpu:
+    """The CPU time (s) of a participant's loop thread — the one that last called `sleep_until`
+    (at first, the one that joined) — or None if unknown: what tells a participant computing a
+    long decision from one whose loop is stuck (blocked, deadlocked), which uses none.
+
+    Read from /proc/self/task/<tid>/schedstat (ns; Linux), not through pthread_getcpuclockid:
+    a thread that has ended may have its pthread_t reused, and asking its clock is then
+    undefined, where the task id of a thread gone just reads as nothing. Without /proc (not
+    Linux) this reads None: a participant then never says it is working, and a long
+    computation is given up after the barrier's timeout, as a hung loop is."""
+
+    def __init__(self) -> None:
+        self.thread = threading.current_thread()
+
+    def follow(self, thread: threading.Thread) -> None:
+        self.thread = thread
+
+    def __call__(self) -> float | None:
+        thread = self.thread
+        if not thread.is_alive() or thread.native_id is None:
+            return None
+        try:
+            with open(f"/proc/self/task/{thread.native_id}/schedstat", "rb") as f:
+                return int(f.read().split()[0]) / 1e9
+        except (OSError, ValueError, IndexError):
+            return None
+
+
 class LockstepClock(SimClock):
     """A participant's clock: simulation time that also moves in lockstep when the simulator
     runs it (and follows the plain `clock` key otherwise)."""
 
     def __init__(self, participant: str, wall=time.monotonic,
-                 speaks_for: tuple[str, ...] = ()) -> None:
+                 speaks_for: tuple[str, ...] = (), cpu: LoopCpu | None = None) -> None:
+        """`cpu`: the loop thread's CPU time (LoopCpu; a test injects its own)."""
         super().__init__(wall=wall)
         self.participant = participant
         # the robots this participant answers for besides itself (an agent host's): one SPEAKS
@@ -83,7 +113,10 @@ class LockstepClock(SimClock):
         self._acked = True
         self._sleeping_until: float | None = None  # the main loop waits for this time
         self._publish_done: Callable[..., None] | None = None
+        self._publish_working: Callable[[float], None] | None = None
         self.forgiven = 0  # claims forgiven in this run (a new run starts again)
+        self._cpu = LoopCpu() if cpu is None else cpu
+        self._cpu_seen: float | None = None   # the loop thread's CPU time at the last beat()
 
     def in_lockstep(self) -> bool:
         return self.lockstep.is_set()
@@ -100,7 +133,11 @@ class LockstepClock(SimClock):
             bus.publish(done_key, StepDone(self.participant, stamp, counts.claims(),
                                            next_due, self.run or "", self.forgiven, resync))
 
-        self._publish_done = publish_done
+        def publish_working(stamp: float) -> None:
+            bus.publish(done_key, StepDone(self.participant, stamp, {}, -1.0, self.run or "",
+                                           self.forgiven, working=True))
+
+        self._publish_done, self._publish_working = publish_done, publish_working
         handles = [bus.watch_liveliness(f"{BARRIER}/*", self._on_barrier),
                    bus.subscribe(STEP, self._on_step, msg_type=Step)]
         handles.extend(bus.declare_token(f"{SPEAKS}/{self.participant}/{robot}")
@@ -110,7 +147,36 @@ class LockstepClock(SimClock):
         stack.callback(counts.close)
         for h in handles:
             stack.callback(h.close)
+        self._cpu_seen = self._cpu()
+        stop = threading.Event()  # the beats stop first when the stack closes (last in)
+        beats = threading.Thread(target=self._beating, args=(stop,), daemon=True,
+                                 name=f"lockstep-beat-{self.participant}")
+        beats.start()
+        stack.callback(beats.join, 2 * WORK_BEAT)
+        stack.callback(stop.set)
         return stack
+
+    def _beating(self, stop: threading.Event) -> None:
+        while not stop.wait(WORK_BEAT):
+            self.beat()
+
+    def beat(self) -> bool:
+        """One look (every WORK_BEAT wall s): if this participant owes the barrier an answer
+        and its loop thread is working — not waiting in `sleep_until`, and its CPU time grew by
+        WORK_CPU since the last look — say so (StepDone `working`), so that the barrier waits
+        for it past its timeout: a decision that takes longer than the timeout on a busy
+        machine must not change the run. A loop that is stuck uses no CPU time and says
+        nothing; a stopped or dead process says nothing either. True if it said so."""
+        cpu = self._cpu()
+        with self._cond:
+            last, self._cpu_seen = self._cpu_seen, cpu
+            owes = self.lockstep.is_set() and not self._acked and self._sleeping_until is None
+            stamp = self._now
+        if not owes or cpu is None or last is None or cpu - last < WORK_CPU or \
+                self._publish_working is None:
+            return False
+        self._publish_working(stamp)
+        return True
 
     def _on_barrier(self, key: str, alive: bool) -> None:
         run = key.rsplit("/", 1)[-1]
@@ -305,6 +371,7 @@ class LockstepClock(SimClock):
         """Before waiting for a later time, tell the simulator this participant is done with
         the current one (its commands were published before, on the same link). While waiting,
         a pending step whose counts do not arrive is looked at again (to forgive them)."""
+        self._cpu.follow(threading.current_thread())
         with self._cond:
             if t > self._now + EPSILON and not self._acked and self._publish_done is not None:
                 self._acked = True

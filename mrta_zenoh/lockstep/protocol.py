@@ -35,6 +35,12 @@ MAX_KEYS = 4096         # keys a Step or StepDone may count
 MAX_NAMES = 1024        # participants and runs remembered (a flood of tokens costs bounded memory)
 MAX_SPEAKS_FOR = 1024   # robots one participant may answer for (an agent host's team)
 FORGIVE_WINDOW = 60.0   # wall s: after a forgiveness, a claimant's unmet claims are not waited for
+# A participant still computing (its loop thread's CPU time grows, and it has not answered) says
+# so every WORK_BEAT wall seconds (StepDone `working`); the barrier gives up only one silent —
+# neither an answer nor a beat — for its timeout, and a working one after WORK_LIMIT timeouts.
+WORK_BEAT = 1.0         # wall s between two looks at the loop thread's CPU time
+WORK_CPU = 0.005        # CPU s the loop thread must have used since the last look to be working
+WORK_LIMIT = 10         # timeouts: the longest a participant that keeps working is waited for
 # What one participant may claim in a StepDone (more drops its claims, not the Steps): keys, the
 # characters of one key, and of all of them. A patrol agent claims about 11 keys of ≈ 30
 # characters; a MURDOCH one a bid key per auctioneer besides — 512 leave room for 500 robots.
@@ -86,6 +92,9 @@ class StepDone(Message):
     # not an answer but a request: a step contradicted what this participant took (or it
     # cannot read the table); send the current step again with the whole table (sequence.py)
     resync: bool = False
+    # not an answer but a sign of life: this participant is still computing `stamp` (its loop
+    # thread used CPU time since its last beat, participant.LoopCpu); `sent` is then empty
+    working: bool = False
 
 
 @message("mrta_msgs/LockstepStatus")
