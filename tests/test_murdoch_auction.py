@@ -149,6 +149,9 @@ def test_of_two_holders_the_later_claim_yields():
     assert core.task == "a" and not changes  # robot3 claimed later: robot3 yields, not us
     core.hear("claim", "robot1", Claim(Header("robot1", 11.1, 1), "a", 9.5, 2.0), 11.1)
     out, changes = core.tick(11.2, Fresh())
+    assert core.task == "a" and not changes  # heard once: not yet a contract (issue 51)
+    core.hear("claim", "robot1", Claim(Header("robot1", 11.6, 2), "a", 9.5, 2.0), 11.6)
+    out, changes = core.tick(11.7, Fresh())  # renewed: robot1 claimed earlier, we yield
     assert core.task is None and changes[0].kind == "released"
     assert "robot1" in changes[0].reason and [o.kind for o in out] == ["release"]
 

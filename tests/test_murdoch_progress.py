@@ -70,6 +70,13 @@ def test_no_revocation_while_the_task_is_done_within_its_timeout(tmp_path):
     assert team.holders("a") == ["robot1"] and not team.messages("revoke")
 
 
+def serving(core: Murdoch, *robots: str, task: str = "a") -> None:
+    """`robots` are live teammates that advertise `task` (monitors of its contracts)."""
+    for r in robots:
+        core.teammate(r, True)
+        core.teammate_subject(r, task, True)
+
+
 class _Able:
     def fresh(self, topic, now): return True
     def applicable(self, task, now): return True
@@ -141,6 +148,8 @@ def test_a_revocation_before_the_contract_ran_its_progress_timeout_is_refused_an
     watcher = Murdoch("robot3", params.robot, params.tasks)
     holder = Murdoch("robot1", params.robot, params.tasks)
     holder.task, holder.since, holder.last_claim = "a", 10.0, 10.0
+    for core in (watcher, holder):
+        serving(core, "robot2")
     watcher.hear("claim", "robot1", Claim(Header("robot1", 10.0, 1), "a", 10.0, 2.0), 10.0)
     early = Revoke(Header("robot2", 11.0, 1), "a", "robot1", 10.0, "forged")
     for core in (watcher, holder):

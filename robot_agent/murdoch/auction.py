@@ -47,13 +47,31 @@ The protocol (Gerkey & Matarić 2002; docs/murdoch.md):
   of a contract this robot heard claimed (or holds) is believed only once that contract has run
   its progress_timeout as this robot saw it, less a lease for delivery delays; an earlier one is
   refused and counted (`revoke_early`): a forger — or a certified robot under its own key —
-  cannot end a contract that is within its time. Not yet bounded: a forged Claim with an
-  earlier `since` (the holder yields to it; the task waits at most 10 leases for the forged
-  holder's lease to lapse), a Revoke of an overdue contract (docs/security.md).
+  cannot end a contract that is within its time. A revocation of a contract this robot never
+  heard of (`revoke_unknown`: it would bar its "holder" from the task for a progress_timeout)
+  or from a robot that does not serve the task (`not_monitor`: only a server monitors) is
+  refused too — counted, not called forged: a robot cut off from the claims, or one whose
+  view of the servers lags, refuses an honest one the same way. What is left is what a monitor
+  says anyway: a revocation of an overdue contract, at most a lease before the real monitor.
+* **What a Claim is believed for.** A claim starts a contract; one whose `since` is earlier
+  than the holder's makes the holder yield (two holders after a partition). A holder yields
+  only to a contract it has heard *renewed* (a second claim at least half a renewal period
+  after the first, as every holder renews), and a contract heard once counts for one lease of
+  this robot's at most: a single forged claim, however early its `since`, displaces nobody and
+  keeps a task or a robot "held" for at most `lease_timeout`; one that lapses unrenewed where
+  it would have displaced this robot is counted (`claim_not_renewed`, not called forged: a
+  holder stopped right after its first claim looks the same). A claim from a robot that this
+  robot heard renew another contract after that claim's `since` (plus a lease) is refused and
+  counted as forged (`claim_contradicted`): a robot holds one task at a time.
 * **What an Award is believed for.** A robot takes a task awarded to it only in an auction it
   bid in (that auctioneer, that auction number, that task, within the bid window and a lease of
-  its bid); another is refused and counted (`award_not_bid`): a forged Award cannot make a robot
-  take a task. (Its teammates still count the task held for a lease: ≤ `lease_timeout`.)
+  its bid); another is refused and counted (`award_not_bid`), and the robot says so at once
+  with a Release of the task, so that its teammates stop counting it busy and the task held:
+  a forged Award cannot make a robot take a task, and holds the task for a delivery, not a
+  lease. A robot that serves the task (and so hears its announcements) believes an Award only
+  for an auction its sender announced for that task within the bid window and a lease
+  (`award_not_announced`; counted, not called forged: a robot that joined after the
+  announcement refuses an honest one the same way).
 """
 
 from __future__ import annotations
@@ -71,7 +89,12 @@ from .messages import Announcement, Award, Bid, Claim, Release, Revoke
 from .params import MurdochRobot, MurdochTask
 
 REVOKE_EARLY = "revoke_early"  # a contract revoked before its progress_timeout had run
+REVOKE_UNKNOWN = "revoke_unknown"  # a contract this robot never heard claimed (nor held)
+NOT_MONITOR = "not_monitor"  # revoked by a robot that does not serve the task
 AWARD_NOT_BID = "award_not_bid"  # this robot awarded a task in an auction it did not bid in
+AWARD_NOT_ANNOUNCED = "award_not_announced"  # an award for an auction its sender never announced
+CLAIM_CONTRADICTED = "claim_contradicted"  # its sender renewed another contract since
+CLAIM_NOT_RENEWED = "claim_not_renewed"  # an earlier contract heard once, never renewed
 
 class Readings(Protocol):
     """What the robot knows of itself (from its sensor and evaluator plugins)."""
@@ -95,6 +118,7 @@ class Lease:
     since: float
     heard: float
     lease: float
+    renewed: bool = False  # heard again, half a renewal period or more after its first claim
 
     def expiry(self) -> float:
         return self.heard + self.lease
@@ -126,6 +150,10 @@ class Murdoch:
         # (auctioneer, auction) → (task, until): the bids this robot sent, while an award for
         # them may still come (module docstring: an Award is believed only for a bid)
         self.bids_sent: dict[tuple[str, int], tuple[str, float]] = {}
+        # (auctioneer, auction) → (task, until): announcements heard, while an award may come
+        self.announced: dict[tuple[str, int], tuple[str, float]] = {}
+        self._refutations: list[str] = []  # tasks awarded to this robot that it never bid for
+        self.held_since: dict[str, float] = {}  # task → since of this robot's last contract
         self.task: str | None = None
         self.since = 0.0
         self.last_claim: float | None = None
@@ -183,6 +211,8 @@ class Murdoch:
         self.last_announced[msg.task_id] = max(self.last_announced.get(msg.task_id, t), t)
         if sender != self.id:
             self._announcements.append((sender, msg, t))
+            self.announced[(sender, msg.auction)] = (msg.task_id,
+                                                     t + msg.bid_window + self.p.lease_timeout)
 
     def _on_bid(self, sender: str, msg: Bid, t: float) -> None:
         auction = self.open.get(msg.auction)
@@ -198,6 +228,12 @@ class Murdoch:
         if msg.winner == self.id and \
                 self.bids_sent.get((sender, msg.auction), (None,))[0] != msg.task_id:
             self.refused[("award", sender, AWARD_NOT_BID, True)] += 1
+            if msg.task_id != self.task:
+                self._refutations.append(msg.task_id)
+            return
+        if msg.task_id in self.subjects and sender != self.id and \
+                self.announced.get((sender, msg.auction), (None,))[0] != msg.task_id:
+            self.refused[("award", sender, AWARD_NOT_ANNOUNCED, False)] += 1
             return
         # the winner claims at its next tick: until then (and for a lease) the task is taken
         self.held_until[msg.task_id] = max(self.held_until.get(msg.task_id, t),
@@ -212,10 +248,16 @@ class Murdoch:
             return
         if self.revoked[msg.task_id].get(sender, (None,))[0] == msg.since:
             return  # a contract its auctioneer ended: the claim says nothing any more
+        if any(task != msg.task_id and lease.heard > msg.since + self.p.lease_timeout + EPSILON
+               for task, leases in self.leases.items() if (lease := leases.get(sender))):
+            self.refused[("claim", sender, CLAIM_CONTRADICTED, True)] += 1
+            return
         contract = self.contracts[msg.task_id].get(sender)
         if contract is None or contract[0] != msg.since:
-            self.contracts[msg.task_id][sender] = (msg.since, t)
-        lease = Lease(msg.since, t, min(msg.lease, 10 * self.p.lease_timeout))
+            contract = self.contracts[msg.task_id][sender] = (msg.since, t)
+        renewed = t - contract[1] >= self.p.renewal_period / 2 - EPSILON
+        cap = 10 * self.p.lease_timeout if renewed else self.p.lease_timeout
+        lease = Lease(msg.since, t, min(msg.lease, cap), renewed)
         self.leases[msg.task_id][sender] = lease
         self.awarded.pop(sender, None)  # its lease says it is busy from now on
         self.held_until[msg.task_id] = max(self.held_until.get(msg.task_id, t), lease.expiry())
@@ -228,29 +270,42 @@ class Murdoch:
             del self.awarded[sender]  # it turned the award down (or gave the task back)
         others = [lease.expiry() for lease in self.leases[msg.task_id].values()
                   if lease.expiry() >= t]
+        others += [until for task, until in self.awarded.values() if task == msg.task_id]
         self.held_until[msg.task_id] = max(others, default=t)
 
     def _on_revoke(self, sender: str, msg: Revoke, t: float) -> None:
         if msg.task_id not in self.tasks:
             return
-        if self._premature(msg, t):
-            self.refused[("revoke", sender, REVOKE_EARLY, True)] += 1
+        if msg.holder != self.id and \
+                self.revoked[msg.task_id].get(msg.holder, (None,))[0] == msg.since:
+            return  # already ended (another monitor, or this robot's own, said it first)
+        reason = self._unbelieved(sender, msg, t)
+        if reason is not None:
+            self.refused[("revoke", sender, reason, reason == REVOKE_EARLY)] += 1
             return
         if msg.holder == self.id:
             self._revocations.append((sender, msg))
         else:
             self._end_contract(msg.task_id, msg.holder, msg.since, t)
 
-    def _premature(self, msg: Revoke, t: float) -> bool:
-        """Whether `msg` revokes a contract this robot knows (its own, or one it heard claimed)
-        before that contract ran its progress_timeout, less a lease (module docstring)."""
+    def _unbelieved(self, sender: str, msg: Revoke, t: float) -> str | None:
+        """Why `msg` is not believed (module docstring), or None: its sender serves no such
+        task, it revokes a contract this robot never knew (its own, or one it heard claimed),
+        or one that has not run its progress_timeout, less a lease."""
+        if sender not in self.servers[msg.task_id]:
+            return NOT_MONITOR
         if msg.holder == self.id:
-            first = self.since if (self.task, self.since) == (msg.task_id, msg.since) else None
+            if msg.since not in ((self.since if self.task == msg.task_id else None),
+                                 self.held_since.get(msg.task_id)):
+                return REVOKE_UNKNOWN
+            first = msg.since
         else:
             contract = self.contracts[msg.task_id].get(msg.holder)
-            first = contract[1] if contract is not None and contract[0] == msg.since else None
+            if contract is None or contract[0] != msg.since:
+                return REVOKE_UNKNOWN
+            first = contract[1]
         timeout = self.tasks[msg.task_id].progress_timeout
-        return first is not None and t < first + timeout - self.p.lease_timeout - EPSILON
+        return REVOKE_EARLY if t < first + timeout - self.p.lease_timeout - EPSILON else None
 
     def _end_contract(self, task: str, holder: str, since: float, t: float) -> None:
         """`holder`'s contract for `task` (claimed `since`) is over: its claims are ignored,
@@ -278,6 +333,9 @@ class Murdoch:
         out: list[Say] = []
         changes: list[Change] = []
         self._expire(now)
+        for task in self._refutations:  # awards it never bid for (module docstring)
+            out.append(Say("release", dict(task_id=task, reason=f"{AWARD_NOT_BID}: no bid")))
+        self._refutations = []
         self._take_awards(now, out, changes)
         self._take_revocations(now, out, changes)
         self._keep_or_release(now, readings, out, changes)
@@ -288,13 +346,17 @@ class Murdoch:
         return out, changes
 
     def _expire(self, now: float) -> None:
-        for bid in [b for b, (_, until) in self.bids_sent.items() if until < now]:
-            del self.bids_sent[bid]
+        for heard in (self.bids_sent, self.announced):
+            for auction in [a for a, (_, until) in heard.items() if until < now]:
+                del heard[auction]
         for robot in [r for r, (_, until) in self.awarded.items() if until < now]:
             del self.awarded[robot]
-        for leases in self.leases.values():
+        for task, leases in self.leases.items():
             for robot in [r for r, lease in leases.items() if lease.expiry() < now]:
-                del leases[robot]
+                lease = leases.pop(robot)
+                if not lease.renewed and task == self.task and \
+                        (lease.since, robot) < (self.since, self.id):
+                    self.refused[("claim", robot, CLAIM_NOT_RENEWED, False)] += 1
 
     def capable(self, task_id: str, now: float, readings: Readings) -> bool:
         skill = self.p.skill(task_id)
@@ -316,6 +378,7 @@ class Murdoch:
 
     def _become(self, task: str, now: float, out: list[Say], changes: list[Change], why: str) -> None:
         self.task, self.since, self.last_claim, self.stalled_since = task, now, now, None
+        self.held_since[task] = now
         out.append(Say("claim", dict(task_id=task, since=now, lease=self.p.lease_timeout)))
         changes.append(Change("won", task, why))
 
@@ -371,7 +434,7 @@ class Murdoch:
         if self.task is None:
             return
         earlier = [(lease.since, r) for r, lease in self.leases[self.task].items()
-                   if (lease.since, r) < (self.since, self.id)]
+                   if lease.renewed and (lease.since, r) < (self.since, self.id)]
         if earlier:
             since, robot = min(earlier)
             self._release(f"duplicate: {robot} holds it since {since:.2f}", now, out, changes)
