@@ -7,6 +7,7 @@ rendezvous endpoint on a free port through $MRTA_RENDEZVOUS (never the default r
 
 from __future__ import annotations
 
+import json
 import os
 import socket
 import struct
@@ -102,6 +103,20 @@ class Child(processes.Child):
         super().stop(grace=3.0)
 
 
+class Demo(Child):
+    """An `mrta demo` child (Children.demo) that knows its output folder."""
+
+    def __init__(self, argv: list[str], env: dict, name: str, out: Path):
+        super().__init__(argv, env, name)
+        self.out = Path(out)
+
+    def summary(self, timeout: float = 300, code: int = 0) -> dict:
+        """The run's summary.json, once the demo has exited with `code` (else an
+        AssertionError with the tail of its output)."""
+        assert self.wait(timeout) == code, self.tail(30)
+        return json.loads((self.out / "summary.json").read_text())
+
+
 class Children:
     """Starts children with a private rendezvous endpoint; ends every one of them by PID."""
 
@@ -123,6 +138,17 @@ class Children:
     def mrta(self, *args: str, name: str | None = None) -> Child:
         child = Child([sys.executable, "-m", "mrta_zenoh.cli.main", *map(str, args)], self.env,
                       name or f"mrta {args[0]}")
+        self.all.append(child)
+        return child
+
+    def demo(self, out: Path, *args: str, quiet: bool = False, name: str = "demo") -> Demo:
+        """`mrta [-q] demo --speed 0 --no-live --output OUT ARGS` started: the cross-process
+        tests' one way to run a mission (`.summary()` waits for it and reads its summary). An
+        option in ARGS given again wins over these (`--speed 1`: click keeps the last)."""
+        argv = [*(["-q"] if quiet else []), "demo", "--speed", "0", "--no-live", "--output",
+                str(out), *args]
+        child = Demo([sys.executable, "-m", "mrta_zenoh.cli.main", *map(str, argv)], self.env,
+                     name, out)
         self.all.append(child)
         return child
 

@@ -9,7 +9,6 @@ at the optimum). Every run's allocation records hold no overlap."""
 from __future__ import annotations
 
 import itertools
-import json
 import math
 from pathlib import Path
 
@@ -41,11 +40,8 @@ name: delivery-r3-t6-1
 
 
 def run_demo(children, out: Path, duration: str, *args: str, wait: float = 300) -> dict:
-    demo = children.mrta("-q", "demo", "--application", "delivery", "--duration", duration,
-                         "--speed", "0", "--no-live", "--no-plots", "--output", str(out), *args,
-                         name="demo")
-    assert demo.wait(wait) == 0, demo.tail(30)
-    return json.loads((out / "summary.json").read_text())
+    return children.demo(out, "--application", "delivery", "--duration", duration, "--no-plots",
+                         *args, quiet=True).summary(wait)
 
 
 # ------------------------------------------------------------------ the definitions, restated

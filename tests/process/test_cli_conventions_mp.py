@@ -43,16 +43,14 @@ def test_ctrl_c_of_the_demo_exits_130_whatever_its_children_did(children, tmp_pa
     """A terminal's Ctrl-C reaches the demo's children too, and the simulator may end by it
     before the demo handles its own SIGINT: that is neither "the simulator failed" (exit 1)
     nor a finished run (exit 0), but the mission's interruption: 130."""
-    demo = children.mrta("demo", "--duration", "600", "--speed", "1", "--no-live",
-                         "--output", tmp_path / "out", name="demo")
+    demo = children.demo(tmp_path / "out", "--duration", "600", "--speed", "1")
     demo.wait_line(lambda line: line.startswith("t="), 90)  # the mission runs
     kids = children_of(demo.proc.pid)
     assert len(kids) >= 5, kids  # recorder, simulator, three agents
     for pid in kids:
         os.kill(pid, signal.SIGINT)
-    assert demo.wait(60) == 130, demo.tail(20)
     # the summary of the run so far, saying it was interrupted (issue 51, the newcomer's list)
-    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+    s = demo.summary(60, code=130)
     assert s["interrupted"] == "Ctrl-C" and s["run_status"] == "incomplete"
     assert 0 < s["recorded_until"] < 600
     assert any("INTERRUPTED: the run was interrupted (Ctrl-C)" in line for line in demo.stdout)
@@ -64,13 +62,11 @@ def test_ctrl_c_of_the_demo_exits_130_whatever_its_children_did(children, tmp_pa
 def test_sigterm_of_the_demo_is_a_clean_stop_with_a_summary(children, tmp_path):
     """SIGTERM — a service manager's "please stop" — exits 0 as every other command does
     (it exited 130 as if Ctrl-C), after the summary of the run so far (issue 51)."""
-    demo = children.mrta("demo", "--duration", "600", "--speed", "1", "--no-live",
-                         "--output", tmp_path / "out", name="demo")
+    demo = children.demo(tmp_path / "out", "--duration", "600", "--speed", "1")
     demo.wait_line(lambda line: line.startswith("t=") and float(line[2:].split("s")[0]) >= 10,
                    120)  # 10 s of the mission ran
     demo.signal(signal.SIGTERM)
-    assert demo.wait(60) == 0, demo.tail(20)
-    s = json.loads((tmp_path / "out" / "summary.json").read_text())
+    s = demo.summary(60)
     assert s["interrupted"] == "SIGTERM" and 10 <= s["recorded_until"] < 600
     assert s["who_did_what"]["robot1"], s["who_did_what"]  # what ran is there
 

@@ -14,7 +14,6 @@ token is `slow`."""
 
 from __future__ import annotations
 
-import json
 import re
 
 import pytest
@@ -26,15 +25,13 @@ TASKS = "t1,t2,t3,t4"
 
 def attacked_demo(children, tmp_path, arch: str, mode: str, arg: str) -> dict:
     out = tmp_path / arch
-    demo = children.mrta("demo", "--application", "delivery", "--architecture", arch,
-                         "--duration", "60", "--speed", "0", "--no-live", "--no-plots",
-                         "--output", str(out), name="demo")
+    demo = children.demo(out, "--application", "delivery", "--architecture", arch, "--duration",
+                         "60", "--no-plots")
     line = demo.wait_stderr(lambda s: "processes meet at" in s, 120)
     rendezvous = re.search(r"tcp/127\.0\.0\.1:\d+", line).group(0)
     forger = children.python("coordination_forger.py", mode, arg, rendezvous, name="forger")
     forger.wait_json(lambda o: "forged" in o, 120)
-    assert demo.wait(300) == 0, demo.tail(30)
-    summary = json.loads((out / "summary.json").read_text())
+    summary = demo.summary(300)
     assert summary["metrics"]["completed"] == summary["metrics"]["tasks"], summary["metrics"]
     assert summary["run_status"] == "disturbed" and summary["lockstep_exact"] is False
     printed = "\n".join(demo.stdout)
@@ -81,15 +78,13 @@ def test_a_strangers_lockstep_token_is_named_and_neither_waited_for_nor_making_i
     lockstep timeout, give it up and leave the run inexact, which `mrta experiment` then
     dropped from its statistics. The summary names it apart."""
     out = tmp_path / "run"
-    demo = children.mrta("demo", "--application", "delivery", "--speed", "0", "--no-live",
-                         "--no-plots", "--output", str(out), name="demo")
+    demo = children.demo(out, "--application", "delivery", "--no-plots")
     line = demo.wait_stderr(lambda s: "processes meet at" in s, 120)
     rendezvous = re.search(r"tcp/127\.0\.0\.1:\d+", line).group(0)
     stranger = children.python("coordination_forger.py", "participant", "intruder", rendezvous,
                                name="stranger")
     stranger.wait_json(lambda o: "forged" in o, 120)
-    assert demo.wait(240) == 0, demo.tail(30)
-    s = json.loads((out / "summary.json").read_text())
+    s = demo.summary(240)
     assert s["strangers"] == ["intruder"], s.get("strangers")
     assert s["run_status"] == "complete" and s["lockstep_exact"] is True, (
         s["run_status"], s["lockstep_given_up"], s["disturbances"])

@@ -17,10 +17,8 @@ DURATION = "40"  # simulated s: the default instance's makespan is ≈ 26 s (ALL
 
 
 def run_demo(children, out: Path, *args: str) -> dict:
-    demo = children.mrta("-q", "demo", "--application", "delivery", "--duration", DURATION,
-                         "--speed", "0", "--no-live", "--output", str(out), *args, name="demo")
-    assert demo.wait(150) == 0, demo.tail(30)
-    return json.loads((out / "summary.json").read_text())
+    return children.demo(out, "--application", "delivery", "--duration", DURATION, *args,
+                         quiet=True).summary(150)
 
 
 def recorded_analysis(summary: dict, out: Path):

@@ -25,10 +25,7 @@ STALL_AT = 15.0
 
 def run_demo(children, out: Path, *args: str, env: dict | None = None) -> dict:
     children.env.update(env or {})  # this test's children only (the fixture is per test)
-    demo = children.mrta("-q", "demo", "--application", "patrol", "--speed", "0", "--no-live",
-                         "--output", str(out), *args, name="demo")
-    assert demo.wait(240) == 0, demo.tail(30)
-    return json.loads((out / "summary.json").read_text())
+    return children.demo(out, "--application", "patrol", *args, quiet=True).summary(240)
 
 
 def assert_stood_still_from(out: Path, robot: str, at: float) -> None:

@@ -29,10 +29,8 @@ def recorded(tmp_path_factory):
     children = Children()
     out = tmp_path_factory.mktemp("fox") / "run"
     try:
-        demo = children.mrta("demo", "--duration", "30", "--speed", "0", "--fail", "robot2@18",
-                             "--no-live", "--output", out, name="demo")
         # ≈ 5 s on an idle machine; set up within the first test's 180 s, its body after
-        assert demo.wait(120) == 0, demo.stderr[-10:]
+        children.demo(out, "--duration", "30", "--fail", "robot2@18").summary(120)
     finally:
         children.stop_all()
     return out
@@ -212,8 +210,7 @@ def test_a_client_that_subscribes_at_once_gets_what_the_recording_holds(tmp_path
 
     port = free_port()
     out = tmp_path / "run"
-    demo = children.mrta("demo", "--duration", "30", "--speed", "0", "--fail", "robot2@18",
-                         "--no-live", "--foxglove", port, "--output", out, name="demo")
+    demo = children.demo(out, "--duration", "30", "--fail", "robot2@18", "--foxglove", port)
 
     async def client():
         got: dict[str, list[bytes]] = defaultdict(list)

@@ -51,14 +51,13 @@ def test_the_readme_delivery_demo_gives_the_summary_it_gave_before(children, tmp
     # `done`, not unattended, and the end of the run is no stopped clock (every delivery is
     # done by ≈ 26 s: unattended for 30 s from then was alarmed at 45–58 s of the 60 s run,
     # and `clock_stopped` once the simulator stopped at 60 s)
-    demo = children.mrta("demo", "--application", "delivery", "--architecture", arch,
-                         "--speed", "0", "--no-live", "--no-plots", "--seed", SEED,
-                         "--output", str(out), *SCENARIOS[scenario], name="demo")
-    assert demo.wait(360) == 0, demo.tail(30)
+    demo = children.demo(out, "--application", "delivery", "--architecture", arch, "--no-plots",
+                         "--seed", SEED, *SCENARIOS[scenario])
+    summary = demo.summary(360)
     if scenario == "demo":
         printed = demo.stdout + demo.stderr
         assert not [line for line in printed if "WARNING" in line or "alarm" in line], printed
-    got = normalized(json.loads((out / "summary.json").read_text()))
+    got = normalized(summary)
     if os.environ.get("MRTA_WRITE_GOLDEN") == "1":
         golden.write_text(json.dumps(got, indent=1, sort_keys=True) + "\n")
         pytest.skip(f"wrote {golden.name}")

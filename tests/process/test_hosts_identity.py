@@ -8,7 +8,6 @@ fault model of the grammar."""
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import pytest
@@ -21,12 +20,10 @@ DURATION = "25"  # simulated s: the default instance's tasks are served by ≈ 2
 
 
 def run(children, out: Path, architecture: str, fail: str, k: int) -> dict:
-    demo = children.mrta("-q", "demo", "--application", "delivery", "--architecture",
-                         architecture, "--fail", fail, "--duration", DURATION, "--speed", "0",
-                         "--seed", "3", "--no-live", "--no-plots", "--agents-per-process",
-                         str(k), "--output", str(out), name=f"demo-k{k}")
-    assert demo.wait(240) == 0, demo.tail(30)
-    return json.loads((out / "summary.json").read_text())
+    return children.demo(out, "--application", "delivery", "--architecture", architecture,
+                         "--fail", fail, "--duration", DURATION, "--seed", "3", "--no-plots",
+                         "--agents-per-process", str(k), quiet=True,
+                         name=f"demo-k{k}").summary(240)
 
 
 def check_identity(children, tmp_path, architecture, fail, k=5):

@@ -6,7 +6,6 @@ written into the installed packages."""
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
@@ -23,10 +22,8 @@ GENERATE = ["instance", "generate", "delivery", "--robots", "3", "--tasks", "3",
 
 
 def run_demo(children, out: Path, *args: str) -> dict:
-    demo = children.mrta("-q", "demo", "--application", "delivery", "--duration", DURATION,
-                         "--speed", "0", "--no-live", "--output", str(out), *args, name="demo")
-    assert demo.wait(200) == 0, demo.tail(30)
-    return json.loads((out / "summary.json").read_text())
+    return children.demo(out, "--application", "delivery", "--duration", DURATION, *args,
+                         quiet=True).summary(200)
 
 
 def installed_state() -> dict[str, tuple[int, int]]:

@@ -2,7 +2,6 @@
 machine's load; a dead participant is no longer waited for; a hung one is reported and, after
 the limit, no longer waited for."""
 
-import json
 import signal
 import subprocess
 import sys
@@ -16,13 +15,6 @@ from tests.harness.helpers import PATROL
 pytestmark = pytest.mark.multiprocess
 
 CONFIG = PATROL / "config"
-
-
-def demo(children, out, *args):
-    d = children.mrta("demo", "--output", out, "--no-live", "--speed", "0", *args, name="demo")
-    # ≈ 5 s on an idle machine; three in one test stay within its 300 s
-    assert d.wait(90) == 0, d.stderr[-20:] + d.stdout[-20:]
-    return json.loads((out / "summary.json").read_text())
 
 
 def trace(out):
@@ -48,15 +40,17 @@ def trace(out):
 @pytest.mark.timeout(300)
 def test_the_same_seed_gives_the_same_run_under_load(children, tmp_path):
     args = ("--duration", "30", "--fail", "robot2@18", "--seed", "7")
-    demo(children, tmp_path / "quiet", *args)
+    # each ≈ 5 s on an idle machine; three in one test stay within its 300 s
+    children.demo(tmp_path / "quiet", *args).summary(90)
     burners = [subprocess.Popen([sys.executable, "-c", "while True: pass"]) for _ in range(2)]
     try:
-        demo(children, tmp_path / "loaded", *args)
+        children.demo(tmp_path / "loaded", *args).summary(90)
     finally:
         for b in burners:
             b.kill()
             b.wait()
-    demo(children, tmp_path / "other", "--duration", "30", "--fail", "robot2@18", "--seed", "8")
+    children.demo(tmp_path / "other", "--duration", "30", "--fail", "robot2@18", "--seed",
+                  "8").summary(90)
     quiet, loaded, other = (trace(tmp_path / d) for d in ("quiet", "loaded", "other"))
     assert quiet[0] == loaded[0]              # the same activations at the same times, exactly
     assert quiet[1] == loaded[1] and len(quiet[1]) >= 3 * 15   # the same poses, bit for bit

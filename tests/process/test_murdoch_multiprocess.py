@@ -76,10 +76,8 @@ def test_three_agents_allocate_and_a_killed_winner_is_replaced_within_the_lease_
 @pytest.mark.slow
 def test_mrta_demo_under_murdoch_writes_the_same_summary_fields_as_alliance(children, tmp_path):
     out = tmp_path / "demo"
-    demo = children.mrta("demo", "--architecture", "murdoch", "--output", str(out), "--no-live",
-                         "--duration", "40", "--speed", "0", "--fail", "robot2@20", name="demo")
-    assert demo.wait(120) == 0, demo.stderr[-20:] + demo.stdout[-20:]  # within the test's 180 s
-    s = json.loads((out / "summary.json").read_text())
+    s = children.demo(out, "--architecture", "murdoch", "--duration", "40", "--fail",
+                      "robot2@20").summary(120)  # within the test's 180 s
     assert s["architecture"] == "murdoch" and s["application"] == "patrol_murdoch"
     assert s["mission"] == "patrol"
     who = {r: [x["task"] for x in spans] for r, spans in s["who_did_what"].items()}
@@ -106,11 +104,8 @@ def test_a_stalled_winners_task_is_revoked_and_delivered_by_another_robot(childr
     from mrta_zenoh.codec import decode, type_from_encoding
     from mrta_zenoh.recording import read_recording
     out = tmp_path / "stall"
-    demo = children.mrta("-q", "demo", "--application", "delivery", "--architecture", "murdoch",
-                         "--fail", "stall:robot1@5", "--duration", "100", "--speed", "0",
-                         "--no-live", "--output", str(out), name="demo")
-    assert demo.wait(240) == 0, demo.stderr[-20:] + demo.stdout[-20:]
-    s = json.loads((out / "summary.json").read_text())
+    s = children.demo(out, "--application", "delivery", "--architecture", "murdoch", "--fail",
+                      "stall:robot1@5", "--duration", "100", quiet=True).summary(240)
     f = s["failure"]
     assert (f["robot"], f["fault"], f["task"], f["taken_over_by"]) == \
         ("robot1", "stall", "t1", "robot3")

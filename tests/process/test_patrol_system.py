@@ -1,6 +1,5 @@
 """The patrol mission as a user runs it: `mrta demo`, separate terminals, simulated time."""
 
-import json
 import random
 
 import pytest
@@ -13,9 +12,8 @@ CONFIG = CONFIGS / "applications" / "patrol" / "config"
 
 
 def run_demo(children, out, *args, timeout=90):
-    demo = children.mrta("demo", "--output", str(out), "--no-live", *args, name="demo")
-    assert demo.wait(timeout) == 0, demo.stderr[-20:] + demo.stdout[-20:]
-    return json.loads((out / "summary.json").read_text()), demo
+    demo = children.demo(out, *args)
+    return demo.summary(timeout), demo
 
 
 @pytest.mark.slow

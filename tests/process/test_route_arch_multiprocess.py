@@ -6,7 +6,6 @@ assignment in tests/harness/cbba_reference.greedy) — and under a crash every t
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import pytest
@@ -30,10 +29,8 @@ def make_instance(children, tmp_path: Path) -> Path:
 
 
 def run_demo(children, out: Path, *args: str) -> dict:
-    demo = children.mrta("-q", "demo", "--application", "delivery", "--duration", "60",
-                         "--speed", "0", "--no-live", "--output", str(out), *args, name="demo")
-    assert demo.wait(300) == 0, demo.tail(30)
-    return json.loads((out / "summary.json").read_text())
+    return children.demo(out, "--application", "delivery", "--duration", "60", *args,
+                         quiet=True).summary(300)
 
 
 def served_orders(summary: dict) -> dict[str, list[str]]:

@@ -6,7 +6,6 @@ Both `slow`: the logic is tested in process (tests/test_summary_faults.py)."""
 
 from __future__ import annotations
 
-import json
 import time
 
 import pytest
@@ -21,16 +20,14 @@ def killed_run(children, out, *needles: str, after: str = "t=") -> tuple[dict, s
     way (a progress line starting with `after`: `t= 1.0s …`), the first process under it whose
     command line holds `needles` is SIGKILLed. (Killed before every process is up, a process is a start-up
     failure: no run, no summary.)"""
-    demo = children.mrta("demo", "--application", "delivery", "--architecture", "central",
-                         "--duration", "30", "--speed", "1", "--fail", "none", "--no-live",
-                         "--no-plots", "--output", str(out), name="demo")
+    demo = children.demo(out, "--application", "delivery", "--architecture", "central",
+                         "--duration", "30", "--speed", "1", "--fail", "none", "--no-plots")
     deadline = time.monotonic() + 180
     while not any(line.startswith(after) for line in demo.stdout):
         assert time.monotonic() < deadline and demo.proc.poll() is None, demo.tail(30)
         time.sleep(0.2)
     assert kill_descendant(demo.proc.pid, *needles) is not None
-    assert demo.wait(240) == 1, demo.tail(30)
-    return json.loads((out / "summary.json").read_text()), "\n".join(demo.stdout + demo.stderr)
+    return demo.summary(240, code=1), "\n".join(demo.stdout + demo.stderr)
 
 
 @pytest.mark.timeout(300)

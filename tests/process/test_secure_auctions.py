@@ -8,7 +8,6 @@ the refused claims and calls the run disturbed."""
 
 from __future__ import annotations
 
-import json
 
 import pytest
 from click.testing import CliRunner
@@ -33,15 +32,13 @@ def fleet(tmp_path, *extra: str):
 def secured_demo(children, tmp_path, arch: str, mode: str) -> dict:
     folder = fleet(tmp_path)
     out = tmp_path / arch
-    demo = children.mrta("demo", "--application", "delivery", "--architecture", arch,
-                         "--secure", folder, "--duration", "60", "--speed", "0", "--no-live",
-                         "--no-plots", "--output", out, name="demo")
+    demo = children.demo(out, "--application", "delivery", "--architecture", arch, "--secure",
+                         folder, "--duration", "60", "--no-plots")
     demo.wait_stderr(lambda s: "processes meet at tls/" in s, 120)
     forger = children.python("coordination_forger.py", mode, "4", folder / "robot2.json5",
                              name="forger")
     forger.wait_json(lambda o: "forged" in o, 180)
-    assert demo.wait(300) == 0, demo.tail(30)
-    summary = json.loads((out / "summary.json").read_text())
+    summary = demo.summary(300)
     assert summary["metrics"]["completed"] == summary["metrics"]["tasks"] == 4, summary["metrics"]
     assert summary["run_status"] == "disturbed"
     return summary
@@ -58,17 +55,15 @@ def test_a_task_submitted_through_a_secured_fleets_router_is_served(children, tm
     left."""
     folder = fleet(tmp_path, "--submitter", "ops")
     out = tmp_path / "ssi"
-    demo = children.mrta("demo", "--application", "delivery", "--architecture", "ssi",
-                         "--secure", folder, "--duration", "60", "--speed", "1", "--no-live",
-                         "--no-plots", "--output", out, name="demo")
+    demo = children.demo(out, "--application", "delivery", "--architecture", "ssi", "--secure",
+                         folder, "--duration", "60", "--speed", "1", "--no-plots")
     demo.wait_line(lambda s: "tasks at run time: a submitter" in s, 120)  # it says how
     demo.wait_stderr(lambda s: "processes meet at tls/" in s, 120)  # the router is up
     submit = children.mrta("task", "submit", "n1", "--set", "position=[1.0,2.0]", "--as", "ops",
                            "--zenoh-config", folder / "ops.json5", "--timeout", "120",
                            name="submit")
     assert submit.wait(180) == 0 and " accepted at " in submit.stdout[-1], submit.stderr[-5:]
-    assert demo.wait(300) == 0, demo.tail(30)
-    s = json.loads((out / "summary.json").read_text())
+    s = demo.summary(300)
     rows = {r["id"]: r for r in s["tasks_at_run_time"]["tasks"]}
     assert rows["n1"]["state"] == "served", rows
     assert s["metrics"]["completed"] == s["metrics"]["tasks"] == 5, s["metrics"]

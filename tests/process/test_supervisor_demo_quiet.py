@@ -3,7 +3,6 @@ unattended, and the end of the run is no stopped clock. `slow`: the CI tier chec
 on its golden delivery demo (tests/process/test_golden_summaries.py, alliance-demo), without
 the pictures this run also draws."""
 
-import json
 
 import pytest
 
@@ -14,10 +13,8 @@ def test_a_delivery_demo_ends_without_a_warning(children, tmp_path):
     """Every delivery is done by ≈ 26 s: unattended for 30 s from then was alarmed at 45–58 s
     of the 60 s run, and `clock_stopped` once the simulator stopped at 60 s."""
     out = tmp_path / "demo"
-    demo = children.mrta("demo", "--application", "delivery", "--speed", "0", "--no-live",
-                         "--output", str(out), name="demo")
-    assert demo.wait(240) == 0, demo.stderr[-20:] + demo.stdout[-20:]
-    summary = json.loads((out / "summary.json").read_text())
+    demo = children.demo(out, "--application", "delivery")
+    summary = demo.summary(240)
     assert summary["metrics"]["completed"] == 4 and summary["duration"] == 60
     printed = demo.stdout + demo.stderr
     assert not [line for line in printed if "WARNING" in line or "alarm" in line], printed

@@ -32,9 +32,8 @@ def burst_file(path, n):
 
 
 def demo(children, out, arch, *extra, name="demo", duration=25):
-    return children.mrta("demo", "--application", "delivery", "--architecture", arch,
-                         "--duration", str(duration), "--fail", "none", "--no-live",
-                         "--no-plots", "--output", str(out), *extra, name=name)
+    return children.demo(out, "--application", "delivery", "--architecture", arch, "--duration",
+                         duration, "--fail", "none", "--no-plots", *extra, name=name)
 
 
 def duration_for(n):
@@ -99,10 +98,8 @@ def test_a_burst_and_a_cancellation_from_other_terminals_are_accounted_for_and_r
     watch.stop()
     assert not [line for line in watch.stdout if '"unknown_task"' in line], \
         [line for line in watch.stdout if '"unknown_task"' in line][:1]
-    assert run.wait(400) == 0, run.stderr[-20:] + run.stdout[-20:]
+    summary = run.summary(400)
     assert any(line.strip().startswith("submitted at run time:") for line in run.stdout)
-
-    summary = json.loads((live / "summary.json").read_text())
     assert summary["run_status"] == "complete" and summary["lockstep_exact"]
     runtime = summary["tasks_at_run_time"]
     rows = {r["id"]: r for r in runtime["tasks"]}
@@ -125,10 +122,8 @@ def test_a_burst_and_a_cancellation_from_other_terminals_are_accounted_for_and_r
     assert len(recorded) == n + 2  # the recording holds what entered too
 
     again = tmp_path / "again"  # the summary's own instance, run again (no rendezvous)
-    rerun = demo(children, again, arch, "--speed", "0", "--instance", str(live / "summary.json"),
-                 name="again", duration=duration_for(n))
-    assert rerun.wait(400) == 0, rerun.stderr[-20:] + rerun.stdout[-20:]
-    replay = json.loads((again / "summary.json").read_text())
+    replay = demo(children, again, arch, "--speed", "0", "--instance", live / "summary.json",
+                  name="again", duration=duration_for(n)).summary(400)
     assert replay["instance"]["submitted"] == changes
     assert replay["lockstep_exact"], (replay["run_status"], replay.get("lockstep"))
     # the same allocation records: every task to the same robot, in the same order, at the
@@ -166,7 +161,6 @@ def test_an_architecture_that_grows_no_task_refuses_submissions_from_other_termi
         in submit.stderr[-1], submit.stderr[-3:]
     cancel = children.mrta("task", "cancel", "t3", name="cancel")
     assert cancel.wait(120) == 0, cancel.stderr[-5:]
-    assert run.wait(400) == 0, run.stderr[-20:] + run.stdout[-20:]
-    summary = json.loads((tmp_path / "live" / "summary.json").read_text())
+    summary = run.summary(400)
     assert [r["id"] for r in summary["tasks_at_run_time"]["tasks"]] == ["t3"]
     assert any(r["receiver"] == "tasks" and r["reason"] == "closed" for r in summary["refused"])

@@ -7,7 +7,6 @@ The CI tier runs SSI's; the other five are `slow`."""
 
 from __future__ import annotations
 
-import json
 
 import pytest
 
@@ -30,11 +29,8 @@ def test_a_windowed_run_serves_only_inside_windows_and_counts_them(children, tmp
     gen = children.mrta(*GENERATE, "-o", str(file), name="generate")
     assert gen.wait(60) == 0, gen.tail(10)
     out = tmp_path / arch
-    demo = children.mrta("-q", "demo", "--application", "delivery", "--instance", str(file),
-                         "--architecture", arch, "--duration", "50", "--speed", "0",
-                         "--no-live", "--no-plots", "--output", str(out), name="demo")
-    assert demo.wait(400) == 0, demo.tail(30)
-    s = json.loads((out / "summary.json").read_text())
+    s = children.demo(out, "--application", "delivery", "--instance", file, "--architecture",
+                      arch, "--duration", "50", "--no-plots", quiet=True).summary(400)
     m = s["metrics"]
     assert m["windowed"] is True and s["instance"]["tasks"]["t1"]["due"] > 0
     assert m["late"] == 0 and m["early"] == 0, m           # hard windows: no violation
@@ -72,11 +68,8 @@ def test_a_windowed_run_with_a_cancelled_task_ends_when_the_rest_is_over(childre
     doc["submitted"] = [{"at": 1.0, "op": "cancel", "id": "t4"}]
     file.write_text(yaml.safe_dump(doc, sort_keys=False))
     out = tmp_path / "ssi"
-    demo = children.mrta("-q", "demo", "--application", "delivery", "--instance", str(file),
-                         "--architecture", "ssi", "--duration", "60", "--speed", "0",
-                         "--no-live", "--no-plots", "--output", str(out), name="demo")
-    assert demo.wait(400) == 0, demo.tail(30)
-    s = json.loads((out / "summary.json").read_text())
+    s = children.demo(out, "--application", "delivery", "--instance", file, "--architecture",
+                      "ssi", "--duration", "60", "--no-plots", quiet=True).summary(400)
     m = s["metrics"]
     assert [r["state"] for r in s["tasks_at_run_time"]["tasks"]] == ["cancelled"], s
     assert s["ended_at"] is not None and s["ended_at"] < 30 and s["recorded_until"] < 40, \
