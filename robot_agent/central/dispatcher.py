@@ -11,11 +11,12 @@ What it does at each tick:
    granted to knows from its board; it used to stand by it, be declared stalled and be left
    out for good) and where it is; a robot's agent token says whether it lives.
 2. **Watches progress.** A robot that has a task but has not progressed on it — moved, turned,
-   changed task — for `progress_timeout` (beyond its task's service time once it is there, and
-   not before the task's arrival) is *stalled*; one not heard for `progress_timeout` is
-   *silent*; one whose token went has *crashed*. Each is out of the plan; a silent one comes
-   back when it is heard again, a stalled one when it is seen to move again (a task served or
-   changed does not count: a robot stripped of its queue changes task without moving).
+   changed task — for `progress_timeout` (beyond its task's window opening and service time
+   once it is there, and not before the task's arrival) is *stalled*; one not heard for
+   `progress_timeout` is *silent*; one whose token went has *crashed*. Each is out of the
+   plan; a silent one comes back when it is heard again, a stalled one when it is seen to move
+   again (a task served or changed does not count: a robot stripped of its queue changes task
+   without moving).
 3. **Re-plans** on an arrival, a completion, a loss or a return (planner.py: the residual
    problem on the model's clock, kept unless beaten), and records the decision (`Plan`).
 4. **Sends queues**, each robot its own, when they change and every `resend_period`. A task is
@@ -320,11 +321,12 @@ class Dispatcher(Coordinator):
                 or view.progressed is None:
             return False
         task = self._task[report.task]
-        deadline = view.progressed + self.params.progress_timeout
+        # at its task it may wait for the window to open, then serves (issue 49)
         if math.hypot(report.x - task.position[0], report.y - task.position[1]) <= AT_TASK:
-            deadline += task.service
-        deadline = max(deadline, task.arrival + self.params.progress_timeout)
-        return now > deadline + EPSILON
+            start = max(view.progressed, task.opens) + task.service
+        else:
+            start = max(view.progressed, task.arrival)
+        return now > start + self.params.progress_timeout + EPSILON
 
     # ------------------------------------------------------------ planning
     def available(self) -> list[str]:

@@ -26,6 +26,13 @@ Rules, each for a reason:
   no longer count what it says. The logic knows which of its gone teammates are stalled
   (`RouteLogic.declared`), and says so in its messages (SSI's `Round.out`, CBBA's `Bids.out`):
   what the summary's declared stalls are read from (issue 51.2: only central's were named).
+* **Waiting is not stalling** (issue 49). The `progress_timeout` runs from the later of its last
+  progress and its task's window opening and, once it is at the task, beyond the task's service:
+  a robot early at a windowed task stands there until the window opens, then serves it (the
+  delivery layer), and is making the progress its plan asks. Not before its task arrived either.
+  Central's dispatcher rules alike (its `_stalled`). Without it, on Solomon's C1 sets (windows
+  opening minutes in, 25 s services, a 10 s timeout) every robot counted every other one out,
+  each became its own SSI auctioneer and awarded itself everything.
 * **Reports.** A `Progress` at every change and every `report_period` (what the supervisor's
   busy/idle view and the teammates' stall watch read), and, every `report_period`, one `Queued`
   per task of its queue (monitoring only).
@@ -40,6 +47,7 @@ from types import MappingProxyType
 from typing import ClassVar, Iterable, Mapping
 
 from mrta_zenoh.clock import EPSILON
+from mrta_zenoh.planning import Problem
 from mrta_zenoh.timetext import at
 
 from ..runtime.coordinator import Coordinator, Say
@@ -47,6 +55,7 @@ from .executor import Readings, RouteExecutor
 from .messages import Progress
 
 MOVED = 0.05  # m: a teammate whose reported pose moved this far made progress
+AT_TASK = 0.5  # m: a teammate this close to its task is there (waiting or serving: not stalled)
 
 
 class Watch:
@@ -54,6 +63,7 @@ class Watch:
 
     def __init__(self) -> None:
         self.state: tuple | None = None
+        self.task = ""  # the task it reports it is on
         self.pose: tuple[float, float] | None = None
         self.progress_at: float | None = None
         self.moved_at: float | None = None  # when its pose last moved (not its first report)
@@ -67,7 +77,7 @@ class Watch:
         if state != self.state or moved:
             self.state, self.pose = state, (msg.x, msg.y)
             self.progress_at = at_
-        self.busy = bool(msg.task)
+        self.busy, self.task = bool(msg.task), msg.task
 
 
 class RouteLogic(Coordinator):
@@ -81,6 +91,9 @@ class RouteLogic(Coordinator):
     # teammate → why it is counted out while its token lives ("stalled"), as its coordinator
     # declared it (OwnRouteCoordinator, which gives the logic a dict of its own; none alone)
     declared: Mapping[str, str] = MappingProxyType({})
+    # the instance it plans (SSI's, CBBA's): what a teammate's task is — where, its window, its
+    # service (OwnRouteCoordinator's stall watch); None: a plain timeout
+    problem: Problem | None = None
 
     def out(self) -> tuple[str, ...]:
         """Who this robot counts out while their token lives, and why (`robot:reason`), as its
@@ -157,7 +170,22 @@ class OwnRouteCoordinator(Coordinator):
         if since is not None:  # declared: until it is seen to move (module docstring)
             return w.moved_at is None or w.moved_at <= since
         return (w.busy and w.progress_at is not None
-                and now - w.progress_at > self.progress_timeout + EPSILON)
+                and now > self._progress_due(w) + EPSILON)
+
+    def _progress_due(self, w: Watch) -> float:
+        """When a busy teammate last seen progressing at `progress_at` is stalled (module
+        docstring, "Waiting is not stalling")."""
+        start, p = w.progress_at, self.logic.problem
+        try:
+            task = p.tasks[p.task_index(w.task)] if p is not None else None
+        except KeyError:
+            task = None  # not in this robot's instance (yet): a plain timeout
+        if task is not None and w.pose is not None:
+            if math.dist(w.pose, task.position) <= AT_TASK:
+                start = max(start, task.opens) + task.service
+            else:
+                start = max(start, task.arrival)
+        return start + self.progress_timeout
 
     def hear(self, kind: str, sender: str, message, at_: float) -> bool:
         if kind == "progress":

@@ -22,7 +22,8 @@ def params_for(problem: Problem, extra, progress_timeout: float = 10.0) -> OwnRo
 
 class Body:
     """A robot's `Readings`: it drives from where it last served (or its start) to the task it
-    set off to, in the model's travel time, and serves it for the task's service time."""
+    set off to, in the model's travel time, waits there for the task's window to open (as the
+    delivery layer does) and serves it for the task's service time."""
 
     def __init__(self, team: "RouteTeam", robot_id: str):
         self.team, self.id = team, robot_id
@@ -55,7 +56,8 @@ class Body:
         if leg is None:
             return False
         src, j, since = leg
-        return now >= since + self.p.travel(self.i, src, j) + self.p.tasks[j].service - EPS
+        task = self.p.tasks[j]
+        return now >= max(since + self.p.travel(self.i, src, j), task.opens) + task.service - EPS
 
     def pose(self) -> tuple[float, float, float]:
         now = self.team.now
