@@ -17,7 +17,11 @@ analysis), its wall time the command's. Printed, one JSON line per figure:
 * `own_delivery` — with `--hear-sizes`: one bus (real Zenoh session) with K subscriptions to
   every robot's CBBA `Bids`, as K robots in one host hold, and a 100-winner `Bids` published on
   it: CPU µs per publish decoded once for the K (the bus now) against once per subscription
-  (the baseline, the same bus and subscriptions: what `_hand_over` did before).
+  (the baseline, the same bus and subscriptions: what `_hand_over` did before);
+* `remote_delivery` — with `--hear-sizes`: the same K subscriptions, the `Bids` published by
+  another session: this process's CPU µs per sample with one native Zenoh subscriber fanned out
+  to the K (the bus now) against one native subscriber per subscription (the baseline, same
+  run).
 
 * `startup` — with `--startup-sizes`: N robots and N tasks, one process per robot (the
   baseline) and the team in one host, a short run each (`--startup-duration`): wall s from the
@@ -224,6 +228,61 @@ def own_delivery(sizes: list[int], publishes: int = 300) -> None:
              ratio=round(figures["per_subscription"] / figures["once"], 2))
 
 
+def remote_delivery(sizes: list[int], publishes: int = 300) -> None:
+    """Two buses (real Zenoh sessions on loopback), K subscriptions to every robot's `Bids` on
+    one, 100-winner `Bids` published on the other: this process's CPU µs per published sample
+    with one native subscriber for the K (the bus now) against one native subscriber per
+    subscription (the baseline, the same subscriptions: what `ZenohBus._declare` did before)."""
+    import socket
+
+    from mrta_agent.cbba.messages import Bids
+    from mrta_zenoh.bus import BusOptions
+    from mrta_zenoh.bus.zenoh_bus import ZenohBus
+    from mrta_zenoh.messages import Header
+
+    msg = Bids(Header("robot1", 1.0, 1), tuple((t, t % 100, 10.0 + t) for t in range(100)),
+               tuple((r, 1.0) for r in range(100)), (), 0.0, 0.0, instance="0" * 16)
+    expr = "cbba/*/bids"
+    for k in sizes:
+        with socket.socket() as s:
+            s.bind(("127.0.0.1", 0))
+            port = s.getsockname()[1]
+        with ZenohBus(BusOptions(listen=[f"tcp/127.0.0.1:{port}"])) as here, \
+                ZenohBus(BusOptions(connect=[f"tcp/127.0.0.1:{port}"],
+                                    listen=["tcp/127.0.0.1:0"])) as there:
+            heard: list = []
+            subs = [here.subscribe(expr, heard.append, msg_type=Bids) for _ in range(k)]
+            fan = here._fans[expr]
+
+            def measure() -> float:
+                while not heard:  # until the native subscribers are matched
+                    there.publish("cbba/robot1/bids", msg)
+                    time.sleep(0.05)
+                time.sleep(0.3)
+                heard.clear()
+                t0 = time.process_time()
+                for _ in range(publishes):
+                    there.publish("cbba/robot1/bids", msg)
+                deadline = time.monotonic() + 120
+                while len(heard) < k * publishes and time.monotonic() < deadline:
+                    time.sleep(0.01)
+                spent = time.process_time() - t0
+                heard.clear()
+                return spent / publishes * 1e6
+
+            fan.native.undeclare()
+            natives = [here.session.declare_subscriber(here._wire(expr), here._receiver(sub, 0))
+                       for sub in subs]
+            per_native = measure()
+            for native in natives:
+                native.undeclare()
+            fan.native = here.session.declare_subscriber(here._wire(expr), fan.on_sample)
+            once = measure()
+        emit(figure="remote_delivery", subscriptions=k, winners=100, publishes=publishes,
+             per_native_subscriber_us=round(per_native, 1), one_native_us=round(once, 1),
+             ratio=round(per_native / once, 2))
+
+
 def startup(folder: Path, sizes: list[int], arch: str, duration: float) -> None:
     """Issue 47 point 4: start-up and the agents' memory per robot against team size, one
     process per robot (the baseline) and the team in one host, the same instance each."""
@@ -260,6 +319,7 @@ def main() -> None:
     args = ap.parse_args()
     if args.hear_sizes:
         own_delivery(args.hear_sizes)
+        remote_delivery(args.hear_sizes)
     with tempfile.TemporaryDirectory(prefix="mrta-hosts-") as tmp:
         folder = Path(tmp)
         if args.repeat:

@@ -14,6 +14,10 @@ callback thread instead: a thread hop, a wrapper object and a decode per sample 
 hears its own motivation feed 30 times a simulated second; with 100 agents on 2 cores the agents
 took 1.60 cores per simulated second instead of 1.65), and an order against the process's
 other work that would depend on scheduling.
+
+Samples from other processes come through one native subscriber per key expression, fanned
+out to every subscription of the bus on it and decoded once for them all (`_Fan`): an agent
+host's robots subscribe alike, and they are many.
 """
 
 from __future__ import annotations
@@ -90,6 +94,7 @@ class ZenohBus(Bus):
         self._own: dict[str, tuple[Subscription, ...]] = {}
         self._own_lock = threading.Lock()
         self._generation = 0
+        self._fans: dict[str, _Fan] = {}  # key expression → its one native subscriber's fan
 
     @property
     def zid(self) -> str:
@@ -193,19 +198,39 @@ class ZenohBus(Bus):
         return enc
 
     def _declare(self, sub: Subscription) -> None:
+        """One native Zenoh subscriber per key expression, shared by every subscription of
+        this bus on it (a `_Fan`): in an agent host K robots subscribe to the same teammates'
+        keys, and a native subscriber each made Zenoh copy, and this bus decode, every remote
+        sample K times (issue 47). A subscription joining a fan hears from its next sample on,
+        as a native subscriber would once declared."""
         ns = self.namespace
         cut = len(ns) + 1 if ns else 0
-        if sub.direct:
-            on_sample = self._direct_receiver(sub, cut)
-        else:
-            dispatch = sub._dispatch
-
-            def on_sample(s: "zenoh.Sample") -> None:
-                dispatch(str(s.key_expr)[cut:], str(s.encoding), s.payload.to_bytes())
-
-        sub._native = self.session.declare_subscriber(self._wire(sub.key_expr), on_sample)
+        with self._own_lock:  # never held across a call into Zenoh (its threads call us)
+            fan = self._fans.get(sub.key_expr)
+            new = fan is None
+            if new:
+                fan = self._fans[sub.key_expr] = _Fan(self, cut)
+            fan.join(sub)
+        sub._native = fan
+        if new:
+            native = self.session.declare_subscriber(self._wire(sub.key_expr), fan.on_sample)
+            with self._own_lock:
+                if fan.state[0]:
+                    fan.native, native = native, None
+            if native is not None:  # every subscription of the fan closed meanwhile
+                native.undeclare()
         self._subs.append(sub)
         self._subscriptions_changed()
+
+    def _receiver(self, sub: Subscription, cut: int) -> Callable:
+        """What a native subscriber's callback calls for `sub` when it is the only one."""
+        if sub.direct:
+            return self._direct_receiver(sub, cut)
+        dispatch = sub._dispatch
+
+        def on_sample(s: "zenoh.Sample") -> None:
+            dispatch(str(s.key_expr)[cut:], str(s.encoding), s.payload.to_bytes())
+        return on_sample
 
     @staticmethod
     def _direct_receiver(sub: Subscription, cut: int):
@@ -260,9 +285,15 @@ class ZenohBus(Bus):
         return on_sample
 
     def _undeclare(self, sub: Subscription) -> None:
-        if sub._native is not None:
-            sub._native.undeclare()
-            sub._native = None
+        fan, sub._native, native = sub._native, None, None
+        if fan is not None:
+            with self._own_lock:
+                if fan.leave(sub):  # its last subscription: the native subscriber goes
+                    native, fan.native = fan.native, None
+                    if self._fans.get(sub.key_expr) is fan:
+                        del self._fans[sub.key_expr]
+        if native is not None:
+            native.undeclare()
         self._subscriptions_changed()
 
     def _declare_token(self, tok: Token) -> None:
@@ -408,6 +439,41 @@ class ZenohBus(Bus):
         self._declared_encoding.clear()
         self._typed.clear()
         self.session.close()
+
+
+class _Fan:
+    """One native subscriber's samples handed to the bus's subscriptions on its key expression.
+    One subscription: its own receiver (the inlined hot path). Several: the sample's key,
+    encoding and bytes are read once and `_hand_over` decodes it once for all of them, each
+    still filtering by type and counting it and its malformed samples itself, as own samples
+    are. Its state is one tuple, replaced whole, for the network thread to read without a lock."""
+
+    __slots__ = ("bus", "cut", "state", "native")
+
+    def __init__(self, bus: ZenohBus, cut: int):
+        self.bus, self.cut = bus, cut
+        # (subscriptions, the receiver when there is exactly one, else None)
+        self.state: tuple[tuple[Subscription, ...], Callable | None] = ((), None)
+        self.native: Any = None
+
+    def join(self, sub: Subscription) -> None:
+        self._become(self.state[0] + (sub,))
+
+    def leave(self, sub: Subscription) -> bool:
+        """True when `sub` was its last subscription."""
+        self._become(tuple(s for s in self.state[0] if s is not sub))
+        return not self.state[0]
+
+    def _become(self, subs: tuple[Subscription, ...]) -> None:
+        self.state = (subs, self.bus._receiver(subs[0], self.cut) if len(subs) == 1 else None)
+
+    def on_sample(self, s: "zenoh.Sample") -> None:
+        subs, alone = self.state
+        if alone is not None:
+            alone(s)
+        elif subs:
+            self.bus._hand_over(subs, str(s.key_expr)[self.cut:], str(s.encoding),
+                                s.payload.to_bytes())
 
 
 class _ZenohBatch(Batch):

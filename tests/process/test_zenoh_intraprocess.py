@@ -134,3 +134,55 @@ def test_an_own_sample_is_decoded_once_for_all_the_subscriptions_it_reaches(pair
     here.publish_raw("robot1/cmd_vel", codec.encoding_for(Twist.TYPE_NAME), b"\xc1not msgpack")
     assert len(typed) == 3
     assert [s.malformed for s in here._subs[:4]] == [1, 1, 1, 1]  # each counts it
+
+
+def test_a_remote_sample_is_decoded_once_for_all_the_subscriptions_on_its_key_expression(pair):
+    """One native subscriber per key expression, fanned out (issue 47): an agent host's robots
+    share one decode of a teammate's sample from another process, each still filtering by type
+    and counting it and its malformed samples; one that leaves stops hearing, the rest go on,
+    and the last one's leaving undeclares the native subscriber."""
+    here, there = pair
+    counts = here.enable_counting()
+    typed, queued = [], here.subscribe("*/cmd_vel", None, msg_type=Twist)
+    subs = [here.subscribe("*/cmd_vel", typed.append, msg_type=Twist) for _ in range(3)]
+    other = here.subscribe("*/cmd_vel", lambda s: None, msg_type=Odometry)
+    assert list(here._fans) == ["*/cmd_vel"]  # one native subscriber for the five
+    deadline = time.monotonic() + 10
+    while not typed:  # until `here`'s subscriber has reached `there`
+        there.publish("robot1/cmd_vel", Twist(0.0, 0.0))
+        assert time.monotonic() < deadline, "the remote subscription never matched"
+        time.sleep(0.1)
+    time.sleep(0.3)
+    typed.clear()
+    while queued.get(0) is not None:
+        pass
+    base = {id(t): t.counts["robot1/cmd_vel"] for t in counts.tallies()}
+    wrong = other.wrong_type
+
+    def settle(n: int) -> None:
+        deadline = time.monotonic() + 10
+        while len(typed) < n and time.monotonic() < deadline:
+            time.sleep(0.02)
+
+    there.publish("robot1/cmd_vel", Twist(0.5, 0.1))
+    settle(3)
+    assert [s.message for s in typed] == [Twist(0.5, 0.1)] * 3
+    assert all(s.message is typed[0].message for s in typed)  # one decode
+    assert queued.get(1).message is typed[0].message
+    assert other.wrong_type == wrong + 1 and other.received == 0
+    assert sorted(t.counts["robot1/cmd_vel"] - base[id(t)] for t in counts.tallies()) == \
+        [0, 1, 1, 1, 1]
+    there.publish_raw("robot1/cmd_vel", codec.encoding_for(Twist.TYPE_NAME), b"\xc1not msgpack")
+    deadline = time.monotonic() + 10
+    while subs[2].malformed < 1 and time.monotonic() < deadline:
+        time.sleep(0.02)
+    assert [s.malformed for s in [queued, *subs]] == [1, 1, 1, 1]  # each counts it
+    for s in (queued, other, subs[0], subs[1]):
+        s.close()
+    typed.clear()
+    there.publish("robot1/cmd_vel", Twist(0.7, 0.0))
+    settle(1)
+    time.sleep(0.2)
+    assert [s.message for s in typed] == [Twist(0.7, 0.0)]  # the one left, alone
+    subs[2].close()
+    assert here._fans == {}
