@@ -150,7 +150,9 @@ class Child:
                 return line
 
     def wait_json(self, predicate: Callable[[dict], bool], timeout: float,
-                  from_start: bool = False) -> dict:
+                  from_start: bool = False, **how) -> dict:
+        """The first stdout line that is a JSON object satisfying predicate; `how` goes to
+        wait_line (a subclass's own options: the tests' harness takes `window`)."""
         def pred(line: str) -> bool:
             try:
                 obj = json.loads(line)
@@ -158,7 +160,7 @@ class Child:
                 return False
             return isinstance(obj, dict) and predicate(obj)
 
-        return json.loads(self.wait_line(pred, timeout, from_start))
+        return json.loads(self.wait_line(pred, timeout, from_start, **how))
 
     def wait_stderr(self, predicate: Callable[[str], bool], timeout: float) -> str:
         deadline = time.monotonic() + timeout

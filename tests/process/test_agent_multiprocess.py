@@ -36,7 +36,8 @@ def test_each_task_gets_one_robot_and_a_killed_robots_task_is_taken_over(childre
         seen, t_end = {}, time.monotonic() + window
         while time.monotonic() < t_end:
             try:
-                o = echo.wait_json(lambda o: "message" in o, max(0.05, t_end - time.monotonic()))
+                o = echo.wait_json(lambda o: "message" in o, max(0.05, t_end - time.monotonic()),
+                                   window=True)
             except ChildExited:
                 raise  # a dead observer is a failure, not the end of the window
             except AssertionError:
