@@ -45,7 +45,7 @@ def test_the_command_line_replaces_the_files_value(tmp_path, monkeypatch):
     from mrta_supervisor.experiment import api as experiment
     seen = []
 
-    def stop_before_running(exp, output, shard=None):
+    def stop_before_running(exp, output, shard=None, until=None):
         seen.append([r.agents_per_process for r in exp.runs()])
         raise experiment.ConfigError("stopped here")
     monkeypatch.setattr(experiment, "prepare_experiment", stop_before_running)

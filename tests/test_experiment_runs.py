@@ -211,14 +211,50 @@ def test_the_report_takes_metrics_by_the_names_the_tables_print(tmp_path, missio
     assert {c["metric"] for c in cells} == {"takeover_seconds", "wander.exactly_one"}
 
 
-def test_an_application_metric_not_measured_is_refused_after_the_first_block(tmp_path,
-                                                                             missions):
+@pytest.mark.parametrize("target,says", [
+    ("metrics.makespan:0.1", "--until-ci metrics.makespan: the patrol mission measures no "
+                             "'makespan'; its metrics: border_visited, collisions_total"),
+    ("metrics.colisions_total:1", "measures no 'colisions_total' (did you mean 'collisions_total'?)"),
+    ("wandr covered:0.1", "the application has no task 'wandr' (did you mean 'wander'?)"),
+])
+@pytest.mark.parametrize("dry", [False, True])
+def test_a_metric_the_runs_do_not_measure_is_refused_before_any_run(tmp_path, missions, target,
+                                                                    says, dry):
+    """Not after the file's whole matrix ran (the first block's report found no column), and
+    by --dry-run too: a study's typo costs one line, not a night."""
     result = CliRunner().invoke(cli, ["experiment", str(exp_file(tmp_path)), "--output",
-                                      str(tmp_path / "o"), "--no-plots", "--until-ci",
-                                      "metrics.makespan:0.1"])
+                                      str(tmp_path / "o"), "--no-plots", "--until-ci", target]
+                                + (["--dry-run"] if dry else []))
+    assert result.exit_code == 2 and says in result.output, result.output
+    assert len(result.output.strip().splitlines()) == 1, result.output
+    assert missions == [] and not (tmp_path / "o").exists()
+
+
+def test_a_metric_the_runs_measure_passes_the_dry_run(tmp_path, missions):
+    result = CliRunner().invoke(cli, ["experiment", str(exp_file(tmp_path)), "--output",
+                                      str(tmp_path / "o"), "--dry-run", "--until-ci",
+                                      "wander covered:0.1", "--until-ci", "collisions_total:1"])
+    assert result.exit_code == 0 and "checked, nothing run or written" in result.output, \
+        result.output
+
+
+@pytest.mark.parametrize("args", [
+    ["run", "{file}", "--untl-ci", "x"],        # a mistyped option
+    ["{file}", "--jobs", "0"],                  # a value out of range
+    ["{file}", "--until-ci", "makespan:x"],      # a value its callback refuses
+    ["run"],                                    # a missing argument
+    ["report"],
+    ["report", "{out}", "--bogus"],
+])
+def test_every_usage_error_of_the_experiment_verbs_is_one_line_and_exit_2(tmp_path, missions,
+                                                                          args):
+    (tmp_path / "o").mkdir()
+    args = [a.format(file=exp_file(tmp_path), out=tmp_path / "o") for a in args]
+    result = CliRunner().invoke(cli, ["experiment", *args])
     assert result.exit_code == 2, result.output
-    assert "results.csv:1: no column 'metrics.makespan'" in result.output
-    assert len(rows(tmp_path / "o")) == 4  # what ran is kept
+    lines = result.output.strip().splitlines()
+    assert len(lines) == 1 and " experiment " in lines[0] and lines[0].startswith("Error: "), result.output
+    assert missions == []
 
 
 @pytest.mark.slow

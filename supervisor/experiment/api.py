@@ -62,7 +62,7 @@ from .resume import (Shard, check_block, check_folder, done_rows, identity_of,
 from ..mission.hook import MissionOptions, MissionRun, resolve
 from .report import Options, build
 from .report_md import Precision, write_report
-from .results import COVERAGE, MEASURES, column_named, kind, read_results
+from .results import APPLICATION_PREFIX, COVERAGE, MEASURES, column_named, kind, read_results
 
 log = logging.getLogger("mrta.experiment")
 
@@ -86,6 +86,43 @@ def parse_target(text: str) -> tuple[str, float]:
         raise ConfigError(f"--until-ci {text!r}: {metric!r} is not a measured column"
                           + did_you_mean(metric, MEASURES) + f"; measured: {', '.join(known)}")
     return metric, half
+
+
+def check_targets(until: dict[str, float] | None, exp: Experiment,
+                  resolved: dict[str | None, MissionRun]) -> None:
+    """Every --until-ci metric is one these runs measure, refused before any run (and by
+    --dry-run) otherwise — not after the file's whole matrix ran, when the first block's
+    report finds no such column: an application metric must be one the mission compares (its
+    `better`: the metrics the report judges), coverage (`TASK.exactly_one`) a task of the
+    application in runs that record it (not runs of instances, whose task ids are their own),
+    and `first_full_allocation` a mission whose tasks are held at once."""
+    if not until:
+        return
+    run = next(iter(resolved.values()))
+    mission = run.mission
+    for metric in until:
+        problem = None
+        if metric.startswith(APPLICATION_PREFIX):
+            name = metric.removeprefix(APPLICATION_PREFIX)
+            if name not in mission.better:
+                known = sorted(mission.better)
+                problem = (f"the {mission.name} mission measures no {name!r}"
+                           + did_you_mean(name, known) + "; its metrics: "
+                           + (", ".join(known) or "none"))
+        elif metric.endswith(COVERAGE):
+            task = metric.rsplit(".", 1)[0]
+            tasks = {t for r in resolved.values() for t in r.app.tasks()}
+            if exp.spec.instances is not None:
+                problem = ("runs of instances record no coverage per task (each instance's "
+                           "task ids are its own)")
+            elif task not in tasks:
+                problem = (f"the application has no task {task!r}"
+                           + did_you_mean(task, sorted(tasks)))
+        elif metric == "first_full_allocation" and not mission.instantaneous:
+            problem = (f"the {mission.name} mission's tasks are served in turn: its runs "
+                       "record no first_full_allocation")
+        if problem is not None:
+            raise ConfigError(f"--until-ci {metric}: {problem}")
 
 
 def check_overrides(exp: Experiment, pkg_path: Path, arch, robots: list[str]) -> None:
@@ -132,7 +169,8 @@ def resolve_all(exp: Experiment) -> dict[str | None, MissionRun]:
 
 
 def prepare_experiment(exp: Experiment, output: Path, shard: Shard | None = None,
-                       dry: bool = False) -> tuple[Experiment, dict, list[dict]]:
+                       dry: bool = False, until: dict[str, float] | None = None
+                       ) -> tuple[Experiment, dict, list[dict]]:
     """Everything checked before the first run, then the instances made into OUTPUT: the
     experiment with its instances, the run set-up of each architecture, and the rows OUTPUT's
     results.csv already holds (a resumed run: resume.py). The instances are made in a
@@ -140,6 +178,7 @@ def prepare_experiment(exp: Experiment, output: Path, shard: Shard | None = None
     written. `dry`: everything checked, nothing written (the instances returned are the
     staged ones, gone with the call: count them, do not run them)."""
     resolved = resolve_all(exp)
+    check_targets(until, exp, resolved)
     first = next(iter(resolved.values()))
     mission = first.mission.name
     if exp.spec.instances is not None and mission not in instance_kinds():
@@ -188,7 +227,7 @@ def _overridden(exp: Experiment, run: MissionRun, tmp: Path, robots: list[str]):
 
 
 def dry_run(file: Path, output: Path, shard: Shard | None = None,
-            max_runs: int = MAX_RUNS) -> str:
+            max_runs: int = MAX_RUNS, until: dict[str, float] | None = None) -> str:
     """`mrta experiment run FILE --dry-run`: FILE checked as a run would check it before its
     first run — its fields, the architectures, overrides and fault specs against each team,
     every instance generated and read back as the application reads it — and what a run
@@ -196,7 +235,7 @@ def dry_run(file: Path, output: Path, shard: Shard | None = None,
     and nothing is written (a study's 58 files are checked so: docs/study/README.md)."""
     exp = load_experiment(file)
     exp.check_runs(max_runs)
-    exp, resolved, done = prepare_experiment(exp, output, shard, dry=True)
+    exp, resolved, done = prepare_experiment(exp, output, shard, dry=True, until=until)
     runs = exp.runs() if shard is None else [r for r in exp.runs() if shard.takes(r.index)]
     teams = sorted({(i.n_robots, i.n_tasks) for i in exp.instances})
     what = (f"{plural(len(exp.instances), 'instance')} ("
@@ -247,7 +286,7 @@ def run_experiment(*, file: Path, output: Path, jobs: int | None = None,
         exp = replace(exp, spec=msgspec.structs.replace(exp.spec,
                                                         agents_per_process=agents_per_process))
     exp.check_runs(max_runs)
-    exp, resolved, done = prepare_experiment(exp, output, shard)
+    exp, resolved, done = prepare_experiment(exp, output, shard, until=until)
     stop = stop or threading.Event()
     runs = exp.runs()
     pictures = {next(r.index for r in runs if r.cell == c) for c in exp.cells()} if plots \

@@ -33,6 +33,8 @@ from .report_md import write_report
 Progress = Callable[[int, int, "dict | None"], None]
 RUN, REPORT = "run", "report"
 BACKENDS = ("local", "dask", "slurm")
+# click ≥ 8.2 raises this UsageError to show a group's help when it is given no arguments
+NO_ARGS_IS_HELP = getattr(click.exceptions, "NoArgsIsHelpError", ())
 
 
 @contextlib.contextmanager
@@ -71,6 +73,22 @@ def progress_reporter() -> Iterator[Progress | None]:
             bar.stop()
 
 
+@contextlib.contextmanager
+def one_line_usage() -> Iterator[None]:
+    """A usage error of the experiment verbs (an unknown option, a bad value, a missing
+    argument) as one line and exit 2, like every other bad input of theirs (ConfigError),
+    instead of click's three (usage, hint, error): `Error: mrta experiment run: No such option
+    '--untl-ci'. Did you mean '--until-ci'?`."""
+    try:
+        yield
+    except click.UsageError as exc:
+        if isinstance(exc, NO_ARGS_IS_HELP):  # `mrta experiment` alone: its help, as asked
+            raise
+        where = exc.ctx.command_path if exc.ctx is not None else "mrta experiment"
+        raise ConfigError(f"{where}: {' '.join(exc.format_message().split())} "
+                          f"(`{where} --help` lists the options)") from None
+
+
 class ExperimentGroup(click.Group):
     """`mrta experiment FILE …` runs FILE (the `run` command); `mrta experiment report DIR`
     makes the report of a finished one."""
@@ -79,6 +97,14 @@ class ExperimentGroup(click.Group):
         if args and args[0] not in self.commands and args[0] not in ctx.help_option_names:
             args = [RUN, *args]
         return super().parse_args(ctx, args)
+
+    def make_context(self, info_name, args, parent=None, **extra) -> click.Context:
+        with one_line_usage():
+            return super().make_context(info_name, args, parent, **extra)
+
+    def invoke(self, ctx: click.Context):
+        with one_line_usage():  # the subcommand's parsing and its option callbacks
+            return super().invoke(ctx)
 
     def format_usage(self, ctx: click.Context, formatter: click.HelpFormatter) -> None:
         formatter.write_usage(ctx.command_path, "FILE.yaml [OPTIONS]  |  report RESULTS_DIR "
@@ -188,7 +214,7 @@ def run(file: Path, output: Path, jobs: int | None, scheduler: str | None,
     folder holding an interrupted run of FILE, run only the runs it lacks."""
     slurm = _slurm_options(backend, scheduler, partition, array_size, time_limit)
     if dry_run:
-        click.echo(check_only(file, output, shard, max_runs))
+        click.echo(check_only(file, output, shard, max_runs, until or None))
         return
     with stop_on_signals() as stop, progress_reporter() as progress:
         rows = run_experiment(file=file, output=output, jobs=jobs, stop=stop, progress=progress,
