@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import logging
 import math
 import threading
@@ -17,6 +18,7 @@ from mrta_zenoh.clock import run_id as new_run_id
 from mrta_zenoh.errors import ConfigError, MrtaRuntimeError
 from mrta_zenoh.limits import COORDINATE
 from mrta_zenoh.lockstep.barrier import Barrier
+from mrta_zenoh.lockstep.ended import read_ended
 from mrta_zenoh.lockstep.protocol import DEFAULT_TIMEOUT, PARTICIPANT
 from mrta_zenoh.node import Node
 from mrta_zenoh.presence import RobotPresence
@@ -117,6 +119,7 @@ class SimOptions:
     lockstep: bool = False
     lockstep_timeout: float = DEFAULT_TIMEOUT
     lockstep_members: tuple[str, ...] | None = None
+    lockstep_ended: Path | None = None
     ros2: tuple[str, ...] = ()
     ros2_domain: int = 0
     ros2_sonar_type: str = "pointcloud"
@@ -132,6 +135,9 @@ class SimOptions:
             if not self.lockstep:
                 raise ConfigError("--lockstep-members goes with --lockstep: it names who may "
                                   "take part in lockstep")
+        if self.lockstep_ended is not None and self.lockstep_members is None:
+            raise ConfigError("--lockstep-ended goes with --lockstep-members: it names which "
+                              "members' processes have ended")
         if self.speed < 0 or not math.isfinite(self.speed):
             raise ConfigError(f"--speed must be a finite number ≥ 0, got {self.speed}")
         if self.duration is not None and not (math.isfinite(self.duration) and self.duration > 0):
@@ -187,7 +193,8 @@ def run_simulator(options: SimOptions, bus_options: BusOptions,
         # run may already have sent some (its clock watchdog's stop), and claims them
         barrier = resources.enter_context(Barrier(
             bus, run_id, o.lockstep_timeout, members=None if o.lockstep_members is None
-            else frozenset(o.lockstep_members))) \
+            else frozenset(o.lockstep_members), ended=None if o.lockstep_ended is None
+            else functools.partial(read_ended, Path(o.lockstep_ended)))) \
             if o.lockstep else None
         driver = (lambda command: Ros2Driver(bus, ros2_ids, command, domain=o.ros2_domain,
                                              distro=o.ros2_distro,

@@ -55,6 +55,12 @@ from .api import SimOptions, run_simulator
                    "its agents, hosts, dispatcher, task intake); another's participant token is "
                    "a stranger's — refused, counted in lockstep/status, never waited for. "
                    "Default: anyone holding a participant token.")
+@click.option("--lockstep-ended", type=click.Path(dir_okay=False, path_type=Path),
+              metavar="FILE",
+              help="With --lockstep-members: a file the run's runner appends the name of each "
+                   "member whose process ended to (one a line; `mrta demo` writes it). Such a "
+                   "member is not waited for, whatever participant token lives under its name "
+                   "(on an open bus, anyone's).")
 @click.option("--wait-robots", type=finite_float(min=0), metavar="SECONDS",
               help="Start the clock only once every robot has a process up (a liveliness token "
                    "under robotN/**), waiting at most this long.")

@@ -58,7 +58,10 @@ who cannot declare our tokens (a secured fleet) and against blind forgers on an 
   this run, for a step already published (never "done" in advance); its `next` is clamped to
   `NEXT_HORIZON` seconds ahead, so no claim can excuse a participant for long;
 * a run that ends (its barrier token is gone) restarts the participant's counts, sent and
-  received, and a new run its time.
+  received, and a new run its time;
+* a member whose process has ended, as the run's runner says through a file (`ended`), is not
+  waited for past ENDED_AFTER whatever token lives under its name (Zenoh shows one token per
+  key however many sessions declare it: a forger's outlives the member's process).
 Heuristics — plausibility against an attacker on an open bus who copies run ids and names:
 * a step stops at or before a participant's own `next` plus one physics step (`STEP_SLACK`):
   a later one is taken only as far as wall time allows since the participant was last heard
@@ -85,5 +88,6 @@ protocol only (tests/process/test_lockstep.py says so):
 * `sequence` — which steps a participant believes, and when it asks for the whole table;
 * `participant` — a participant's clock (LockstepClock);
 * `ledger` — each participant's last answer and claims, and their caps;
-* `barrier` — the simulator's side (Barrier).
+* `barrier` — the simulator's side (Barrier);
+* `ended` — which of a run's processes have ended, from its runner to the barrier (EndedWatch).
 """

@@ -14,6 +14,7 @@ from __future__ import annotations
 import itertools
 import threading
 import time
+from typing import Callable
 
 import msgspec
 
@@ -21,11 +22,14 @@ from ..clock import EPSILON
 from ..untrusted import visible
 from ..keys import CLOCK_SOURCE_TOKEN
 from ..lifecycle import Closing
+from ..messages import Header
+from ..refusal_tally import refused_key, tally
 from .books import Books
 from .ledger import Ledger
-from .protocol import (BARRIER, DEFAULT_TIMEOUT, DONE, MAX_KEYS, MAX_NAMES, NEXT_HORIZON,
-                       PARTICIPANT, REPORT_AFTER, SPEAKS, STATUS, STEP, WORK_LIMIT, LockstepStatus,
-                       Rejections, Step, StepDone, count_wait, log)
+from .protocol import (BARRIER, DEFAULT_TIMEOUT, DONE, ENDED_AFTER, MAX_KEYS, MAX_NAMES,
+                       NEXT_HORIZON, OUTLIVED, OUTLIVED_AFTER, PARTICIPANT, REPORT_AFTER, SPEAKS,
+                       STATUS, STEP, WORK_LIMIT, LockstepStatus, Rejections, Step, StepDone,
+                       count_wait, log)
 from .table import Claims, KeyTable, count_of
 
 
@@ -39,17 +43,30 @@ class Barrier(Closing):
     sample, each wake rescanning every participant's StepDone, would be quadratic."""
 
     def __init__(self, bus, run_id: str, timeout: float = DEFAULT_TIMEOUT,
-                 wall=time.monotonic, members: frozenset[str] | None = None):
+                 wall=time.monotonic, members: frozenset[str] | None = None,
+                 ended: Callable[[], frozenset[str]] | None = None, name: str = "simulator"):
         """`members`: the names that may take part (a mission's processes, `mrta sim
         --lockstep-members`); None: anyone holding a participant token. A token under another
         name is a stranger's: refused and counted (`dropped`), never waited for — on a shared
         bus a stranger would otherwise be waited for, given up after the timeout, and make
-        every run inexact (issue 51.3)."""
+        every run inexact (issue 51.3). `ended`: the members whose process has ended, as the
+        run's runner says (ended.py, `mrta sim --lockstep-ended`): one the barrier waits for
+        is no longer waited for once ENDED_AFTER late, whatever token lives under its name (a
+        forger's keeps it alive on an open bus), and its StepDones are refused from then on.
+        That is what the run does when such a process's token goes with it, so the run stays
+        exact; a token that outlives its process by OUTLIVED_AFTER is a forger's (an ended
+        process's token goes with its session at once, or after the 3 s lease): counted in
+        what `name` (the simulator) says it refused, as forged (mrta_zenoh/refusal_tally.py),
+        so that the summary names it and calls the run disturbed."""
         self.bus = bus
         self.run = run_id
         self.timeout = timeout
         self.members = members
         self.strangers: set[str] = set()  # refused participant names (at most MAX_NAMES)
+        self.ended = ended
+        self.name = name
+        self.gone: dict[str, float] = {}  # member ended (`ended`) while waited for → wall time
+        self.outlived: set[str] = set()  # of those, whose token lived on OUTLIVED_AFTER later
         self.participants: set[str] = set()
         self.ledger = Ledger()
         self.done = self.ledger.done  # participant → its last answer
@@ -69,6 +86,7 @@ class Barrier(Closing):
         self._wall = wall
         self._cond = threading.Condition()
         self._changed, self._changed_at = 0, wall()
+        self._ended_read = -float("inf")  # wall time `ended` was last read
         self._last: Step | None = None  # the step published last (re-published for newcomers)
         self._republish = False
         self._back: set[str] = set()  # given up, and answering again
@@ -140,7 +158,7 @@ class Barrier(Closing):
                     self._republish = True  # a newcomer (or a resumed one) gets the step at once
                     self._whole = True      # with the whole key table, as the next one
                     if self._stamp is not None and name not in self.unresponsive and \
-                            not self._answered(name, self._stamp):
+                            name not in self.gone and not self._answered(name, self._stamp):
                         self._waiting.add(name)
             else:
                 self.participants.discard(name)
@@ -185,6 +203,8 @@ class Barrier(Closing):
                 why = f"{visible(name, 80)!r} sent a StepDone naming {visible(d.participant, 80)!r}"
             elif name not in self.participants:
                 why = f"{visible(name, 80)!r} holds no participant token"
+            elif name in self.gone:
+                why = f"{visible(name, 80)!r}'s process has ended (its runner says so)"
             elif d.run != self.run:
                 why = f"{visible(name, 80)!r} acknowledges run {visible(d.run, 80)!r}"
             elif d.resync:
@@ -276,7 +296,7 @@ class Barrier(Closing):
             if self._due_at is None:  # recomputed only after answers or the set changed
                 due_at = float("inf")
                 for p in self.participants:
-                    if p in self.unresponsive:
+                    if p in self.unresponsive or p in self.gone:
                         continue
                     d = self.done.get(p)
                     if d is None or d.next < 0:
@@ -334,8 +354,8 @@ class Barrier(Closing):
         report = False  # a change for lockstep/status
         with self._cond:
             self._stamp = stamp
-            self._waiting = {p for p in self.participants
-                             if p not in self.unresponsive and not self._answered(p, stamp)}
+            self._waiting = {p for p in self.participants if p not in self.unresponsive
+                             and p not in self.gone and not self._answered(p, stamp)}
             self._working, self._told_working = {}, set()
         try:
             report = self._wait(stamp, stop, deadline, answered_at, report)
@@ -343,8 +363,25 @@ class Barrier(Closing):
             with self._cond:
                 self._stamp, self._waiting, self._working = None, set(), {}
                 report, self._tell = report or self._tell, False
+                outlived = self._outlived()
         if report:
             self._status(stamp)
+        if outlived:
+            self._tell_outlived(stamp)
+
+    def _tell_outlived(self, stamp: float) -> None:
+        self.bus.publish(refused_key(self.name), tally(Header(self.name, stamp, 0), {
+            ("participant", name, OUTLIVED, True): 1 for name in sorted(self.outlived)}))
+
+    def _outlived(self, final: bool = False) -> bool:
+        """Whether another ended member's token has outlived its process by OUTLIVED_AFTER
+        (`__init__`), or is still there as the barrier closes (`final`): it is counted. Under
+        self._cond."""
+        now = self._wall()
+        new = {p for p, at in self.gone.items() if p not in self.outlived
+               and p in self.participants and (final or now - at >= OUTLIVED_AFTER)}
+        self.outlived |= new
+        return bool(new)
 
     def _wait(self, stamp: float, stop: threading.Event, deadline: float,
               answered_at: float | None, report: bool) -> bool:
@@ -391,6 +428,9 @@ class Barrier(Closing):
                                 "%.1f s without an answer or a sign of work)",
                                 ", ".join(visible(p, 80) for p in sorted(waiting)),
                                 stamp, REPORT_AFTER, self.timeout)
+                if waiting and now >= deadline - self.timeout + ENDED_AFTER and \
+                        self._ended(waiting):
+                    continue
                 if self.unresponsive and now >= self._resend_at:
                     # one given up may be passing steps over for want of the table (it left
                     # the waiting set, so the lines above no longer reach it)
@@ -413,6 +453,25 @@ class Barrier(Closing):
                         continue
                 self._cond.wait(0.05 if now >= deadline else min(deadline - now, 0.05))
         return report
+
+    def _ended(self, waiting: set[str]) -> bool:
+        """Whether some of `waiting` have ended (`ended`, __init__): no longer waited for. Under
+        self._cond; the file is read at most every ENDED_AFTER of wall time."""
+        now = self._wall()
+        if self.ended is None or now < self._ended_read + ENDED_AFTER:
+            return False
+        self._ended_read = now
+        gone = waiting & self.ended()
+        if not gone:
+            return False
+        self.gone.update(dict.fromkeys(gone, now))
+        self._waiting = waiting - gone
+        self._due_at = None
+        for name in sorted(gone):
+            self.dropped(f"{visible(name, 80)!r}'s participant token outlives its process (a "
+                         "token under its name from another session): not waited for")
+        self._cond.notify_all()
+        return True
 
     def _hung(self, waiting: set[str], now: float, deadline: float) -> set[str]:
         """Those of `waiting` to give up at `now`, past the step's deadline: silent — neither
@@ -440,6 +499,18 @@ class Barrier(Closing):
         self.bus.publish(STATUS, status)
 
     def close(self) -> None:
+        """Withdraw the barrier's token and subscriptions — once a token that still lives under
+        an ended member's name has had OUTLIVED_AFTER (real seconds, at most) to go: one that
+        does not is counted (`__init__`; a run may end sooner than its check in wait())."""
+        with self._cond:
+            for _ in range(int(OUTLIVED_AFTER / 0.05)):
+                if not any(p in self.participants for p in self.gone.keys() - self.outlived):
+                    break
+                self._cond.wait(0.05)
+            outlived = self._outlived(final=True)
+            stamp = self._last.stamp if self._last is not None else 0.0
+        if outlived:
+            self._tell_outlived(stamp)
         for h in self.handles:
             h.close()
         self.counts.close()

@@ -27,6 +27,9 @@ STATUS = "lockstep/status"
 # up would make the run depend on the machine's load, which is what lockstep is there to stop.
 DEFAULT_TIMEOUT = 30.0
 REPORT_AFTER = 2.5      # wall s: a participant silent this long is reported (still waited for)
+ENDED_AFTER = 0.5       # wall s: a participant this late is looked up among the ended (ended.py)
+OUTLIVED_AFTER = 4.0    # wall s a token may outlive its process: the 3 s Zenoh lease, and slack
+OUTLIVED = "outlived_process"  # the refusal reason of a participant token that did (barrier.py)
 STEP_SLACK = 0.05       # simulated s past a participant's `next` a step may stop (one 20 ms step)
 STEP_BURST = 1.0        # simulated s a step may jump beyond that without wall time to show for it
 NEXT_HORIZON = 10.0     # simulated s: the longest `next` a StepDone may announce

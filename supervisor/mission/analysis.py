@@ -36,7 +36,7 @@ from .hook import Mission, MissionRun
 from .plots import ROBOTS_TITLE, Panel, TimeBase, draw_timeline
 from .summary import (COMPLETE, Coverage, Disturbance, FailureReport, MessageRates,
                       Span, Summary, checked_sections, refused_status, write_summary)
-from .run_watch import RECORDER, run_status
+from .run_watch import RECORDER, SIMULATOR, run_status
 
 
 def mission_sections(run: MissionRun, records: list) -> Any:
@@ -89,8 +89,9 @@ def analyse(run: MissionRun, failure: Failure | None, failed_at: float | None,
         if ended_at is None else end
     status = run_status(list(disturbances), recorded_until, end)
     # the task intake's refusals (mrta_zenoh.tasks) are listed too; none of them is forged
-    # coordination: a refused request never entered the run
-    refused = refused_traffic(records, [*run.robots, *run.arch.processes, INTAKE])
+    # coordination: a refused request never entered the run. The simulator's: a participant
+    # token under a member's name that outlived the member's process (lockstep/ended.py)
+    refused = refused_traffic(records, [*run.robots, *run.arch.processes, INTAKE, SIMULATOR])
     status = refused_status(status, refused)
     role, failure = failure, roles.struck(failure, run.faults, records)
     if role is not None and failure is None:  # an @first fault that struck nobody

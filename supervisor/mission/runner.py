@@ -26,6 +26,7 @@ import math
 import os
 import shlex
 import signal
+import tempfile
 import threading
 import time
 from pathlib import Path
@@ -38,6 +39,7 @@ from mrta_zenoh.clock import SimClock
 from mrta_zenoh.errors import ConfigError, Interrupted
 from mrta_zenoh.failure import FAULTS_ENV, RETIRED_CRASH_ENV, Failure, fault_env
 from mrta_zenoh.identity import OBSERVER
+from mrta_zenoh.lockstep.ended import EndedWatch
 from mrta_zenoh.lockstep.protocol import DEFAULT_TIMEOUT
 from mrta_zenoh.node import Node, NodeTime
 from mrta_zenoh.processes import Child, ProcessGroup, mrta_argv
@@ -181,11 +183,16 @@ def _run_in(run: MissionRun, reg: Registry,
         n.args = [*n.args, *(client if fleet is None else fleet.args(
             secured.SIMULATOR if n.required else n.name if n.name in run.arch.processes
             else n.name.split("/")[0]))]
-    if options.lockstep:  # only the run's processes take part: a stranger's token is refused
+    members: set[str] = set()
+    # which members' processes ended, told to the simulator by a file, not the bus (a token
+    # under a member's name outlives its process when a forger declares it too: lockstep/ended.py)
+    ended_dir = tempfile.TemporaryDirectory(prefix="mrta-lockstep-") if options.lockstep else None
+    if ended_dir is not None:  # only the run's processes take part: a stranger's token is refused
         sim_node = next(n for n in nodes if n.required)
         members = {*run.robots, *hosted.values(), INTAKE,
                    *(n.name for n in nodes if n.name in run.arch.processes)}
-        sim_node.args = [*sim_node.args, "--lockstep-members", ",".join(sorted(members))]
+        sim_node.args = [*sim_node.args, "--lockstep-members", ",".join(sorted(members)),
+                         "--lockstep-ended", str(Path(ended_dir.name) / "ended")]
     # every process of the run: the run's seed and exactly the run's faults (none inherited
     # from this process's own environment), which each injects at its simulated time
     env = {k: v for k, v in os.environ.items() if k not in (FAULTS_ENV, RETIRED_CRASH_ENV)}
@@ -231,6 +238,12 @@ def _run_in(run: MissionRun, reg: Registry,
                             or c.name.startswith(rid + "/")) for rid in run.robots}
         # the architecture's own processes (a dispatcher), by name: fault subjects as robots are
         named = {**agents, **{c.name: c for c in children if c.name in run.arch.processes}}
+        if ended_dir is not None:
+            live.callback(ended_dir.cleanup)
+            live.enter_context(EndedWatch(Path(ended_dir.name) / "ended", {
+                name: c.running for name, c in {**agents, **{c.name: c for c in children},
+                                                INTAKE: intake}.items()
+                if name in members and c is not None}))
 
         def struck(subject: str) -> bool:  # its injected crash struck: its process, or its host
             if subject in hosted:

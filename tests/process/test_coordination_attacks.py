@@ -89,3 +89,30 @@ def test_a_strangers_lockstep_token_is_named_and_neither_waited_for_nor_making_i
     assert s["run_status"] == "complete" and s["lockstep_exact"] is True, (
         s["run_status"], s["lockstep_given_up"], s["disturbances"])
     assert s["lockstep_given_up"] == 0 and s["metrics"]["completed"] == s["metrics"]["tasks"]
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+def test_a_token_under_a_crashed_members_name_does_not_stall_the_run(children, tmp_path):
+    """A participant token under robot2's own name, declared by a forger beside robot2's:
+    Zenoh shows one token per key, so when robot2 crashes the name stays alive, and the
+    simulator waited the whole lockstep timeout (30 s) for it, gave it up and left the run
+    inexact. The runner tells the simulator which of its processes ended (lockstep/ended.py):
+    robot2 is not waited for (nobody is given up), and the summary names the token that
+    outlived its process as forged: the run is disturbed (and so not called exact) by the
+    forgery, not by a stall."""
+    out = tmp_path / "run"
+    demo = children.mrta("demo", "--application", "delivery", "--speed", "0", "--no-live",
+                         "--no-plots", "--duration", "60", "--fail", "crash:robot2@20",
+                         "--output", str(out), name="demo")
+    line = demo.wait_stderr(lambda s: "processes meet at" in s, 120)
+    rendezvous = re.search(r"tcp/127\.0\.0\.1:\d+", line).group(0)
+    forger = children.python("coordination_forger.py", "participant", "robot2", rendezvous,
+                             name="forger")
+    forger.wait_json(lambda o: "forged" in o, 120)
+    demo.wait(240)
+    s = json.loads((out / "summary.json").read_text())
+    assert s["lockstep_given_up"] == 0, (s["lockstep_given_up"], s["disturbances"])
+    refused = {(r["receiver"], r["sender"], r["reason"], r["forged"]) for r in s["refused"]}
+    assert ("simulator", "robot2", "outlived_process", True) in refused, refused
+    assert s["run_status"] == "disturbed"
