@@ -126,6 +126,32 @@ def test_the_routing_search_is_deterministic_and_keeps_capabilities():
             assert p.capable(i, j), (p.robots[i].id, p.tasks[j].id)
 
 
+def wall_limits(message, prefix=""):
+    """Every wall-time limit (a protobuf Duration) among a search's parameters, by path."""
+    out = {}
+    for field in message.DESCRIPTOR.fields:
+        if field.message_type is None or field.is_repeated:
+            continue
+        value = getattr(message, field.name)
+        if field.message_type.full_name == "google.protobuf.Duration":
+            out[prefix + field.name] = value.ToMicroseconds() / 1e6
+        else:
+            out.update(wall_limits(value, f"{prefix}{field.name}."))
+    return out
+
+
+def test_no_wall_limit_inside_the_routing_search_is_shorter_than_its_cap():
+    """A reference is a function of the instance, not of the machine's speed: the search ends
+    on its solution count; the one wall limit is the cap (reported when reached) — OR-Tools'
+    default cuts each large-neighbourhood sub-search at 100 ms of wall, which a busy machine
+    reaches sooner, sending the search another way (issue 50)."""
+    from mrta_zenoh.planning.routing import search_parameters
+    params = search_parameters(200, 30.0)
+    assert wall_limits(params) == {"time_limit": 30.0, "lns_time_limit": 30.0}
+    assert params.solution_limit == 200
+    assert params.sat_parameters.max_time_in_seconds == math.inf
+
+
 def test_unservable_tasks_and_unknown_objectives_are_errors():
     p = Problem((Robot("r", (0.0, 0.0), 1.0),), (Task("t", (1.0, 0.0), capability="fly"),))
     with pytest.raises(ConfigError, match="no robot has capability 'fly'"):

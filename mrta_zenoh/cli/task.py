@@ -49,7 +49,9 @@ def _ask(bus_options: BusOptions, name: str, requests: list[TaskRequest],
     missing = sum(a is None for a in answers)
     if missing:
         raise MrtaRuntimeError(f"{plural(missing, 'request')} of {len(answers)} got no answer "
-                               f"within {timeout:g} s")
+                               f"within {timeout:g} s (the intake answers at the run's next "
+                               f"step, which may wait for a robot still deciding: it may yet "
+                               f"enter — `mrta task list` says; --timeout waits longer)")
     return answers
 
 

@@ -8,8 +8,10 @@ it starts, and hears the rest live."""
 import json
 
 import pytest
+from click.testing import CliRunner
 from mcap.reader import make_reader
 
+from mrta_zenoh.cli.main import cli
 from tests.harness.helpers import free_port
 
 pytestmark = [pytest.mark.multiprocess, pytest.mark.slow]
@@ -56,3 +58,37 @@ def test_echo_hears_the_changes_and_a_view_started_late_knows_the_earlier_ones(c
     assert states and all("n1" in {t["id"] for t in s["tasks"]} for s in states), \
         (len(states), view.stderr[-5:])
     assert run.wait(300) == 0, run.stderr[-20:]
+
+
+@pytest.mark.timeout(420)
+def test_a_view_started_late_on_a_secured_fleet_learns_the_earlier_ones(children, tmp_path):
+    """The same on a secured fleet (`mrta secure init --submitter ops --observer supervisor`,
+    `mrta demo --secure`): the submitter's certificate submits and cancels through the router,
+    and a supervisor started afterwards under the observer's certificate still learns both —
+    its query of `tasks/history` and the intake's reply pass the fleet's access control."""
+    folder = tmp_path / "fleet"
+    result = CliRunner().invoke(cli, ["secure", "init", str(folder), *sum(
+        (["--robot", f"robot{i}"] for i in range(1, 6)), []), "--observer", "supervisor",
+        "--observer", "recorder", "--submitter", "ops",
+        "--endpoint", f"tls/127.0.0.1:{free_port()}"])
+    assert result.exit_code == 0, result.output
+    run = children.mrta("demo", "--application", "delivery", "--architecture", "ssi",
+                        "--secure", folder, "--duration", "40", "--speed", "1", "--no-live",
+                        "--no-plots", "--output", tmp_path / "run", name="demo")
+    run.wait_stderr(lambda s: "processes meet at tls/" in s, 120)  # the router is up
+    ops = ("--as", "ops", "--zenoh-config", folder / "ops.json5", "--timeout", "120")
+    submit = children.mrta("task", "submit", "n1", "--set", "position=[2.0,1.5]", *ops,
+                           name="submit")
+    assert submit.wait(180) == 0 and " accepted at " in submit.stdout[-1], submit.stderr[-3:]
+    cancel = children.mrta("task", "cancel", "t3", *ops, name="cancel")
+    assert cancel.wait(120) == 0 and " accepted at " in cancel.stdout[-1], cancel.stderr[-3:]
+
+    late = children.mrta("supervise", "delivery_ssi", "--json", "--sim-time", "--rate", "1",
+                         "--zenoh-config", folder / "supervisor.json5", name="supervise")
+    late.wait_line(lambda line: line.startswith("{") and '"n1"' in line, 90)
+    late.wait_line(lambda line: line.startswith("{") and cancelled(json.loads(line)), 60)
+    late.stop()
+    assert run.wait(300) == 0, run.stderr[-20:]
+    summary = json.loads((tmp_path / "run" / "summary.json").read_text())
+    assert summary["run_status"] == "complete" and summary["lockstep_exact"], \
+        summary["disturbances"]
