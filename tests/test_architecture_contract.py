@@ -147,9 +147,14 @@ def test_the_takeover_bounds_are_the_architectures_formulas():
                                 "nope")
 
 
-def test_an_application_under_another_architecture_is_its_package_for_that_architecture(fixed):
+def test_an_application_under_another_architecture_is_its_package_for_that_architecture(
+        fixed, monkeypatch):
     assert resolve(MissionOptions("patrol")).package.name == "patrol"
+    from mrta_zenoh.toolchain import registry
+    read, load = [], registry.load_rqt_mrta
+    monkeypatch.setattr(registry, "load_rqt_mrta", lambda f: read.append(f.parent.name) or load(f))
     run = resolve(MissionOptions("patrol", "murdoch"))
+    assert "patrol" not in read and "patrol_murdoch" in read  # the own package set aside unread
     assert (run.package.name, run.arch.name, run.mission.name) == ("patrol_murdoch", "murdoch",
                                                                    "patrol")
     run = resolve(MissionOptions("patrol", "fixed"))

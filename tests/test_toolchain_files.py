@@ -233,3 +233,21 @@ def test_a_file_read_again_is_a_copy_of_the_first_reading_until_its_bytes_change
     assert again is not first and [r.tasks for r in again.robots] == [["wander"], ["wander"]]
     f.write_text(APP.format(second="robot3", task="wander"))  # the same size
     assert [r.id for r in load_rqt_mrta(f).robots] == ["robot1", "robot3"]
+
+
+def test_an_applications_architecture_is_read_without_reading_the_rest(tmp_path, reference):
+    """A run under another architecture sets the application's own package aside after reading
+    its file only as far as <architecture> (a derived 100-robot one is ≈ 24 MB: issue 47)."""
+    from mrta_zenoh.toolchain.xmlio import application_architecture
+    f = tmp_path / "rqt_mrta.xml"
+    f.write_text("<rqt_mrta>\n  <application>\n    <architecture> cbba </architecture>\n"
+                 "    <name>x</name>\n  <broken")  # not well-formed after it: never reached
+    assert application_architecture(f) == "cbba"
+    with pytest.raises(ConfigError):
+        load_rqt_mrta(f)
+    f.write_text("<rqt_mrta><architecture><architecture>x</architecture></architecture>"
+                 "</rqt_mrta>")
+    assert application_architecture(f) is None  # an architecture file: read it whole
+    f.write_text("<rqt_mrta><application><name>x</")
+    assert application_architecture(f) is None  # broken before it: read it whole, for why
+    assert application_architecture(tmp_path / "none.xml") is None

@@ -282,6 +282,25 @@ def load_rqt_mrta(path: Path | str) -> ArchitectureFile | ApplicationFile:
     return model
 
 
+def application_architecture(path: Path | str) -> str | None:
+    """The <architecture> an application file names, read up to that element only: a run under
+    another architecture sets the application's own package aside, and a derived 100-robot one
+    is ≈ 24 MB of XML, ≈ 4 CPU-s to read whole (issue 47, start-up). None when the file's start
+    is no application's (or does not parse): `load_rqt_mrta` then reads it and says why."""
+    try:
+        for _, el in etree.iterparse(str(path), events=("end",), tag="architecture",
+                                     resolve_entities=False, no_network=True):
+            parent = el.getparent()
+            if parent is None or parent.tag != "application" or len(el):
+                return None
+            root = parent.getparent()
+            return (el.text or "").strip() if root is not None and root.tag == "rqt_mrta" \
+                and root.getparent() is None else None
+    except (OSError, etree.XMLSyntaxError):
+        return None
+    return None
+
+
 def _load(path: Path, root) -> ArchitectureFile | ApplicationFile:
     r = _Reader(path)
     if root.tag != "rqt_mrta":

@@ -27,6 +27,7 @@ from mrta_zenoh.failure import ROLES, FaultKind, Faults, parse_faults
 from mrta_zenoh.installed import entry_points
 from mrta_zenoh.toolchain.model import ApplicationFile
 from mrta_zenoh.toolchain.registry import Package, Registry
+from mrta_zenoh.toolchain.xmlio import application_architecture
 from mrta_zenoh.yamlfile import did_you_mean
 
 from ..live.tasks import TaskWatch
@@ -237,8 +238,17 @@ def resolve(options: MissionOptions, reg: Registry | None = None) -> MissionRun:
     before anything starts)."""
     reg = reg or Registry()
     application = options.application or default_application()
-    pkg, app = reg.application(application)
-    if options.architecture is not None and options.architecture != app.architecture:
+    # under another architecture the application's own package is set aside unread (a derived
+    # 100-robot one is ≈ 24 MB of XML): its file is read only as far as its <architecture>
+    own = reg.packages.get(application)
+    named = None if options.architecture is None or own is None \
+        or own.application_file is None else application_architecture(own.application_file)
+    if named is not None and named != options.architecture:
+        pkg, app_architecture = own, named
+    else:
+        pkg, app = reg.application(application)
+        app_architecture = app.architecture
+    if options.architecture is not None and options.architecture != app_architecture:
         arch = architecture(options.architecture)  # unknown names: ConfigError listing them
         if any(n in missions() for n in (pkg.name, *pkg.depends)):
             # before "no package runs it", which would send them to make one
