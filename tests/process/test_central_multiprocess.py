@@ -108,6 +108,8 @@ def assert_every_task_done_once(summary: dict) -> None:
 
 
 # ------------------------------------------------------------------ central
+@pytest.mark.slow  # the optimum: test_central_dispatcher.py (brute force, in-process); central
+# across processes in the CI tier: test_golden_summaries.py[central-stall] (its whole summary)
 @pytest.mark.timeout(300)
 def test_central_achieves_the_exact_minsum_optimum_on_a_static_instance(children, tmp_path):
     s = run_demo(children, tmp_path / "a", "60", "--architecture", "central", "--fail", "none")
