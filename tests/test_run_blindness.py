@@ -126,3 +126,33 @@ def test_a_start_that_still_progresses_is_waited_for_one_that_stopped_is_not(mon
     with pytest.raises(MrtaRuntimeError, match="nothing more came up within"):
         run_watch.Readiness.wait(None, lambda: False, "agents", group, threading.Event(),
                                  progress=lambda: 3)
+
+
+def test_a_lockstep_runs_processes_are_waited_for_as_long_as_lockstep_waits(monkeypatch):
+    """The recorder of the 20-robot walkthrough at load 25, starved past the 3 s lease, was
+    dropped and missed a delivery: exit 1 (issue 51). A lockstep run gives each of its
+    processes lockstep's wait as its lease ($MRTA_LEASE, which every session reads); other runs
+    and other commands keep 3 s; a caller's $MRTA_LEASE wins; a malformed one is one line."""
+    import pytest
+
+    from mrta_supervisor.mission.runner import run_lease
+    from mrta_zenoh.bus import BusOptions
+    from mrta_zenoh.bus.options import LEASE, LEASE_ENV, session_configs
+    from mrta_zenoh.errors import ConfigError
+    from mrta_zenoh.lockstep.protocol import DEFAULT_TIMEOUT
+
+    def leases(opts):
+        return {c["transport"]["link"]["tx"]["lease"] for c in session_configs(opts)}
+
+    monkeypatch.delenv(LEASE_ENV, raising=False)
+    assert (run_lease(True), run_lease(False)) == (DEFAULT_TIMEOUT, LEASE) == (30.0, 3.0)
+    assert leases(BusOptions(rendezvous="tcp/127.0.0.1:1")) == {3000}
+    assert leases(BusOptions(rendezvous="tcp/127.0.0.1:1", lease=30.0)) == {30000}
+    monkeypatch.setenv(LEASE_ENV, "30")  # what the runner gives its children
+    assert leases(BusOptions(mode="client", connect=["tcp/127.0.0.1:1"])) == {30000}
+    monkeypatch.setenv(LEASE_ENV, "5")
+    assert run_lease(True) == 5.0
+    for bad in ("0", "-1", "nan", "inf", "3s", "7200"):
+        monkeypatch.setenv(LEASE_ENV, bad)
+        with pytest.raises(ConfigError, match=rf"\$MRTA_LEASE '{bad}': expected a number"):
+            BusOptions().lease_seconds

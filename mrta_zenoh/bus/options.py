@@ -18,6 +18,7 @@ from __future__ import annotations
 
 import json
 import logging
+import math
 import os
 import re
 import socket
@@ -66,6 +67,34 @@ def check_endpoint(endpoint: str, what: str = "endpoint") -> str:
     return endpoint
 
 
+# The Zenoh lease: how long the others wait for a silent process (no CPU, SIGSTOP, a cut
+# cable) before they drop its link and its tokens go — a killed one's socket closes at once. It
+# is the silent process's own: each side advertises its lease and the others expire it by that
+# (measured: a peer with 30 s stopped for 20 s kept its link to one with 3 s; one with 3 s
+# stopped was dropped after 3 s). 3 s by default; a mission run in lockstep gives its processes
+# lockstep's wait for a live participant instead, through $MRTA_LEASE (supervisor/mission/
+# runner.py, run_lease): there a starved process is waited for, as lockstep waits for it.
+LEASE = 3.0
+LEASE_ENV = "MRTA_LEASE"
+MAX_LEASE = 3600.0
+
+
+def lease_from_env() -> float:
+    """$MRTA_LEASE (seconds), or LEASE when unset; ConfigError naming it when it is not a
+    number of seconds in (0, MAX_LEASE]."""
+    raw = os.environ.get(LEASE_ENV, "").strip()
+    if not raw:
+        return LEASE
+    try:
+        value = float(raw)
+    except ValueError:
+        value = math.nan
+    if not 0 < value <= MAX_LEASE:  # NaN and infinity fail it too
+        raise ConfigError(f"${LEASE_ENV} {raw!r}: expected a number of seconds, more than 0 "
+                          f"and at most {MAX_LEASE:g}")
+    return value
+
+
 @dataclass
 class BusOptions:
     mode: str = "peer"
@@ -74,6 +103,7 @@ class BusOptions:
     zenoh_config: Path | None = None
     namespace: str = ""
     rendezvous: str = ""  # empty: $MRTA_RENDEZVOUS or the default
+    lease: float | None = None  # seconds; None: $MRTA_LEASE or LEASE
 
     def __post_init__(self) -> None:
         if self.mode not in MODES:
@@ -84,6 +114,10 @@ class BusOptions:
             check_endpoint(e, "--listen endpoint")
         if self.rendezvous:
             check_endpoint(self.rendezvous, "rendezvous endpoint")
+
+    @property
+    def lease_seconds(self) -> float:
+        return self.lease if self.lease is not None else lease_from_env()
 
     @property
     def rendezvous_endpoint(self) -> str:
@@ -144,7 +178,7 @@ class BusOptions:
         import zenoh  # the bus package's own dependency; every networked command loads it
 
         conf = zenoh.Config()
-        merged = merge(base_config(self.mode), user)
+        merged = merge(base_config(self.mode, self.lease_seconds), user)
         for key in user:
             try:
                 # NaN and Infinity are JSON5, not JSON: Zenoh would read a NaN lease as 0
@@ -231,8 +265,9 @@ def default_rendezvous() -> str:
 SLOW_READER_US = 30_000_000  # µs a live reader too slow for our reliable samples is waited for
 
 
-def base_config(mode: str) -> dict[str, Any]:
-    """Our defaults: loopback only, multicast scouting off, gossip to find the other peers."""
+def base_config(mode: str, lease: float = LEASE) -> dict[str, Any]:
+    """Our defaults: loopback only, multicast scouting off, gossip to find the other peers;
+    `lease` in seconds (LEASE)."""
     return {
         "mode": mode,
         "scouting": {
@@ -247,8 +282,8 @@ def base_config(mode: str) -> dict[str, Any]:
             "retry": {"period_init_ms": 100, "period_max_ms": 1000, "period_increase_factor": 1.5},
         },
         "listen": {"endpoints": ["tcp/127.0.0.1:0"]},
-        # lease 3 s: a frozen peer is dropped after 3 s. wait_before_drop 1 µs (default 1 ms):
-        # a lossy put towards a peer whose queue is full gives up at once — with 1 ms per put,
+        # lease (LEASE, 3 s): a frozen peer is dropped after it. wait_before_drop 1 µs
+        # (default 1 ms): a lossy put towards a peer whose queue is full gives up at once — with 1 ms per put,
         # a stopped observer still held a simulator publishing 10,000 samples/s to ~1,000/s
         # open/accept timeouts 2 s (default 10 s): a connection attempt to a frozen peer
         # (SIGSTOP) otherwise holds session.close() for 10 s
@@ -266,7 +301,7 @@ def base_config(mode: str) -> dict[str, Any]:
         # called incomplete because the machine was busy. A slow reader is waited for as long
         # as lockstep waits for a live participant (lockstep.protocol.DEFAULT_TIMEOUT), past
         # which lockstep gives it up anyway
-        "transport": {"link": {"tx": {"lease": 3000, "queue": {
+        "transport": {"link": {"tx": {"lease": round(lease * 1000), "queue": {
             "size": {"data": 16},
             "congestion_control": {"drop": {"wait_before_drop": 1},
                                    "block": {"wait_before_close": SLOW_READER_US}}}}},
@@ -287,7 +322,7 @@ def merge(base: dict, over: dict) -> dict:
 
 def session_configs(opts: BusOptions) -> list[dict[str, Any]]:
     """Configs to try in order: the first that opens is used (bind-or-join in zero-config mode)."""
-    cfg = merge(base_config(opts.mode), opts.user_config())
+    cfg = merge(base_config(opts.mode, opts.lease_seconds), opts.user_config())
     if opts.mode == "client":
         cfg["listen"] = {"endpoints": []}
         if not opts.connect and not cfg["connect"].get("endpoints"):

@@ -3,8 +3,8 @@ liveliness tokens, never from log lines) and whether the run is what its seed sa
 summary covers all of it (`RunWatch`).
 
 A run is *disturbed* when a process of the run lost its liveliness token while the run was on —
-stopped (SIGSTOP, a debugger, a laptop's lid) past the Zenoh lease of 3 s, or cut off from the
-bus — other than a crash the run injected: lockstep no longer waits for a participant without a
+stopped (SIGSTOP, a debugger, a laptop's lid, a machine too busy to run it) past its Zenoh
+lease, or cut off from the bus — other than a crash the run injected: lockstep no longer waits for a participant without a
 token, so the run went on without it, and its outcome depends on when the process was stopped,
 not on the seed. It is *incomplete* when its recording does not cover the whole mission: the
 recorder lost its session (what was published meanwhile never reached the file), or the file
@@ -40,11 +40,15 @@ Why readers were cut at all: Zenoh closes a link whose reliable samples wait to 
 `wait_before_close` (5 s by default); ours is lockstep's wait for a live participant
 (bus/options.py), so a slow reader on a busy machine is waited for, not cut.
 
-Not seen here: a process stopped for less than the lease keeps its session. In lockstep a
-stopped agent or simulator is waited for, so the run is unchanged; a recorder stopped that
-briefly holds the publishers of reliable keys back and loses nothing of them, but may miss
-best-effort samples (the clock, ALLIANCE's sensory feedback) — which would change the summary's
-message counts without being reported.
+The lease is the run's (runner.run_lease): in lockstep, lockstep's wait for a live
+participant (30 s) — at load 25 the 3 s default dropped a recorder starved of CPU, which missed
+a delivery, and the README's walkthrough exited 1 (issue 51) — otherwise 3 s. Not seen here: a
+process stopped for less than the lease keeps its session. In lockstep a stopped agent or
+simulator is waited for, so the run is unchanged; a recorder stopped that briefly holds the
+publishers of reliable keys back and loses nothing of them — every key the summary's
+allocation, deliveries, coordination counts and liveliness are read from — but may miss
+best-effort samples (the clock, sensors, ALLIANCE's sensory feedback), which changes only the
+whole bus's message count (`messages.total`: the machine's, like wall time, not the seed's).
 """
 
 from __future__ import annotations
