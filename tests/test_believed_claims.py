@@ -10,8 +10,9 @@ import math
 
 from mrta_agent.cbba.bundle import BID_OUT_OF_RANGE, NOT_WON, TOO_EARLY, UNCONFIRMED, Cbba
 from mrta_agent.cbba.messages import MESSAGES as CBBA_MESSAGES, Bids
-from mrta_agent.ssi.auction import (CANNOT_SERVE, NEGATIVE_COST, NOT_HELD, ROUND_AHEAD, Ssi)
-from mrta_agent.ssi.messages import MESSAGES as SSI_MESSAGES, OPEN, Bid, Round
+from mrta_agent.ssi.auction import (CANNOT_SERVE, NEGATIVE_COST, NOT_HELD, ROUND_AHEAD,
+                                    ROUND_NOT_SENT, Ssi)
+from mrta_agent.ssi.messages import MESSAGES as SSI_MESSAGES, DONE, OPEN, Bid, Round
 from mrta_zenoh.messages import Header
 from mrta_zenoh.planning import Problem, Robot, Task
 from tests.harness.logic_team import LogicTeam
@@ -60,6 +61,26 @@ def test_a_round_far_ahead_repeated_by_the_auctioneer_is_believed():
     assert s.hear("round", "r1", far, 1.0) and s.round == 0
     assert s.hear("round", "r1", far, 1.1) and s.round == 0   # at once: no confirmation
     assert s.hear("round", "r1", far, 1.6) and s.round == 500
+
+
+def test_a_round_the_auctioneer_never_sent_does_not_empty_the_paths_once_the_auction_is_over():
+    """A Round under the auctioneer's key, said once to every bidder after the last award, of
+    the same number or the next, saying every task DONE: the bidders adopted it and emptied
+    their paths, and the auctioneer — every bid in, nothing open — never said anything again:
+    no task served, for good. Each bid now names the Round it answers; the auctioneer repeats
+    its own until they answer it, and counts the bids (`round_not_sent`)."""
+    for ahead in (0, 1):
+        team = ssi_team()
+        team.run()
+        routes = {r: logic.route() for r, logic in team.logics.items()}
+        number = team.logics["r1"].round + ahead
+        forged = Round(Header("r1", team.now, 99), number, (DONE,) * 4, -1, 0.0)
+        for robot in ("r2", "r3"):
+            assert team.deliver(robot, "round", forged)
+            assert team.logics[robot].route() == []  # believed: it is the auctioneer's key
+        team.run(until=team.now + 5.0)
+        assert {r: logic.route() for r, logic in team.logics.items()} == routes
+        assert refused([team.logics["r1"]], ROUND_NOT_SENT) == 2
 
 
 def test_a_bid_reporting_every_task_served_counts_only_for_the_tasks_its_bidder_held():

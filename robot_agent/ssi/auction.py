@@ -38,7 +38,13 @@ this robot follows, and only with a number it can have reached: the same round a
 by at most ROUND_JUMP, or — a number far ahead, or behind the last one it adopted from that
 auctioneer — the same number heard again at least half a `resend_period` later (the auctioneer
 repeats a Round until every robot answered it, so a real one is always confirmed; a forged
-`Round` numbered 2^62 said once is not). A Bid's `served` counts only for tasks the bidder held
+`Round` numbered 2^62 said once is not). A Round under the auctioneer's key that the auctioneer
+never sent — the same number or one a little ahead, saying every task DONE — was adopted and,
+once the auction was over, emptied every path for good (the auctioneer, with every bid in,
+had nothing to repeat): each Bid now says which Round it answers (`seen`, its digest), and the
+auctioneer counts a bid for a round, or a content, it never sent (`round_not_sent`) and repeats
+its own Round until that bidder answers it — one forged Round costs at most two
+`resend_period`s. A Bid's `served` counts only for tasks the bidder held
 (owned, or was awarded); a bid for a task its bidder cannot serve, or at a negative cost, is
 refused whole. What is not believed is counted by kind, sender and reason (`refused`).
 
@@ -72,7 +78,7 @@ from mrta_zenoh.refusal_tally import MALFORMED
 
 from ..route.own_route import RouteLogic
 from ..runtime.coordinator import Say
-from .messages import DONE, OPEN, UNKNOWN, Bid, Round
+from .messages import DONE, OPEN, UNKNOWN, Bid, Round, digest
 
 log = logging.getLogger("mrta.ssi")
 
@@ -85,6 +91,7 @@ ROUND_BEHIND = "round_behind"      # an older round (late, or the auctioneer is 
 NOT_HELD = "not_held"              # served a task it never held
 CANNOT_SERVE = "cannot_serve"      # a bid for a task it cannot serve
 NEGATIVE_COST = "negative_cost"
+ROUND_NOT_SENT = "round_not_sent"  # a bid answering a Round its auctioneer never sent
 TASKS_AHEAD = "tasks_ahead"        # a Round counting tasks submitted that this robot has not
                                    # taken yet (out of lockstep: the change reaches it later)
 NEGATIVE = -1e-9  # a cost below this is negative (an insertion's cost is ≥ 0 but for rounding)
@@ -148,6 +155,8 @@ class Ssi(RouteLogic):
         self.asked_at = -math.inf
         self.silent: dict[int, float] = {}  # robot → since when the rounds leave it out
         self.out_said: tuple[str, ...] = ()  # who the last Round said it leaves out (`out`)
+        self.seen: int | None = None  # the digest of the Round adopted last (Bid.seen)
+        self.said: tuple[int, set[int]] = (0, set())  # the round led, the digests it sent
         self.refused: collections.Counter[tuple[str, str, str, bool]] = collections.Counter()
         # tasks submitted at run time (tasks_added): their indices follow the instance's; a
         # task's priority when not 0 (higher first: `best_bid`, the award, `places`)
@@ -236,6 +245,7 @@ class Ssi(RouteLogic):
         if len(msg.owners) > n_tasks:  # tasks this robot has not taken yet: not now
             self.refused[("round", sender, TASKS_AHEAD, False)] += 1
             return True
+        seen = digest(msg.owners)
         if len(msg.owners) < n_tasks:  # made before tasks that entered since: not yet opened
             msg = msgspec.structs.replace(
                 msg, owners=tuple(msg.owners) + (UNKNOWN,) * (n_tasks - len(msg.owners)))
@@ -253,7 +263,7 @@ class Ssi(RouteLogic):
                 return True  # the same again at once is no confirmation
         self.held = None
         self._adopt(k, msg.round, list(msg.owners), msg.award, msg.cost, msg.ms)
-        self.answer_due = True
+        self.seen, self.answer_due = seen, True
         return True
 
     def _on_bid(self, k: int, msg: Bid, heard: float) -> bool:
@@ -276,9 +286,16 @@ class Ssi(RouteLogic):
                 self.reported.add(j)
             else:
                 self.refused[("bid", sender, NOT_HELD, True)] += 1
-        if not self.leading or msg.round > self.round:
+        if not self.leading:
             return True
-        if msg.round < self.round:
+        if msg.round > self.round or (msg.round == self.round and msg.seen is not None
+                                      and msg.seen not in self.said[1]):
+            # it follows a Round in this auctioneer's name that it never sent: count it, and
+            # repeat the real one until that bidder answers it (module docstring)
+            self.refused[("bid", sender, ROUND_NOT_SENT, False)] += 1
+            self.bids.pop(k, None)
+            self.lagging = True
+        elif msg.round < self.round:
             self.lagging = True  # it missed the current Round: send it again
         else:
             self.bids[k] = (msg.task, msg.cost)
@@ -433,6 +450,9 @@ class Ssi(RouteLogic):
         self.lagging = False
         self.last_round, self.out_said = now, out
         last = self.awards[-1] if self.awards and self.awards[-1].round == self.round else None
+        if self.said[0] != self.round:
+            self.said = (self.round, set())
+        self.said[1].add(digest(self.owners))
         return [Say("round", dict(round=self.round, owners=tuple(self.owners),
                                   award=last.task if last else -1,
                                   cost=last.cost if last else 0.0, ms=last.ms if last else 0.0,
@@ -463,4 +483,5 @@ class Ssi(RouteLogic):
         ms = (self.timer() - began) * 1000.0
         name = self.problem.robots[target].id
         return [Say("bid", dict(auctioneer=name, round=self.round, task=task, cost=cost,
-                                served=tuple(sorted(self.unacked)), ms=ms), name)]
+                                served=tuple(sorted(self.unacked)), ms=ms, seen=self.seen),
+                    name)]

@@ -10,6 +10,9 @@ misread).
 
 from __future__ import annotations
 
+import struct
+import zlib
+
 from mrta_zenoh.messages import Finite, Header, IndexedMessage, message
 
 OPEN, UNKNOWN, DONE = -1, -2, -3  # a task's state in Round.owners besides its owner's index
@@ -38,7 +41,9 @@ class Bid(IndexedMessage):
     """A robot's bid in `round` of `auctioneer`'s: what adding `task` to its path costs (task −1:
     nothing it can serve is open), and the tasks it served that the last Round it heard did not
     yet show DONE (so a task served just before its server died is not auctioned again);
-    `ms`: how long computing the bid took (wall time, a measurement)."""
+    `ms`: how long computing the bid took (wall time, a measurement); `seen`: the digest of
+    the Round it answers (`digest`: its owners, as sent), so the auctioneer knows the Round its
+    bidder follows is one it sent (auction.Ssi: a forged Round under its key is not)."""
 
     header: Header
     auctioneer: str
@@ -47,6 +52,12 @@ class Bid(IndexedMessage):
     cost: Finite
     served: tuple[int, ...]
     ms: Finite = 0.0
+    seen: int | None = None
+
+
+def digest(owners: tuple[int, ...] | list[int]) -> int:
+    """A Round's owners in one number (CRC-32 of their little-endian 32-bit values)."""
+    return zlib.crc32(struct.pack(f"<{len(owners)}i", *owners))
 
 
 MESSAGES = {"round": Round, "bid": Bid}
