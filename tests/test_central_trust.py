@@ -8,11 +8,12 @@ import collections
 
 from hypothesis import HealthCheck, given, settings, strategies as st
 
-from mrta_agent.central.agent import VERSION_AHEAD, VERSION_OUT_OF_RANGE, CentralCoordinator
+from mrta_agent.central.agent import (VERSION_AHEAD, VERSION_BEHIND, VERSION_OUT_OF_RANGE,
+                                      CentralCoordinator)
 from mrta_agent.central.architecture import CENTRAL, DISPATCHER
 from mrta_agent.central.dispatcher import (IMPOSSIBLE, NOT_GRANTED, SERVED_TWICE, STALLED,
                                            VERSION_NOT_SENT, Dispatcher)
-from mrta_agent.central.messages import Progress, Queue
+from mrta_agent.central.messages import MAX_VERSION, Progress, Queue
 from mrta_agent.central.params import DispatcherParams
 from mrta_zenoh.bus import InProcBus
 from mrta_zenoh.messages import Header
@@ -205,6 +206,23 @@ def test_a_robot_fooled_by_a_repeated_forged_queue_is_noticed_and_brought_back()
     d = team.dispatcher
     assert d.version > 10 ** 9
     assert refused(d)[("robot1", VERSION_NOT_SENT)] >= 1
+
+
+def test_a_robot_fooled_by_a_forged_queue_at_the_highest_version_is_brought_back():
+    """The same at MAX_VERSION: the dispatcher cannot number above it, and every later queue
+    of its own, older, was ignored for good — robot1's tasks were never served. An older
+    version the dispatcher repeats is believed (`version_behind` until repeated)."""
+    team = Team(SQUARE)
+    team.step(11)
+    for _ in range(2):
+        forge(team, Queue(Header(DISPATCHER, team.clock.now(), 999), "robot1", MAX_VERSION, ()))
+        team.step(1)
+    robot1 = team.agents["robot1"].coordinator
+    assert robot1.applied == MAX_VERSION
+    team.until(team.all_served)
+    assert sorted(team.served_tasks()) == sorted(EVERY) and robot1.applied < MAX_VERSION
+    reasons = {(r, f) for (_k, _s, r, f) in robot1.refusals()}
+    assert (VERSION_BEHIND, False) in reasons
 
 
 def test_the_dispatcher_says_what_it_refused_and_the_team_serves_every_task():

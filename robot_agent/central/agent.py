@@ -6,8 +6,13 @@ order) and reports its progress.
   process token), addressed to this robot, and newer than the one applied (versions only grow:
   a late or repeated queue changes nothing) — but not too new: a version more than
   VERSION_JUMP ahead counts only once heard again at a later tick (the dispatcher repeats its
-  queues every `resend_period`), none above MAX_VERSION (messages.py). What is not believed is
-  counted (`Coordinator.refuse`).
+  queues every `resend_period`), none above MAX_VERSION (messages.py) — and so does an older
+  version than the newest heard: a forged queue repeated under the dispatcher's key at
+  MAX_VERSION was applied, and every later queue of the dispatcher's, numbered lower, was
+  ignored for good (its robot's tasks never served; the dispatcher cannot number above
+  MAX_VERSION); now the dispatcher's repeated queue brings the robot back within two
+  `resend_period`s. A late queue is not repeated, so it still changes nothing. What is not
+  believed is counted (`Coordinator.refuse`).
 * **Lease.** While the dispatcher's token lives but it has been silent for `lease` seconds —
   it is cut off from this robot, and may have given its tasks to others — the robot holds:
   it stands still and keeps its queue until it hears the dispatcher again. When the
@@ -44,6 +49,7 @@ from .params import CentralParams
 log = logging.getLogger("mrta.central")
 
 VERSION_AHEAD = "version_ahead"            # a queue far ahead, not (yet) heard again
+VERSION_BEHIND = "version_behind"          # an older queue than the newest, not (yet) repeated
 VERSION_OUT_OF_RANGE = "version_out_of_range"
 
 
@@ -60,7 +66,8 @@ class CentralCoordinator(Coordinator):
         self.route = RouteExecutor()
         self.applied = 0                      # the version of the queue applied
         self.pending: Queue | None = None     # the newest queue heard, applied at the next tick
-        self.held: tuple[int, float] | None = None  # a version far ahead, and when first heard
+        # a version far ahead or behind, and when first heard (module docstring)
+        self.held: tuple[int, float] | None = None
         self.dispatcher_alive = False
         self.dispatcher_seen = False          # its token was ever seen
         self.teammates: set[str] = set()      # robots of the team whose token lives
@@ -122,16 +129,20 @@ class CentralCoordinator(Coordinator):
         if message.version > MAX_VERSION:
             self.refuse("queue", sender, VERSION_OUT_OF_RANGE)
             return True
-        if message.version > self.applied + VERSION_JUMP:
+        newest = self.pending.version if self.pending is not None else self.applied
+        ahead = message.version > self.applied + VERSION_JUMP
+        if ahead or message.version < newest:
             if self.held is None or self.held[0] != message.version:
                 self.held = (message.version, at)
-                self.refuse("queue", sender, VERSION_AHEAD)
+                # behind: a late queue (latency reorders) does it too
+                self.refuse("queue", sender, VERSION_AHEAD if ahead else VERSION_BEHIND,
+                            forged=ahead)
                 return True
             if at <= self.held[1] + EPSILON:
                 return True  # the same again at once is no confirmation
+            newest = message.version - 1  # confirmed: taken, older or not
         self.held = None
         self.last_word = at if self.last_word is None else max(self.last_word, at)
-        newest = self.pending.version if self.pending is not None else self.applied
         if message.version > newest:
             self.pending = message
         return True
