@@ -117,3 +117,19 @@ def test_centrals_dispatcher_waits_for_the_window_and_the_service_of_a_robot_at_
         now = round(now + 0.1, 1)
     assert d.robots["robot1"].lost == "stalled"
     assert 30.0 + 8.0 + 5.0 <= now <= 30.0 + 8.0 + 5.0 + 0.3
+
+
+def test_a_teammate_pushed_off_its_task_while_serving_is_still_at_it():
+    """Within 1 m of its task a teammate is at it (AT_TASK): a serving robot pushed 0.64 m off
+    its task (Solomon C102, CBBA) was declared stalled at 0.5 m; 2 m off it is travelling."""
+    from mrta_agent.route.messages import Progress
+    from mrta_agent.route.own_route import Watch
+    from mrta_zenoh.messages import Header
+    contract, make = MAKE["ssi"]
+    t = RouteTeam(EARLY, contract.messages, lambda rid, body: make(EARLY, rid, body))
+    due = {}
+    for off in (0.8, 2.0):
+        w = Watch()
+        w.heard(Progress(Header("robot2", 3.0, 1), "t2", "", ("t2",), (), 8.0, off, 0.0), 3.0)
+        due[off] = t.coords["robot1"]._progress_due(w)
+    assert due == {0.8: 25.0 + 8.0 + TIMEOUT, 2.0: 3.0 + TIMEOUT}

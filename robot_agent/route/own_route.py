@@ -55,7 +55,11 @@ from .executor import Readings, RouteExecutor
 from .messages import Progress
 
 MOVED = 0.05  # m: a teammate whose reported pose moved this far made progress
-AT_TASK = 0.5  # m: a teammate this close to its task is there (waiting or serving: not stalled)
+# m: a teammate this close to its task is there (waiting or serving: not stalled). Not the
+# layer's 0.3 m stop tolerance: a robot serving can be pushed off it (Solomon C102, CBBA: 0.64 m
+# during a 25 s service, declared stalled at 0.5); the analysis counts a service within the
+# layer's tolerance + 1 m
+AT_TASK = 1.0
 
 
 class Watch:
