@@ -251,15 +251,13 @@ def test_a_search_stopped_by_its_time_cap_is_recorded_and_the_run_not_called_exa
     still called exact (its plan depends on the machine then). The Plan says it, the decision
     read from it counts it, and the summary's one line says why the run is not exact. Whether
     a real search hits its cap depends on the machine, so the search's answer is made capped
-    here (the real search's routes, its time made the whole `time_limit`)."""
-    import dataclasses
-
-    from mrta_agent.central import dispatcher as central
+    here (the real search's routes, as planning.routing reports a search its cap stopped)."""
+    from mrta_zenoh.planning import routing
     from mrta_supervisor.mission.summary import Decisions, MessageRates, Summary, run_problem
 
-    real = central.solve
-    monkeypatch.setattr(central, "solve", lambda *a, **kw: dataclasses.replace(
-        real(*a, **kw), seconds=kw["time_limit"]))
+    real = routing.solve_routing
+    monkeypatch.setattr(routing, "solve_routing", lambda *a, **kw: routing.BestFound(
+        real(*a, **kw).routes, capped=True))
     d = Dispatcher(SQUARE, DispatcherParams(exact_limit=0))
     for r in SQUARE.robots:
         d.teammate(r.id, True)

@@ -28,6 +28,21 @@ search) stops after `solutions` accepted solutions — a count, not a time, so t
 gives the same routes on any machine; `time_limit` is a safety cap, and a search stopped by it
 says so (`capped`), because then the result depends on the machine's speed. No sub-search has a
 wall limit of its own below that cap (`search_parameters`). A best-found value is never called optimal.
+
+**The cap is CPU time, not wall time** (issue 48). It counts the CPU seconds of the searching
+thread, looked at each time the search accepts a solution (`AddAtSolutionCallback`: a few
+hundred Python calls a search; a `CustomLimit`, called at every search node, cost 60 % more
+CPU at 20 / 20). A wall-clock cap made the study's 50-robot runs inexact on a loaded machine:
+central's search of 50 open tasks among 50 robots needs ≈ 2.7 CPU-s, which took 18.5 s of
+wall time at nice 19 beside other work — past a 10 s wall cap, so the search stopped on the
+load, not on its budget (benchmarks/README.md, "The routing search's cap"). CPU time grows with
+the work, not with the neighbours. A search that finds no next solution (every task
+unservable in its window: one solution, dropping them all) is never looked at by a
+per-solution check, so it is bounded by a count too: BRANCHES_PER_SOLUTION branches of the
+search per solution of its budget — ≈ 6 a solution in a search that finds them (20 / 20 and
+50 / 50 alike), thousands a CPU-second in one that finds none — deterministic, so a search
+it stops is not capped. OR-Tools' own limit (wall time) stays as a last resort at WALL_FACTOR
+times the cap; a search it stops is capped.
 """
 
 from __future__ import annotations
@@ -44,6 +59,8 @@ from .schedule import Objective, route_visits
 SCALE = 1000.0          # OR-Tools integer units per second
 WEIGHT = 100            # makespan's span / flowtime's cumul cost per ms, over the travel tie-break (1)
 DROP = 10 ** 13         # a dropped task's cost under hard windows (module docstring)
+WALL_FACTOR = 20        # OR-Tools' wall-clock limit: this many times the CPU cap (last resort)
+BRANCHES_PER_SOLUTION = 500  # the search's branch budget per solution of its budget (docstring)
 
 
 @dataclass(frozen=True)
@@ -62,7 +79,8 @@ class SearchTimeout(ConfigError):
 def solve_routing(problem: Problem, objective: Objective | str, *, solutions: int = 2000,
                   time_limit: float = 30.0) -> BestFound:
     """The best routes OR-Tools finds serving every task (ConfigError: a task nobody can
-    serve). `solutions`: the search's deterministic budget; `time_limit`: its safety cap (s)."""
+    serve). `solutions`: the search's deterministic budget; `time_limit`: its safety cap (CPU s
+    of the search, module docstring)."""
     from ortools.constraint_solver import pywrapcp, routing_enums_pb2
 
     objective = Objective(objective)
@@ -130,11 +148,18 @@ def solve_routing(problem: Problem, objective: Objective | str, *, solutions: in
     if objective is Objective.MAKESPAN:
         clock.SetGlobalSpanCostCoefficient(WEIGHT)
 
-    params = search_parameters(solutions, time_limit)
+    wall = time_limit * WALL_FACTOR
+    params = search_parameters(solutions, wall)
+    spent = _CpuCap(routing, time_limit)
+    routing.AddAtSolutionCallback(spent.check)
+    never = 2 ** 62  # no limit on this count: the solver's own "none"
+    routing.AddSearchMonitor(routing.solver().Limit(
+        never, BRANCHES_PER_SOLUTION * solutions, never, never, True, True))
     t0 = time.perf_counter()
     solution = routing.SolveWithParameters(params)
+    cut = spent.hit or time.perf_counter() - t0 >= 0.98 * wall
     if solution is None:
-        if routing.status() == routing_enums_pb2.RoutingSearchStatus.ROUTING_FAIL_TIMEOUT:
+        if cut or routing.status() == routing_enums_pb2.RoutingSearchStatus.ROUTING_FAIL_TIMEOUT:
             raise SearchTimeout(f"OR-Tools found no route at all within its time limit of "
                                 f"{time_limit:g} s ({n} tasks, {m} robots): raise time_limit")
         raise ConfigError(f"OR-Tools found no route serving every task "
@@ -150,7 +175,24 @@ def solve_routing(problem: Problem, objective: Objective | str, *, solutions: in
         routes[i] = route
     if hard:
         routes = _keep_in_windows(problem, routes)
-    return BestFound(routes, time.perf_counter() - t0 >= 0.98 * time_limit)
+    return BestFound(routes, cut)
+
+
+class _CpuCap:
+    """Ends a search whose thread has spent `seconds` of CPU time, looked at each solution
+    (module docstring): OR-Tools has no CPU limit, so the solver is told to finish
+    (`FinishCurrentSearch`: the best solution so far is the answer; its `UpdateTimeLimit`
+    takes an absl::Duration the Python binding cannot make). The search runs on the calling
+    thread, so `time.thread_time` is its CPU time (and no other thread's)."""
+
+    def __init__(self, routing, seconds: float):
+        self.routing, self.seconds, self.hit = routing, seconds, False
+        self.start = time.thread_time()
+
+    def check(self) -> None:
+        if not self.hit and time.thread_time() - self.start >= self.seconds:
+            self.hit = True
+            self.routing.solver().FinishCurrentSearch()
 
 
 def search_parameters(solutions: int, time_limit: float):

@@ -37,7 +37,7 @@ RESEND_PERIOD = 1.0
 EXACT_LIMIT = 8        # tasks still open up to which the dispatcher solves exactly
 SOLUTIONS = 200        # the routing search's deterministic budget above it
 SEARCH_LIMIT = 50      # open tasks up to which that search runs; above, cheapest insertion
-TIME_LIMIT = 10.0      # its safety cap (s): a search stopped by it is not reproducible
+TIME_LIMIT = 10.0      # its safety cap (CPU s of the search): one stopped by it is not reproducible
 
 
 @dataclass(frozen=True)

@@ -151,9 +151,9 @@ def solve(problem: Problem, situation: Situation, objective: Objective, *, exact
     else:
         from mrta_zenoh.planning.routing import SearchTimeout, solve_routing
         try:
-            routes = _named(solve_routing(sub, objective, solutions=solutions,
-                                          time_limit=time_limit).routes, robot_ids, task_ids)
-            method = BEST_FOUND
+            found = solve_routing(sub, objective, solutions=solutions, time_limit=time_limit)
+            routes = _named(found.routes, robot_ids, task_ids)
+            method, capped = BEST_FOUND, found.capped  # its cap: CPU s of the search
         except SearchTimeout:
             # a time cap too short for even a first solution (issue 51.2: a 1 ms time_limit
             # crashed the dispatcher): each task inserted where it adds least, reported capped
