@@ -1,6 +1,6 @@
 """Lockstep simulation time with real processes: the same seed gives the same run whatever the
 machine's load; a dead participant is no longer waited for; a hung one is reported and, after
-the limit, no longer waited for."""
+the limit, no longer waited for; one still computing past the limit is waited for."""
 
 import signal
 import subprocess
@@ -96,6 +96,21 @@ def test_a_hung_participant_is_reported_and_after_the_limit_no_longer_waited_for
         sup.wait_json(lambda o: o["time"] > alarm["time"] + 3.0, 60)  # it goes on without robot2
     finally:
         agents["robot2"].signal(signal.SIGCONT)
+
+
+@pytest.mark.slow
+def test_a_participant_computing_past_the_limit_is_waited_for_and_the_run_stays_exact(children):
+    """A participant whose loop computes for 6 s of wall at t=1 s, under a 2 s limit: it says
+    it is working (its loop thread uses CPU time), the simulator waits for it instead of giving
+    it up, and it goes on in step — where a SIGSTOP'd one (above) says nothing and is given up."""
+    sim = children.mrta("sim", "--world", "patrol", "--robot", "robot1", "--speed", "4",
+                        "--lockstep", "--lockstep-timeout", "2", "--wait-robots", "60",
+                        name="sim")
+    busy = children.python("busy_participant.py", "robot1", "1.0", "6.0", "4.0", name="robot1")
+    busy.wait_json(lambda o: o.get("computed") == 6.0, 120)
+    busy.wait_json(lambda o: o.get("time", 0) >= 3.0, 120)  # in step again, after it
+    assert any("robot1 still computing t=1.00" in line for line in sim.stderr), sim.stderr[-5:]
+    assert not any("no longer waited for" in line for line in sim.stderr), sim.stderr[-5:]
 
 
 PROBE = """

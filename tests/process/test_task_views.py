@@ -3,7 +3,7 @@ reachable mission (`mrta demo --rendezvous`), `mrta echo tasks/change` prints wh
 run as it enters, and a live view started after the submissions — `mrta supervise` and
 `mrta view` — still knows them: it asks the intake for the run's task set so far
 (`tasks/history`, a queryable: the late joiner's history, as rmw_zenoh's transient local) as
-it starts, and hears the rest live."""
+it starts, and hears the rest live — on a secured fleet too, under the observer's certificate."""
 
 import json
 
