@@ -38,17 +38,21 @@ Departures from the paper, each for a reason given in docs/cbba.md:
   whole; a task in its `done` counts as served only if its sender had won it as this robot
   knew it before the message — and no earlier than that winner could have served it (from
   its start, at its speed: `earliest`; a certified robot cannot end a task it won at once;
-  a claim too early for its sender but not for another robot believed the winner is taken as
-  a relay of that robot's service and waits like one) —
+  a claim too early for its sender but not for another robot believed the winner, or for a
+  robot the sender's own time stamps say it had news from since that robot could have served
+  it, is taken as a relay of that robot's service and waits like one) —
   or once more than half of its teammates not known gone said so
   (a robot counted gone — a stall — never learns who won its tasks meanwhile, and every other
   robot relays their completion; a relay alone is not believed, or one liar's claim, relayed
   by those who believed it, would reach the majority). A claim believed on neither ground waits,
   counted once per task and sender as `done_unconfirmed` (not forged: an honest relay to a
-  robot that missed who won looks the same); once the task is served — by this robot, or
-  believed on either ground — a waiting claim stamped more than CLAIM_SLACK before that is
-  refused as forged (`done_not_won`: it said served what was not yet), the others were honest
-  and are forgotten. A message stamped more than STAMP_SLACK
+  robot that missed who won looks the same, and so does the claim of a robot out of range that
+  served a task it never heard it was outbid on); a waiting claim its sender's next message
+  does not repeat was not its sender's (a robot's served tasks only grow) and is refused as
+  forged (`done_not_won`: it said served what was not yet) once the task is served — by this
+  robot, or believed on either ground —, the others are forgotten then. How long before that
+  the claim came proves nothing: under a communication range this robot may learn of a
+  service long after the robots near it (docs/security.md). A message stamped more than STAMP_SLACK
   after it was heard is refused (it would supersede its sender's real ones until then). The
   paper trusts every message: one robot saying every task done would otherwise end the
   mission with nothing served.
@@ -84,7 +88,7 @@ STAMP_AHEAD = "stamp_ahead"            # stamped later than it was heard, by mor
 TASKS_AHEAD = "tasks_ahead"            # names tasks submitted that this robot has not taken yet
 TASKS_LEEWAY = 100_000  # tasks a message may name beyond this robot's (the intake's bound)
 STAMP_SLACK = 1.0  # s: a teammate's clock may run this far ahead of this robot's hearing it
-CLAIM_SLACK = 3.0  # s: honest claims of a completion (its server's, the relays) come this close
+CLAIM_SLACK = 3.0  # s: a completion may be said this long before its server could have made it
 ROUNDING = 1e-9
 
 
@@ -144,6 +148,10 @@ class Cbba(RouteLogic):
         # task → who said it served and was not believed (yet) → the stamp it first said so
         self.done_claims: dict[int, dict[int, float]] = {}
         self.too_early: set[tuple[int, int]] = set()  # (winner, task) said served too early
+        # sender → {task: stamp} of its waiting claims its next message has still to repeat, and
+        # (sender, task) of those a later message of that sender did not (`_check_claims`)
+        self.unchecked: dict[int, dict[int, float]] = {}
+        self.contradicted: set[tuple[int, int]] = set()
         self.refused: collections.Counter[tuple[str, str, str, bool]] = collections.Counter()
         self.base_reward: dict[int, Task] = {}  # a task as it came, before its priority weighed it
 
@@ -248,14 +256,16 @@ class Cbba(RouteLogic):
             return True  # refused whole, and counted here
         self.latest[k] = msg.header.stamp
         stamp = msg.header.stamp
+        if self.unchecked.get(k):
+            self._check_claims(k, stamp, msg.done)
         for j in msg.done:
             if j in self.done:
                 continue
             if k in self.won.get(j, ()):
                 if stamp >= self.earliest(k, j) - CLAIM_SLACK:
-                    self._mark_done(j, stamp)
+                    self._mark_done(j)
                     continue
-                if not self._relay_possible(k, j, stamp):
+                if not self._relay_possible(k, j, stamp, said.stamps):
                     if (k, j) not in self.too_early:  # counted once; believed once it could be
                         self.too_early.add((k, j))
                         self.refused[("bids", sender, TOO_EARLY, True)] += 1
@@ -266,8 +276,9 @@ class Cbba(RouteLogic):
             if k not in claims:
                 self.refused[("bids", sender, UNCONFIRMED, False)] += 1
                 claims[k] = stamp
+                self.unchecked.setdefault(k, {})[j] = stamp
             if len(set(claims) - self.departed) > self._others() / 2:
-                self._mark_done(j, stamp)
+                self._mark_done(j)
         s_k, theirs = said.stamps, said.winners
         z, y, done, departed = self.z, self.y, self.done, self.departed
         # Table 1 leaves a task alone where both sides name the same winner and bid (rows 2,
@@ -298,7 +309,7 @@ class Cbba(RouteLogic):
             self.path.remove(j)
         self.z[j] = self.i
         self.done.add(j)
-        self._settle(j, at)
+        self._settle(j)
         self.relocate(Origin(j, at))
         self.position = self.problem.tasks[j].position
 
@@ -462,12 +473,20 @@ class Cbba(RouteLogic):
         """A winner that left the team reads as none."""
         return View(NONE, 0.0) if view.winner in self.departed else view
 
-    def _relay_possible(self, k: int, j: int, stamp: float) -> bool:
-        """Whether another robot believed j's winner could have served it by `stamp`: then k's
-        early `done` may be an honest relay (seen after a partition: k won j, lost it to a
-        teammate on its side, and reports that teammate's service when it rejoins), so it waits
-        for a majority like any relay instead of being refused as forged."""
-        return any(w != k and stamp >= self.earliest(w, j) - CLAIM_SLACK for w in self.won[j])
+    def _relay_possible(self, k: int, j: int, stamp: float, s_k: dict[int, float]) -> bool:
+        """Whether k's `done` of j, too early for k, may relay another robot's service: another
+        robot believed j's winner could have served it by `stamp` (seen after a partition: k won
+        j, lost it to a teammate on its side, and reports that teammate's service when it
+        rejoins), or k's own time stamps `s_k` say it had news from a robot able to serve j
+        from when that robot could have served it (under a communication range, the study's
+        file 07: this robot never heard that robot win j — nothing told it across the gap — yet
+        the news of its service came to k the way every news of it does, with its time stamp,
+        s_km ≥ when m said it). Then it waits for a majority like any relay instead of being
+        refused as forged."""
+        if any(w != k and stamp >= self.earliest(w, j) - CLAIM_SLACK for w in self.won[j]):
+            return True
+        return any(m != k and m != self.i and self.problem.capable(m, j)
+                   and t >= self.earliest(m, j) - CLAIM_SLACK for m, t in s_k.items())
 
     def earliest(self, k: int, j: int) -> float:
         """The earliest robot k could have finished task j: from its start at its speed (the
@@ -476,30 +495,55 @@ class Cbba(RouteLogic):
         task = self.problem.tasks[j]
         return max(self.problem.travel(k, None, j), task.arrival) + task.service
 
-    def _mark_done(self, j: int, at: float) -> None:
-        """Another robot served j (believed at `at`, the stamp of the message that said so):
-        served tasks are final. If this robot still held it (two robots served one task before
+    def _mark_done(self, j: int) -> None:
+        """Another robot served j (believed on the message just heard): served tasks are final. If this robot still held it (two robots served one task before
         agreeing), it goes like an outbid one, with every task added after it."""
         if j in self.done:
             return
         self.done.add(j)
-        self._settle(j, at)
+        self._settle(j)
         self.changed = True
         if j in self.bundle:
             self._release_from(self.bundle.index(j))
 
-    def _settle(self, j: int, at: float) -> None:
-        """j is served, believed at `at`: each claim of it that waited (`done_claims`) was
-        honest if it came at most CLAIM_SLACK before, and is forgotten; an earlier one said
-        served what was not yet, and is refused as forged (module docstring)."""
-        for m, said in self.done_claims.pop(j, {}).items():
+    def _settle(self, j: int) -> None:
+        """j is served: each claim of it that waited (`done_claims`) is no
+        longer unconfirmed; one its sender contradicted since is refused as forged, the others
+        are forgotten — or judged at their sender's next message (`_check_claims`).
+
+        Not by how long before `at` it came (the rule until the study's file 07): `at` is only
+        when this robot learned of the service, which under a communication range can be long
+        after it — an honest robot relays it, or served the task itself believing it won it (a
+        robot out of range never heard it was outbid), long before its news reaches here."""
+        for m in self.done_claims.pop(j, {}):
             sender = self.problem.robots[m].id
             unconfirmed = ("bids", sender, UNCONFIRMED, False)
             self.refused[unconfirmed] -= 1
             if self.refused[unconfirmed] <= 0:
                 del self.refused[unconfirmed]
-            if said < at - CLAIM_SLACK:
+            if (m, j) in self.contradicted:
+                self.contradicted.discard((m, j))
                 self.refused[("bids", sender, NOT_WON, True)] += 1
+
+    def _check_claims(self, k: int, stamp: float, done: tuple[int, ...]) -> None:
+        """k's message stamped `stamp` against k's earlier waiting claims: a robot's served
+        tasks only grow (served tasks are final, and every Bids lists them all), so a later
+        message of k's without a task it said served shows that claim was not k's — a forger
+        under k's key said served what was not yet (`done_not_won`), refused at once if the
+        task is served by now, else once it is (`_settle`). A claim k repeats is consistent and
+        left to the majority; the one check each claim needs is k's next message."""
+        mine = self.unchecked[k]
+        said = set(done)
+        for j, t in list(mine.items()):
+            if stamp <= t:
+                continue
+            del mine[j]
+            if j in said:
+                continue
+            if j in self.done:
+                self.refused[("bids", self.problem.robots[k].id, NOT_WON, True)] += 1
+            else:
+                self.contradicted.add((k, j))
 
     def _valid(self, named: tuple[int, int, int], leeway: int = 0) -> bool:
         least, task, robot = named
