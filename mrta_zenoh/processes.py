@@ -112,14 +112,18 @@ class Child:
         return rc
 
     def stop(self, grace: float = 5.0) -> int:
-        """SIGINT (a clean shutdown: Zenoh sessions closed), SIGKILL after `grace` seconds."""
+        """SIGINT (a clean shutdown: Zenoh sessions closed), SIGKILL after `grace` seconds, and
+        then its end waited for without a bound: a SIGKILL always ends a process, but the
+        kernel's tearing down of a big one gets the CPU slowly on a loaded machine — a 100-robot
+        host (≈ 0.5 GB) at nice 19 and load 41 took over 5 s, and the whole `mrta demo` of a
+        finished 20-minute mission ended with a TimeoutExpired traceback (issue 47)."""
         if self.proc.poll() is None:
             self.signal(signal.SIGINT)
             try:
                 self.proc.wait(timeout=grace)
             except subprocess.TimeoutExpired:
                 self.signal(signal.SIGKILL)
-                self.proc.wait(timeout=grace)
+                self.proc.wait()
         return self.wait(grace)
 
     # ---- waiting for output (tests and tools that read a child's answers)
