@@ -6,11 +6,14 @@ names what was refused and calls the run disturbed (not complete and exact, and 
 machine's fault). The in-process tests of each rule: tests/test_central_trust.py,
 tests/test_believed_claims.py.
 
-The CI tier runs one attack per architecture whose rules differ — the delivery `done` (every
-architecture's, under ALLIANCE), central's `Progress`, SSI's `Round`, CBBA's `Bids`: each the one
-process test of "a message believed only for what its sender can claim" and "refused traffic in
-the summary" for its architecture (≈ 30–55 s each at load 25 on 2 cores); a stranger's lockstep
-token is `slow`."""
+The CI tier runs two attacks: the delivery `done` (every architecture's, under ALLIANCE) and
+CBBA's `Bids` (a route-family architecture's own message; CBBA's one cross-process run in CI):
+the process tests of "a message believed only for what its sender can claim" and "refused
+traffic in the summary" (≈ 10–14 CPU-s each). Central's `Progress` and SSI's `Round` are `slow`:
+their rules are proved in-process (tests/test_central_trust.py, tests/test_believed_claims.py),
+the path from a refusal to the summary is the same, and central and SSI run across processes in
+CI elsewhere (test_golden_summaries[central-stall], test_windows_multiprocess[ssi]); a stranger's
+lockstep token is `slow` too."""
 
 from __future__ import annotations
 
@@ -51,6 +54,7 @@ def test_four_dones_from_a_robot_that_never_moved_neither_end_the_run_nor_skip_a
     assert s["ended_at"] > 10.0 and s["metrics"]["events_refused"] == 4
 
 
+@pytest.mark.slow
 def test_a_progress_saying_every_task_served_neither_stops_the_dispatcher_nor_the_run(
         children, tmp_path):
     """It raised in the dispatcher ("task … is on the routes of …"): exit 1, no summary."""
@@ -59,6 +63,7 @@ def test_a_progress_saying_every_task_served_neither_stops_the_dispatcher_nor_th
     assert ("dispatcher", "robot2", "not_granted", True) in refused
 
 
+@pytest.mark.slow
 def test_a_round_numbered_2_62_does_not_stop_ssi(children, tmp_path):
     s = attacked_demo(children, tmp_path, "ssi", "ssi-round", "-")
     assert any(r["reason"] == "round_ahead" and r["sender"] == "robot1" for r in s["refused"])
