@@ -440,12 +440,13 @@ class _Backend:
             slurm_backend.run_on_slurm(packages=self.packages, duration=self.duration,
                                        runs=runs, output=self.output, stop=self.stop,
                                        results=self.results, pictures=self.pictures,
-                                       options=self.slurm)
+                                       options=self.slurm, warm=self.warm)
         elif self.scheduler is not None:
             dask_backend.run_on_cluster(self.scheduler, packages=self.packages,
-                                           duration=self.duration, runs=runs,
-                                           output=self.output, stop=self.stop,
-                                           results=self.results, pictures=self.pictures)
+                                        duration=self.duration, runs=runs,
+                                        output=self.output, stop=self.stop,
+                                        results=self.results, pictures=self.pictures,
+                                        warm=self.warm)
         else:
             _run_here(self.packages, self.duration, runs, self.output, self.jobs, self.stop,
                       self.results, self.pictures, self.warm)

@@ -186,9 +186,10 @@ def experiment() -> None:
               help="Run each run's robots' agents K per process (agent hosts: the same rows, "
                    "less CPU); 1: a process per robot. results.csv says which.")
 @click.option("--fork-server/--no-fork-server", "warm", default=True, show_default=True,
-              help="On this machine (--jobs): fork every run's processes from one process "
-                   "that imported their modules once (the same rows, ≈ a quarter less CPU), "
-                   "instead of starting each as a fresh interpreter.")
+              help="Fork every run's processes from one process that imported their "
+                   "modules once (the same rows, ≈ a quarter less CPU), instead of starting "
+                   "each as a fresh interpreter: one server for the experiment on this "
+                   "machine (--jobs), one per run on a Dask worker or a SLURM array task.")
 @click.option("--until-ci", "until", multiple=True, metavar="METRIC:HALF_WIDTH",
               callback=_targets,
               help="Add blocks of runs until the 95 % bootstrap interval of METRIC (a "

@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from mrta_zenoh import forkserver
 from mrta_zenoh.errors import ConfigError, MrtaRuntimeError
 from mrta_zenoh.files import write_folder as files_write_folder
 from mrta_zenoh.processes import ProcessGroup
@@ -92,6 +93,7 @@ class RunTask:
     stop_event: str
     plots: bool = True
     instance: bytes | None = None
+    warm: bool = True  # the run's processes forked by a fork server of the task's own
 
 
 @dataclass
@@ -133,11 +135,13 @@ def run_task(task: RunTask) -> RunResult:
             instance.write_bytes(task.instance)
         with ProcessGroup() as group:
             child = start_run(group, Registry().find(task.package), task.duration, task.run,
-                              out, task.plots, instance)
+                              out, task.plots, instance, warm=task.warm)
             while child.running():
                 if stop.wait(POLL):
                     stopped = True
                     break
+            if not stopped:
+                forkserver.finish(group)
         rc = child.wait(10)
         wall = time.monotonic() - t0
         if stopped:
@@ -208,7 +212,7 @@ def check_workers(client, address: str) -> None:
 def run_on_cluster(address: str, *, packages: dict, duration: float, runs: list[Run],
                    output: Path, stop: threading.Event, results: Results,
                    pictures: set[int] = frozenset(),
-                   connect_timeout: float = CONNECT_TIMEOUT) -> None:
+                   connect_timeout: float = CONNECT_TIMEOUT, warm: bool = True) -> None:
     """Every run as a task on the cluster at `address`; each run's folder and row as soon as it
     ends (the runs in `pictures` draw theirs). `packages`: the application package of each
     architecture of the runs. On `stop`: the runs that had finished cleanly are kept, the
@@ -236,7 +240,8 @@ def run_on_cluster(address: str, *, packages: dict, duration: float, runs: list[
         for run in runs:
             task = RunTask(packages[run.architecture].name, duration, run, event,
                            run.index in pictures,
-                           texts[run.instance.path] if run.instance is not None else None)
+                           texts[run.instance.path] if run.instance is not None else None,
+                           warm)
             future = client.submit(run_task, task, key=f"mrta-run{run.index:03d}-{token}",
                                    resources={RESOURCE: 1}, retries=RETRIES)
             futures[future] = run

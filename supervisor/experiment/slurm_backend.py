@@ -39,6 +39,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from mrta_zenoh import forkserver
 from mrta_zenoh.errors import ConfigError
 from mrta_zenoh.processes import ProcessGroup
 from mrta_zenoh.yamlfile import plural
@@ -103,6 +104,7 @@ class SlurmTask:
     run: Run
     out: str
     plots: bool = True
+    warm: bool = True  # the run's processes forked by a fork server of the task's own
 
 
 @dataclass
@@ -115,21 +117,26 @@ class TaskResult:
 
 def run_task(task: SlurmTask) -> TaskResult:
     """Run one mission on this node (the array task's function: importable by name, so the
-    node unpickles it from its own install), once more if its lockstep was not exact."""
+    node unpickles it from its own install), once more if its lockstep was not exact. With
+    `warm`, its processes (runner, recorder, simulator, agent hosts) are forked by a fork
+    server the task starts (mrta_zenoh.forkserver: one import of the project instead of one a
+    process; the same rows), ended with the task."""
     out = Path(task.out)
     package = Registry().find(task.package)
-    for attempt in range(2):
-        if out.exists():
-            shutil.rmtree(out)
-        out.mkdir(parents=True)
-        t0 = time.monotonic()
-        with ProcessGroup() as group:
-            child = start_run(group, package, task.duration, task.run, out, task.plots)
+    with ProcessGroup() as group:
+        for attempt in range(2):
+            if out.exists():
+                shutil.rmtree(out)
+            out.mkdir(parents=True)
+            t0 = time.monotonic()
+            child = start_run(group, package, task.duration, task.run, out, task.plots,
+                              warm=task.warm)
             rc = child.wait(None)
-        wall = time.monotonic() - t0
-        if attempt == 0 and inexact(out):
-            continue
-        break
+            wall = time.monotonic() - t0
+            if attempt == 0 and inexact(out):
+                continue
+            break
+        forkserver.finish(group)
     return TaskResult(rc, child.stdout[-OUTPUT_LINES:], wall, code_revision())
 
 
@@ -168,7 +175,7 @@ def job_name(output: Path) -> str:
 
 def run_on_slurm(*, packages: dict, duration: float, runs: list[Run], output: Path,
                  stop: threading.Event, results: Results, pictures: set[int] = frozenset(),
-                 options: SlurmOptions = SlurmOptions()) -> None:
+                 options: SlurmOptions = SlurmOptions(), warm: bool = True) -> None:
     """Every run as an array task; each run's row as its task ends. On `stop`: the tasks not
     ended are cancelled, the rows of those that had are kept."""
     submitit = require_submitit()
@@ -186,7 +193,8 @@ def run_on_slurm(*, packages: dict, duration: float, runs: list[Run], output: Pa
     pending: dict[Any, Run] = {}
     for part in chunks(runs, max(1, size)):
         tasks = [SlurmTask(packages[r.architecture].name, duration, r,
-                           str(output / f"run{r.index:03d}"), r.index in pictures) for r in part]
+                           str(output / f"run{r.index:03d}"), r.index in pictures, warm)
+                 for r in part]
         try:
             jobs = executor.map_array(run_task, tasks)
         except (UncompletedJobError, FailedSubmissionError, OSError) as exc:  # sbatch's refusal
