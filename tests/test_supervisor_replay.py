@@ -122,6 +122,36 @@ def test_a_replay_that_falls_behind_slips_instead_of_bursting(monkeypatch):
         assert (a1 - a0) / 4.0 <= (w1 - w0) + MAX_LAG / 4.0 + 1e-9
 
 
+def test_a_runs_end_is_given_time_to_be_seen_before_its_processes_exit(monkeypatch, tmp_path):
+    """`mrta supervise --sim-time` after a replay of the demo showed robot1 offline with
+    `communication_lost` (issue 51, the newcomer's list): its agent's token, recorded going as
+    the run's processes stopped, went out the same instant as the run's end, and the follower
+    sometimes handled it first. The replay settles (END_SETTLE wall seconds) after announcing a
+    run's end, as a live run's simulator ends before its processes are stopped."""
+    records = recording(tmp_path / "r.mcap", "aaaa-x1", 1.0, 1.0, True, robot="robot1")
+    plan = announce_runs(plan_replay(records, clock=True), 4.0, True)
+    said: list[str] = []
+
+    class Bus:
+        def publish_raw(self, key, enc, payload):
+            said.append(key)
+
+        def declare_token(self, key):
+            said.append(f"up {key}")
+            return type("Token", (), {"close": lambda _: said.append(f"down {key}")})()
+
+    def wait(stop, seconds):
+        said.append(f"wait {seconds}")
+        return False
+
+    monkeypatch.setattr(replay_mod, "wait_for_stop", wait)
+    replay_mod.execute(plan, Bus(), 0.0, threading.Event())
+    end = said.index(f"wait {replay_mod.END_SETTLE}")
+    assert said[end - 1].startswith("down " + CLOCK_SOURCE_TOKEN) and said[end - 1].endswith(
+        "/ended")  # the end announced whole, then the pause
+    assert said[end + 1:] == ["down robot1/alliance/agent"] and replay_mod.END_SETTLE >= 0.5
+
+
 @pytest.mark.slow
 @pytest.mark.multiprocess
 def test_supervise_follows_a_fast_replay_to_its_end_and_stops_there(children, tmp_path):

@@ -68,6 +68,12 @@ MAX_LAG = 1.0   # seconds of the recording a replay may fall behind before it sl
 # up at a tenth of its idle rate (≈ 30 µs a sample) drains a 20,000-sample backlog in it.
 DRAIN = 2.0
 NS = 1_000_000_000
+# Wall seconds a replay pauses once it has announced a recorded run's end. The run's processes
+# stopped after its simulator did, so their tokens' losses are recorded at the run's last
+# instant: sent at once after the end, a follower (`mrta supervise --sim-time`) sometimes
+# handled robot1's first and showed a robot that ran to the end offline with
+# `communication_lost` (issue 51, the newcomer's list). A live run gives the end that time.
+END_SETTLE = 1.0
 
 
 @dataclass(frozen=True)
@@ -80,6 +86,7 @@ class Step:
     encoding: str = ""
     payload: bytes = b""
     alive: bool | None = None  # None: a sample; True/False: a token up / down
+    settle: float = 0.0  # wall seconds to wait once it is done (a run's end: END_SETTLE)
 
 
 @dataclass
@@ -185,7 +192,7 @@ def announce_runs(plan: Plan, speed: float, simulated: bool) -> Plan:
         ended = f"{CLOCK_SOURCE_TOKEN}/{new}/{CLOCK_SOURCE_ENDED}"
         steps[i + 1:i + 1] = [Step(steps[i].at, ended, alive=True),
                               Step(steps[i].at, f"{CLOCK_SOURCE_TOKEN}/{new}", alive=False),
-                              Step(steps[i].at, ended, alive=False)]
+                              Step(steps[i].at, ended, alive=False, settle=END_SETTLE)]
     plan.steps = steps
     return plan
 
@@ -229,6 +236,8 @@ def execute(plan: Plan, bus: Bus, speed: float, stop: threading.Event) -> int:
                 tokens[step.key] = bus.declare_token(step.key)
             elif not step.alive and step.key in tokens:
                 tokens.pop(step.key).close()
+            if step.settle and wait_for_stop(stop, step.settle):
+                break
     finally:
         for tok in tokens.values():
             tok.close()
