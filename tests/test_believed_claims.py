@@ -8,7 +8,8 @@ from __future__ import annotations
 
 import math
 
-from mrta_agent.cbba.bundle import BID_OUT_OF_RANGE, NOT_WON, TOO_EARLY, UNCONFIRMED, Cbba
+from mrta_agent.cbba.bundle import (BID_OUT_OF_RANGE, NOT_WON, STAMP_AHEAD, TOO_EARLY,
+                                    UNCONFIRMED, Cbba)
 from mrta_agent.cbba.messages import MESSAGES as CBBA_MESSAGES, Bids
 from mrta_agent.ssi.auction import (CANNOT_SERVE, NEGATIVE_COST, NOT_HELD, ROUND_AHEAD,
                                     ROUND_NOT_SENT, Ssi)
@@ -224,3 +225,25 @@ def test_a_bids_stamped_far_ahead_is_refused_and_does_not_silence_its_sender():
     team.run()
     assert {j for logic in team.logics.values() for j in logic.bundle} == {0, 1, 2, 3}
     assert team.logics["r1"].superseded == 0
+
+
+def test_a_bids_with_time_stamps_from_the_future_is_refused():
+    """A Bids (under r2's key, to r1 and r3, which hear each other only through r2: a range)
+    stamping every robot 10^12: each receiver's time stamps froze there, no relay was newer
+    ever again, and r1 kept b and c, which r3 had won — both served them. An entry later than
+    the message itself (by more than the clock slack) is refused whole (`stamp_ahead`)."""
+    def chain() -> LogicTeam:
+        return LogicTeam({r.id: Cbba(LINE, r.id, lookahead=math.inf, resend_period=1.0)
+                          for r in LINE.robots}, CBBA_MESSAGES,
+                         neighbours=lambda a, b: {a, b} != {"r1", "r3"})
+    honest = chain()
+    honest.run()
+    team = chain()
+    forged = Bids(Header("r2", 0.0, 99), (), ((0, 1e12), (1, 1e12), (2, 1e12)), (), 5.0, 0.0)
+    for robot in ("r1", "r3"):
+        assert team.deliver(robot, "bids", forged)
+    team.run()
+    assert {r: logic.route() for r, logic in team.logics.items()} == \
+        {r: logic.route() for r, logic in honest.logics.items()}
+    assert refused(team.logics.values(), STAMP_AHEAD) == 2
+

@@ -53,7 +53,11 @@ Departures from the paper, each for a reason given in docs/cbba.md:
   robot, or believed on either ground —, the others are forgotten then. How long before that
   the claim came proves nothing: under a communication range this robot may learn of a
   service long after the robots near it (docs/security.md). A message stamped more than STAMP_SLACK
-  after it was heard is refused (it would supersede its sender's real ones until then). The
+  after it was heard is refused (it would supersede its sender's real ones until then), and so
+  is one whose time stamp of another robot is more than STAMP_SLACK after its own (news from
+  the future: one such message, stamping every robot 10^12, froze every relay of theirs at its
+  receivers for good — on a range-limited team a robot then kept tasks others had won, and both
+  served them). The
   paper trusts every message: one robot saying every task done would otherwise end the
   mission with nothing served.
 """
@@ -244,9 +248,11 @@ class Cbba(RouteLogic):
                 and math.dist(self.position, (msg.x, msg.y)) > self.comm_range):
             self.out_of_range += 1
             return True
-        if msg.header.stamp > at + STAMP_SLACK:
+        if msg.header.stamp > at + STAMP_SLACK or \
+                max(said.stamps.values(), default=-math.inf) > msg.header.stamp + STAMP_SLACK:
             self.refused[("bids", sender, STAMP_AHEAD, True)] += 1
-            return True  # it would supersede its sender's real messages until then
+            return True  # it would supersede its sender's real messages until then, or (its
+            # news of another robot later than itself) every relay of that robot's for good
         if msg.header.stamp < self.latest.get(k, -math.inf):
             self.superseded += 1  # delivered out of order: a later one was applied already
             self.refused[("bids", sender, SUPERSEDED, False)] += 1
