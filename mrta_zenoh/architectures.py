@@ -27,6 +27,7 @@ from .clock import EPSILON
 from .errors import ConfigError
 from .failure import Faults
 from .installed import entry_points
+from .untrusted import visible
 from .keys import NODE_TOKEN, first_chunk
 from .yamlfile import did_you_mean
 
@@ -75,10 +76,16 @@ class Decision:
     counted: bool = True
 
 
+MAX_OUT = 64  # `robot:reason` statements of one message read (a team leaves out fewer)
+
+
 def declared_out(out: Iterable[str]) -> tuple[tuple[str, str], ...]:
     """`Decision.out` from a message's `robot:reason` strings (central's `Plan.out`, SSI's
-    `Round.out`, CBBA's `Bids.out`); a string without a reason is no statement, and skipped."""
-    return tuple(tuple(o.split(":", 1)) for o in out if ":" in o)  # type: ignore[misc]
+    `Round.out`, CBBA's `Bids.out`); a string without a reason is no statement, and skipped.
+    They come from the bus: the first MAX_OUT only, their names escaped and cut (untrusted.py),
+    so a forged message can neither swell a summary nor write to its reader's terminal."""
+    said = [o.split(":", 1) for o in out if ":" in o][:MAX_OUT]
+    return tuple((visible(robot, 40), visible(reason, 40)) for robot, reason in said)
 
 
 @dataclass(frozen=True)

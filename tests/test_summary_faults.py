@@ -103,3 +103,24 @@ def test_a_process_that_ended_before_the_run_did_marks_its_loss_or_adds_one():
         "a process of the run ended before the run did (dispatcher killed by SIGKILL at 12 s); "
         "a process of the run was stopped or cut off (robot2 lost its token at 3 s, back at "
         "4 s): the run is not what its seed gives")
+
+
+def test_names_from_the_bus_are_printed_as_they_are_never_read_as_markup():
+    """A Round's `out` (`[/bold]:stalled`), a stranger's token, a refusal's sender: each comes
+    from the bus, and rich read "[/bold]" as a closing tag — MarkupError after the run, no
+    summary printed."""
+    s = summary(strangers=["[/bold]"], refused=[
+        summary_module.Refusal("robot1", "[/red]", "bids", "stamp_ahead", 1, True)],
+        decisions=Decisions(1, 1.0, 1.0, "minsum", declared=[
+            Declared("[/x]", "stalled", 1.0, None, "robot1")]))
+    text = printed(s)
+    assert "robot1 declared [/x] stalled at 1 s" in text
+    assert "[/bold]" in text and "of [/red]: stamp_ahead" in text
+
+
+def test_a_messages_out_list_is_read_bounded_and_escaped():
+    from mrta_zenoh.architectures import MAX_OUT, declared_out
+    assert declared_out(("robot2:stalled", "nothing", "\x1b[2J:silent")) == (
+        ("robot2", "stalled"), ("\\x1b[2J", "silent"))
+    assert len(declared_out([f"robot{i}:stalled" for i in range(10_000)])) == MAX_OUT
+

@@ -282,6 +282,9 @@ def work_over(metrics: dict) -> str:
 
 def print_summary(console: Console, s: Summary, title: str, arch_title: str,
                   extra: list[str]) -> None:
+    # nothing read as rich markup: names come from the bus (a Round's `out`, a stranger's
+    # token, a refusal's sender), and one "[/bold]" in a forged message raised MarkupError here,
+    # after the run, instead of a summary (issue 51, hostile probe)
     # what the simulator ran (the recording's end), and when the work was over — the headline
     # said the last completion was "simulated" while the run went on past it (issue 51)
     ran = s.recorded_until if s.recorded_until is not None else s.ended_at
@@ -292,14 +295,14 @@ def print_summary(console: Console, s: Summary, title: str, arch_title: str,
                        f"{s.speed or 'max'} in {s.wall_seconds:.0f} s", style="bold"))
     for rid, spans in s.who_did_what.items():
         txt = ", ".join(f"{x.task} {x.start:.1f}–{x.end:.1f} s" for x in spans) or "idle"
-        console.print(f"  {rid}: {txt}", highlight=False)
+        console.print(f"  {rid}: {txt}", highlight=False, markup=False)
     for f in ([s.failure] if s.failure else []) + s.other_failures:
-        console.print(f"  {failure_line(f)}", highlight=False)
+        console.print(f"  {failure_line(f)}", highlight=False, markup=False)
     for task, c in s.coverage.items():
         console.print(f"  {task}: exactly one robot {c.exactly_one:.0%}, none {c.none:.0%}, "
-                      f"more than one {c.more_than_one:.0%}", highlight=False)
+                      f"more than one {c.more_than_one:.0%}", highlight=False, markup=False)
     for line in extra:
-        console.print(f"  {line}", highlight=False)
+        console.print(f"  {line}", highlight=False, markup=False)
     d = s.decisions
     if d is not None and d.count:
         # an architecture that optimises a score of its own (CBBA: discounted rewards) made
@@ -309,25 +312,26 @@ def print_summary(console: Console, s: Summary, title: str, arch_title: str,
                "for its own score, none of the objectives the run is measured on")
         console.print(f"  {plural(d.count, 'allocation decision')} ({aim}): "
                       f"computation median {d.median_ms:g} ms, max {d.max_ms:g} ms",
-                      highlight=False)
+                      highlight=False, markup=False)
     for x in (d.declared if d is not None else ()):
         back = "" if x.until is None else f", back in the plan at {x.until:g} s"
         console.print(f"  {x.by or 'the decider'} declared {x.robot} {x.reason} at {x.at:g} s"
-                      f"{back}" + (" (to the end)" if x.until is None else ""), highlight=False)
+                      f"{back}" + (" (to the end)" if x.until is None else ""), highlight=False, markup=False)
     if s.fault_effects:
         said = ", ".join(f"{n} {_EFFECT_WORDS[c]}" for c, n in s.fault_effects.items() if n)
         console.print(f"  injected faults: {s.faults}; coordination messages {said}",
-                      highlight=False)
+                      highlight=False, markup=False)
     for line in refused_lines(s):
-        console.print(f"  {line}", highlight=False)
+        console.print(f"  {line}", highlight=False, markup=False)
     problem = run_problem(s)
     if s.interrupted is not None:
-        console.print(f"  INTERRUPTED: {problem}", style="yellow", highlight=False)
+        console.print(f"  INTERRUPTED: {problem}", style="yellow", highlight=False,
+                      markup=False)
     elif problem is not None:
         console.print(f"  NOT EXACT: {problem}" + ("; this run may not replay"
                                                     if s.run_status == COMPLETE else ""),
-                      style="yellow", highlight=False)
-    console.print(f"  files in {s.output}: {files_line(s.files)}", highlight=False)
+                      style="yellow", highlight=False, markup=False)
+    console.print(f"  files in {s.output}: {files_line(s.files)}", highlight=False, markup=False)
 
 
 def files_line(files: list[str], most: int = 3) -> str:
