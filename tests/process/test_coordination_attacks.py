@@ -13,7 +13,8 @@ traffic in the summary" (≈ 10–14 CPU-s each). Central's `Progress` and SSI's
 their rules are proved in-process (tests/test_central_trust.py, tests/test_believed_claims.py),
 the path from a refusal to the summary is the same, and central and SSI run across processes in
 CI elsewhere (test_golden_summaries[central-stall], test_windows_multiprocess[ssi]); a stranger's
-lockstep token is `slow` too."""
+lockstep token, a forged token under a crashed member's name (lockstep/ended.py) and MURDOCH's
+forged earlier claim (tests/test_murdoch_trust.py) are `slow` too."""
 
 from __future__ import annotations
 
@@ -106,18 +107,39 @@ def test_a_token_under_a_crashed_members_name_does_not_stall_the_run(children, t
     robot2 is not waited for (nobody is given up), and the summary names the token that
     outlived its process as forged: the run is disturbed (and so not called exact) by the
     forgery, not by a stall."""
-    out = tmp_path / "run"
-    demo = children.mrta("demo", "--application", "delivery", "--speed", "0", "--no-live",
-                         "--no-plots", "--duration", "60", "--fail", "crash:robot2@20",
-                         "--output", str(out), name="demo")
+    demo = children.demo(tmp_path / "run", "--application", "delivery", "--no-plots",
+                         "--duration", "60", "--fail", "crash:robot2@20")
     line = demo.wait_stderr(lambda s: "processes meet at" in s, 120)
     rendezvous = re.search(r"tcp/127\.0\.0\.1:\d+", line).group(0)
     forger = children.python("coordination_forger.py", "participant", "robot2", rendezvous,
                              name="forger")
     forger.wait_json(lambda o: "forged" in o, 120)
-    demo.wait(240)
-    s = json.loads((out / "summary.json").read_text())
+    s = demo.summary(240)
     assert s["lockstep_given_up"] == 0, (s["lockstep_given_up"], s["disturbances"])
     refused = {(r["receiver"], r["sender"], r["reason"], r["forged"]) for r in s["refused"]}
     assert ("simulator", "robot2", "outlived_process", True) in refused, refused
     assert s["run_status"] == "disturbed"
+
+
+@pytest.mark.slow
+@pytest.mark.timeout(300)
+def test_one_forged_murdoch_claim_with_an_earlier_start_displaces_no_holder(children, tmp_path):
+    """A Claim copied from the first holder's, said once under another robot's key with a
+    start one second earlier: the holder yielded its task to it, and the task waited for the
+    forged 20 s lease. A claim heard once is no contract now: the holder keeps the task, and
+    counts the claim that lapsed unrenewed (tests/test_murdoch_trust.py: the rule in process)."""
+    demo = children.demo(tmp_path / "run", "--application", "delivery", "--architecture",
+                         "murdoch", "--speed", "1", "--no-plots", "--duration", "60")
+    line = demo.wait_stderr(lambda s: "processes meet at" in s, 120)
+    rendezvous = re.search(r"tcp/127\.0\.0\.1:\d+", line).group(0)
+    forger = children.python("coordination_forger.py", "murdoch-claim", "-", rendezvous,
+                             name="forger")
+    who = forger.wait_json(lambda o: "holder" in o, 120)
+    forger.wait_json(lambda o: "forged" in o, 60)
+    s = demo.summary(240)
+    assert s["metrics"]["completed"] == s["metrics"]["tasks"], s["metrics"]
+    refused = {(r["receiver"], r["sender"], r["reason"]) for r in s["refused"]}
+    assert (who["holder"], who["as"], "claim_not_renewed") in refused, refused
+    served = [x["task"] for x in s["who_did_what"][who["holder"]]]
+    assert served.count(who["task"]) == 1, s["who_did_what"]
+

@@ -16,6 +16,9 @@ fleet a certified robot's config (FLEET/robot2.json5: it forges under its own ke
                           at that time, after everything its sender said before: not
                           superseded)
   cbba-done-all   N       the same, every task of 0…N-1 done (what it won too)
+  murdoch-claim   -       a MURDOCH `Claim` copied from the first one heard (holder H, task T,
+                          since S), said once under another robot's key with since S − 1 and a
+                          20 s lease (H yielded T to it, and T waited for the forged lease)
   participant     NAME    a stranger's lockstep participant token under NAME, held until the
                           forger is ended (it was waited for, given up, and made the run
                           inexact: issue 51.3)
@@ -50,7 +53,8 @@ SOURCES = {"central-served": ("robot2/central/progress", "route_msgs/Progress"),
            "ssi-served": ("robot2/ssi/bid/*", "ssi_msgs/Bid"),
            "cbba-done": ("robot2/cbba/bids", "cbba_msgs/Bids"),
            "cbba-done-all": ("robot2/cbba/bids", "cbba_msgs/Bids"),
-           "delivery-done": ("clock", "")}
+           "delivery-done": ("clock", ""),
+           "murdoch-claim": ("*/murdoch/claim", "murdoch_msgs/Claim")}
 key, type_name = SOURCES[mode]
 if mode == "delivery-done":  # nothing to copy: said once the run's clock has gone 2 s
     key, type_name = f"{arg}/delivery/done", "delivery_msgs/TaskEvent"
@@ -97,6 +101,13 @@ if mode == "central-served":
 elif mode == "ssi-served":
     msg["served"] = list(range(int(arg)))
     key = keys[0]  # robot2/ssi/bid/<its auctioneer>
+elif mode == "murdoch-claim":
+    holder = msg["header"]["frame_id"]
+    other = "robot5" if holder != "robot5" else "robot4"
+    msg["header"]["frame_id"] = other
+    msg["since"], msg["lease"] = msg["since"] - 1.0, 20.0
+    key = f"{other}/murdoch/claim"
+    print(json.dumps({"holder": holder, "task": msg["task_id"], "as": other}), flush=True)
 elif mode == "ssi-round":
     msg["round"] = 2 ** 62
     msg["owners"] = [-1] * len(msg["owners"])
