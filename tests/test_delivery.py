@@ -73,7 +73,10 @@ def test_task_open_follows_arrival_capability_completion_and_sensors():
     done(other, "robot4", "t2", frame="robot3")  # on robot4's key claiming robot3: dropped
     assert ev.is_applicable(7.5) and ev.board.rejected == 1
     served(other, "robot4", "t2", 14.0)  # robot4 reaches t2 (8.1 m at 0.6 m/s) at 13.4 s
-    assert not ev.is_applicable(7.5)          # a teammate delivered it
+    at = 14.0 + PARAMS.tasks["t2"].service
+    odom.on_message(Odometry(Header("robot2", at, 3), Pose2D(0, 0, 0), Twist(0, 0)), at)
+    # a teammate delivered it: from the tick after its `done`'s instant, in every layout
+    assert ev.is_applicable(at) and not ev.is_applicable(at + 0.1)
     # capabilities: robot2 has no lift, so t1 is never applicable to it
     ev1, _ = evaluator("t1", "robot2", net, clock)
     assert not ev1.is_applicable(1.0)
@@ -102,7 +105,7 @@ def test_a_done_from_a_robot_that_never_moved_is_not_believed():
     done(forger, "robot4", "t4", t=12.0)
     assert ev.is_applicable(12.0)
     done(forger, "robot4", "t4", t=9.0, event="started")  # 5.4 m at 0.6 m/s: 9.0 s at best
-    assert not ev.is_applicable(12.0) and ev.board.done["t4"] == ("robot4", 12.0)
+    assert not ev.is_applicable(12.1) and ev.board.done["t4"] == ("robot4", 12.0)
     assert ("task_event", "robot4", "done_not_started", True) not in source()
 
 
@@ -140,7 +143,7 @@ def test_deliver_drives_to_its_task_serves_it_and_tells_the_team(monkeypatch):
     assert finished == pytest.approx(started + PARAMS.task("t4").service, abs=0.11)
     x, y = sim.pose[0][0], sim.pose[0][1]
     assert math.hypot(x - 0.0, y + 0.5) < 0.6
-    assert run.layer.board.is_done("t4")
+    assert run.layer.board.is_done("t4", finished)
     run.close()
 
 

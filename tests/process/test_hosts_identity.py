@@ -46,20 +46,15 @@ def test_a_hosted_crash_gives_the_summary_of_a_process_crash(children, tmp_path)
 
 
 # range:R: MURDOCH, seed 3, range:4 ended task t4's allocation at 14.9 s in some runs and 15.0 s
-# in others. One race was found and fixed — a range judged on receipt could meet the receiver's
-# ground truths a step behind from another process, never in a host; it is judged at the tick
-# now (faults.FaultInjector.cut). What is left is not the host's: on 2026-12-07 (load 20-30)
-# two hosted runs agreed with each other and with one run of one process per robot, while two
-# runs of one process per robot disagreed with each other (allocation[4].ended_at 14.9 / 15.0,
-# t4's coverage by 0.004), with the same 264 messages dropped out of range in all four — so
-# one process per robot is not yet reproducible under range:4 here, and the xfail is about
-# that layout; not yet traced further (the allocation's end comes from the recorded reports)
+# in others. Two races, both fixed: a range judged on receipt could meet the receiver's ground
+# truths a step behind (judged at the tick now: faults.FaultInjector.cut); and robot2's `done` of
+# t4 stamped 11.9 reached robot5 — holding t4 too — before its tick at 11.9 in a host (robot2
+# ticks first, and its own samples are handed over at once) but only sometimes from another
+# process, so robot5's stall of t4 began at 11.9 or 12.0 and its release came 3 s later. A
+# teammate's `done` now counts from the tick after its instant (delivery's board.Board.is_done),
+# as a cancellation does: t4 ends at 15.0 s in both layouts (one pair, 2026-12-08)
 FAULTS = ["none", "robot2@10", "stall:robot2@8", "partition:robot2@8+6", "loss:0.3",
-          "latency:0.3±0.1",
-          pytest.param("range:4", marks=pytest.mark.xfail(
-              reason="MURDOCH under range:4: one process per robot does not yet reproduce "
-                     "itself (t4's allocation ends at 14.9 or 15.0 s from run to run); the "
-                     "hosted runs agreed", strict=False))]
+          "latency:0.3±0.1", "range:4"]
 
 
 @pytest.mark.slow

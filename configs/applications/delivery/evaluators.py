@@ -57,12 +57,12 @@ class TaskOpen(SensoryEvaluator):
         teammate (its done believed by the board): a route-serving robot leaves it — the
         teammate may have served it cut off from whoever plans the routes (issue 51.2)."""
         return self.board.is_cancelled(self.task_id, now) or self.is_expired(now) \
-            or self.board.done_by_teammate(self.task_id)
+            or self.board.done_by_teammate(self.task_id, now)
 
     def is_applicable(self, now: float) -> bool:
         return (not self.is_expired(now) and self.capable and now >= self.arrival - EPSILON
                 and all(s.latest_time is None or s.is_up_to_date(now) for s in self.sensors)
-                and not self.board.is_done(self.task_id)
+                and not self.board.is_done(self.task_id, now)
                 and not self.board.is_cancelled(self.task_id, now)
                 and (self.cap is None or self.board.delivered_by(self.ctx.robot_id) < self.cap))
 

@@ -84,7 +84,7 @@ class Deliver(Layer):
         return odometry_pose(self.ctx, now)
 
     def step(self, now: float, dt: float) -> None:
-        if self.finished or self.board.is_done(self.task_id):
+        if self.finished or self.board.is_done(self.task_id, now):
             self.ctx.publish_cmd(0.0, 0.0)
             return
         if self.serving_since is not None:
