@@ -235,3 +235,18 @@ def test_no_picture_of_nothing_an_empty_takeover_or_a_constant_column(tmp_path):
     assert not (folder / "takeover.png").exists()
     assert not list(folder.glob("profile_metrics.completed*.png"))  # 4 in every run
     assert (folder / "profile_metrics.makespan.png").stat().st_size > 5_000
+
+
+def test_the_verb_prints_the_overview_and_names_the_rest_of_summary_md(tmp_path):
+    """`mrta experiment` and `report` printed the whole summary.md (≈ 600 lines for the study:
+    issue 51, the newcomer's list): now its title, lead and Overview, then where the rest is."""
+    folder = write(tmp_path / "r", rows())
+    result = report(folder, "--baseline", "murdoch", "--no-plots")
+    assert result.exit_code == 0, result.output
+    whole = (folder / "summary.md").read_text()
+    sections = [line[3:] for line in whole.splitlines() if line.startswith("## ")]
+    assert sections[0] == "Overview" and len(sections) >= 3
+    printed = result.output.rstrip()
+    assert printed.startswith(whole[:whole.index("\n## ", whole.index("## Overview"))].rstrip())
+    assert printed.endswith(f"In {folder / 'summary.md'} besides: {', '.join(sections[1:])}.")
+    assert "## " + sections[1] not in printed and len(printed) < len(whole) / 2

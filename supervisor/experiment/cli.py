@@ -3,7 +3,8 @@ mrta_supervisor.experiment.api (the runs) and mrta_supervisor.experiment.report_
 
 `experiment` is a group whose default command runs a file, so both spellings work: a first
 argument that is not `report` (nor `run`, nor --help) is a file to run. Progress goes to
-stderr, so stdout holds only the result (the summary a script reads): on a terminal a live bar
+stderr, so stdout holds only the result (the summary's Overview a script reads, and which
+sections summary.md holds besides): on a terminal a live bar
 whose total is known from the start (it grows with each block of --until-ci); into a pipe or a
 file one line per finished run, `[3/10] run002 ok, 12.4 s` — the count of runs done, then the
 run's own name, the one its folder and results.csv's `run` column carry; nothing with `-q`.
@@ -227,7 +228,7 @@ def run(file: Path, output: Path, jobs: int | None, scheduler: str | None,
     click.echo(f"{plural(len(rows), 'run')} ({failed} failed): {output / 'results.csv'}, "
                f"{output / 'summary.md'}, {output / 'cells.csv'}, "
                f"{output / 'comparisons.csv'}")
-    click.echo((output / "summary.md").read_text())
+    click.echo(overview(output / "summary.md"))
     if failed:  # a sweep with holes is not a result: say so to scripts and CI (exit 1)
         raise MrtaRuntimeError(f"{failed} of {plural(len(rows), 'run')} failed: "
                                f"see {output / 'summary.md'}")
@@ -275,4 +276,15 @@ def report(results: tuple[Path, ...], output: Path | None, baseline: str | None,
             prepare_output(output)
     where = output or folders[0]
     write_report(source, output, Options(baseline=baseline, metrics=metrics, plots=plots))
-    click.echo((where / "summary.md").read_text())
+    click.echo(overview(where / "summary.md"))
+
+
+def overview(summary: Path) -> str:
+    """What the verbs print of `summary`: its title, its lead and its Overview table, then
+    which sections the file holds besides — the whole file, ≈ 600 lines for the study, buried
+    the table a reader wanted (issue 51, the newcomer's list)."""
+    parts = summary.read_text().rstrip().split("\n## ")
+    if len(parts) <= 2:
+        return "\n## ".join(parts)
+    rest = ", ".join(p.split("\n", 1)[0].strip() for p in parts[2:])
+    return "\n## ".join(parts[:2]).rstrip() + f"\n\nIn {summary} besides: {rest}."
