@@ -130,6 +130,9 @@ def list_tasks(as_json: bool, name: str, timeout: float, bus_options: BusOptions
     if as_json:
         click.echo(json.dumps(tasks))
         return
+    if not tasks:  # said, not left blank: an empty answer reads as a verb that did nothing
+        click.echo("no task submitted to this run yet (its instance's own tasks are not "
+                   "listed: `mrta supervise` shows every task)")
     for t in tasks:
         state = f"cancelled at {t['cancelled_at']:.2f} s" if t.get("cancelled_at") is not None \
             else "in the run"
