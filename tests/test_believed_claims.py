@@ -84,6 +84,21 @@ def test_a_round_the_auctioneer_never_sent_does_not_empty_the_paths_once_the_auc
         assert refused([team.logics["r1"]], ROUND_NOT_SENT) == 2
 
 
+def test_a_bids_computation_time_counts_at_most_the_wall_time_since_its_round_went_out():
+    """A bidder measures its own bid, and the slowest bid is the round's decision time: a
+    forged Bid saying 1e300 ms made it the run's. Believed up to the auctioneer's wall time
+    since it sent the round."""
+    wall = [100.0]
+    s = Ssi(LINE, "r1", timer=lambda: wall[0])
+    s.teammate("r2", True)
+    s.tick(0.0)  # r1 leads: round 1 goes out at wall 100.0
+    wall[0] = 100.5
+    assert s.hear("bid", "r2", Bid(Header("r2", 0.1, 1), "r1", s.round, 0, 1.0, (), 1e300), 0.1)
+    assert s.bid_ms[1] == 500.0
+    assert s.hear("bid", "r2", Bid(Header("r2", 0.1, 2), "r1", s.round, 0, 1.0, (), 20.0), 0.1)
+    assert s.bid_ms[1] == 20.0
+
+
 def test_a_bid_reporting_every_task_served_counts_only_for_the_tasks_its_bidder_held():
     team = ssi_team()
     team.run()

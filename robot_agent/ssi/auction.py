@@ -157,6 +157,7 @@ class Ssi(RouteLogic):
         self.out_said: tuple[str, ...] = ()  # who the last Round said it leaves out (`out`)
         self.seen: int | None = None  # the digest of the Round adopted last (Bid.seen)
         self.said: tuple[int, set[int]] = (0, set())  # the round led, the digests it sent
+        self.round_wall = -math.inf  # the wall time (`timer`) it first sent that round
         self.refused: collections.Counter[tuple[str, str, str, bool]] = collections.Counter()
         # tasks submitted at run time (tasks_added): their indices follow the instance's; a
         # task's priority when not 0 (higher first: `best_bid`, the award, `places`)
@@ -299,7 +300,9 @@ class Ssi(RouteLogic):
             self.lagging = True  # it missed the current Round: send it again
         else:
             self.bids[k] = (msg.task, msg.cost)
-            self.bid_ms[k] = msg.ms
+            # a bidder's own measurement, believed up to the wall time since the round went
+            # out (a forged 1e300 became the run's decision time)
+            self.bid_ms[k] = min(msg.ms, (self.timer() - self.round_wall) * 1000.0)
         return True
 
     def served(self, task_id: str, at: float) -> None:
@@ -451,7 +454,7 @@ class Ssi(RouteLogic):
         self.last_round, self.out_said = now, out
         last = self.awards[-1] if self.awards and self.awards[-1].round == self.round else None
         if self.said[0] != self.round:
-            self.said = (self.round, set())
+            self.said, self.round_wall = (self.round, set()), self.timer()
         self.said[1].add(digest(self.owners))
         return [Say("round", dict(round=self.round, owners=tuple(self.owners),
                                   award=last.task if last else -1,
