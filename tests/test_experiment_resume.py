@@ -87,6 +87,20 @@ def test_results_csv_alone_resumes_and_a_torn_last_line_runs_again(tmp_path, mis
     assert (out / "experiment.json").is_file()
 
 
+def test_a_folder_stopped_before_its_first_row_resumes_every_run(tmp_path, missions):
+    """Stopped before any run ended (a study's next file, Ctrl-C'd at its start): no
+    results.csv is left, and a blank one (what such a stop once left, the header of no
+    column) resumes as no row instead of being refused as a table without a header."""
+    whole = uninterrupted(tmp_path)
+    out = interrupted(tmp_path, after=0)
+    assert not (out / "results.csv").exists()
+    (out / "results.csv").write_bytes(b"\r\n")
+    missions.clear()
+    experiment.run_experiment(file=exp_file(tmp_path, SEEDS), output=out, jobs=1, plots=False)
+    assert sorted(i for i, _, _ in missions) == list(range(6))
+    assert same(rows(out)) == same(whole)
+
+
 def listing(folder: Path) -> dict[str, tuple[int, int]]:
     return {str(p.relative_to(folder)): (p.stat().st_size, p.stat().st_mtime_ns)
             for p in sorted(folder.rglob("*"))}

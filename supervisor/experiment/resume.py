@@ -160,8 +160,8 @@ def done_rows(folder: Path, runs: list[Run], total: int) -> list[dict[str, str]]
     matrix are --until-ci's blocks, checked when their block is made (`check_block`). A torn
     last line is dropped."""
     path = folder / RESULTS
-    if not path.is_file() or path.stat().st_size == 0:
-        return []
+    if not path.is_file() or not path.read_bytes().strip():
+        return []  # also the blank file an experiment stopped before its first row once left
     table = read_results(path, torn=True)
     if "run" not in table.columns or "config" not in table.columns:
         raise ConfigError("results.csv without the run and config columns cannot be resumed",

@@ -240,7 +240,10 @@ class Results:
         return row
 
     def finish(self) -> list[dict]:
-        """The rows in run order, results.csv rewritten in that order."""
+        """The rows in run order, results.csv rewritten in that order; with no row (stopped
+        before the first run ended) no results.csv: a header-less file is not a table, and
+        resuming from it would be refused."""
         self.rows.sort(key=lambda r: int(r["run"]))
-        write_csv(self.path, self.rows, [])
+        if self.rows:
+            write_csv(self.path, self.rows, [])
         return self.rows
