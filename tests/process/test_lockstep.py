@@ -130,9 +130,10 @@ print(",".join(sorted(m for m in sys.modules if m.startswith("mrta_zenoh.lockste
     ("mrta_agent.runtime.host, mrta_agent.alliance.cli", "robot", "LOCKSTEP",
      "mrta_zenoh.lockstep.books,mrta_zenoh.lockstep.participant,mrta_zenoh.lockstep.protocol,"
      "mrta_zenoh.lockstep.sequence,mrta_zenoh.lockstep.table"),
-    # observers and the access-control generator: the protocol only
+    # observers and the access-control generator: the protocol only; and the runner the file
+    # through which it tells the barrier which of its processes ended (lockstep/ended.py)
     ("mrta_supervisor.live.api, mrta_supervisor.mission.runner, mrta_zenoh.secure", "observer", "SIM",
-     "mrta_zenoh.lockstep.protocol"),
+     "mrta_zenoh.lockstep.ended,mrta_zenoh.lockstep.protocol"),
 ])
 def test_each_process_loads_only_the_lockstep_it_needs(modules, role, time, loaded):
     out = subprocess.run([sys.executable, "-c", PROBE.format(modules=modules, role=role,
