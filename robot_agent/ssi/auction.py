@@ -45,7 +45,11 @@ had nothing to repeat): each Bid now says which Round it answers (`seen`, its di
 auctioneer counts a bid for a round, or a content, it never sent (`round_not_sent`) and repeats
 its own Round until that bidder answers it — one forged Round costs at most two
 `resend_period`s. A Bid's `served` counts only for tasks the bidder held
-(owned, or was awarded); a bid for a task its bidder cannot serve, or at a negative cost, is
+(owned, or was awarded — or shown held by a Round of another robot leading a team apart: when
+the auctioneer stood still long enough for its teammates to count it stalled, the next id led
+them, and its awards were served before they came back to this auctioneer, which never made
+them; w23's TeSSI on C109 refused 200 honest reports as forged. Shown only by the bidder's
+own Round, it is refused but not counted forged: an honest split looks the same); a bid for a task its bidder cannot serve, or at a negative cost, is
 refused whole. What is not believed is counted by kind, sender and reason (`refused`).
 
 **A robot that does not answer.** A round waits for the bids of the robots expected — but not
@@ -159,6 +163,9 @@ class Ssi(RouteLogic):
         self.said: tuple[int, set[int]] = (0, set())  # the round led, the digests it sent
         self.round_wall = -math.inf  # the wall time (`timer`) it first sent that round
         self.refused: collections.Counter[tuple[str, str, str, bool]] = collections.Counter()
+        # (robot, task) → the robots whose Rounds, not this robot's auctioneer's, showed that
+        # robot holding that task (a team apart: module docstring, "What a message is believed")
+        self.shown: dict[tuple[int, int], set[int]] = {}
         # tasks submitted at run time (tasks_added): their indices follow the instance's; a
         # task's priority when not 0 (higher first: `best_bid`, the award, `places`)
         self.base = len(problem.tasks)
@@ -252,6 +259,9 @@ class Ssi(RouteLogic):
                 msg, owners=tuple(msg.owners) + (UNKNOWN,) * (n_tasks - len(msg.owners)))
         if k != self.auctioneer():
             self.refused[("round", sender, NOT_AUCTIONEER, False)] += 1
+            for j, w in enumerate(msg.owners):  # who it shows holding what (module docstring)
+                if w >= 0:
+                    self.shown.setdefault((w, j), set()).add(k)
             return True  # not (or no longer) the auctioneer this robot follows
         behind = k == self.round_from and msg.round < self.round
         if behind or msg.round > self.round + ROUND_JUMP:
@@ -283,10 +293,11 @@ class Ssi(RouteLogic):
         self.answered[k] = heard
         held = {a.task for a in self.awards if a.robot == k}
         for j in msg.served:
-            if self.owners[j] in (k, DONE) or j in held:
+            shown = self.shown.get((k, j), set())  # by Rounds of a team apart (docstring)
+            if self.owners[j] in (k, DONE) or j in held or shown - {k}:
                 self.reported.add(j)
             else:
-                self.refused[("bid", sender, NOT_HELD, True)] += 1
+                self.refused[("bid", sender, NOT_HELD, not shown)] += 1
         if not self.leading:
             return True
         if msg.round > self.round or (msg.round == self.round and msg.seen is not None
