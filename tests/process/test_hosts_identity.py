@@ -30,7 +30,10 @@ def check_identity(children, tmp_path, architecture, fail, k=5):
     one = run(children, tmp_path / "k1", architecture, fail, 1)
     hosted = run(children, tmp_path / f"k{k}", architecture, fail, k)
     assert (tmp_path / f"k{k}" / "hosts" / "host1.yaml").exists()  # it did run in hosts
-    assert hosted["run_status"] == "complete" and hosted["lockstep_exact"] is True
+    # both exact first: a baseline disturbed by a starved machine is named as such, not
+    # reported as a difference the hosts made
+    for name, summary in (("one process per robot", one), (f"{k} robots a host", hosted)):
+        assert (summary["run_status"], summary["lockstep_exact"]) == ("complete", True), name
     # the bus's whole count within a sample per robot: each robot's last unstamped command may
     # fall either side of the recording's end, in either layout (compare.py)
     assert run_differences(one, hosted) == []
