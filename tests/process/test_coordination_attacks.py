@@ -27,13 +27,19 @@ pytestmark = [pytest.mark.multiprocess]
 TASKS = "t1,t2,t3,t4"
 
 
+def forger_beside(children, demo, mode: str, arg: str, name: str = "forger"):
+    """tests/procs/coordination_forger.py started on the demo's rendezvous once its processes
+    meet (the line that names it): the forger, not yet waited for."""
+    line = demo.wait_stderr(lambda s: "processes meet at" in s, 120)
+    rendezvous = re.search(r"tcp/127\.0\.0\.1:\d+", line).group(0)
+    return children.python("coordination_forger.py", mode, arg, rendezvous, name=name)
+
+
 def attacked_demo(children, tmp_path, arch: str, mode: str, arg: str) -> dict:
     out = tmp_path / arch
     demo = children.demo(out, "--application", "delivery", "--architecture", arch, "--duration",
                          "60", "--no-plots")
-    line = demo.wait_stderr(lambda s: "processes meet at" in s, 120)
-    rendezvous = re.search(r"tcp/127\.0\.0\.1:\d+", line).group(0)
-    forger = children.python("coordination_forger.py", mode, arg, rendezvous, name="forger")
+    forger = forger_beside(children, demo, mode, arg)
     forger.wait_json(lambda o: "forged" in o, 120)
     summary = demo.summary(300)
     assert summary["metrics"]["completed"] == summary["metrics"]["tasks"], summary["metrics"]
@@ -85,10 +91,7 @@ def test_a_strangers_lockstep_token_is_named_and_neither_waited_for_nor_making_i
     dropped from its statistics. The summary names it apart."""
     out = tmp_path / "run"
     demo = children.demo(out, "--application", "delivery", "--no-plots")
-    line = demo.wait_stderr(lambda s: "processes meet at" in s, 120)
-    rendezvous = re.search(r"tcp/127\.0\.0\.1:\d+", line).group(0)
-    stranger = children.python("coordination_forger.py", "participant", "intruder", rendezvous,
-                               name="stranger")
+    stranger = forger_beside(children, demo, "participant", "intruder", name="stranger")
     stranger.wait_json(lambda o: "forged" in o, 120)
     s = demo.summary(240)
     assert s["strangers"] == ["intruder"], s.get("strangers")
@@ -109,10 +112,7 @@ def test_a_token_under_a_crashed_members_name_does_not_stall_the_run(children, t
     forgery, not by a stall."""
     demo = children.demo(tmp_path / "run", "--application", "delivery", "--no-plots",
                          "--duration", "60", "--fail", "crash:robot2@20")
-    line = demo.wait_stderr(lambda s: "processes meet at" in s, 120)
-    rendezvous = re.search(r"tcp/127\.0\.0\.1:\d+", line).group(0)
-    forger = children.python("coordination_forger.py", "participant", "robot2", rendezvous,
-                             name="forger")
+    forger = forger_beside(children, demo, "participant", "robot2")
     forger.wait_json(lambda o: "forged" in o, 120)
     s = demo.summary(240)
     assert s["lockstep_given_up"] == 0, (s["lockstep_given_up"], s["disturbances"])
@@ -130,10 +130,7 @@ def test_one_forged_murdoch_claim_with_an_earlier_start_displaces_no_holder(chil
     counts the claim that lapsed unrenewed (tests/test_murdoch_trust.py: the rule in process)."""
     demo = children.demo(tmp_path / "run", "--application", "delivery", "--architecture",
                          "murdoch", "--speed", "1", "--no-plots", "--duration", "60")
-    line = demo.wait_stderr(lambda s: "processes meet at" in s, 120)
-    rendezvous = re.search(r"tcp/127\.0\.0\.1:\d+", line).group(0)
-    forger = children.python("coordination_forger.py", "murdoch-claim", "-", rendezvous,
-                             name="forger")
+    forger = forger_beside(children, demo, "murdoch-claim", "-")
     who = forger.wait_json(lambda o: "holder" in o, 120)
     forger.wait_json(lambda o: "forged" in o, 60)
     s = demo.summary(240)
